@@ -1,0 +1,75 @@
+"""Run benchmarks and write one JSON file per benchmark under ``benchmarks/results/``.
+
+Each ``benchmarks/bench_<name>.py`` defines ``run(data: Path | None) -> dict``: it measures
+(medians or ratios over repeated runs, never one timing), and returns JSON-able results
+including its targets and whether they were met. This runner adds the machine's description
+and writes ``benchmarks/results/<name>.json`` atomically.
+
+    python -m benchmarks [--data ../shared/data/gelfabric] [--only NAME ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+from lookfeel.atomic import atomic_write_text
+
+HERE = Path(__file__).resolve().parent
+
+
+def machine() -> dict[str, object]:
+    """What the numbers were measured on."""
+    return {
+        "python": platform.python_version(),
+        "torch": torch.__version__,
+        "cpus": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "processor": platform.processor() or platform.machine(),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    parser.add_argument("--data", type=Path, default=None, help="real GelFabric root, if any")
+    parser.add_argument("--only", nargs="*", default=None, help="benchmark names to run")
+    parser.add_argument("--out", type=Path, default=HERE / "results")
+    args = parser.parse_args(argv)
+    data = args.data if args.data is not None and args.data.is_dir() else None
+    names = sorted(p.stem[len("bench_") :] for p in HERE.glob("bench_*.py"))
+    if args.only:
+        unknown = sorted(set(args.only) - set(names))
+        if unknown:
+            parser.error(f"unknown benchmark(s) {', '.join(unknown)}; have: {', '.join(names)}")
+        names = [n for n in names if n in args.only]
+    failed = 0
+    for name in names:
+        module = importlib.import_module(f"benchmarks.bench_{name}")
+        print(f"== {name}", flush=True)
+        started = time.time()
+        result = module.run(data)
+        result = {
+            "benchmark": name,
+            "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "seconds": round(time.time() - started, 2),
+            "machine": machine(),
+            **result,
+        }
+        path = atomic_write_text(args.out / f"{name}.json", json.dumps(result, indent=2) + "\n")
+        print(json.dumps(result, indent=2))
+        print(f"-> {path}")
+        if result.get("met") is False:
+            failed += 1
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,5 @@
+"""``python -m lookfeel`` is the ``lookfeel`` command."""
+
+from lookfeel.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,25 @@
+"""Configuration: one frozen dataclass per concern; defaults, then YAML, then ``--set`` overrides.
+
+Every config class is strict: unknown keys and wrong types raise `ConfigError` naming the key.
+"""
+
+from lookfeel.config._core import (
+    ConfigError,
+    apply_overrides,
+    from_dict,
+    load_config,
+    save_config,
+    to_dict,
+)
+from lookfeel.config.data import AugmentConfig, DataConfig
+
+__all__ = [
+    "AugmentConfig",
+    "ConfigError",
+    "DataConfig",
+    "apply_overrides",
+    "from_dict",
+    "load_config",
+    "save_config",
+    "to_dict",
+]

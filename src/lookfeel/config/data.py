@@ -1,0 +1,94 @@
+"""Data configuration: decoding, preprocessing, tuple sampling and augmentation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from lookfeel.config._core import ConfigError
+from lookfeel.modality import Modality, PressKind
+
+__all__ = ["AugmentConfig", "DataConfig"]
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Training-time augmentation of one modality's images (all seeded).
+
+    The paper (section 5.3) augments colour with a gamma in [0.5, 2.0] and a random order of
+    the RGB channels; the authors' released code also crops a random square with probability
+    0.2 (side 180-227 px of 227, resized back). Noise and flips "made little difference" there.
+    """
+
+    gamma: tuple[float, float] | None = None
+    """Range of a random gamma ``x ** g`` (log-uniform); ``None`` disables it. Paper: (0.5, 2.0)."""
+    permute_channels: bool = False
+    """Shuffle the RGB channels (paper section 5.3). Ignored for one-channel depth."""
+    crop_p: float = 0.0
+    """Probability of a random square crop, resized back to the network size."""
+    crop_scale: tuple[float, float] = (180 / 227, 1.0)
+    """Crop side as a fraction of the image side (authors' code: 180-227 px of 227)."""
+    noise_std: float = 0.0
+    """Standard deviation of additive Gaussian noise on the [0, 1] image."""
+    hflip_p: float = 0.0
+    """Probability of a left-right flip."""
+
+
+def _default_augment() -> dict[Modality, AugmentConfig]:
+    return {}
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """How images are decoded, preprocessed and grouped into training tuples."""
+
+    image_size: int = 227
+    """Side of the square network input in pixels (AlexNet: 227)."""
+    depth_min_mm: float = 800.0
+    """Depth mapped to 0; the authors' code maps ``clip((d - 800) / 500, 0, 1)``."""
+    depth_range_mm: float = 500.0
+    """Depth span mapped onto [0, 1]."""
+    depth_holes: str = "nearest"
+    """Pixels with no reading (0 mm): ``nearest`` fills each from the nearest valid pixel;
+    ``clip`` keeps the authors' behaviour (0 mm is below the range, so it maps to 0)."""
+    color_crop: str = "none"
+    """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
+    touch_crop: str = "auto"
+    """``auto`` crops the central 720x720 of 960x720 GelSight frames (authors' code) and leaves
+    other sizes (GelSight Mini, DIGIT) whole; ``center`` always crops the central square;
+    ``none`` never crops."""
+    touch_frame: int = -2
+    """Which frame of a press is "the" image: an index into its ordered frames; negative
+    counts from the end (authors' code: -2, the second-to-last). Clamped for short presses."""
+    touch_kinds: tuple[PressKind, ...] = (PressKind.FOLD,)
+    """Press kinds used for training and evaluation (the paper's 'Flat' model uses flat)."""
+    presses: int = 1
+    """Presses of one fabric per touch input, pooled by the Multi-input Net (paper: 3)."""
+    same_fraction: float = 0.5
+    """Fraction of training tuples drawn from one fabric (Y = 0); the rest are Y = 1."""
+    augment: dict[Modality, AugmentConfig] = field(default_factory=_default_augment)
+    """Augmentation per modality; modalities not listed are not augmented."""
+    cache_dir: str | None = None
+    """Optional on-disk cache of preprocessed images, keyed by file content and settings."""
+    workers: int = 2
+    """Threads used to decode and preprocess images."""
+
+    def __post_init__(self) -> None:
+        if self.image_size < 8:
+            raise ConfigError(f"data.image_size: must be >= 8, got {self.image_size}")
+        if self.depth_range_mm <= 0:
+            raise ConfigError(f"data.depth_range_mm: must be > 0, got {self.depth_range_mm}")
+        for key, value, allowed in (
+            ("depth_holes", self.depth_holes, ("nearest", "clip")),
+            ("color_crop", self.color_crop, ("none", "center")),
+            ("touch_crop", self.touch_crop, ("auto", "center", "none")),
+        ):
+            if value not in allowed:
+                raise ConfigError(f"data.{key}: {value!r} is not one of {', '.join(allowed)}")
+        if self.presses < 1:
+            raise ConfigError(f"data.presses: must be >= 1, got {self.presses}")
+        if not 0.0 <= self.same_fraction <= 1.0:
+            raise ConfigError(f"data.same_fraction: must be in [0, 1], got {self.same_fraction}")
+        if not self.touch_kinds:
+            raise ConfigError("data.touch_kinds: at least one press kind is needed")
+        if self.workers < 1:
+            raise ConfigError(f"data.workers: must be >= 1, got {self.workers}")
