@@ -1,0 +1,265 @@
+"""The dataset as plain records: fabrics, their labels and clusters, and per modality its items.
+
+A `Catalog` is what `scan` builds from files on disk and what splits, samplers and datasets
+take. It is immutable and cheap: it holds paths and labels, never pixels.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.modality import Modality, PressKind
+
+__all__ = ["PHYSICAL_LABELS", "Catalog", "Fabric", "Item"]
+
+PHYSICAL_LABELS = ("thickness_mm", "density", "stiffness", "stretchiness")
+"""The paper's four human/physical labels (section 3), in its order."""
+
+
+@dataclass(frozen=True)
+class Item:
+    """One sample of one fabric in one modality.
+
+    A depth or colour item is one image (``frames`` has one path). A touch item is one press:
+    its frames in order of the integer frame number in their names.
+
+    Attributes:
+        modality: which sensor made it.
+        fabric_id: the fabric's integer id (``F<id>_`` in the file name).
+        frames: the image file(s), ordered.
+        kind: the press kind for touch items, ``None`` otherwise.
+        press: the press id for touch items (``<press>`` in the name), ``None`` otherwise.
+    """
+
+    modality: Modality
+    fabric_id: int
+    frames: tuple[Path, ...]
+    kind: PressKind | None = None
+    press: str | None = None
+
+    @property
+    def path(self) -> Path:
+        """The first frame: the item's file for depth and colour, a press's first frame."""
+        return self.frames[0]
+
+    def frame(self, index: int) -> Path:
+        """Frame ``index`` of the press (negative counts from the end), clamped to exist."""
+        n = len(self.frames)
+        i = index if index >= 0 else n + index
+        return self.frames[min(max(i, 0), n - 1)]
+
+
+@dataclass(frozen=True)
+class Fabric:
+    """One fabric: its labels, cluster and items per modality.
+
+    Attributes:
+        id: the fabric id.
+        labels: known label values by column (``thickness_mm``, ``density`` ...); unknown
+            (empty) cells are absent, never NaN.
+        cluster: the fabric's cluster (labels.csv ``cluster8`` or another ``cluster*`` column),
+            or ``None`` when unknown.
+        paper_split: ``"train"``, ``"test"`` or ``"excluded"`` when labels.csv says, else None.
+        items: per modality, the fabric's items in file-name order.
+    """
+
+    id: int
+    labels: Mapping[str, float] = field(default_factory=dict)
+    cluster: int | None = None
+    paper_split: str | None = None
+    items: Mapping[Modality, tuple[Item, ...]] = field(default_factory=dict)
+
+    def items_of(self, modality: Modality, kinds: Iterable[PressKind] | None = None) -> list[Item]:
+        """Items of one modality; for touch, only presses of ``kinds`` when given."""
+        items = list(self.items.get(modality, ()))
+        if kinds is not None and modality is Modality.TOUCH:
+            wanted = set(kinds)
+            items = [it for it in items if it.kind in wanted]
+        return items
+
+    @property
+    def has_physical_labels(self) -> bool:
+        """Whether at least one of the paper's four physical labels is known."""
+        return any(k in self.labels for k in PHYSICAL_LABELS)
+
+
+@dataclass(frozen=True)
+class Catalog:
+    """A whole dataset as records, as built by `lookfeel.data.scan`.
+
+    Attributes:
+        root: the folder scanned.
+        fabrics: every fabric that has at least one usable item, by increasing id.
+        label_columns: the label columns of labels.csv beyond ``fabric_id`` (in file order),
+            other than ``paper_split`` and cluster columns.
+        cluster_column: the labels.csv column the clusters came from, if any.
+        labelled_only: fabric ids that are in labels.csv but have no image.
+        problems: everything the scan found wrong or worth a warning.
+        skipped: files and folders under ``root`` that were not read, and why.
+    """
+
+    root: Path
+    fabrics: tuple[Fabric, ...]
+    label_columns: tuple[str, ...] = ()
+    cluster_column: str | None = None
+    labelled_only: Mapping[int, Fabric] = field(default_factory=dict)
+    problems: tuple[Problem, ...] = ()
+    skipped: tuple[Problem, ...] = ()
+
+    # ---- lookups -----------------------------------------------------------------------------
+
+    @property
+    def ids(self) -> list[int]:
+        """Fabric ids, increasing."""
+        return [f.id for f in self.fabrics]
+
+    def fabric(self, fabric_id: int) -> Fabric:
+        """The fabric with this id.
+
+        Raises:
+            KeyError: naming the id when it is not in the catalog.
+        """
+        for f in self.fabrics:
+            if f.id == fabric_id:
+                return f
+        raise KeyError(f"fabric {fabric_id} is not in the dataset at {self.root}")
+
+    @property
+    def modalities(self) -> tuple[Modality, ...]:
+        """Modalities that have at least one item, in enum order."""
+        present = {m for f in self.fabrics for m, items in f.items.items() if items}
+        return tuple(m for m in Modality if m in present)
+
+    def items(self, modality: Modality, kinds: Iterable[PressKind] | None = None) -> list[Item]:
+        """All items of a modality (touch: of ``kinds`` when given), by fabric then name."""
+        kinds = None if kinds is None else tuple(kinds)
+        return [it for f in self.fabrics for it in f.items_of(modality, kinds)]
+
+    @property
+    def errors(self) -> tuple[Problem, ...]:
+        return tuple(p for p in self.problems if p.severity == "error")
+
+    @property
+    def warnings(self) -> tuple[Problem, ...]:
+        return tuple(p for p in self.problems if p.severity == "warning")
+
+    def clusters(self) -> dict[int, int | None]:
+        """Fabric id -> cluster (``None`` where unknown)."""
+        return {f.id: f.cluster for f in self.fabrics}
+
+    def label_matrix(self, columns: Iterable[str] = PHYSICAL_LABELS) -> dict[int, list[float]]:
+        """Fabric id -> label values in ``columns`` order, NaN where unknown."""
+        cols = list(columns)
+        return {f.id: [f.labels.get(c, math.nan) for c in cols] for f in self.fabrics}
+
+    # ---- derived catalogs --------------------------------------------------------------------
+
+    def subset(self, fabric_ids: Iterable[int]) -> Catalog:
+        """The catalog restricted to these fabrics (a split's train or test side).
+
+        Raises:
+            DatasetError: naming the ids that are not in the catalog.
+        """
+        wanted = list(dict.fromkeys(int(i) for i in fabric_ids))
+        have = {f.id: f for f in self.fabrics}
+        missing = [i for i in wanted if i not in have]
+        if missing:
+            raise DatasetError(
+                f"fabric id(s) {', '.join(map(str, missing))} are not in the dataset",
+                self.root,
+            )
+        keep = set(wanted)
+        return replace(self, fabrics=tuple(f for f in self.fabrics if f.id in keep))
+
+    def with_items(self, keep: Iterable[Item]) -> Catalog:
+        """The catalog with only the given items (fabrics left with none are dropped).
+
+        Used by item-level splits such as the paper's "seen fabrics" split (Table 4).
+        """
+        keep_set = set(keep)
+        fabrics = []
+        for f in self.fabrics:
+            items = {m: tuple(it for it in its if it in keep_set) for m, its in f.items.items()}
+            items = {m: its for m, its in items.items() if its}
+            if items:
+                fabrics.append(replace(f, items=items))
+        return replace(self, fabrics=tuple(fabrics))
+
+    def with_clusters(self, clusters: Mapping[int, int | None]) -> Catalog:
+        """The catalog with clusters replaced (e.g. from `kmeans_clusters`)."""
+        fabrics = tuple(replace(f, cluster=clusters.get(f.id, f.cluster)) for f in self.fabrics)
+        return replace(self, fabrics=fabrics, cluster_column=None)
+
+    def require(
+        self, modalities: Iterable[Modality], kinds: Iterable[PressKind] | None = None
+    ) -> None:
+        """Check that every fabric has an item of each modality a run needs.
+
+        Raises:
+            DatasetError: listing every fabric and the modality it lacks.
+        """
+        kinds = None if kinds is None else tuple(kinds)
+        problems = []
+        for m in modalities:
+            for f in self.fabrics:
+                if not f.items_of(m, kinds):
+                    what = m.value
+                    if m is Modality.TOUCH and kinds is not None:
+                        what += " (" + "/".join(k.value for k in kinds) + " presses)"
+                    problems.append(
+                        Problem(self.root / m.value, f"fabric {f.id} has no {what} item")
+                    )
+        if problems:
+            raise DatasetError(problems, self.root)
+
+    # ---- summary -----------------------------------------------------------------------------
+
+    def summary(self) -> dict[str, object]:
+        """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels."""
+        items: dict[str, int] = {}
+        for m in Modality:
+            n = sum(len(f.items.get(m, ())) for f in self.fabrics)
+            if n:
+                items[m.value] = n
+        kinds: dict[str, int] = {}
+        frames = 0
+        for it in self.items(Modality.TOUCH):
+            assert it.kind is not None
+            kinds[it.kind.value] = kinds.get(it.kind.value, 0) + 1
+            frames += len(it.frames)
+        clusters: dict[str, int] = {}
+        for f in self.fabrics:
+            if f.cluster is not None:
+                clusters[str(f.cluster)] = clusters.get(str(f.cluster), 0) + 1
+        per_fabric = {
+            m.value: sorted(len(f.items.get(m, ())) for f in self.fabrics) for m in self.modalities
+        }
+        return {
+            "root": str(self.root),
+            "fabrics": len(self.fabrics),
+            "fabric_ids": self.ids,
+            "items": items,
+            "items_per_fabric": {
+                m: {"min": v[0], "max": v[-1]} for m, v in per_fabric.items() if v
+            },
+            "touch_presses_by_kind": dict(sorted(kinds.items())),
+            "touch_frames": frames,
+            "label_columns": list(self.label_columns),
+            "fabrics_with_physical_labels": sum(f.has_physical_labels for f in self.fabrics),
+            "cluster_column": self.cluster_column,
+            "fabrics_with_cluster": sum(f.cluster is not None for f in self.fabrics),
+            "clusters": dict(sorted(clusters.items(), key=lambda kv: int(kv[0]))),
+            "paper_split": {
+                s: sum(f.paper_split == s for f in self.fabrics)
+                for s in ("train", "test", "excluded")
+                if any(f.paper_split == s for f in self.fabrics)
+            },
+            "labelled_without_images": sorted(self.labelled_only),
+            "errors": len(self.errors),
+            "warnings": len(self.warnings),
+            "skipped": len(self.skipped),
+        }

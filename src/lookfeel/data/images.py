@@ -1,0 +1,302 @@
+"""Decoding and preprocessing images as the authors' code did, configurable, cached once per run.
+
+- Depth: 16-bit PNG in millimetres; holes (0) filled from the nearest valid pixel (or left to
+  the authors' mapping, where 0 mm falls below the range and becomes 0); mapped to [0, 1] as
+  ``clip((d - 800) / 500, 0, 1)``; resized to the network size. Output (1, S, S) float32.
+- Colour: 8-bit RGB, optionally centre-cropped to a square, resized. Output (3, S, S) in [0, 1].
+- Touch: one frame of a press (the second-to-last by default, as the authors' code); a 960x720
+  GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
+  Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1].
+
+`ImageLoader` keeps every preprocessed image in memory (as uint8 for RGB, float32 for depth)
+and, with ``cache_dir``, on disk keyed by the file's content and the preprocessing settings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import threading
+from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image, ImageFile
+from scipy import ndimage
+
+from lookfeel.atomic import atomic_write
+from lookfeel.config import DataConfig
+from lookfeel.data.catalog import Item
+from lookfeel.modality import Modality
+
+__all__ = [
+    "ImageError",
+    "ImageLoader",
+    "PreprocessSettings",
+    "decode_depth",
+    "decode_rgb",
+    "depth_to_unit",
+    "fill_holes",
+    "preprocess_depth",
+    "preprocess_rgb",
+]
+
+ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated file must fail, never decode half-grey
+GELSIGHT_SIZE = (960, 720)
+"""Frame size of the authors' fingertip GelSight; their code crops its central 720x720."""
+
+
+class ImageError(ValueError):
+    """An image file cannot be used; the message names the file and what is wrong."""
+
+    def __init__(self, path: Path, message: str) -> None:
+        self.path = path
+        self.reason = message
+        super().__init__(f"{path}: {message}")
+
+
+def _open(path: Path) -> Image.Image:
+    try:
+        im = Image.open(path)
+        im.load()
+    except FileNotFoundError:
+        raise ImageError(path, "file not found") from None
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
+        if "truncated" in str(e).lower():
+            raise ImageError(path, "file is truncated") from None
+        raise ImageError(path, f"cannot decode image: {e}") from None
+    return im
+
+
+def decode_depth(path: Path) -> np.ndarray:
+    """Read a depth PNG as millimetres.
+
+    Returns:
+        (H, W) uint16 array; 0 where the sensor had no reading.
+
+    Raises:
+        ImageError: undecodable or truncated, or not 16-bit greyscale.
+    """
+    im = _open(path)
+    if im.mode not in ("I;16", "I;16B", "I;16L", "I"):
+        raise ImageError(
+            path, f"depth image is mode {im.mode}; expected 16-bit greyscale (millimetres)"
+        )
+    a = np.asarray(im)
+    if a.dtype != np.uint16:
+        if a.min() < 0 or a.max() > 65535:
+            raise ImageError(path, "depth values outside 0..65535 mm")
+        a = a.astype(np.uint16)
+    return a
+
+
+def decode_rgb(path: Path) -> np.ndarray:
+    """Read a colour or GelSight image as 8-bit RGB (greyscale and alpha are converted).
+
+    Returns:
+        (H, W, 3) uint8 array.
+
+    Raises:
+        ImageError: undecodable or truncated, or 16-bit (not an 8-bit RGB image).
+    """
+    im = _open(path)
+    if im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        raise ImageError(path, f"image is mode {im.mode} (16-bit or float); expected 8-bit RGB")
+    if im.mode != "RGB":
+        im = im.convert("RGB")
+    return np.asarray(im)
+
+
+def fill_holes(depth: np.ndarray) -> np.ndarray:
+    """Fill pixels equal to 0 with the value of the nearest non-zero pixel.
+
+    Args:
+        depth: (H, W) array; 0 marks a hole.
+
+    Returns:
+        A filled copy (same dtype); an image with no valid pixel is returned unchanged.
+    """
+    holes = depth == 0
+    if not holes.any() or holes.all():
+        return depth.copy()
+    idx = ndimage.distance_transform_edt(holes, return_distances=False, return_indices=True)
+    return depth[tuple(idx)]
+
+
+def depth_to_unit(
+    depth_mm: np.ndarray, min_mm: float = 800.0, range_mm: float = 500.0
+) -> np.ndarray:
+    """The authors' depth mapping: ``clip((d - min_mm) / range_mm, 0, 1)`` as float32."""
+    out = (depth_mm.astype(np.float32) - np.float32(min_mm)) / np.float32(range_mm)
+    return np.clip(out, 0.0, 1.0, out=out)
+
+
+def _resize_float(a: np.ndarray, size: int) -> np.ndarray:
+    if a.shape == (size, size):
+        return a
+    im = Image.fromarray(a).resize((size, size), Image.Resampling.BILINEAR)
+    return np.array(im, dtype=np.float32)
+
+
+def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
+    """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize."""
+    d = fill_holes(depth_mm) if config.depth_holes == "nearest" else depth_mm
+    return _resize_float(
+        depth_to_unit(d, config.depth_min_mm, config.depth_range_mm), config.image_size
+    )
+
+
+def _center_square(a: np.ndarray) -> np.ndarray:
+    h, w = a.shape[:2]
+    s = min(h, w)
+    top, left = (h - s) // 2, (w - s) // 2
+    return a[top : top + s, left : left + s]
+
+
+def preprocess_rgb(rgb: np.ndarray, modality: Modality, config: DataConfig) -> np.ndarray:
+    """8-bit RGB -> (S, S, 3) uint8: crop as configured for the modality, then resize."""
+    h, w = rgb.shape[:2]
+    if modality is Modality.TOUCH:
+        crop = config.touch_crop == "center" or (
+            config.touch_crop == "auto" and (w, h) == GELSIGHT_SIZE
+        )
+    else:
+        crop = config.color_crop == "center"
+    if crop:
+        rgb = _center_square(rgb)
+    s = config.image_size
+    if rgb.shape[:2] != (s, s):
+        rgb = np.asarray(
+            Image.fromarray(np.ascontiguousarray(rgb)).resize((s, s), Image.Resampling.BILINEAR)
+        )
+    return np.array(rgb)  # writable, contiguous
+
+
+@dataclass(frozen=True)
+class PreprocessSettings:
+    """The settings a preprocessed image depends on; part of every cache key."""
+
+    image_size: int
+    depth_min_mm: float
+    depth_range_mm: float
+    depth_holes: str
+    color_crop: str
+    touch_crop: str
+
+    @classmethod
+    def of(cls, config: DataConfig) -> PreprocessSettings:
+        return cls(
+            config.image_size,
+            config.depth_min_mm,
+            config.depth_range_mm,
+            config.depth_holes,
+            config.color_crop,
+            config.touch_crop,
+        )
+
+    def digest(self) -> str:
+        blob = json.dumps(self.__dict__, sort_keys=True).encode()
+        return hashlib.sha1(blob).hexdigest()[:12]
+
+
+def _to_tensor(a: np.ndarray) -> torch.Tensor:
+    if a.dtype == np.uint8:  # (S, S, 3) -> (3, S, S) in [0, 1]
+        return torch.from_numpy(a).permute(2, 0, 1).float().div_(255.0)
+    return torch.from_numpy(a).unsqueeze(0).clone()  # (S, S) -> (1, S, S); the cache stays intact
+
+
+class ImageLoader:
+    """Loads items as network-ready tensors, decoding and preprocessing each file once.
+
+    Args:
+        config: preprocessing settings (size, depth range and holes, crops, touch frame).
+        cache_dir: optional folder for an on-disk cache shared across runs, keyed by the
+            file's content hash and the preprocessing settings (never stale when either
+            changes). ``None`` uses ``config.cache_dir``; the memory cache is always on.
+
+    Example:
+        >>> loader = ImageLoader(DataConfig(image_size=227))
+        >>> loader.preload(catalog.items(Modality.DEPTH))
+        >>> x = loader.load(item)  # (1, 227, 227) float32 in [0, 1]
+    """
+
+    def __init__(self, config: DataConfig, cache_dir: str | Path | None = None) -> None:
+        self.config = config
+        self.settings = PreprocessSettings.of(config)
+        cd = cache_dir if cache_dir is not None else config.cache_dir
+        self.cache_dir = None if cd is None else Path(cd) / self.settings.digest()
+        self._memory: dict[Path, np.ndarray] = {}
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._memory)
+
+    def frame_path(self, item: Item) -> Path:
+        """The file an item is read from (for touch, the configured frame of the press)."""
+        if item.modality is Modality.TOUCH:
+            return item.frame(self.config.touch_frame)
+        return item.path
+
+    def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
+        disk: Path | None = None
+        if self.cache_dir is not None:
+            try:
+                digest = hashlib.sha1(path.read_bytes()).hexdigest()
+            except OSError as e:
+                raise ImageError(path, f"cannot read file: {e.strerror}") from None
+            disk = self.cache_dir / f"{digest}_{modality.value}.npy"
+            if disk.exists():
+                try:
+                    return np.load(disk, allow_pickle=False)
+                except (OSError, ValueError):
+                    pass  # a damaged cache entry is rebuilt below
+        if modality is Modality.DEPTH:
+            a = preprocess_depth(decode_depth(path), self.config)
+        else:
+            a = preprocess_rgb(decode_rgb(path), modality, self.config)
+        if disk is not None:
+            buf = io.BytesIO()
+            np.save(buf, a, allow_pickle=False)
+            atomic_write(disk, lambda f: f.write(buf.getvalue()))
+        return a
+
+    def array(self, path: Path, modality: Modality) -> np.ndarray:
+        """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else."""
+        a = self._memory.get(path)
+        if a is None:
+            a = self._preprocess_file(path, modality)
+            with self._lock:
+                self._memory[path] = a
+        return a
+
+    def load(self, item: Item) -> torch.Tensor:
+        """One item as a tensor: (1, S, S) for depth, (3, S, S) for colour and touch, in [0, 1]."""
+        return _to_tensor(self.array(self.frame_path(item), item.modality))
+
+    def preload(self, items: Iterable[Item], workers: int | None = None) -> int:
+        """Decode and preprocess items in parallel threads (Pillow and numpy release the GIL).
+
+        Returns:
+            The number of files decoded now (those already cached are skipped).
+
+        Raises:
+            ImageError: for the first file that cannot be used, naming it.
+        """
+        todo: dict[Path, Modality] = {}
+        for it in items:
+            p = self.frame_path(it)
+            if p not in self._memory:
+                todo[p] = it.modality
+        n = workers or self.config.workers
+        paths: Sequence[Path] = list(todo)
+        if n <= 1 or len(paths) < 8:
+            for p in paths:
+                self.array(p, todo[p])
+        else:
+            with ThreadPoolExecutor(n) as pool:
+                list(pool.map(lambda p: self.array(p, todo[p]), paths))
+        return len(paths)

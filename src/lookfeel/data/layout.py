@@ -1,0 +1,335 @@
+"""Scanning a dataset folder in the one on-disk layout (shared/DATASET.md) into a `Catalog`.
+
+::
+
+    <root>/labels.csv                      optional; one row per fabric
+    <root>/depth/F0001_Depth_New_204300.png one drape; 16-bit PNG, millimetres, 0 = no reading
+    <root>/color/F0001_1.jpg                one drape; 8-bit RGB
+    <root>/touch/F0001_fold_03_1502.jpg     frame 3 of press 1502, a fold press
+
+The authors' folder names are aliases (``kinect_depth``, ``kinect_depth_new``; ``canon``,
+``canon_resize``; ``image_fold``, ``image_flat``, ``image_rand*``, whose kind the names may then
+omit). Anything else is reported as skipped, never silently read. The scan reads only names and
+the first bytes of each file (cheap); `lookfeel.data.check_dataset` decodes every pixel.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from lookfeel.data.catalog import Catalog, Fabric, Item
+from lookfeel.data.labels import LabelTable, read_labels
+from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.modality import Modality, PressKind
+
+__all__ = ["FOLDER_ALIASES", "IMAGE_SUFFIXES", "parse_touch_name", "scan"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+FOLDER_ALIASES: dict[Modality, tuple[str, ...]] = {
+    Modality.DEPTH: ("depth", "kinect_depth_new", "kinect_depth"),
+    Modality.COLOR: ("color", "canon_resize", "canon"),
+    Modality.TOUCH: ("touch", "image_fold", "image_flat", "image_rand"),
+}
+"""Folder names per modality, canonical first. For depth and colour the first folder present is
+read and the others are skipped (the authors' tree keeps raw and cropped copies side by side)."""
+
+_FIXED_KIND = {"image_fold": PressKind.FOLD, "image_flat": PressKind.FLAT}
+_FABRIC = re.compile(r"^F0*(\d+)_(.+)$")
+_TOUCH = re.compile(
+    r"^F0*(?P<fabric>\d+)_(?:(?P<kind>fold|flat|rand)_)?(?P<frame>\d+)_(?P<press>[A-Za-z0-9-]+)$",
+    re.IGNORECASE,
+)
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@dataclass(frozen=True)
+class TouchName:
+    """The parts of a touch frame's file name."""
+
+    fabric_id: int
+    kind: PressKind | None
+    frame: int
+    press: str
+
+
+def parse_touch_name(name: str) -> TouchName | None:
+    """Parse ``F<id>_<kind>_<frame>_<press>.<ext>`` (kind optional); None when it does not fit."""
+    m = _TOUCH.match(Path(name).stem)
+    if m is None:
+        return None
+    kind = PressKind(m["kind"].lower()) if m["kind"] else None
+    return TouchName(int(m["fabric"]), kind, int(m["frame"]), m["press"])
+
+
+def _folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:
+    low = name.lower()
+    for modality, names in FOLDER_ALIASES.items():
+        if low in names:
+            return modality, _FIXED_KIND.get(low)
+    if low.startswith("image_rand"):
+        return Modality.TOUCH, PressKind.RAND
+    return None
+
+
+def _header_problem(path: Path, modality: Modality) -> str | None:
+    """A cheap check of the file's first bytes: format, and 16-bit greyscale for depth."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(32)
+    except OSError as e:
+        return f"cannot read file: {e.strerror}"
+    if not head:
+        return "file is empty"
+    is_png = head.startswith(_PNG_MAGIC)
+    is_jpeg = head.startswith(b"\xff\xd8\xff")
+    if modality is Modality.DEPTH:
+        if not is_png:
+            return "depth must be a 16-bit greyscale PNG (millimetres); this is not a PNG"
+        if len(head) < 26 or head[12:16] != b"IHDR":
+            return "PNG header is truncated or damaged"
+        bit_depth, colour_type = head[24], head[25]
+        if bit_depth != 16 or colour_type != 0:
+            kind = {0: "greyscale", 2: "RGB", 3: "palette", 4: "grey+alpha", 6: "RGBA"}.get(
+                colour_type, f"colour type {colour_type}"
+            )
+            return (
+                f"depth PNG is {bit_depth}-bit {kind}; expected 16-bit greyscale in millimetres "
+                "(an 8-bit depth map has lost its scale)"
+            )
+        return None
+    if not (is_png or is_jpeg):
+        return "not a PNG or JPEG image"
+    if is_png and (len(head) < 26 or head[12:16] != b"IHDR"):
+        return "PNG header is truncated or damaged"
+    return None
+
+
+def _walk(folder: Path) -> Iterable[Path]:
+    for p in sorted(folder.rglob("*")):
+        if p.is_file() or p.is_symlink():
+            yield p
+
+
+def scan(
+    root: str | Path,
+    require: Iterable[Modality] | None = None,
+    *,
+    strict: bool = False,
+    check_headers: bool = True,
+) -> Catalog:
+    """Scan a dataset folder into a `Catalog`, collecting every problem at once.
+
+    Files with problems are left out of the catalog's items; each problem names its path.
+
+    Args:
+        root: the dataset folder.
+        require: modalities every fabric must have (a run's needs). ``None`` requires each
+            modality that any fabric has, so a fabric missing one is reported.
+        strict: raise `DatasetError` listing all errors instead of returning them.
+        check_headers: read each file's first bytes to check its format (cheap).
+
+    Raises:
+        DatasetError: ``root`` is not a folder; or, with ``strict``, any error.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(
+            f"dataset folder {root} does not exist"
+            if not root.exists()
+            else f"{root} is not a folder",
+            root,
+        )
+    problems: list[Problem] = []
+    skipped: list[Problem] = []
+
+    # ---- which folders hold which modality -------------------------------------------------
+    folders: list[tuple[Path, Modality, PressKind | None]] = []
+    used_single: dict[Modality, Path] = {}
+    labels_path: Path | None = None
+    for entry in sorted(root.iterdir()):
+        if entry.is_file() and entry.name == "labels.csv":
+            labels_path = entry
+            continue
+        fm = _folder_modality(entry.name) if entry.is_dir() else None
+        if fm is None:
+            skipped.append(
+                Problem(
+                    entry, "not part of the layout (depth/, color/, touch/, labels.csv)", "skip"
+                )
+            )
+            continue
+        folders.append((entry, fm[0], fm[1]))
+    rank = {m: {n: i for i, n in enumerate(names)} for m, names in FOLDER_ALIASES.items()}
+    for path, modality, _ in sorted(folders, key=lambda x: rank[x[1]].get(x[0].name.lower(), 99)):
+        if modality is not Modality.TOUCH and modality not in used_single:
+            used_single[modality] = path
+    kept = []
+    for path, modality, kind in folders:
+        if modality is not Modality.TOUCH and used_single[modality] != path:
+            skipped.append(
+                Problem(
+                    path,
+                    f"another {modality.value} folder is read: {used_single[modality]}",
+                    "skip",
+                )
+            )
+        else:
+            kept.append((path, modality, kind))
+
+    # ---- files -------------------------------------------------------------------------------
+    singles: dict[int, dict[Modality, list[Path]]] = defaultdict(lambda: defaultdict(list))
+    presses: dict[tuple[int, PressKind, str], dict[int, Path]] = {}
+    for folder, modality, folder_kind in kept:
+        for path in _walk(folder):
+            if path.name.startswith(".") or path.suffix.lower() not in IMAGE_SUFFIXES:
+                skipped.append(Problem(path, "not an image (.png, .jpg, .jpeg)", "skip"))
+                continue
+            if modality is Modality.TOUCH:
+                tn = parse_touch_name(path.name)
+                if tn is None:
+                    problems.append(
+                        Problem(
+                            path,
+                            "touch frame name does not parse; expected F<id>_<fold|flat|rand>_"
+                            "<frame>_<press>.<ext>, e.g. F0012_fold_03_1502.jpg",
+                        )
+                    )
+                    continue
+                kind = tn.kind or folder_kind
+                if kind is None:
+                    problems.append(
+                        Problem(
+                            path,
+                            "touch frame name has no press kind (fold, flat, rand) and its folder "
+                            f"{folder.name}/ does not give one",
+                        )
+                    )
+                    continue
+                if tn.kind is not None and folder_kind is not None and tn.kind != folder_kind:
+                    problems.append(
+                        Problem(
+                            path,
+                            f"name says a {tn.kind.value} press but folder {folder.name}/ holds "
+                            f"{folder_kind.value} presses",
+                        )
+                    )
+                    continue
+                if check_headers and (msg := _header_problem(path, modality)):
+                    problems.append(Problem(path, msg))
+                    continue
+                frames = presses.setdefault((tn.fabric_id, kind, tn.press), {})
+                if tn.frame in frames:
+                    problems.append(
+                        Problem(
+                            path,
+                            f"frame {tn.frame} of {kind.value} press {tn.press} of fabric "
+                            f"{tn.fabric_id} is also {frames[tn.frame]}",
+                        )
+                    )
+                    continue
+                frames[tn.frame] = path
+            else:
+                name_match = _FABRIC.match(path.stem)
+                if name_match is None:
+                    problems.append(
+                        Problem(
+                            path,
+                            f"{modality.value} file name must begin F<id>_ (e.g. F0012_1.png)",
+                        )
+                    )
+                    continue
+                if check_headers and (msg := _header_problem(path, modality)):
+                    problems.append(Problem(path, msg))
+                    continue
+                singles[int(name_match.group(1))][modality].append(path)
+
+    items: dict[int, dict[Modality, list[Item]]] = defaultdict(lambda: defaultdict(list))
+    for fid, by_mod in singles.items():
+        for modality, paths in by_mod.items():
+            items[fid][modality] = [Item(modality, fid, (p,)) for p in sorted(paths)]
+    for (fid, kind, press), frames in sorted(
+        presses.items(), key=lambda kv: (kv[0][0], kv[0][1].value, kv[0][2])
+    ):
+        ordered = tuple(frames[k] for k in sorted(frames))
+        items[fid][Modality.TOUCH].append(Item(Modality.TOUCH, fid, ordered, kind, press))
+
+    # ---- labels ------------------------------------------------------------------------------
+    table: LabelTable | None = None
+    if labels_path is not None:
+        table, label_problems = read_labels(labels_path)
+        problems.extend(label_problems)
+        for fid in sorted(items):
+            if fid not in table.rows:
+                first = min(p for its in items[fid].values() for it in its for p in it.frames)
+                n = sum(len(its) for its in items[fid].values())
+                problems.append(
+                    Problem(
+                        first,
+                        f"fabric {fid} ({n} item(s)) has no row in {labels_path.name}",
+                    )
+                )
+
+    present = {m for by_mod in items.values() for m, its in by_mod.items() if its}
+    needed = [m for m in Modality if m in present] if require is None else list(require)
+    for m in needed:
+        for fid in sorted(items):
+            if not items[fid].get(m):
+                folder = used_single.get(m) or root / m.value
+                problems.append(
+                    Problem(
+                        folder,
+                        f"fabric {fid} has no {m.value} item"
+                        + (
+                            " (other fabrics have; a run that uses it cannot)"
+                            if require is None
+                            else ""
+                        ),
+                    )
+                )
+    if require is not None and not items:
+        problems.append(Problem(root, "no image found in the layout (depth/, color/, touch/)"))
+
+    fabrics = []
+    for fid in sorted(items):
+        row = table.rows.get(fid) if table is not None else None
+        fabrics.append(
+            Fabric(
+                id=fid,
+                labels=dict(row.values) if row else {},
+                cluster=row.cluster if row else None,
+                paper_split=row.paper_split if row else None,
+                items={m: tuple(its) for m, its in items[fid].items() if its},
+            )
+        )
+    labelled_only: dict[int, Fabric] = {}
+    if table is not None:
+        for fid, row in sorted(table.rows.items()):
+            if fid not in items:
+                labelled_only[fid] = Fabric(fid, dict(row.values), row.cluster, row.paper_split)
+                held = f" (paper_split={row.paper_split})" if row.paper_split else ""
+                problems.append(
+                    Problem(
+                        table.path,
+                        f"fabric {fid} is in {table.path.name} but has no image{held}",
+                        "warning",
+                        row.line,
+                    )
+                )
+
+    catalog = Catalog(
+        root=root,
+        fabrics=tuple(fabrics),
+        label_columns=table.columns if table else (),
+        cluster_column=table.cluster_column if table else None,
+        labelled_only=labelled_only,
+        problems=tuple(problems),
+        skipped=tuple(skipped),
+    )
+    if strict and catalog.errors:
+        raise DatasetError(catalog.errors, root)
+    return catalog

@@ -1,0 +1,224 @@
+"""Fabric splits and clusters: the paper's split, cluster-stratified fabric-disjoint splits and
+folds, the within-fabric "seen fabrics" split of Table 4, and k-means clusters from labels."""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from lookfeel.data.catalog import PHYSICAL_LABELS, Catalog, Item
+from lookfeel.data.problems import DatasetError
+
+__all__ = [
+    "PAPER_EXCLUDED_IDS",
+    "PAPER_TEST_IDS",
+    "FabricSplit",
+    "kmeans_clusters",
+    "paper_split",
+    "seen_fabric_split",
+    "stratified_fabric_folds",
+    "stratified_fabric_split",
+]
+
+PAPER_TEST_IDS = (3, 7, 16, 24, 30, 35, 39, 42, 43, 44, 52, 56, 70, 71, 75, 78, 87, 97)
+"""The paper's 18 test fabrics, "selected evenly from the 8 clusters" (section 5)."""
+PAPER_EXCLUDED_IDS = (107,)
+"""Fabric 107, which the authors' code always excludes."""
+
+
+@dataclass(frozen=True)
+class FabricSplit:
+    """Fabric ids on each side of a fabric-disjoint split."""
+
+    train: tuple[int, ...]
+    test: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        both = set(self.train) & set(self.test)
+        if both:
+            raise ValueError(f"fabric(s) {sorted(both)} are on both sides of the split")
+
+
+def paper_split(catalog: Catalog) -> FabricSplit:
+    """The paper's 100/18 split of the fabrics present in ``catalog``.
+
+    Uses the ``paper_split`` column of labels.csv when any fabric has it, else the built-in
+    list of the 18 test ids (fabric 107 excluded either way). Test fabrics absent from the data
+    (as in the shared real data, which holds them back) simply do not appear.
+    """
+    labelled = {f.id: f.paper_split for f in catalog.fabrics if f.paper_split is not None}
+    if labelled:
+        train = tuple(i for i in catalog.ids if labelled.get(i) == "train")
+        test = tuple(i for i in catalog.ids if labelled.get(i) == "test")
+    else:
+        train = tuple(i for i in catalog.ids if i not in PAPER_TEST_IDS + PAPER_EXCLUDED_IDS)
+        test = tuple(i for i in catalog.ids if i in PAPER_TEST_IDS)
+    return FabricSplit(train, test)
+
+
+def _by_cluster(
+    fabric_ids: Sequence[int], clusters: Mapping[int, int | None]
+) -> dict[int, list[int]]:
+    groups: dict[int, list[int]] = defaultdict(list)
+    for i in sorted(set(fabric_ids)):
+        c = clusters.get(i)
+        groups[-1 if c is None else int(c)].append(i)  # unclustered fabrics form one stratum
+    return dict(sorted(groups.items()))
+
+
+def stratified_fabric_split(
+    fabric_ids: Sequence[int],
+    clusters: Mapping[int, int | None],
+    n_test: int | None = None,
+    test_fraction: float = 0.18,
+    seed: int = 0,
+) -> FabricSplit:
+    """A fabric-disjoint split with test fabrics spread evenly over clusters (as the paper).
+
+    Each cluster gets a share of the ``n_test`` test fabrics proportional to its size (largest
+    remainder; every cluster with at least two fabrics gets one when ``n_test`` allows), and
+    its test fabrics are drawn at random with ``seed``.
+
+    Args:
+        fabric_ids: the fabrics to split.
+        clusters: fabric id -> cluster (``None``: an "unclustered" stratum).
+        n_test: number of test fabrics; default ``round(test_fraction * len(fabric_ids))``.
+        test_fraction: used when ``n_test`` is None.
+        seed: random seed.
+    """
+    ids = sorted(set(fabric_ids))
+    n = len(ids)
+    k = round(test_fraction * n) if n_test is None else n_test
+    if not 0 < k < n:
+        raise ValueError(f"n_test must be between 1 and {n - 1} for {n} fabrics, got {k}")
+    groups = _by_cluster(ids, clusters)
+    sizes = {c: len(g) for c, g in groups.items()}
+    quota = {c: k * s / n for c, s in sizes.items()}
+    take = {c: math.floor(q) for c, q in quota.items()}
+    eligible = [c for c in groups if sizes[c] >= 2]
+    if k >= len(eligible):  # evenly: every cluster that can spare a fabric gives one
+        for c in eligible:
+            take[c] = max(take[c], 1)
+    rng = np.random.default_rng(seed)
+    order = sorted(groups, key=lambda c: (-(quota[c] - math.floor(quota[c])), rng.random()))
+    while sum(take.values()) < k:
+        for c in order:
+            if sum(take.values()) < k and take[c] < sizes[c] - 1:
+                take[c] += 1
+    floor_of = {c: 1 if c in eligible and k >= len(eligible) else 0 for c in groups}
+    while sum(take.values()) > k:  # the forced ones overshot: trim the most over-served cluster
+        c = max((c for c in take if take[c] > floor_of[c]), key=lambda c: take[c] - quota[c])
+        take[c] -= 1
+    test: list[int] = []
+    for c, g in groups.items():
+        if take[c]:
+            test.extend(int(x) for x in rng.choice(g, size=take[c], replace=False))
+    test_set = set(test)
+    return FabricSplit(tuple(i for i in ids if i not in test_set), tuple(sorted(test_set)))
+
+
+def stratified_fabric_folds(
+    fabric_ids: Sequence[int],
+    clusters: Mapping[int, int | None],
+    n_folds: int = 5,
+    seed: int = 0,
+) -> list[FabricSplit]:
+    """K fabric-disjoint folds, each cluster's fabrics dealt evenly across the folds.
+
+    Every fabric is in exactly one fold's test side; fold sizes differ by at most one.
+    """
+    ids = sorted(set(fabric_ids))
+    if not 2 <= n_folds <= len(ids):
+        raise ValueError(f"n_folds must be between 2 and {len(ids)}, got {n_folds}")
+    rng = np.random.default_rng(seed)
+    folds: list[list[int]] = [[] for _ in range(n_folds)]
+    # Deal the clusters' shuffled members round-robin, the deal continuing from one cluster to
+    # the next: per fold, each cluster's count and the total differ by at most one.
+    dealt = 0
+    for _, group in _by_cluster(ids, clusters).items():
+        for fid in rng.permutation(group):
+            folds[dealt % n_folds].append(int(fid))
+            dealt += 1
+    out = []
+    for test in folds:
+        t = set(test)
+        out.append(FabricSplit(tuple(i for i in ids if i not in t), tuple(sorted(t))))
+    return out
+
+
+def seen_fabric_split(
+    catalog: Catalog, train_fraction: float = 0.8, seed: int = 0
+) -> tuple[Catalog, Catalog]:
+    """The "seen fabrics" split of Table 4: within every fabric and modality, a random
+    ``train_fraction`` of the items for training and the rest for testing.
+
+    A fabric with at least two items of a modality keeps at least one on each side.
+
+    Returns:
+        (train catalog, test catalog), with the same fabrics and disjoint items.
+    """
+    if not 0.0 < train_fraction < 1.0:
+        raise ValueError(f"train_fraction must be in (0, 1), got {train_fraction}")
+    rng = np.random.default_rng(seed)
+    train: list[Item] = []
+    test: list[Item] = []
+    for f in catalog.fabrics:
+        for m in sorted(f.items, key=lambda m: m.value):
+            items = list(f.items[m])
+            order = rng.permutation(len(items))
+            n_train = round(train_fraction * len(items))
+            if len(items) >= 2:
+                n_train = min(max(n_train, 1), len(items) - 1)
+            train.extend(items[i] for i in order[:n_train])
+            test.extend(items[i] for i in order[n_train:])
+    return catalog.with_items(train), catalog.with_items(test)
+
+
+def kmeans_clusters(
+    catalog: Catalog,
+    k: int = 8,
+    columns: Iterable[str] = PHYSICAL_LABELS,
+    seed: int = 0,
+) -> dict[int, int | None]:
+    """Cluster fabrics by k-means on standardised labels (the paper's 8 clusters, section 3).
+
+    Each column is standardised to zero mean and unit variance over the fabrics that have it;
+    a fabric's unknown cells are then set to 0 (the column mean). Fabrics with no known value in
+    ``columns`` get ``None``. Clusters are numbered by increasing mean of the first column, so
+    the numbering does not depend on the k-means initialisation.
+
+    Raises:
+        DatasetError: fewer labelled fabrics than clusters, or no such label column.
+    """
+    from sklearn.cluster import KMeans
+
+    cols = list(columns)
+    missing_cols = [c for c in cols if c not in catalog.label_columns]
+    if missing_cols:
+        raise DatasetError(
+            f"no label column(s) {', '.join(missing_cols)} in labels.csv "
+            f"(have: {', '.join(catalog.label_columns) or 'none'})",
+            catalog.root,
+        )
+    matrix = catalog.label_matrix(cols)
+    ids = [i for i, row in matrix.items() if not all(math.isnan(v) for v in row)]
+    if len(ids) < k:
+        raise DatasetError(
+            f"k-means into {k} clusters needs at least {k} labelled fabrics, found {len(ids)}",
+            catalog.root,
+        )
+    x = np.array([matrix[i] for i in ids], dtype=np.float64)
+    mean = np.nanmean(x, axis=0)
+    std = np.nanstd(x, axis=0)
+    std[~(std > 0)] = 1.0
+    z = np.nan_to_num((x - mean) / std, nan=0.0)
+    km = KMeans(n_clusters=k, n_init=10, random_state=seed).fit(z)
+    order = np.argsort(km.cluster_centers_[:, 0], kind="stable")
+    rename = {int(old): new for new, old in enumerate(order)}
+    out: dict[int, int | None] = {i: None for i in catalog.ids}
+    out.update({i: rename[int(c)] for i, c in zip(ids, km.labels_, strict=True)})
+    return out

@@ -1,0 +1,63 @@
+"""Writes tiny datasets in the lookfeel layout with known content, for tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+LABELS_HEADER = "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split\n"
+
+
+def write_depth(path: Path, fabric: int, k: int, size: int = 24, holes: bool = True) -> None:
+    """A 16-bit depth PNG whose level encodes the fabric (so fabrics are distinguishable)."""
+    rng = np.random.default_rng([fabric, k])
+    d = (900 + 40 * fabric + rng.integers(0, 20, (size, size))).astype(np.uint16)
+    if holes:
+        d[0, :3] = 0
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(d).save(path)
+
+
+def write_rgb(path: Path, fabric: int, k: int, size: tuple[int, int] = (24, 24)) -> None:
+    """An 8-bit RGB image (PNG or JPEG by suffix) coloured by fabric."""
+    rng = np.random.default_rng([fabric, k, 7])
+    w, h = size
+    a = np.zeros((h, w, 3), np.uint8)
+    a[..., 0] = 20 * fabric
+    a[..., 1] = rng.integers(0, 255, (h, w))
+    a[..., 2] = 10 * k
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(a).save(path)
+
+
+def write_tiny_dataset(
+    root: Path,
+    fabrics: int = 6,
+    drapes: int = 3,
+    fold_presses: int = 3,
+    flat_presses: int = 2,
+    frames: int = 3,
+    labels: bool = True,
+) -> Path:
+    """Fabrics 1..n with depth and colour drapes, touch presses of 3 frames, and labels.csv.
+
+    Clusters are ``(id - 1) % 3``; fabric 2 has an empty density cell (unknown label).
+    """
+    for f in range(1, fabrics + 1):
+        for k in range(drapes):
+            write_depth(root / "depth" / f"F{f:04d}_Depth_New_{k:06d}.png", f, k)
+            write_rgb(root / "color" / f"F{f:04d}_{k + 1}.png", f, k)
+        for kind, n in (("fold", fold_presses), ("flat", flat_presses)):
+            for p in range(n):
+                for fr in range(frames):
+                    name = f"F{f:04d}_{kind}_{fr + 1:02d}_{100 * f + p}.png"
+                    write_rgb(root / "touch" / name, f, 10 * p + fr, size=(32, 24))
+    if labels:
+        lines = [LABELS_HEADER]
+        for f in range(1, fabrics + 1):
+            density = "" if f == 2 else f"{0.2 * f:.2f}"
+            lines.append(f"{f},{(f - 1) % 3},{0.5 * f},{density},{f % 5},{f % 2},train\n")
+        (root / "labels.csv").write_text("".join(lines))
+    return root

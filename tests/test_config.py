@@ -1,0 +1,85 @@
+from pathlib import Path
+
+import pytest
+
+from lookfeel.config import (
+    AugmentConfig,
+    ConfigError,
+    DataConfig,
+    apply_overrides,
+    from_dict,
+    load_config,
+    save_config,
+    to_dict,
+)
+from lookfeel.modality import Modality, PressKind
+
+
+def test_defaults_then_yaml_then_overrides(tmp_path: Path):
+    path = tmp_path / "c.yaml"
+    path.write_text(
+        "image_size: 64\naugment:\n  color: {gamma: [0.5, 2.0], permute_channels: true}\n"
+    )
+    cfg = load_config(DataConfig, path, ["image_size=32", "touch_kinds=fold,flat", "presses=3"])
+    assert cfg.image_size == 32
+    assert cfg.presses == 3
+    assert cfg.touch_kinds == (PressKind.FOLD, PressKind.FLAT)
+    assert cfg.augment[Modality.COLOR] == AugmentConfig(gamma=(0.5, 2.0), permute_channels=True)
+    assert cfg.depth_min_mm == 800.0  # untouched default
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"image_sise": 64}, "unknown key image_sise"),
+        ({"image_size": "big"}, "image_size: expected an integer, got 'big'"),
+        ({"image_size": True}, "image_size: expected an integer"),
+        ({"touch_kinds": ["fold", "pinch"]}, r"touch_kinds\[1\]: 'pinch' is not one of"),
+        ({"augment": {"colour": {}}}, "augment.colour: 'colour' is not one of"),
+        ({"augment": {"color": {"gama": [1, 2]}}}, "unknown key augment.color.gama"),
+        ({"augment": {"color": {"gamma": [1]}}}, "augment.color.gamma: expected 2 values"),
+        ({"depth_holes": "zero"}, "data.depth_holes: 'zero' is not one of nearest, clip"),
+        ({"same_fraction": 1.5}, "same_fraction: must be in"),
+    ],
+)
+def test_strict_errors_name_the_key(data, message):
+    with pytest.raises(ConfigError, match=message):
+        from_dict(DataConfig, data)
+
+
+def test_file_errors_name_the_file(tmp_path: Path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("image_size: [1\n")
+    with pytest.raises(ConfigError, match="bad.yaml: not valid YAML"):
+        load_config(DataConfig, bad)
+    bad.write_text("- 1\n- 2\n")
+    with pytest.raises(ConfigError, match="bad.yaml: the top level must be a mapping"):
+        load_config(DataConfig, bad)
+    bad.write_text("presses: 0\n")
+    with pytest.raises(ConfigError, match="bad.yaml: data.presses: must be >= 1"):
+        load_config(DataConfig, bad)
+    with pytest.raises(ConfigError, match="missing.yaml: cannot read"):
+        load_config(DataConfig, tmp_path / "missing.yaml")
+
+
+def test_overrides_do_not_modify_input_and_reject_bad_syntax():
+    base = {"augment": {"color": {"crop_p": 0.1}}}
+    out = apply_overrides(base, ["augment.color.crop_p=0.2", "augment.touch.noise_std=0.05"])
+    assert base == {"augment": {"color": {"crop_p": 0.1}}}
+    assert out["augment"] == {"color": {"crop_p": 0.2}, "touch": {"noise_std": 0.05}}
+    with pytest.raises(ConfigError, match="expected key=value"):
+        apply_overrides({}, ["image_size"])
+    with pytest.raises(ConfigError, match="image_size is not a mapping"):
+        apply_overrides({"image_size": 3}, ["image_size.x=1"])
+
+
+def test_save_and_load_round_trip(tmp_path: Path):
+    cfg = DataConfig(
+        image_size=48,
+        touch_kinds=(PressKind.FLAT,),
+        augment={Modality.TOUCH: AugmentConfig(crop_p=0.2, noise_std=0.01)},
+    )
+    save_config(cfg, tmp_path / "run" / "config.yaml")
+    assert load_config(DataConfig, tmp_path / "run" / "config.yaml") == cfg
+    assert to_dict(cfg)["touch_kinds"] == ["flat"]
+    assert [p.name for p in (tmp_path / "run").iterdir()] == ["config.yaml"]  # no temp left

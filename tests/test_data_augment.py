@@ -1,0 +1,40 @@
+import torch
+
+from lookfeel.config import AugmentConfig
+from lookfeel.data import Augmenter
+from lookfeel.data.augment import add_noise, apply_gamma, hflip, permute_channels, square_crop
+
+
+def test_functions_on_known_values():
+    x = torch.tensor([[[0.25, 1.0]], [[0.5, 0.0]], [[0.0, 0.04]]])  # (3, 1, 2)
+    torch.testing.assert_close(apply_gamma(x, 0.5)[0], torch.tensor([[0.5, 1.0]]))
+    assert torch.equal(permute_channels(x, [2, 0, 1])[0], x[2])
+    assert torch.equal(hflip(x)[0], torch.tensor([[1.0, 0.25]]))
+    img = torch.arange(16.0).reshape(1, 4, 4)
+    crop = square_crop(img, 1, 1, 2)
+    assert crop.shape == (1, 4, 4)
+    assert crop.min() >= 5 and crop.max() <= 10  # only the central 2x2 (5, 6, 9, 10)
+    noisy = add_noise(torch.full((1, 8, 8), 0.5), 0.1, torch.Generator().manual_seed(0))
+    assert noisy.min() >= 0.0 and noisy.max() <= 1.0 and noisy.std() > 0.05
+
+
+def test_default_config_is_identity_and_draws_nothing():
+    aug = Augmenter(AugmentConfig())
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(3, 8, 8)
+    assert aug(x, g) is x
+    assert torch.equal(
+        torch.rand(1, generator=g), torch.rand(1, generator=torch.Generator().manual_seed(0))
+    )
+
+
+def test_paper_colour_augmentation_is_seeded_and_in_range():
+    aug = Augmenter(AugmentConfig(gamma=(0.5, 2.0), permute_channels=True, crop_p=1.0, hflip_p=0.5))
+    x = torch.rand(3, 16, 16)
+    a = aug(x, torch.Generator().manual_seed(1))
+    b = aug(x, torch.Generator().manual_seed(1))
+    c = aug(x, torch.Generator().manual_seed(2))
+    assert torch.equal(a, b) and not torch.equal(a, c)
+    assert a.shape == x.shape and a.min() >= 0.0 and a.max() <= 1.0
+    depth = torch.rand(1, 16, 16)  # one channel: channel order is left alone
+    assert aug(depth, torch.Generator().manual_seed(1)).shape == (1, 16, 16)

@@ -1,0 +1,108 @@
+"""Training tuples: Y = 0/1 semantics and ratio, multi-press touch, Siamese slots, seeding."""
+
+from pathlib import Path
+
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+from lookfeel.config import AugmentConfig, DataConfig
+from lookfeel.data import DatasetError, ImageLoader, ItemDataset, TupleDataset, scan
+from lookfeel.modality import Modality, PressKind
+
+D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
+
+
+def _ds(root: Path, views=(D, C, T), length=200, seed=0, **cfg) -> TupleDataset:
+    config = DataConfig(image_size=16, **cfg)
+    return TupleDataset(scan(root), ImageLoader(config), views, length=length, seed=seed)
+
+
+def test_same_and_different_fabric_tuples(tiny_dataset: Path):
+    ds = _ds(tiny_dataset, same_fraction=0.25)
+    ys = []
+    for i in range(len(ds)):
+        y, fabrics, items = ds.draw(i)
+        ys.append(y)
+        if y == 0.0:
+            assert len(set(fabrics)) == 1
+        else:
+            assert len(set(fabrics)) == 3  # every pair in D3 is a negative
+        for fid, picked in zip(fabrics, items, strict=True):
+            assert all(it.fabric_id == fid for it in picked)
+    assert 0.15 < ys.count(0.0) / len(ys) < 0.35
+
+
+def test_item_layout_and_batching(tiny_dataset: Path):
+    ds = _ds(tiny_dataset, length=8, presses=3)
+    sample = ds[0]
+    assert sample["inputs"]["depth"].shape == (1, 16, 16)
+    assert sample["inputs"]["color"].shape == (3, 16, 16)
+    assert sample["inputs"]["touch"].shape == (3, 3, 16, 16)  # (P, C, S, S)
+    assert sample["properties"]["depth"].shape == (4,)
+    batch = next(iter(DataLoader(ds, batch_size=4)))
+    assert batch["inputs"]["touch"].shape == (4, 3, 3, 16, 16)
+    assert batch["y"].shape == batch["fabric_ids"]["color"].shape == (4,)
+    assert batch["clusters"]["depth"].dtype == torch.int64
+
+
+def test_presses_are_distinct_fold_presses_of_one_fabric(tiny_dataset: Path):
+    ds = _ds(tiny_dataset, views=(T,), same_fraction=1.0, presses=3)
+    for i in range(20):
+        _, _, (presses,) = ds.draw(i)
+        assert len({it.press for it in presses}) == 3
+        assert {it.kind for it in presses} == {PressKind.FOLD}
+
+
+def test_siamese_slots_take_distinct_items(tiny_dataset: Path):
+    ds = _ds(tiny_dataset, views=(D, D), same_fraction=1.0)
+    for i in range(20):
+        _, fabrics, (a, b) = ds.draw(i)
+        assert fabrics[0] == fabrics[1] and a[0] != b[0]
+    assert set(ds[0]["inputs"]) == {"depth", "depth.1"}
+
+
+def test_seeded_by_seed_epoch_and_index(tiny_dataset: Path):
+    a, b = _ds(tiny_dataset, seed=1), _ds(tiny_dataset, seed=1)
+    assert [a.draw(i) for i in range(30)] == [b.draw(i) for i in range(30)]
+    assert torch.equal(a[5]["inputs"]["color"], b[5]["inputs"]["color"])
+    first = [a.draw(i) for i in range(30)]
+    a.set_epoch(1)
+    assert [a.draw(i) for i in range(30)] != first
+    assert [_ds(tiny_dataset, seed=2).draw(i) for i in range(30)] != first
+
+
+def test_augmentation_is_seeded_and_off_for_validation(tiny_dataset: Path):
+    aug = {C: AugmentConfig(gamma=(0.5, 2.0), permute_channels=True)}
+    config = DataConfig(image_size=16, augment=aug)
+    catalog, loader = scan(tiny_dataset), ImageLoader(config)
+    train = TupleDataset(catalog, loader, (D, C), length=10, seed=0)
+    again = TupleDataset(catalog, loader, (D, C), length=10, seed=0)
+    plain = TupleDataset(catalog, loader, (D, C), length=10, seed=0, augment=False)
+    x, x2, x0 = (
+        train[3]["inputs"]["color"],
+        again[3]["inputs"]["color"],
+        plain[3]["inputs"]["color"],
+    )
+    assert torch.equal(x, x2)
+    assert not torch.allclose(x, x0)
+    assert torch.equal(train[3]["inputs"]["depth"], plain[3]["inputs"]["depth"])  # not listed
+
+
+def test_clear_errors_for_unusable_catalogs(tiny_dataset: Path):
+    with pytest.raises(DatasetError, match=r"fabric 1 has no touch \(rand presses\) item"):
+        _ds(tiny_dataset, touch_kinds=(PressKind.RAND,))
+    small = scan(tiny_dataset).subset([1, 2])
+    with pytest.raises(DatasetError, match="3 slots from different fabrics need at least"):
+        TupleDataset(small, ImageLoader(DataConfig(image_size=16)), (D, C, T), length=4)
+
+
+def test_item_dataset_one_row_per_item_or_press(tiny_dataset: Path):
+    catalog, loader = scan(tiny_dataset), ImageLoader(DataConfig(image_size=16))
+    depth = ItemDataset(catalog, loader, D)
+    touch = ItemDataset(catalog, loader, T)
+    assert len(depth) == 18 and len(touch) == 18  # fold presses by default
+    assert len(ItemDataset(catalog, loader, T, kinds=[PressKind.FLAT])) == 12
+    row = touch[4]
+    assert row["input"].shape == (1, 3, 16, 16)
+    assert int(row["fabric_id"]) == touch.item_list[4].fabric_id

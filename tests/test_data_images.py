@@ -1,0 +1,125 @@
+"""Decoding and preprocessing: the authors' conventions, holes, crops, errors, caching."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from lookfeel.config import DataConfig
+from lookfeel.data import (
+    ImageError,
+    ImageLoader,
+    decode_depth,
+    decode_rgb,
+    depth_to_unit,
+    fill_holes,
+    scan,
+)
+from lookfeel.data import images as images_module
+from lookfeel.data.images import preprocess_depth, preprocess_rgb
+from lookfeel.modality import Modality
+
+
+def test_depth_mapping_matches_the_authors():
+    d = np.array([[0, 700, 800], [1050, 1300, 1500]], np.uint16)
+    np.testing.assert_allclose(depth_to_unit(d), [[0, 0, 0], [0.5, 1, 1]])
+
+
+def test_fill_holes_takes_the_nearest_valid_pixel():
+    d = np.array([[3, 0, 0, 0, 0, 9], [3, 0, 0, 0, 0, 9]], np.uint16)
+    np.testing.assert_array_equal(fill_holes(d), [[3, 3, 3, 9, 9, 9]] * 2)
+    assert d[0, 1] == 0  # the input is not modified
+    assert np.array_equal(fill_holes(np.zeros((2, 2), np.uint16)), np.zeros((2, 2)))
+
+
+def test_depth_holes_are_filled_or_clipped():
+    d = np.full((8, 8), 1050, np.uint16)
+    d[0, 0] = 0
+    nearest = preprocess_depth(d, DataConfig(image_size=8))
+    clip = preprocess_depth(d, DataConfig(image_size=8, depth_holes="clip"))
+    assert nearest[0, 0] == pytest.approx(0.5)
+    assert clip[0, 0] == 0.0  # the authors' mapping: 0 mm is below 800 mm
+
+
+def test_gelsight_frames_are_centre_cropped_only_at_960x720():
+    frame = np.zeros((720, 960, 3), np.uint8)
+    frame[:, :120] = 255  # a white band left of the central 720x720
+    cfg = DataConfig(image_size=24)
+    assert preprocess_rgb(frame, Modality.TOUCH, cfg).max() == 0  # auto: band cropped away
+    none = DataConfig(image_size=24, touch_crop="none")
+    assert preprocess_rgb(frame, Modality.TOUCH, none)[:, 0].min() == 255
+    mini = np.zeros((240, 320, 3), np.uint8)
+    mini[:, :40] = 255  # GelSight Mini frames stay whole under auto
+    assert preprocess_rgb(mini, Modality.TOUCH, cfg)[:, 0].min() == 255
+    assert (
+        preprocess_rgb(mini, Modality.TOUCH, DataConfig(image_size=24, touch_crop="center")).max()
+        == 0
+    )
+    assert (
+        preprocess_rgb(frame, Modality.COLOR, cfg)[:, 0].min() == 255
+    )  # colour: no crop by default
+
+
+def test_decode_errors_name_the_file(tmp_path: Path):
+    good = tmp_path / "F1_a.png"
+    Image.fromarray(np.full((32, 32), 1000, np.uint16)).save(good)
+    truncated = tmp_path / "F1_b.png"
+    truncated.write_bytes(good.read_bytes()[:60])
+    with pytest.raises(ImageError, match="F1_b.png: file is truncated"):
+        decode_depth(truncated)
+    eight = tmp_path / "F1_c.png"
+    Image.fromarray(np.zeros((4, 4), np.uint8)).save(eight)
+    with pytest.raises(ImageError, match="F1_c.png: depth image is mode L; expected 16-bit"):
+        decode_depth(eight)
+    with pytest.raises(ImageError, match="mode I;16 .*expected 8-bit RGB"):
+        decode_rgb(good)
+    with pytest.raises(ImageError, match="F1_x.png: file not found"):
+        decode_rgb(tmp_path / "F1_x.png")
+    assert decode_depth(good).dtype == np.uint16
+    grey = tmp_path / "g.png"
+    Image.fromarray(np.zeros((4, 5), np.uint8)).save(grey)
+    assert decode_rgb(grey).shape == (4, 5, 3)
+
+
+def test_loader_shapes_and_touch_frame_choice(tiny_dataset: Path, tiny_config: DataConfig):
+    catalog = scan(tiny_dataset)
+    loader = ImageLoader(tiny_config)
+    depth = loader.load(catalog.items(Modality.DEPTH)[0])
+    color = loader.load(catalog.items(Modality.COLOR)[0])
+    press = catalog.items(Modality.TOUCH)[0]
+    touch = loader.load(press)
+    assert depth.shape == (1, 16, 16) and depth.dtype == torch.float32
+    assert color.shape == touch.shape == (3, 16, 16)
+    assert float(depth.min()) >= 0.0 and float(color.max()) <= 1.0
+    assert loader.frame_path(press) == press.frames[-2]
+
+
+def test_loader_decodes_each_file_once_and_returns_copies(
+    tiny_dataset: Path, tiny_config: DataConfig, monkeypatch: pytest.MonkeyPatch
+):
+    catalog = scan(tiny_dataset)
+    calls = []
+    real = images_module.decode_depth
+    monkeypatch.setattr(images_module, "decode_depth", lambda p: calls.append(p) or real(p))
+    loader = ImageLoader(tiny_config)
+    items = catalog.items(Modality.DEPTH)
+    assert loader.preload(items) == len(items)
+    assert loader.preload(items) == 0
+    x = loader.load(items[0])
+    x.mul_(0)  # a caller's in-place change must not reach the cache
+    assert loader.load(items[0]).abs().sum() > 0
+    assert len(calls) == len(items)
+
+
+def test_disk_cache_is_keyed_by_settings(tiny_dataset: Path, tmp_path: Path):
+    catalog = scan(tiny_dataset)
+    item = catalog.items(Modality.DEPTH)[0]
+    cache = tmp_path / "cache"
+    a = ImageLoader(DataConfig(image_size=16), cache_dir=cache).load(item)
+    b = ImageLoader(DataConfig(image_size=16), cache_dir=cache).load(item)  # from disk
+    c = ImageLoader(DataConfig(image_size=20), cache_dir=cache).load(item)
+    assert torch.equal(a, b) and c.shape == (1, 20, 20)
+    assert len(list(cache.rglob("*.npy"))) == 2
+    assert not list(cache.rglob("*.tmp"))

@@ -1,0 +1,176 @@
+"""The scanner: names, folder aliases, press grouping, labels and every kind of problem."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from lookfeel.data import DatasetError, parse_touch_name, scan
+from lookfeel.modality import Modality, PressKind
+
+from ._tiny import write_depth, write_rgb, write_tiny_dataset
+
+
+def test_scan_counts_fabrics_items_and_presses(tiny_dataset: Path):
+    catalog = scan(tiny_dataset)
+    assert catalog.ids == [1, 2, 3, 4, 5, 6]
+    assert catalog.modalities == (Modality.DEPTH, Modality.COLOR, Modality.TOUCH)
+    assert len(catalog.items(Modality.DEPTH)) == 18
+    assert len(catalog.items(Modality.TOUCH)) == 30
+    assert len(catalog.items(Modality.TOUCH, [PressKind.FOLD])) == 18
+    press = catalog.items(Modality.TOUCH, [PressKind.FLAT])[0]
+    assert (press.fabric_id, press.kind, press.press) == (1, PressKind.FLAT, "100")
+    assert [p.name for p in press.frames] == [
+        "F0001_flat_01_100.png",
+        "F0001_flat_02_100.png",
+        "F0001_flat_03_100.png",
+    ]
+    assert catalog.problems == ()
+    s = catalog.summary()
+    assert s["items"] == {"depth": 18, "color": 18, "touch": 30}
+    assert s["touch_presses_by_kind"] == {"flat": 12, "fold": 18}
+    assert s["touch_frames"] == 90
+    assert s["clusters"] == {"0": 2, "1": 2, "2": 2}
+
+
+def test_labels_keep_unknown_cells_absent(tiny_dataset: Path):
+    catalog = scan(tiny_dataset)
+    f2 = catalog.fabric(2)
+    assert "density" not in f2.labels
+    assert f2.labels["thickness_mm"] == 1.0
+    assert f2.cluster == 1
+    assert f2.paper_split == "train"
+    assert np.isnan(catalog.label_matrix()[2][1])
+    with pytest.raises(KeyError, match="fabric 99 is not in the dataset"):
+        catalog.fabric(99)
+
+
+def test_frames_are_ordered_by_integer_frame_number(tmp_path: Path):
+    for frame in (10, 9, 2):
+        write_rgb(tmp_path / "touch" / f"F3_fold_{frame}_7.jpg", 3, frame)
+    (press,) = scan(tmp_path).items(Modality.TOUCH)
+    assert [p.name for p in press.frames] == [
+        "F3_fold_2_7.jpg",
+        "F3_fold_9_7.jpg",
+        "F3_fold_10_7.jpg",
+    ]
+    assert press.frame(-2).name == "F3_fold_9_7.jpg"  # the authors' "second-to-last"
+    assert press.frame(-5).name == "F3_fold_2_7.jpg"  # clamped
+
+
+@pytest.mark.parametrize(
+    ("name", "parsed"),
+    [
+        ("F0012_fold_03_1502.jpg", (12, PressKind.FOLD, 3, "1502")),
+        ("F7_FLAT_1_a-2.png", (7, PressKind.FLAT, 1, "a-2")),
+        ("F0012_03_1502.jpg", (12, None, 3, "1502")),
+        ("F12_fold_x.jpg", None),
+        ("G12_fold_1_2.jpg", None),
+    ],
+)
+def test_parse_touch_name(name, parsed):
+    tn = parse_touch_name(name)
+    assert (None if tn is None else (tn.fabric_id, tn.kind, tn.frame, tn.press)) == parsed
+
+
+def test_authors_folder_aliases(tmp_path: Path):
+    write_depth(tmp_path / "kinect_depth_new" / "F0001_Depth_New_1.png", 1, 0)
+    write_depth(tmp_path / "kinect_depth" / "F0001_raw.png", 1, 1)
+    write_rgb(tmp_path / "canon_resize" / "F0001_1.jpg", 1, 0)
+    write_rgb(tmp_path / "image_fold" / "F0001_02_5.jpg", 1, 0)  # kind from the folder
+    write_rgb(tmp_path / "image_flat" / "F0001_02_6.jpg", 1, 0)
+    write_rgb(tmp_path / "image_rand2" / "F0001_01_9.jpg", 1, 0)
+    catalog = scan(tmp_path)
+    assert [it.path.parent.name for it in catalog.items(Modality.DEPTH)] == ["kinect_depth_new"]
+    assert [str(p.path.name) for p in catalog.skipped] == ["kinect_depth"]
+    assert len(catalog.items(Modality.COLOR)) == 1
+    kinds = sorted(it.kind.value for it in catalog.items(Modality.TOUCH) if it.kind)
+    assert kinds == ["flat", "fold", "rand"]
+    assert catalog.problems == ()
+
+
+def test_other_files_are_reported_skipped_not_read(tiny_dataset: Path):
+    (tiny_dataset / "notes.txt").write_text("hello")
+    (tiny_dataset / "renders").mkdir()
+    (tiny_dataset / "depth" / "Thumbs.db").write_bytes(b"x")
+    catalog = scan(tiny_dataset)
+    assert sorted(p.path.name for p in catalog.skipped if p.path) == [
+        "Thumbs.db",
+        "notes.txt",
+        "renders",
+    ]
+    assert catalog.problems == ()
+
+
+def test_every_problem_is_reported_at_once(tiny_dataset: Path):
+    depth = tiny_dataset / "depth"
+    Image.fromarray(np.zeros((8, 8), np.uint8)).save(depth / "F0001_eight_bit.png")
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(depth / "F0001_rgb.png")
+    (depth / "F0002_empty.png").write_bytes(b"")
+    (depth / "drape_without_id.png").write_bytes(
+        (depth / "F0001_Depth_New_000000.png").read_bytes()
+    )
+    write_rgb(tiny_dataset / "color" / "F0001_note.jpg", 1, 0)
+    (tiny_dataset / "color" / "F0001_note.jpg").write_bytes(b"not an image at all")
+    write_rgb(tiny_dataset / "touch" / "F12_fold_x.jpg", 12, 0)
+    write_rgb(tiny_dataset / "touch" / "F0001_fold_01_100.jpg", 1, 0)  # frame 1 twice
+    write_depth(depth / "F0042_Depth_New_1.png", 42, 0)  # not in labels.csv
+    with open(tiny_dataset / "labels.csv", "a") as f:
+        f.write("77,1,1.0,1.0,1.0,0,test\n")  # labelled, no image: a warning
+    catalog = scan(tiny_dataset)
+    found = {(p.path.name if p.path else None, p.severity): p.message for p in catalog.problems}
+    assert "8-bit greyscale" in found["F0001_eight_bit.png", "error"]
+    assert found["F0001_rgb.png", "error"].startswith("depth PNG is 8-bit RGB; expected 16-bit")
+    assert found["F0002_empty.png", "error"] == "file is empty"
+    assert "must begin F<id>_" in found["drape_without_id.png", "error"]
+    assert found["F0001_note.jpg", "error"] == "not a PNG or JPEG image"
+    assert "does not parse" in found["F12_fold_x.jpg", "error"]
+    assert found["F0001_fold_01_100.png", "error"].startswith(
+        "frame 1 of fold press 100 of fabric 1 is also"
+    )  # the .jpg sorts first and is kept
+    assert (
+        found["F0042_Depth_New_1.png", "error"] == "fabric 42 (1 item(s)) has no row in labels.csv"
+    )
+    assert found["color", "error"].startswith("fabric 42 has no color item")
+    warn = [p for p in catalog.warnings]
+    assert [(p.line, p.message) for p in warn] == [
+        (8, "fabric 77 is in labels.csv but has no image (paper_split=test)")
+    ]
+    assert len(catalog.items(Modality.DEPTH)) == 18 + 1  # the bad files are left out
+    with pytest.raises(DatasetError) as info:
+        scan(tiny_dataset, strict=True)
+    assert len(info.value.problems) == len(catalog.errors) >= 9
+    assert "F12_fold_x.jpg" in str(info.value) and "F0002_empty.png" in str(info.value)
+
+
+def test_required_modality_missing(tmp_path: Path):
+    root = write_tiny_dataset(tmp_path / "d", fabrics=3, labels=False)
+    for p in (root / "touch").glob("F0002_*"):
+        p.unlink()
+    msgs = [p.message for p in scan(root).errors]
+    assert msgs == ["fabric 2 has no touch item (other fabrics have; a run that uses it cannot)"]
+    assert scan(root, require=[Modality.DEPTH]).errors == ()
+    with pytest.raises(DatasetError, match="fabric 2 has no touch"):
+        scan(root).require([Modality.TOUCH])
+    with pytest.raises(DatasetError, match=r"fabric 1 has no touch \(rand presses\)"):
+        scan(root, require=[]).require([Modality.TOUCH], [PressKind.RAND])
+
+
+def test_missing_root_is_a_clear_error(tmp_path: Path):
+    with pytest.raises(DatasetError, match="does not exist"):
+        scan(tmp_path / "nope")
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(DatasetError, match="is not a folder"):
+        scan(tmp_path / "file")
+
+
+def test_subset_and_with_items(tiny_dataset: Path):
+    catalog = scan(tiny_dataset)
+    sub = catalog.subset([5, 2])
+    assert sub.ids == [2, 5]
+    with pytest.raises(DatasetError, match="fabric id.* 9 are not in the dataset"):
+        catalog.subset([2, 9])
+    keep = catalog.items(Modality.DEPTH)[:4]
+    only = catalog.with_items(keep)
+    assert only.ids == [1, 2] and only.modalities == (Modality.DEPTH,)
