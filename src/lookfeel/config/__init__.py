@@ -12,11 +12,15 @@ from lookfeel.config._core import (
     to_dict,
 )
 from lookfeel.config.data import AugmentConfig, DataConfig
+from lookfeel.config.loss import LossConfig
+from lookfeel.config.model import ModelConfig
 
 __all__ = [
     "AugmentConfig",
     "ConfigError",
     "DataConfig",
+    "LossConfig",
+    "ModelConfig",
     "apply_overrides",
     "from_dict",
     "load_config",

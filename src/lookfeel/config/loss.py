@@ -1,0 +1,79 @@
+"""Loss configuration: the pairwise objective between modalities and the auxiliary terms."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from lookfeel.config._core import ConfigError
+
+__all__ = ["LossConfig"]
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    """Which objective ties the modalities' embeddings together, and the weight of each term.
+
+    Every term the loss returns is already multiplied by its weight; the total ``"loss"`` is
+    their sum.
+    """
+
+    kind: str = "contrastive"
+    """The objective between slots: ``contrastive`` (the paper's equation 2 on the tuple
+    distance D3), ``infonce`` (multi-positive InfoNCE over every slot pair) or ``triplet``
+    (batch-hard triplet over every slot pair)."""
+    margin: float = 2.0
+    """Contrastive margin m: pairs of different fabrics are pushed until their distance reaches
+    it (paper: 2; the authors' code also used 1 with ``mean_squared``)."""
+    distance: str = "euclidean"
+    """Distance between two embeddings, for ``contrastive`` and ``triplet``: ``euclidean`` (the
+    paper's ``||E1 - E2||``) or ``mean_squared`` (the authors' released code: the mean over
+    dimensions of the squared difference)."""
+    contrastive_pairs: bool = False
+    """``False``: one contrastive term on D3, the sum of the distances of all slot pairs of a
+    tuple (paper equation 1-2). ``True``: one contrastive term per slot pair, each pair's label
+    taken from its two fabric ids when given."""
+    temperature: float = 0.07
+    """InfoNCE temperature (its starting value when learnt); logits are cosine / temperature."""
+    learn_temperature: bool = True
+    """Learn the InfoNCE temperature (CLIP); its parameter lives in the loss module."""
+    max_logit_scale: float = 100.0
+    """Upper clamp of the learnt inverse temperature (CLIP: 100)."""
+    triplet_margin: float = 0.2
+    """Margin of the batch-hard triplet loss, in units of ``distance``."""
+    pair_weight: float = 1.0
+    """Weight of the objective's terms between slots."""
+    cluster_weight: float = 1.0
+    """Weight of the cluster cross-entropy summed over slots (paper's Auxiliary Net: 1, the three
+    cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
+    property_weight: float = 1.0
+    """Weight of the masked property regression (mean squared error over known labels, summed
+    over slots). Needs the model's property head; standardise the targets first."""
+
+    def __post_init__(self) -> None:
+        for key, choice, allowed in (
+            ("kind", self.kind, ("contrastive", "infonce", "triplet")),
+            ("distance", self.distance, ("euclidean", "mean_squared")),
+        ):
+            if choice not in allowed:
+                raise ConfigError(f"loss.{key}: {choice!r} is not one of {', '.join(allowed)}")
+        for key, value in (
+            ("margin", self.margin),
+            ("temperature", self.temperature),
+            ("max_logit_scale", self.max_logit_scale),
+            ("triplet_margin", self.triplet_margin),
+        ):
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"loss.{key}: must be a finite number > 0, got {value}")
+        if 1.0 / self.temperature > self.max_logit_scale:
+            raise ConfigError(
+                f"loss.temperature: 1 / {self.temperature} exceeds loss.max_logit_scale "
+                f"({self.max_logit_scale}); raise the temperature or the clamp"
+            )
+        for key, weight in (
+            ("pair_weight", self.pair_weight),
+            ("cluster_weight", self.cluster_weight),
+            ("property_weight", self.property_weight),
+        ):
+            if not (math.isfinite(weight) and weight >= 0):
+                raise ConfigError(f"loss.{key}: must be a finite number >= 0, got {weight}")

@@ -1,0 +1,126 @@
+"""Model configuration: backbone, freezing, per-modality branches and auxiliary heads."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from lookfeel.config._core import ConfigError
+
+__all__ = ["BACKBONE_DEFAULT_FREEZE", "BACKBONE_FREEZE_POINTS", "ModelConfig"]
+
+BACKBONE_FREEZE_POINTS: dict[str, tuple[str, ...]] = {
+    "alexnet": ("none", "to_conv5", "to_fc6", "all"),
+    "compact": ("none", "to_block4", "all"),
+    "resnet18": ("none", "to_layer2", "to_layer3", "all"),
+}
+"""The built-in backbones and where each can be cut into a frozen trunk and a trainable head:
+``none`` trains everything, ``to_X`` freezes up to and including layer ``X``, ``all`` freezes the
+whole backbone (only a projection and the heads train). `lookfeel.models.list_backbones` lists the
+same names; a test keeps the two in step."""
+
+BACKBONE_DEFAULT_FREEZE: dict[str, str] = {
+    "alexnet": "to_fc6",
+    "compact": "none",
+    "resnet18": "none",
+}
+"""Freeze point used when ``model.freeze`` is unset. AlexNet: the paper's (section 4.2: "parameters
+of AlexNet before fc7 will be fixed")."""
+
+_PRETRAINABLE = ("alexnet", "resnet18")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """The embedding network: one branch per modality, each a backbone plus optional heads.
+
+    The paper's architectures (section 4.1, Figure 4) are settings of this one config: the
+    Cross-modal Net is the default; the Auxiliary Net sets ``cluster_head``; the Multi-input Net
+    is the Auxiliary Net fed several presses per touch input (``data.presses``), pooled here by
+    ``press_pool``; the SNN is a model of one modality fed two slots of it.
+    """
+
+    backbone: str = "alexnet"
+    """Backbone of every branch: ``alexnet`` (the paper's; torchvision's layout, 227 px inputs,
+    at least 63 px), ``compact`` (a small CNN for 64-112 px inputs on a CPU) or ``resnet18``
+    (torchvision's layout)."""
+    pretrained: str | None = None
+    """Path to a local torchvision state dict to start from (``alexnet-owt-7be5be79.pth`` for
+    ``alexnet``, ``resnet18-f37072fd.pth`` for ``resnet18``). Weights are never downloaded;
+    ``None`` starts from random weights."""
+    freeze: str | None = None
+    """Where the frozen trunk ends (see `BACKBONE_FREEZE_POINTS`); ``None`` takes the backbone's
+    default (`BACKBONE_DEFAULT_FREEZE`: ``to_fc6`` for AlexNet as the paper, else ``none``).
+    A frozen trunk always runs in eval mode (no dropout, fixed BatchNorm statistics), so its
+    output per image can be cached."""
+    depth_stem: str = "replicate"
+    """How one-channel depth enters a backbone: ``replicate`` copies it into three channels;
+    ``sum`` uses a one-channel first convolution whose pretrained filters are the sums of the
+    RGB filters (a third of conv1's work, near-identical outputs)."""
+    dropout: float = 0.5
+    """Dropout probability before the fully connected layers (AlexNet fc6/fc7, compact fc);
+    ``resnet18`` has none. torchvision's AlexNet: 0.5."""
+    width: int | None = None
+    """Channels of the first stage of ``compact`` (default 32) or ``resnet18`` (default 64;
+    pretrained weights need 64); doubled at each later stage. Not used by ``alexnet``."""
+    embed_dim: int | None = None
+    """Size of a linear projection of each branch's embedding; ``None`` keeps the backbone's
+    (AlexNet fc7: 4096, as the paper)."""
+    normalize: bool = False
+    """L2-normalise each embedding (CLIP style). The paper does not."""
+    press_pool: str = "max"
+    """How the embeddings of a touch input's presses become one: ``max`` (element-wise maximum,
+    the paper's Multi-input Net) or ``mean``."""
+    cluster_head: bool = False
+    """Add a linear cluster classifier on each branch's embedding (the paper's Auxiliary Net)."""
+    num_clusters: int = 8
+    """Classes of the cluster head (paper: 8 k-means clusters of the physical labels)."""
+    num_properties: int = 0
+    """Outputs of a linear property-regression head on each branch's embedding (e.g. 4 for
+    thickness, density, stiffness, stretchiness); 0 disables it."""
+
+    @property
+    def resolved_freeze(self) -> str:
+        """``freeze``, or the backbone's default freeze point when it is ``None``."""
+        return self.freeze if self.freeze is not None else BACKBONE_DEFAULT_FREEZE[self.backbone]
+
+    def __post_init__(self) -> None:
+        if self.backbone not in BACKBONE_FREEZE_POINTS:
+            valid = ", ".join(BACKBONE_FREEZE_POINTS)
+            raise ConfigError(f"model.backbone: {self.backbone!r} is not one of {valid}")
+        points = BACKBONE_FREEZE_POINTS[self.backbone]
+        if self.freeze is not None and self.freeze not in points:
+            raise ConfigError(
+                f"model.freeze: {self.freeze!r} is not a freeze point of backbone "
+                f"{self.backbone!r}; one of {', '.join(points)}"
+            )
+        if self.pretrained is not None:
+            if self.backbone not in _PRETRAINABLE:
+                raise ConfigError(
+                    f"model.pretrained: backbone {self.backbone!r} has no pretrained weights; "
+                    f"only {', '.join(_PRETRAINABLE)} load a torchvision file"
+                )
+            if not self.pretrained.strip():
+                raise ConfigError("model.pretrained: empty path; use null for random weights")
+        for key, value, allowed in (
+            ("depth_stem", self.depth_stem, ("replicate", "sum")),
+            ("press_pool", self.press_pool, ("max", "mean")),
+        ):
+            if value not in allowed:
+                raise ConfigError(f"model.{key}: {value!r} is not one of {', '.join(allowed)}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ConfigError(f"model.dropout: must be in [0, 1), got {self.dropout}")
+        if self.width is not None:
+            if self.backbone == "alexnet":
+                raise ConfigError("model.width: alexnet has a fixed width; leave width unset")
+            if self.width < 1:
+                raise ConfigError(f"model.width: must be >= 1, got {self.width}")
+            if self.pretrained is not None and self.width != 64:
+                raise ConfigError(
+                    f"model.width: pretrained resnet18 weights need width 64, got {self.width}"
+                )
+        if self.embed_dim is not None and self.embed_dim < 1:
+            raise ConfigError(f"model.embed_dim: must be >= 1 or null, got {self.embed_dim}")
+        if self.num_clusters < 2:
+            raise ConfigError(f"model.num_clusters: must be >= 2, got {self.num_clusters}")
+        if self.num_properties < 0:
+            raise ConfigError(f"model.num_properties: must be >= 0, got {self.num_properties}")

@@ -1,0 +1,137 @@
+"""The loss the trainer calls: the pairwise objective plus the auxiliary terms, as one dict.
+
+The trainer knows nothing of which objective or how many modalities: it logs every term and
+back-propagates ``"loss"`` (open_clip's task layer).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from torch import Tensor, nn
+
+from lookfeel.config.loss import LossConfig
+from lookfeel.losses._naming import embeddings_of, head_output
+from lookfeel.losses.cluster import masked_cross_entropy
+from lookfeel.losses.contrastive import ContrastiveD3Loss
+from lookfeel.losses.distance import (
+    euclidean_distance,
+    mean_squared_distance,
+    pairwise_euclidean,
+    pairwise_mean_squared,
+)
+from lookfeel.losses.infonce import MultiPositiveInfoNCE
+from lookfeel.losses.property import masked_mse
+from lookfeel.losses.triplet import BatchHardTripletLoss
+
+__all__ = ["CombinedLoss", "create_loss"]
+
+
+class CombinedLoss(nn.Module):
+    """Weighted sum of a pairwise objective, the cluster cross-entropy and property regression.
+
+    Every returned term already carries its weight; ``"loss"`` is their sum.
+    """
+
+    def __init__(
+        self,
+        pair_loss: nn.Module,
+        pair_weight: float = 1.0,
+        cluster_weight: float = 1.0,
+        property_weight: float = 1.0,
+    ) -> None:
+        """Assemble the loss.
+
+        Args:
+            pair_loss: maps ``(embeddings, y=, fabric=)`` to named terms (`ContrastiveD3Loss`,
+                `MultiPositiveInfoNCE`, `BatchHardTripletLoss`).
+            pair_weight: weight of its terms (0 leaves them out).
+            cluster_weight: weight of the cluster cross-entropy, summed over slots.
+            property_weight: weight of the property regression, summed over slots.
+        """
+        super().__init__()
+        self.pair_loss = pair_loss
+        self.pair_weight = pair_weight
+        self.cluster_weight = cluster_weight
+        self.property_weight = property_weight
+
+    def forward(
+        self,
+        outputs: Mapping[str, Tensor],
+        y: Tensor | None = None,
+        fabric: Mapping[str, Tensor] | None = None,
+        cluster: Mapping[str, Tensor] | None = None,
+        properties: Mapping[str, Tensor] | None = None,
+    ) -> dict[str, Tensor]:
+        """Compute every term and the total.
+
+        Args:
+            outputs: the `Embedder`'s output: slot -> (B, D) embeddings, plus
+                ``"<slot>/cluster"`` (B, K) and ``"<slot>/property"`` (B, Q) head outputs
+                (``model(inputs, heads=True)``).
+            y: (B,) 0 when a tuple's slots show one fabric, 1 when not (contrastive; derived
+                from ``fabric`` when omitted).
+            fabric: slot -> (B,) fabric ids (needed by InfoNCE and triplet).
+            cluster: slot -> (B,) cluster targets, -1 where unknown; gives ``cluster_loss``.
+            properties: slot -> (B, Q) property targets, NaN where unknown; gives
+                ``property_loss``.
+
+        Returns:
+            ``{"<a>_<b>_loss": ..., "cluster_loss": ..., "property_loss": ..., "loss": total}``,
+            with only the terms that apply; every value is a scalar.
+
+        Raises:
+            ValueError: targets given for a head the outputs lack, or nothing to optimise.
+        """
+        terms: dict[str, Tensor] = {}
+        if self.pair_weight > 0:
+            pair_terms = self.pair_loss(embeddings_of(outputs), y=y, fabric=fabric)
+            for name, value in pair_terms.items():
+                terms[name] = self.pair_weight * value
+        if cluster is not None and self.cluster_weight > 0:
+            parts = [
+                masked_cross_entropy(head_output(outputs, slot, "cluster"), target)
+                for slot, target in cluster.items()
+            ]
+            terms["cluster_loss"] = self.cluster_weight * sum(parts[1:], parts[0])
+        if properties is not None and self.property_weight > 0:
+            parts = [
+                masked_mse(head_output(outputs, slot, "property"), target)
+                for slot, target in properties.items()
+            ]
+            terms["property_loss"] = self.property_weight * sum(parts[1:], parts[0])
+        if not terms:
+            raise ValueError("no loss term applies: every weight is 0 or its targets are missing")
+        values = list(terms.values())
+        terms["loss"] = sum(values[1:], values[0])
+        return terms
+
+
+def create_loss(config: LossConfig) -> CombinedLoss:
+    """Build the loss a `LossConfig` describes.
+
+    Args:
+        config: the loss configuration.
+
+    Returns:
+        A `CombinedLoss`; call it as ``loss_fn(model(inputs, heads=True), y=..., fabric=...,
+        cluster=..., properties=...)``. With ``infonce`` and a learnt temperature it has a
+        parameter: optimise ``loss_fn.parameters()`` too.
+    """
+    pair_loss: nn.Module
+    if config.kind == "contrastive":
+        dist = euclidean_distance if config.distance == "euclidean" else mean_squared_distance
+        pair_loss = ContrastiveD3Loss(config.margin, dist, per_pair=config.contrastive_pairs)
+    elif config.kind == "infonce":
+        pair_loss = MultiPositiveInfoNCE(
+            config.temperature, config.learn_temperature, config.max_logit_scale
+        )
+    else:
+        pdist = pairwise_euclidean if config.distance == "euclidean" else pairwise_mean_squared
+        pair_loss = BatchHardTripletLoss(config.triplet_margin, pdist)
+    return CombinedLoss(
+        pair_loss,
+        pair_weight=config.pair_weight,
+        cluster_weight=config.cluster_weight,
+        property_weight=config.property_weight,
+    )

@@ -1,0 +1,30 @@
+"""Property regression from the embedding, masked where a fabric's label is unknown."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+__all__ = ["masked_mse"]
+
+
+def masked_mse(pred: Tensor, target: Tensor) -> Tensor:
+    """Mean squared error over the known entries of ``target`` (NaN marks unknown).
+
+    Unknown entries contribute neither to the value nor to the gradient (NaN never reaches the
+    arithmetic: it is replaced before the difference is taken).
+
+    Args:
+        pred: (B, Q) predicted properties.
+        target: (B, Q) labels, NaN where unknown; standardise them first, so that properties on
+            different scales weigh alike.
+
+    Returns:
+        Scalar: the mean over known entries; 0 (with a zero gradient) when none is known.
+    """
+    known = ~torch.isnan(target)
+    if not bool(known.any()):
+        return pred.sum() * 0.0
+    safe = torch.where(known, target, pred.detach())
+    sq = (pred - safe).pow(2)  # 0 where unknown
+    return sq.sum() / known.sum()

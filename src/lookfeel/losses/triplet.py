@@ -1,0 +1,96 @@
+"""Batch-hard triplet loss between two slots (Hermans, Beyer & Leibe 2017), by fabric id.
+
+Each anchor in one slot is paired with its farthest same-fabric item and its nearest
+other-fabric item in the other slot: ``max(0, d(a, p_hard) - d(a, n_hard) + margin)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from lookfeel.losses._naming import require_fabric, slot_pairs, term_name
+from lookfeel.losses.distance import pairwise_euclidean
+
+__all__ = ["BatchHardTripletLoss", "batch_hard_triplet"]
+
+PairwiseFn = Callable[[Tensor, Tensor], Tensor]
+
+
+def batch_hard_triplet(
+    anchor: Tensor,
+    candidate: Tensor,
+    anchor_fabric: Tensor,
+    candidate_fabric: Tensor,
+    margin: float = 0.2,
+    distance: PairwiseFn = pairwise_euclidean,
+) -> Tensor:
+    """Batch-hard triplet loss from anchors in one slot to candidates in another.
+
+    Args:
+        anchor: (N, D).
+        candidate: (M, D).
+        anchor_fabric: (N,) fabric ids.
+        candidate_fabric: (M,) fabric ids.
+        margin: the triplet margin.
+        distance: (N, D), (M, D) -> (N, M) distances.
+
+    Returns:
+        Scalar: the mean over anchors that have both a positive and a negative (0 if none).
+    """
+    d = distance(anchor, candidate)  # (N, M)
+    pos = anchor_fabric[:, None] == candidate_fabric[None, :]  # (N, M)
+    valid = pos.any(dim=1) & (~pos).any(dim=1)  # (N,)
+    if not bool(valid.any()):
+        return d.sum() * 0.0
+    inf = torch.full_like(d, float("inf"))
+    hardest_pos = torch.where(pos, d, -inf).amax(dim=1)  # (N,)
+    hardest_neg = torch.where(pos, inf, d).amin(dim=1)  # (N,)
+    return F.relu(hardest_pos - hardest_neg + margin)[valid].mean()
+
+
+class BatchHardTripletLoss(nn.Module):
+    """Symmetric batch-hard triplet loss over every slot pair."""
+
+    def __init__(self, margin: float = 0.2, distance: PairwiseFn = pairwise_euclidean) -> None:
+        """Configure the loss.
+
+        Args:
+            margin: the triplet margin, in units of ``distance``.
+            distance: pairwise distance, (N, D), (M, D) -> (N, M).
+        """
+        super().__init__()
+        self.margin = margin
+        self.distance = distance
+
+    def forward(
+        self,
+        embeddings: Mapping[str, Tensor],
+        y: Tensor | None = None,
+        fabric: Mapping[str, Tensor] | None = None,
+    ) -> dict[str, Tensor]:
+        """One term per slot pair: the mean of the a-to-b and b-to-a losses.
+
+        Args:
+            embeddings: slot -> (B, D), at least two slots.
+            y: unused (positives come from fabric ids).
+            fabric: slot -> (B,) fabric ids; required.
+
+        Returns:
+            Term name -> scalar loss.
+        """
+        slots = list(embeddings)
+        if len(slots) < 2:
+            raise ValueError(f"the triplet loss needs at least 2 slots, got {slots}")
+        fab = require_fabric(fabric, slots, "the triplet loss")
+        terms = {}
+        for a, b in slot_pairs(slots):
+            ea, eb, fa, fb = embeddings[a], embeddings[b], fab[a], fab[b]
+            terms[term_name(a, b)] = 0.5 * (
+                batch_hard_triplet(ea, eb, fa, fb, self.margin, self.distance)
+                + batch_hard_triplet(eb, ea, fb, fa, self.margin, self.distance)
+            )
+        return terms

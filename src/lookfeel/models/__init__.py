@@ -1,0 +1,43 @@
+"""Networks: backbones, per-modality branches with press pooling and heads, the joint model.
+
+Example:
+    >>> from lookfeel.config import ModelConfig
+    >>> from lookfeel.modality import Modality
+    >>> model = create_model(ModelConfig(backbone="compact"), [Modality.DEPTH, Modality.TOUCH])
+    >>> out = model({"depth": depth, "touch": presses})  # (B, 1, H, W), (B, P, 3, H, W)
+    >>> out["touch"].shape  # (B, D)
+"""
+
+from lookfeel.models.alexnet import AlexNet
+from lookfeel.models.backbone import Backbone
+from lookfeel.models.branch import CLUSTER, PROPERTY, Branch
+from lookfeel.models.compact import CompactCNN
+from lookfeel.models.embedder import Embedder, create_model, head_key
+from lookfeel.models.pretrained import (
+    PretrainedError,
+    apply_state_dict,
+    load_pretrained,
+    read_state_dict,
+)
+from lookfeel.models.registry import BACKBONES, create_backbone, list_backbones
+from lookfeel.models.resnet import ResNet18
+
+__all__ = [
+    "BACKBONES",
+    "CLUSTER",
+    "PROPERTY",
+    "AlexNet",
+    "Backbone",
+    "Branch",
+    "CompactCNN",
+    "Embedder",
+    "PretrainedError",
+    "ResNet18",
+    "apply_state_dict",
+    "create_backbone",
+    "create_model",
+    "head_key",
+    "list_backbones",
+    "load_pretrained",
+    "read_state_dict",
+]

@@ -1,0 +1,83 @@
+"""AlexNet in torchvision's exact module layout, embedding at fc7 (the paper's E).
+
+The attribute names and indices are torchvision's (``features.0.weight`` ...
+``classifier.6.bias``), so a user's local ``alexnet-owt-7be5be79.pth`` loads unchanged (see
+`lookfeel.models.pretrained`). The embedding is ReLU(fc7), 4096-d, as in the authors' code;
+the ImageNet classifier fc8 (``classifier.6``) is kept for the state dict but never used.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from torch import nn
+
+from lookfeel.models.backbone import Backbone
+
+__all__ = ["AlexNet"]
+
+
+class AlexNet(Backbone):
+    """AlexNet (Krizhevsky et al. 2012, torchvision's single-tower variant) to fc7.
+
+    Stages: conv1-5 with pooling (``features``), avgpool and flatten, fc6 (``classifier.0-2``:
+    dropout, linear, ReLU), fc7 (``classifier.3-5``). Freeze points: ``none``; ``to_conv5``;
+    ``to_fc6`` (the paper: "parameters of AlexNet before fc7 will be fixed"); ``all``.
+    """
+
+    name = "alexnet"
+    freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_conv5": 2, "to_fc6": 3, "all": 4}
+    min_size = 63  # three stride-2 max pools after a stride-4 conv need 63 px
+
+    def __init__(
+        self,
+        in_channels: int = 3,
+        stem: str = "replicate",
+        freeze: str | None = None,
+        dropout: float = 0.5,
+        width: int | None = None,
+    ) -> None:
+        """Build AlexNet.
+
+        Args:
+            in_channels: 1 (depth) or 3.
+            stem: ``replicate`` or ``sum`` for one-channel input (see `Backbone`).
+            freeze: a freeze point; ``None`` is the paper's ``to_fc6``.
+            dropout: dropout probability before fc6 and fc7 (torchvision: 0.5).
+            width: must be ``None``: AlexNet's width is fixed.
+        """
+        super().__init__(in_channels, stem)
+        if width is not None:
+            raise ValueError("alexnet has a fixed width; width must be None")
+        self.features = nn.Sequential(
+            nn.Conv2d(self.stem_channels, 64, kernel_size=11, stride=4, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(kernel_size=3, stride=2),
+            nn.Conv2d(64, 192, kernel_size=5, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(kernel_size=3, stride=2),
+            nn.Conv2d(192, 384, kernel_size=3, padding=1),
+            nn.ReLU(inplace=True),
+            nn.Conv2d(384, 256, kernel_size=3, padding=1),
+            nn.ReLU(inplace=True),
+            nn.Conv2d(256, 256, kernel_size=3, padding=1),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(kernel_size=3, stride=2),
+        )
+        self.avgpool = nn.AdaptiveAvgPool2d((6, 6))
+        self.classifier = nn.Sequential(
+            nn.Dropout(p=dropout),
+            nn.Linear(256 * 6 * 6, 4096),
+            nn.ReLU(inplace=True),
+            nn.Dropout(p=dropout),
+            nn.Linear(4096, 4096),
+            nn.ReLU(inplace=True),
+            nn.Linear(4096, 1000),
+        )
+        stages = [
+            self.features,  # (N, C, H, W) -> (N, 256, h, w)
+            nn.Sequential(self.avgpool, nn.Flatten(1)),  # -> (N, 9216)
+            self.classifier[0:3],  # fc6: -> (N, 4096)
+            self.classifier[3:6],  # fc7: -> (N, 4096), the embedding E
+        ]
+        self._set_stages(stages, freeze or "to_fc6", embed_dim=4096, unused=[self.classifier[6]])

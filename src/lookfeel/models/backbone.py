@@ -1,0 +1,171 @@
+"""The interface every backbone shares: a frozen trunk, a trainable head, one embedding size.
+
+A backbone is an ordered list of stages. Its freeze point cuts that list in two: the `trunk`
+(input normalisation plus the frozen stages) and the `head` (the stages that train), with
+``forward(x) == head(trunk(x))``. The trunk has no trainable parameter and always runs in eval
+mode, so it is a fixed function of the image: a trainer may compute ``trunk(x)`` once per image,
+cache it, and train on ``head(cached)`` (ARCHITECTURE.md, "What makes it fast").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import ClassVar
+
+import torch
+from torch import Tensor, nn
+
+__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "Backbone"]
+
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+class Backbone(nn.Module):
+    """Base class: input checks, ImageNet normalisation, the trunk/head split and freezing.
+
+    Subclasses build their layers (keeping torchvision's attribute names where one exists, so
+    state-dict keys match its files), then call `_set_stages`.
+
+    Attributes:
+        name: registry name (``alexnet``, ``compact``, ``resnet18``).
+        freeze_points: freeze point name -> number of stages in the trunk.
+        embed_dim: size D of the embedding `forward` returns.
+        in_channels: channels of the input images (1 for depth, 3 for colour and touch).
+        min_size: smallest input side in pixels the layers accept.
+    """
+
+    name: ClassVar[str]
+    freeze_points: ClassVar[dict[str, int]]
+    min_size: ClassVar[int] = 1
+
+    def __init__(self, in_channels: int = 3, stem: str = "replicate") -> None:
+        """Set up the input path.
+
+        Args:
+            in_channels: 1 (depth) or 3 (colour, touch).
+            stem: for one-channel input, ``replicate`` copies it into three channels before a
+                three-channel first layer; ``sum`` makes the first layer one-channel.
+        """
+        super().__init__()
+        if in_channels not in (1, 3):
+            raise ValueError(f"in_channels must be 1 or 3, got {in_channels}")
+        if stem not in ("replicate", "sum"):
+            raise ValueError(f"stem must be 'replicate' or 'sum', got {stem!r}")
+        self.in_channels = in_channels
+        self.stem = stem
+        self._replicate = in_channels == 1 and stem == "replicate"
+        self.stem_channels = 3 if in_channels == 3 or self._replicate else 1
+        """Input channels of the first layer (1 only for a ``sum`` stem)."""
+        mean: tuple[float, ...] = IMAGENET_MEAN
+        std: tuple[float, ...] = IMAGENET_STD
+        if self.stem_channels == 1:  # one grey channel: the mean of the RGB statistics
+            mean, std = (sum(IMAGENET_MEAN) / 3,), (sum(IMAGENET_STD) / 3,)
+        # Not persistent: the state dict keeps exactly torchvision's keys.
+        self.mean: Tensor
+        self.std: Tensor
+        self.register_buffer("mean", torch.tensor(mean).view(1, -1, 1, 1), persistent=False)
+        self.register_buffer("std", torch.tensor(std).view(1, -1, 1, 1), persistent=False)
+        self.embed_dim = 0
+        self.freeze = "none"
+        self._stages: list[nn.Module] = []
+        self._cut = 0
+
+    def _set_stages(
+        self,
+        stages: Sequence[nn.Module],
+        freeze: str,
+        embed_dim: int,
+        unused: Sequence[nn.Module] = (),
+    ) -> None:
+        """Record the stages, cut them at ``freeze`` and freeze the trunk's parameters.
+
+        Args:
+            stages: the layers in order; their composition maps a normalised image to (N, D).
+            freeze: a key of `freeze_points`.
+            embed_dim: D.
+            unused: layers kept only for state-dict compatibility (ImageNet classifiers);
+                their parameters are frozen since no output depends on them.
+        """
+        if freeze not in self.freeze_points:
+            valid = ", ".join(self.freeze_points)
+            raise ValueError(f"{self.name}: freeze {freeze!r} is not one of {valid}")
+        # A plain list, not a ModuleList: the stages are already registered under their
+        # torchvision names, and registering them twice would duplicate state-dict keys.
+        self._stages = list(stages)
+        self._cut = self.freeze_points[freeze]
+        self.freeze = freeze
+        self.embed_dim = embed_dim
+        for stage in self._stages[: self._cut]:
+            stage.requires_grad_(False)
+        for module in unused:
+            module.requires_grad_(False)
+        self.train(self.training)
+
+    def train(self, mode: bool = True) -> Backbone:
+        """Set train or eval mode; the frozen trunk stays in eval mode either way."""
+        super().train(mode)
+        for stage in self._stages[: self._cut]:
+            stage.eval()
+        return self
+
+    def prepare(self, x: Tensor) -> Tensor:
+        """Check an image batch in [0, 1] and normalise it with the ImageNet statistics.
+
+        Args:
+            x: (N, in_channels, H, W) in [0, 1].
+
+        Returns:
+            (N, stem_channels, H, W), normalised.
+        """
+        if x.dim() != 4 or x.shape[1] != self.in_channels:
+            raise ValueError(
+                f"{self.name}: expected images of shape (N, {self.in_channels}, H, W), "
+                f"got {tuple(x.shape)}"
+            )
+        if min(x.shape[-2:]) < self.min_size:
+            raise ValueError(
+                f"{self.name}: inputs must be at least {self.min_size} px on each side, "
+                f"got {tuple(x.shape[-2:])}"
+            )
+        if self._replicate:
+            x = x.expand(-1, 3, -1, -1)  # (N, 1, H, W) -> (N, 3, H, W)
+        return (x - self.mean) / self.std
+
+    def trunk(self, x: Tensor) -> Tensor:
+        """The frozen part: a fixed function of the image (cacheable per image).
+
+        Args:
+            x: (N, in_channels, H, W) in [0, 1].
+
+        Returns:
+            (N, *F) features; F depends on the backbone and freeze point.
+        """
+        x = self.prepare(x)
+        for stage in self._stages[: self._cut]:
+            x = stage(x)
+        return x
+
+    def head(self, features: Tensor) -> Tensor:
+        """The trainable part, from `trunk` features to the embedding.
+
+        Args:
+            features: (N, *F) from `trunk`.
+
+        Returns:
+            (N, D) embeddings.
+        """
+        for stage in self._stages[self._cut :]:
+            features = stage(features)
+        return features
+
+    def forward(self, x: Tensor) -> Tensor:
+        """Embed images: ``head(trunk(x))``.
+
+        Args:
+            x: (N, in_channels, H, W) in [0, 1].
+
+        Returns:
+            (N, D) embeddings.
+        """
+        return self.head(self.trunk(x))

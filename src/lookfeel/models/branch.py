@@ -1,0 +1,120 @@
+"""One modality's branch: backbone, press pooling, optional projection and auxiliary heads."""
+
+from __future__ import annotations
+
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from lookfeel.modality import Modality
+from lookfeel.models.backbone import Backbone
+
+__all__ = ["CLUSTER", "PROPERTY", "Branch"]
+
+CLUSTER = "cluster"
+"""Name of the cluster-classifier head's output (the paper's Auxiliary Net)."""
+PROPERTY = "property"
+"""Name of the property-regression head's output."""
+
+
+class Branch(nn.Module):
+    """Embeds one modality's inputs: the network G_W of paper section 4.1.
+
+    Touch inputs carry a press axis, (B, P, 3, H, W): every press goes through the same
+    backbone and the P embeddings are pooled element-wise (max: the paper's Multi-input Net,
+    Figure 4c; P = 1 is the plain net). Pooling happens on the backbone's embedding (fc7), then
+    the optional projection and L2 normalisation follow.
+    """
+
+    def __init__(
+        self,
+        modality: Modality,
+        backbone: Backbone,
+        *,
+        embed_dim: int | None = None,
+        normalize: bool = False,
+        press_pool: str = "max",
+        num_clusters: int = 0,
+        num_properties: int = 0,
+    ) -> None:
+        """Build a branch.
+
+        Args:
+            modality: what it embeds; ``Modality.TOUCH`` inputs have a press axis.
+            backbone: a `Backbone` with ``in_channels`` fitting the modality.
+            embed_dim: size of a linear projection of the backbone's embedding; ``None``: none.
+            normalize: L2-normalise the embedding.
+            press_pool: ``max`` or ``mean`` over presses.
+            num_clusters: classes of a linear cluster head on the embedding; 0: no head.
+            num_properties: outputs of a linear property-regression head; 0: no head.
+        """
+        super().__init__()
+        if press_pool not in ("max", "mean"):
+            raise ValueError(f"press_pool must be 'max' or 'mean', got {press_pool!r}")
+        self.modality = Modality(modality)
+        self.pressed = self.modality is Modality.TOUCH
+        self.backbone = backbone
+        self.project: nn.Module = (
+            nn.Linear(backbone.embed_dim, embed_dim) if embed_dim is not None else nn.Identity()
+        )
+        self.embed_dim = embed_dim if embed_dim is not None else backbone.embed_dim
+        self.normalize = normalize
+        self.press_pool = press_pool
+        self.cluster_head = nn.Linear(self.embed_dim, num_clusters) if num_clusters else None
+        self.property_head = nn.Linear(self.embed_dim, num_properties) if num_properties else None
+
+    def trunk(self, x: Tensor) -> Tensor:
+        """The backbone's frozen trunk, applied per image (per press for touch).
+
+        Args:
+            x: (B, C, H, W), or (B, P, C, H, W) for touch.
+
+        Returns:
+            (B, *F), or (B, P, *F) for touch.
+        """
+        if not self.pressed:
+            return self.backbone.trunk(x)
+        b, p = x.shape[:2]
+        f = self.backbone.trunk(x.flatten(0, 1))  # (B * P, C, H, W) -> (B * P, *F)
+        return f.unflatten(0, (b, p))  # -> (B, P, *F)
+
+    def forward(self, x: Tensor, from_trunk: bool = False) -> Tensor:
+        """Embed a batch.
+
+        Args:
+            x: images (B, C, H, W), or (B, P, C, H, W) for touch, in [0, 1]; with
+                ``from_trunk``, the output of `trunk` for those images instead.
+            from_trunk: ``x`` holds trunk features (e.g. cached), so skip the trunk.
+
+        Returns:
+            (B, D) embeddings.
+        """
+        b = p = 0
+        if self.pressed:
+            b, p = x.shape[:2]
+            x = x.flatten(0, 1)  # (B, P, ...) -> (B * P, ...)
+        f = x if from_trunk else self.backbone.trunk(x)
+        e = self.backbone.head(f)  # (N, D0)
+        if self.pressed:
+            e = e.unflatten(0, (b, p))  # (B * P, D0) -> (B, P, D0)
+            e = e.amax(dim=1) if self.press_pool == "max" else e.mean(dim=1)  # -> (B, D0)
+        e = self.project(e)  # (B, D0) -> (B, D)
+        if self.normalize:
+            e = F.normalize(e, dim=-1)
+        return e
+
+    def heads(self, e: Tensor) -> dict[str, Tensor]:
+        """The auxiliary heads on the embedding.
+
+        Args:
+            e: (B, D) embeddings from `forward`.
+
+        Returns:
+            ``{"cluster": (B, K) logits, "property": (B, Q) predictions}``, for the heads that
+            exist.
+        """
+        out = {}
+        if self.cluster_head is not None:
+            out[CLUSTER] = self.cluster_head(e)
+        if self.property_head is not None:
+            out[PROPERTY] = self.property_head(e)
+        return out

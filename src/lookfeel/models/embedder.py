@@ -1,0 +1,228 @@
+"""The joint model: one branch per modality, dict in and dict out by slot (paper Figure 4).
+
+Inputs and outputs are keyed by slot name (`lookfeel.modality.slot_names`): ``"depth"``,
+``"touch"``, ``"depth.1"`` ... A slot goes through the branch of its modality, so the Siamese
+net (one depth branch, slots ``depth`` and ``depth.1``) and the cross-modal nets (a branch per
+modality) are the same code.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+
+import torch
+from torch import Tensor, nn
+
+from lookfeel.config.model import ModelConfig
+from lookfeel.modality import Modality, slot_modality
+from lookfeel.models.branch import Branch
+from lookfeel.models.pretrained import apply_state_dict, read_state_dict
+from lookfeel.models.registry import create_backbone
+
+__all__ = ["Embedder", "create_model", "head_key"]
+
+_CHANNELS = {Modality.DEPTH: 1, Modality.COLOR: 3, Modality.TOUCH: 3}
+
+
+def head_key(slot: str, head: str) -> str:
+    """Key of an auxiliary head's output in `Embedder.forward`'s dict: ``"touch/cluster"``."""
+    return f"{slot}/{head}"
+
+
+class Embedder(nn.Module):
+    """Embeds every slot of a batch with its modality's branch.
+
+    Attributes:
+        branches: ``nn.ModuleDict`` keyed by modality value (``"depth"``, ``"touch"``).
+        config: the `ModelConfig` it was built from, when built by `create_model`.
+    """
+
+    def __init__(
+        self, branches: Mapping[Modality, Branch], config: ModelConfig | None = None
+    ) -> None:
+        """Assemble branches.
+
+        Args:
+            branches: modality -> its branch; all must share one embedding size.
+            config: kept for checkpoints (a checkpoint alone rebuilds the model).
+        """
+        super().__init__()
+        if not branches:
+            raise ValueError("an Embedder needs at least one branch")
+        dims = {b.embed_dim for b in branches.values()}
+        if len(dims) != 1:
+            raise ValueError(f"all branches must share one embedding size, got {sorted(dims)}")
+        self.branches = nn.ModuleDict({Modality(m).value: b for m, b in branches.items()})
+        self.config = config
+
+    @property
+    def modalities(self) -> tuple[Modality, ...]:
+        """The modalities with a branch, in order."""
+        return tuple(Modality(k) for k in self.branches)
+
+    @property
+    def embed_dim(self) -> int:
+        """Size D of every embedding."""
+        return next(iter(self._branches())).embed_dim
+
+    def _branches(self) -> list[Branch]:
+        return [b for b in self.branches.values() if isinstance(b, Branch)]
+
+    def branch(self, slot: str) -> Branch:
+        """The branch that embeds ``slot`` (``"depth.1"`` -> the depth branch).
+
+        Raises:
+            KeyError: naming the slot, when no branch embeds its modality.
+        """
+        try:
+            m = slot_modality(slot)
+        except ValueError:
+            raise KeyError(f"slot {slot!r} names no modality") from None
+        if m.value not in self.branches:
+            have = ", ".join(self.branches)
+            raise KeyError(f"slot {slot!r}: this model has no {m.value} branch (it has: {have})")
+        b = self.branches[m.value]
+        assert isinstance(b, Branch)
+        return b
+
+    def trainable_parameters(self) -> list[nn.Parameter]:
+        """Parameters that train (frozen trunks and unused ImageNet classifiers excluded)."""
+        return [p for p in self.parameters() if p.requires_grad]
+
+    def _check(self, slot: str, x: Tensor) -> None:
+        m = self.branch(slot).modality
+        c = _CHANNELS[m]
+        if m is Modality.TOUCH:
+            if x.dim() != 5 or x.shape[2] != c:
+                raise ValueError(
+                    f"slot {slot!r}: touch input must be (B, P, {c}, H, W) with a press axis "
+                    f"(P = 1 for one press), got {tuple(x.shape)}"
+                )
+        elif x.dim() != 4 or x.shape[1] != c:
+            raise ValueError(f"slot {slot!r}: expected (B, {c}, H, W), got {tuple(x.shape)}")
+
+    def _per_branch(
+        self, inputs: Mapping[str, Tensor], fn: Callable[[Branch, Tensor], Tensor]
+    ) -> dict[str, Tensor]:
+        """Apply ``fn(branch, x)`` to every slot; slots sharing a branch run as one batch."""
+        groups: dict[str, list[str]] = {}
+        for slot in inputs:
+            groups.setdefault(self.branch(slot).modality.value, []).append(slot)
+        out: dict[str, Tensor] = {}
+        for m, slots in groups.items():
+            branch = self.branches[m]
+            assert isinstance(branch, Branch)
+            shapes = {tuple(inputs[s].shape[1:]) for s in slots}
+            if len(slots) > 1 and len(shapes) == 1:
+                # One larger batch for the shared branch (the Siamese net's two depth slots).
+                y = fn(branch, torch.cat([inputs[s] for s in slots]))
+                for s, part in zip(slots, y.split([len(inputs[s]) for s in slots]), strict=True):
+                    out[s] = part
+            else:
+                for s in slots:
+                    out[s] = fn(branch, inputs[s])
+        return {s: out[s] for s in inputs}
+
+    def trunk(self, inputs: Mapping[str, Tensor]) -> dict[str, Tensor]:
+        """Frozen trunk features per slot: a fixed function of each image, safe to cache.
+
+        Args:
+            inputs: slot -> images as for `forward`.
+
+        Returns:
+            slot -> (B, *F), or (B, P, *F) for touch; feed back with ``from_trunk=True``.
+        """
+        for slot, x in inputs.items():
+            self._check(slot, x)
+        return self._per_branch(inputs, lambda b, x: b.trunk(x))
+
+    def forward(
+        self, inputs: Mapping[str, Tensor], from_trunk: bool = False, heads: bool = False
+    ) -> dict[str, Tensor]:
+        """Embed every slot.
+
+        Args:
+            inputs: slot -> images in [0, 1]: depth (B, 1, H, W), colour (B, 3, H, W), touch
+                (B, P, 3, H, W) with any P >= 1. With ``from_trunk``, slot -> `trunk` output.
+            from_trunk: inputs are (cached) trunk features; only the trainable part runs.
+            heads: also return the auxiliary heads' outputs, under ``head_key(slot, "cluster")``
+                ((B, K) logits) and ``head_key(slot, "property")`` ((B, Q)), for the heads the
+                model has. Training passes ``True``; evaluation needs only the embeddings.
+
+        Returns:
+            slot -> (B, D) embedding, in the order of ``inputs`` (plus head outputs if asked).
+        """
+        if not from_trunk:
+            for slot, x in inputs.items():
+                self._check(slot, x)
+        emb = self._per_branch(inputs, lambda b, x: b(x, from_trunk=from_trunk))
+        if not heads:
+            return emb
+        out = dict(emb)
+        for slot, e in emb.items():
+            for name, value in self.branch(slot).heads(e).items():
+                out[head_key(slot, name)] = value
+        return out
+
+
+def create_model(
+    config: ModelConfig,
+    modalities: Sequence[Modality | str],
+    *,
+    load_weights: bool = True,
+) -> Embedder:
+    """Build the joint model: one branch per modality (paper section 4.1, Figure 4).
+
+    Cross-modal Net: the default config. Auxiliary Net: ``config.cluster_head``. Multi-input
+    Net: touch inputs with P > 1 presses. SNN: a single modality fed two slots of it.
+
+    Args:
+        config: the model configuration.
+        modalities: modalities that get a branch (duplicates are ignored: slots of one
+            modality share its branch).
+        load_weights: read ``config.pretrained`` into every branch. Pass ``False`` when a
+            checkpoint's state dict will be loaded next (the weights file need not exist then).
+
+    Returns:
+        The `Embedder`.
+
+    Raises:
+        ValueError: no modality given.
+        PretrainedError: the weights file is absent, unreadable or does not fit.
+    """
+    mods = list(dict.fromkeys(Modality(m) for m in modalities))
+    if not mods:
+        raise ValueError("create_model needs at least one modality")
+    freeze = config.resolved_freeze
+    state = None
+    if load_weights and config.pretrained is not None:
+        state = read_state_dict(config.pretrained)  # once, shared by every branch
+    elif load_weights and freeze != "none":
+        warnings.warn(
+            f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers "
+            "because model.pretrained is not set; set it (alexnet, resnet18) or model.freeze=none",
+            stacklevel=2,
+        )
+    branches: dict[Modality, Branch] = {}
+    for m in mods:
+        backbone = create_backbone(
+            config.backbone,
+            in_channels=_CHANNELS[m],
+            stem=config.depth_stem,
+            freeze=freeze,
+            dropout=config.dropout,
+            width=config.width,
+        )
+        if state is not None:
+            apply_state_dict(backbone, state, source=str(config.pretrained))
+        branches[m] = Branch(
+            m,
+            backbone,
+            embed_dim=config.embed_dim,
+            normalize=config.normalize,
+            press_pool=config.press_pool,
+            num_clusters=config.num_clusters if config.cluster_head else 0,
+            num_properties=config.num_properties,
+        )
+    return Embedder(branches, config)

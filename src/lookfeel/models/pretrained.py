@@ -1,0 +1,120 @@
+"""Load a user's local torchvision weights into a backbone, checking every key and shape.
+
+Weights are never downloaded: the user names a file they already have (for AlexNet,
+torchvision's ``alexnet-owt-7be5be79.pth``). It is read with ``weights_only=True``, so a file
+cannot run code. A one-channel ``sum`` stem receives the sum of the file's RGB filters.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import torch
+from torch import Tensor, nn
+
+from lookfeel.models.backbone import Backbone
+
+__all__ = ["PretrainedError", "apply_state_dict", "load_pretrained", "read_state_dict"]
+
+_SHOWN = 3  # offending keys named in an error message
+
+
+class PretrainedError(ValueError):
+    """A pretrained weights file is missing, unreadable, or does not fit the model."""
+
+
+def _first(keys: list[str]) -> str:
+    more = f" (and {len(keys) - _SHOWN} more)" if len(keys) > _SHOWN else ""
+    return ", ".join(keys[:_SHOWN]) + more
+
+
+def read_state_dict(path: str | os.PathLike[str]) -> dict[str, Tensor]:
+    """Read a state dict (parameter name -> tensor) from a local file, safely.
+
+    Args:
+        path: a ``.pth`` file written by ``torch.save(model.state_dict(), path)``.
+
+    Raises:
+        PretrainedError: naming the file, when it is absent, unreadable, or not a state dict.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise PretrainedError(
+            f"{p}: pretrained weights file not found (weights are never "
+            "downloaded; give the path of a local torchvision .pth file)"
+        )
+    try:
+        # Memory-mapped: the tensors are copied into each branch straight from the page cache.
+        data = torch.load(p, map_location="cpu", weights_only=True, mmap=True)
+    except Exception:
+        try:  # files in the legacy (pre-zip) format cannot be memory-mapped
+            data = torch.load(p, map_location="cpu", weights_only=True)
+        except Exception as e:  # torch raises several types for corrupt or foreign files
+            raise PretrainedError(f"{p}: not a readable PyTorch weights file ({e})") from None
+    if not isinstance(data, Mapping):
+        raise PretrainedError(
+            f"{p}: not a state dict (a mapping of parameter names to tensors); "
+            f"it holds a {type(data).__name__}"
+        )
+    bad = [str(k) for k, v in data.items() if not isinstance(k, str) or not isinstance(v, Tensor)]
+    if bad:
+        raise PretrainedError(f"{p}: not a state dict; entries that are not tensors: {_first(bad)}")
+    return dict(data)
+
+
+def apply_state_dict(model: Backbone, state: Mapping[str, Tensor], source: str = "") -> None:
+    """Copy ``state`` into ``model`` after checking that keys and shapes match exactly.
+
+    A one-channel ``sum`` stem takes the sum over the RGB axis of a three-channel first filter.
+    A missing BatchNorm ``num_batches_tracked`` (old torchvision files) is allowed.
+
+    Args:
+        model: the backbone to fill.
+        state: its torchvision-layout weights.
+        source: the file name, for error messages.
+
+    Raises:
+        PretrainedError: naming ``source`` and the first missing, unexpected or misshapen keys.
+    """
+    where = f"{source}: " if source else ""
+    expected = model.state_dict()
+    missing = [k for k in expected if k not in state and not k.endswith("num_batches_tracked")]
+    if missing:
+        raise PretrainedError(f"{where}missing keys for {model.name}: {_first(missing)}")
+    unexpected = [k for k in state if k not in expected]
+    if unexpected:
+        raise PretrainedError(f"{where}unexpected keys for {model.name}: {_first(unexpected)}")
+    adapted: dict[str, Tensor] = {}
+    wrong: list[str] = []
+    for key, want in expected.items():
+        if key not in state:
+            adapted[key] = want  # num_batches_tracked
+            continue
+        have = state[key]
+        if have.dim() == 4 and want.dim() == 4 and have.shape[1] == 3 and want.shape[1] == 1:
+            have = have.sum(dim=1, keepdim=True)  # RGB filters -> one grey filter
+        if have.shape != want.shape:
+            wrong.append(f"{key} (file {tuple(have.shape)}, model {tuple(want.shape)})")
+        adapted[key] = have
+    if wrong:
+        raise PretrainedError(f"{where}shapes do not match {model.name}: {_first(wrong)}")
+    model.load_state_dict(adapted, strict=True)
+
+
+def load_pretrained(model: nn.Module, path: str | os.PathLike[str]) -> None:
+    """Load a local torchvision weights file into a backbone.
+
+    Args:
+        model: a `Backbone` whose layout matches the file (``alexnet``, ``resnet18``).
+        path: e.g. ``~/.cache/torch/hub/checkpoints/alexnet-owt-7be5be79.pth``.
+
+    Raises:
+        PretrainedError: the file is absent, unreadable, not a state dict, or its keys or shapes
+            do not match the model (the message names the file and the first offending keys).
+    """
+    if not isinstance(model, Backbone):
+        raise TypeError(f"load_pretrained takes a Backbone, got {type(model).__name__}")
+    path = Path(path).expanduser()
+    apply_state_dict(model, read_state_dict(path), source=str(path))

@@ -1,0 +1,389 @@
+"""Losses: parity with naive loop oracles, analytic values, symmetry, gradients, the loss dict."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from lookfeel.config import ConfigError, LossConfig, from_dict, load_config
+from lookfeel.losses import (
+    BatchHardTripletLoss,
+    CombinedLoss,
+    ContrastiveD3Loss,
+    MultiPositiveInfoNCE,
+    batch_hard_triplet,
+    contrastive_d3,
+    create_loss,
+    euclidean_distance,
+    masked_cross_entropy,
+    masked_mse,
+    mean_squared_distance,
+    multi_positive_info_nce,
+    pairwise_euclidean,
+    pairwise_mean_squared,
+    tuple_label,
+)
+from lookfeel.models import head_key
+
+torch.set_num_threads(2)
+
+# Hand-placed embeddings: 4 tuples of (depth, colour, touch) in 3-d.
+DEPTH = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.3, 0.3, 0.3]]
+COLOR = [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.3, -0.3, 0.3]]
+TOUCH = [[0.0, 0.0, 0.0], [0.0, 1.0, 1.0], [3.0, 0.0, 0.0], [-0.3, 0.3, 0.2]]
+Y = [0.0, 1.0, 1.0, 0.0]
+
+
+def _t(rows: list[list[float]], dtype: torch.dtype = torch.float64) -> torch.Tensor:
+    return torch.tensor(rows, dtype=dtype)
+
+
+def _dist(a: list[float], b: list[float]) -> float:
+    return math.sqrt(sum((x - y) ** 2 for x, y in zip(a, b, strict=True)))
+
+
+def _msd(a: list[float], b: list[float]) -> float:
+    return sum((x - y) ** 2 for x, y in zip(a, b, strict=True)) / len(a)
+
+
+def _oracle_d3(slots: list[list[list[float]]], y: list[float], margin: float, dist) -> float:
+    total = 0.0
+    for b in range(len(y)):
+        d3 = 0.0
+        for i in range(len(slots)):
+            for j in range(i + 1, len(slots)):
+                d3 += dist(slots[i][b], slots[j][b])
+        total += 0.5 * (1 - y[b]) * d3**2 + 0.5 * y[b] * max(0.0, margin - d3) ** 2
+    return total / len(y)
+
+
+# ------------------------------------------------------------------------------------------
+# Distances
+
+
+def test_euclidean_distance_has_finite_zero_gradient_at_identical_embeddings() -> None:
+    a = torch.tensor([[0.5, -1.0, 2.0]], requires_grad=True)
+    b = a.detach().clone().requires_grad_(True)
+    d = euclidean_distance(a, b)
+    d.sum().backward()
+    assert d.item() == 0.0
+    assert a.grad is not None and b.grad is not None
+    assert torch.equal(a.grad, torch.zeros_like(a)) and torch.equal(b.grad, torch.zeros_like(b))
+    # The naive norm gives NaN there: the test above guards a real failure.
+    a2 = a.detach().clone().requires_grad_(True)
+    (a2 - a.detach()).pow(2).sum().sqrt().backward()
+    assert a2.grad is not None and torch.isnan(a2.grad).all()
+
+
+def test_pairwise_distances_match_rowwise_and_are_safe_on_duplicates() -> None:
+    a = _t(DEPTH).requires_grad_(True)
+    b = _t(COLOR)
+    d = pairwise_euclidean(a, torch.cat([b, a.detach()]))  # (4, 8); a's own rows included
+    for i in range(4):
+        for j in range(4):
+            assert d[i, j].item() == pytest.approx(_dist(DEPTH[i], COLOR[j]), abs=1e-9)
+        assert d[i, 4 + i].item() == pytest.approx(0.0, abs=1e-7)
+    d.sum().backward()
+    assert a.grad is not None and torch.isfinite(a.grad).all()
+    msd = pairwise_mean_squared(_t(DEPTH), _t(COLOR))
+    assert msd[1, 2].item() == pytest.approx(_msd(DEPTH[1], COLOR[2]))
+
+
+# ------------------------------------------------------------------------------------------
+# Contrastive loss on D3 (paper equation 2)
+
+
+@pytest.mark.parametrize("margin", [1.0, 2.0])
+def test_contrastive_d3_matches_loop_oracle(margin: float) -> None:
+    e = [_t(DEPTH), _t(COLOR), _t(TOUCH)]
+    got = contrastive_d3(e, _t([Y])[0], margin=margin)
+    want = _oracle_d3([DEPTH, COLOR, TOUCH], Y, margin, _dist)
+    assert got.item() == pytest.approx(want, rel=1e-12)
+    got_ms = contrastive_d3(e, _t([Y])[0], margin=margin, distance=mean_squared_distance)
+    want_ms = _oracle_d3([DEPTH, COLOR, TOUCH], Y, margin, _msd)
+    assert got_ms.item() == pytest.approx(want_ms, rel=1e-12)
+    assert got.item() != pytest.approx(got_ms.item())  # the flag changes the distance
+
+
+def test_contrastive_d3_analytic_values() -> None:
+    e = torch.tensor([[0.2, -0.4, 1.0]]).repeat(2, 1)  # two tuples, all slots identical
+    same = contrastive_d3([e, e.clone(), e.clone()], torch.tensor([0.0, 0.0]))
+    assert same.item() == 0.0
+    # Identical embeddings labelled different: D3 = 0, so L = m^2 / 2.
+    diff = contrastive_d3([e, e.clone()], torch.tensor([1, 1]), margin=2.0)
+    assert diff.item() == pytest.approx(2.0)
+    # Different fabrics beyond the margin contribute nothing; D3 = 3 * 1 here.
+    far = [torch.tensor([[0.0]]), torch.tensor([[1.0]]), torch.tensor([[0.0]])]
+    d3 = 1.0 + 1.0 + 0.0
+    assert contrastive_d3(far, torch.tensor([1.0]), margin=2.0).item() == 0.0
+    assert contrastive_d3(far, torch.tensor([0.0])).item() == pytest.approx(0.5 * d3**2)
+
+
+def test_contrastive_d3_is_symmetric_under_slot_order() -> None:
+    y = _t([Y])[0]
+    a = contrastive_d3([_t(DEPTH), _t(COLOR), _t(TOUCH)], y)
+    b = contrastive_d3([_t(TOUCH), _t(DEPTH), _t(COLOR)], y)
+    assert a.item() == pytest.approx(b.item(), rel=1e-12)
+
+
+def test_contrastive_d3_gradcheck_and_gradient_at_zero() -> None:
+    g = torch.Generator().manual_seed(0)
+    e = [torch.randn(3, 4, generator=g, dtype=torch.float64, requires_grad=True) for _ in range(3)]
+    y = torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
+    # margin 20 keeps the Y = 1 tuple inside the margin, away from the hinge's kink.
+    assert torch.autograd.gradcheck(lambda *x: contrastive_d3(list(x), y, margin=20.0), e)
+    assert torch.autograd.gradcheck(
+        lambda *x: contrastive_d3(list(x), y, 20.0, mean_squared_distance), e
+    )
+    same = torch.ones(2, 4, requires_grad=True)
+    loss = contrastive_d3([same, same, same], torch.tensor([0.0, 1.0]))
+    loss.backward()
+    assert same.grad is not None and torch.isfinite(same.grad).all()
+
+
+def test_contrastive_module_names_terms_and_derives_y_from_fabric() -> None:
+    emb = {"depth": _t(DEPTH), "color": _t(COLOR), "touch": _t(TOUCH)}
+    fabric = {
+        "depth": torch.tensor([1, 2, 3, 4]),
+        "color": torch.tensor([1, 5, 3, 4]),
+        "touch": torch.tensor([1, 2, 6, 4]),
+    }
+    assert tuple_label(fabric, ["depth", "color", "touch"]).tolist() == Y
+    by_y = ContrastiveD3Loss()(emb, y=_t([Y])[0])
+    by_fabric = ContrastiveD3Loss()(emb, fabric=fabric)
+    assert list(by_y) == ["depth_color_touch_loss"]
+    assert by_y["depth_color_touch_loss"].item() == pytest.approx(
+        by_fabric["depth_color_touch_loss"].item()
+    )
+    pairs = ContrastiveD3Loss(per_pair=True)(emb, fabric=fabric)
+    assert list(pairs) == ["depth_color_loss", "depth_touch_loss", "color_touch_loss"]
+    # depth and touch agree on tuple 1 (fabric 2): that pair's own label is 0 there.
+    want = _oracle_d3([DEPTH, TOUCH], [0.0, 0.0, 1.0, 0.0], 2.0, _dist)
+    assert pairs["depth_touch_loss"].item() == pytest.approx(want)
+    with pytest.raises(ValueError, match="needs y"):
+        ContrastiveD3Loss()(emb)
+    with pytest.raises(ValueError, match="at least 2 slots"):
+        ContrastiveD3Loss()({"depth": _t(DEPTH)}, y=_t([Y])[0])
+
+
+# ------------------------------------------------------------------------------------------
+# Multi-positive InfoNCE
+
+
+def _oracle_infonce(a, b, fa, fb, scale: float) -> float:
+    def unit(v):
+        n = math.sqrt(sum(x * x for x in v))
+        return [x / n for x in v]
+
+    a = [unit(v) for v in a]
+    b = [unit(v) for v in b]
+
+    def direction(q, g, fq, fg) -> float:
+        losses = []
+        for i in range(len(q)):
+            logits = [
+                scale * sum(x * y for x, y in zip(q[i], g[j], strict=True)) for j in range(len(g))
+            ]
+            lse = math.log(sum(math.exp(z) for z in logits))
+            pos = [j for j in range(len(g)) if fg[j] == fq[i]]
+            if not pos:
+                continue
+            ce = -sum(logits[j] - lse for j in pos) / len(pos)
+            losses.append(ce - math.log(len(pos)))
+        return sum(losses) / len(losses)
+
+    return 0.5 * (direction(a, b, fa, fb) + direction(b, a, fb, fa))
+
+
+def test_infonce_matches_loop_oracle_with_multiple_positives() -> None:
+    a = [*DEPTH[1:], [1.0, 1.0, 1.0]]
+    b = [*COLOR[1:], [0.5, 0.1, 0.0]]
+    fa = [1, 1, 2, 3]  # fabric 1 has two items in a, and two positives in b
+    fb = [1, 2, 1, 4]  # fabric 3 has no positive in b; fabric 4 none in a
+    got = multi_positive_info_nce(_t(a), _t(b), torch.tensor(fa), torch.tensor(fb), 5.0)
+    assert got.item() == pytest.approx(_oracle_infonce(a, b, fa, fb, 5.0), rel=1e-10)
+
+
+def test_infonce_is_zero_when_same_fabric_items_coincide_and_symmetric() -> None:
+    # Items of one fabric share a direction; fabrics are orthogonal; huge scale.
+    a = _t([[1, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    f = torch.tensor([7, 7, 8, 9])
+    assert multi_positive_info_nce(a, a.clone(), f, f, 1e3).item() == pytest.approx(0, abs=1e-9)
+    # Single-positive CLIP targets would penalise the false negative (rows 0 and 1).
+    g = torch.Generator().manual_seed(1)
+    x, y = torch.randn(5, 4, generator=g), torch.randn(5, 4, generator=g)
+    fx, fy = torch.tensor([0, 1, 1, 2, 3]), torch.tensor([1, 0, 2, 2, 3])
+    ab = multi_positive_info_nce(x, y, fx, fy, 3.0)
+    ba = multi_positive_info_nce(y, x, fy, fx, 3.0)
+    assert ab.item() == pytest.approx(ba.item(), rel=1e-6)
+
+
+def test_infonce_gradcheck_and_temperature() -> None:
+    g = torch.Generator().manual_seed(2)
+    a = torch.randn(4, 3, generator=g, dtype=torch.float64, requires_grad=True)
+    b = torch.randn(4, 3, generator=g, dtype=torch.float64, requires_grad=True)
+    fa, fb = torch.tensor([0, 0, 1, 2]), torch.tensor([0, 1, 1, 2])
+    assert torch.autograd.gradcheck(lambda x, y: multi_positive_info_nce(x, y, fa, fb, 4.0), (a, b))
+    learnt = MultiPositiveInfoNCE(temperature=0.5, learn_temperature=True)
+    fixed = MultiPositiveInfoNCE(temperature=0.5, learn_temperature=False)
+    assert len(list(learnt.parameters())) == 1 and not list(fixed.parameters())
+    emb = {"depth": a.float().detach(), "touch": b.float().detach()}
+    fab = {"depth": fa, "touch": fb}
+    out = learnt(emb, fabric=fab)
+    assert list(out) == ["depth_touch_loss"]
+    assert out["depth_touch_loss"].item() == pytest.approx(
+        fixed(emb, fabric=fab)["depth_touch_loss"].item()
+    )
+    out["depth_touch_loss"].backward()
+    assert learnt.log_logit_scale is not None and learnt.log_logit_scale.grad is not None
+    assert learnt.log_logit_scale.grad.item() != 0.0
+    clamped = MultiPositiveInfoNCE(temperature=0.001, max_logit_scale=100.0)
+    assert float(torch.as_tensor(clamped.logit_scale()).detach()) == pytest.approx(100.0)
+    with pytest.raises(ValueError, match="fabric ids"):
+        learnt(emb)
+
+
+# ------------------------------------------------------------------------------------------
+# Batch-hard triplet
+
+
+def _oracle_triplet(a, b, fa, fb, margin: float) -> float:
+    losses = []
+    for i in range(len(a)):
+        pos = [_dist(a[i], b[j]) for j in range(len(b)) if fb[j] == fa[i]]
+        neg = [_dist(a[i], b[j]) for j in range(len(b)) if fb[j] != fa[i]]
+        if pos and neg:
+            losses.append(max(0.0, max(pos) - min(neg) + margin))
+    return sum(losses) / len(losses)
+
+
+def test_triplet_matches_loop_oracle_and_is_symmetric() -> None:
+    fa, fb = [1, 1, 2, 3], [1, 2, 2, 1]
+    got = batch_hard_triplet(_t(DEPTH), _t(TOUCH), torch.tensor(fa), torch.tensor(fb), 1.5)
+    assert got.item() == pytest.approx(_oracle_triplet(DEPTH, TOUCH, fa, fb, 1.5), rel=1e-9)
+    loss = BatchHardTripletLoss(margin=1.5)
+    f = {"depth": torch.tensor(fa), "touch": torch.tensor(fb)}
+    one = loss({"depth": _t(DEPTH), "touch": _t(TOUCH)}, fabric=f)["depth_touch_loss"]
+    two = loss({"touch": _t(TOUCH), "depth": _t(DEPTH)}, fabric=f)["touch_depth_loss"]
+    want = 0.5 * (
+        _oracle_triplet(DEPTH, TOUCH, fa, fb, 1.5) + _oracle_triplet(TOUCH, DEPTH, fb, fa, 1.5)
+    )
+    assert one.item() == pytest.approx(want, rel=1e-9)
+    assert two.item() == pytest.approx(one.item(), rel=1e-12)
+
+
+def test_triplet_gradcheck_and_no_valid_anchor() -> None:
+    g = torch.Generator().manual_seed(3)
+    a = torch.randn(4, 3, generator=g, dtype=torch.float64, requires_grad=True)
+    b = torch.randn(4, 3, generator=g, dtype=torch.float64, requires_grad=True)
+    fa, fb = torch.tensor([0, 0, 1, 1]), torch.tensor([1, 0, 0, 1])
+    assert torch.autograd.gradcheck(
+        lambda x, y: batch_hard_triplet(x, y, fa, fb, margin=10.0), (a, b)
+    )
+    assert torch.autograd.gradcheck(
+        lambda x, y: batch_hard_triplet(x, y, fa, fb, 10.0, pairwise_mean_squared), (a, b)
+    )
+    same = torch.zeros(2)
+    z = batch_hard_triplet(a[:2], b[:2], same, same)  # no negative anywhere
+    z.backward()
+    assert z.item() == 0.0 and a.grad is not None and torch.isfinite(a.grad).all()
+
+
+# ------------------------------------------------------------------------------------------
+# Auxiliary terms
+
+
+def test_masked_cross_entropy_ignores_unknown_clusters() -> None:
+    logits = torch.tensor([[2.0, 0.0, -1.0], [0.0, 1.0, 0.0], [5.0, 5.0, 5.0]], requires_grad=True)
+    got = masked_cross_entropy(logits, torch.tensor([0, -1, 2]))
+    want = (
+        sum(-(logits[i, t] - torch.logsumexp(logits[i], 0)).item() for i, t in [(0, 0), (2, 2)]) / 2
+    )
+    assert got.item() == pytest.approx(want)
+    none = masked_cross_entropy(logits, torch.tensor([-1, -1, -1]))
+    none.backward()
+    assert none.item() == 0.0 and logits.grad is not None and (logits.grad == 0).all()
+
+
+def test_masked_mse_ignores_nan_targets() -> None:
+    pred = torch.tensor([[1.0, 2.0], [3.0, 4.0]], requires_grad=True)
+    target = torch.tensor([[0.0, float("nan")], [float("nan"), 1.0]])
+    got = masked_mse(pred, target)
+    assert got.item() == pytest.approx((1.0**2 + 3.0**2) / 2)
+    got.backward()
+    assert pred.grad is not None
+    assert torch.equal(pred.grad, torch.tensor([[1.0, 0.0], [0.0, 3.0]]))
+    pred.grad = None
+    empty = masked_mse(pred, torch.full((2, 2), float("nan")))
+    empty.backward()
+    assert empty.item() == 0.0 and pred.grad is not None and (pred.grad == 0).all()
+
+
+# ------------------------------------------------------------------------------------------
+# The combined loss and its config
+
+
+def _outputs() -> dict[str, torch.Tensor]:
+    g = torch.Generator().manual_seed(4)
+    out = {s: torch.randn(4, 5, generator=g, requires_grad=True) for s in ("depth", "touch")}
+    for s in ("depth", "touch"):
+        out[head_key(s, "cluster")] = torch.randn(4, 8, generator=g, requires_grad=True)
+        out[head_key(s, "property")] = torch.randn(4, 2, generator=g, requires_grad=True)
+    return out
+
+
+@pytest.mark.parametrize("kind", ["contrastive", "infonce", "triplet"])
+def test_create_loss_returns_named_terms_and_their_sum(kind: str) -> None:
+    loss_fn = create_loss(LossConfig(kind=kind, cluster_weight=0.5, property_weight=2.0))
+    out = _outputs()
+    fabric = {"depth": torch.tensor([0, 1, 2, 0]), "touch": torch.tensor([0, 1, 3, 0])}
+    cluster = {"depth": torch.tensor([1, 2, -1, 1]), "touch": torch.tensor([1, 2, 3, 1])}
+    nan = float("nan")
+    props = {s: torch.tensor([[0.0, 1.0], [nan, 2.0], [1.0, nan], [0.0, 1.0]]) for s in fabric}
+    terms = loss_fn(out, fabric=fabric, cluster=cluster, properties=props)
+    assert list(terms) == ["depth_touch_loss", "cluster_loss", "property_loss", "loss"]
+    assert all(v.dim() == 0 and torch.isfinite(v) for v in terms.values())
+    ce = sum(masked_cross_entropy(out[head_key(s, "cluster")], cluster[s]).item() for s in cluster)
+    mse = sum(masked_mse(out[head_key(s, "property")], props[s]).item() for s in props)
+    assert terms["cluster_loss"].item() == pytest.approx(0.5 * ce)
+    assert terms["property_loss"].item() == pytest.approx(2.0 * mse)
+    total = terms["depth_touch_loss"] + terms["cluster_loss"] + terms["property_loss"]
+    assert terms["loss"].item() == pytest.approx(total.item())
+    terms["loss"].backward()
+    assert all(v.grad is not None and torch.isfinite(v.grad).all() for v in out.values())
+
+
+def test_combined_loss_errors_and_weights() -> None:
+    out = {"depth": torch.randn(2, 3), "touch": torch.randn(2, 3)}
+    loss_fn = create_loss(LossConfig())
+    with pytest.raises(ValueError, match="'depth/cluster'"):
+        loss_fn(out, y=torch.zeros(2), cluster={"depth": torch.zeros(2, dtype=torch.long)})
+    only_pair = loss_fn(out, y=torch.zeros(2))
+    assert list(only_pair) == ["depth_touch_loss", "loss"]
+    silent = CombinedLoss(ContrastiveD3Loss(), pair_weight=0.0)
+    with pytest.raises(ValueError, match="no loss term"):
+        silent(out, y=torch.zeros(2))
+    snn = create_loss(LossConfig())(
+        {"depth": out["depth"], "depth.1": out["touch"]}, y=torch.ones(2)
+    )
+    assert "depth_depth1_loss" in snn
+
+
+def test_loss_config_validates_with_key_names() -> None:
+    assert LossConfig().margin == 2.0 and LossConfig().kind == "contrastive"
+    cfg = load_config(LossConfig, overrides=["kind=triplet", "distance=mean_squared"])
+    assert isinstance(create_loss(cfg).pair_loss, BatchHardTripletLoss)
+    assert isinstance(create_loss(LossConfig(kind="infonce")).pair_loss, MultiPositiveInfoNCE)
+    for bad, key in [
+        ({"kind": "arcface"}, "loss.kind"),
+        ({"distance": "cosine"}, "loss.distance"),
+        ({"margin": 0}, "loss.margin"),
+        ({"temperature": -1}, "loss.temperature"),
+        ({"temperature": 0.001}, "loss.temperature"),
+        ({"cluster_weight": -1}, "loss.cluster_weight"),
+        ({"margn": 1}, "margn"),
+    ]:
+        with pytest.raises(ConfigError, match=key):
+            from_dict(LossConfig, bad)

@@ -1,0 +1,443 @@
+"""Models: backbone layouts and shapes, the trunk/head split, freezing, pretrained loading,
+press pooling, shared and independent branches, heads and gradients."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from pathlib import Path
+
+import pytest
+import torch
+from torch import nn
+
+from lookfeel.config import ConfigError, ModelConfig, from_dict, load_config
+from lookfeel.config.model import BACKBONE_DEFAULT_FREEZE, BACKBONE_FREEZE_POINTS
+from lookfeel.modality import Modality
+from lookfeel.models import (
+    BACKBONES,
+    AlexNet,
+    Backbone,
+    Embedder,
+    PretrainedError,
+    create_backbone,
+    create_model,
+    head_key,
+    list_backbones,
+    load_pretrained,
+)
+
+torch.set_num_threads(2)
+
+ALEX_PX = 67  # AlexNet's smallest input is 63 px
+SMALL_PX = 32
+
+# torchvision.models.alexnet().state_dict(), written out so the test does not trust our code.
+TORCHVISION_ALEXNET = {
+    "features.0.weight": (64, 3, 11, 11),
+    "features.0.bias": (64,),
+    "features.3.weight": (192, 64, 5, 5),
+    "features.3.bias": (192,),
+    "features.6.weight": (384, 192, 3, 3),
+    "features.6.bias": (384,),
+    "features.8.weight": (256, 384, 3, 3),
+    "features.8.bias": (256,),
+    "features.10.weight": (256, 256, 3, 3),
+    "features.10.bias": (256,),
+    "classifier.1.weight": (4096, 9216),
+    "classifier.1.bias": (4096,),
+    "classifier.4.weight": (4096, 4096),
+    "classifier.4.bias": (4096,),
+    "classifier.6.weight": (1000, 4096),
+    "classifier.6.bias": (1000,),
+}
+
+COMPACT = ModelConfig(backbone="compact", width=4)  # D = 32
+
+
+@pytest.fixture(scope="module")
+def alexnet() -> AlexNet:
+    torch.manual_seed(0)
+    model = create_backbone("alexnet")
+    assert isinstance(model, AlexNet)
+    return model
+
+
+@pytest.fixture(scope="module")
+def alexnet_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A file in torchvision's AlexNet layout, with weights unlike any fresh model's."""
+    path = tmp_path_factory.mktemp("weights") / "alexnet-owt-7be5be79.pth"
+    g = torch.Generator().manual_seed(1)
+    state = {k: torch.randn(shape, generator=g) * 0.01 for k, shape in TORCHVISION_ALEXNET.items()}
+    torch.save(state, path)
+    return path
+
+
+def _images(b: int, c: int, px: int, seed: int = 0) -> torch.Tensor:
+    return torch.rand(b, c, px, px, generator=torch.Generator().manual_seed(seed))
+
+
+def _grads_ok(model: nn.Module) -> None:
+    """Every trainable parameter has a finite, non-zero gradient; every frozen one none."""
+    for name, p in model.named_parameters():
+        if p.requires_grad:
+            assert p.grad is not None, f"{name}: no gradient"
+            assert torch.isfinite(p.grad).all(), f"{name}: non-finite gradient"
+            assert p.grad.abs().sum() > 0, f"{name}: zero gradient"
+        else:
+            assert p.grad is None, f"{name}: frozen but has a gradient"
+
+
+# ------------------------------------------------------------------------------------------
+# Backbones
+
+
+def test_registry_matches_config() -> None:
+    assert list_backbones() == sorted(BACKBONE_FREEZE_POINTS) == sorted(BACKBONES)
+    for name, cls in BACKBONES.items():
+        assert tuple(cls.freeze_points) == BACKBONE_FREEZE_POINTS[name]
+        assert BACKBONE_DEFAULT_FREEZE[name] in cls.freeze_points
+    with pytest.raises(ValueError, match="unknown backbone 'vgg'.*alexnet, compact, resnet18"):
+        create_backbone("vgg")
+
+
+def test_alexnet_has_torchvision_layout_and_embeds_at_fc7(alexnet: AlexNet) -> None:
+    state = alexnet.state_dict()
+    assert {k: tuple(v.shape) for k, v in state.items()} == TORCHVISION_ALEXNET
+    assert list(state) == list(TORCHVISION_ALEXNET)
+    assert alexnet.freeze == "to_fc6" and alexnet.embed_dim == 4096
+    alexnet.eval()
+    x = _images(2, 3, ALEX_PX)
+    e = alexnet(x)
+    assert e.shape == (2, 4096)
+    # E is ReLU(fc7), computed here by hand through torchvision's modules.
+    h = alexnet.avgpool(alexnet.features((x - alexnet.mean) / alexnet.std)).flatten(1)
+    fc7 = alexnet.classifier[:6](h)
+    torch.testing.assert_close(e, fc7)
+    with pytest.raises(ValueError, match="at least 63 px"):
+        alexnet(_images(1, 3, 62))
+    with pytest.raises(ValueError, match=r"\(N, 3, H, W\)"):
+        alexnet(_images(1, 1, ALEX_PX))
+
+
+def test_resnet18_has_torchvision_layout() -> None:
+    state = create_backbone("resnet18").state_dict()
+    assert len(state) == 122  # torchvision.models.resnet18().state_dict()
+    assert tuple(state["conv1.weight"].shape) == (64, 3, 7, 7)
+    assert tuple(state["layer2.0.downsample.0.weight"].shape) == (128, 64, 1, 1)
+    assert tuple(state["layer4.1.bn2.running_var"].shape) == (512,)
+    assert tuple(state["fc.weight"].shape) == (1000, 512)
+
+
+@pytest.mark.parametrize(
+    ("name", "channels", "stem", "px", "dim"),
+    [
+        ("compact", 3, "replicate", SMALL_PX, 32),
+        ("compact", 1, "replicate", SMALL_PX, 32),
+        ("compact", 1, "sum", SMALL_PX, 32),
+        ("resnet18", 3, "replicate", SMALL_PX, 32),
+        ("resnet18", 1, "sum", SMALL_PX, 32),
+    ],
+)
+def test_backbone_shapes_and_trunk_head_split(
+    name: str, channels: int, stem: str, px: int, dim: int
+) -> None:
+    model = create_backbone(name, in_channels=channels, stem=stem, width=4, freeze="none")
+    model.eval()
+    x = _images(2, channels, px)
+    e = model(x)
+    assert e.shape == (2, dim) == (2, model.embed_dim)
+    torch.testing.assert_close(model.head(model.trunk(x)), e)
+    conv1 = next(m for m in model.modules() if isinstance(m, nn.Conv2d))
+    assert conv1.in_channels == (1 if stem == "sum" else 3)
+
+
+@pytest.mark.parametrize(("name", "freeze"), [("compact", "to_block4"), ("resnet18", "to_layer2")])
+def test_frozen_trunk_is_fixed_and_gets_no_gradient(name: str, freeze: str) -> None:
+    torch.manual_seed(0)
+    model = create_backbone(name, freeze=freeze, width=4)
+    model.train()
+    bn_stats = {k: v.clone() for k, v in model.state_dict().items() if "running" in k}
+    x = _images(3, 3, SMALL_PX)
+    f = model.trunk(x)
+    torch.testing.assert_close(model.trunk(x), f)
+    model(x).pow(2).sum().backward()
+    _grads_ok(model)
+    frozen = [n for n, p in model.named_parameters() if not p.requires_grad]
+    trainable = [n for n, p in model.named_parameters() if p.requires_grad]
+    assert frozen and trainable
+    # The frozen trunk's BatchNorm statistics did not move in train mode; the head's did.
+    after = model.state_dict()
+    moved = {k for k, v in bn_stats.items() if not torch.equal(after[k], v)}
+    for k in bn_stats:
+        layer = k.rsplit(".", 2)[0]
+        in_trunk = any(n.startswith(layer + ".") for n in frozen)
+        assert (k not in moved) == in_trunk, k
+
+
+def test_alexnet_paper_freeze_trains_only_fc7() -> None:
+    torch.manual_seed(0)
+    with pytest.warns(UserWarning, match="randomly initialised"):
+        model = create_model(ModelConfig(cluster_head=True), [Modality.TOUCH])
+    model.train()
+    touch = torch.rand(2, 2, 3, ALEX_PX, ALEX_PX)
+    trunk = model.trunk({"touch": touch})["touch"]
+    assert trunk.shape == (2, 2, 4096)  # fc6 output per press
+    torch.testing.assert_close(model.trunk({"touch": touch})["touch"], trunk)  # no dropout
+    out = model({"touch": touch}, heads=True)
+    (out["touch"].pow(2).sum() + out["touch/cluster"].pow(2).sum()).backward()
+    _grads_ok(model)
+    trainable = {n for n, p in model.named_parameters() if p.requires_grad}
+    assert trainable == {
+        "branches.touch.backbone.classifier.4.weight",
+        "branches.touch.backbone.classifier.4.bias",
+        "branches.touch.cluster_head.weight",
+        "branches.touch.cluster_head.bias",
+    }
+    assert set(map(id, model.trainable_parameters())) == {
+        id(p) for p in model.parameters() if p.requires_grad
+    }
+
+
+# ------------------------------------------------------------------------------------------
+# Pretrained weights
+
+
+def test_load_pretrained_alexnet_from_torchvision_file(alexnet_file: Path) -> None:
+    state = torch.load(alexnet_file, weights_only=True, mmap=True)
+    rgb = create_backbone("alexnet")
+    load_pretrained(rgb, alexnet_file)
+    for k, v in rgb.state_dict().items():
+        assert torch.equal(v, state[k]), k
+    grey = create_backbone("alexnet", in_channels=1, stem="sum")
+    load_pretrained(grey, str(alexnet_file))
+    torch.testing.assert_close(
+        grey.features[0].weight, state["features.0.weight"].sum(dim=1, keepdim=True)
+    )
+    assert torch.equal(grey.classifier[4].weight, state["classifier.4.weight"])
+    # The summed stem approximates the RGB network on a grey image (it normalises with the
+    # mean of the RGB statistics).
+    rgb.eval()
+    grey.eval()
+    x = _images(2, 1, ALEX_PX)
+    cos = nn.functional.cosine_similarity(grey(x), rgb(x.expand(-1, 3, -1, -1))).min()
+    assert cos > 0.99
+
+
+def test_replicated_depth_channel_is_the_rgb_network_on_a_grey_image() -> None:
+    rgb = create_backbone("compact", width=4).eval()
+    depth = create_backbone("compact", in_channels=1, stem="replicate", width=4).eval()
+    depth.load_state_dict(rgb.state_dict())
+    x = _images(2, 1, SMALL_PX)
+    torch.testing.assert_close(depth(x), rgb(x.expand(-1, 3, -1, -1)))
+
+
+def test_create_model_loads_weights_once_into_every_branch(alexnet_file: Path) -> None:
+    cfg = ModelConfig(pretrained=str(alexnet_file), depth_stem="sum")
+    model = create_model(cfg, [Modality.DEPTH, Modality.TOUCH])
+    state = torch.load(alexnet_file, weights_only=True)
+    depth, touch = model.branch("depth").backbone, model.branch("touch").backbone
+    torch.testing.assert_close(
+        depth.state_dict()["features.0.weight"], state["features.0.weight"].sum(1, keepdim=True)
+    )
+    assert torch.equal(touch.state_dict()["classifier.1.weight"], state["classifier.1.weight"])
+    # A checkpoint rebuild needs no weights file.
+    missing = dataclasses.replace(cfg, pretrained="/nonexistent/alexnet.pth")
+    rebuilt = create_model(missing, [Modality.DEPTH], load_weights=False)
+    rebuilt.load_state_dict({k: v for k, v in model.state_dict().items() if ".depth." in k})
+    with pytest.raises(PretrainedError, match="nonexistent/alexnet.pth: pretrained weights file"):
+        create_model(missing, [Modality.DEPTH])
+
+
+def test_load_pretrained_rejects_wrong_files(alexnet: AlexNet, tmp_path: Path) -> None:
+    tiny = {k: torch.zeros(1) for k in TORCHVISION_ALEXNET}
+    cases: list[tuple[str, object, str]] = [
+        ("text.pth", None, r"text.pth: not a readable PyTorch weights file"),
+        ("list.pth", [1, 2, 3], r"list.pth: not a state dict .* holds a list"),
+        ("values.pth", {"features.0.weight": 3}, r"values.pth: not a state dict; .*features.0"),
+        (
+            "missing.pth",
+            {k: v for k, v in tiny.items() if k != "features.3.bias"},
+            r"missing.pth: missing keys for alexnet: features.3.bias$",
+        ),
+        (
+            "extra.pth",
+            {**tiny, "fc.weight": torch.zeros(1)},
+            r"extra.pth: unexpected keys for alexnet: fc.weight",
+        ),
+        (
+            "shape.pth",
+            tiny,
+            r"shape.pth: shapes do not match alexnet: features.0.weight \(file \(1,\), "
+            r"model \(64, 3, 11, 11\)\), .* \(and 13 more\)",
+        ),
+    ]
+    for name, content, message in cases:
+        path = tmp_path / name
+        if content is None:
+            path.write_text("not weights")
+        else:
+            torch.save(content, path)
+        with pytest.raises(PretrainedError, match=message):
+            load_pretrained(alexnet, path)
+    with pytest.raises(PretrainedError, match="absent.pth: pretrained weights file not found"):
+        load_pretrained(alexnet, tmp_path / "absent.pth")
+    with pytest.raises(TypeError, match="Backbone"):
+        load_pretrained(nn.Linear(2, 2), tmp_path / "shape.pth")
+
+
+# ------------------------------------------------------------------------------------------
+# The joint model
+
+
+def _batch(p: int = 1, b: int = 2) -> dict[str, torch.Tensor]:
+    g = torch.Generator().manual_seed(5)
+    return {
+        "depth": torch.rand(b, 1, SMALL_PX, SMALL_PX, generator=g),
+        "color": torch.rand(b, 3, SMALL_PX, SMALL_PX, generator=g),
+        "touch": torch.rand(b, p, 3, SMALL_PX, SMALL_PX, generator=g),
+    }
+
+
+def test_cross_modal_net_has_independent_branches_and_heads() -> None:
+    cfg = dataclasses.replace(COMPACT, cluster_head=True, num_properties=4, embed_dim=16)
+    model = create_model(cfg, [Modality.DEPTH, Modality.COLOR, Modality.TOUCH])
+    assert model.modalities == (Modality.DEPTH, Modality.COLOR, Modality.TOUCH)
+    assert list(model.branches) == ["depth", "color", "touch"] and model.embed_dim == 16
+    ids = [{id(p) for p in b.parameters()} for b in model.branches.values()]
+    assert not (ids[0] & ids[1]) and not (ids[1] & ids[2]) and not (ids[0] & ids[2])
+    out = model(_batch(p=2))
+    assert {k: tuple(v.shape) for k, v in out.items()} == {
+        "depth": (2, 16),
+        "color": (2, 16),
+        "touch": (2, 16),
+    }
+    full = model(_batch(p=2), heads=True)
+    assert tuple(full[head_key("color", "cluster")].shape) == (2, 8)
+    assert tuple(full[head_key("touch", "property")].shape) == (2, 4)
+    assert len(full) == 9
+    sum(v.pow(2).sum() for v in full.values()).backward()
+    _grads_ok(model)
+
+
+def test_siamese_net_shares_one_branch() -> None:
+    model = create_model(COMPACT, [Modality.DEPTH, Modality.DEPTH])
+    assert list(model.branches) == ["depth"]
+    assert model.branch("depth") is model.branch("depth.1")
+    model.eval()
+    x = _batch()["depth"]
+    out = model({"depth": x, "depth.1": x.flip(0)})
+    assert list(out) == ["depth", "depth.1"]
+    torch.testing.assert_close(out["depth.1"], out["depth"].flip(0))
+    # Slots of unequal batch size take separate passes through the same branch.
+    odd = model({"depth": x, "depth.1": x[:1]})
+    torch.testing.assert_close(odd["depth.1"], out["depth"][:1])
+    model.train()
+    model({"depth": x, "depth.1": x.flip(0)})["depth.1"].sum().backward()
+    _grads_ok(model)
+
+
+@pytest.mark.parametrize("pool", ["max", "mean"])
+def test_multi_input_net_pools_any_number_of_presses(pool: str) -> None:
+    model = create_model(dataclasses.replace(COMPACT, press_pool=pool), [Modality.TOUCH])
+    model.eval()
+    presses = _batch(p=3)["touch"]  # (B, P, 3, H, W)
+    single = [model({"touch": presses[:, i : i + 1]})["touch"] for i in range(3)]
+    backbone = model.branch("touch").backbone
+    torch.testing.assert_close(single[0], backbone(presses[:, 0]))  # P = 1 is the plain net
+    many = model({"touch": presses})["touch"]
+    stacked = torch.stack(single, dim=1)  # (B, P, D)
+    want = stacked.amax(dim=1) if pool == "max" else stacked.mean(dim=1)
+    torch.testing.assert_close(many, want)
+    assert not torch.allclose(many, single[0])
+    shuffled = model({"touch": presses[:, [2, 0, 1]]})["touch"]
+    torch.testing.assert_close(shuffled, many)
+
+
+def test_forward_from_cached_trunk_equals_forward() -> None:
+    cfg = dataclasses.replace(COMPACT, freeze="to_block4", embed_dim=8, normalize=True)
+    with pytest.warns(UserWarning, match="freezes randomly initialised compact"):
+        model = create_model(cfg, [Modality.DEPTH, Modality.TOUCH])
+    model.train()  # frozen trunks stay deterministic, so this also holds in training
+    batch = {"depth": _batch()["depth"], "touch": _batch(p=2)["touch"]}
+    cached = model.trunk(batch)
+    assert cached["depth"].shape == (2, 32) and cached["touch"].shape == (2, 2, 32)
+    model.eval()
+    direct = model(batch)
+    torch.testing.assert_close(model(cached, from_trunk=True), direct)
+    norms = direct["touch"].norm(dim=-1)
+    torch.testing.assert_close(norms, torch.ones_like(norms))
+
+
+def test_embedder_rejects_bad_inputs() -> None:
+    model = create_model(COMPACT, [Modality.DEPTH, Modality.TOUCH])
+    b = _batch()
+    with pytest.raises(ValueError, match=r"slot 'touch'.*press axis"):
+        model({"touch": b["color"]})
+    with pytest.raises(ValueError, match=r"slot 'depth': expected \(B, 1, H, W\)"):
+        model({"depth": b["color"]})
+    with pytest.raises(KeyError, match="no color branch"):
+        model({"color": b["color"]})
+    with pytest.raises(KeyError, match="'smell' names no modality"):
+        model({"smell": b["color"]})
+    with pytest.raises(ValueError, match="at least one modality"):
+        create_model(COMPACT, [])
+    with pytest.raises(ValueError, match="one embedding size"):
+        Embedder({Modality.DEPTH: model.branch("depth"), Modality.TOUCH: _other_dim_branch()})
+
+
+def _other_dim_branch() -> nn.Module:
+    other = create_model(dataclasses.replace(COMPACT, embed_dim=3), [Modality.TOUCH])
+    return other.branch("touch")
+
+
+def test_model_state_dict_round_trips() -> None:
+    torch.manual_seed(0)
+    model = create_model(dataclasses.replace(COMPACT, cluster_head=True), [Modality.TOUCH])
+    torch.manual_seed(1)
+    again = create_model(model.config or COMPACT, model.modalities, load_weights=False)
+    again.load_state_dict(model.state_dict())
+    model.eval()
+    again.eval()
+    x = {"touch": _batch(p=2)["touch"]}
+    torch.testing.assert_close(again(x, heads=True), model(x, heads=True))
+    assert isinstance(again.branch("touch").backbone, Backbone)
+    # A deep copy (EMA, a checkpoint snapshot) runs on its own weights, not the original's.
+    twin = copy.deepcopy(model)
+    with torch.no_grad():
+        for p in twin.parameters():
+            p.add_(1.0)
+    assert not torch.allclose(twin(x)["touch"], model(x)["touch"])
+
+
+# ------------------------------------------------------------------------------------------
+# Config
+
+
+def test_model_config_defaults_and_validation() -> None:
+    cfg = ModelConfig()
+    assert (cfg.backbone, cfg.resolved_freeze, cfg.embed_dim, cfg.num_clusters) == (
+        "alexnet",
+        "to_fc6",
+        None,
+        8,
+    )
+    assert ModelConfig(backbone="compact").resolved_freeze == "none"
+    loaded = load_config(ModelConfig, overrides=["backbone=resnet18", "freeze=to_layer3"])
+    assert loaded.resolved_freeze == "to_layer3"
+    for bad, key in [
+        ({"backbone": "vgg"}, "model.backbone"),
+        ({"freeze": "to_layer3"}, r"model.freeze: 'to_layer3' is not a freeze point of backbone"),
+        ({"backbone": "compact", "pretrained": "x.pth"}, "model.pretrained"),
+        ({"depth_stem": "mean"}, "model.depth_stem"),
+        ({"press_pool": "sum"}, "model.press_pool"),
+        ({"dropout": 1.0}, "model.dropout"),
+        ({"width": 8}, "model.width: alexnet"),
+        ({"backbone": "resnet18", "width": 32, "pretrained": "r.pth"}, "model.width"),
+        ({"embed_dim": 0}, "model.embed_dim"),
+        ({"num_clusters": 1}, "model.num_clusters"),
+        ({"num_properties": -1}, "model.num_properties"),
+        ({"embed": 3}, "unknown key embed"),
+    ]:
+        with pytest.raises(ConfigError, match=key):
+            from_dict(ModelConfig, bad)
