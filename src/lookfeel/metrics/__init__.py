@@ -1,0 +1,83 @@
+"""Metrics: pure functions of distances, fabric ids and labels (they know nothing of models).
+
+- `pairwise_distances`: (Q, D), (G, D) -> (Q, G) Euclidean distances.
+- `pick_k_of_n_exact`, `pick_k_of_n_sampled`: the paper's pick-1-of-10 (section 5.1).
+- `gallery_metrics`: mAP, recall@k, median rank over the whole gallery, with chance levels.
+- `bootstrap_ci`, `mean_and_spread`: intervals over test fabrics, spread over seeds.
+- `group_queries`: max-pooled multi-press touch queries (the Multi-input Net).
+- `match_probabilities`, `fit_temperature`, `confusion_matrix`, `cluster_confusion_matrix`,
+  `reliability_curve`: ``P ∝ exp(-c D^2)``, its confusion matrices and calibration (5.2).
+- `property_probe`: predict physical labels from embeddings.
+- `evaluate_pair`, `all_pairs`: everything above for every modality pair, as one flat dict.
+"""
+
+from lookfeel.metrics.bootstrap import bootstrap_ci, fabric_weights, mean_and_spread
+from lookfeel.metrics.calibration import (
+    PAPER_C,
+    ReliabilityCurve,
+    expected_calibration_error,
+    fabric_predictions,
+    fabric_probabilities,
+    fit_temperature,
+    match_probabilities,
+    reliability_curve,
+)
+from lookfeel.metrics.confusion import (
+    Confusion,
+    cluster_confusion_matrix,
+    confusion_matrix,
+    order_by_cluster,
+)
+from lookfeel.metrics.distances import pairwise_distances
+from lookfeel.metrics.evaluate import all_pairs, evaluate_distances, evaluate_pair
+from lookfeel.metrics.gallery import (
+    GalleryResult,
+    chance_average_precision,
+    chance_median_rank,
+    chance_recall,
+    gallery_metrics,
+)
+from lookfeel.metrics.grouping import PressGroups, group_queries
+from lookfeel.metrics.pick import (
+    PickResult,
+    SampledPickResult,
+    n_effective,
+    pick_k_of_n_exact,
+    pick_k_of_n_sampled,
+)
+from lookfeel.metrics.properties import property_probe
+
+__all__ = [
+    "PAPER_C",
+    "Confusion",
+    "GalleryResult",
+    "PickResult",
+    "PressGroups",
+    "ReliabilityCurve",
+    "SampledPickResult",
+    "all_pairs",
+    "bootstrap_ci",
+    "chance_average_precision",
+    "chance_median_rank",
+    "chance_recall",
+    "cluster_confusion_matrix",
+    "confusion_matrix",
+    "evaluate_distances",
+    "evaluate_pair",
+    "expected_calibration_error",
+    "fabric_predictions",
+    "fabric_probabilities",
+    "fabric_weights",
+    "fit_temperature",
+    "gallery_metrics",
+    "group_queries",
+    "match_probabilities",
+    "mean_and_spread",
+    "n_effective",
+    "order_by_cluster",
+    "pairwise_distances",
+    "pick_k_of_n_exact",
+    "pick_k_of_n_sampled",
+    "property_probe",
+    "reliability_curve",
+]

@@ -1,0 +1,136 @@
+"""Physical-property probes: how well does the embedding predict thickness, stiffness, ...?
+
+The paper labels every fabric with thickness, stiffness, stretchiness and density (section 3)
+and hopes the embedding represents them. A probe fits a simple regressor from embeddings of
+the training fabrics to each label and scores it on the test fabrics, which it never saw.
+
+Per-item or per-fabric: labels belong to fabrics, so items of one fabric are not independent
+samples. When fabric ids are given, each fabric's embeddings are averaged first and the probe
+fits and scores one row per fabric; without them it uses one row per item.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.stats import spearmanr
+from sklearn.linear_model import RidgeCV
+from sklearn.neighbors import KNeighborsRegressor
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+
+__all__ = ["property_probe"]
+
+
+def _per_fabric(
+    emb: NDArray[np.float64], labels: NDArray[np.float64], fabric: NDArray[np.generic]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.generic]]:
+    uniq, inv = np.unique(fabric, return_inverse=True)
+    counts = np.bincount(inv, minlength=len(uniq)).astype(np.float64)
+    e = np.zeros((len(uniq), emb.shape[1]))
+    np.add.at(e, inv, emb)
+    e /= counts[:, None]
+    lab = np.full((len(uniq), labels.shape[1]), np.nan)
+    for j in range(labels.shape[1]):
+        ok = ~np.isnan(labels[:, j])
+        s = np.bincount(inv[ok], weights=labels[ok, j], minlength=len(uniq))
+        n = np.bincount(inv[ok], minlength=len(uniq))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lab[:, j] = s / n  # labels are per fabric; the mean just collapses repeats
+    return e, lab, uniq
+
+
+def property_probe(
+    train_emb: ArrayLike,
+    train_labels: ArrayLike,
+    test_emb: ArrayLike,
+    test_labels: ArrayLike,
+    method: Literal["knn", "ridge"] = "knn",
+    *,
+    names: Sequence[str] | None = None,
+    train_fabric: ArrayLike | None = None,
+    test_fabric: ArrayLike | None = None,
+    k: int = 5,
+) -> dict[str, dict[str, float]]:
+    """Fit a probe per label column on training embeddings; score R^2, Spearman, MAE on test.
+
+    Args:
+        train_emb: (N, D) training embeddings.
+        train_labels: (N,) or (N, L) labels; NaN means unknown and the row is skipped for that
+            column only.
+        test_emb: (M, D) test embeddings (other fabrics than training).
+        test_labels: (M,) or (M, L).
+        method: ``"knn"``: mean label of the k nearest training rows (Euclidean, the
+            embedding's own metric); ``"ridge"``: ridge regression on standardised embeddings,
+            its penalty chosen by leave-one-out over a log grid.
+        names: a name per label column (default ``"0"``, ``"1"``, ...).
+        train_fabric, test_fabric: (N,), (M,) fabric ids; when given, embeddings are averaged
+            per fabric first, and a fabric in both sets raises.
+        k: neighbours for ``"knn"`` (fewer when there are fewer training rows).
+
+    Returns:
+        ``{name: {"r2", "spearman", "mae", "n_train", "n_test"}}``; scores are NaN when a
+        column has fewer than 2 test rows or a constant target.
+    """
+    xtr = np.asarray(train_emb, dtype=np.float64)
+    xte = np.asarray(test_emb, dtype=np.float64)
+    ytr = np.asarray(train_labels, dtype=np.float64)
+    yte = np.asarray(test_labels, dtype=np.float64)
+    ytr = ytr[:, None] if ytr.ndim == 1 else ytr
+    yte = yte[:, None] if yte.ndim == 1 else yte
+    if xtr.ndim != 2 or xte.ndim != 2 or xtr.shape[1] != xte.shape[1]:
+        raise ValueError(f"embeddings must be (N, D) with one D; got {xtr.shape}, {xte.shape}")
+    if len(ytr) != len(xtr) or len(yte) != len(xte) or ytr.shape[1] != yte.shape[1]:
+        raise ValueError(
+            f"labels {ytr.shape}, {yte.shape} do not match embeddings {xtr.shape}, {xte.shape}"
+        )
+    if method not in ("knn", "ridge"):
+        raise ValueError(f"method must be 'knn' or 'ridge'; got {method!r}")
+    n_cols = ytr.shape[1]
+    col_names = list(names) if names is not None else [str(j) for j in range(n_cols)]
+    if len(col_names) != n_cols:
+        raise ValueError(f"{len(col_names)} names for {n_cols} label columns")
+    if (train_fabric is None) != (test_fabric is None):
+        raise ValueError("give both train_fabric and test_fabric, or neither")
+    if train_fabric is not None and test_fabric is not None:
+        ftr = np.asarray(train_fabric).reshape(-1)
+        fte = np.asarray(test_fabric).reshape(-1)
+        shared = np.intersect1d(ftr, fte)
+        if len(shared):
+            raise ValueError(f"fabric(s) {shared[:5].tolist()} are in both train and test")
+        xtr, ytr, _ = _per_fabric(xtr, ytr, ftr)
+        xte, yte, _ = _per_fabric(xte, yte, fte)
+    out: dict[str, dict[str, float]] = {}
+    for j, name in enumerate(col_names):
+        tr = ~np.isnan(ytr[:, j])
+        te = ~np.isnan(yte[:, j])
+        n_tr, n_te = int(tr.sum()), int(te.sum())
+        nan = float("nan")
+        scores = {
+            "r2": nan,
+            "spearman": nan,
+            "mae": nan,
+            "n_train": float(n_tr),
+            "n_test": float(n_te),
+        }
+        out[name] = scores
+        if n_tr < 2 or n_te < 1:
+            continue
+        if method == "knn":
+            model = KNeighborsRegressor(n_neighbors=min(k, n_tr))
+        else:
+            model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
+        model.fit(xtr[tr], ytr[tr, j])
+        pred = np.asarray(model.predict(xte[te]), dtype=np.float64)
+        truth = yte[te, j]
+        scores["mae"] = float(np.abs(pred - truth).mean())
+        if n_te >= 2 and np.ptp(truth) > 0:
+            scores["r2"] = float(
+                1.0 - ((pred - truth) ** 2).sum() / ((truth - truth.mean()) ** 2).sum()
+            )
+            if np.ptp(pred) > 0:
+                scores["spearman"] = float(spearmanr(pred, truth).statistic)
+    return out
