@@ -162,6 +162,26 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train(args: argparse.Namespace) -> int:
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.train import train
+
+    overrides = list(args.set)
+    if args.pretrained is not None:
+        overrides.append(f"model.pretrained={args.pretrained}")
+    config = load_config(RunConfig, args.config, overrides)
+    result = train(config, args.data, args.out, resume=args.resume)
+    print(f"Trained {result.steps} steps; run in {result.run_dir}")
+    print(f"  last checkpoint: {result.last_checkpoint}")
+    if result.best_checkpoint is not None:
+        print(f"  best checkpoint: {result.best_checkpoint}")
+    for key in sorted(k for k in result.validation if k.endswith("_top1")):
+        v = result.validation[key]
+        chance = result.validation.get(key.replace("_top1", "_chance"))
+        print(f"  val {key:<24} {v:.3f}" + (f"  (chance {chance:.3f})" if chance else ""))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lookfeel`` command."""
     parser = argparse.ArgumentParser(
@@ -207,6 +227,35 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--workers", type=int, default=2, help="decoding threads (default 2)")
     check.set_defaults(func=_cmd_data_check)
 
+    tr = sub.add_parser(
+        "train",
+        help="train a model from a config on a dataset",
+        description=(
+            "Train a run config (see configs/) on a dataset folder. Writes RUN/config.yaml, "
+            "RUN/split.json, RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on "
+            "many processes under `torchrun --nproc_per_node N -m lookfeel train ...`."
+        ),
+    )
+    tr.add_argument("--config", type=Path, required=True, help="run config YAML (configs/...)")
+    tr.add_argument("--data", type=Path, required=True, help="dataset folder")
+    tr.add_argument("--out", type=Path, required=True, help="run directory to write")
+    tr.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config key, e.g. --set train.steps=100 (repeatable)",
+    )
+    tr.add_argument("--resume", action="store_true", help="continue the run in --out")
+    tr.add_argument(
+        "--pretrained",
+        type=Path,
+        default=None,
+        help="local ImageNet weights file for the backbone (torchvision's AlexNet layout); "
+        "never downloaded",
+    )
+    tr.set_defaults(func=_cmd_train)
+
     demo = sub.add_parser(
         "demo",
         help="run the main job on the embedded default",
@@ -232,9 +281,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    from lookfeel.checkpoint import CheckpointError
+    from lookfeel.config import ConfigError
+    from lookfeel.models import PretrainedError
+
     try:
         status: int = args.func(args)
-    except DatasetError as e:
+    except (DatasetError, ConfigError, CheckpointError, PretrainedError) as e:
         print(f"lookfeel: {e}", file=sys.stderr)
         return 1
     return status

@@ -14,6 +14,7 @@ from lookfeel.config._core import (
 from lookfeel.config.data import AugmentConfig, DataConfig
 from lookfeel.config.loss import LossConfig
 from lookfeel.config.model import ModelConfig
+from lookfeel.config.train import RunConfig, TrainConfig
 
 __all__ = [
     "AugmentConfig",
@@ -21,6 +22,8 @@ __all__ = [
     "DataConfig",
     "LossConfig",
     "ModelConfig",
+    "RunConfig",
+    "TrainConfig",
     "apply_overrides",
     "from_dict",
     "load_config",

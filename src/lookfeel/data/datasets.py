@@ -112,6 +112,29 @@ class TupleDataset(Dataset[dict[str, Any]]):
         """Every item this dataset may draw (for `ImageLoader.preload`)."""
         return [it for pool in self.pools.values() for items in pool.values() for it in items]
 
+    def pools_items(self, modality: Modality) -> list[Item]:
+        """Every item of one modality this dataset may draw."""
+        return [it for items in self.pools[modality].values() for it in items]
+
+    def targets(self, fabric_ids: dict[str, list[int]]) -> dict[str, dict[str, torch.Tensor]]:
+        """Per-slot targets of a batch from its fabric ids: ``fabric_ids`` (B,), ``clusters``
+        (B,) with -1 for unknown, ``properties`` (B, L) with NaN for unknown."""
+        out: dict[str, dict[str, torch.Tensor]] = {
+            "fabric_ids": {},
+            "clusters": {},
+            "properties": {},
+        }
+        for slot, ids in fabric_ids.items():
+            fabrics = [self._fabrics[i] for i in ids]
+            out["fabric_ids"][slot] = torch.tensor(ids, dtype=torch.int64)
+            out["clusters"][slot] = torch.tensor(
+                [-1 if f.cluster is None else f.cluster for f in fabrics], dtype=torch.int64
+            )
+            out["properties"][slot] = torch.stack(
+                [_labels_vector(dict(f.labels), self.label_columns) for f in fabrics]
+            ).reshape(len(ids), len(self.label_columns))
+        return out
+
     def _choose(
         self, rng: np.random.Generator, pool: list[Item], k: int, avoid: set[Item]
     ) -> list[Item]:
@@ -146,25 +169,18 @@ class TupleDataset(Dataset[dict[str, Any]]):
         gen = torch.Generator().manual_seed(
             int(np.random.default_rng([self.seed, self.epoch, index, 1]).integers(2**62))
         )
-        inputs, fids, clusters, props = {}, {}, {}, {}
-        for slot, fid, items in zip(self.slots, fabrics, chosen, strict=True):
+        inputs = {}
+        for slot, items in zip(self.slots, chosen, strict=True):
             m = slot_modality(slot)
             aug = self.augmenters.get(m)
             xs = [self.loader.load(it) for it in items]
             if aug is not None:
                 xs = [aug(x, gen) for x in xs]
             inputs[slot] = torch.stack(xs) if m is Modality.TOUCH else xs[0]
-            fabric = self._fabrics[fid]
-            fids[slot] = torch.tensor(fid, dtype=torch.int64)
-            clusters[slot] = torch.tensor(
-                -1 if fabric.cluster is None else fabric.cluster, dtype=torch.int64
-            )
-            props[slot] = _labels_vector(dict(fabric.labels), self.label_columns)
+        targets = self.targets({s: [f] for s, f in zip(self.slots, fabrics, strict=True)})
         return {
             "inputs": inputs,
-            "fabric_ids": fids,
-            "clusters": clusters,
-            "properties": props,
+            **{k: {s: v[0] for s, v in per.items()} for k, per in targets.items()},
             "y": torch.tensor(y, dtype=torch.float32),
         }
 

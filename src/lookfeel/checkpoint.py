@@ -1,0 +1,107 @@
+"""Checkpoints: written atomically, read safely, and enough on their own to rebuild the model.
+
+A checkpoint is a plain dict saved with `torch.save` and read with ``weights_only=True``:
+
+    version, step, config (the resolved RunConfig as plain data), modalities, label_columns,
+    split (fabric ids on each side), model (state dict), optimizer, scheduler, loss (state
+    dicts), rng (torch CPU generator state), best (the best validation value so far)
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from lookfeel.atomic import atomic_write
+from lookfeel.config import ConfigError, RunConfig, from_dict
+from lookfeel.modality import Modality
+from lookfeel.models import Embedder, create_model
+
+__all__ = [
+    "CHECKPOINT_VERSION",
+    "CheckpointError",
+    "LoadedModel",
+    "load_model",
+    "read_checkpoint",
+    "save_checkpoint",
+]
+
+CHECKPOINT_VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file cannot be used; the message names the file."""
+
+
+def save_checkpoint(path: str | os.PathLike[str], state: dict[str, Any]) -> Path:
+    """Write ``state`` to ``path`` atomically (a kill mid-write leaves the old file intact)."""
+    buf = io.BytesIO()
+    torch.save({"version": CHECKPOINT_VERSION, **state}, buf)
+    return atomic_write(path, lambda f: f.write(buf.getbuffer()))
+
+
+def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a checkpoint safely (``weights_only``: no code in the file is run).
+
+    Raises:
+        CheckpointError: missing, unreadable, or not a lookfeel checkpoint.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise CheckpointError(f"{p}: checkpoint not found")
+    try:
+        state = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as e:  # torch raises many types for a damaged or foreign file
+        raise CheckpointError(f"{p}: not a readable checkpoint ({type(e).__name__}: {e})") from None
+    if not isinstance(state, dict) or "config" not in state or "model" not in state:
+        raise CheckpointError(f"{p}: not a lookfeel checkpoint (no config and model inside)")
+    if state.get("version", 0) > CHECKPOINT_VERSION:
+        raise CheckpointError(
+            f"{p}: written by a newer lookfeel (checkpoint version {state['version']}); upgrade"
+        )
+    return state
+
+
+@dataclass(frozen=True)
+class LoadedModel:
+    """A model rebuilt from a checkpoint, with what it was trained on."""
+
+    path: Path
+    config: RunConfig
+    model: Embedder
+    step: int
+    label_columns: tuple[str, ...]
+    split: dict[str, list[int]]
+
+
+def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu") -> LoadedModel:
+    """Rebuild the trained model from a checkpoint alone, in eval mode.
+
+    Raises:
+        CheckpointError: naming the file, when it cannot be read or does not fit its config.
+    """
+    state = read_checkpoint(path)
+    try:
+        config = from_dict(RunConfig, state["config"])
+    except ConfigError as e:
+        raise CheckpointError(f"{path}: its config does not load: {e}") from None
+    modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]
+    model = create_model(config.model, modalities, load_weights=False)
+    try:
+        model.load_state_dict(state["model"])
+    except RuntimeError as e:
+        raise CheckpointError(f"{path}: weights do not fit the model of its config: {e}") from None
+    model.to(device).eval()
+    return LoadedModel(
+        path=Path(path),
+        config=config,
+        model=model,
+        step=int(state.get("step", 0)),
+        label_columns=tuple(state.get("label_columns", ())),
+        split={k: list(v) for k, v in state.get("split", {}).items()},
+    )

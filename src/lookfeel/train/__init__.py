@@ -1,0 +1,7 @@
+"""Training: `train` runs a `RunConfig` on a dataset, in one process or many (torchrun)."""
+
+from lookfeel.train.features import FeatureTable
+from lookfeel.train.loop import TrainResult, select_split, train
+from lookfeel.train.validate import default_pairs, validate
+
+__all__ = ["FeatureTable", "TrainResult", "default_pairs", "select_split", "train", "validate"]

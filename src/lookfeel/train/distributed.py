@@ -1,0 +1,83 @@
+"""One process or many: the same training entry point under ``torchrun --nproc_per_node N``.
+
+``torchrun`` sets ``RANK``, ``WORLD_SIZE`` and ``LOCAL_RANK``; with ``WORLD_SIZE > 1`` the run
+uses DistributedDataParallel over gloo (CPU) or NCCL (GPU). Rank 0 writes every file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import torch
+import torch.distributed as torch_dist
+from torch import nn
+
+__all__ = ["Distributed"]
+
+
+@dataclass
+class Distributed:
+    """This process's place in the run."""
+
+    rank: int
+    world: int
+    local_rank: int
+    device: torch.device
+    owns_group: bool = False
+
+    @classmethod
+    def from_env(cls, device: str = "auto") -> Distributed:
+        """Read torchrun's variables; start the process group when there are several."""
+        world = int(os.environ.get("WORLD_SIZE", "1"))
+        rank = int(os.environ.get("RANK", "0"))
+        local = int(os.environ.get("LOCAL_RANK", "0"))
+        use_cuda = device == "cuda" or (device == "auto" and torch.cuda.is_available())
+        if device == "cuda" and not torch.cuda.is_available():
+            raise RuntimeError("train.device=cuda, but no CUDA device is available")
+        dev = torch.device(f"cuda:{local}") if use_cuda else torch.device("cpu")
+        if use_cuda:
+            torch.cuda.set_device(dev)
+        owns = False
+        if world > 1 and not torch_dist.is_initialized():
+            torch_dist.init_process_group("nccl" if use_cuda else "gloo")
+            owns = True
+        return cls(rank, world, local, dev, owns)
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+    def wrap(self, model: nn.Module) -> nn.Module:
+        """DistributedDataParallel around ``model`` when there are several processes."""
+        if self.world == 1:
+            return model
+        ids = [self.device.index] if self.device.type == "cuda" else None
+        return nn.parallel.DistributedDataParallel(model, device_ids=ids)
+
+    def reduce_extra_grads(self, module: nn.Module) -> None:
+        """Average gradients of parameters outside the DDP model (a learnt temperature)."""
+        if self.world == 1:
+            return
+        for p in module.parameters():
+            if p.grad is not None:
+                torch_dist.all_reduce(p.grad)
+                p.grad /= self.world
+
+    def mean_values(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Average logged scalars over processes."""
+        if self.world == 1:
+            return dict(values)
+        keys = sorted(values)
+        t = torch.tensor([values[k] for k in keys], dtype=torch.float64, device=self.device)
+        torch_dist.all_reduce(t)
+        return {k: float(v) / self.world for k, v in zip(keys, t.tolist(), strict=True)}
+
+    def barrier(self) -> None:
+        if self.world > 1:
+            torch_dist.barrier()
+
+    def close(self) -> None:
+        if self.owns_group and torch_dist.is_initialized():
+            torch_dist.destroy_process_group()

@@ -1,0 +1,541 @@
+"""`train`: one entry point for one process or many (``torchrun``), from config to checkpoints.
+
+A run directory holds ``config.yaml`` (the resolved config), ``split.json`` (the fabrics on
+each side), ``metrics.jsonl`` (one JSON object per logged step or validation) and
+``checkpoints/last.pt`` and ``best.pt``. The trainer knows nothing of which loss or how many
+modalities: it logs every term the loss returns and back-propagates ``"loss"``.
+
+Tuple ``i`` of the run is drawn from ``(seed, i)`` alone and step ``s`` uses tuples
+``s * B .. (s + 1) * B - 1`` (each process a contiguous share), so a resumed run, or a run on
+N processes with the same global batch, sees exactly the batches of an unbroken single run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+from torch.utils.data import DataLoader, Sampler
+
+from lookfeel.atomic import atomic_write_text
+from lookfeel.checkpoint import read_checkpoint, save_checkpoint
+from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
+from lookfeel.data import (
+    Augmenter,
+    Catalog,
+    DatasetError,
+    ImageLoader,
+    Item,
+    TupleDataset,
+    kmeans_clusters,
+    paper_split,
+    scan,
+    seen_fabric_split,
+    stratified_fabric_folds,
+    stratified_fabric_split,
+)
+from lookfeel.losses import create_loss
+from lookfeel.modality import Modality, slot_modality
+from lookfeel.models import Embedder, create_model
+from lookfeel.train.distributed import Distributed
+from lookfeel.train.features import FeatureTable
+from lookfeel.train.validate import validate
+
+__all__ = ["TrainResult", "train"]
+
+StepCallback = Callable[[int, Mapping[str, float]], None]
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """What a finished run left behind."""
+
+    run_dir: Path
+    steps: int
+    last_checkpoint: Path
+    best_checkpoint: Path | None
+    validation: dict[str, float]
+    """The last validation's metrics (empty without validation)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Splits and data
+
+
+def select_split(
+    catalog: Catalog, config: RunConfig
+) -> tuple[Catalog, Catalog | None, dict[str, Any]]:
+    """The training and validation catalogs of a run, and a record of the split for split.json."""
+    t = config.train
+    if t.split == "none":
+        return catalog, None, {"kind": "none", "train": catalog.ids, "val": []}
+    if t.split == "seen":
+        train, val = seen_fabric_split(catalog, 0.8, seed=t.split_seed)
+        return (
+            train,
+            val,
+            {"kind": "seen", "train": train.ids, "val": val.ids, "seed": t.split_seed},
+        )
+    paper = paper_split(catalog)
+    if t.split == "paper":
+        if not paper.test:
+            raise DatasetError(
+                "train.split=paper: none of the paper's test fabrics is in this dataset (the "
+                "shared real data holds them back); use train.split=stratified to hold out "
+                "training fabrics",
+                catalog.root,
+            )
+        return (
+            catalog.subset(paper.train),
+            catalog.subset(paper.test),
+            {"kind": "paper", "train": list(paper.train), "val": list(paper.test)},
+        )
+    pool = list(paper.train) or catalog.ids  # never train on the paper's test fabrics
+    clusters = catalog.clusters()
+    if t.split == "fold":
+        split = stratified_fabric_folds(pool, clusters, t.folds, seed=t.split_seed)[t.fold]
+        info = {"kind": "fold", "fold": t.fold, "folds": t.folds, "seed": t.split_seed}
+    else:
+        split = stratified_fabric_split(pool, clusters, n_test=t.val_fabrics, seed=t.split_seed)
+        info = {"kind": "stratified", "seed": t.split_seed}
+    info |= {"train": list(split.train), "val": list(split.test)}
+    return catalog.subset(split.train), catalog.subset(split.test), info
+
+
+def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
+    """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3)."""
+    if not config.model.cluster_head or all(f.cluster is not None for f in catalog.fabrics):
+        return catalog
+    if any(f.cluster is not None for f in catalog.fabrics):
+        return catalog  # partly known: unknown ones are masked out of the cluster loss
+    k = config.model.num_clusters
+    warnings.warn(
+        f"no cluster column in labels.csv: clustering fabrics into {k} by k-means on their labels",
+        stacklevel=3,
+    )
+    return catalog.with_clusters(kmeans_clusters(catalog, k=k, seed=0))
+
+
+class _StepSampler(Sampler[list[int]]):
+    """Batches of tuple indices: step ``s`` takes ``s*B + rank*b .. s*B + (rank+1)*b - 1``."""
+
+    def __init__(self, start: int, steps: int, batch: int, rank: int, world: int) -> None:
+        self.start, self.steps, self.batch, self.rank, self.world = start, steps, batch, rank, world
+
+    def __iter__(self) -> Iterator[list[int]]:
+        local = self.batch // self.world
+        for s in range(self.start, self.steps):
+            base = s * self.batch + self.rank * local
+            yield list(range(base, base + local))
+
+    def __len__(self) -> int:
+        return self.steps - self.start
+
+
+# ---------------------------------------------------------------------------------------------
+# Batches from the trunk cache
+
+
+class _CachedBatches:
+    """Builds batches of trunk features from tuple draws (no pixels touched per step)."""
+
+    def __init__(
+        self,
+        ds: TupleDataset,
+        table: FeatureTable,
+        loader: ImageLoader,
+        model: Embedder,
+        config: RunConfig,
+        device: torch.device,
+    ) -> None:
+        self.ds, self.table, self.loader, self.model = ds, table, loader, model
+        self.seed = config.train.seed
+        self.device = device
+        aug = config.data.augment
+        # Augmented modalities without cached copies go through the trunk on every draw.
+        self.live_aug = {
+            m: Augmenter(aug[m])
+            for m in ds.views
+            if m in aug and Augmenter(aug[m]).active and not table.has_copies(m)
+        }
+
+    def _features(self, m: Modality, items: list[Item], index: int, slot: int) -> Tensor:
+        rng = np.random.default_rng([self.seed, index, slot, 2])
+        if m in self.live_aug:
+            g = torch.Generator().manual_seed(int(rng.integers(2**62)))
+            x = torch.stack([self.live_aug[m](self.loader.load(it), g) for it in items]).to(
+                self.device
+            )
+            with torch.no_grad():
+                f = self.model.trunk({m.value: x.unsqueeze(0) if m is Modality.TOUCH else x})[
+                    m.value
+                ]
+            return f.squeeze(0) if m is Modality.TOUCH else f
+        copies = None
+        if self.table.has_copies(m):
+            copies = [int(c) for c in rng.integers(self.table.copies, size=len(items))]
+        return self.table.gather(m, items, copies)
+
+    def batch(self, indices: list[int]) -> dict[str, Any]:
+        per_slot: dict[str, list[Tensor]] = {s: [] for s in self.ds.slots}
+        fabric: dict[str, list[int]] = {s: [] for s in self.ds.slots}
+        ys = []
+        for i in indices:
+            y, fabrics, chosen = self.ds.draw(i)
+            ys.append(y)
+            for j, (slot, fid, items) in enumerate(
+                zip(self.ds.slots, fabrics, chosen, strict=True)
+            ):
+                m = slot_modality(slot)
+                f = self._features(m, items, i, j)
+                per_slot[slot].append(f if m is Modality.TOUCH else f[0])  # touch: (P, *F)
+                fabric[slot].append(fid)
+        inputs = {s: torch.stack(v) for s, v in per_slot.items()}
+        return {"inputs": inputs, "y": torch.tensor(ys), **self.ds.targets(fabric)}
+
+
+# ---------------------------------------------------------------------------------------------
+# Run directory, logs and resume
+
+
+def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            out |= _flatten(v, key + ".")
+        else:
+            out[key] = v
+    return out
+
+
+def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
+    """The saved config, with a longer ``train.steps`` allowed; any other change is an error."""
+    old = from_dict(RunConfig, saved)
+    a, b = _flatten(to_dict(old)), _flatten(to_dict(given))
+    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k != "train.steps")
+    if changed:
+        raise ConfigError(
+            f"--resume: the config differs from the run's ({path}) in "
+            + ", ".join(f"{k} ({a.get(k)!r} -> {b.get(k)!r})" for k in changed[:6])
+            + "; resume with the run's own config.yaml or start a new run"
+        )
+    return replace(old, train=replace(old.train, steps=given.train.steps))
+
+
+def _trim_log(path: Path, step: int) -> None:
+    """Drop log lines past ``step`` (written after the checkpoint a resume starts from)."""
+    if not path.exists():
+        return
+    keep = [
+        line for line in path.read_text().splitlines() if line and json.loads(line)["step"] <= step
+    ]
+    atomic_write_text(path, "".join(line + "\n" for line in keep))
+
+
+class _Log:
+    """metrics.jsonl (and TensorBoard when it is installed), written by rank 0 only."""
+
+    def __init__(self, run_dir: Path, enabled: bool) -> None:
+        self.path = run_dir / "metrics.jsonl"
+        self.enabled = enabled
+        self.tb: Any = None
+        if enabled:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+
+                self.tb = SummaryWriter(str(run_dir / "tensorboard"))
+            except Exception:  # tensorboard is optional
+                self.tb = None
+
+    def write(self, record: dict[str, Any]) -> None:
+        if not self.enabled:
+            return
+        with self.path.open("a") as f:
+            f.write(json.dumps(record) + "\n")
+        if self.tb is not None:
+            for k, v in record.items():
+                if k != "step" and isinstance(v, (int, float)):
+                    self.tb.add_scalar(k, v, record["step"])
+
+    def close(self) -> None:
+        if self.tb is not None:
+            self.tb.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# The entry point
+
+
+def _lr_lambda(config: RunConfig) -> Callable[[int], float]:
+    t = config.train
+
+    def f(step: int) -> float:
+        if t.warmup_steps and step < t.warmup_steps:
+            return (step + 1) / t.warmup_steps
+        if t.lr_schedule == "cosine":
+            span = max(1, t.steps - t.warmup_steps)
+            return 0.5 * (1 + math.cos(math.pi * min(1.0, (step - t.warmup_steps) / span)))
+        return 1.0
+
+    return f
+
+
+def train(
+    config: RunConfig,
+    data: str | Path,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    on_step: StepCallback | None = None,
+) -> TrainResult:
+    """Train a model on the dataset at ``data``, writing the run to ``out``.
+
+    Args:
+        config: the run's configuration.
+        data: a dataset folder in the lookfeel layout.
+        out: the run directory; must not hold a run unless ``resume``.
+        resume: continue the run in ``out`` from ``checkpoints/last.pt`` (its saved config is
+            used; only ``train.steps`` may grow). The result equals an unbroken run's.
+        on_step: called after every step with (steps done, that step's loss terms).
+
+    Raises:
+        DatasetError: the data cannot serve this run (every problem listed).
+        ConfigError: a config key is wrong, or ``resume`` with a different config.
+    """
+    run_dir = Path(out)
+    last = run_dir / "checkpoints" / "last.pt"
+    state: dict[str, Any] | None = None
+    if resume:
+        if not last.exists():
+            raise ConfigError(f"--resume: no checkpoint at {last} to resume from")
+        state = read_checkpoint(last)
+        config = _check_resume_config(state["config"], config, last)
+    elif last.exists():
+        raise ConfigError(
+            f"{run_dir} already holds a run ({last}); pass --resume to continue it, "
+            "or choose another --out"
+        )
+    t = config.train
+    dist = Distributed.from_env(t.device)
+    try:
+        return _train(config, Path(data), run_dir, state, dist, on_step)
+    finally:
+        dist.close()
+
+
+def _train(
+    config: RunConfig,
+    data: Path,
+    run_dir: Path,
+    state: dict[str, Any] | None,
+    dist: Distributed,
+    on_step: StepCallback | None,
+) -> TrainResult:
+    t = config.train
+    last = run_dir / "checkpoints" / "last.pt"
+    if t.batch_size % dist.world:
+        raise ConfigError(
+            f"train.batch_size={t.batch_size} must divide evenly over {dist.world} processes"
+        )
+    if t.threads:
+        torch.set_num_threads(t.threads)
+    device = dist.device
+    modalities = t.modalities
+
+    catalog = _with_clusters(scan(data, require=modalities, strict=True), config)
+    if config.model.num_properties and config.model.num_properties != len(catalog.label_columns):
+        raise ConfigError(
+            f"model.num_properties={config.model.num_properties}, but labels.csv has "
+            f"{len(catalog.label_columns)} label columns ({', '.join(catalog.label_columns)})"
+        )
+    train_cat, val_cat, split_info = select_split(catalog, config)
+    loader = ImageLoader(config.data)
+    ds = TupleDataset(train_cat, loader, t.views, length=t.steps * t.batch_size, seed=t.seed)
+    val_items: dict[Modality, list[Item]] = {}
+    if val_cat is not None:
+        val_items = {m: val_cat.items(m, config.data.touch_kinds) for m in modalities}
+    loader.preload([*ds.items(), *(it for v in val_items.values() for it in v)])
+
+    torch.manual_seed(t.seed)
+    model = create_model(config.model, modalities).to(device)
+    loss_fn = create_loss(config.loss).to(device)
+    params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
+    opt_cls = torch.optim.AdamW if t.weight_decay else torch.optim.Adam
+    optimizer = opt_cls(params, lr=t.lr, weight_decay=t.weight_decay)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
+    heads = bool(config.model.cluster_head or config.model.num_properties)
+
+    cached = t.cache_trunk and config.model.resolved_freeze != "none"
+    table: FeatureTable | None = None
+    batches: _CachedBatches | None = None
+    if cached:
+        started = time.perf_counter()
+        items = {
+            m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
+        }
+        table = FeatureTable(
+            model,
+            loader,
+            items,
+            config.data.augment,
+            t.augment_copies,
+            seed=t.seed,
+            batch_size=t.feature_batch,
+            device=device,
+            rank=dist.rank,
+            world=dist.world,
+        )
+        batches = _CachedBatches(ds, table, loader, model, config, device)
+        cache_s = time.perf_counter() - started
+    start_step = 0
+    best = -math.inf
+    if state is not None:
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        scheduler.load_state_dict(state["scheduler"])
+        loss_fn.load_state_dict(state["loss"])
+        start_step = int(state["step"])
+        best = float(state.get("best", -math.inf))
+
+    log = _Log(run_dir, dist.is_main)
+    if dist.is_main:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        save_config(config, run_dir / "config.yaml")
+        atomic_write_text(run_dir / "split.json", json.dumps(split_info, indent=1) + "\n")
+        if state is None:
+            log.path.unlink(missing_ok=True)
+            if cached and table is not None:
+                log.write(
+                    {
+                        "step": 0,
+                        "trunk_cache_s": round(cache_s, 2),
+                        "trunk_cache_mb": round(table.nbytes() / 2**20, 1),
+                    }
+                )
+        else:
+            _trim_log(log.path, start_step)
+    if state is not None:
+        torch.set_rng_state(state["rng"])  # after every set-up draw: dropout resumes exactly
+    net = dist.wrap(model)
+
+    def checkpoint_state(step: int) -> dict[str, Any]:
+        return {
+            "step": step,
+            "config": to_dict(config),
+            "modalities": [m.value for m in modalities],
+            "label_columns": list(catalog.label_columns),
+            "split": {"train": split_info["train"], "val": split_info["val"]},
+            "model": model.state_dict(),
+            "optimizer": optimizer.state_dict(),
+            "scheduler": scheduler.state_dict(),
+            "loss": loss_fn.state_dict(),
+            "rng": torch.get_rng_state(),
+            "best": best,
+        }
+
+    loader_iter: Iterator[dict[str, Any]] | None = None
+    if not cached:
+        sampler = _StepSampler(start_step, t.steps, t.batch_size, dist.rank, dist.world)
+        loader_iter = iter(DataLoader(ds, batch_sampler=sampler, num_workers=t.workers))
+
+    progress = None
+    if t.progress and dist.is_main:
+        from tqdm import tqdm
+
+        progress = tqdm(
+            total=t.steps, initial=start_step, desc="train", unit="step", dynamic_ncols=True
+        )
+    primary = t.val_pairs[0] if t.val_pairs else None
+    last_val: dict[str, float] = {}
+    sums: dict[str, float] = {}
+    window_start, window_steps = time.perf_counter(), 0
+    local = t.batch_size // dist.world
+    model.train()
+    for step in range(start_step, t.steps):
+        if batches is not None:
+            base = step * t.batch_size + dist.rank * local
+            batch = batches.batch(list(range(base, base + local)))
+        else:
+            assert loader_iter is not None
+            batch = next(loader_iter)
+        inputs = {k: v.to(device, non_blocking=True) for k, v in batch["inputs"].items()}
+        outputs = net(inputs, from_trunk=cached, heads=heads)
+        terms = loss_fn(
+            outputs,
+            y=batch["y"].to(device),
+            fabric={k: v.to(device) for k, v in batch["fabric_ids"].items()},
+            cluster={k: v.to(device) for k, v in batch["clusters"].items()}
+            if config.model.cluster_head
+            else None,
+            properties={k: v.to(device) for k, v in batch["properties"].items()}
+            if config.model.num_properties
+            else None,
+        )
+        optimizer.zero_grad(set_to_none=True)
+        terms["loss"].backward()
+        dist.reduce_extra_grads(loss_fn)
+        optimizer.step()
+        scheduler.step()
+        values = dist.mean_values({k: float(v.detach()) for k, v in terms.items()})
+        for k, v in values.items():
+            sums[k] = sums.get(k, 0.0) + v
+        window_steps += 1
+        done = step + 1
+        if progress is not None:
+            progress.update(1)
+            if done % 10 == 0 or done == t.steps:
+                progress.set_postfix(loss=f"{values['loss']:.4f}")
+        if done % max(t.log_every, 1) == 0 or done == t.steps:
+            elapsed = time.perf_counter() - window_start
+            record: dict[str, Any] = {"step": done}
+            record |= {k: v / window_steps for k, v in sums.items()}
+            record["lr"] = scheduler.get_last_lr()[0]
+            record["steps_per_s"] = window_steps / elapsed if elapsed > 0 else None
+            log.write(record)
+            sums, window_start, window_steps = {}, time.perf_counter(), 0
+        is_val = val_cat is not None and (
+            (t.val_every and done % t.val_every == 0) or done == t.steps
+        )
+        if is_val:
+            if dist.is_main:
+                last_val = validate(
+                    model, val_items, loader, table, t.feature_batch, device, t.val_pairs
+                )
+                key = f"{primary or last_val['primary_pair']}_top1"
+                log.write(
+                    {
+                        "step": done,
+                        **{f"val/{k}": v for k, v in last_val.items() if k != "primary_pair"},
+                    }
+                )
+                if last_val[key] > best:
+                    best = last_val[key]
+                    save_checkpoint(run_dir / "checkpoints" / "best.pt", checkpoint_state(done))
+            dist.barrier()
+        if (t.checkpoint_every and done % t.checkpoint_every == 0) or done == t.steps:
+            if dist.is_main:
+                save_checkpoint(last, checkpoint_state(done))
+            dist.barrier()
+        if on_step is not None:
+            on_step(done, values)
+    if progress is not None:
+        progress.close()
+    log.close()
+    best_path = run_dir / "checkpoints" / "best.pt"
+    return TrainResult(
+        run_dir=run_dir,
+        steps=t.steps,
+        last_checkpoint=last,
+        best_checkpoint=best_path if best_path.exists() else None,
+        validation={k: v for k, v in last_val.items() if k != "primary_pair"},
+    )

@@ -1,0 +1,184 @@
+"""Training: overfitting, determinism, kill-and-resume, errors, and 2-process DDP."""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from lookfeel.checkpoint import load_model
+from lookfeel.cli import main
+from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.data import DatasetError, ImageLoader, scan
+from lookfeel.embedding import embed_catalog
+from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
+from lookfeel.modality import Modality
+from lookfeel.train import train
+
+from ._tiny import write_tiny_dataset
+
+TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_tiny_dataset(tmp_path_factory.mktemp("train") / "data", fabrics=6, drapes=3)
+
+
+def _config(*overrides: str) -> RunConfig:
+    return load_config(RunConfig, TINY, list(overrides))
+
+
+def _states_equal(a: Path, b: Path, atol: float = 0.0) -> bool:
+    sa = torch.load(a, weights_only=True)["model"]
+    sb = torch.load(b, weights_only=True)["model"]
+    return sa.keys() == sb.keys() and all(
+        torch.allclose(sa[k].float(), sb[k].float(), atol=atol, rtol=0) for k in sa
+    )
+
+
+def test_overfits_a_tiny_set(tmp_path: Path):
+    root = write_tiny_dataset(tmp_path / "d", fabrics=4, drapes=3, fold_presses=3, flat_presses=0)
+    losses: list[float] = []
+    cfg = _config(
+        "train.split=none",
+        "train.views=[depth,touch]",
+        "train.steps=200",
+        "train.lr=0.01",
+        "train.batch_size=16",
+        "data.presses=1",
+    )
+    result = train(cfg, root, tmp_path / "run", on_step=lambda s, v: losses.append(v["loss"]))
+    first, last = statistics.mean(losses[:5]), statistics.mean(losses[-20:])
+    # BatchNorm's batch noise leaves a floor near 15% of the start in this few-second budget.
+    assert last < 0.25 * first
+    trained = load_model(result.last_checkpoint)
+    emb = embed_catalog(trained.model, scan(root), ImageLoader(trained.config.data))
+    touch, depth = emb[Modality.TOUCH], emb[Modality.DEPTH]
+    dist = pairwise_distances(touch.embeddings, depth.embeddings)
+    res = pick_k_of_n_exact(dist, touch.fabric_ids, depth.fabric_ids, n=4)
+    assert res.mean[0] == pytest.approx(1.0)
+
+
+def test_run_directory_and_determinism(data: Path, tmp_path: Path):
+    a = train(_config(), data, tmp_path / "a")
+    b = train(_config(), data, tmp_path / "b")
+    run = tmp_path / "a"
+    assert sorted(p.name for p in run.iterdir()) == [
+        "checkpoints",
+        "config.yaml",
+        "metrics.jsonl",
+        "split.json",
+    ]
+    assert load_config(RunConfig, run / "config.yaml") == _config()
+    split = json.loads((run / "split.json").read_text())
+    assert len(split["val"]) == 2 and not set(split["val"]) & set(split["train"])
+    lines = [json.loads(x) for x in (run / "metrics.jsonl").read_text().splitlines()]
+    steps = [x["step"] for x in lines if "loss" in x]
+    assert steps == [5, 10, 15, 20]
+    assert any("val/touch_to_depth_top1" in x for x in lines)
+    assert a.best_checkpoint is not None and a.best_checkpoint.exists()
+    other = [json.loads(x) for x in (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    assert [x["loss"] for x in lines if "loss" in x] == [x["loss"] for x in other if "loss" in x]
+    assert _states_equal(a.last_checkpoint, b.last_checkpoint)
+    c = train(_config("train.seed=1"), data, tmp_path / "c")
+    assert not _states_equal(a.last_checkpoint, c.last_checkpoint)
+
+
+class _Kill(Exception):
+    pass
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        (),  # full network, pixels through a DataLoader
+        (  # frozen trunk cached, augmented colour copies, dropout drawing from the RNG
+            "model.freeze=to_block4",
+            "model.dropout=0.3",
+            "data.augment.color.gamma=[0.5,2.0]",
+            "data.augment.color.permute_channels=true",
+        ),
+    ],
+    ids=["full", "cached"],
+)
+def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrides):
+    cfg = _config(*overrides)
+    unbroken = train(cfg, data, tmp_path / "unbroken")
+
+    def kill(step: int, _: object) -> None:
+        if step == 13:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        train(cfg, data, tmp_path / "broken", on_step=kill)
+    assert torch.load(tmp_path / "broken/checkpoints/last.pt", weights_only=True)["step"] == 10
+    resumed = train(cfg, data, tmp_path / "broken", resume=True)
+    assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
+    timing = ("steps_per_s", "trunk_cache_s")
+
+    def log(run: Path) -> list[dict[str, object]]:
+        lines = (run / "metrics.jsonl").read_text().splitlines()
+        return [{k: v for k, v in json.loads(x).items() if k not in timing} for x in lines]
+
+    assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
+
+
+def test_run_errors_are_clear(data: Path, tmp_path: Path):
+    train(_config("train.steps=2", "train.val_every=0"), data, tmp_path / "run")
+    with pytest.raises(ConfigError, match="already holds a run .* pass --resume"):
+        train(_config(), data, tmp_path / "run")
+    with pytest.raises(ConfigError, match=r"differs from the run's .* train.lr \(0.001 -> 0.5\)"):
+        train(_config("train.lr=0.5"), data, tmp_path / "run", resume=True)
+    with pytest.raises(ConfigError, match="no checkpoint at .* to resume from"):
+        train(_config(), data, tmp_path / "new", resume=True)
+    with pytest.raises(DatasetError, match="none of the paper's test fabrics"):
+        train(_config("train.split=paper"), data, tmp_path / "paper")
+    with pytest.raises(ConfigError, match="num_properties=2, but labels.csv has 4"):
+        train(_config("model.num_properties=2"), data, tmp_path / "props")
+
+
+def test_cli_train_then_load_and_embed(data: Path, tmp_path: Path, capsys):
+    out = tmp_path / "cli"
+    args = ["train", "--config", str(TINY), "--data", str(data), "--out", str(out)]
+    assert main([*args, "--set", "train.steps=4", "--set", "train.val_every=2"]) == 0
+    printed = capsys.readouterr().out
+    assert "Trained 4 steps" in printed and "val touch_to_depth_top1" in printed
+    loaded = load_model(out / "checkpoints" / "best.pt")
+    assert loaded.config.train.steps == 4 and loaded.step in (2, 4)
+    assert loaded.model.modalities == (Modality.DEPTH, Modality.COLOR, Modality.TOUCH)
+    assert main([*args, "--set", "train.lr=2"]) == 1
+    assert "already holds a run" in capsys.readouterr().err
+    alexnet = ["--set", "model.backbone=alexnet", "--set", "model.width=null"]
+    weights = ["--pretrained", str(tmp_path / "missing.pth")]
+    assert main([*args[:-1], str(tmp_path / "p"), *alexnet, *weights]) == 1
+    assert "missing.pth" in capsys.readouterr().err
+
+
+def test_two_processes_agree_with_one(data: Path, tmp_path: Path):
+    """torchrun --nproc_per_node 2 on the same global batch gives one process's weights.
+
+    Like the paper's set-up (AlexNet cached to fc6, fc7 trained), the trainable part here has
+    no BatchNorm: BatchNorm statistics are per process under DDP, so runs would differ by design.
+    """
+    common = ["--config", str(TINY), "--data", str(data), "--set", "train.steps=6"]
+    common += ["--set", "train.val_every=0", "--set", "train.progress=false"]
+    common += ["--set", "model.freeze=to_block4"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"}
+    single = [sys.executable, "-m", "lookfeel", "train", *common, "--out", str(tmp_path / "one")]
+    subprocess.run(single, check=True, env=env, capture_output=True, timeout=240)
+    multi = [
+        sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
+        "-m", "lookfeel", "train", *common, "--out", str(tmp_path / "two"),
+    ]  # fmt: skip
+    proc = subprocess.run(multi, env=env, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert _states_equal(
+        tmp_path / "one/checkpoints/last.pt", tmp_path / "two/checkpoints/last.pt", atol=1e-5
+    )
