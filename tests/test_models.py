@@ -441,3 +441,23 @@ def test_model_config_defaults_and_validation() -> None:
     ]:
         with pytest.raises(ConfigError, match=key):
             from_dict(ModelConfig, bad)
+
+
+def test_fast_dropout_matches_dropout_statistics():
+    from lookfeel.models.dropout import FastDropout
+
+    torch.manual_seed(0)
+    x = torch.ones(400, 500)
+    drop = FastDropout(0.5)
+    y = drop(x)
+    assert set(torch.unique(y).tolist()) == {0.0, 2.0}
+    assert abs((y == 0).float().mean().item() - 0.5) < 0.01
+    assert abs(y.mean().item() - 1.0) < 0.02  # expectation kept by the 1/(1-p) scaling
+    drop.eval()
+    assert drop(x) is x
+    odd = FastDropout(0.3)  # 256 * 0.3 is not an integer: exact fallback
+    assert abs((odd(x) == 0).float().mean().item() - 0.3) < 0.01
+    torch.manual_seed(1)
+    a = FastDropout(0.5)(x)
+    torch.manual_seed(1)
+    assert torch.equal(a, FastDropout(0.5)(x))  # draws from the global generator: seeded

@@ -9,7 +9,6 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
 
 from __future__ import annotations
 
-import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,9 +39,7 @@ class CheckpointError(ValueError):
 
 def save_checkpoint(path: str | os.PathLike[str], state: dict[str, Any]) -> Path:
     """Write ``state`` to ``path`` atomically (a kill mid-write leaves the old file intact)."""
-    buf = io.BytesIO()
-    torch.save({"version": CHECKPOINT_VERSION, **state}, buf)
-    return atomic_write(path, lambda f: f.write(buf.getbuffer()))
+    return atomic_write(path, lambda f: torch.save({"version": CHECKPOINT_VERSION, **state}, f))
 
 
 def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:

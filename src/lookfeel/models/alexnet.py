@@ -13,6 +13,7 @@ from typing import ClassVar
 from torch import nn
 
 from lookfeel.models.backbone import Backbone
+from lookfeel.models.dropout import FastDropout
 
 __all__ = ["AlexNet"]
 
@@ -66,10 +67,10 @@ class AlexNet(Backbone):
         )
         self.avgpool = nn.AdaptiveAvgPool2d((6, 6))
         self.classifier = nn.Sequential(
-            nn.Dropout(p=dropout),
+            FastDropout(p=dropout),
             nn.Linear(256 * 6 * 6, 4096),
             nn.ReLU(inplace=True),
-            nn.Dropout(p=dropout),
+            FastDropout(p=dropout),
             nn.Linear(4096, 4096),
             nn.ReLU(inplace=True),
             nn.Linear(4096, 1000),

@@ -7,6 +7,7 @@ from typing import ClassVar
 from torch import nn
 
 from lookfeel.models.backbone import Backbone
+from lookfeel.models.dropout import FastDropout
 
 __all__ = ["CompactCNN"]
 
@@ -59,7 +60,9 @@ class CompactCNN(Backbone):
             _block(4 * w, 8 * w),
         )
         self.pool = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Flatten(1))
-        self.fc = nn.Sequential(nn.Dropout(dropout), nn.Linear(8 * w, 8 * w), nn.ReLU(inplace=True))
+        self.fc = nn.Sequential(
+            FastDropout(dropout), nn.Linear(8 * w, 8 * w), nn.ReLU(inplace=True)
+        )
         for m in self.modules():
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")

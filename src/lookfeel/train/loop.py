@@ -78,14 +78,21 @@ def select_split(
     t = config.train
     if t.split == "none":
         return catalog, None, {"kind": "none", "train": catalog.ids, "val": []}
-    if t.split == "seen":
-        train, val = seen_fabric_split(catalog, 0.8, seed=t.split_seed)
+    paper = paper_split(catalog)
+    pool = list(paper.train) or catalog.ids  # never train on the paper's test fabrics
+    if t.split == "seen":  # Table 4: 80% of each training fabric's items train, 20% validate
+        train, val = seen_fabric_split(catalog.subset(pool), 0.8, seed=t.split_seed)
         return (
             train,
             val,
-            {"kind": "seen", "train": train.ids, "val": val.ids, "seed": t.split_seed},
+            {
+                "kind": "seen",
+                "train": train.ids,
+                "val": val.ids,
+                "seed": t.split_seed,
+                "val_items": sorted(str(it.path) for m in val.modalities for it in val.items(m)),
+            },
         )
-    paper = paper_split(catalog)
     if t.split == "paper":
         if not paper.test:
             raise DatasetError(
@@ -99,7 +106,6 @@ def select_split(
             catalog.subset(paper.test),
             {"kind": "paper", "train": list(paper.train), "val": list(paper.test)},
         )
-    pool = list(paper.train) or catalog.ids  # never train on the paper's test fabrics
     clusters = catalog.clusters()
     if t.split == "fold":
         split = stratified_fabric_folds(pool, clusters, t.folds, seed=t.split_seed)[t.fold]
@@ -168,39 +174,45 @@ class _CachedBatches:
             if m in aug and Augmenter(aug[m]).active and not table.has_copies(m)
         }
 
-    def _features(self, m: Modality, items: list[Item], index: int, slot: int) -> Tensor:
+    def _live(self, m: Modality, items: list[Item], index: int, slot: int) -> Tensor:
+        """Trunk features of freshly augmented images (augmentation without cached copies)."""
         rng = np.random.default_rng([self.seed, index, slot, 2])
-        if m in self.live_aug:
-            g = torch.Generator().manual_seed(int(rng.integers(2**62)))
-            x = torch.stack([self.live_aug[m](self.loader.load(it), g) for it in items]).to(
-                self.device
-            )
-            with torch.no_grad():
-                f = self.model.trunk({m.value: x.unsqueeze(0) if m is Modality.TOUCH else x})[
-                    m.value
-                ]
-            return f.squeeze(0) if m is Modality.TOUCH else f
-        copies = None
-        if self.table.has_copies(m):
-            copies = [int(c) for c in rng.integers(self.table.copies, size=len(items))]
-        return self.table.gather(m, items, copies)
+        g = torch.Generator().manual_seed(int(rng.integers(2**62)))
+        x = torch.stack([self.live_aug[m](self.loader.load(it), g) for it in items]).to(self.device)
+        with torch.no_grad():
+            f = self.model.trunk({m.value: x.unsqueeze(0) if m is Modality.TOUCH else x})[m.value]
+        return f.squeeze(0) if m is Modality.TOUCH else f
 
     def batch(self, indices: list[int]) -> dict[str, Any]:
-        per_slot: dict[str, list[Tensor]] = {s: [] for s in self.ds.slots}
-        fabric: dict[str, list[int]] = {s: [] for s in self.ds.slots}
-        ys = []
-        for i in indices:
-            y, fabrics, chosen = self.ds.draw(i)
-            ys.append(y)
-            for j, (slot, fid, items) in enumerate(
-                zip(self.ds.slots, fabrics, chosen, strict=True)
-            ):
-                m = slot_modality(slot)
-                f = self._features(m, items, i, j)
-                per_slot[slot].append(f if m is Modality.TOUCH else f[0])  # touch: (P, *F)
-                fabric[slot].append(fid)
-        inputs = {s: torch.stack(v) for s, v in per_slot.items()}
-        return {"inputs": inputs, "y": torch.tensor(ys), **self.ds.targets(fabric)}
+        draws = [self.ds.draw(i) for i in indices]
+        inputs: dict[str, Tensor] = {}
+        fabric: dict[str, list[int]] = {}
+        for j, slot in enumerate(self.ds.slots):
+            m = slot_modality(slot)
+            fabric[slot] = [fabrics[j] for _, fabrics, _ in draws]
+            per_tuple = [
+                chosen[j] for _, _, chosen in draws
+            ]  # B lists of P items (P = 1 but touch)
+            if m in self.live_aug:
+                feats = torch.stack(
+                    [self._live(m, its, i, j) for its, i in zip(per_tuple, indices, strict=True)]
+                )
+            else:
+                flat = [it for its in per_tuple for it in its]
+                copies = None
+                if self.table.has_copies(m):  # one random cached copy per item, seeded per tuple
+                    copies = [
+                        int(c)
+                        for i, its in zip(indices, per_tuple, strict=True)
+                        for c in np.random.default_rng([self.seed, i, j, 2]).integers(
+                            self.table.copies, size=len(its)
+                        )
+                    ]
+                feats = self.table.gather(m, flat, copies)  # (B * P, *F)
+                feats = feats.unflatten(0, (len(indices), -1))  # -> (B, P, *F)
+            inputs[slot] = feats if m is Modality.TOUCH else feats[:, 0]
+        ys = torch.tensor([y for y, _, _ in draws])
+        return {"inputs": inputs, "y": ys, **self.ds.targets(fabric)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -274,6 +286,18 @@ class _Log:
 
 # ---------------------------------------------------------------------------------------------
 # The entry point
+
+
+def _adam(
+    params: list[torch.nn.Parameter], lr: float, weight_decay: float
+) -> torch.optim.Optimizer:
+    """Adam (AdamW with weight decay), fused where this torch build has it: on 2 CPU cores the
+    fused update of the paper's three fc7 layers (50M weights) is 7x faster than the default."""
+    cls = torch.optim.AdamW if weight_decay else torch.optim.Adam
+    try:
+        return cls(params, lr=lr, weight_decay=weight_decay, fused=True)
+    except (RuntimeError, TypeError, ValueError):
+        return cls(params, lr=lr, weight_decay=weight_decay)
 
 
 def _lr_lambda(config: RunConfig) -> Callable[[int], float]:
@@ -370,8 +394,7 @@ def _train(
     model = create_model(config.model, modalities).to(device)
     loss_fn = create_loss(config.loss).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
-    opt_cls = torch.optim.AdamW if t.weight_decay else torch.optim.Adam
-    optimizer = opt_cls(params, lr=t.lr, weight_decay=t.weight_decay)
+    optimizer = _adam(params, t.lr, t.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
     heads = bool(config.model.cluster_head or config.model.num_properties)
 
