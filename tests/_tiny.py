@@ -25,9 +25,9 @@ def write_rgb(path: Path, fabric: int, k: int, size: tuple[int, int] = (24, 24))
     rng = np.random.default_rng([fabric, k, 7])
     w, h = size
     a = np.zeros((h, w, 3), np.uint8)
-    a[..., 0] = 20 * fabric
+    a[..., 0] = (20 * fabric) % 256
     a[..., 1] = rng.integers(0, 255, (h, w))
-    a[..., 2] = 10 * k
+    a[..., 2] = (10 * k) % 256
     path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(a).save(path)
 

@@ -73,7 +73,9 @@ class LoadedModel:
     model: Embedder
     step: int
     label_columns: tuple[str, ...]
-    split: dict[str, list[int]]
+    split: dict[str, Any]
+    """The run's split.json: ``kind``, ``train`` and ``val`` fabric ids; for the ``seen`` split
+    also ``val_items`` (held-out item paths) and ``novel`` (held-out fabric ids)."""
 
 
 def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu") -> LoadedModel:
@@ -100,5 +102,5 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         model=model,
         step=int(state.get("step", 0)),
         label_columns=tuple(state.get("label_columns", ())),
-        split={k: list(v) for k, v in state.get("split", {}).items()},
+        split=dict(state.get("split", {})),
     )

@@ -182,6 +182,98 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from lookfeel.reproduce import headline, reproduce
+
+    result = reproduce(
+        args.data,
+        args.out,
+        budget=args.budget,
+        seeds=args.seeds,
+        pretrained=args.pretrained,
+        only=args.only or (),
+        n_boot=args.n_boot,
+        overrides=args.set,
+    )
+    print()
+    for line in headline(result.results):
+        print(line)
+    for f in result.findings.values():
+        print(f"{f['verdict']:>13}: {f['claim']}")
+    print(f"\nReport: {result.report}")
+    return 0
+
+
+def _cmd_embed(args: argparse.Namespace) -> int:
+    from lookfeel.evaluate import embed_checkpoint, save_embeddings
+
+    emb = embed_checkpoint(
+        args.checkpoint,
+        args.data,
+        args.split,
+        reference=not args.no_reference,
+        batch_size=args.batch_size,
+        device=args.device,
+    )
+    path = save_embeddings(args.out, emb)
+    counts = ", ".join(f"{m.value} {len(e.embeddings)}" for m, e in emb.embedded.items())
+    print(f"Embedded {counts} ({emb.meta['split_description']}) into {path}")
+    if emb.reference:
+        ref = ", ".join(f"{m.value} {len(e.embeddings)}" for m, e in emb.reference.items())
+        print(f"  with the reference (training) items: {ref}")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from lookfeel.config import EvalConfig, load_config
+    from lookfeel.evaluate import (
+        EmbeddingFileError,
+        evaluate_checkpoint,
+        evaluate_embedding_file,
+        write_report,
+    )
+
+    overrides = list(args.set)
+    if args.released_variant:
+        overrides.append("released_variant=true")
+    config = load_config(EvalConfig, args.config, overrides)
+    if args.checkpoint is not None:
+        if args.data is None:
+            print("lookfeel evaluate: --checkpoint needs --data", file=sys.stderr)
+            return 2
+        result = evaluate_checkpoint(
+            args.checkpoint,
+            args.data,
+            args.split or "val",
+            config,
+            batch_size=args.batch_size,
+            device=args.device,
+        )
+    else:
+        if args.split is not None:
+            print(
+                "lookfeel evaluate: --split applies to --checkpoint; an embeddings file holds "
+                "the split it was embedded with",
+                file=sys.stderr,
+            )
+            return 2
+        try:
+            result = evaluate_embedding_file(args.embeddings, config, args.data)
+        except EmbeddingFileError as e:
+            print(f"lookfeel: {e}", file=sys.stderr)
+            return 1
+    files = write_report(result, args.out)
+    k = result.config.ks[0]
+    print(f"Evaluated {result.info.get('split_description', 'the embeddings')}:")
+    for pair in result.pairs:
+        m = result.metrics
+        v, lo, hi = (m.get(f"{pair}_top{k}{s}", float("nan")) for s in ("", "_ci_low", "_ci_high"))
+        chance = m.get(f"{pair}_top{k}_chance", float("nan"))
+        print(f"  {pair:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}")
+    print(f"Wrote {files.metrics}, {files.report} and {len(files.figures)} figures")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lookfeel`` command."""
     parser = argparse.ArgumentParser(
@@ -255,6 +347,107 @@ def build_parser() -> argparse.ArgumentParser:
         "never downloaded",
     )
     tr.set_defaults(func=_cmd_train)
+
+    rep = sub.add_parser(
+        "reproduce",
+        help="run every experiment of the paper and report ours beside its numbers",
+        description=(
+            "Train and evaluate the paper's experiments (Figure 5, Tables 1-4) on a dataset and "
+            "write DIR/report.md and DIR/results.json. Budgets: tiny (seconds per run), small "
+            "(minutes per run, compact CNN at 64 px), paper (the paper's AlexNet configs; needs "
+            "--pretrained). Runs whose modalities the data lacks are skipped with the reason. "
+            "Re-running resumes finished runs."
+        ),
+    )
+    rep.add_argument("--data", type=Path, required=True, help="dataset folder")
+    rep.add_argument("--out", type=Path, required=True, help="output folder")
+    rep.add_argument("--budget", choices=["tiny", "small", "paper"], default="small")
+    rep.add_argument("--seeds", type=int, default=1, help="training seeds per experiment")
+    rep.add_argument("--pretrained", type=Path, default=None, help="ImageNet AlexNet weights")
+    rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
+    rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
+    rep.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override every run's config",
+    )
+    rep.set_defaults(func=_cmd_reproduce)
+
+    emb = sub.add_parser(
+        "embed",
+        help="embed a dataset's items with a trained checkpoint into an .npz file",
+        description=(
+            "Embed the items of a dataset with a checkpoint's model and write FILE.npz: "
+            "embeddings_<modality> (N, D), fabric_id_<modality> (N,), path_<modality> (N,) "
+            "(touch: one row per press), and for --split val/novel/paper the reference "
+            "(training) items as reference_* arrays, so `lookfeel evaluate --embeddings` can "
+            "fit c and the property probes from the file alone."
+        ),
+    )
+    emb.add_argument("--checkpoint", type=Path, required=True, help="a run's checkpoint (.pt)")
+    emb.add_argument("--data", type=Path, required=True, help="dataset folder")
+    emb.add_argument("--out", type=Path, required=True, help="the .npz file to write")
+    emb.add_argument(
+        "--split",
+        choices=["val", "train", "novel", "paper", "all"],
+        default="all",
+        help="which items: the run's held-out (val) or training (train) items, a seen run's "
+        "novel fabrics, the paper's test fabrics, or all (default)",
+    )
+    emb.add_argument(
+        "--no-reference", action="store_true", help="do not embed the reference (training) items"
+    )
+    emb.add_argument("--batch-size", type=int, default=64, help="images per forward pass")
+    emb.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    emb.set_defaults(func=_cmd_embed)
+
+    ev = sub.add_parser(
+        "evaluate",
+        help="score a checkpoint or an embeddings file: metrics.json, report.md, figures",
+        description=(
+            "Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, "
+            "recall@k and median rank, with chance levels and bootstrap intervals over test "
+            "fabrics; multi-press touch queries; calibration of P ~ exp(-c D^2) with confusion "
+            "matrices; physical-property probes. Writes OUT/metrics.json, OUT/report.md and "
+            "OUT/figures/*.png. --split: val (default) the run's held-out items, c and probes "
+            "fitted on its training items; train; novel (a seen run's held-out fabrics); paper "
+            "(the paper's 18 test fabrics); all."
+        ),
+    )
+    src = ev.add_mutually_exclusive_group(required=True)
+    src.add_argument("--checkpoint", type=Path, help="a run's checkpoint (.pt); needs --data")
+    src.add_argument("--embeddings", type=Path, help="an .npz written by `lookfeel embed`")
+    ev.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="dataset folder (with --embeddings: optional, for clusters, labels and images)",
+    )
+    ev.add_argument("--out", type=Path, required=True, help="folder for the report")
+    ev.add_argument(
+        "--split",
+        choices=["val", "train", "novel", "paper", "all"],
+        default=None,
+        help="with --checkpoint: which items are the test set (default val)",
+    )
+    ev.add_argument("--config", type=Path, default=None, help="evaluation config YAML (EvalConfig)")
+    ev.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an EvalConfig key, e.g. --set n_boot=200 (repeatable)",
+    )
+    ev.add_argument(
+        "--released-variant",
+        action="store_true",
+        help="also score the released code's sampled variant (own fabric may be a distractor)",
+    )
+    ev.add_argument("--batch-size", type=int, default=64, help="images per forward pass")
+    ev.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    ev.set_defaults(func=_cmd_evaluate)
 
     demo = sub.add_parser(
         "demo",

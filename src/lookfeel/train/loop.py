@@ -80,19 +80,19 @@ def select_split(
         return catalog, None, {"kind": "none", "train": catalog.ids, "val": []}
     paper = paper_split(catalog)
     pool = list(paper.train) or catalog.ids  # never train on the paper's test fabrics
-    if t.split == "seen":  # Table 4: 80% of each training fabric's items train, 20% validate
+    if t.split == "seen":
+        # Table 4: 80% of each training fabric's items train and 20% validate ("seen"); the
+        # paper's test fabrics, or else `val_fabrics` held-out fabrics, are the "novel" ones.
+        novel = list(paper.test)
+        if not novel and t.val_fabrics:
+            held = stratified_fabric_split(
+                pool, catalog.clusters(), n_test=t.val_fabrics, seed=t.split_seed
+            )
+            pool, novel = list(held.train), list(held.test)
         train, val = seen_fabric_split(catalog.subset(pool), 0.8, seed=t.split_seed)
-        return (
-            train,
-            val,
-            {
-                "kind": "seen",
-                "train": train.ids,
-                "val": val.ids,
-                "seed": t.split_seed,
-                "val_items": sorted(str(it.path) for m in val.modalities for it in val.items(m)),
-            },
-        )
+        val_items = sorted(str(it.path) for m in val.modalities for it in val.items(m))
+        info = {"kind": "seen", "seed": t.split_seed, "train": train.ids, "val": val.ids}
+        return train, val, info | {"novel": novel, "val_items": val_items}
     if t.split == "paper":
         if not paper.test:
             raise DatasetError(
@@ -457,7 +457,7 @@ def _train(
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),
-            "split": {"train": split_info["train"], "val": split_info["val"]},
+            "split": split_info,
             "model": model.state_dict(),
             "optimizer": optimizer.state_dict(),
             "scheduler": scheduler.state_dict(),

@@ -1,0 +1,366 @@
+"""`reproduce`: every experiment of the paper on a dataset, our numbers beside the paper's.
+
+Experiments are the configs under ``configs/paper/`` (one per column of the paper's tables),
+trained with a *budget* and scored on fabrics held out from training:
+
+- ``paper``: the configs as written (ImageNet AlexNet at 227 px, fc6 frozen, 25,000 steps of
+  batch 128); needs the ImageNet weights (``pretrained``), since training a whole AlexNet on a
+  CPU is out of reach.
+- ``small``: the compact CNN at 64 px, 1,500 steps of batch 64 (minutes per run on 2 cores).
+- ``tiny``: the compact CNN at 40 px, 120 steps of batch 32 (seconds per run; the demo).
+
+The architectures stay the paper's under every budget: which presses (flat or fold), the
+cluster head, three pooled presses, colour augmentation and the modalities of each run. Runs
+whose modalities the data lacks are listed as skipped with the reason. Each finished run writes
+``runs/<name>/seed<k>/eval.json``; a killed reproduction resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lookfeel.atomic import atomic_write_text
+from lookfeel.checkpoint import load_model
+from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.data import Catalog, ImageLoader, paper_split, scan
+from lookfeel.embedding import embed_catalog
+from lookfeel.metrics import (
+    all_pairs,
+    group_queries,
+    mean_and_spread,
+    pairwise_distances,
+    pick_k_of_n_exact,
+)
+from lookfeel.modality import Modality
+from lookfeel.train import train
+
+__all__ = ["BUDGETS", "EXPERIMENTS", "Experiment", "ReproduceResult", "reproduce"]
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One column of the paper's tables: a config under ``configs/paper/``."""
+
+    name: str
+    cites: str
+    table: str
+    """``models`` (Figure 5, Tables 1-2), ``augmentation`` (Table 3) or ``vision`` (Table 4)."""
+
+
+EXPERIMENTS = (
+    Experiment("flat", "Figure 5, Tables 1-2 (Flat)", "models"),
+    Experiment("cross_modal", "Figure 5, Tables 1-2 (Cross-mdl)", "models"),
+    Experiment("auxiliary", "Figure 5, Tables 1-2 (Auxiliary)", "models"),
+    Experiment("multi_input", "Figure 5, Tables 1-2 (Multi-in)", "models"),
+    Experiment("cross_modal_aug", "Table 3 (Cross-mdl with aug)", "augmentation"),
+    Experiment("multi_input_aug", "Table 3 (Multi-in with aug)", "augmentation"),
+    Experiment("snn_depth", "Table 4 (SNN, only depth)", "vision"),
+    Experiment("cross_modal_depth_touch", "Table 4 (Cross-mdl, depth & Gel)", "vision"),
+)
+
+_COMPACT = ["model.backbone=compact", "model.freeze=none", "model.pretrained=null"]
+BUDGETS: dict[str, tuple[str, ...]] = {
+    "tiny": (
+        *_COMPACT,
+        "model.width=12",
+        "model.dropout=0.0",
+        "data.image_size=40",
+        "train.steps=120",
+        "train.batch_size=32",
+        "train.lr=0.003",
+    ),
+    "small": (
+        *_COMPACT,
+        "model.width=32",
+        "model.dropout=0.2",
+        "data.image_size=64",
+        "train.steps=1500",
+        "train.batch_size=64",
+        "train.lr=0.001",
+    ),
+    "paper": (),
+}
+"""Overrides of each budget on top of the paper configs."""
+
+
+def config_dir() -> Path:
+    """The shipped ``configs/paper`` folder."""
+    return Path(str(resources.files("lookfeel") / "configs" / "paper"))
+
+
+@dataclass
+class ReproduceResult:
+    """What a reproduction produced."""
+
+    out: Path
+    report: Path
+    results: dict[str, Any] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+    findings: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _needs(config: RunConfig, catalog: Catalog) -> str | None:
+    """Why the data cannot serve this config, or None."""
+    have = set(catalog.modalities)
+    missing = [m.value for m in config.train.modalities if m not in have]
+    if missing:
+        has = ", ".join(m.value for m in catalog.modalities) or "nothing"
+        return f"needs {', '.join(missing)}; the data has {has}"
+    if Modality.TOUCH in config.train.modalities:
+        kinds = config.data.touch_kinds
+        if not catalog.items(Modality.TOUCH, kinds):
+            return f"needs {'/'.join(k.value for k in kinds)} touch presses; the data has none"
+    return None
+
+
+def _pooled(
+    emb: np.ndarray, fabric: np.ndarray, presses: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Touch embeddings of single presses -> of P-press inputs (the Multi-input Net's max)."""
+    if presses <= 1:
+        return emb, fabric
+    groups = group_queries(emb, fabric, presses=presses, seed=seed)
+    return groups.emb, groups.fabric
+
+
+def _score(
+    model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int
+) -> dict[str, float]:
+    """All pairs of pick 1 of 10 (exact and sampled), gallery metrics and intervals."""
+    loader = ImageLoader(config.data)
+    emb = embed_catalog(model, catalog, loader)
+    vectors: dict[Modality, np.ndarray] = {}
+    fabrics: dict[Modality, np.ndarray] = {}
+    for m, e in emb.items():
+        vectors[m], fabrics[m] = e.embeddings, e.fabric_ids
+        if m is Modality.TOUCH:
+            vectors[m], fabrics[m] = _pooled(e.embeddings, e.fabric_ids, config.data.presses, seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is in the result
+        return all_pairs(vectors, fabrics, n_boot=n_boot, seed=seed)
+
+
+def _depth_pick(model: Any, catalog: Catalog, config: RunConfig) -> dict[str, float]:
+    emb = embed_catalog(model, catalog, ImageLoader(config.data), modalities=[Modality.DEPTH])
+    d = emb[Modality.DEPTH]
+    dist = pairwise_distances(d.embeddings, d.embeddings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = pick_k_of_n_exact(dist, d.fabric_ids, d.fabric_ids, exclude_self=np.arange(len(dist)))
+    return {"top1": float(res.mean[0]), "top3": float(res.mean[1]), "chance": float(res.chance[0])}
+
+
+def _run_one(
+    exp: Experiment,
+    config: RunConfig,
+    catalog: Catalog,
+    data: Path,
+    run_dir: Path,
+    n_boot: int,
+) -> dict[str, Any]:
+    done = run_dir / "eval.json"
+    if done.exists():
+        return dict(json.loads(done.read_text()))
+    started = time.perf_counter()
+    resume = (run_dir / "checkpoints" / "last.pt").exists()
+    result = train(config, data, run_dir, resume=resume)
+    loaded = load_model(
+        result.last_checkpoint
+    )  # the last step, as the paper: no test-set selection
+    split = loaded.split
+    record: dict[str, Any] = {
+        "experiment": exp.name,
+        "seed": config.train.seed,
+        "split": split["kind"],
+    }
+    if exp.table == "vision":
+        seen_paths = set(split.get("val_items", []))
+        seen = catalog.with_items(
+            it for m in catalog.modalities for it in catalog.items(m) if str(it.path) in seen_paths
+        )
+        record["seen"] = _depth_pick(loaded.model, seen, loaded.config)
+        if split.get("novel"):
+            record["novel"] = _depth_pick(
+                loaded.model, catalog.subset(split["novel"]), loaded.config
+            )
+    else:
+        held_out = catalog.subset(split["val"])
+        record["metrics"] = _score(loaded.model, held_out, loaded.config, n_boot, config.train.seed)
+    record["test_fabrics"] = len(split.get("novel") or split["val"])
+    record["seconds"] = round(time.perf_counter() - started, 1)
+    atomic_write_text(done, json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def _aggregate(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Mean over seeds of every number (and its spread with several seeds); the intervals are
+    the first seed's bootstrap over test fabrics."""
+    out: dict[str, Any] = {"seeds": len(records)}
+    first = records[0]
+
+    def over_seeds(get: Callable[[dict[str, Any]], float]) -> dict[str, float]:
+        return mean_and_spread([get(r) for r in records])
+
+    if "metrics" in first:
+        keys = [k for k, v in first["metrics"].items() if isinstance(v, (int, float))]
+        out["metrics"] = {k: over_seeds(lambda r, k=k: r["metrics"][k])["mean"] for k in keys}
+        if len(records) > 1:
+            out["spread"] = {
+                k: over_seeds(lambda r, k=k: r["metrics"][k])["std"]
+                for k in keys
+                if k.endswith(("_top1", "_top3"))
+            }
+    for side in ("seen", "novel"):
+        if side in first:
+            out[side] = {
+                k: over_seeds(lambda r, k=k, side=side: r[side][k])["mean"] for k in first[side]
+            }
+            if len(records) > 1:
+                out[side + "_spread"] = {
+                    k: over_seeds(lambda r, k=k, side=side: r[side][k])["std"] for k in first[side]
+                }
+    out["test_fabrics"] = first.get("test_fabrics")
+    return out
+
+
+def reproduce(
+    data: str | Path,
+    out: str | Path,
+    budget: str = "small",
+    seeds: int = 1,
+    pretrained: str | Path | None = None,
+    only: Sequence[str] = (),
+    n_boot: int = 1000,
+    overrides: Sequence[str] = (),
+    log: Callable[[str], None] = print,
+) -> ReproduceResult:
+    """Run the paper's experiments on ``data`` and write ``out/report.md`` and ``results.json``.
+
+    Args:
+        data: a dataset folder in the lookfeel layout.
+        out: where runs, results and the report go (resumes what is there).
+        budget: ``tiny``, ``small`` or ``paper`` (see the module docstring).
+        seeds: training seeds per experiment (numbers are means, with their spread).
+        pretrained: ImageNet AlexNet weights for the ``paper`` budget.
+        only: experiment names to run (default: all).
+        n_boot: bootstrap resamples of the test fabrics for the intervals.
+        overrides: extra ``key=value`` config overrides for every run, after the budget's.
+        log: where progress lines go.
+
+    Raises:
+        ConfigError: an unknown budget or experiment, or ``paper`` without weights.
+    """
+    from lookfeel.reproduce.report import findings, write_report
+
+    if budget not in BUDGETS:
+        raise ConfigError(f"budget {budget!r} is not one of {', '.join(BUDGETS)}")
+    if budget == "paper" and pretrained is None:
+        raise ConfigError(
+            "budget 'paper' trains the paper's AlexNets with fc6 frozen, which needs the ImageNet "
+            "weights: pass --pretrained PATH (torchvision's alexnet-owt-7be5be79.pth); "
+            "without them use --budget small"
+        )
+    if seeds < 1:
+        raise ConfigError(f"seeds must be >= 1, got {seeds}")
+    names = [e.name for e in EXPERIMENTS]
+    unknown = [n for n in only if n not in names]
+    if unknown:
+        raise ConfigError(f"unknown experiment(s) {', '.join(unknown)}; have: {', '.join(names)}")
+    data, out = Path(data), Path(out)
+    catalog = scan(data, require=[], strict=True)
+    has_paper_test = bool(paper_split(catalog).test)
+    # The paper holds out 18 of 118 fabrics; pick 1 of 10 needs 10 test fabrics to be itself.
+    n_fabrics = len(catalog.ids)
+    n_val = min(18, max(round(0.18 * n_fabrics), min(10, n_fabrics // 3), 2))
+    split = (
+        ["train.split=paper"]
+        if has_paper_test
+        else ["train.split=stratified", f"train.val_fabrics={n_val}"]
+    )
+    result = ReproduceResult(out=out, report=out / "report.md")
+    started = time.perf_counter()
+    for exp in EXPERIMENTS:
+        if only and exp.name not in only:
+            continue
+        run_overrides = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
+        if exp.table == "vision":
+            run_overrides += [
+                "train.split=seen",
+                f"train.val_fabrics={0 if has_paper_test else n_val}",
+            ]
+        else:
+            run_overrides += split
+        if pretrained is not None and budget == "paper":
+            run_overrides.append(f"model.pretrained={pretrained}")
+        run_overrides += list(overrides)
+        base = load_config(RunConfig, config_dir() / f"{exp.name}.yaml", run_overrides)
+        reason = _needs(base, catalog)
+        if reason is not None:
+            result.skipped[exp.name] = reason
+            log(f"skip {exp.name}: {reason}")
+            continue
+        records = []
+        for seed in range(seeds):
+            config = load_config(
+                RunConfig, config_dir() / f"{exp.name}.yaml", [*run_overrides, f"train.seed={seed}"]
+            )
+            log(f"run  {exp.name} seed {seed} ({exp.cites})")
+            records.append(
+                _run_one(
+                    exp, config, catalog, data, out / "runs" / exp.name / f"seed{seed}", n_boot
+                )
+            )
+        result.results[exp.name] = _aggregate(records)
+    result.findings = findings(result.results)
+    meta = {
+        "data": str(data),
+        "budget": budget,
+        "seeds": seeds,
+        "overrides": list(overrides),
+        "split": "paper" if has_paper_test else f"stratified, {n_val} held-out fabrics",
+        "minutes": round((time.perf_counter() - started) / 60, 1),
+    }
+    atomic_write_text(
+        out / "results.json",
+        json.dumps(
+            {
+                "meta": meta,
+                "results": result.results,
+                "skipped": result.skipped,
+                "findings": result.findings,
+            },
+            indent=1,
+        )
+        + "\n",
+    )
+    write_report(result, meta)
+    return result
+
+
+def headline(results: Mapping[str, Any]) -> list[str]:
+    """A few lines of the most telling numbers, for the terminal."""
+    lines = []
+    for name in ("multi_input", "cross_modal", "flat"):
+        r = results.get(name, {}).get("metrics")
+        if r and "touch_to_depth_top1" in r:
+            lines.append(
+                f"{name:<12} touch->depth top-1 {r['touch_to_depth_top1']:.3f} "
+                f"(chance {r.get('touch_to_depth_top1_chance', float('nan')):.3f})"
+            )
+    for name in ("snn_depth", "cross_modal_depth_touch"):
+        r = results.get(name, {}).get("novel")
+        if r:
+            lines.append(f"{name:<12} depth->depth top-1 on novel fabrics {r['top1']:.3f}")
+    return lines

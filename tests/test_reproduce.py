@@ -1,0 +1,96 @@
+"""`lookfeel reproduce`: runs, skips with reasons, resumes, and reports beside the paper."""
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from lookfeel.cli import main
+from lookfeel.config import ConfigError
+from lookfeel.reproduce import TABLE_4, reproduce
+from lookfeel.reproduce.report import findings
+
+from ._tiny import write_tiny_dataset
+
+FAST = ["train.steps=3", "train.batch_size=8"]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("rep") / "data"
+    return write_tiny_dataset(root, fabrics=10, drapes=5, fold_presses=4, flat_presses=2)
+
+
+def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
+    out = tmp_path / "out"
+    only = ["cross_modal", "snn_depth"]
+    result = reproduce(
+        data, out, budget="tiny", only=only, n_boot=50, overrides=FAST, log=lambda s: None
+    )
+    assert set(result.results) == set(only)
+    metrics = result.results["cross_modal"]["metrics"]
+    assert 0.0 <= metrics["touch_to_depth_top1"] <= 1.0
+    assert metrics["touch_to_depth_top1_chance"] == pytest.approx(1 / 3)  # 3 held-out fabrics
+    assert set(result.results["snn_depth"]) >= {"seen", "novel"}
+    report = result.report.read_text()
+    row = r"\| depth_to_touch \| - \(0\.306\) \| \d\.\d{3} \[[\d., ]+\] \(0\.429\) \|"
+    assert re.search(row, report)  # not run: the paper's number alone; run: ours beside it
+    assert f"({TABLE_4['snn_depth']['novel_top1']:.3f})" in report
+    assert result.findings["model_order"]["verdict"] == "not tested"
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["meta"]["budget"] == "tiny" and saved["meta"]["overrides"] == FAST
+    evals = sorted(out.glob("runs/*/seed0/eval.json"))
+    assert len(evals) == 2
+    stamps = [p.stat().st_mtime_ns for p in evals]
+    again = reproduce(
+        data, out, budget="tiny", only=only, n_boot=50, overrides=FAST, log=lambda s: None
+    )
+    assert [p.stat().st_mtime_ns for p in evals] == stamps  # finished runs are not redone
+    assert json.dumps(again.results) == json.dumps(result.results)  # NaN-safe equality
+
+
+def test_runs_the_data_cannot_serve_are_skipped_with_reasons(data: Path, tmp_path: Path):
+    depth_only = tmp_path / "depth_only"
+    shutil.copytree(data / "depth", depth_only / "depth")
+    shutil.copy(data / "labels.csv", depth_only / "labels.csv")
+    result = reproduce(
+        depth_only, tmp_path / "o", budget="tiny", n_boot=20, overrides=FAST, log=lambda s: None
+    )
+    assert set(result.results) == {"snn_depth"}
+    assert result.skipped["multi_input"] == "needs color, touch; the data has depth"
+    assert "- `cross_modal_depth_touch`: needs touch" in result.report.read_text()
+
+
+def test_findings_logic_on_hand_made_results():
+    def model(td: float, tc: float) -> dict:
+        return {"metrics": {"touch_to_depth_top1": td, "touch_to_color_top1": tc}}
+
+    results = {
+        "multi_input": model(0.5, 0.4),
+        "auxiliary": model(0.45, 0.41),
+        "cross_modal": model(0.43, 0.3),
+        "flat": model(0.3, 0.2),
+        "snn_depth": {"novel": {"top1": 0.55}, "seen": {"top1": float("nan")}},
+        "cross_modal_depth_touch": {"novel": {"top1": 0.6}, "seen": {"top1": 0.6}},
+    }
+    f = findings(results)
+    assert f["model_order"]["verdict"] == "holds"
+    assert f["depth_beats_color"]["verdict"] == "holds"
+    assert f["augmentation_helps_color"]["verdict"] == "not tested"
+    assert f["touch_helps_depth"]["verdict"] == "holds"
+    assert f["touch_helps_depth"]["detail"] == "novel: SNN 0.550 vs joint 0.600"
+    results["flat"] = model(0.44, 0.2)
+    assert findings(results)["model_order"]["verdict"] == "does not hold"
+
+
+def test_bad_requests(data: Path, tmp_path: Path, capsys):
+    with pytest.raises(ConfigError, match="needs the ImageNet weights"):
+        reproduce(data, tmp_path, budget="paper")
+    with pytest.raises(ConfigError, match="unknown experiment.* nope"):
+        reproduce(data, tmp_path, only=["nope"])
+    assert (
+        main(["reproduce", "--data", str(data), "--out", str(tmp_path), "--budget", "paper"]) == 1
+    )
+    assert "--pretrained" in capsys.readouterr().err
