@@ -204,34 +204,25 @@ def _run_one(
     return record
 
 
+def _over_seeds(tables: Sequence[Mapping[str, float]], stat: str) -> dict[str, float]:
+    """``mean`` or ``std`` over seeds of every number in per-seed tables with the same keys."""
+    return {k: mean_and_spread([t[k] for t in tables])[stat] for k in tables[0]}
+
+
 def _aggregate(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """Mean over seeds of every number (and its spread with several seeds); the intervals are
     the first seed's bootstrap over test fabrics."""
     out: dict[str, Any] = {"seeds": len(records)}
-    first = records[0]
-
-    def over_seeds(get: Callable[[dict[str, Any]], float]) -> dict[str, float]:
-        return mean_and_spread([get(r) for r in records])
-
-    if "metrics" in first:
-        keys = [k for k, v in first["metrics"].items() if isinstance(v, (int, float))]
-        out["metrics"] = {k: over_seeds(lambda r, k=k: r["metrics"][k])["mean"] for k in keys}
+    for part in ("metrics", "seen", "novel"):
+        if part not in records[0]:
+            continue
+        tables = [r[part] for r in records]
+        out[part] = _over_seeds(tables, "mean")
         if len(records) > 1:
-            out["spread"] = {
-                k: over_seeds(lambda r, k=k: r["metrics"][k])["std"]
-                for k in keys
-                if k.endswith(("_top1", "_top3"))
-            }
-    for side in ("seen", "novel"):
-        if side in first:
-            out[side] = {
-                k: over_seeds(lambda r, k=k, side=side: r[side][k])["mean"] for k in first[side]
-            }
-            if len(records) > 1:
-                out[side + "_spread"] = {
-                    k: over_seeds(lambda r, k=k, side=side: r[side][k])["std"] for k in first[side]
-                }
-    out["test_fabrics"] = first.get("test_fabrics")
+            std = _over_seeds(tables, "std")
+            name = "spread" if part == "metrics" else f"{part}_spread"
+            out[name] = {k: v for k, v in std.items() if part != "metrics" or "_top" in k}
+    out["test_fabrics"] = records[0].get("test_fabrics")
     return out
 
 
