@@ -38,7 +38,14 @@ def test_version(capsys):
     assert capsys.readouterr().out.startswith("lookfeel 0.")
 
 
-def test_demo_on_real_data(real_data: Path, capsys):
-    assert main(["demo", "--data", str(real_data)]) == 0
+def test_demo_runs_end_to_end(tmp_path: Path, capsys):
+    """The demo on a small world with 2-step runs (the real one: `make demo`)."""
+    args = ["demo", "--out", str(tmp_path / "demo"), "--fabrics", "10", "--data", str(tmp_path)]
+    assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0
     out = capsys.readouterr().out
-    assert "1104 images" in out and "100 of 100 fabrics" in out
+    assert "Generating a synthetic world of 10 fabrics" in out
+    assert "touch->depth top-1" in out and "Report:" in out
+    report = (tmp_path / "demo" / "reproduce" / "report.md").read_text()
+    assert "## Table 4" in report
+    assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0
+    assert "Reusing the synthetic world" in capsys.readouterr().out

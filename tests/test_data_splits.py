@@ -51,6 +51,12 @@ def test_every_cluster_is_represented_even_when_small():
     assert {clusters[i] for i in split.test} == {0, 1, 2}
 
 
+def test_singleton_clusters_still_give_test_fabrics():
+    clusters = {i: i for i in range(1, 9)}  # every fabric its own cluster
+    split = stratified_fabric_split(list(clusters), clusters, n_test=2, seed=0)
+    assert len(split.test) == 2 and len(split.train) == 6
+
+
 def test_folds_partition_the_fabrics():
     catalog = _catalog(100, 8)
     folds = stratified_fabric_folds(catalog.ids, catalog.clusters(), n_folds=5, seed=0)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from lookfeel import __version__
 from lookfeel.data import Catalog, DatasetError, check_dataset, scan
-from lookfeel.modality import Modality, parse_modalities
+from lookfeel.modality import Modality, PressKind, parse_modalities
 
 
 def _modalities(text: str) -> tuple[Modality, ...]:
@@ -149,16 +149,12 @@ def _cmd_data_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    data: Path = args.data
-    if data.is_dir():
-        print(f"Real GelFabric data found at {data}.\n")
-        print(format_summary(scan(data)))
-        return 0
-    print(f"No dataset at {data}; generating a small synthetic world in {args.out} ...\n")
-    from lookfeel.synth import SynthConfig, generate
+    from lookfeel.demo import print_demo_result, run_demo
 
-    generate(SynthConfig(fabrics=12, seed=0), args.out, progress=True)
-    print(format_summary(scan(args.out)))
+    result = run_demo(
+        args.out, real_data=args.data, fabrics=args.fabrics, budget=args.budget, overrides=args.set
+    )
+    print_demo_result(result)
     return 0
 
 
@@ -274,6 +270,173 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_index_build(args: argparse.Namespace) -> int:
+    from lookfeel.index import LibraryError, build_library
+
+    kinds = None
+    if args.kinds:
+        kinds = [PressKind(k.strip()) for k in args.kinds.split(",") if k.strip()]
+    try:
+        result = build_library(
+            args.checkpoint,
+            args.data,
+            args.out,
+            backend=args.backend,
+            shard_size=args.shard_size,
+            batch_size=args.batch_size,
+            kinds=kinds,
+            target_false_accept=args.false_accept,
+            folds=args.folds,
+            seed=args.seed,
+            calibration_queries=args.calibration_queries,
+            progress=not args.quiet,
+        )
+    except LibraryError as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())
+    print(
+        f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded, "
+        f"{result.shards_reused} reused; search {result.backend}; {result.seconds:.1f} s"
+    )
+    for key, p in result.calibration.pairs.items():
+        print(
+            f"  {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  unknown below P {p.threshold:.3g}: "
+            f"false accept {p.false_accept:.3f}, true accept {p.true_accept:.3f}"
+        )
+    return 0
+
+
+def _cmd_index_info(args: argparse.Namespace) -> int:
+    from lookfeel.index import Library, LibraryError
+
+    try:
+        library = Library.open(args.library)
+    except LibraryError as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    summary = library.summary()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    model = summary["model"]
+    print(f"Library {library.root}")
+    print(f"  checkpoint  {library.checkpoint} (step {model['step']})")
+    print(
+        f"  model       {model['backbone']} at {model['image_size']} px, D = {model['embed_dim']}"
+    )
+    print(f"  data        {summary['data_root']}")
+    items = ", ".join(f"{n} {m}" for m, n in summary["items"].items())
+    print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")
+    cal = library.calibration
+    print(f"  calibration target false-accept {cal.target_false_accept:g}, {cal.folds} folds")
+    for key, p in cal.pairs.items():
+        print(
+            f"    {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  threshold {p.threshold:.3g}  "
+            f"false accept {p.false_accept:.3f}  true accept {p.true_accept:.3f}"
+        )
+    for note in cal.notes:
+        print(f"    note: {note}")
+    return 0
+
+
+def _cmd_match(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from lookfeel.data import ImageError
+    from lookfeel.index import Library, LibraryError, Matcher, format_match
+
+    try:
+        matcher = Matcher(Library.open(args.index, checkpoint=args.checkpoint))
+        results = matcher.match_files(
+            args.images, Modality(args.modality), top=args.top, gallery=args.gallery
+        )
+    except (LibraryError, ImageError) as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    if args.json:
+        print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
+    else:
+        print("\n\n".join(format_match(r) for r in results))
+    return 0
+
+
+def _cmd_serve(args: argparse.Namespace) -> int:
+    import torch
+
+    from lookfeel.index import Library, LibraryError
+    from lookfeel.serve import ServeConfig, create_app, serve
+
+    # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
+    # beats several queries sharing two-thread teams that spin waiting for each other.
+    torch.set_num_threads(args.threads)
+    config = ServeConfig(
+        max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
+        max_concurrency=args.max_concurrency,
+    )
+    try:
+        app = create_app(Library.open(args.index, checkpoint=args.checkpoint), config)
+    except LibraryError as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    print(f"Serving {args.index} at http://{args.host}:{args.port}/ (Ctrl-C stops)")
+    serve(app, host=args.host, port=args.port)
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from lookfeel.export import export_onnx
+
+    try:
+        exported = export_onnx(args.checkpoint, args.out, opset=args.opset)
+    except ValueError as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    for branch in exported:
+        shape = "x".join(str(s) for s in branch.input_shape)
+        check = (
+            f"; max |onnx - torch| = {branch.max_abs_diff:.2g}"
+            if branch.max_abs_diff is not None
+            else ""
+        )
+        print(
+            f"{branch.path}: {branch.input_name} ({shape}) -> embedding "
+            f"(batch x {branch.embed_dim}){check}"
+        )
+    return 0
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from lookfeel.synth import SIZE_PRESETS, SynthConfig, generate
+
+    try:
+        config = SynthConfig(
+            **SIZE_PRESETS[args.size],
+            fabrics=args.fabrics,
+            drapes=args.drapes,
+            presses_flat=args.presses_flat,
+            presses_fold=args.presses_fold,
+            frames=args.frames,
+            seed=args.seed,
+            workers=args.workers,
+            image_format=args.format,
+            modalities=args.modalities,
+            contact_sheet=not args.no_contact_sheet,
+        )
+        summary = generate(config, args.out, labels=args.labels, progress=not args.quiet)
+    except (ValueError, FileExistsError) as e:
+        print(f"lookfeel synth: {e}", file=sys.stderr)
+        return 2
+    print(
+        f"Wrote {summary.fabrics} fabrics to {summary.out} in {summary.seconds:.1f} s: "
+        f"{summary.depth_images} depth, {summary.color_images} colour images, "
+        f"{summary.touch_presses} touch presses ({summary.touch_frames} frames)."
+    )
+    if summary.contact_sheet is not None:
+        print(f"Contact sheet: {summary.contact_sheet}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lookfeel`` command."""
     parser = argparse.ArgumentParser(
@@ -318,6 +481,48 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.add_argument("--workers", type=int, default=2, help="decoding threads (default 2)")
     check.set_defaults(func=_cmd_data_check)
+
+    syn = sub.add_parser(
+        "synth",
+        help="generate a synthetic visuo-tactile fabric world in the dataset layout",
+        description=(
+            "Generate depth and colour images of fabrics draped over the post and GelSight press "
+            "sequences (flat and on a fold) from physical fabric parameters, in the layout that "
+            "`lookfeel data check` reads. With --labels, render exactly the fabrics of a "
+            "labels.csv (ids kept) from their labels: by default colour and touch, to stand "
+            "beside real depth images. The same seed gives byte-identical files. See docs/synth.md."
+        ),
+    )
+    syn.add_argument(
+        "out", type=Path, help="output folder (new, empty, or an earlier synth output)"
+    )
+    syn.add_argument("--fabrics", type=int, default=118, help="fabrics to sample (default 118)")
+    syn.add_argument("--drapes", type=int, default=10, help="drapes per fabric (default 10)")
+    syn.add_argument("--presses-flat", type=int, default=10, help="flat presses (default 10)")
+    syn.add_argument("--presses-fold", type=int, default=15, help="fold presses (default 15)")
+    syn.add_argument("--frames", type=int, default=3, help="frames per press (default 3)")
+    syn.add_argument(
+        "--size",
+        choices=["tiny", "net", "full"],
+        default="net",
+        help="image sizes: net (depth 224, colour 256, touch 320x240), tiny, or full "
+        "(touch 960x720 like the authors' sensor)",
+    )
+    syn.add_argument("--seed", type=int, default=0)
+    syn.add_argument("--workers", type=int, default=0, help="processes (0: all cores)")
+    syn.add_argument(
+        "--labels", type=Path, default=None, help="label-conditioned mode: a labels.csv"
+    )
+    syn.add_argument(
+        "--modalities",
+        type=_modalities,
+        default=None,
+        help="what to render, e.g. depth,color,touch (default: all; with --labels: color,touch)",
+    )
+    syn.add_argument("--format", choices=["jpg", "png"], default="jpg", help="colour and touch")
+    syn.add_argument("--no-contact-sheet", action="store_true", help="skip contact_sheet.png")
+    syn.add_argument("--quiet", action="store_true", help="no progress bar")
+    syn.set_defaults(func=_cmd_synth)
 
     tr = sub.add_parser(
         "train",
@@ -449,19 +654,140 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--device", default="cpu", help="torch device (default cpu)")
     ev.set_defaults(func=_cmd_evaluate)
 
+    index = sub.add_parser("index", help="build and inspect a fabric library (for match, serve)")
+    index_sub = index.add_subparsers(dest="index_command", metavar="ACTION", required=True)
+    ib = index_sub.add_parser(
+        "build",
+        help="embed every item of a dataset into a library, calibrated; resumable",
+        description=(
+            "Embed every item of every modality of DATA with the model of CHECKPOINT into the "
+            "library folder OUT (shards, manifest; written atomically). A killed build continues "
+            "when run again with the same arguments. Calibrates c of P ∝ exp(-c D²) and an "
+            "'unknown' threshold on held-out fabrics (leave fabrics out)."
+        ),
+    )
+    ib.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
+    ib.add_argument("--data", type=Path, required=True, help="dataset folder")
+    ib.add_argument("--out", type=Path, required=True, help="library folder to write")
+    ib.add_argument(
+        "--backend",
+        choices=("auto", "numpy", "faiss"),
+        default="auto",
+        help="search: exact numpy, faiss HNSW, or auto by size (default; faiss from 100,000 "
+        "items in a modality)",
+    )
+    ib.add_argument("--shard-size", type=int, default=2048, help="items per shard (2048)")
+    ib.add_argument("--batch-size", type=int, default=64, help="images per forward pass (64)")
+    ib.add_argument(
+        "--kinds", default=None, help="touch press kinds, e.g. fold,flat (default: the run's)"
+    )
+    ib.add_argument(
+        "--false-accept",
+        type=float,
+        default=0.05,
+        help="target rate of unknown materials accepted as a known fabric (0.05)",
+    )
+    ib.add_argument("--folds", type=int, default=5, help="leave-fabrics-out folds (5)")
+    ib.add_argument("--seed", type=int, default=0, help="calibration seed (0)")
+    ib.add_argument(
+        "--calibration-queries",
+        type=int,
+        default=1000,
+        help="held-out queries per modality pair (1000)",
+    )
+    ib.add_argument("--quiet", action="store_true", help="no line per shard")
+    ib.set_defaults(func=_cmd_index_build)
+    ii = index_sub.add_parser("info", help="what a library holds and how it is calibrated")
+    ii.add_argument("library", type=Path, help="library folder")
+    ii.add_argument("--json", action="store_true", help="print as JSON")
+    ii.set_defaults(func=_cmd_index_info)
+
+    mt = sub.add_parser(
+        "match",
+        help="which library fabric is this image, how does it look and feel, its properties",
+        description=(
+            "Rank the library's fabrics for query images of one modality: calibrated "
+            "probabilities, each fabric's nearest items in every modality, predicted physical "
+            "properties, and 'no known fabric' below the calibrated threshold. Several touch "
+            "images are the presses of one query (pooled); depth and colour images are matched "
+            "one by one."
+        ),
+    )
+    mt.add_argument("images", type=Path, nargs="+", metavar="IMAGE", help="query image file(s)")
+    mt.add_argument("--index", type=Path, required=True, help="library folder")
+    mt.add_argument(
+        "--modality", choices=[m.value for m in Modality], required=True, help="what they show"
+    )
+    mt.add_argument("--top", type=int, default=5, help="fabrics to list (5)")
+    mt.add_argument(
+        "--gallery",
+        type=Modality,
+        default=None,
+        metavar="MODALITY",
+        help="modality to match against (default: the best in calibration)",
+    )
+    mt.add_argument(
+        "--checkpoint", type=Path, default=None, help="the library's checkpoint, if it moved"
+    )
+    mt.add_argument("--json", action="store_true", help="print the results as JSON")
+    mt.set_defaults(func=_cmd_match)
+
+    sv = sub.add_parser(
+        "serve",
+        help="web page and JSON API to match images against a library",
+        description="Serve a page and a JSON API (OpenAPI at /openapi.json) over a library.",
+    )
+    sv.add_argument("--index", type=Path, required=True, help="library folder")
+    sv.add_argument("--host", default="127.0.0.1", help="address (127.0.0.1: this machine only)")
+    sv.add_argument("--port", type=int, default=8000, help="port (8000)")
+    sv.add_argument("--max-upload-mb", type=float, default=8.0, help="largest upload (8 MB)")
+    sv.add_argument(
+        "--max-concurrency", type=int, default=2, help="queries the model runs at once (2)"
+    )
+    sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (1)")
+    sv.add_argument(
+        "--checkpoint", type=Path, default=None, help="the library's checkpoint, if it moved"
+    )
+    sv.set_defaults(func=_cmd_serve)
+
+    ex = sub.add_parser(
+        "export",
+        help="export each modality branch of a checkpoint (ONNX)",
+        description=(
+            "Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses) "
+            "and DIR/export.json, each checked against PyTorch under onnxruntime."
+        ),
+    )
+    ex.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
+    ex.add_argument("--format", choices=("onnx",), default="onnx", help="export format (onnx)")
+    ex.add_argument("--out", type=Path, required=True, help="output folder")
+    ex.add_argument("--opset", type=int, default=17, help="ONNX opset (17)")
+    ex.set_defaults(func=_cmd_export)
+
     demo = sub.add_parser(
         "demo",
-        help="run the main job on the embedded default",
-        description="Summarise the real GelFabric data when present, else a synthetic world.",
+        help="the whole system on a generated synthetic world, in minutes",
+        description=(
+            "Summarise the real GelFabric data when present, generate a small synthetic fabric "
+            "world (or reuse a complete one), reproduce the paper's experiments on it at the "
+            "tiny budget, and print the headline numbers and where the report is."
+        ),
     )
     demo.add_argument(
         "--data",
         type=Path,
         default=Path("../shared/data/gelfabric"),
-        help="real data folder to use when present (default ../shared/data/gelfabric)",
+        help="real data to summarise first when present (default ../shared/data/gelfabric)",
     )
+    demo.add_argument("--out", type=Path, default=Path("demo-output"), help="demo folder")
+    demo.add_argument("--fabrics", type=int, default=36, help="fabrics in the synthetic world")
+    demo.add_argument("--budget", choices=["tiny", "small"], default="tiny")
     demo.add_argument(
-        "--out", type=Path, default=Path("demo-output/world"), help="where a synthetic world goes"
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override every run's config",
     )
     demo.set_defaults(func=_cmd_demo)
     return parser

@@ -12,6 +12,7 @@ from lookfeel.config._core import (
     to_dict,
 )
 from lookfeel.config.data import AugmentConfig, DataConfig
+from lookfeel.config.eval import EvalConfig
 from lookfeel.config.loss import LossConfig
 from lookfeel.config.model import ModelConfig
 from lookfeel.config.train import RunConfig, TrainConfig
@@ -20,6 +21,7 @@ __all__ = [
     "AugmentConfig",
     "ConfigError",
     "DataConfig",
+    "EvalConfig",
     "LossConfig",
     "ModelConfig",
     "RunConfig",

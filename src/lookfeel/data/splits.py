@@ -105,10 +105,13 @@ def stratified_fabric_split(
             take[c] = max(take[c], 1)
     rng = np.random.default_rng(seed)
     order = sorted(groups, key=lambda c: (-(quota[c] - math.floor(quota[c])), rng.random()))
-    while sum(take.values()) < k:
-        for c in order:
-            if sum(take.values()) < k and take[c] < sizes[c] - 1:
-                take[c] += 1
+    # Top up by remainder order, first keeping a training fabric in every cluster; only when
+    # that cannot reach n_test (e.g. clusters of one fabric) may a cluster go wholly to test.
+    for spare in (1, 0):
+        while sum(take.values()) < k and any(take[c] < sizes[c] - spare for c in order):
+            for c in order:
+                if sum(take.values()) < k and take[c] < sizes[c] - spare:
+                    take[c] += 1
     floor_of = {c: 1 if c in eligible and k >= len(eligible) else 0 for c in groups}
     while sum(take.values()) > k:  # the forced ones overshot: trim the most over-served cluster
         c = max((c for c in take if take[c] > floor_of[c]), key=lambda c: take[c] - quota[c])

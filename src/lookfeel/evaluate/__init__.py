@@ -1,0 +1,61 @@
+"""Evaluation workflow: score embeddings by the paper's section 5 and write a report.
+
+    >>> result = evaluate_checkpoint("runs/x/checkpoints/best.pt", "data/", split="val")
+    >>> result.metrics["touch_to_depth_top1"], result.metrics["touch_to_depth_top1_chance"]
+    >>> write_report(result, "runs/x/eval")  # metrics.json, report.md, figures/*.png
+
+Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
+``{q}_to_{g}`` (same-modality pairs included):
+
+- ``top{k}`` exact pick k of n, ``top{k}_sampled``/``_sampled_se`` the paper's sampled
+  protocol, ``top{k}_released``/``_released_se`` the released code's variant (flag),
+  ``top{k}_chance``;
+- ``map``, ``recall{k}``, ``median_rank``, each with ``_chance``; ``_ci_low``/``_ci_high`` for
+  the exact top-k, map, recall and median rank (bootstrap over test fabrics);
+- ``n_queries``, ``n_fabrics``, ``n_effective``;
+- calibration: ``c``, ``c_fitted``, ``fabric_accuracy`` (+ ``_chance``), ``confidence``,
+  ``ece``, ``nll`` (+ ``_chance``);
+- ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
+- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``.
+"""
+
+from lookfeel.evaluate.core import PressPooler, evaluate_embeddings, max_pool_presses
+from lookfeel.evaluate.embeddings_file import (
+    EmbeddingFileError,
+    EmbeddingSet,
+    embedded_from_arrays,
+    load_embeddings,
+    save_embeddings,
+)
+from lookfeel.evaluate.from_checkpoint import (
+    SPLITS,
+    embed_checkpoint,
+    evaluate_checkpoint,
+    evaluate_embedding_file,
+    pools_final_embedding,
+)
+from lookfeel.evaluate.report import ReportFiles, write_metrics, write_report
+from lookfeel.evaluate.result import EvalResult, PairCalibration, PickExample, PressCurve
+
+__all__ = [
+    "SPLITS",
+    "EmbeddingFileError",
+    "EmbeddingSet",
+    "EvalResult",
+    "PairCalibration",
+    "PickExample",
+    "PressCurve",
+    "PressPooler",
+    "ReportFiles",
+    "embed_checkpoint",
+    "embedded_from_arrays",
+    "evaluate_checkpoint",
+    "evaluate_embedding_file",
+    "evaluate_embeddings",
+    "load_embeddings",
+    "max_pool_presses",
+    "pools_final_embedding",
+    "save_embeddings",
+    "write_metrics",
+    "write_report",
+]

@@ -1,0 +1,620 @@
+"""Score embeddings by every protocol of the paper's section 5, from one distance matrix per pair.
+
+`evaluate_embeddings` takes per-modality embeddings (ours, a baseline's, a user's) and returns
+an `EvalResult`; it knows nothing of models except through the optional press pooler.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lookfeel.config import DataConfig, EvalConfig
+from lookfeel.embedding import EmbeddedItems
+from lookfeel.metrics import (
+    PAPER_C,
+    bootstrap_ci,
+    cluster_confusion_matrix,
+    confusion_matrix,
+    evaluate_distances,
+    fabric_probabilities,
+    fit_temperature,
+    group_queries,
+    n_effective,
+    order_by_cluster,
+    pairwise_distances,
+    pick_k_of_n_exact,
+    pick_k_of_n_sampled,
+    property_probe,
+    reliability_curve,
+)
+from lookfeel.modality import Modality
+
+from .result import EvalResult, PairCalibration, PickExample
+
+__all__ = ["PressPooler", "evaluate_embeddings", "max_pool_presses"]
+
+PressPooler = Callable[[EmbeddedItems, NDArray[np.int64]], NDArray[np.float64]]
+"""Embeds multi-press touch queries: (touch items, (M, P) rows of each group) -> (M, D)."""
+
+UNCLUSTERED = -1
+"""Cluster shown for fabrics whose cluster is unknown."""
+
+
+def max_pool_presses(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Element-wise max of the presses' embeddings (the Multi-input Net, paper section 4.1).
+
+    Equals the model's own multi-press embedding when it pools its final embedding (the
+    paper's nets: max over fc7, no projection or normalisation after it).
+
+    Args:
+        touch: per-press embeddings (N, D).
+        members: (M, P) rows of each group.
+
+    Returns:
+        (M, D): ``e[members].max(axis=1)  # (M, P, D) -> (M, D)``.
+    """
+    e = np.asarray(touch.embeddings, dtype=np.float64)
+    if len(members) == 0:
+        return np.zeros((0, e.shape[1]))
+    return np.asarray(e[members].max(axis=1), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class _Queries:
+    """The queries of one modality: embeddings, fabrics, and the gallery rows each pools."""
+
+    emb: NDArray[np.float64]
+    fabric: NDArray[np.int64]
+    members: NDArray[np.int64]
+    """(Q, P) rows into the modality's items (P = 1: the query is item i itself)."""
+
+    def exclusion(self, n_gallery: int) -> NDArray[np.int64] | NDArray[np.bool_]:
+        """What a same-modality gallery must leave out: the query's own item(s).
+
+        Returns:
+            (Q,) the own item's index for single items, else a (Q, G) mask of own presses.
+        """
+        if self.members.shape[1] == 1:
+            return self.members[:, 0]
+        mask = np.zeros((len(self.members), n_gallery), dtype=bool)
+        mask[np.arange(len(self.members))[:, None], self.members] = True
+        return mask
+
+
+def _queries(e: EmbeddedItems, presses: int, seed: int, pool: PressPooler) -> _Queries:
+    emb = np.asarray(e.embeddings, dtype=np.float64)
+    fab = np.asarray(e.fabric_ids, dtype=np.int64)
+    if presses == 1:
+        return _Queries(emb, fab, np.arange(len(emb), dtype=np.int64)[:, None])
+    g = group_queries(emb, fab, presses=presses, seed=seed)
+    members = g.members.astype(np.int64)
+    pooled = g.emb if pool is max_pool_presses else pool(e, members)
+    return _Queries(np.asarray(pooled, dtype=np.float64), fab[members[:, 0]], members)
+
+
+def _exclusion(
+    q: _Queries, same: bool, n_gallery: int
+) -> NDArray[np.int64] | NDArray[np.bool_] | None:
+    return q.exclusion(n_gallery) if same else None
+
+
+class _Notes:
+    """Collects what was skipped or approximated, once each, and the warnings raised."""
+
+    def __init__(self) -> None:
+        self.items: list[str] = []
+
+    def add(self, text: str) -> None:
+        if text not in self.items:
+            self.items.append(text)
+
+    @contextmanager
+    def catching(self, where: str) -> Iterator[None]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield
+        for w in caught:  # the same warning from many pairs is noted once
+            text = str(w.message)
+            self.add(text if text.startswith("pick ") else f"{where}: {text}")
+
+
+def _figure_pairs(config: EvalConfig, pairs: Sequence[str]) -> list[str]:
+    wanted = [p for p in config.figure_pairs if p in pairs]
+    if wanted:
+        return wanted
+    cross = [p for p in pairs if p.split("_to_")[0] != p.split("_to_")[1]]
+    return (cross or list(pairs))[:1]
+
+
+def _pick_keys(
+    dist: NDArray[np.float64],
+    q: _Queries,
+    gallery_fabric: NDArray[np.int64],
+    exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
+    prefix: str,
+    config: EvalConfig,
+) -> dict[str, float]:
+    out = evaluate_distances(
+        dist,
+        q.fabric,
+        gallery_fabric,
+        prefix=prefix,
+        exclude_self=exclude,
+        n=config.n,
+        ks=config.ks,
+        recall_ks=config.recall_ks,
+        sampled=config.sampled,
+        queries_per_fabric=config.queries_per_fabric,
+        repeats=config.repeats,
+        n_boot=config.n_boot,
+        alpha=config.alpha,
+        seed=config.seed,
+    )
+    if config.released_variant:
+        s = pick_k_of_n_sampled(
+            dist,
+            q.fabric,
+            gallery_fabric,
+            n=config.n,
+            ks=config.ks,
+            queries_per_fabric=config.queries_per_fabric,
+            repeats=config.repeats,
+            seed=config.seed,
+            exclude_self=exclude,
+            allow_true_distractor=True,
+        )
+        for j, k in enumerate(config.ks):
+            out[f"{prefix}top{k}_released"] = float(s.mean[j])
+            out[f"{prefix}top{k}_released_se"] = float(s.se[j])
+    return out
+
+
+def _curve_keys(config: EvalConfig) -> list[str]:
+    """The keys of one point of the press curve (a subset of the main pick keys)."""
+    keys = []
+    for k in config.ks:
+        keys += [f"top{k}", f"top{k}_chance", f"top{k}_ci_low", f"top{k}_ci_high"]
+    return [*keys, "n_queries", "n_fabrics", "n_effective"]
+
+
+def _curve_point(
+    dist: NDArray[np.float64],
+    q: _Queries,
+    gallery_fabric: NDArray[np.int64],
+    exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
+    prefix: str,
+    config: EvalConfig,
+) -> dict[str, float]:
+    """Exact top-k with its bootstrap interval: the press curve needs no gallery metrics."""
+    res = pick_k_of_n_exact(dist, q.fabric, gallery_fabric, config.n, config.ks, exclude)
+    ok = ~np.isnan(res.per_query[:, 0])
+    out: dict[str, float] = {}
+    low = high = np.full(len(config.ks), np.nan)
+    if config.n_boot > 0 and ok.any():
+        low, high = bootstrap_ci(
+            res.per_query[ok],
+            q.fabric[ok],
+            n_boot=config.n_boot,
+            alpha=config.alpha,
+            seed=config.seed,
+        )
+    for j, k in enumerate(config.ks):
+        out[f"top{k}"] = float(res.mean[j])
+        out[f"top{k}_chance"] = float(res.chance[j])
+        if config.n_boot > 0:
+            out[f"top{k}_ci_low"] = float(low[j])
+            out[f"top{k}_ci_high"] = float(high[j])
+    out["n_queries"] = float(res.n_queries)
+    out["n_fabrics"] = float(len(np.unique(q.fabric[ok])))
+    out["n_effective"] = float(res.n_effective)
+    return {prefix + k: v for k, v in out.items()}
+
+
+def _fit_c(
+    rq: _Queries,
+    gallery: EmbeddedItems,
+    q: Modality,
+    g: Modality,
+    notes: _Notes,
+) -> float | None:
+    """Maximum-likelihood c of one pair on the reference fabrics; None when it cannot be fit.
+
+    Args:
+        rq: the reference fabrics' queries of modality ``q``.
+        gallery: the reference fabrics' items of modality ``g``.
+    """
+    gf = np.asarray(gallery.fabric_ids)
+    if len(rq.fabric) == 0 or len(np.unique(gf)) < 2:
+        return None
+    dist = pairwise_distances(rq.emb, gallery.embeddings)
+    try:
+        with notes.catching(f"fitting c for {q.value}_to_{g.value}"):
+            return fit_temperature(dist, rq.fabric, gf, _exclusion(rq, q is g, len(gf)))
+    except ValueError as e:
+        notes.add(f"c for {q.value}_to_{g.value} not fitted ({e}); the paper's c is used")
+        return None
+
+
+def _calibrate(
+    pair: str,
+    dist: NDArray[np.float64],
+    q: _Queries,
+    gallery_fabric: NDArray[np.int64],
+    exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
+    c: float,
+    c_source: str,
+    config: EvalConfig,
+    clusters: Mapping[Hashable, Hashable] | None,
+    figure: bool,
+) -> PairCalibration:
+    probs, fabrics = fabric_probabilities(dist, gallery_fabric, c, exclude)  # (Q, F)
+    rows = np.arange(len(probs))
+    best = np.argmax(probs, axis=1) if len(probs) else np.zeros(0, dtype=np.int64)
+    own = np.searchsorted(fabrics, q.fabric).clip(0, max(len(fabrics) - 1, 0))
+    has = fabrics[own] == q.fabric if len(fabrics) else np.zeros(len(q.fabric), dtype=bool)
+    conf = np.clip(probs[rows, best][has], 0.0, 1.0)  # sums of P may round just past 1
+    correct = (best == own)[has]
+    p_own = probs[rows, own][has]
+    rel = reliability_curve(conf, correct, config.n_bins)
+    nan = float("nan")
+    confusion = cluster_conf = None
+    if figure:
+        order = None
+        if clusters is not None:
+            order = order_by_cluster(np.concatenate([q.fabric, gallery_fabric]), clusters)
+        confusion = confusion_matrix(dist, q.fabric, gallery_fabric, c, exclude, order=order)
+        if clusters is not None:
+            cluster_conf = cluster_confusion_matrix(
+                dist, q.fabric, gallery_fabric, clusters, c, exclude
+            )
+    return PairCalibration(
+        pair=pair,
+        c=c,
+        c_source=c_source,
+        reliability=rel,
+        accuracy=float(correct.mean()) if has.any() else nan,
+        confidence=float(conf.mean()) if has.any() else nan,
+        nll=float(-np.log(np.maximum(p_own, 1e-300)).mean()) if has.any() else nan,
+        n_fabrics=len(fabrics),
+        confusion=confusion,
+        cluster_confusion=cluster_conf,
+    )
+
+
+def _draw_examples(
+    pair: str,
+    dist: NDArray[np.float64],
+    q: _Queries,
+    gallery_fabric: NDArray[np.int64],
+    same: bool,
+    config: EvalConfig,
+) -> tuple[PickExample, ...]:
+    """Draw pick trials as the paper's protocol does; keep half right, half wrong when both occur.
+
+    Distinct query fabrics are preferred, so the figure shows different fabrics.
+    """
+    if config.examples == 0 or len(q.fabric) == 0:
+        return ()
+    rng = np.random.default_rng(config.seed)
+    fabrics = np.unique(gallery_fabric)
+    rows_of = {int(f): np.flatnonzero(gallery_fabric == f) for f in fabrics}
+    m = n_effective(config.n, len(fabrics)) - 1
+    right: list[tuple[int, PickExample]] = []
+    wrong: list[tuple[int, PickExample]] = []
+    for qi in rng.permutation(len(q.fabric))[: max(200, 20 * config.examples)]:
+        f = int(q.fabric[qi])
+        own = rows_of.get(f, np.zeros(0, dtype=np.int64))
+        if same:
+            own = own[~np.isin(own, q.members[qi])]
+        others = fabrics[fabrics != f]
+        if len(own) == 0 or len(others) < m:
+            continue
+        t = int(rng.choice(own))
+        picked = rng.choice(others, size=m, replace=False)
+        cands = np.array([t] + [int(rng.choice(rows_of[int(x)])) for x in picked], dtype=np.int64)
+        d = dist[qi, cands]
+        order = np.argsort(d, kind="stable")
+        ex = PickExample(
+            pair=pair,
+            query_rows=tuple(int(r) for r in q.members[qi]),
+            candidates=tuple(int(c) for c in cands[order]),
+            distances=tuple(float(x) for x in d[order]),
+            true_position=int(np.flatnonzero(order == 0)[0]),
+        )
+        (right if ex.true_position == 0 else wrong).append((f, ex))
+
+    def take(pool: list[tuple[int, PickExample]], count: int) -> list[PickExample]:
+        seen: set[int] = set()
+        first: list[PickExample] = []
+        rest: list[PickExample] = []
+        for f, ex in pool:
+            (rest if f in seen else first).append(ex)
+            seen.add(f)
+        return (first + rest)[:count]
+
+    want_right = (config.examples + 1) // 2
+    chosen = take(right, want_right)
+    chosen += take(wrong, config.examples - len(chosen))
+    if len(chosen) < config.examples:
+        chosen += [ex for ex in take(right, config.examples) if ex not in chosen]
+    return tuple(chosen[: config.examples])
+
+
+def _labels_of(
+    fabric: NDArray[np.int64], labels: Mapping[int, Sequence[float]], n_cols: int
+) -> NDArray[np.float64]:
+    missing = [math.nan] * n_cols
+    return np.array([list(labels.get(int(f), missing)) for f in fabric], dtype=np.float64).reshape(
+        len(fabric), n_cols
+    )
+
+
+def _mae_chance(
+    train_y: NDArray[np.float64],
+    train_f: NDArray[np.int64],
+    test_y: NDArray[np.float64],
+    test_f: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    """MAE of always answering the training fabrics' mean label, per column (per fabric)."""
+    _, i_tr = np.unique(train_f, return_index=True)
+    _, i_te = np.unique(test_f, return_index=True)
+    ytr, yte = train_y[i_tr], test_y[i_te]
+    out = np.full(train_y.shape[1], np.nan)
+    for j in range(train_y.shape[1]):
+        a, b = ytr[:, j], yte[:, j]
+        a, b = a[~np.isnan(a)], b[~np.isnan(b)]
+        if len(a) and len(b):
+            out[j] = float(np.abs(b - a.mean()).mean())
+    return out
+
+
+def _probes(
+    embedded: Mapping[Modality, EmbeddedItems],
+    reference: Mapping[Modality, EmbeddedItems],
+    labels: Mapping[int, Sequence[float]],
+    names: list[str],
+    config: EvalConfig,
+    notes: _Notes,
+) -> dict[Modality, dict[str, dict[str, dict[str, float]]]]:
+    out: dict[Modality, dict[str, dict[str, dict[str, float]]]] = {}
+    for m, te in embedded.items():
+        tr = reference.get(m)
+        if tr is None or len(tr.embeddings) == 0 or len(te.embeddings) == 0:
+            continue
+        f_tr = np.asarray(tr.fabric_ids, dtype=np.int64)
+        f_te = np.asarray(te.fabric_ids, dtype=np.int64)
+        if np.intersect1d(f_tr, f_te).size:
+            notes.add(
+                "property probes skipped: the reference and test items share fabrics (an "
+                "item-level split), and labels belong to fabrics"
+            )
+            continue
+        y_tr = _labels_of(f_tr, labels, len(names))
+        y_te = _labels_of(f_te, labels, len(names))
+        chance = _mae_chance(y_tr, f_tr, y_te, f_te)
+        for method in config.probes:
+            with notes.catching(f"{m.value} {method} probe"):
+                res = property_probe(
+                    tr.embeddings,
+                    y_tr,
+                    te.embeddings,
+                    y_te,
+                    "knn" if method == "knn" else "ridge",
+                    names=names,
+                    train_fabric=f_tr,
+                    test_fabric=f_te,
+                    k=config.probe_k,
+                )
+            for j, name in enumerate(names):
+                res[name]["mae_chance"] = float(chance[j])
+            out.setdefault(m, {})[method] = res
+    return out
+
+
+def evaluate_embeddings(
+    embedded: Mapping[Modality, EmbeddedItems],
+    config: EvalConfig | None = None,
+    clusters: Mapping[int, int | None] | None = None,
+    labels: Mapping[int, Sequence[float]] | None = None,
+    *,
+    label_names: Sequence[str] | None = None,
+    reference: Mapping[Modality, EmbeddedItems] | None = None,
+    pool_presses: PressPooler | None = None,
+    info: Mapping[str, Any] | None = None,
+    data_config: DataConfig | None = None,
+) -> EvalResult:
+    """Every protocol of the paper's section 5 for every (query, gallery) modality pair.
+
+    For each ordered pair, same-modality pairs included (a query's own item, or for a pooled
+    touch query its own presses, is never a candidate), one distance matrix gives:
+
+    - pick k of n (section 5.1, Figure 5, Tables 1-2): exact expectation ``top{k}``, the
+      paper's sampled protocol ``top{k}_sampled`` (15 queries x 10 draws per fabric) and, with
+      ``config.released_variant``, the released code's ``top{k}_released``;
+    - ``map``, ``recall{k}``, ``median_rank`` over the whole gallery;
+    - ``_chance`` beside each, ``_ci_low``/``_ci_high`` from a bootstrap over the test fabrics;
+    - calibration of ``P ∝ exp(-c D^2)`` (section 5.2): ``c`` (fitted on ``reference`` when
+      given, else the paper's 0.085), ``fabric_accuracy`` (most probable gallery fabric is the
+      query's), ``confidence``, ``ece``, ``nll``, with chance; confusion matrices (Figure 7)
+      for the figure pairs.
+
+    Touch queries pool ``config.presses`` presses of one fabric (element-wise max, the
+    Multi-input Net); the curve over P = 1 .. ``config.max_presses`` is in the
+    ``touch_to_{gallery}_presses{P}_*`` keys. Physical-property probes (k-NN, ridge) are fitted
+    on ``reference`` and scored on the test fabrics when ``labels`` are given:
+    ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}``.
+
+    Args:
+        embedded: the test items' embeddings per modality (touch: one row per press).
+        config: the protocol; default `EvalConfig()` with ``presses`` 1 when unset.
+        clusters: fabric id -> cluster, to order confusion matrices and build the cluster
+            matrix (Figure 7b); None or all-None: fabrics in id order, no cluster matrix.
+        labels: fabric id -> label values (NaN: unknown), for the probes; must cover the
+            reference fabrics too.
+        label_names: a name per label column (default ``"0"``, ``"1"``, ...).
+        reference: embeddings of other (training) fabrics, to fit c and the probes on.
+        pool_presses: embeds pooled touch queries; default `max_pool_presses`. Pass the model
+            (see `evaluate_checkpoint`) when it pools before a projection or normalisation.
+        info: provenance copied into the result (split, checkpoint ...).
+        data_config: the preprocessing of the items' images, for example figures.
+
+    Returns:
+        `EvalResult`.
+
+    Raises:
+        ValueError: no embeddings, or embeddings and fabric ids of different lengths.
+    """
+    config = config or EvalConfig()
+    presses = config.presses or 1
+    config = replace(config, presses=presses)
+    pool = pool_presses or max_pool_presses
+    mods = [m for m in Modality if m in embedded and len(embedded[m].embeddings)]
+    if not mods:
+        raise ValueError("no embeddings to evaluate")
+    for m in mods:
+        e = embedded[m]
+        if len(e.embeddings) != len(e.fabric_ids):
+            raise ValueError(
+                f"{m.value}: {len(e.embeddings)} embeddings but {len(e.fabric_ids)} fabric ids"
+            )
+    notes = _Notes()
+    all_fabrics = np.unique(np.concatenate([embedded[m].fabric_ids for m in mods]))
+    known = dict(clusters or {})
+    cluster_map: dict[Hashable, Hashable] | None = None
+    if any(known.get(int(f)) is not None for f in all_fabrics):
+        cluster_map = {}
+        for f in all_fabrics:
+            c = known.get(int(f))
+            cluster_map[int(f)] = int(c) if c is not None else UNCLUSTERED
+    else:
+        notes.add("no clusters known: confusion matrices in fabric-id order, no cluster matrix")
+
+    queries = {
+        m: _queries(embedded[m], presses if m is Modality.TOUCH else 1, config.seed, pool)
+        for m in mods
+    }
+    if Modality.TOUCH in mods and len(queries[Modality.TOUCH].fabric) == 0:
+        notes.add(
+            f"no fabric has {presses} touch presses to pool into a query: touch queries are "
+            "single presses"
+        )
+        presses = 1
+        config = replace(config, presses=1)
+        queries[Modality.TOUCH] = _queries(embedded[Modality.TOUCH], 1, config.seed, pool)
+    pairs = [f"{q.value}_to_{g.value}" for q in mods for g in mods]
+    figure_pairs = _figure_pairs(config, pairs)
+    per_pair: dict[str, dict[str, float]] = {}
+    ref_queries: dict[Modality, _Queries] = {}  # built once per modality, when c is fitted
+    calibration: dict[str, PairCalibration] = {}
+    examples: dict[str, tuple[PickExample, ...]] = {}
+
+    def score(q: Modality, g: Modality, dist: NDArray[np.float64]) -> None:
+        pair = f"{q.value}_to_{g.value}"
+        qs = queries[q]
+        gf = np.asarray(embedded[g].fabric_ids, dtype=np.int64)
+        excl = _exclusion(qs, q is g, len(gf))
+        with notes.catching(pair):
+            out = _pick_keys(dist, qs, gf, excl, f"{pair}_", config)
+        c_used, source = config.c, "fixed"
+        if c_used is None:
+            fitted = None
+            if reference is not None and config.fit_c and q in reference and g in reference:
+                if q not in ref_queries:
+                    p = presses if q is Modality.TOUCH else 1
+                    ref_queries[q] = _queries(reference[q], p, config.seed, pool)
+                fitted = _fit_c(ref_queries[q], reference[g], q, g, notes)
+            c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
+        figure = pair in figure_pairs
+        cal = _calibrate(pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure)
+        calibration[pair] = cal
+        out[f"{pair}_c"] = cal.c
+        out[f"{pair}_c_fitted"] = 1.0 if source == "fitted" else 0.0
+        out[f"{pair}_fabric_accuracy"] = cal.accuracy
+        out[f"{pair}_fabric_accuracy_chance"] = 1.0 / max(cal.n_fabrics, 1)
+        out[f"{pair}_confidence"] = cal.confidence
+        out[f"{pair}_ece"] = cal.reliability.ece
+        out[f"{pair}_nll"] = cal.nll
+        out[f"{pair}_nll_chance"] = math.log(max(cal.n_fabrics, 1))
+        per_pair[pair] = out
+        if figure:
+            examples[pair] = _draw_examples(pair, dist, qs, gf, q is g, config)
+
+    # One distance matrix per unordered pair where both sides are single items (its transpose
+    # serves the reverse pair); pooled touch queries need their own.
+    for i, a in enumerate(mods):
+        for b in mods[i:]:
+            dist = pairwise_distances(queries[a].emb, embedded[b].embeddings)
+            score(a, b, dist)
+            if a is b:
+                continue
+            if queries[b].members.shape[1] == 1 and queries[a].members.shape[1] == 1:
+                score(b, a, dist.T)
+            else:
+                del dist
+                score(b, a, pairwise_distances(queries[b].emb, embedded[a].embeddings))
+    metrics: dict[str, float] = {}
+    for pair in pairs:
+        metrics.update(per_pair[pair])
+    calibration = {pair: calibration[pair] for pair in pairs}
+
+    if Modality.TOUCH in mods:
+        touch = embedded[Modality.TOUCH]
+        for p in range(1, config.max_presses + 1):
+            qs = queries[Modality.TOUCH] if p == presses else _queries(touch, p, config.seed, pool)
+            if len(qs.fabric) == 0:
+                notes.add(f"no fabric has {p} touch presses: the press curve stops before {p}")
+                break
+            for g in mods:
+                gf = np.asarray(embedded[g].fabric_ids, dtype=np.int64)
+                prefix = f"touch_to_{g.value}_presses{p}_"
+                if p == presses:  # the main keys already hold these
+                    head = f"touch_to_{g.value}_"
+                    for key in _curve_keys(config):
+                        if head + key in metrics:
+                            metrics[prefix + key] = metrics[head + key]
+                    continue
+                dist = pairwise_distances(qs.emb, embedded[g].embeddings)
+                excl = _exclusion(qs, g is Modality.TOUCH, len(gf))
+                with notes.catching(f"touch ({p} presses) to {g.value}"):
+                    metrics.update(_curve_point(dist, qs, gf, excl, prefix, config))
+
+    properties: dict[Modality, dict[str, dict[str, dict[str, float]]]] = {}
+    if labels is None:
+        notes.add("no labels: physical-property probes skipped")
+    elif reference is None:
+        notes.add("no reference (training) fabrics: physical-property probes skipped")
+    else:
+        n_cols = len(next(iter(labels.values()), []))
+        names = list(label_names) if label_names is not None else [str(j) for j in range(n_cols)]
+        properties = _probes(
+            {m: embedded[m] for m in mods}, reference, labels, names, config, notes
+        )
+        for m, by_probe in properties.items():
+            for probe, by_label in by_probe.items():
+                for name, scores in by_label.items():
+                    for stat in ("r2", "spearman", "mae", "mae_chance"):
+                        metrics[f"property_{m.value}_{name}_{probe}_{stat}"] = scores[stat]
+    full_info = dict(info or {})
+    full_info.setdefault("items", {m.value: len(embedded[m].embeddings) for m in mods})
+    full_info.setdefault("fabrics", [int(f) for f in all_fabrics])
+    return EvalResult(
+        metrics=metrics,
+        config=config,
+        pairs=tuple(pairs),
+        calibration=calibration,
+        examples=examples,
+        properties=properties,
+        embedded={m: embedded[m] for m in mods},
+        clusters={int(f): known.get(int(f)) for f in all_fabrics},
+        notes=tuple(notes.items),
+        info=full_info,
+        data_config=data_config,
+    )

@@ -1,0 +1,346 @@
+"""Embed and evaluate a trained checkpoint on a dataset, or evaluate an embeddings file.
+
+Which items are "test" (``split``):
+
+- ``val``: the run's held-out items, from the checkpoint's split (the fabrics in
+  ``split["val"]``; for a ``seen`` run, its held-out 20% of each training fabric's items). The
+  run's training items are the reference: c and the property probes are fitted on them.
+- ``train``: the run's training items (the paper's Figure 7b shows these); no reference.
+- ``novel``: a ``seen`` run's held-out fabrics (Table 4's novel fabrics); reference: training.
+- ``paper``: the paper's 18 test fabrics (labels.csv's ``paper_split``, else the built-in list);
+  reference: the paper's training fabrics. The shared real data holds the test fabrics back.
+- ``all``: every item of the dataset; no reference (the paper's c, no probes).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+from torch import nn
+
+from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
+from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
+from lookfeel.data import scan as scan_dataset
+from lookfeel.embedding import EmbeddedItems, embed_catalog
+from lookfeel.modality import Modality
+from lookfeel.models import Embedder
+
+from .core import PressPooler, evaluate_embeddings
+from .embeddings_file import EmbeddingSet, load_embeddings
+from .result import EvalResult
+
+__all__ = [
+    "SPLITS",
+    "embed_checkpoint",
+    "evaluate_checkpoint",
+    "evaluate_embedding_file",
+    "pools_final_embedding",
+]
+
+SPLITS = ("val", "train", "novel", "paper", "all")
+"""The ``split`` values of `evaluate_checkpoint` and `embed_checkpoint`."""
+
+
+def pools_final_embedding(model: Embedder) -> bool:
+    """Whether the model's multi-press touch embedding is the max of its per-press embeddings.
+
+    True for the paper's nets (max over fc7, nothing after it); False when a projection or an
+    L2 normalisation follows the pooling, or the pooling is a mean.
+    """
+    if Modality.TOUCH not in model.modalities:
+        return True
+    b = model.branch(Modality.TOUCH.value)
+    return b.press_pool == "max" and isinstance(b.project, nn.Identity) and not b.normalize
+
+
+def _item_key(path: str | Path) -> tuple[str, str]:
+    p = Path(path)
+    return p.parent.name, p.name
+
+
+def _select(
+    loaded: LoadedModel, catalog: Catalog, split: str
+) -> tuple[Catalog, Catalog | None, str]:
+    """(test items, reference items or None, a description) of ``split`` (module docstring)."""
+    if split not in SPLITS:
+        raise ValueError(f"split must be one of {', '.join(SPLITS)}; got {split!r}")
+    s = loaded.split
+    kind = s.get("kind", "")
+    if split == "all":
+        return catalog, None, "every item of the dataset (training fabrics included)"
+    if split == "paper":
+        ps = paper_split(catalog)
+        if not ps.test:
+            raise DatasetError(
+                "--split paper: none of the paper's 18 test fabrics is in this dataset (the "
+                "shared real data holds them back); use --split val for the run's held-out "
+                "fabrics",
+                catalog.root,
+            )
+        ref = catalog.subset(ps.train) if ps.train else None
+        return catalog.subset(ps.test), ref, f"the paper's test fabrics ({len(ps.test)})"
+    train_ids = [int(i) for i in s.get("train", [])]
+    if kind == "seen" and split in ("val", "train"):
+        held = {_item_key(p) for p in s.get("val_items", [])}
+        pool = catalog.subset(train_ids)
+        items = [it for m in pool.modalities for it in pool.items(m)]
+        val = [it for it in items if _item_key(it.path) in held]
+        if not val:
+            raise DatasetError(
+                f"{loaded.path}: none of the run's held-out items is in this dataset; is it the "
+                "dataset the run was trained on?",
+                catalog.root,
+            )
+        train = [it for it in items if _item_key(it.path) not in held]
+        if split == "val":
+            return (
+                pool.with_items(val),
+                pool.with_items(train),
+                f"the run's held-out items of its {len(pool.fabrics)} training fabrics (seen)",
+            )
+        return pool.with_items(train), None, "the run's training items"
+    if split == "train":
+        return catalog.subset(train_ids), None, f"the run's training fabrics ({len(train_ids)})"
+    key = "novel" if split == "novel" else "val"
+    ids = [int(i) for i in s.get(key, [])]
+    if not ids:
+        why = (
+            "it is not a seen run"
+            if split == "novel"
+            else "it trained on every fabric (train.split=none)"
+        )
+        raise DatasetError(
+            f"{loaded.path}: the run held out no {'novel ' if split == 'novel' else ''}fabrics "
+            f"({why}); use --split paper or --split all",
+            catalog.root,
+        )
+    ref = catalog.subset(train_ids) if train_ids else None
+    if ref is not None and kind == "seen":  # training items only, not the held-out 20%
+        held = {_item_key(p) for p in s.get("val_items", [])}
+        ref = ref.with_items(
+            it for m in ref.modalities for it in ref.items(m) if _item_key(it.path) not in held
+        )
+    what = "held-out novel" if split == "novel" else "held-out"
+    return catalog.subset(ids), ref, f"the run's {what} fabrics ({len(ids)})"
+
+
+def _load(checkpoint: str | os.PathLike[str] | LoadedModel, device: str) -> LoadedModel:
+    return checkpoint if isinstance(checkpoint, LoadedModel) else load_model(checkpoint, device)
+
+
+def _embed(
+    loaded: LoadedModel,
+    catalog: Catalog,
+    split: str,
+    reference: bool,
+    batch_size: int,
+    device: str,
+) -> tuple[EmbeddingSet, ImageLoader]:
+    test, ref, description = _select(loaded, catalog, split)
+    loader = ImageLoader(loaded.config.data)
+    mods = [m for m in loaded.model.modalities if m in catalog.modalities]
+    if not mods:
+        have = ", ".join(m.value for m in catalog.modalities) or "none"
+        raise DatasetError(
+            f"the model embeds {', '.join(m.value for m in loaded.model.modalities)}; the "
+            f"dataset has {have}",
+            catalog.root,
+        )
+
+    def run(cat: Catalog) -> dict[Modality, EmbeddedItems]:
+        return embed_catalog(
+            loaded.model, cat, loader, modalities=mods, batch_size=batch_size, device=device
+        )
+
+    embedded = run(test)
+    if not embedded:
+        raise DatasetError(f"--split {split}: no items to embed", catalog.root)
+    meta = {
+        "split": split,
+        "split_description": description,
+        "checkpoint": str(loaded.path),
+        "step": loaded.step,
+        "data_root": str(catalog.root),
+        "data_config": to_dict(loaded.config.data),
+        "presses": loaded.config.data.presses,
+        "pool_exact": pools_final_embedding(loaded.model),
+    }
+    ref_emb = run(ref) if reference and ref is not None and ref.fabrics else None
+    return EmbeddingSet(embedded, ref_emb or None, meta), loader
+
+
+def embed_checkpoint(
+    checkpoint: str | os.PathLike[str] | LoadedModel,
+    data_root: str | os.PathLike[str],
+    split: str = "all",
+    *,
+    reference: bool = True,
+    batch_size: int = 64,
+    device: str = "cpu",
+) -> EmbeddingSet:
+    """Embed a dataset's items with a trained model (``lookfeel embed``).
+
+    Args:
+        checkpoint: a checkpoint path, or a model loaded by `lookfeel.checkpoint.load_model`.
+        data_root: the dataset folder.
+        split: which items (see the module docstring); default every item.
+        reference: also embed the split's reference (training) items, when it has any.
+        batch_size: images per forward pass.
+        device: where the model runs.
+
+    Returns:
+        `EmbeddingSet` (write it with `save_embeddings`).
+
+    Raises:
+        CheckpointError, DatasetError: naming the file or fabric ids at fault.
+    """
+    loaded = _load(checkpoint, device)
+    emb, _ = _embed(loaded, scan_dataset(Path(data_root)), split, reference, batch_size, device)
+    return emb
+
+
+def _model_pooler(
+    model: Embedder, loader: ImageLoader, batch_size: int, device: str
+) -> PressPooler:
+    """Multi-press touch queries embedded by the model itself (its own pooling)."""
+
+    @torch.inference_mode()
+    def pool(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
+        p = members.shape[1]
+        out = []
+        for start in range(0, len(members), max(1, batch_size // p)):
+            rows = members[start : start + max(1, batch_size // p)]
+            x = torch.stack(
+                [torch.stack([loader.load(touch.items[j]) for j in row]) for row in rows]
+            ).to(device)  # (B, P, 3, S, S)
+            out.append(model({Modality.TOUCH.value: x})[Modality.TOUCH.value].double().cpu())
+        if not out:
+            return np.zeros((0, model.embed_dim))
+        return torch.cat(out).numpy()
+
+    return pool
+
+
+def _clusters_and_labels(
+    catalog: Catalog,
+) -> tuple[dict[int, int | None], dict[int, list[float]] | None, list[str], list[str]]:
+    """Clusters (labels.csv's, else k-means on the labels as the paper), labels and notes."""
+    notes = []
+    clusters = catalog.clusters()
+    if all(c is None for c in clusters.values()) and catalog.label_columns:
+        try:
+            clusters = kmeans_clusters(catalog, k=8)
+            notes.append("clusters: k-means (k = 8) on the fabrics' labels, as the paper")
+        except DatasetError as e:
+            notes.append(f"clusters: none in labels.csv and no k-means ({e})")
+    cols = list(catalog.label_columns)
+    labels = catalog.label_matrix(cols) if cols else None
+    return clusters, labels, cols, notes
+
+
+def _evaluate_set(
+    emb: EmbeddingSet,
+    config: EvalConfig | None,
+    catalog: Catalog | None,
+    pool: PressPooler | None,
+    data_config: DataConfig | None,
+    extra_notes: list[str],
+) -> EvalResult:
+    config = config or EvalConfig()
+    if config.presses is None:
+        config = replace(config, presses=int(emb.meta.get("presses", 1)))
+    clusters: Mapping[int, int | None] | None = None
+    labels: dict[int, list[float]] | None = None
+    names: list[str] = []
+    notes = list(extra_notes)
+    if catalog is not None:
+        clusters, labels, names, more = _clusters_and_labels(catalog)
+        notes += more
+    result = evaluate_embeddings(
+        emb.embedded,
+        config,
+        clusters,
+        labels,
+        label_names=names or None,
+        reference=emb.reference,
+        pool_presses=pool,
+        info=emb.meta,
+        data_config=data_config,
+    )
+    return replace(result, notes=tuple(notes) + result.notes)
+
+
+def evaluate_checkpoint(
+    checkpoint: str | os.PathLike[str] | LoadedModel,
+    data_root: str | os.PathLike[str],
+    split: str = "val",
+    config: EvalConfig | None = None,
+    *,
+    batch_size: int = 64,
+    device: str = "cpu",
+) -> EvalResult:
+    """Embed a split of a dataset with a trained model and score it (``lookfeel evaluate``).
+
+    Clusters come from labels.csv (else k-means on the labels, as the paper), labels from
+    labels.csv. Multi-press touch queries are embedded by the model itself when it pools
+    before a projection or normalisation (`pools_final_embedding`), else by the max of the
+    per-press embeddings (identical, and what an embeddings file allows).
+
+    Args:
+        checkpoint: a checkpoint path or a loaded model.
+        data_root: the dataset folder.
+        split: which items are "test" (see the module docstring): ``val`` (default),
+            ``train``, ``novel``, ``paper`` or ``all``.
+        config: the protocol; ``presses`` defaults to the run's ``data.presses``.
+        batch_size, device: for embedding.
+
+    Returns:
+        `EvalResult`, with ``info`` naming the checkpoint, step, split and data.
+    """
+    loaded = _load(checkpoint, device)
+    catalog = scan_dataset(Path(data_root))
+    emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
+    exact = bool(emb.meta["pool_exact"])
+    pool = None if exact else _model_pooler(loaded.model, loader, batch_size, device)
+    return _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
+
+
+def evaluate_embedding_file(
+    path: str | os.PathLike[str],
+    config: EvalConfig | None = None,
+    data_root: str | os.PathLike[str] | None = None,
+) -> EvalResult:
+    """Score an embeddings file (``lookfeel evaluate --embeddings``).
+
+    Clusters and labels come from ``data_root`` when given (else none: fabric-id order, no
+    probes). Multi-press touch queries max-pool the stored per-press embeddings; when the file
+    says the model pools differently (``pool_exact`` false), a note says these differ from
+    the model's own.
+
+    Args:
+        path: an npz written by ``lookfeel embed`` (or with the same keys).
+        config: the protocol; ``presses`` defaults to the file's ``presses`` (else 1).
+        data_root: the dataset the embeddings came from.
+    """
+    catalog = scan_dataset(Path(data_root)) if data_root is not None else None
+    emb = load_embeddings(path, catalog)
+    notes = []
+    if not emb.meta.get("pool_exact", True):
+        notes.append(
+            "multi-press touch queries max-pool the stored embeddings, but the model pools "
+            "before its projection or normalisation: evaluate the checkpoint for its own "
+            "multi-press embeddings"
+        )
+    data_config = None
+    if "data_config" in emb.meta:
+        data_config = from_dict(DataConfig, emb.meta["data_config"])
+    meta: dict[str, Any] = {**emb.meta, "embeddings_file": str(path)}
+    return _evaluate_set(replace(emb, meta=meta), config, catalog, None, data_config, notes)

@@ -1,0 +1,505 @@
+"""Write an evaluation to a folder: ``metrics.json``, ``report.md`` and ``figures/*.png``."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from lookfeel.atomic import atomic_write_text
+from lookfeel.config import DataConfig
+from lookfeel.data import ImageError, ImageLoader
+from lookfeel.modality import Modality
+from lookfeel.plots import (
+    PickRow,
+    confusion_figure,
+    pick_examples_figure,
+    presses_figure,
+    reliability_figure,
+    save_figure,
+)
+
+from .result import EvalResult, PairCalibration, PickExample
+
+__all__ = ["ReportFiles", "write_metrics", "write_report"]
+
+_ARROW = "→"
+
+
+@dataclass(frozen=True)
+class ReportFiles:
+    """What `write_report` wrote."""
+
+    metrics: Path
+    report: Path
+    figures: tuple[Path, ...]
+
+
+def _json_value(v: float) -> float | None:
+    return None if isinstance(v, float) and not math.isfinite(v) else v
+
+
+def write_metrics(result: EvalResult, path: str | os.PathLike[str]) -> Path:
+    """Write the flat metrics as JSON (NaN and infinity as null), atomically."""
+    data = {k: _json_value(float(v)) for k, v in result.metrics.items()}
+    return atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+
+
+def _f(v: float | None, digits: int = 3) -> str:
+    if v is None or not math.isfinite(v):
+        return "–"
+    if abs(v) < 0.5 * 10.0**-digits:
+        v = 0.0  # never "-0.000"
+    return f"{v:.{digits}f}"
+
+
+def _ci(m: dict[str, float], key: str, digits: int = 3) -> str:
+    lo, hi = m.get(f"{key}_ci_low"), m.get(f"{key}_ci_high")
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return "–"
+    return f"{lo:.{digits}f} – {hi:.{digits}f}"
+
+
+def _pretty(pair: str) -> str:
+    q, _, g = pair.partition("_to_")
+    return f"{q} {_ARROW} {g}"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return [*out, ""]
+
+
+def _pair_rows(result: EvalResult, pair: str) -> list[list[str]]:
+    m, cfg = result.metrics, result.config
+    p = f"{pair}_"
+    rows = []
+    n_eff = int(m.get(f"{p}n_effective", cfg.n))
+    for k in cfg.ks:
+        key = f"{p}top{k}"
+        rows.append(
+            [f"top-{k} of {n_eff} (exact)", _f(m.get(key)), _ci(m, key), _f(m.get(f"{key}_chance"))]
+        )
+        if f"{key}_sampled" in m:
+            rows.append(
+                [
+                    f"top-{k} of {n_eff} (sampled, paper)",
+                    f"{_f(m.get(f'{key}_sampled'))} ± {_f(m.get(f'{key}_sampled_se'))} (se)",
+                    "",
+                    _f(m.get(f"{key}_chance")),
+                ]
+            )
+        if f"{key}_released" in m:
+            rows.append(
+                [
+                    f"top-{k} of {n_eff} (released code's variant)",
+                    f"{_f(m.get(f'{key}_released'))} ± {_f(m.get(f'{key}_released_se'))} (se)",
+                    "",
+                    "≈ " + _f(m.get(f"{key}_chance")),
+                ]
+            )
+    rows.append(
+        [
+            "mAP (whole gallery)",
+            _f(m.get(f"{p}map")),
+            _ci(m, f"{p}map"),
+            _f(m.get(f"{p}map_chance")),
+        ]
+    )
+    for k in cfg.recall_ks:
+        key = f"{p}recall{k}"
+        rows.append([f"recall@{k}", _f(m.get(key)), _ci(m, key), _f(m.get(f"{key}_chance"))])
+    key = f"{p}median_rank"
+    rows.append(
+        [
+            "median rank of the first true item",
+            _f(m.get(key), 1),
+            _ci(m, key, 1),
+            _f(m.get(f"{key}_chance"), 1),
+        ]
+    )
+    rows.append(
+        [
+            "queries / test fabrics / candidates per pick",
+            f"{_f(m.get(f'{p}n_queries'), 0)} / {_f(m.get(f'{p}n_fabrics'), 0)} / {n_eff}",
+            "",
+            "",
+        ]
+    )
+    return rows
+
+
+def _section_pick(result: EvalResult) -> list[str]:
+    cfg, m = result.config, result.metrics
+    k0 = cfg.ks[0]
+    lines = [
+        f"## Pick 1 of {cfg.n} (paper section 5.1, Figure 5, Tables 1-2)",
+        "",
+        f"A query is shown {cfg.n} candidates of the gallery modality: one item of its own "
+        f"fabric and one of each of {cfg.n - 1} other fabrics drawn at random. *Exact* is the "
+        "expectation of this draw computed from the whole distance matrix; *sampled* is the "
+        f"paper's protocol ({cfg.queries_per_fabric} queries per fabric, {cfg.repeats} draws "
+        f"each, seed {cfg.seed}). Intervals: {100 * (1 - cfg.alpha):.0f}% percentile bootstrap "
+        f"over test fabrics ({cfg.n_boot} resamples). Same-modality pairs never offer the "
+        "query's own item.",
+        "",
+    ]
+    rows = []
+    for pair in result.pairs:
+        p = f"{pair}_top{k0}"
+        rows.append(
+            [
+                _pretty(pair),
+                _f(m.get(p)),
+                _ci(m, p),
+                _f(m.get(f"{p}_sampled")),
+                _f(m.get(f"{pair}_top{cfg.ks[-1]}")) if len(cfg.ks) > 1 else "–",
+                _f(m.get(f"{p}_chance")),
+                _f(m.get(f"{pair}_map")),
+                _f(m.get(f"{pair}_map_chance")),
+            ]
+        )
+    top_last = f"top-{cfg.ks[-1]}" if len(cfg.ks) > 1 else "–"
+    lines += _table(
+        [
+            "pair",
+            f"top-{k0}",
+            "95% interval",
+            f"top-{k0} sampled",
+            top_last,
+            f"chance top-{k0}",
+            "mAP",
+            "chance mAP",
+        ],
+        rows,
+    )
+    for pair in result.pairs:
+        lines += [f"### {_pretty(pair)}", ""]
+        lines += _table(["metric", "value", "95% interval", "chance"], _pair_rows(result, pair))
+    return lines
+
+
+def _section_presses(result: EvalResult, figure: str | None) -> list[str]:
+    curves = result.press_curves(result.config.ks[0])
+    if not curves:
+        return []
+    k = result.config.ks[0]
+    first = f"touch_to_{curves[0].gallery.value}_presses{curves[0].presses[0]}_n_effective"
+    n_eff = int(result.metrics.get(first, result.config.n))
+    lines = [
+        "## Touch queries: accuracy against presses (Multi-input Net)",
+        "",
+        f"Each touch query pools P presses of one fabric by element-wise max; exact top-{k} of "
+        f"{n_eff} against each gallery (single items; a touch gallery leaves out the query's "
+        f"own presses). The main `touch_to_*` keys use P = {result.config.presses}.",
+        "",
+    ]
+    ps = sorted({int(p) for c in curves for p in c.presses})
+    rows = []
+    for p in ps:
+        row = [str(p)]
+        for c in curves:
+            i = np.flatnonzero(c.presses == p)
+            j = int(i[0]) if len(i) else -1
+            if j >= 0 and math.isfinite(c.value[j]):
+                interval = f" ({_f(c.low[j])} – {_f(c.high[j])})" if math.isfinite(c.low[j]) else ""
+                row.append(_f(c.value[j]) + interval)
+            else:
+                row.append("–")
+        row.append(_f(curves[0].chance[0]))
+        rows.append(row)
+    lines += _table(
+        ["presses"] + [f"touch {_ARROW} {c.gallery.value}" for c in curves] + ["chance"], rows
+    )
+    if figure:
+        lines += [f"![accuracy against presses]({figure})", ""]
+    return lines
+
+
+def _section_calibration(result: EvalResult, figures: dict[str, list[str]]) -> list[str]:
+    lines = [
+        "## Calibration of P ∝ exp(-c D²) (paper section 5.2)",
+        "",
+        "Each query's probability of each gallery fabric (its items' P summed); *fabric accuracy* "
+        "is how often the most probable fabric is the query's own, against the mean confidence. "
+        "c is fitted by maximum likelihood on the reference (training) fabrics when they are "
+        "given, else the paper's 0.085.",
+        "",
+    ]
+    rows = []
+    for pair, cal in result.calibration.items():
+        m = result.metrics
+        rows.append(
+            [
+                _pretty(pair),
+                f"{cal.c:.4g}",
+                cal.c_source,
+                _f(cal.accuracy),
+                _f(m.get(f"{pair}_fabric_accuracy_chance")),
+                _f(cal.confidence),
+                _f(cal.reliability.ece),
+                _f(cal.nll),
+                _f(m.get(f"{pair}_nll_chance")),
+            ]
+        )
+    lines += _table(
+        [
+            "pair",
+            "c",
+            "c from",
+            "fabric accuracy",
+            "chance",
+            "mean confidence",
+            "ECE",
+            "NLL",
+            "chance NLL",
+        ],
+        rows,
+    )
+    for pair, paths in figures.items():
+        lines += [f"### {_pretty(pair)}", ""]
+        lines += [f"![{Path(p).stem}]({p})" for p in paths] + [""]
+    return lines
+
+
+def _section_properties(result: EvalResult) -> list[str]:
+    if not result.properties:
+        return []
+    lines = [
+        "## Physical properties (probes)",
+        "",
+        "Per fabric (its embeddings averaged), a probe fitted on the reference fabrics predicts "
+        "each label of the test fabrics: k-NN (mean of the nearest "
+        f"{result.config.probe_k}) and ridge regression. Chance: R² ≈ 0, Spearman 0, and the "
+        "MAE of always answering the training mean.",
+        "",
+    ]
+    rows = []
+    for m, by_probe in result.properties.items():
+        for probe, by_label in by_probe.items():
+            for name, s in by_label.items():
+                rows.append(
+                    [
+                        m.value,
+                        name,
+                        probe,
+                        _f(s["r2"]),
+                        _f(s["spearman"]),
+                        _f(s["mae"]),
+                        _f(s["mae_chance"]),
+                        f"{int(s['n_train'])} / {int(s['n_test'])}",
+                    ]
+                )
+    lines += _table(
+        [
+            "modality",
+            "label",
+            "probe",
+            "R²",
+            "Spearman",
+            "MAE",
+            "MAE chance",
+            "fabrics train / test",
+        ],
+        rows,
+    )
+    return lines
+
+
+def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> NDArray[np.generic]:
+    item = result.embedded[m].items[row]
+    return loader.array(loader.frame_path(item), m)
+
+
+def _example_rows(result: EvalResult, examples: tuple[PickExample, ...]) -> list[PickRow]:
+    loader = ImageLoader(result.data_config or DataConfig(image_size=128))
+    rows = []
+    for ex in examples:
+        q, _, g = ex.pair.partition("_to_")
+        mq, mg = Modality(q), Modality(g)
+        q_items = result.embedded[mq]
+        fid = int(q_items.fabric_ids[ex.query_rows[0]])
+        label = f"query: {q} F{fid}"
+        if len(ex.query_rows) > 1:
+            label += f"\n(1st of {len(ex.query_rows)} presses)"
+        g_fab = result.embedded[mg].fabric_ids
+        rows.append(
+            PickRow(
+                query_image=_image(loader, result, mq, ex.query_rows[0]),
+                query_label=label,
+                candidate_images=[_image(loader, result, mg, c) for c in ex.candidates],
+                candidate_labels=[
+                    f"{i + 1}. F{int(g_fab[c])}\nD = {d:.3g}"
+                    for i, (c, d) in enumerate(zip(ex.candidates, ex.distances, strict=True))
+                ],
+                true_index=ex.true_position,
+            )
+        )
+    return rows
+
+
+def _cluster_name(c: int | None) -> str:
+    return "?" if c is None or c < 0 else str(c)
+
+
+def _provenance(result: EvalResult) -> list[str]:
+    info, cfg = result.info, result.config
+    rows = []
+    if "checkpoint" in info:
+        rows.append(["checkpoint", f"`{info['checkpoint']}` (step {info.get('step', '?')})"])
+    if "embeddings_file" in info:
+        rows.append(["embeddings", f"`{info['embeddings_file']}`"])
+    if "data_root" in info:
+        rows.append(["data", f"`{info['data_root']}`"])
+    if "split" in info:
+        rows.append(["split", f"{info['split']}: {info.get('split_description', '')}"])
+    fabrics = info.get("fabrics", [])
+    rows.append(["test fabrics", f"{len(fabrics)}: {', '.join(str(f) for f in fabrics)}"])
+    items = info.get("items", {})
+    rows.append(
+        [
+            "items",
+            ", ".join(f"{m} {n}" + (" presses" if m == "touch" else "") for m, n in items.items()),
+        ]
+    )
+    rows.append(["touch query", f"{cfg.presses} press(es), pooled by element-wise max"])
+    return ["# lookfeel evaluation", "", *_table(["", ""], rows)]
+
+
+def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportFiles:
+    """Write ``metrics.json``, ``report.md`` and the figures under ``out_dir/figures/``.
+
+    Figures: accuracy against presses (``presses.png``); per figure pair a reliability
+    diagram, fabric- and cluster-level confusion matrices ordered by cluster (Figure 7) and
+    pick examples (Figure 6; images read with the run's preprocessing, skipped with a note
+    when the files cannot be read).
+
+    Returns:
+        `ReportFiles` with every path written.
+    """
+    out = Path(out_dir)
+    fig_dir = out / "figures"
+    written: list[Path] = []
+    notes = list(result.notes)
+
+    def save(fig: Figure, name: str) -> str:
+        written.append(save_figure(fig, fig_dir / name))
+        return f"figures/{name}"
+
+    presses_png = None
+    curves = result.press_curves(result.config.ks[0])
+    if curves:
+        name = {c.gallery: f"touch {_ARROW} {c.gallery.value}" for c in curves}
+        first = f"touch_to_{curves[0].gallery.value}_presses{curves[0].presses[0]}_n_effective"
+        n_eff = int(result.metrics.get(first, result.config.n))
+        presses_png = save(
+            presses_figure(
+                curves[0].presses,
+                {name[c.gallery]: c.value for c in curves},
+                low={name[c.gallery]: c.low for c in curves},
+                high={name[c.gallery]: c.high for c in curves},
+                chance=curves[0].chance,
+                ylabel=f"top-{result.config.ks[0]} accuracy, pick 1 of {n_eff}",
+            ),
+            "presses.png",
+        )
+    cal_figures: dict[str, list[str]] = {}
+    for pair in result.figure_pairs:
+        cal: PairCalibration = result.calibration[pair]
+        q, _, g = pair.partition("_to_")
+        paths = []
+        rel = cal.reliability
+        paths.append(
+            save(
+                reliability_figure(
+                    rel.edges,
+                    rel.confidence,
+                    rel.accuracy,
+                    rel.count,
+                    ece=rel.ece,
+                    title=f"Reliability, {q} {_ARROW} {g}, c = {cal.c:.3g}",
+                ),
+                f"reliability_{pair}.png",
+            )
+        )
+        if cal.confusion is not None:
+            con = cal.confusion
+            row_groups = col_groups = None
+            if any(v is not None for v in result.clusters.values()):
+                row_groups = [_cluster_name(result.clusters.get(int(f))) for f in con.rows]
+                col_groups = [_cluster_name(result.clusters.get(int(f))) for f in con.cols]
+            paths.append(
+                save(
+                    confusion_figure(
+                        con.matrix,
+                        [str(x) for x in con.rows],
+                        [str(x) for x in con.cols],
+                        row_groups=row_groups,
+                        col_groups=col_groups,
+                        title=f"Fabric confusion, {q} {_ARROW} {g} (ordered by cluster)",
+                        xlabel=f"gallery fabric ({g})",
+                        ylabel=f"query fabric ({q})",
+                        colorbar_label="mean P(query matched to fabric)",
+                    ),
+                    f"confusion_{pair}.png",
+                )
+            )
+        if cal.cluster_confusion is not None:
+            cc = cal.cluster_confusion
+            names = [_cluster_name(int(x)) for x in cc.rows]
+            cols = [_cluster_name(int(x)) for x in cc.cols]
+            paths.append(
+                save(
+                    confusion_figure(
+                        cc.matrix,
+                        names,
+                        cols,
+                        title=f"Cluster confusion, {q} {_ARROW} {g}",
+                        xlabel=f"gallery cluster ({g})",
+                        ylabel=f"query cluster ({q})",
+                        colorbar_label="mean P(query matched to cluster)",
+                    ),
+                    f"confusion_clusters_{pair}.png",
+                )
+            )
+        cal_figures[pair] = paths
+
+    example_lines: list[str] = []
+    for pair, examples in result.examples.items():
+        if not examples:
+            continue
+        try:
+            rows = _example_rows(result, examples)
+        except (ImageError, OSError) as e:
+            notes.append(f"pick examples of {pair} not drawn: {e}")
+            continue
+        q, _, g = pair.partition("_to_")
+        png = save(
+            pick_examples_figure(
+                rows,
+                title=f"Pick 1 of {len(examples[0].candidates)}: {q} query, {g} candidates "
+                "nearest first (green: the true fabric)",
+            ),
+            f"examples_{pair}.png",
+        )
+        example_lines += [f"### {_pretty(pair)}", "", f"![pick examples]({png})", ""]
+
+    metrics_path = write_metrics(result, out / "metrics.json")
+    lines = _provenance(result)
+    lines += _section_pick(result)
+    lines += _section_presses(result, presses_png)
+    lines += _section_calibration(result, cal_figures)
+    lines += _section_properties(result)
+    if example_lines:
+        lines += ["## Pick examples (paper Figure 6)", "", *example_lines]
+    if notes:
+        lines += ["## Notes", "", *(f"- {n}" for n in notes), ""]
+    report = atomic_write_text(out / "report.md", "\n".join(lines))
+    return ReportFiles(metrics_path, report, tuple(written))

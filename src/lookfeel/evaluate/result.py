@@ -1,0 +1,151 @@
+"""What an evaluation returns: flat metrics, and the structured results the figures need."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lookfeel.config import DataConfig, EvalConfig
+from lookfeel.embedding import EmbeddedItems
+from lookfeel.metrics import Confusion, ReliabilityCurve
+from lookfeel.modality import Modality
+
+__all__ = ["EvalResult", "PairCalibration", "PickExample", "PressCurve"]
+
+
+@dataclass(frozen=True)
+class PairCalibration:
+    """Match probabilities ``P ∝ exp(-c D^2)`` of one pair (paper section 5.2), calibrated.
+
+    Attributes:
+        pair: ``query_to_gallery``.
+        c: the coefficient used.
+        c_source: ``"fixed"`` (EvalConfig.c), ``"fitted"`` (maximum likelihood on the reference
+            fabrics) or ``"paper"`` (0.085).
+        reliability: accuracy against confidence of each query's most probable gallery fabric.
+        accuracy: fraction of queries whose most probable gallery fabric is their own.
+        confidence: mean probability of the most probable fabric.
+        nll: mean ``-log P(own fabric)``.
+        n_fabrics: gallery fabrics the probabilities spread over.
+        confusion: fabric-level confusion, fabrics ordered by cluster (Figure 7), for the figure
+            pairs only.
+        cluster_confusion: cluster-level confusion (Figure 7b), when clusters are known.
+    """
+
+    pair: str
+    c: float
+    c_source: str
+    reliability: ReliabilityCurve
+    accuracy: float
+    confidence: float
+    nll: float
+    n_fabrics: int
+    confusion: Confusion | None = None
+    cluster_confusion: Confusion | None = None
+
+
+@dataclass(frozen=True)
+class PickExample:
+    """One drawn pick-1-of-n trial, for a figure like the paper's Figure 6.
+
+    Attributes:
+        pair: ``query_to_gallery``.
+        query_rows: the query's rows in the query modality's `EmbeddedItems` (several for a
+            pooled multi-press touch query).
+        candidates: gallery rows of the candidates, nearest first.
+        distances: distance D from the query to each candidate, in that order.
+        true_position: index into ``candidates`` of the true (same-fabric) candidate.
+    """
+
+    pair: str
+    query_rows: tuple[int, ...]
+    candidates: tuple[int, ...]
+    distances: tuple[float, ...]
+    true_position: int
+
+
+@dataclass(frozen=True)
+class PressCurve:
+    """Touch-query accuracy against the number of pooled presses, for one gallery modality."""
+
+    gallery: Modality
+    presses: NDArray[np.int64]
+    """(P,) press counts scored."""
+    value: NDArray[np.float64]
+    """(P,) exact top-k."""
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+    chance: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class EvalResult:
+    """Everything `evaluate_embeddings` measured.
+
+    Attributes:
+        metrics: flat JSON-able floats keyed ``{query}_to_{gallery}_{metric}`` (see
+            `lookfeel.evaluate`), plus ``property_*`` and calibration keys.
+        config: the evaluation settings (``presses`` resolved).
+        pairs: the scored ``query_to_gallery`` pairs, in order.
+        calibration: per pair, c and the calibration of ``P ∝ exp(-c D^2)``.
+        examples: per figure pair, drawn pick trials.
+        properties: modality -> probe -> label -> {r2, spearman, mae, mae_chance, n_train,
+            n_test}.
+        embedded: the scored embeddings (the test items).
+        clusters: fabric id -> cluster (None where unknown).
+        notes: what was skipped or approximated, and why.
+        info: provenance (split, checkpoint, step, data root, ...).
+        data_config: how images were preprocessed, to show example images (None: unknown).
+    """
+
+    metrics: dict[str, float]
+    config: EvalConfig
+    pairs: tuple[str, ...]
+    calibration: dict[str, PairCalibration]
+    examples: dict[str, tuple[PickExample, ...]]
+    properties: dict[Modality, dict[str, dict[str, dict[str, float]]]]
+    embedded: Mapping[Modality, EmbeddedItems]
+    clusters: dict[int, int | None] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    info: dict[str, Any] = field(default_factory=dict)
+    data_config: DataConfig | None = None
+
+    @property
+    def figure_pairs(self) -> tuple[str, ...]:
+        """The pairs with confusion matrices (and figures), in order."""
+        return tuple(p for p, c in self.calibration.items() if c.confusion is not None)
+
+    def press_curves(self, k: int = 1) -> list[PressCurve]:
+        """Exact top-k of touch queries against pooled presses, one curve per gallery modality.
+
+        Read from the ``touch_to_{gallery}_presses{P}_top{k}`` metrics.
+        """
+        out = []
+        for g in Modality:
+            prefix = f"touch_to_{g.value}_presses"
+            ps = sorted(
+                int(key[len(prefix) :].split("_", 1)[0])
+                for key in self.metrics
+                if key.startswith(prefix) and key.endswith(f"_top{k}")
+            )
+            if not ps:
+                continue
+
+            def get(p: int, suffix: str, prefix: str = prefix) -> float:
+                return self.metrics.get(f"{prefix}{p}_top{k}{suffix}", float("nan"))
+
+            out.append(
+                PressCurve(
+                    gallery=g,
+                    presses=np.array(ps, dtype=np.int64),
+                    value=np.array([get(p, "") for p in ps]),
+                    low=np.array([get(p, "_ci_low") for p in ps]),
+                    high=np.array([get(p, "_ci_high") for p in ps]),
+                    chance=np.array([get(p, "_chance") for p in ps]),
+                )
+            )
+        return out

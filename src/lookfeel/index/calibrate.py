@@ -1,0 +1,404 @@
+"""Calibrating a library: c of ``P ∝ exp(-c D^2)``, an "unknown" class and its threshold.
+
+For every pair (query modality, gallery modality) of the library, held-out queries are drawn
+from the library itself (up to ``max_queries`` items of the query modality, seeded), and each is
+matched twice:
+
+- **Known fabric.** Against the whole gallery with its own item left out. c is fitted by
+  maximum likelihood of the true fabric (`lookfeel.metrics.fit_temperature`: the fabric-level
+  reading of the paper's section 5.2, eq. 3-4).
+- **Unknown fabric (leave fabrics out).** The gallery's fabrics are dealt into ``folds`` groups
+  at random, and the query is matched against the gallery without its own fold's fabrics, so
+  its true fabric is absent, as for a material the library has never seen.
+
+A softmax over the library's fabrics always sums to 1, so on its own it cannot say "none of
+these": an unseen material close to one fabric gets a probability near 1, more so the larger c.
+So the fabrics are joined by an **unknown class**, a pseudo-item with a fixed logit ``a``::
+
+    P(unknown)  = exp(a) / (exp(a) + sum_i exp(-c D_i^2))
+    P(fabric f) = (1 - P(unknown)) * sum_{i in f} exp(-c D_i^2) / sum_i exp(-c D_i^2)
+
+``a`` (``unknown_logit``) is fitted by maximum likelihood with c fixed: the known-fabric matches
+should say "not unknown", the absent-fabric matches "unknown" (a one-parameter logistic
+regression on ``logsumexp(-c D^2)``, so it is a far item, not a low softmax peak, that reads as
+unknown; both kinds of match are equally many, a prior of one half).
+
+**Threshold.** A query is reported as a known fabric when its best fabric probability is at least
+``threshold``: the smallest value at which at most ``target_false_accept`` (default 5%) of the
+absent-fabric matches are accepted. ``true_accept`` is the share of known-fabric matches still
+accepted, ``accepted_top1`` their accuracy: what that false-accept rate costs.
+
+Touch queries are single presses here; a pooled multi-press query (the Multi-input Net) is
+usually matched more confidently, so the threshold is conservative for it.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+from scipy.optimize import minimize_scalar
+
+from lookfeel.metrics import (
+    expected_calibration_error,
+    fit_temperature,
+    match_probabilities,
+    pairwise_distances,
+)
+from lookfeel.modality import Modality
+
+__all__ = [
+    "Calibration",
+    "PairCalibration",
+    "calibrate",
+    "calibrate_pair",
+    "fit_unknown_logit",
+    "item_logsumexp",
+    "pair_key",
+    "threshold_for",
+    "unknown_probability",
+]
+
+
+def pair_key(query: Modality, gallery: Modality) -> str:
+    """``touch_to_depth``: the project's ``query_to_gallery`` naming."""
+    return f"{query.value}_to_{gallery.value}"
+
+
+@dataclass(frozen=True)
+class PairCalibration:
+    """How matching one query modality against one gallery modality behaves on held-out queries.
+
+    Attributes:
+        query, gallery: the modalities.
+        c: the fitted coefficient of ``exp(-c D^2)``.
+        c_at_edge: the likelihood was still improving at the edge of c's search range (fabrics
+            perfectly separated): probabilities are then close to 0 or 1.
+        unknown_logit: the unknown class's logit ``a`` (module docstring); ``-inf``: no unknown
+            class (too few fabrics to hold any out).
+        threshold: best fabric probability at or above which a query is a known fabric.
+        target_false_accept: the false-accept rate the threshold was chosen for.
+        false_accept: the measured rate: absent-fabric queries accepted at the threshold.
+        true_accept: known-fabric queries accepted at the threshold.
+        accepted_top1: top-1 accuracy among the accepted known-fabric queries (NaN if none).
+        top1: top-1 accuracy of the best match over known-fabric queries, before thresholding.
+        log_likelihood: mean ``log P(true fabric)`` over known-fabric queries (closed set:
+            without the unknown class, as the paper's P).
+        ece: expected calibration error of the closed-set best-match probability (10 bins).
+        n_present: known-fabric queries (those with another item of their fabric).
+        n_absent: absent-fabric queries (0: too few fabrics; no threshold, never "unknown").
+        fabrics: fabrics in the gallery.
+    """
+
+    query: Modality
+    gallery: Modality
+    c: float
+    c_at_edge: bool
+    unknown_logit: float
+    threshold: float
+    target_false_accept: float
+    false_accept: float
+    true_accept: float
+    accepted_top1: float
+    top1: float
+    log_likelihood: float
+    ece: float
+    n_present: int
+    n_absent: int
+    fabrics: int
+
+    @property
+    def key(self) -> str:
+        return pair_key(self.query, self.gallery)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for the manifest (NaN becomes None so the JSON is standard)."""
+        d = asdict(self)
+        d["query"], d["gallery"] = self.query.value, self.gallery.value
+        return {
+            k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> PairCalibration:
+        values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in d.items()}
+        if d.get("unknown_logit") is None:
+            values["unknown_logit"] = -math.inf
+        values["query"], values["gallery"] = Modality(d["query"]), Modality(d["gallery"])
+        return cls(**values)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Every calibrated pair of a library and the gallery each query modality uses by default.
+
+    Attributes:
+        pairs: ``query_to_gallery`` -> its calibration.
+        default_gallery: query modality -> the gallery modality with the best held-out top-1
+            accuracy (ties: the best log-likelihood).
+        target_false_accept, folds, seed, max_queries: the settings used.
+    """
+
+    pairs: dict[str, PairCalibration]
+    default_gallery: dict[Modality, Modality]
+    target_false_accept: float
+    folds: int
+    seed: int
+    max_queries: int
+    notes: list[str] = field(default_factory=list)
+
+    def pair(self, query: Modality, gallery: Modality) -> PairCalibration:
+        """The calibration of one pair.
+
+        Raises:
+            KeyError: naming the pair and those calibrated.
+        """
+        key = pair_key(query, gallery)
+        if key not in self.pairs:
+            have = ", ".join(self.pairs) or "none"
+            raise KeyError(f"no calibration for {key} (calibrated: {have})")
+        return self.pairs[key]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "target_false_accept": self.target_false_accept,
+            "folds": self.folds,
+            "seed": self.seed,
+            "max_queries": self.max_queries,
+            "default_gallery": {q.value: g.value for q, g in self.default_gallery.items()},
+            "pairs": {k: p.to_dict() for k, p in self.pairs.items()},
+            "notes": list(self.notes),
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Calibration:
+        return cls(
+            pairs={k: PairCalibration.from_dict(p) for k, p in d["pairs"].items()},
+            default_gallery={Modality(q): Modality(g) for q, g in d["default_gallery"].items()},
+            target_false_accept=float(d["target_false_accept"]),
+            folds=int(d["folds"]),
+            seed=int(d["seed"]),
+            max_queries=int(d["max_queries"]),
+            notes=list(d.get("notes", [])),
+        )
+
+
+def _fabric_sum(p: NDArray[np.float64], onehot: sparse.csr_matrix) -> NDArray[np.float64]:
+    """(Q, G) item probabilities -> (Q, F) fabric probabilities (sum over each fabric's items)."""
+    return np.asarray((onehot.T @ p.T).T)
+
+
+def item_logsumexp(
+    dist: NDArray[np.float64], c: float, mask: NDArray[np.bool_] | None = None
+) -> NDArray[np.float64]:
+    """``logsumexp_i(-c D_i^2)`` of each row over the items not masked: (Q, G) -> (Q,)."""
+    logits = -c * np.square(dist)
+    if mask is not None:
+        logits = np.where(mask, -np.inf, logits)
+    top = logits.max(axis=1)
+    return top + np.log(np.exp(logits - top[:, None]).sum(axis=1))
+
+
+def unknown_probability(
+    lse: NDArray[np.float64] | float, unknown_logit: float
+) -> NDArray[np.float64]:
+    """P(unknown) = ``exp(a) / (exp(a) + exp(lse))`` = ``sigmoid(a - lse)``, computed stably."""
+    z = unknown_logit - np.asarray(lse, dtype=np.float64)
+    return np.asarray(0.5 * (1.0 + np.tanh(0.5 * z)))
+
+
+def fit_unknown_logit(lse_known: NDArray[np.float64], lse_absent: NDArray[np.float64]) -> float:
+    """Maximum-likelihood ``a``: known matches say "not unknown", absent matches "unknown".
+
+    The negative log-likelihood ``-sum log(1 - s(a - L_known)) - sum log s(a - L_absent)`` is
+    convex in ``a``; it is minimised over a bracket wide enough for any data.
+    """
+    lk = np.asarray(lse_known, dtype=np.float64)
+    la = np.asarray(lse_absent, dtype=np.float64)
+
+    def nll(a: float) -> float:
+        # -log s(x) = logaddexp(0, -x); -log(1 - s(x)) = logaddexp(0, x)
+        return float(np.logaddexp(0.0, a - lk).sum() + np.logaddexp(0.0, la - a).sum())
+
+    both = np.concatenate([lk, la])
+    lo, hi = float(both.min()) - 50.0, float(both.max()) + 50.0
+    res = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    return float(res.x)
+
+
+def threshold_for(absent_best: NDArray[np.float64], target: float) -> float:
+    """The smallest threshold accepting at most ``target`` of the absent-fabric scores.
+
+    A query is accepted when its score is ``>= threshold``; with n scores at most
+    ``floor(target * n)`` are accepted.
+    """
+    n = len(absent_best)
+    if n == 0:
+        return 0.0
+    allowed = math.floor(target * n + 1e-9)
+    if allowed >= n:
+        return 0.0
+    s = np.sort(absent_best)[::-1]
+    return float(np.nextafter(s[allowed], np.inf))
+
+
+def calibrate_pair(
+    query_emb: NDArray[np.floating],
+    query_fabric: NDArray[np.integer],
+    gallery_emb: NDArray[np.floating],
+    gallery_fabric: NDArray[np.integer],
+    query: Modality,
+    gallery: Modality,
+    *,
+    target_false_accept: float = 0.05,
+    folds: int = 5,
+    seed: int = 0,
+    max_queries: int = 1000,
+) -> PairCalibration | None:
+    """Calibrate one (query, gallery) modality pair of a library (see the module docstring).
+
+    When query and gallery are the same modality, each query's own row is left out.
+
+    Args:
+        query_emb: (Q, D) embeddings of the query modality's items.
+        query_fabric: (Q,) their fabric ids.
+        gallery_emb: (G, D), gallery_fabric: (G,) the gallery modality's.
+        target_false_accept: the false-accept rate to choose the threshold for.
+        folds: groups the gallery's fabrics are dealt into for leave-fabrics-out.
+        seed: draws the queries and the folds.
+        max_queries: at most this many queries (a (Q, G) distance matrix is held in memory).
+
+    Returns:
+        The calibration, or None when no query has another item of its fabric in the gallery.
+    """
+    rng = np.random.default_rng(seed)
+    same = query is gallery
+    qf_all = np.asarray(query_fabric).reshape(-1)
+    gf = np.asarray(gallery_fabric).reshape(-1)
+    sel = np.sort(rng.choice(len(qf_all), size=min(len(qf_all), max_queries), replace=False))
+    qf = qf_all[sel]
+    dist = pairwise_distances(np.asarray(query_emb)[sel], gallery_emb)  # (Q, G)
+    fabrics, gidx = np.unique(gf, return_inverse=True)
+    nf = len(fabrics)
+    onehot = sparse.csr_matrix((np.ones(len(gf)), (np.arange(len(gf)), gidx)), shape=(len(gf), nf))
+    self_mask = np.zeros(dist.shape, dtype=bool)
+    if same:
+        self_mask[np.arange(len(sel)), sel] = True
+    true_item = (gf[None, :] == qf[:, None]) & ~self_mask
+    present = true_item.any(axis=1)
+    if not present.any():
+        return None
+
+    # Known fabrics: fit c, then score the best match.
+    dp, mp = dist[present], self_mask[present]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        c = fit_temperature(dp, qf[present], gf, mp)
+    at_edge = any("search edge" in str(w.message) for w in caught)
+    pf = _fabric_sum(match_probabilities(dp, c, mp), onehot)  # (Q, F), closed set
+    lse_known = item_logsumexp(dp, c, mp)
+    best = pf.max(axis=1)
+    correct = fabrics[pf.argmax(axis=1)] == qf[present]
+    true_col = np.searchsorted(fabrics, qf[present])
+    p_true = pf[np.arange(len(pf)), true_col]
+    log_lik = float(np.log(np.maximum(p_true, 1e-300)).mean())
+    ece = expected_calibration_error(np.clip(best, 0.0, 1.0), correct)
+
+    # Unknown fabrics: remove every fabric of the query's fold from the gallery.
+    unknown_logit = -math.inf
+    open_best = best
+    absent_open = np.zeros(0)
+    if nf >= 2 and folds >= 2:
+        fold_of = np.empty(nf, dtype=np.int64)
+        fold_of[rng.permutation(nf)] = np.arange(nf) % min(folds, nf)
+        q_col = np.minimum(np.searchsorted(fabrics, qf), nf - 1)
+        q_fold = np.where(fabrics[q_col] == qf, fold_of[q_col], -1)
+        removed = fold_of[gidx][None, :] == q_fold[:, None]  # (Q, G)
+        usable = ~removed.all(axis=1)
+        da, ma = dist[usable], removed[usable]
+        absent_closed = _fabric_sum(match_probabilities(da, c, ma), onehot).max(axis=1)
+        lse_absent = item_logsumexp(da, c, ma)
+        unknown_logit = fit_unknown_logit(lse_known, lse_absent)
+        open_best = best * (1.0 - unknown_probability(lse_known, unknown_logit))
+        absent_open = absent_closed * (1.0 - unknown_probability(lse_absent, unknown_logit))
+    threshold = threshold_for(absent_open, target_false_accept)
+    accepted = open_best >= threshold
+    return PairCalibration(
+        query=query,
+        gallery=gallery,
+        c=float(c),
+        c_at_edge=at_edge,
+        unknown_logit=unknown_logit,
+        threshold=threshold,
+        target_false_accept=target_false_accept,
+        false_accept=float((absent_open >= threshold).mean()) if len(absent_open) else math.nan,
+        true_accept=float(accepted.mean()),
+        accepted_top1=float(correct[accepted].mean()) if accepted.any() else math.nan,
+        top1=float(correct.mean()),
+        log_likelihood=log_lik,
+        ece=float(ece),
+        n_present=int(present.sum()),
+        n_absent=len(absent_open),
+        fabrics=nf,
+    )
+
+
+def calibrate(
+    embeddings: Mapping[Modality, tuple[NDArray[np.floating], NDArray[np.integer]]],
+    *,
+    target_false_accept: float = 0.05,
+    folds: int = 5,
+    seed: int = 0,
+    max_queries: int = 1000,
+) -> Calibration:
+    """Calibrate every (query, gallery) pair of a library's modalities.
+
+    Args:
+        embeddings: modality -> ((N, D) embeddings, (N,) fabric ids).
+        target_false_accept, folds, seed, max_queries: see `calibrate_pair`.
+
+    Raises:
+        ValueError: ``target_false_accept`` outside [0, 1).
+    """
+    if not 0.0 <= target_false_accept < 1.0:
+        raise ValueError(f"target false-accept rate must be in [0, 1); got {target_false_accept}")
+    pairs: dict[str, PairCalibration] = {}
+    notes: list[str] = []
+    for q, (qe, qf) in embeddings.items():
+        for g, (ge, gf) in embeddings.items():
+            pc = calibrate_pair(
+                qe,
+                qf,
+                ge,
+                gf,
+                q,
+                g,
+                target_false_accept=target_false_accept,
+                folds=folds,
+                seed=seed,
+                max_queries=max_queries,
+            )
+            if pc is None:
+                notes.append(
+                    f"{pair_key(q, g)}: not calibrated (no query has another item of its "
+                    "fabric in the gallery)"
+                )
+                continue
+            pairs[pc.key] = pc
+            if pc.n_absent == 0:
+                notes.append(
+                    f"{pc.key}: fewer than 2 fabrics, no unknown threshold (never 'unknown')"
+                )
+    default: dict[Modality, Modality] = {}
+    for q in embeddings:
+        options = [p for p in pairs.values() if p.query is q]
+        if options:
+            best = max(options, key=lambda p: (p.top1, p.log_likelihood, p.gallery is q))
+            default[q] = best.gallery
+    return Calibration(pairs, default, target_false_accept, folds, seed, max_queries, notes)

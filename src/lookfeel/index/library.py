@@ -1,0 +1,410 @@
+"""A fabric library on disk: every item's embedding and metadata, its calibration and its model.
+
+::
+
+    LIB/manifest.json            format, status, checkpoint (path, sha256), run config, modalities
+                                 and their shards, fabrics (labels, cluster), calibration, backend
+    LIB/shards/depth-00000.npz   one chunk of one modality: embeddings (N, D) float32, fabric ids,
+                                 paths, the frame embedded, press kind and id, and its key
+    LIB/index-depth.faiss        a faiss index per modality (faiss backend only)
+
+Every file is written atomically. A shard's key is a digest of the checkpoint, the
+preprocessing and the chunk's files (path, size, modification time), so a build that is killed
+continues where it stopped and an unchanged shard is never embedded twice. The manifest is
+written first with status ``building`` and last with ``complete``; only a complete library opens.
+
+The library refers to its checkpoint by path and SHA-256 (queries are embedded with that model);
+`Library.load_model` refuses a checkpoint that has changed since the build.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from lookfeel.atomic import atomic_write
+from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.config import RunConfig, from_dict
+from lookfeel.index.calibrate import Calibration
+from lookfeel.index.search import ExactSearch, FaissSearch, Search
+from lookfeel.modality import Modality
+
+__all__ = [
+    "LIBRARY_FORMAT",
+    "LIBRARY_VERSION",
+    "MANIFEST",
+    "FabricRecord",
+    "Library",
+    "LibraryError",
+    "LibraryItem",
+    "ModalityTable",
+    "file_sha256",
+    "read_shard",
+    "write_shard",
+]
+
+LIBRARY_FORMAT = "lookfeel-library"
+LIBRARY_VERSION = 1
+MANIFEST = "manifest.json"
+
+
+class LibraryError(ValueError):
+    """A library cannot be built, opened or queried; the message names the file or value."""
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file's content, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+# ---- shards ------------------------------------------------------------------------------------
+
+_SHARD_ARRAYS = ("embeddings", "fabric_ids", "paths", "images", "kinds", "presses")
+
+
+def write_shard(
+    path: Path,
+    key: str,
+    embeddings: NDArray[np.floating],
+    fabric_ids: Sequence[int],
+    paths: Sequence[str],
+    images: Sequence[str],
+    kinds: Sequence[str],
+    presses: Sequence[str],
+) -> None:
+    """Write one shard atomically (an ``.npz`` of plain arrays: no pickle to read it back)."""
+    arrays: dict[str, NDArray[Any]] = {
+        "key": np.array(key),
+        "embeddings": np.ascontiguousarray(embeddings, dtype=np.float32),
+        "fabric_ids": np.asarray(fabric_ids, dtype=np.int64),
+        "paths": np.array(list(paths), dtype=str),
+        "images": np.array(list(images), dtype=str),
+        "kinds": np.array(list(kinds), dtype=str),
+        "presses": np.array(list(presses), dtype=str),
+    }
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)  # type: ignore[arg-type]
+    atomic_write(path, lambda f: f.write(buf.getvalue()))
+
+
+def read_shard(path: Path, key: str | None = None) -> dict[str, NDArray[Any]] | None:
+    """Read a shard; None when it is missing, damaged, or its key is not ``key``."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if key is not None and str(z["key"]) != key:
+                return None
+            out = {name: z[name] for name in _SHARD_ARRAYS}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    n = len(out["embeddings"])
+    if any(len(v) != n for v in out.values()):
+        return None
+    return out
+
+
+# ---- records -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LibraryItem:
+    """One library row: an item of one fabric in one modality.
+
+    Attributes:
+        id: ``"<modality>:<row>"``, how the web app and the JSON API name items.
+        modality, row: where it is in the library.
+        fabric_id: its fabric.
+        path: the item's file (a press's first frame for touch).
+        image: the file that was embedded and is shown (for touch: the configured frame).
+        kind: the press kind for touch, else None.
+        press: the press id for touch, else None.
+    """
+
+    id: str
+    modality: Modality
+    row: int
+    fabric_id: int
+    path: str
+    image: str
+    kind: str | None
+    press: str | None
+
+
+@dataclass(frozen=True)
+class FabricRecord:
+    """A fabric of the library: its known labels and cluster."""
+
+    id: int
+    labels: dict[str, float]
+    cluster: int | None
+
+
+class ModalityTable:
+    """One modality's rows: embeddings and metadata, plus each fabric's rows.
+
+    Attributes:
+        modality: the modality.
+        embeddings: (N, D) float32.
+        fabric_ids: (N,) int64.
+        fabrics: (F,) the distinct fabric ids, sorted.
+        fabric_index: (N,) each row's position in ``fabrics``.
+    """
+
+    def __init__(self, modality: Modality, arrays: dict[str, NDArray[Any]]) -> None:
+        self.modality = modality
+        self.embeddings: NDArray[np.float32] = arrays["embeddings"]
+        self.fabric_ids: NDArray[np.int64] = arrays["fabric_ids"]
+        self._paths = arrays["paths"]
+        self._images = arrays["images"]
+        self._kinds = arrays["kinds"]
+        self._presses = arrays["presses"]
+        self.fabrics, self.fabric_index = np.unique(self.fabric_ids, return_inverse=True)
+        order = np.argsort(self.fabric_index, kind="stable")
+        bounds = np.searchsorted(self.fabric_index[order], np.arange(len(self.fabrics) + 1))
+        self._rows = {int(f): order[bounds[i] : bounds[i + 1]] for i, f in enumerate(self.fabrics)}
+
+    def __len__(self) -> int:
+        return len(self.embeddings)
+
+    def rows_of(self, fabric_id: int) -> NDArray[np.int64]:
+        """Rows of one fabric (empty when it has none in this modality)."""
+        return self._rows.get(int(fabric_id), np.zeros(0, dtype=np.int64))
+
+    def item(self, row: int) -> LibraryItem:
+        """The metadata of one row.
+
+        Raises:
+            KeyError: naming the row when it is out of range.
+        """
+        if not 0 <= row < len(self):
+            raise KeyError(f"{self.modality.value} has no item {row} (rows 0-{len(self) - 1})")
+        kind = str(self._kinds[row]) or None
+        press = str(self._presses[row]) or None
+        return LibraryItem(
+            id=f"{self.modality.value}:{row}",
+            modality=self.modality,
+            row=row,
+            fabric_id=int(self.fabric_ids[row]),
+            path=str(self._paths[row]),
+            image=str(self._images[row]),
+            kind=kind,
+            press=press,
+        )
+
+
+# ---- the library -------------------------------------------------------------------------------
+
+
+class Library:
+    """A built fabric library, read into memory (use `Library.open`).
+
+    Attributes:
+        root: the library folder.
+        manifest: the parsed ``manifest.json``.
+        tables: modality -> its rows.
+        fabrics: fabric id -> labels and cluster.
+        label_columns: label names, in the dataset's order.
+        calibration: c and the unknown threshold per (query, gallery) pair.
+        config: the run config of the model (its DataConfig preprocesses queries).
+        backend: ``numpy`` or ``faiss``.
+        checkpoint: the checkpoint file queries are embedded with.
+    """
+
+    def __init__(
+        self,
+        root: Path,
+        manifest: dict[str, Any],
+        tables: dict[Modality, ModalityTable],
+        searches: dict[Modality, Search],
+        checkpoint: Path,
+    ) -> None:
+        self.root = root
+        self.manifest = manifest
+        self.tables = tables
+        self._searches = searches
+        self.checkpoint = checkpoint
+        self.config = from_dict(RunConfig, manifest["config"])
+        self.backend: str = manifest["backend"]
+        self.label_columns: tuple[str, ...] = tuple(manifest["label_columns"])
+        self.fabrics = {
+            int(f["id"]): FabricRecord(
+                int(f["id"]), {k: float(v) for k, v in f["labels"].items()}, f["cluster"]
+            )
+            for f in manifest["fabrics"]
+        }
+        self.calibration = Calibration.from_dict(manifest["calibration"])
+
+    @property
+    def modalities(self) -> tuple[Modality, ...]:
+        """Modalities with items, in enum order."""
+        return tuple(m for m in Modality if m in self.tables)
+
+    @property
+    def embed_dim(self) -> int:
+        return int(self.manifest["embed_dim"])
+
+    def __len__(self) -> int:
+        return sum(len(t) for t in self.tables.values())
+
+    def table(self, modality: Modality) -> ModalityTable:
+        """One modality's rows.
+
+        Raises:
+            LibraryError: naming the modality and those the library has.
+        """
+        if modality not in self.tables:
+            have = ", ".join(m.value for m in self.modalities)
+            raise LibraryError(f"the library at {self.root} has no {modality.value} items ({have})")
+        return self.tables[modality]
+
+    def search(self, modality: Modality) -> Search:
+        """The search backend over one modality's embeddings."""
+        self.table(modality)
+        return self._searches[modality]
+
+    def item(self, item_id: str) -> LibraryItem:
+        """An item by id (``"touch:12"``).
+
+        Raises:
+            KeyError: naming the id when it does not exist.
+        """
+        mod, _, row = item_id.partition(":")
+        try:
+            modality = Modality(mod)
+            index = int(row)
+        except ValueError:
+            raise KeyError(f"item id {item_id!r} is not <modality>:<row>") from None
+        if modality not in self.tables:
+            raise KeyError(f"item {item_id!r}: the library has no {modality.value} items")
+        return self.tables[modality].item(index)
+
+    def summary(self) -> dict[str, Any]:
+        """What `lookfeel index info` prints and the web app's ``/api/library`` returns."""
+        return {
+            "root": str(self.root),
+            "checkpoint": str(self.checkpoint),
+            "model": {
+                "backbone": self.config.model.backbone,
+                "embed_dim": self.embed_dim,
+                "image_size": self.config.data.image_size,
+                "step": self.manifest["checkpoint"].get("step"),
+            },
+            "data_root": self.manifest["data_root"],
+            "backend": self.backend,
+            "fabrics": len(self.fabrics),
+            "items": {m.value: len(t) for m, t in self.tables.items()},
+            "label_columns": list(self.label_columns),
+            "calibration": self.calibration.to_dict(),
+        }
+
+    def load_model(self, device: torch.device | str = "cpu") -> LoadedModel:
+        """The model that embedded the library, to embed queries with.
+
+        Raises:
+            LibraryError: the checkpoint is missing or has changed since the build.
+        """
+        ck = self.checkpoint
+        if not ck.is_file():
+            raise LibraryError(
+                f"{ck}: the library's checkpoint is not there; pass the checkpoint it was built "
+                "with (--checkpoint) or rebuild the library"
+            )
+        expected = self.manifest["checkpoint"]["sha256"]
+        if file_sha256(ck) != expected:
+            raise LibraryError(
+                f"{ck}: this checkpoint differs from the one the library was built with "
+                f"(sha256 {expected[:12]}...); its embeddings would not match. Rebuild the "
+                "library with `lookfeel index build`"
+            )
+        return load_model(ck, device)
+
+    @classmethod
+    def open(
+        cls, root: str | os.PathLike[str], checkpoint: str | os.PathLike[str] | None = None
+    ) -> Library:
+        """Read a complete library.
+
+        Args:
+            root: the library folder.
+            checkpoint: use this checkpoint file instead of the recorded path (a moved
+                library); it must be the same file (same SHA-256).
+
+        Raises:
+            LibraryError: naming the file, when the library is missing, unfinished, from a
+                newer lookfeel, or damaged.
+        """
+        root = Path(root)
+        manifest = read_manifest(root)
+        if manifest.get("status") != "complete":
+            raise LibraryError(
+                f"{root}: the library build did not finish; run `lookfeel index build` again "
+                "with the same arguments to resume it"
+            )
+        tables: dict[Modality, ModalityTable] = {}
+        searches: dict[Modality, Search] = {}
+        for name, entry in manifest["modalities"].items():
+            m = Modality(name)
+            parts = []
+            for shard in entry["shards"]:
+                arrays = read_shard(root / shard["file"], shard["key"])
+                if arrays is None:
+                    raise LibraryError(
+                        f"{root / shard['file']}: shard missing or damaged; rebuild with "
+                        "`lookfeel index build` (unchanged shards are reused)"
+                    )
+                parts.append(arrays)
+            merged = {k: np.concatenate([p[k] for p in parts]) for k in _SHARD_ARRAYS}
+            if len(merged["embeddings"]) != entry["rows"]:
+                raise LibraryError(
+                    f"{root}: {name} has {len(merged['embeddings'])} rows, "
+                    f"the manifest says {entry['rows']}"
+                )
+            tables[m] = ModalityTable(m, merged)
+            if manifest["backend"] == "faiss":
+                index_file = root / entry["faiss"]
+                try:
+                    searches[m] = FaissSearch.from_bytes(index_file.read_bytes())
+                except (OSError, RuntimeError) as e:
+                    raise LibraryError(f"{index_file}: cannot read the faiss index: {e}") from None
+            else:
+                searches[m] = ExactSearch(tables[m].embeddings)
+        ck = Path(checkpoint) if checkpoint is not None else Path(manifest["checkpoint"]["path"])
+        return cls(root, manifest, tables, searches, ck)
+
+
+def read_manifest(root: Path) -> dict[str, Any]:
+    """Parse ``root/manifest.json`` and check it is a library this version reads.
+
+    Raises:
+        LibraryError: naming the file.
+    """
+    path = root / MANIFEST
+    if not root.is_dir():
+        raise LibraryError(f"{root}: library folder not found")
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise LibraryError(f"{root}: not a lookfeel library (no {MANIFEST})") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise LibraryError(f"{path}: unreadable library manifest ({e})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != LIBRARY_FORMAT:
+        raise LibraryError(f"{path}: not a lookfeel library manifest")
+    if int(manifest.get("version", 0)) > LIBRARY_VERSION:
+        raise LibraryError(
+            f"{path}: written by a newer lookfeel (library version {manifest['version']}); upgrade"
+        )
+    return manifest

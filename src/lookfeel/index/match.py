@@ -1,0 +1,429 @@
+"""Matching a query against a library: which known fabric, how it looks and feels, its properties.
+
+For a query embedding e of modality q against the gallery modality g (by default the one that
+matched best in calibration), every gallery item i gets ``P_i = exp(-c D_i^2) / sum_j exp(-c
+D_j^2)`` with c calibrated for (q, g) (paper section 5.2, eq. 3-4), and a fabric's probability
+is the sum over its items, times ``1 - P(unknown)``, the calibrated unknown class
+(`lookfeel.index.calibrate`). The fabrics are ranked by probability; for each, its items nearest
+to e in every modality of the library say what it looks like (depth, colour) and how it feels
+(touch). Physical properties are predicted from the top ``k_properties`` fabrics, each weighted
+by its probability: the weighted mean and standard deviation of their known labels. When the
+best probability is below the calibrated threshold the answer is "no known fabric".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from lookfeel.config import DataConfig
+from lookfeel.index.calibrate import unknown_probability
+from lookfeel.index.library import Library, LibraryError
+from lookfeel.index.query import load_query_image, query_batch
+from lookfeel.index.search import ExactSearch
+from lookfeel.metrics import match_probabilities
+from lookfeel.modality import Modality
+
+__all__ = [
+    "FabricMatch",
+    "ItemRef",
+    "MatchResult",
+    "Matcher",
+    "PropertyEstimate",
+    "format_match",
+]
+
+FAISS_CANDIDATES = 2048
+"""Items a faiss search returns; probabilities are normalised over these."""
+
+
+@dataclass(frozen=True)
+class ItemRef:
+    """A library item shown for a matched fabric."""
+
+    id: str
+    """``"<modality>:<row>"``; the web app serves its image at ``/api/items/{id}/image``."""
+    modality: Modality
+    path: str
+    """The file it was embedded from."""
+    distance: float
+    """Its embedding distance D to the query."""
+
+
+@dataclass(frozen=True)
+class PropertyEstimate:
+    """A physical property predicted from the best-matching fabrics."""
+
+    name: str
+    mean: float | None
+    """Probability-weighted mean over the top fabrics with the label known; None if none is."""
+    std: float | None
+    """Probability-weighted standard deviation (the spread among plausible fabrics)."""
+    fabrics: int
+    """How many fabrics carried the label."""
+
+
+@dataclass(frozen=True)
+class FabricMatch:
+    """One ranked library fabric."""
+
+    rank: int
+    fabric_id: int
+    probability: float
+    """Calibrated P(the query shows this fabric); with P(unknown), these sum to 1."""
+    distance: float
+    """Distance from the query to the fabric's nearest gallery item."""
+    cluster: int | None
+    labels: dict[str, float]
+    nearest: dict[str, list[ItemRef]]
+    """Modality -> the fabric's items nearest to the query: what it looks like and feels like."""
+
+
+@dataclass(frozen=True)
+class MatchResult:
+    """The answer to one query."""
+
+    query_modality: Modality
+    gallery_modality: Modality
+    query: list[str]
+    """The query's files (several for a multi-press touch query)."""
+    presses: int
+    """Images pooled into this query (touch presses; 1 for depth and colour)."""
+    known: bool
+    """Whether the best match reaches the calibrated threshold."""
+    best_probability: float
+    unknown_probability: float
+    """P(none of the library's fabrics): the calibrated unknown class."""
+    threshold: float
+    c: float
+    message: str
+    fabrics: list[FabricMatch]
+    properties: list[PropertyEstimate]
+    backend: str
+    timing_ms: dict[str, float] = field(default_factory=dict)
+
+
+class Matcher:
+    """Embeds queries with a library's model and matches them against the library.
+
+    Args:
+        library: an opened `Library`.
+        device: where the model runs.
+
+    Raises:
+        LibraryError: the library's checkpoint is missing or changed.
+
+    Example:
+        >>> matcher = Matcher(Library.open("lib"))
+        >>> [r] = matcher.match_files(["press1.png", "press2.png"], Modality.TOUCH)
+        >>> r.fabrics[0].fabric_id, r.fabrics[0].probability, r.known
+    """
+
+    def __init__(self, library: Library, device: torch.device | str = "cpu") -> None:
+        self.library = library
+        self.device = torch.device(device)
+        self.model = library.load_model(device).model
+
+    @property
+    def data_config(self) -> DataConfig:
+        """How query images are preprocessed: the run's own data settings."""
+        return self.library.config.data
+
+    def check_modality(self, modality: Modality) -> None:
+        """Raise `LibraryError` when the model cannot embed ``modality``."""
+        if modality not in self.model.modalities:
+            have = ", ".join(m.value for m in self.model.modalities)
+            raise LibraryError(
+                f"the library's model has no {modality.value} branch (it embeds: {have})"
+            )
+
+    @torch.inference_mode()
+    def embed(self, x: torch.Tensor, modality: Modality) -> NDArray[np.float32]:
+        """Embed a `query_batch` (N, C, S, S) or (1, P, 3, S, S) -> (N, D) float32."""
+        self.check_modality(modality)
+        out = self.model({modality.value: x.to(self.device)})[modality.value]
+        return out.float().cpu().numpy()
+
+    def load(self, paths: Sequence[str | Path], modality: Modality) -> torch.Tensor:
+        """Read query files into a `query_batch`; errors name the file."""
+        self.check_modality(modality)
+        return query_batch(
+            [load_query_image(p, modality, self.data_config) for p in paths], modality
+        )
+
+    def match_files(
+        self,
+        paths: Sequence[str | Path],
+        modality: Modality,
+        top: int = 5,
+        gallery: Modality | None = None,
+        k_properties: int = 5,
+        n_items: int = 2,
+    ) -> list[MatchResult]:
+        """Match image files: one result per depth/colour image, one for all touch presses.
+
+        Raises:
+            ImageError: naming a file that cannot be used.
+            LibraryError: the modality or gallery is not in the library.
+        """
+        t0 = time.perf_counter()
+        x = self.load(paths, modality)
+        t1 = time.perf_counter()
+        emb = self.embed(x, modality)
+        t2 = time.perf_counter()
+        names = [str(p) for p in paths]
+        groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
+        results = []
+        for e, files in zip(emb, groups, strict=True):
+            r = self.match_embedding(
+                e,
+                modality,
+                files,
+                top=top,
+                gallery=gallery,
+                k_properties=k_properties,
+                n_items=n_items,
+            )
+            r.timing_ms.update(load=1e3 * (t1 - t0), embed=1e3 * (t2 - t1))
+            results.append(r)
+        return results
+
+    def match_item(
+        self,
+        item_id: str,
+        top: int = 5,
+        gallery: Modality | None = None,
+        k_properties: int = 5,
+        n_items: int = 2,
+    ) -> MatchResult:
+        """Match a library item as if it were a new query (itself left out of the gallery).
+
+        Raises:
+            KeyError: naming an unknown item id.
+        """
+        item = self.library.item(item_id)
+        e = self.library.tables[item.modality].embeddings[item.row]
+        return self.match_embedding(
+            e,
+            item.modality,
+            [item.image],
+            top=top,
+            gallery=gallery,
+            k_properties=k_properties,
+            n_items=n_items,
+            exclude=item_id,
+        )
+
+    def match_embedding(
+        self,
+        e: NDArray[np.floating],
+        modality: Modality,
+        files: list[str],
+        *,
+        top: int = 5,
+        gallery: Modality | None = None,
+        k_properties: int = 5,
+        n_items: int = 2,
+        exclude: str | None = None,
+    ) -> MatchResult:
+        """Rank the library's fabrics for one query embedding (see the module docstring).
+
+        Args:
+            e: (D,) the query's embedding.
+            modality: the query's modality.
+            files: the query's files, for the report.
+            top: fabrics to return.
+            gallery: the modality to match against; default: calibration's best for ``modality``.
+            k_properties: fabrics the property estimate is drawn from.
+            n_items: nearest items shown per fabric and modality.
+            exclude: a library item id left out everywhere (a library item used as query).
+
+        Raises:
+            LibraryError: ``gallery`` is not in the library or was not calibrated.
+        """
+        if top < 1:
+            raise LibraryError(f"top must be >= 1; got {top}")
+        lib = self.library
+        t0 = time.perf_counter()
+        g = gallery if gallery is not None else lib.calibration.default_gallery.get(modality)
+        if g is None:
+            raise LibraryError(
+                f"the library has no calibrated gallery for {modality.value} queries"
+            )
+        table = lib.table(g)
+        try:
+            cal = lib.calibration.pair(modality, g)
+        except KeyError as err:
+            raise LibraryError(str(err.args[0])) from None
+        search = lib.search(g)
+        left_out = -1  # the gallery row of a library item used as the query
+        if exclude is not None and exclude.startswith(f"{g.value}:"):
+            left_out = int(exclude.partition(":")[2])
+        if isinstance(search, ExactSearch):  # every row, unsorted: no sort is needed
+            d = search.distances(np.asarray(e)[None, :])[0]
+            fi = table.fabric_index
+            if left_out >= 0:
+                d[left_out] = np.inf  # probability exp(-inf) = 0, never the nearest
+        else:
+            d, idx = search.search(np.asarray(e)[None, :], min(len(search), FAISS_CANDIDATES))
+            keep = idx[0] != left_out
+            d, fi = d[0][keep], table.fabric_index[idx[0][keep]]
+        p_items = match_probabilities(d[None, :], cal.c)[0]
+        logits = -cal.c * np.square(d)
+        top_logit = logits.max()
+        lse = top_logit + math.log(float(np.exp(logits - top_logit).sum()))
+        p_unknown = float(unknown_probability(lse, cal.unknown_logit))
+        nf = len(table.fabrics)
+        pf = np.bincount(fi, weights=p_items, minlength=nf) * (1.0 - p_unknown)  # (F,)
+        dmin = np.full(nf, np.inf)
+        np.minimum.at(dmin, fi, d)
+        found = np.flatnonzero(np.isfinite(dmin))
+        order = found[np.lexsort((dmin[found], -pf[found]))]
+        t1 = time.perf_counter()
+
+        best = float(pf[order[0]]) if len(order) else 0.0
+        known = best >= cal.threshold
+        fabrics = [
+            self._fabric(
+                r + 1, int(table.fabrics[j]), float(pf[j]), float(dmin[j]), e, exclude, n_items
+            )
+            for r, j in enumerate(order[:top])
+        ]
+        ranked = [(int(table.fabrics[j]), float(pf[j])) for j in order[:k_properties]]
+        properties = self._properties(ranked)
+        best_id = int(table.fabrics[order[0]]) if len(order) else None
+        if known:
+            message = f"fabric {best_id} (P = {best:.3f}, P(unknown) = {p_unknown:.3f})"
+        else:
+            message = (
+                f"no known fabric: the best match, fabric {best_id}, has P = {best:.3f} "
+                f"(P(unknown) = {p_unknown:.3f}), below the threshold {cal.threshold:.3f} "
+                f"calibrated for a {100 * cal.target_false_accept:g}% false-accept rate on "
+                "held-out fabrics"
+            )
+        return MatchResult(
+            query_modality=modality,
+            gallery_modality=g,
+            query=list(files),
+            presses=len(files) if modality is Modality.TOUCH else 1,
+            known=known,
+            best_probability=best,
+            unknown_probability=p_unknown,
+            threshold=cal.threshold,
+            c=cal.c,
+            message=message,
+            fabrics=fabrics,
+            properties=properties,
+            backend=search.name,
+            timing_ms={"search": 1e3 * (t1 - t0)},
+        )
+
+    def _fabric(
+        self,
+        rank: int,
+        fabric_id: int,
+        probability: float,
+        distance: float,
+        e: NDArray[np.floating],
+        exclude: str | None,
+        n_items: int,
+    ) -> FabricMatch:
+        lib = self.library
+        nearest: dict[str, list[ItemRef]] = {}
+        q = np.asarray(e, dtype=np.float64)
+        for m, table in lib.tables.items():
+            rows = table.rows_of(fabric_id)
+            if exclude is not None:
+                rows = rows[[f"{m.value}:{r}" != exclude for r in rows]]
+            if not len(rows):
+                continue
+            dist = np.linalg.norm(table.embeddings[rows].astype(np.float64) - q, axis=1)
+            best = np.argsort(dist, kind="stable")[:n_items]
+            nearest[m.value] = [
+                ItemRef(f"{m.value}:{rows[i]}", m, table.item(int(rows[i])).image, float(dist[i]))
+                for i in best
+            ]
+        record = lib.fabrics.get(fabric_id)
+        return FabricMatch(
+            rank=rank,
+            fabric_id=fabric_id,
+            probability=probability,
+            distance=distance,
+            cluster=record.cluster if record else None,
+            labels=dict(record.labels) if record else {},
+            nearest=nearest,
+        )
+
+    def _properties(self, ranked: list[tuple[int, float]]) -> list[PropertyEstimate]:
+        out = []
+        for name in self.library.label_columns:
+            vals, weights = [], []
+            for fid, p in ranked:
+                record = self.library.fabrics.get(fid)
+                if record is not None and name in record.labels:
+                    vals.append(record.labels[name])
+                    weights.append(p)
+            if not vals:
+                out.append(PropertyEstimate(name, None, None, 0))
+                continue
+            v, w = np.asarray(vals), np.asarray(weights)
+            w = w / w.sum() if w.sum() > 0 else np.full(len(v), 1.0 / len(v))
+            mean = float((w * v).sum())
+            std = float(math.sqrt(max(float((w * (v - mean) ** 2).sum()), 0.0)))
+            if std <= 1e-9 * max(1.0, abs(mean)):
+                std = 0.0  # one plausible fabric (or equal labels): rounding noise, not spread
+            out.append(PropertyEstimate(name, mean, std, len(vals)))
+        return out
+
+
+def format_match(result: MatchResult, width: int = 48) -> str:
+    """A match result as a person reads it (``lookfeel match`` without ``--json``)."""
+    files = ", ".join(Path(f).name for f in result.query)
+    what = f"{result.presses} presses" if result.presses > 1 else "1 image"
+    lines = [
+        f"Query {result.query_modality.value} ({what}: {files}) against "
+        f"{result.gallery_modality.value}, c = {result.c:.4g}, unknown below P = "
+        f"{result.threshold:.3f}",
+        ("  match: " + result.message)
+        if result.known
+        else "  " + result.message[:1].upper() + result.message[1:],
+    ]
+    mods = sorted(
+        {m for f in result.fabrics for m in f.nearest},
+        key=lambda m: list(Modality).index(Modality(m)),
+    )
+    header = f"  {'rank':>4}  {'fabric':>6}  {'P':>6}  {'D':>7}  " + "  ".join(
+        f"{m:<{width}}" for m in mods
+    )
+    lines.append(header.rstrip())
+    for f in result.fabrics:
+        cells = []
+        for m in mods:
+            refs = f.nearest.get(m, [])
+            cells.append(_shorten(refs[0].path, width) if refs else "-")
+        lines.append(
+            (
+                f"  {f.rank:>4}  {f.fabric_id:>6}  {f.probability:6.3f}  {f.distance:7.3f}  "
+                + "  ".join(f"{c:<{width}}" for c in cells)
+            ).rstrip()
+        )
+    props = [p for p in result.properties if p.mean is not None]
+    if props:
+        lines.append(
+            "  properties (top fabrics weighted by P): "
+            + ", ".join(f"{p.name} {p.mean:.3g} ± {p.std:.2g}" for p in props)
+        )
+    return "\n".join(lines)
+
+
+def _shorten(path: str, width: int) -> str:
+    p = Path(path)
+    s = f"{p.parent.name}/{p.name}" if p.parent.name else p.name
+    return s if len(s) <= width else "…" + s[-(width - 1) :]

@@ -1,0 +1,86 @@
+"""Query images: decoded and preprocessed exactly as in training, checked with clear errors.
+
+A query is one or more image files of one modality. Depth is a 16-bit PNG in millimetres,
+colour an 8-bit RGB photo, touch one GelSight frame per press (the frame you would use for
+training: by default the second-to-last of a press). Preprocessing is the run's `DataConfig`
+through `lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training
+uses. No image is cached, so a path reused for different content is always read afresh.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from lookfeel.config import DataConfig
+from lookfeel.data import ImageError, decode_depth, decode_rgb
+from lookfeel.data.images import preprocess_depth, preprocess_rgb
+from lookfeel.modality import Modality
+
+__all__ = ["IMAGE_TYPES", "load_query_bytes", "load_query_image", "query_batch", "sniff_type"]
+
+IMAGE_TYPES = {"image/png": b"\x89PNG\r\n\x1a\n", "image/jpeg": b"\xff\xd8\xff"}
+"""The image types a query may be: content type -> the bytes its files begin with."""
+
+
+def sniff_type(head: bytes) -> str | None:
+    """The content type of an image from its first bytes (PNG or JPEG), else None."""
+    for mime, magic in IMAGE_TYPES.items():
+        if head.startswith(magic):
+            return mime
+    return None
+
+
+def load_query_image(path: str | Path, modality: Modality, config: DataConfig) -> torch.Tensor:
+    """Decode and preprocess one query image as training does.
+
+    Returns:
+        (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1].
+
+    Raises:
+        ImageError: naming the file when it is missing, not an image, or the wrong kind
+            (e.g. an 8-bit PNG given as depth).
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ImageError(path, "is a folder, not an image file")
+    if modality is Modality.DEPTH:
+        a = preprocess_depth(decode_depth(path), config)  # (S, S) float32
+        return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
+    rgb = preprocess_rgb(decode_rgb(path), modality, config)  # (S, S, 3) uint8
+    return torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
+
+
+def load_query_bytes(
+    data: bytes, name: str, modality: Modality, config: DataConfig
+) -> torch.Tensor:
+    """`load_query_image` for an upload: errors name ``name`` (the client's file name).
+
+    Raises:
+        ImageError: as `load_query_image`, naming ``name``.
+    """
+    with tempfile.TemporaryDirectory(prefix="lookfeel-query-") as tmp:
+        path = Path(tmp) / "query"
+        path.write_bytes(data)
+        try:
+            return load_query_image(path, modality, config)
+        except ImageError as e:
+            raise ImageError(Path(name), e.reason) from None
+
+
+def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Tensor:
+    """Stack preprocessed images into the model's input for one modality.
+
+    Depth and colour images are separate queries: (N, C, S, S). Touch images are the presses
+    of one query, pooled by the Multi-input Net: (1, P, 3, S, S).
+    """
+    if not images:
+        raise ValueError("a query needs at least one image")
+    x = torch.stack(list(images))
+    if modality is Modality.TOUCH:
+        return x.unsqueeze(0)  # (P, 3, S, S) -> (1, P, 3, S, S)
+    return x.contiguous(memory_format=torch.channels_last)

@@ -1,0 +1,436 @@
+"""The web app: a page to match an image of any modality, and the JSON API behind it.
+
+Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
+
+- ``GET /``: the page (plain HTML, CSS and a little JS from this package; nothing external).
+- ``GET /api/library``: what the library holds and how it is calibrated.
+- ``GET /api/fabrics``: every fabric with its labels and a few item ids per modality.
+- ``GET /api/items/{item_id}``: one item's metadata; ``/api/items/{item_id}/image`` its image
+  as a PNG thumbnail. Items are named by id (``depth:12``); the file is looked up in the
+  library, so no request ever names a path on disk.
+- ``POST /api/match``: multipart upload, ``modality`` and one or more ``files`` (several touch
+  files are the presses of one query, pooled as the Multi-input Net).
+- ``POST /api/match/item``: match a library item as a query (itself left out).
+
+Uploads are limited in size and number and must be PNG or JPEG by content; a bad upload gets a
+4xx with a message naming the file. The model runs in a thread pool, at most
+``max_concurrency`` queries at a time (a semaphore); beyond ``max_waiting`` waiting queries
+the server answers 503 instead of queueing without bound.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import os
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import FastAPI, File, Form, HTTPException, UploadFile
+from fastapi.responses import HTMLResponse, JSONResponse, Response
+from PIL import Image
+from pydantic import BaseModel, Field
+from starlette.concurrency import run_in_threadpool
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
+from lookfeel.index import (
+    FabricMatch,
+    ItemRef,
+    Library,
+    LibraryError,
+    LibraryItem,
+    Matcher,
+    MatchResult,
+    load_query_bytes,
+    query_batch,
+    sniff_type,
+)
+from lookfeel.modality import Modality
+
+__all__ = ["ServeConfig", "create_app"]
+
+_STATIC = {
+    "index.html": "text/html; charset=utf-8",
+    "app.js": "text/javascript; charset=utf-8",
+    "style.css": "text/css; charset=utf-8",
+}
+
+
+@dataclass(frozen=True)
+class ServeConfig:
+    """Limits of the web app.
+
+    Attributes:
+        max_upload_bytes: largest accepted file (413 above).
+        max_files: most files in one request (a touch query's presses).
+        max_concurrency: queries the model runs at once (threads; 2 cores: 1-2).
+        max_waiting: queries that may wait for the model before the server answers 503.
+        max_top: largest ``top`` a request may ask for.
+        thumbnail_size: longest side of the item images served, in pixels.
+    """
+
+    max_upload_bytes: int = 8 * 1024 * 1024
+    max_files: int = 8
+    max_concurrency: int = 2
+    max_waiting: int = 64
+    max_top: int = 20
+    thumbnail_size: int = 256
+
+
+class LibraryInfo(BaseModel):
+    """What the library holds."""
+
+    fabrics: int
+    items: dict[str, int]
+    modalities: list[Modality]
+    default_gallery: dict[str, Modality]
+    label_columns: list[str]
+    backbone: str
+    image_size: int
+    embed_dim: int
+    backend: str
+    limits: dict[str, int]
+    calibration: dict[str, Any]
+
+
+class ItemInfo(BaseModel):
+    """One library item (its file name only; the server's folders are not shown)."""
+
+    id: str
+    modality: Modality
+    fabric_id: int
+    file: str
+    kind: str | None = None
+    image_url: str
+
+
+class FabricInfo(BaseModel):
+    """One library fabric with a few of its items per modality."""
+
+    id: int
+    cluster: int | None
+    labels: dict[str, float]
+    items: dict[str, list[str]]
+
+
+class MatchResponse(BaseModel):
+    """One result per query: per depth/colour file, or one for all touch presses."""
+
+    results: list[MatchResult]
+
+
+class ItemQuery(BaseModel):
+    """Match a library item as if it were a new query."""
+
+    item: str = Field(description="item id, e.g. 'depth:12'", examples=["depth:0"])
+    top: int = Field(5, ge=1, description="fabrics to return")
+    gallery: Modality | None = Field(None, description="modality to match against")
+
+
+def _public(result: MatchResult) -> MatchResult:
+    """The result with file names only: the server's folders are not the client's business."""
+
+    def ref(r: ItemRef) -> ItemRef:
+        return replace(r, path=Path(r.path).name)
+
+    def fab(f: FabricMatch) -> FabricMatch:
+        return replace(f, nearest={m: [ref(r) for r in rs] for m, rs in f.nearest.items()})
+
+    return replace(
+        result,
+        query=[Path(q).name for q in result.query],
+        fabrics=[fab(f) for f in result.fabrics],
+    )
+
+
+def _item_info(item: LibraryItem) -> ItemInfo:
+    return ItemInfo(
+        id=item.id,
+        modality=item.modality,
+        fabric_id=item.fabric_id,
+        file=Path(item.image).name,
+        kind=item.kind,
+        image_url=f"/api/items/{item.id}/image",
+    )
+
+
+def _thumbnail(item: LibraryItem, library: Library, size: int) -> bytes:
+    """The item's image as a PNG no larger than ``size``; depth mapped to grey as training."""
+    path = Path(item.image)
+    if item.modality is Modality.DEPTH:
+        cfg = library.config.data
+        unit = depth_to_unit(decode_depth(path), cfg.depth_min_mm, cfg.depth_range_mm)
+        im = Image.fromarray((unit * 255.0 + 0.5).astype(np.uint8))
+    else:
+        im = Image.fromarray(decode_rgb(path))
+    im.thumbnail((size, size))
+    buf = io.BytesIO()
+    im.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+class _BodyLimit:
+    """Refuse request bodies over ``limit`` bytes with a 413, declared or streamed (chunked).
+
+    A declared Content-Length over the limit is refused before anything is read; a body sent
+    without one is counted as it arrives and cut off at the limit, so an upload can never fill
+    the disk where the form parser spools files.
+    """
+
+    def __init__(self, app: ASGIApp, limit: int) -> None:
+        self.app = app
+        self.limit = limit
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers", []))
+        declared = headers.get(b"content-length", b"").decode("latin-1")
+        if declared.isdigit() and int(declared) > self.limit:
+            response = JSONResponse(
+                {"detail": f"request of {int(declared)} bytes is larger than {self.limit} bytes"},
+                status_code=413,
+            )
+            await response(scope, receive, send)
+            return
+        received = 0
+
+        async def counted() -> Message:
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > self.limit:
+                    # FastAPI passes an HTTPException raised while reading the body through.
+                    raise HTTPException(413, f"request is larger than {self.limit} bytes")
+            return message
+
+        await self.app(scope, counted, send)
+
+
+def create_app(
+    library: Library | str | os.PathLike[str],
+    config: ServeConfig | None = None,
+    matcher: Matcher | None = None,
+) -> FastAPI:
+    """Build the web app over a library.
+
+    Args:
+        library: an opened `Library` or its folder.
+        config: limits; defaults to `ServeConfig()`.
+        matcher: a ready `Matcher` (tests inject one); default: built from the library.
+
+    Raises:
+        LibraryError: the library or its checkpoint cannot be used.
+    """
+    cfg = config or ServeConfig()
+    lib = library if isinstance(library, Library) else Library.open(library)
+    match = matcher or Matcher(lib)
+    static = {
+        name: (resources.files("lookfeel.serve").joinpath("static", name).read_bytes(), mime)
+        for name, mime in _STATIC.items()
+    }
+    app = FastAPI(
+        title="lookfeel",
+        summary="Which known fabric is this, how does it look and feel, what are its properties?",
+        version="1",
+        docs_url=None,  # Swagger UI and ReDoc load scripts from a CDN; the page must not
+        redoc_url=None,
+    )
+    state: dict[str, Any] = {"waiting": 0, "semaphore": None}
+    thumbnails: OrderedDict[str, bytes] = OrderedDict()
+
+    def semaphore() -> asyncio.Semaphore:
+        if state["semaphore"] is None:  # created in the server's event loop
+            state["semaphore"] = asyncio.Semaphore(cfg.max_concurrency)
+        sem: asyncio.Semaphore = state["semaphore"]
+        return sem
+
+    async def run_model(fn: Any, *args: Any) -> Any:
+        if state["waiting"] >= cfg.max_waiting:
+            raise HTTPException(503, "server busy: too many queries waiting; retry shortly")
+        state["waiting"] += 1
+        try:
+            async with semaphore():
+                return await run_in_threadpool(fn, *args)
+        finally:
+            state["waiting"] -= 1
+
+    max_body = cfg.max_files * cfg.max_upload_bytes + 64 * 1024
+    app.add_middleware(_BodyLimit, limit=max_body)
+
+    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
+    def page() -> Response:
+        body, mime = static["index.html"]
+        return Response(body, media_type=mime)
+
+    @app.get("/static/{name}", include_in_schema=False)
+    def static_file(name: str) -> Response:
+        if name not in static:
+            raise HTTPException(404, f"no static file {name!r}")
+        body, mime = static[name]
+        return Response(body, media_type=mime, headers={"Cache-Control": "no-cache"})
+
+    @app.get("/api/library", response_model=LibraryInfo)
+    def library_info() -> LibraryInfo:
+        """What the library holds: fabrics, items per modality, model, calibration, limits."""
+        return LibraryInfo(
+            fabrics=len(lib.fabrics),
+            items={m.value: len(t) for m, t in lib.tables.items()},
+            modalities=[m for m in match.model.modalities if m in lib.tables],
+            default_gallery={q.value: g for q, g in lib.calibration.default_gallery.items()},
+            label_columns=list(lib.label_columns),
+            backbone=lib.config.model.backbone,
+            image_size=lib.config.data.image_size,
+            embed_dim=lib.embed_dim,
+            backend=lib.backend,
+            limits={
+                "max_upload_bytes": cfg.max_upload_bytes,
+                "max_files": cfg.max_files,
+                "max_top": cfg.max_top,
+            },
+            calibration=lib.calibration.to_dict(),
+        )
+
+    @app.get("/api/fabrics", response_model=list[FabricInfo])
+    def fabrics(per_modality: int = 3) -> list[FabricInfo]:
+        """Every fabric with its labels and up to ``per_modality`` item ids per modality."""
+        per = max(0, min(per_modality, 50))
+        out = []
+        for fid, record in sorted(lib.fabrics.items()):
+            items = {
+                m.value: [f"{m.value}:{r}" for r in t.rows_of(fid)[:per]]
+                for m, t in lib.tables.items()
+            }
+            out.append(
+                FabricInfo(id=fid, cluster=record.cluster, labels=record.labels, items=items)
+            )
+        return out
+
+    def lookup(item_id: str) -> LibraryItem:
+        try:
+            return lib.item(item_id)
+        except KeyError as e:
+            raise HTTPException(404, str(e.args[0])) from None
+
+    @app.get("/api/items/{item_id}", response_model=ItemInfo)
+    def item_info(item_id: str) -> ItemInfo:
+        """One library item by id (``depth:12``)."""
+        return _item_info(lookup(item_id))
+
+    @app.get(
+        "/api/items/{item_id}/image",
+        response_class=Response,
+        responses={200: {"content": {"image/png": {}}}},
+    )
+    async def item_image(item_id: str) -> Response:
+        """The item's image as a PNG thumbnail (depth shown as grey, near = dark)."""
+        item = lookup(item_id)
+        png = thumbnails.get(item.id)
+        if png is None:
+            try:
+                png = await run_in_threadpool(_thumbnail, item, lib, cfg.thumbnail_size)
+            except ImageError as e:
+                raise HTTPException(
+                    410, f"item {item.id}: its file can no longer be read ({e.reason})"
+                ) from None
+            thumbnails[item.id] = png
+            while len(thumbnails) > 2048:
+                thumbnails.popitem(last=False)
+        return Response(
+            png, media_type="image/png", headers={"Cache-Control": "public, max-age=3600"}
+        )
+
+    def check_top(top: int) -> None:
+        if not 1 <= top <= cfg.max_top:
+            raise HTTPException(422, f"top must be between 1 and {cfg.max_top}; got {top}")
+
+    def check_modalities(modality: Modality, gallery: Modality | None) -> None:
+        try:
+            match.check_modality(modality)
+            if gallery is not None:
+                lib.table(gallery)
+        except LibraryError as e:
+            raise HTTPException(422, str(e)) from None
+
+    @app.post(
+        "/api/match",
+        response_model=MatchResponse,
+        responses={
+            413: {"description": "a file or the request is too large"},
+            415: {"description": "a file is not a PNG or JPEG image"},
+            422: {"description": "a file cannot be decoded as this modality, or bad fields"},
+            503: {"description": "too many queries waiting"},
+        },
+    )
+    async def match_upload(
+        modality: Annotated[Modality, Form(description="what the images show")],
+        files: Annotated[
+            list[UploadFile],
+            File(description="PNG or JPEG images; several touch files are one query's presses"),
+        ],
+        top: Annotated[int, Form(description="fabrics to return")] = 5,
+        gallery: Annotated[Modality | None, Form(description="modality to match against")] = None,
+    ) -> MatchResponse:
+        """Rank the library's fabrics for uploaded images, with probabilities, the nearest
+        items of each fabric in every modality and predicted physical properties."""
+        check_top(top)
+        check_modalities(modality, gallery)
+        if not files:
+            raise HTTPException(422, "no file uploaded")
+        if len(files) > cfg.max_files:
+            raise HTTPException(413, f"{len(files)} files; at most {cfg.max_files} per query")
+        blobs: list[tuple[str, bytes]] = []
+        for i, f in enumerate(files):
+            name = Path(f.filename or f"file {i + 1}").name
+            data = await f.read(cfg.max_upload_bytes + 1)
+            if len(data) > cfg.max_upload_bytes:
+                raise HTTPException(
+                    413, f"{name}: larger than the {cfg.max_upload_bytes} bytes allowed"
+                )
+            if not data:
+                raise HTTPException(422, f"{name}: the file is empty")
+            if sniff_type(data[:16]) is None:
+                raise HTTPException(415, f"{name}: not a PNG or JPEG image")
+            blobs.append((name, data))
+
+        def work() -> list[MatchResult]:
+            images = [load_query_bytes(d, n, modality, match.data_config) for n, d in blobs]
+            x = query_batch(images, modality)
+            emb = match.embed(x, modality)
+            names = [n for n, _ in blobs]
+            groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
+            return [
+                match.match_embedding(e, modality, g, top=top, gallery=gallery)
+                for e, g in zip(emb, groups, strict=True)
+            ]
+
+        try:
+            results = await run_model(work)
+        except ImageError as e:
+            raise HTTPException(422, str(e)) from None
+        except LibraryError as e:
+            raise HTTPException(422, str(e)) from None
+        return MatchResponse(results=[_public(r) for r in results])
+
+    @app.post("/api/match/item", response_model=MatchResponse)
+    async def match_library_item(query: ItemQuery) -> MatchResponse:
+        """Match a library item as a query, itself left out of the gallery."""
+        check_top(query.top)
+        item = lookup(query.item)
+        check_modalities(item.modality, query.gallery)
+        try:
+            result = await run_model(
+                lambda: match.match_item(item.id, top=query.top, gallery=query.gallery)
+            )
+        except LibraryError as e:
+            raise HTTPException(422, str(e)) from None
+        return MatchResponse(results=[_public(result)])
+
+    return app

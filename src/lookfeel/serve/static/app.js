@@ -1,0 +1,130 @@
+// The lookfeel page: upload (or pick) an image, show the ranked fabrics. No libraries.
+"use strict";
+
+const $ = (sel) => document.querySelector(sel);
+const NAMES = { depth: "looks (depth)", color: "looks (colour)", touch: "feels (touch)" };
+let info = null;
+
+function el(tag, attrs = {}, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") e.className = v; else e.setAttribute(k, v);
+  }
+  for (const c of children) e.append(c instanceof Node ? c : document.createTextNode(String(c)));
+  return e;
+}
+
+function status(text, kind) {
+  const s = $("#status");
+  s.textContent = text;
+  s.className = kind || "";
+}
+
+function fmt(x, digits = 3) {
+  return x === null || x === undefined ? "?" : Number(x).toPrecision(digits);
+}
+
+async function loadLibrary() {
+  const r = await fetch("/api/library");
+  info = await r.json();
+  const items = Object.entries(info.items).map(([m, n]) => `${n} ${m}`).join(", ");
+  $("#library").textContent =
+    `${info.fabrics} fabrics (${items}); model ${info.backbone} at ${info.image_size} px, ` +
+    `D = ${info.embed_dim}; search ${info.backend}.`;
+  for (const opt of $("#modality").options) opt.disabled = !info.modalities.includes(opt.value);
+  const fabrics = await (await fetch("/api/fabrics?per_modality=1")).json();
+  const pick = $("#pick");
+  for (const f of fabrics) {
+    for (const [m, ids] of Object.entries(f.items)) {
+      for (const id of ids) pick.append(el("option", { value: id }, `fabric ${f.id}: ${m} (${id})`));
+    }
+  }
+}
+
+function showPreview() {
+  // Browsers draw a 16-bit depth map (millimetres) nearly black, so depth shows its name only.
+  const p = $("#preview");
+  p.replaceChildren();
+  for (const f of $("#files").files) {
+    if ($("#modality").value === "depth") p.append(el("span", { class: "file" }, f.name));
+    else p.append(el("img", { src: URL.createObjectURL(f), alt: f.name }));
+  }
+}
+
+function renderResult(res) {
+  const box = el("div", { class: "result" });
+  const what = res.presses > 1 ? `${res.presses} presses` : res.query.join(", ");
+  box.append(el("h2", {}, `${res.query_modality} query (${what}) against ${res.gallery_modality}`));
+  const props = res.properties.filter((p) => p.mean !== null)
+    .map((p) => `${p.name} ${fmt(p.mean)} ± ${fmt(p.std, 2)}`);
+  if (props.length) box.append(el("p", { class: "props" }, "Predicted properties: " + props.join(" · ")));
+  for (const f of res.fabrics) {
+    const left = el("div", {},
+      el("h3", {}, `#${f.rank} fabric ${f.fabric_id}`),
+      el("div", { class: "p" }, `P = ${fmt(f.probability)}`),
+      el("div", { class: "bar" }, el("div", { style: `width:${(100 * f.probability).toFixed(1)}%` })),
+      el("div", { class: "meta" }, `D = ${fmt(f.distance)}` + (f.cluster !== null ? ` · cluster ${f.cluster}` : "")),
+      el("div", { class: "meta" }, Object.entries(f.labels).map(([k, v]) => `${k} ${fmt(v)}`).join(" · ")));
+    const views = el("div", { class: "views" });
+    for (const [m, refs] of Object.entries(f.nearest)) {
+      for (const ref of refs.slice(0, 1)) {
+        views.append(el("figure", {},
+          el("img", { src: `/api/items/${ref.id}/image`, alt: `${m} of fabric ${f.fabric_id}`, title: ref.path }),
+          el("figcaption", {}, NAMES[m] || m)));
+      }
+    }
+    box.append(el("div", { class: "fabric" }, left, views));
+  }
+  return box;
+}
+
+function show(data) {
+  const results = $("#results");
+  results.replaceChildren(...data.results.map(renderResult));
+  const first = data.results[0];
+  if (data.results.every((r) => r.known)) status(first.message, "known");
+  else status(first.message.charAt(0).toUpperCase() + first.message.slice(1), "unknown");
+}
+
+async function submit(url, options) {
+  $("#match").disabled = $("#match-item").disabled = true;
+  status("Matching…");
+  try {
+    const r = await fetch(url, options);
+    const data = await r.json();
+    if (!r.ok) {
+      $("#results").replaceChildren();
+      status(`Error ${r.status}: ${typeof data.detail === "string" ? data.detail : JSON.stringify(data.detail)}`, "error");
+      return;
+    }
+    show(data);
+  } catch (e) {
+    status(`Error: ${e}`, "error");
+  } finally {
+    $("#match").disabled = $("#match-item").disabled = false;
+  }
+}
+
+$("#files").addEventListener("change", showPreview);
+$("#modality").addEventListener("change", showPreview);
+$("#upload-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  const files = $("#files").files;
+  if (!files.length) { status("Choose one or more images first.", "error"); return; }
+  const body = new FormData();
+  body.append("modality", $("#modality").value);
+  body.append("top", $("#top").value);
+  for (const f of files) body.append("files", f);
+  submit("/api/match", { method: "POST", body });
+});
+$("#pick-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  const item = $("#pick").value;
+  if (!item) return;
+  submit("/api/match/item", {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ item, top: Number($("#top").value) }),
+  });
+});
+loadLibrary().catch((e) => status(`Cannot read the library: ${e}`, "error"));

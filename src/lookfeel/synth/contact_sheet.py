@@ -1,0 +1,107 @@
+"""``contact_sheet.png``: a few fabrics of a generated world across all its modalities.
+
+Rows are fabrics chosen evenly from the stiffest to the most flexible (by bending length), so
+the sheet shows the physics at a glance: depth (false colour, near = bright), colour photos,
+and the second-to-last frame of a flat press and of two fold presses. Images are read back
+from the files written, so the sheet shows exactly what is on disk.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, ImageDraw
+
+from lookfeel.atomic import atomic_write_bytes
+from lookfeel.modality import Modality
+from lookfeel.synth.config import SynthConfig
+from lookfeel.synth.fabric import Fabric
+
+__all__ = ["write_contact_sheet"]
+
+_TILE = 128
+_LABEL_W = 150
+# A perceptual ramp (dark blue -> teal -> yellow) for depth, near = bright.
+_RAMP = np.array([[20, 20, 70], [40, 90, 140], [40, 160, 130], [170, 210, 70], [250, 240, 80]])
+
+
+def _depth_tile(path: Path) -> NDArray[np.uint8]:
+    d = np.asarray(Image.open(path), dtype=np.float32)
+    v = np.clip((1300.0 - d) / 550.0, 0.0, 1.0)  # the paper's 800-1300 mm window, near bright
+    x = np.linspace(0, 1, len(_RAMP))
+    rgb = np.stack([np.interp(v, x, _RAMP[:, k]) for k in range(3)], -1)
+    rgb[d == 0] = 0
+    return rgb.astype(np.uint8)
+
+
+def _fit(img: NDArray[np.uint8]) -> Image.Image:
+    pil = Image.fromarray(img).convert("RGB")
+    w, h = pil.size
+    s = _TILE / h
+    return pil.resize((max(1, round(w * s)), _TILE), Image.Resampling.BILINEAR)
+
+
+def _first(out: Path, pattern: str) -> Path | None:
+    hits = sorted(out.glob(pattern))
+    return hits[0] if hits else None
+
+
+def write_contact_sheet(
+    out: Path,
+    fabrics: Sequence[Fabric],
+    cfg: SynthConfig,
+    modalities: Sequence[Modality],
+    rows: int = 6,
+) -> Path:
+    """Compose and write ``out/contact_sheet.png``; returns its path."""
+    order = sorted(fabrics, key=lambda f: f.bending_length_mm)
+    idx = np.unique(np.linspace(0, len(order) - 1, min(rows, len(order))).round().astype(int))
+    picked = [order[i] for i in idx]
+    ext = cfg.image_format
+    mid = f"{max(1, cfg.frames - 1):02d}"  # the authors' "second-to-last" frame
+    strips = []
+    for f in picked:
+        fid = f"F{f.fabric_id:04d}"
+        tiles: list[Image.Image] = []
+        if Modality.DEPTH in modalities:
+            for p in sorted((out / "depth").glob(f"{fid}_*.png"))[:2]:
+                tiles.append(_fit(_depth_tile(p)))
+        if Modality.COLOR in modalities:
+            for p in sorted((out / "color").glob(f"{fid}_*.{ext}"))[:2]:
+                tiles.append(_fit(np.asarray(Image.open(p).convert("RGB"))))
+        if Modality.TOUCH in modalities:
+            for kind, n in (("flat", 1), ("fold", 2)):
+                presses = sorted(
+                    {
+                        p.stem.rsplit("_", 1)[1]
+                        for p in (out / "touch").glob(f"{fid}_{kind}_*.{ext}")
+                    }
+                )
+                for press in presses[:n]:
+                    frame = _first(out, f"touch/{fid}_{kind}_{mid}_{press}.{ext}")
+                    if frame is not None:
+                        tiles.append(_fit(np.asarray(Image.open(frame).convert("RGB"))))
+        label = Image.new("RGB", (_LABEL_W, _TILE), (255, 255, 255))
+        draw = ImageDraw.Draw(label)
+        text = (
+            f"{fid}\nbend length {f.bending_length_mm:.0f} mm\nthick {f.thickness_mm:.1f} mm\n"
+            f"density {f.density:.2f}\nstiff {f.stiffness:.1f}\n{f.weave}, {f.print_kind}"
+        )
+        draw.multiline_text((6, 8), text, fill=(0, 0, 0), spacing=4)
+        strips.append([label, *tiles])
+    width = max(sum(t.size[0] + 2 for t in s) for s in strips)
+    sheet = Image.new("RGB", (width, len(strips) * (_TILE + 2)), (255, 255, 255))
+    for r, strip in enumerate(strips):
+        x = 0
+        for t in strip:
+            sheet.paste(t, (x, r * (_TILE + 2)))
+            x += t.size[0] + 2
+    buf = io.BytesIO()
+    sheet.save(buf, format="PNG", compress_level=6)
+    path = out / "contact_sheet.png"
+    atomic_write_bytes(path, buf.getvalue())
+    return path

@@ -1,0 +1,39 @@
+"""A tiny trained model and dataset, made once per test process, for the library tests."""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import shutil
+import tempfile
+from pathlib import Path
+
+import torch
+
+from lookfeel.config import RunConfig, load_config
+from lookfeel.train import train
+
+from ._tiny import write_tiny_dataset
+
+TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+
+
+@functools.cache
+def tiny_run() -> tuple[Path, Path]:
+    """(dataset, checkpoint): six fabrics, the tiny config trained for 20 steps (~2 s).
+
+    Shared read-only by every test of the process; copy before modifying either.
+    """
+    root = Path(tempfile.mkdtemp(prefix="lookfeel-library-"))
+    atexit.register(shutil.rmtree, root, ignore_errors=True)
+    data = write_tiny_dataset(root / "data", fabrics=6, drapes=3, fold_presses=3, flat_presses=1)
+    config = load_config(RunConfig, TINY, ["train.val_every=0", "train.checkpoint_every=0"])
+    threads = torch.get_num_threads()
+    # One thread trains this tiny model as fast as two, and on a CPU shared with other jobs
+    # far faster (two OpenMP threads spin waiting for each other: 2 s becomes 30 s or more).
+    torch.set_num_threads(1)
+    try:
+        result = train(config, data, root / "run")
+    finally:
+        torch.set_num_threads(threads)
+    return data, result.last_checkpoint

@@ -1,0 +1,471 @@
+"""Evaluation workflow: hand-built embeddings, report files, npz round trip and the CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from lookfeel.checkpoint import load_model
+from lookfeel.cli import main
+from lookfeel.config import ConfigError, EvalConfig, RunConfig, from_dict, load_config
+from lookfeel.data import DatasetError
+from lookfeel.embedding import EmbeddedItems
+from lookfeel.evaluate import (
+    EmbeddingFileError,
+    EmbeddingSet,
+    embed_checkpoint,
+    embedded_from_arrays,
+    evaluate_checkpoint,
+    evaluate_embedding_file,
+    evaluate_embeddings,
+    load_embeddings,
+    pools_final_embedding,
+    save_embeddings,
+    write_report,
+)
+from lookfeel.metrics import PAPER_C
+from lookfeel.modality import Modality
+from lookfeel.train import train
+
+from ._tiny import write_tiny_dataset
+
+TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
+FAST = EvalConfig(n_boot=100, max_presses=3)
+
+
+def _world(
+    n_fabrics: int = 12,
+    per: dict[Modality, int] | None = None,
+    noise: float | dict[Modality, float] = 0.0,
+    dim: int = 8,
+    seed: int = 0,
+    first_id: int = 1,
+) -> tuple[dict[Modality, EmbeddedItems], np.ndarray]:
+    """Items of each modality = their fabric's centre + Gaussian noise; returns the centres."""
+    rng = np.random.default_rng(seed)
+    centres = rng.standard_normal((n_fabrics, dim))
+    centres -= centres.mean(axis=1, keepdims=True)  # orthogonal to (1, ..., 1): see the max test
+    per = per or {D: 4, C: 4, T: 6}
+    emb, fab = {}, {}
+    for m, k in per.items():
+        sigma = noise[m] if isinstance(noise, dict) else noise
+        f = np.repeat(np.arange(n_fabrics), k)
+        emb[m] = centres[f] + sigma * rng.standard_normal((len(f), dim))
+        fab[m] = f + first_id
+    return embedded_from_arrays(emb, fab), centres
+
+
+def test_a_perfect_embedding_picks_right_every_time():
+    embedded, _ = _world(noise=0.0)
+    r = evaluate_embeddings(embedded, FAST)
+    assert len(r.pairs) == 9
+    for pair in r.pairs:
+        m = r.metrics
+        assert m[f"{pair}_top1"] == pytest.approx(1.0)
+        assert m[f"{pair}_top1_sampled"] == pytest.approx(1.0)
+        assert m[f"{pair}_map"] == pytest.approx(1.0)
+        assert m[f"{pair}_median_rank"] == 1.0
+        assert m[f"{pair}_top1_chance"] == pytest.approx(0.1)
+        assert m[f"{pair}_top3_chance"] == pytest.approx(0.3)
+        assert m[f"{pair}_n_fabrics"] == 12
+
+
+def test_a_random_embedding_scores_chance():
+    rng = np.random.default_rng(1)
+    n_f, per = 24, 10
+    emb = {m: rng.standard_normal((n_f * per, 16)) for m in (D, T)}
+    fab = {m: np.repeat(np.arange(n_f), per) for m in (D, T)}
+    r = evaluate_embeddings(embedded_from_arrays(emb, fab), FAST)
+    m = r.metrics
+    for pair in ("touch_to_depth", "depth_to_touch", "depth_to_depth", "touch_to_touch"):
+        # Same-modality pairs too: a query never finds itself, so chance is all it can do.
+        assert m[f"{pair}_top1"] == pytest.approx(0.1, abs=0.03)
+        assert m[f"{pair}_top3"] == pytest.approx(0.3, abs=0.05)
+        assert m[f"{pair}_top1_sampled"] == pytest.approx(0.1, abs=0.04)
+        assert m[f"{pair}_map"] == pytest.approx(m[f"{pair}_map_chance"], abs=0.03)
+        assert m[f"{pair}_recall5"] == pytest.approx(m[f"{pair}_recall5_chance"], abs=0.08)
+        assert m[f"{pair}_top1_ci_low"] <= 0.1 <= m[f"{pair}_top1_ci_high"]
+        assert m[f"{pair}_fabric_accuracy"] == pytest.approx(1 / n_f, abs=0.04)
+
+
+def test_pooling_presses_helps_noisy_touch_and_sets_the_main_keys():
+    embedded, _ = _world(per={D: 3, T: 15}, noise={D: 0.05, T: 1.2}, n_fabrics=16, seed=3)
+    r = evaluate_embeddings(embedded, dataclasses.replace(FAST, max_presses=5))
+    m = r.metrics
+    one, three, five = (m[f"touch_to_depth_presses{p}_top1"] for p in (1, 3, 5))
+    assert one < 0.8 and three > one + 0.1 and five >= three - 0.02
+    assert m["touch_to_depth_presses1_top1"] == m["touch_to_depth_top1"]  # main keys: P = 1
+    assert m["touch_to_depth_presses3_n_queries"] == 16 * 5  # 15 presses per fabric, groups of 3
+    curve = {c.gallery: c for c in r.press_curves()}[D]
+    assert curve.presses.tolist() == [1, 2, 3, 4, 5]
+    assert np.all(curve.low <= curve.value) and np.all(curve.value <= curve.high)
+
+    r3 = evaluate_embeddings(embedded, dataclasses.replace(FAST, presses=3))
+    assert r3.config.presses == 3
+    assert r3.metrics["touch_to_depth_top1"] == pytest.approx(three)
+    assert r3.metrics["touch_to_depth_n_queries"] == 16 * 5
+    # A pooled touch query never counts its own presses as candidates.
+    assert r3.metrics["touch_to_touch_n_queries"] == 16 * 5
+
+
+def test_every_key_is_there_with_chance_and_interval():
+    embedded, centres = _world(noise=0.5)
+    reference, _ = _world(noise=0.5, seed=1, first_id=101)
+    labels = {f + 1: [c[0], c[1]] for f, c in enumerate(centres)}
+    labels |= {100 + f + 1: [c[0], c[1]] for f, c in enumerate(_world(seed=1)[1])}
+    cfg = dataclasses.replace(FAST, released_variant=True)
+    r = evaluate_embeddings(
+        embedded,
+        cfg,
+        {i: i % 3 for i in range(1, 13)},
+        labels,
+        label_names=["a", "b"],
+        reference=reference,
+    )
+    m = r.metrics
+    for pair in r.pairs:
+        for k in (1, 3):
+            for suffix in ("", "_chance", "_ci_low", "_ci_high", "_sampled", "_sampled_se"):
+                assert f"{pair}_top{k}{suffix}" in m
+            assert f"{pair}_top{k}_released" in m
+        for name in ("map", "recall1", "recall5", "recall10", "median_rank"):
+            for suffix in ("", "_chance", "_ci_low", "_ci_high"):
+                assert f"{pair}_{name}{suffix}" in m
+        for name in ("c", "c_fitted", "fabric_accuracy", "fabric_accuracy_chance", "ece", "nll"):
+            assert f"{pair}_{name}" in m
+        assert m[f"{pair}_c_fitted"] == 1.0  # fitted on the reference fabrics
+    for p in (1, 2, 3):
+        for g in ("depth", "color", "touch"):
+            for suffix in ("", "_chance", "_ci_low", "_ci_high"):
+                assert f"touch_to_{g}_presses{p}_top1{suffix}" in m
+    for mod in ("depth", "color", "touch"):
+        for probe in ("knn", "ridge"):
+            for stat in ("r2", "spearman", "mae", "mae_chance"):
+                assert f"property_{mod}_a_{probe}_{stat}" in m
+    assert all(isinstance(v, float) for v in m.values())
+
+
+def test_fitted_c_is_better_calibrated_than_the_papers():
+    embedded, _ = _world(noise=0.3, seed=4)
+    reference, _ = _world(noise=0.3, seed=5, first_id=101)
+    fitted = evaluate_embeddings(embedded, FAST, reference=reference)
+    paper = evaluate_embeddings(embedded, FAST)
+    fixed = evaluate_embeddings(embedded, dataclasses.replace(FAST, c=0.5), reference=reference)
+    pair = "touch_to_depth"
+    assert paper.calibration[pair].c == PAPER_C and paper.calibration[pair].c_source == "paper"
+    assert fixed.metrics[f"{pair}_c"] == 0.5 and fixed.calibration[pair].c_source == "fixed"
+    assert fitted.calibration[pair].c_source == "fitted"
+    assert fitted.metrics[f"{pair}_nll"] < paper.metrics[f"{pair}_nll"] - 0.1
+    assert fitted.metrics[f"{pair}_ece"] < paper.metrics[f"{pair}_ece"]
+
+
+def test_confusion_is_ordered_by_cluster_and_examples_are_consistent():
+    embedded, _ = _world(noise=0.6, seed=2)
+    clusters = {i: (i * 7) % 4 for i in range(1, 13)}
+    r = evaluate_embeddings(embedded, FAST, clusters)
+    assert r.figure_pairs == ("touch_to_depth",)
+    con = r.calibration["touch_to_depth"].confusion
+    assert con is not None
+    assert [clusters[int(f)] for f in con.rows] == sorted(clusters[int(f)] for f in con.rows)
+    np.testing.assert_allclose(con.matrix.sum(axis=1), 1.0)
+    cc = r.calibration["touch_to_depth"].cluster_confusion
+    assert cc is not None and cc.matrix.shape == (4, 4)
+    assert r.calibration["depth_to_color"].confusion is None  # not a figure pair
+    examples = r.examples["touch_to_depth"]
+    assert len(examples) == 4
+    right = [ex.true_position == 0 for ex in examples]
+    assert any(right) and not all(right)  # both a success and a failure are shown
+    t_fab, d_fab = embedded[T].fabric_ids, embedded[D].fabric_ids
+    for ex in examples:
+        assert len(ex.candidates) == 10 and list(ex.distances) == sorted(ex.distances)
+        fabrics = d_fab[list(ex.candidates)]
+        assert len(set(fabrics.tolist())) == 10  # one candidate per fabric
+        assert fabrics[ex.true_position] == t_fab[ex.query_rows[0]]
+
+
+def test_property_probes_predict_labels_the_embedding_encodes():
+    embedded, centres = _world(noise=0.05, n_fabrics=16, seed=6)
+    reference, ref_centres = _world(noise=0.05, n_fabrics=24, seed=7, first_id=101)
+    w = np.arange(1, 9, dtype=float)
+    labels = {f + 1: [float(c @ w), np.nan] for f, c in enumerate(centres)}
+    labels |= {101 + f: [float(c @ w), 1.0] for f, c in enumerate(ref_centres)}
+    r = evaluate_embeddings(
+        embedded, FAST, labels=labels, label_names=["x", "unknown"], reference=reference
+    )
+    m = r.metrics
+    assert m["property_depth_x_ridge_r2"] > 0.9
+    assert m["property_depth_x_ridge_mae"] < 0.3 * m["property_depth_x_ridge_mae_chance"]
+    assert m["property_touch_x_knn_spearman"] > 0.5
+    assert np.isnan(m["property_depth_unknown_ridge_r2"])  # no test fabric has the label
+    assert r.properties[D]["ridge"]["x"]["n_test"] == 16
+
+
+def test_without_reference_or_labels_the_probes_are_skipped_with_a_note():
+    embedded, _ = _world()
+    r = evaluate_embeddings(embedded, FAST, labels={1: [1.0]})
+    assert not r.properties and not any(k.startswith("property_") for k in r.metrics)
+    assert any("probes skipped" in n for n in r.notes)
+    with pytest.raises(ValueError, match="no embeddings"):
+        evaluate_embeddings({})
+
+
+def test_one_modality_is_scored_against_itself():
+    embedded, _ = _world(per={D: 5}, noise=0.3)
+    r = evaluate_embeddings(embedded, FAST)
+    assert r.pairs == ("depth_to_depth",) and r.figure_pairs == ("depth_to_depth",)
+    assert not r.press_curves() and not any("presses" in k for k in r.metrics)
+
+
+def test_eval_config_is_strict():
+    assert from_dict(EvalConfig, {"n_boot": 50, "ks": [1, 5]}).ks == (1, 5)
+    with pytest.raises(ConfigError, match="eval.n"):
+        EvalConfig(n=1)
+    with pytest.raises(ConfigError, match="eval.probes"):
+        EvalConfig(probes=("svm",))
+    with pytest.raises(ConfigError, match="unknown key"):
+        from_dict(EvalConfig, {"nboot": 3})
+    with pytest.raises(ConfigError, match="figure_pairs"):
+        EvalConfig(figure_pairs=("touch-depth",))
+
+
+def test_report_files(tmp_path: Path):
+    embedded, _ = _world(noise=0.6, seed=2)
+    r = evaluate_embeddings(embedded, FAST, {i: i % 3 for i in range(1, 13)})
+    files = write_report(r, tmp_path / "eval")
+    data = json.loads(files.metrics.read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert data["touch_to_depth_top1"] == pytest.approx(r.metrics["touch_to_depth_top1"])
+    text = files.report.read_text()
+    for needle in ("touch → depth", "chance", "95% interval", "Calibration", "presses"):
+        assert needle in text
+    assert f"{r.metrics['touch_to_depth_top1']:.3f}" in text
+    names = {p.name for p in files.figures}
+    assert names == {
+        "presses.png",
+        "reliability_touch_to_depth.png",
+        "confusion_touch_to_depth.png",
+        "confusion_clusters_touch_to_depth.png",
+    }  # no example figure: these hand-made items have no image files
+    assert any("pick examples of touch_to_depth not drawn" in line for line in text.splitlines())
+    for p in files.figures:
+        assert f"(figures/{p.name})" in text
+    with Image.open(tmp_path / "eval" / "figures" / "presses.png") as im:
+        assert im.size == (650, 450)
+
+
+def test_embeddings_file_round_trip(tmp_path: Path):
+    embedded, _ = _world(noise=0.2)
+    reference, _ = _world(noise=0.2, seed=1, first_id=101)
+    path = save_embeddings(tmp_path / "e.npz", EmbeddingSet(embedded, reference, {"presses": 2}))
+    with np.load(path) as z:
+        assert z["embeddings_touch"].shape == (72, 8) and z["embeddings_touch"].dtype == np.float32
+        assert z["fabric_id_depth"].dtype == np.int64 and z["path_color"].shape == (48,)
+    back = load_embeddings(path)
+    assert back.meta["presses"] == 2 and back.reference is not None
+    for m in (D, C, T):
+        np.testing.assert_array_equal(back.embedded[m].embeddings, embedded[m].embeddings)
+        np.testing.assert_array_equal(back.reference[m].fabric_ids, reference[m].fabric_ids)
+        assert back.embedded[m].paths == embedded[m].paths
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(EmbeddingFileError, match="bad.npz"):
+        load_embeddings(tmp_path / "bad.npz")
+    with pytest.raises(EmbeddingFileError, match="not found"):
+        load_embeddings(tmp_path / "none.npz")
+
+
+# ------------------------------------------------------------------------------------------
+# With a trained checkpoint and a dataset.
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    """A tiny dataset, and two 3-step runs: without a projection (max-pooling presses equals
+    the model's pooling) and with one (tiny.yaml's embed_dim 16)."""
+    root = tmp_path_factory.mktemp("eval")
+    data = write_tiny_dataset(root / "data", fabrics=8, drapes=3, fold_presses=4, flat_presses=0)
+    base = ["train.steps=3", "train.val_every=0", "train.val_fabrics=3"]
+    cfg = load_config(RunConfig, TINY, [*base, "model.embed_dim=null"])
+    plain = train(cfg, data, root / "plain").last_checkpoint
+    projected = train(load_config(RunConfig, TINY, base), data, root / "proj").last_checkpoint
+    return data, plain, projected
+
+
+def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, Path], tmp_path):
+    data, ckpt, _ = run
+    val = load_model(ckpt).split["val"]
+    npz = tmp_path / "e.npz"
+    assert (
+        main(
+            [
+                "embed",
+                "--checkpoint",
+                str(ckpt),
+                "--data",
+                str(data),
+                "--out",
+                str(npz),
+                "--split",
+                "val",
+            ]
+        )
+        == 0
+    )
+    with np.load(npz) as z:
+        assert set(np.unique(z["fabric_id_touch"]).tolist()) == set(val)
+        assert z["embeddings_touch"].shape[0] == 4 * len(val)  # one row per press
+        assert z["embeddings_depth"].shape == (3 * len(val), z["embeddings_depth"].shape[1])
+        assert z["path_depth"][0].endswith(".png")
+        assert z["reference_embeddings_depth"].shape[0] == 3 * (8 - len(val))
+    sets = ["--set", "n_boot=50", "--set", "max_presses=3"]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(ckpt),
+                "--data",
+                str(data),
+                "--out",
+                str(a),
+                "--split",
+                "val",
+                *sets,
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(["evaluate", "--embeddings", str(npz), "--data", str(data), "--out", str(b), *sets])
+        == 0
+    )
+    ma = json.loads((a / "metrics.json").read_text())
+    mb = json.loads((b / "metrics.json").read_text())
+    assert ma == mb  # the same float32 embeddings give the same numbers, NaN (null) included
+    assert ma["touch_to_depth_c_fitted"] == 1.0  # c fitted on the run's training fabrics
+    assert "property_depth_thickness_mm_ridge_r2" in ma
+    assert ma["touch_to_depth_n_queries"] == 2 * len(val)  # the run's 2 presses per query
+    sizes = {
+        "presses.png": (650, 450),
+        "reliability_touch_to_depth.png": (600, 650),
+        "confusion_touch_to_depth.png": (750, 650),
+        "confusion_clusters_touch_to_depth.png": (750, 650),
+        "examples_touch_to_depth.png": (550, 740),  # 3 fabrics: 3 candidates, 4 rows
+    }
+    for name, size in sizes.items():
+        with Image.open(a / "figures" / name) as im:
+            assert im.size == size, name
+    report = (a / "report.md").read_text()
+    assert "![pick examples](figures/examples_touch_to_depth.png)" in report
+    assert "the run's held-out fabrics (3)" in report
+
+
+def test_checkpoint_splits(run: tuple[Path, Path, Path]):
+    data, ckpt, _ = run
+    loaded = load_model(ckpt)
+    cfg = dataclasses.replace(FAST, n_boot=0, sampled=False, max_presses=1)
+    every = evaluate_checkpoint(loaded, data, "all", cfg)
+    assert every.info["fabrics"] == list(range(1, 9)) and "property_" not in str(every.metrics)
+    trained = evaluate_checkpoint(loaded, data, "train", cfg)
+    assert trained.info["fabrics"] == sorted(loaded.split["train"])
+    with pytest.raises(DatasetError, match="paper's 18 test fabrics"):
+        evaluate_checkpoint(loaded, data, "paper", cfg)
+    with pytest.raises(DatasetError, match="novel"):
+        evaluate_checkpoint(loaded, data, "novel", cfg)
+    emb = embed_checkpoint(loaded, data, "all")
+    assert emb.reference is None and emb.meta["split"] == "all"
+
+
+def test_a_seen_run_evaluates_its_held_out_items(run: tuple[Path, Path, Path], tmp_path: Path):
+    data = run[0]
+    cfg = load_config(
+        RunConfig,
+        TINY,
+        ["train.steps=2", "train.val_every=0", "train.split=seen", "train.val_fabrics=2"],
+    )
+    loaded = load_model(train(cfg, data, tmp_path / "seen").last_checkpoint)
+    held = {Path(p).name for p in loaded.split["val_items"]}
+    val = embed_checkpoint(loaded, data, "val")
+    assert val.reference is not None
+    for m in (D, C, T):
+        assert {Path(p).name for p in val.embedded[m].paths} <= held
+        assert not {Path(p).name for p in val.reference[m].paths} & held
+        assert set(val.embedded[m].fabric_ids.tolist()) == set(loaded.split["train"])
+    novel = embed_checkpoint(loaded, data, "novel")
+    assert set(novel.embedded[D].fabric_ids.tolist()) == set(loaded.split["novel"])
+    r = evaluate_embeddings(val.embedded, FAST, labels={1: [0.0]}, reference=val.reference)
+    assert not r.properties and any("share fabrics" in n for n in r.notes)
+
+
+def test_presses_are_pooled_by_the_model_when_it_projects_after_pooling(
+    run: tuple[Path, Path, Path], tmp_path: Path
+):
+    data, plain, projected = run
+    assert pools_final_embedding(load_model(plain).model)
+    model = load_model(projected)
+    assert not pools_final_embedding(model.model)
+    cfg = dataclasses.replace(FAST, n_boot=0, max_presses=2)
+    direct = evaluate_checkpoint(model, data, "val", cfg)
+    save_embeddings(tmp_path / "p.npz", embed_checkpoint(model, data, "val"))
+    from_file = evaluate_embedding_file(tmp_path / "p.npz", cfg, data)
+    assert any("pools before its projection" in n for n in from_file.notes)
+    # Single items agree; pooled touch queries differ (the model's pooling is not the max of
+    # its projected embeddings).
+    assert direct.metrics["depth_to_color_nll"] == pytest.approx(
+        from_file.metrics["depth_to_color_nll"]
+    )
+    assert direct.metrics["touch_to_depth_nll"] != pytest.approx(
+        from_file.metrics["touch_to_depth_nll"]
+    )
+
+
+def test_cli_errors(
+    run: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    data, ckpt, _ = run
+    out = str(tmp_path / "x")
+    assert main(["evaluate", "--checkpoint", str(ckpt), "--out", out]) == 2
+    assert "needs --data" in capsys.readouterr().err
+    assert main(["evaluate", "--embeddings", str(tmp_path / "no.npz"), "--out", out]) == 1
+    assert "not found" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(ckpt),
+                "--data",
+                str(data),
+                "--out",
+                out,
+                "--set",
+                "nboot=1",
+            ]
+        )
+        == 1
+    )
+    assert "unknown key" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(ckpt),
+                "--data",
+                str(data),
+                "--out",
+                out,
+                "--split",
+                "paper",
+            ]
+        )
+        == 1
+    )
+    assert "paper's 18 test fabrics" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--checkpoint", str(ckpt), "--embeddings", "e.npz", "--out", out])

@@ -1,0 +1,83 @@
+"""ONNX export: a file per branch, dynamic batch and presses, equal to PyTorch in onnxruntime."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+import torch
+
+from lookfeel.checkpoint import load_model
+from lookfeel.cli import main
+from lookfeel.export import export_onnx
+from lookfeel.modality import Modality
+
+from ._library import tiny_run
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    _, ckpt = tiny_run()
+    out = tmp_path_factory.mktemp("export") / "onnx"
+    export_onnx(ckpt, out)
+    return ckpt, out
+
+
+def test_each_branch_equals_pytorch_for_any_batch_and_presses(exported):
+    ckpt, out = exported
+    model = load_model(ckpt).model
+    assert sorted(p.name for p in out.iterdir()) == [
+        "color.onnx", "depth.onnx", "export.json", "touch.onnx",
+    ]  # fmt: skip
+    gen = torch.Generator().manual_seed(1)
+    shapes = {
+        Modality.DEPTH: [(1, 1, 32, 32), (7, 1, 32, 32)],
+        Modality.COLOR: [(2, 3, 32, 32), (5, 3, 32, 32)],
+        Modality.TOUCH: [(1, 1, 3, 32, 32), (4, 3, 3, 32, 32), (2, 6, 3, 32, 32)],
+    }
+    for m, cases in shapes.items():
+        session = ort.InferenceSession(str(out / f"{m.value}.onnx"))
+        [inp] = session.get_inputs()
+        assert inp.name == ("presses" if m is Modality.TOUCH else "image")
+        assert inp.shape[0] == "batch" and (m is not Modality.TOUCH or inp.shape[1] == "presses")
+        for shape in cases:
+            x = torch.rand(*shape, generator=gen)
+            with torch.inference_mode():
+                want = model({m.value: x})[m.value].numpy()
+            got = session.run(None, {inp.name: x.numpy()})[0]
+            assert got.shape == (shape[0], 16)
+            np.testing.assert_allclose(got, want, atol=1e-4, rtol=0)
+    meta = json.loads((out / "export.json").read_text())
+    assert meta["embed_dim"] == 16 and meta["data"]["image_size"] == 32
+    assert meta["branches"]["touch"]["shape"] == ["batch", "presses", 3, 32, 32]
+    assert all(b["max_abs_diff_vs_torch"] < 1e-4 for b in meta["branches"].values())
+
+
+def test_export_some_branches(exported, tmp_path: Path):
+    ckpt, _ = exported
+    [branch] = export_onnx(ckpt, tmp_path / "one", modalities=[Modality.DEPTH], check=False)
+    assert branch.modality is Modality.DEPTH and branch.max_abs_diff is None
+    assert sorted(p.name for p in (tmp_path / "one").iterdir()) == ["depth.onnx", "export.json"]
+    # The check runs the PyTorch module after export: the exporter restores the module's mode,
+    # so a wrapper left in train mode would run BatchNorm on batch statistics and differ here.
+    [checked] = export_onnx(ckpt, tmp_path / "two", modalities=[Modality.TOUCH])
+    assert checked.max_abs_diff is not None and checked.max_abs_diff < 1e-4
+    with pytest.raises(ValueError, match=r"color branch: ONNX outputs differ from PyTorch's"):
+        export_onnx(ckpt, tmp_path / "three", modalities=[Modality.COLOR], atol=-1.0)
+    assert not (tmp_path / "three" / "color.onnx").exists()
+
+
+def test_cli_export(exported, tmp_path: Path, capsys):
+    ckpt, _ = exported
+    out = tmp_path / "cli"
+    assert main(["export", "--checkpoint", str(ckpt), "--format", "onnx", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "touch.onnx: presses (batchxpressesx3x32x32) -> embedding (batch x 16)" in printed
+    assert (out / "depth.onnx").is_file()
+    assert main(["export", "--checkpoint", str(tmp_path / "none.pt"), "--out", str(out)]) == 1
+    assert "checkpoint not found" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["export", "--checkpoint", str(ckpt), "--format", "tflite", "--out", str(out)])

@@ -1,0 +1,185 @@
+"""Matching queries against a library: preprocessing, ranking, pooling, unknowns, errors, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from lookfeel.cli import main
+from lookfeel.data import ImageError, ImageLoader, scan
+from lookfeel.index import Library, LibraryError, Matcher, build_library, load_query_image
+from lookfeel.modality import Modality
+
+from ._library import tiny_run
+from ._tiny import write_depth, write_rgb
+
+
+@pytest.fixture(scope="module")
+def run() -> tuple[Path, Path]:
+    return tiny_run()
+
+
+@pytest.fixture(scope="module")
+def matcher(run: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> Matcher:
+    data, ckpt = run
+    out = tmp_path_factory.mktemp("match") / "lib"
+    build_library(ckpt, data, out, shard_size=64)
+    return Matcher(Library.open(out))
+
+
+def test_query_images_are_preprocessed_exactly_as_training(run, matcher: Matcher):
+    data, _ = run
+    catalog = scan(data)
+    loader = ImageLoader(matcher.data_config)
+    for m in Modality:
+        item = catalog.items(m)[4]
+        got = load_query_image(loader.frame_path(item), m, matcher.data_config)
+        assert got.dtype == torch.float32
+        assert torch.equal(got, loader.load(item))
+
+
+def test_a_new_depth_image_of_a_known_fabric_ranks_it_first(matcher: Matcher, tmp_path: Path):
+    query = tmp_path / "new_drape.png"
+    write_depth(query, fabric=3, k=99)  # a drape of fabric 3 the library has not seen
+    [r] = matcher.match_files([query], Modality.DEPTH, top=6)
+    assert r.query_modality is Modality.DEPTH and r.gallery_modality is Modality.DEPTH
+    assert r.query == [str(query)] and r.presses == 1 and r.backend == "numpy"
+    assert r.fabrics[0].fabric_id == 3 and r.known and r.message.startswith("fabric 3 (P = ")
+    probs = [f.probability for f in r.fabrics]
+    assert [f.rank for f in r.fabrics] == [1, 2, 3, 4, 5, 6]
+    assert probs == sorted(probs, reverse=True)
+    assert sum(probs) + r.unknown_probability == pytest.approx(1.0)  # all 6 fabrics shown
+    lib = matcher.library
+    e = matcher.embed(matcher.load([query], Modality.DEPTH), Modality.DEPTH)[0]
+    for f in r.fabrics:
+        assert set(f.nearest) == {"depth", "color", "touch"}
+        for m, refs in f.nearest.items():
+            table = lib.table(Modality(m))
+            rows = table.rows_of(f.fabric_id)
+            want = np.linalg.norm(table.embeddings[rows] - e, axis=1)
+            assert [ref.distance for ref in refs] == pytest.approx(sorted(want)[:2], abs=1e-5)
+            for ref in refs:
+                item = lib.item(ref.id)
+                assert item.fabric_id == f.fabric_id and ref.path == item.image
+        assert f.distance == pytest.approx(f.nearest["depth"][0].distance, abs=1e-5)
+        assert f.labels == lib.fabrics[f.fabric_id].labels
+    # Properties: the top 5 fabrics weighted by probability, among those with the label.
+    by_name = {p.name: p for p in r.properties}
+    assert list(by_name) == ["thickness_mm", "density", "stiffness", "stretchiness"]
+    top5 = r.fabrics[:5]
+    for name, est in by_name.items():
+        known = [(f.labels[name], f.probability) for f in top5 if name in f.labels]
+        v = np.array([x for x, _ in known])
+        w = np.array([p for _, p in known]) / sum(p for _, p in known)
+        assert est.fabrics == len(known)
+        assert est.mean == pytest.approx(float((w * v).sum()))
+        spread = math.sqrt(float((w * (v - (w * v).sum()) ** 2).sum()))
+        assert est.std == pytest.approx(spread, abs=1e-9)  # rounding noise is reported as 0
+    assert by_name["density"].fabrics == (4 if 2 in [f.fabric_id for f in top5] else 5)
+
+
+def test_touch_presses_are_pooled_into_one_query(run, matcher: Matcher):
+    data, _ = run
+    presses = [data / "touch/F0004_fold_02_400.png", data / "touch/F0004_fold_02_401.png"]
+    [r] = matcher.match_files(presses, Modality.TOUCH, top=3)
+    assert r.presses == 2 and r.query == [str(p) for p in presses]
+    x = matcher.load(presses, Modality.TOUCH)
+    assert x.shape == (1, 2, 3, 32, 32)
+    with torch.inference_mode():
+        branch = matcher.model.branch("touch")
+        per_press = branch.backbone(x[0])  # (P, D0): each press alone, before pooling
+        want = branch.project(per_press.amax(dim=0, keepdim=True))  # max over presses
+    np.testing.assert_allclose(matcher.embed(x, Modality.TOUCH), want.numpy(), atol=1e-6)
+    single = matcher.embed(matcher.load(presses[:1], Modality.TOUCH), Modality.TOUCH)
+    assert not np.allclose(single, want.numpy())
+    drapes = sorted((data / "color").glob("F0002_*.png"))
+    results = matcher.match_files(drapes, Modality.COLOR, top=2)
+    assert [res.query for res in results] == [[str(p)] for p in drapes]  # one result each
+    assert all(res.presses == 1 and len(res.fabrics) == 2 for res in results)
+
+
+def test_far_from_every_fabric_is_no_known_fabric(matcher: Matcher):
+    table = matcher.library.table(Modality.DEPTH)
+    far = table.embeddings.mean(axis=0) + 100.0  # far beyond every library item
+    r = matcher.match_embedding(far, Modality.DEPTH, ["far"], top=3)
+    assert not r.known and r.unknown_probability > 0.999
+    assert r.message.startswith("no known fabric: the best match, fabric ")
+    assert "5% false-accept rate on held-out fabrics" in r.message
+    assert r.best_probability < r.threshold
+    near = matcher.match_embedding(table.embeddings[7], Modality.DEPTH, ["item"], top=3)
+    assert near.known and near.fabrics[0].fabric_id == int(table.fabric_ids[7])
+    assert near.unknown_probability < 0.5
+
+
+def test_a_library_item_as_query_leaves_itself_out(matcher: Matcher):
+    r = matcher.match_item("depth:7", top=6)
+    ids = [ref.id for f in r.fabrics for refs in f.nearest.values() for ref in refs]
+    assert "depth:7" not in ids and r.fabrics[0].fabric_id == 3
+    assert min(f.distance for f in r.fabrics) > 0.0  # its own zero distance is gone
+    with pytest.raises(KeyError, match="depth has no item 500"):
+        matcher.match_item("depth:500")
+
+
+def test_wrong_files_are_named(run, matcher: Matcher, tmp_path: Path):
+    data, _ = run
+    eight_bit = tmp_path / "eight_bit.png"
+    Image.fromarray(np.zeros((8, 8), np.uint8)).save(eight_bit)
+    text = tmp_path / "notes.png"
+    text.write_text("not an image")
+    cases = [
+        (tmp_path / "missing.png", Modality.DEPTH, "missing.png: file not found"),
+        (eight_bit, Modality.DEPTH, "eight_bit.png: depth image is mode L; expected 16-bit"),
+        (text, Modality.COLOR, "notes.png: cannot decode image"),
+        (tmp_path, Modality.COLOR, "is a folder, not an image file"),
+        (data / "depth/F0001_Depth_New_000000.png", Modality.TOUCH, "16-bit or float"),
+    ]
+    for path, modality, message in cases:
+        with pytest.raises(ImageError, match=message):
+            matcher.match_files([path], modality)
+    with pytest.raises(LibraryError, match="top must be >= 1"):
+        matcher.match_files([data / "depth/F0001_Depth_New_000000.png"], Modality.DEPTH, top=0)
+
+
+def test_a_library_without_a_modality_says_so(run, tmp_path: Path):
+    data, ckpt = run
+    no_color = shutil.copytree(data, tmp_path / "data")
+    shutil.rmtree(no_color / "color")
+    build_library(ckpt, no_color, tmp_path / "lib")
+    m = Matcher(Library.open(tmp_path / "lib"))
+    query = tmp_path / "photo.png"
+    write_rgb(query, fabric=2, k=5)
+    with pytest.raises(LibraryError, match="no calibrated gallery for color queries"):
+        m.match_files([query], Modality.COLOR)
+    with pytest.raises(LibraryError, match="has no color items"):
+        m.match_files([data / "depth/F0001_Depth_New_000000.png"], Modality.DEPTH,
+                      gallery=Modality.COLOR)  # fmt: skip
+    with pytest.raises(LibraryError, match=r"no calibration for color_to_touch \(calibrated: dep"):
+        m.match_files([query], Modality.COLOR, gallery=Modality.TOUCH)  # no colour to calibrate
+    [r] = m.match_files([data / "touch/F0002_fold_02_200.png"], Modality.TOUCH, top=2)
+    assert set(r.fabrics[0].nearest) == {"depth", "touch"}
+
+
+def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
+    data, _ = run
+    lib = str(matcher.library.root)
+    presses = [str(data / f"touch/F0005_fold_02_50{i}.png") for i in range(3)]
+    assert main(["match", "--index", lib, "--modality", "touch", *presses, "--top", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("Query touch (3 presses: F0005_fold_02_500.png, F0005_fold_02_501")
+    assert "rank  fabric       P        D  depth" in out and "properties (top fabrics" in out
+    depth = str(data / "depth/F0004_Depth_New_000001.png")
+    assert main(["match", "--index", lib, "--modality", "depth", depth, "--json"]) == 0
+    [r] = json.loads(capsys.readouterr().out)
+    assert r["fabrics"][0]["fabric_id"] == 4 and r["query_modality"] == "depth"
+    assert len(r["fabrics"]) == 5 and set(r["fabrics"][0]["nearest"]) == {"depth", "color", "touch"}
+    assert main(["match", "--index", lib, "--modality", "depth", str(tmp_path / "x.png")]) == 1
+    assert "x.png: file not found" in capsys.readouterr().err
+    assert main(["match", "--index", str(tmp_path), "--modality", "depth", depth]) == 1
+    assert "not a lookfeel library" in capsys.readouterr().err

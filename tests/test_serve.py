@@ -1,0 +1,233 @@
+"""The web app on a loopback server: page, API, limits, errors, bounded concurrency, CLI."""
+
+from __future__ import annotations
+
+import io
+import re
+import threading
+import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from lookfeel.cli import main
+from lookfeel.index import Library, Matcher, build_library
+from lookfeel.modality import Modality
+from lookfeel.serve import ServeConfig, background_server, create_app
+
+from ._library import tiny_run
+
+
+@pytest.fixture(scope="module")
+def run() -> tuple[Path, Path]:
+    return tiny_run()
+
+
+class _CountingMatcher(Matcher):
+    """Records how many queries are inside the model at once."""
+
+    def __init__(self, library: Library) -> None:
+        super().__init__(library)
+        self.lock = threading.Lock()
+        self.inside = 0
+        self.most = 0
+        self.calls = 0
+
+    def embed(self, x: torch.Tensor, modality: Modality) -> np.ndarray:
+        with self.lock:
+            self.inside += 1
+            self.calls += 1
+            self.most = max(self.most, self.inside)
+        time.sleep(0.05)  # hold the model long enough for requests to pile up
+        try:
+            return super().embed(x, modality)
+        finally:
+            with self.lock:
+                self.inside -= 1
+
+
+@pytest.fixture(scope="module")
+def server(
+    run: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[str, _CountingMatcher]]:
+    data, ckpt = run
+    out = tmp_path_factory.mktemp("serve") / "lib"
+    build_library(ckpt, data, out, shard_size=64)
+    library = Library.open(out)
+    matcher = _CountingMatcher(library)
+    config = ServeConfig(max_upload_bytes=20_000, max_files=3, max_concurrency=1)
+    with background_server(create_app(library, config, matcher)) as url:
+        yield url, matcher
+
+
+def _file(path: Path, name: str | None = None, mime: str = "image/png") -> tuple:
+    return ("files", (name or path.name, path.read_bytes(), mime))
+
+
+def test_page_is_self_contained(server):
+    url, _ = server
+    page = httpx.get(url + "/")
+    assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+    html = page.text
+    assert '<input id="files" name="files" type="file"' in html
+    for asset in re.findall(r'(?:src|href)="([^"]+)"', html):
+        assert asset.startswith("/"), f"external asset {asset}"  # no CDN: no internet here
+        assert httpx.get(url + asset).status_code == 200
+    assert "http" not in httpx.get(url + "/static/app.js").text
+    assert httpx.get(url + "/static/../../etc/passwd").status_code == 404
+    assert httpx.get(url + "/docs").status_code == 404  # Swagger UI would load a CDN
+
+
+def test_openapi_describes_the_api(server):
+    url, _ = server
+    schema = httpx.get(url + "/openapi.json").json()
+    assert set(schema["paths"]) == {
+        "/api/library", "/api/fabrics", "/api/items/{item_id}", "/api/items/{item_id}/image",
+        "/api/match", "/api/match/item",
+    }  # fmt: skip
+    match = schema["paths"]["/api/match"]["post"]
+    assert {"413", "415", "422", "503"} <= set(match["responses"])
+    assert "multipart/form-data" in match["requestBody"]["content"]
+    assert {"MatchResult", "FabricMatch", "ItemRef", "PropertyEstimate"} <= set(
+        schema["components"]["schemas"]
+    )
+
+
+def test_library_fabrics_and_item_images(server):
+    url, matcher = server
+    info = httpx.get(url + "/api/library").json()
+    assert info["fabrics"] == 6 and info["items"] == {"depth": 18, "color": 18, "touch": 18}
+    assert info["backbone"] == "compact" and info["limits"]["max_files"] == 3
+    fabrics = httpx.get(url + "/api/fabrics", params={"per_modality": 1}).json()
+    assert [f["id"] for f in fabrics] == [1, 2, 3, 4, 5, 6]
+    assert fabrics[2]["items"] == {"depth": ["depth:6"], "color": ["color:6"], "touch": ["touch:6"]}
+    item = httpx.get(url + "/api/items/touch:6").json()
+    assert item["fabric_id"] == 3 and item["file"] == "F0003_fold_02_300.png"
+    assert "/" not in item["file"]  # no server folder is shown
+    for item_id, mode in (("depth:6", "L"), ("color:6", "RGB"), ("touch:6", "RGB")):
+        r = httpx.get(f"{url}/api/items/{item_id}/image")
+        assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+        assert Image.open(io.BytesIO(r.content)).mode == mode
+    depth = np.asarray(Image.open(io.BytesIO(httpx.get(url + "/api/items/depth:6/image").content)))
+    lib = matcher.library
+    assert depth.shape == (24, 24) and depth.max() > depth.min()
+    assert lib.item("depth:6").fabric_id == 3
+    for bad in ("depth:99", "smell:1", "..%2F..%2Fetc%2Fpasswd", "%2Fetc%2Fpasswd"):
+        r = httpx.get(f"{url}/api/items/{bad}/image")
+        assert r.status_code == 404, bad
+
+
+def test_upload_matches_and_touch_presses_pool(run, server):
+    url, _ = server
+    data, _ = run
+    r = httpx.post(
+        url + "/api/match",
+        data={"modality": "depth", "top": "3"},
+        files=[_file(data / "depth/F0003_Depth_New_000001.png", "my drape.png")],
+    )
+    assert r.status_code == 200, r.text
+    [res] = r.json()["results"]
+    assert res["query"] == ["my drape.png"] and res["fabrics"][0]["fabric_id"] == 3
+    assert len(res["fabrics"]) == 3 and res["known"] is True
+    ref = res["fabrics"][0]["nearest"]["touch"][0]
+    assert "/" not in ref["path"] and httpx.get(f"{url}/api/items/{ref['id']}/image").is_success
+    presses = [_file(data / f"touch/F0004_fold_02_40{i}.png") for i in range(3)]
+    r = httpx.post(url + "/api/match", data={"modality": "touch"}, files=presses)
+    [res] = r.json()["results"]
+    assert res["presses"] == 3 and len(res["fabrics"]) == 5
+    r = httpx.post(url + "/api/match/item", json={"item": "color:4", "top": 2})
+    [res] = r.json()["results"]
+    assert r.status_code == 200 and res["query_modality"] == "color" and len(res["fabrics"]) == 2
+
+
+def test_bad_uploads_get_clear_4xx(run, server):
+    url, _ = server
+    data, _ = run
+    depth = data / "depth/F0001_Depth_New_000000.png"
+
+    def post(fields: dict, files: list | None) -> httpx.Response:
+        return httpx.post(url + "/api/match", data=fields, files=files)
+
+    cases = [
+        (post({"modality": "depth"}, [("files", ("a.txt", b"hello", "text/plain"))]), 415,
+         "a.txt: not a PNG or JPEG image"),
+        (post({"modality": "depth"}, [_file(data / "color/F0001_1.png")]), 422,
+         "F0001_1.png: depth image is mode RGB; expected 16-bit"),
+        (post({"modality": "depth"}, [("files", ("big.png", b"\x89PNG\r\n\x1a\n" + bytes(30_000),
+                                                 "image/png"))]), 413,
+         "big.png: larger than the 20000 bytes allowed"),
+        (post({"modality": "depth"}, [_file(depth)] * 4), 413, "4 files; at most 3 per query"),
+        (post({"modality": "depth", "top": "99"}, [_file(depth)]), 422,
+         "top must be between 1 and 20"),
+        (post({"modality": "depth"}, [("files", ("empty.png", b"", "image/png"))]), 422,
+         "empty.png: the file is empty"),
+        (post({"modality": "depth"}, [("files", ("../../etc/passwd", b"\x89PNG\r\n\x1a\nxx",
+                                                 "image/png"))]), 422, "passwd: cannot decode"),
+        (httpx.post(url + "/api/match/item", json={"item": "touch:999"}), 404,
+         "touch has no item 999"),
+    ]  # fmt: skip
+    for response, status, message in cases:
+        assert response.status_code == status, response.text
+        assert message in response.json()["detail"]
+    r = post({"modality": "smell"}, [_file(depth)])
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "modality"]
+    r = post({"modality": "depth"}, None)
+    assert r.status_code == 422
+    big = httpx.post(
+        url + "/api/match", content=b"x" * 200_000, headers={"content-type": "multipart/form-data"}
+    )
+    assert big.status_code == 413 and "larger than" in big.json()["detail"]
+
+    def chunks() -> Iterator[bytes]:  # streamed without a Content-Length: counted as it comes
+        yield b'--x\r\nContent-Disposition: form-data; name="modality"\r\n\r\ndepth\r\n'
+        for _ in range(20):
+            yield b"y" * 10_000
+
+    streamed = httpx.post(
+        url + "/api/match",
+        content=chunks(),
+        headers={"content-type": "multipart/form-data; boundary=x"},
+    )
+    assert streamed.status_code == 413, streamed.text
+    assert "request is larger than 125536 bytes" in streamed.json()["detail"]
+
+
+def test_concurrent_requests_share_the_model_one_at_a_time(run, server):
+    url, matcher = server
+    data, _ = run
+    body = (data / "depth/F0002_Depth_New_000000.png").read_bytes()
+    before = matcher.calls
+
+    def one(i: int) -> int:
+        files = [("files", (f"q{i}.png", body, "image/png"))]
+        return httpx.post(url + "/api/match", data={"modality": "depth"}, files=files).status_code
+
+    with ThreadPoolExecutor(6) as pool:
+        statuses = list(pool.map(one, range(12)))
+    assert statuses == [200] * 12
+    assert matcher.calls - before == 12 and matcher.most == 1  # max_concurrency=1 held
+
+
+def test_cli_serve(server, monkeypatch, capsys):
+    _, matcher = server
+    served: dict = {}
+
+    def fake_serve(app, host: str, port: int) -> None:  # the real one blocks until Ctrl-C
+        served.update(app=app, host=host, port=port)
+
+    monkeypatch.setattr("lookfeel.serve.serve", fake_serve)
+    lib = str(matcher.library.root)
+    assert main(["serve", "--index", lib, "--port", "8123", "--max-upload-mb", "0.5"]) == 0
+    assert "Serving " in capsys.readouterr().out
+    assert (served["host"], served["port"]) == ("127.0.0.1", 8123)
+    with background_server(served["app"]) as cli_url:
+        info = httpx.get(cli_url + "/api/library").json()
+    assert info["limits"]["max_upload_bytes"] == 512 * 1024 and info["fabrics"] == 6
+    assert main(["serve", "--index", lib + "-missing"]) == 1
+    assert "library folder not found" in capsys.readouterr().err

@@ -1,0 +1,335 @@
+"""The synthetic world: config, layout and names, determinism, label-conditioned mode, the
+output folder's safety, and physics read back from the rendered pixels."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from scipy import stats
+
+from lookfeel.data import check_dataset, parse_touch_name
+from lookfeel.modality import Modality, PressKind
+from lookfeel.synth import MANIFEST, SIZE_PRESETS, SynthConfig, generate
+from lookfeel.synth import world as world_module
+from lookfeel.synth.depth import render_depth
+from lookfeel.synth.drape import drape_surface, sample_drape
+from lookfeel.synth.fabric import make_fabric, sample_fabrics
+from lookfeel.synth.gelsight import no_contact_frame, render_press, sensor
+from lookfeel.synth.measure import (
+    drape_extent,
+    fold_count,
+    touch_fold_width,
+    touch_texture,
+)
+from lookfeel.synth.scene import background_depth, depth_camera
+
+REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "gelsight"
+
+TINY = SynthConfig(
+    fabrics=3,
+    drapes=2,
+    presses_flat=1,
+    presses_fold=2,
+    frames=2,
+    workers=1,
+    **SIZE_PRESETS["tiny"],
+)
+
+
+def _digest(root: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
+    }
+
+
+@pytest.fixture(scope="module")
+def tiny_world(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("synth") / "world"
+    generate(TINY, out, progress=False)
+    return out
+
+
+# ---- config ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"fabrics": 0}, "fabrics"),
+        ({"frames": 0}, "frames"),
+        ({"touch_size": (8, 8)}, "touch_size"),
+        ({"image_format": "gif"}, "image_format"),
+        ({"modalities": ("smell",)}, "modalities"),
+        ({"seed": -1}, "seed"),
+        ({"drapes": 0, "modalities": (Modality.DEPTH,)}, "drapes"),
+    ],
+)
+def test_config_rejects_bad_values_naming_the_field(kwargs: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=f"synth.{field}"):
+        SynthConfig(**kwargs)
+
+
+def test_config_accepts_modality_names_and_resolves_defaults() -> None:
+    cfg = SynthConfig(modalities=("touch", "depth"))  # type: ignore[arg-type]
+    assert cfg.modalities == (Modality.TOUCH, Modality.DEPTH)
+    assert SynthConfig().resolved_modalities(label_mode=False) == tuple(Modality)
+    assert SynthConfig().resolved_modalities(label_mode=True) == (Modality.COLOR, Modality.TOUCH)
+
+
+# ---- layout, names, formats --------------------------------------------------------------------
+
+
+def test_world_follows_the_dataset_layout(tiny_world: Path) -> None:
+    depth = sorted((tiny_world / "depth").iterdir())
+    color = sorted((tiny_world / "color").iterdir())
+    touch = sorted((tiny_world / "touch").iterdir())
+    assert [p.name for p in depth[:2]] == ["F0001_Depth_Synth_01.png", "F0001_Depth_Synth_02.png"]
+    assert [p.name for p in color[:2]] == ["F0001_1.jpg", "F0001_2.jpg"]
+    assert len(depth) == len(color) == 3 * 2
+    assert len(touch) == 3 * (1 + 2) * 2
+    names = {parse_touch_name(p.name) for p in touch}
+    assert None not in names
+    kinds = {(n.fabric_id, n.kind, n.press) for n in names if n is not None}
+    assert (1, PressKind.FLAT, "1001") in kinds and (3, PressKind.FOLD, "2002") in kinds
+    assert {n.frame for n in names if n is not None} == {1, 2}
+
+    d = Image.open(depth[0])
+    assert d.mode == "I;16" and d.size == (56, 56)
+    arr = np.asarray(d)
+    assert 600 < np.median(arr[arr > 0]) < 1600  # millimetres, like the real files
+    for p in (color[0], touch[0]):
+        im = Image.open(p)
+        assert im.format == "JPEG" and im.mode == "RGB"
+    assert Image.open(touch[0]).size == (80, 60)
+
+    header = (tiny_world / "labels.csv").read_text().splitlines()[0]
+    assert header == "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split"
+    manifest = json.loads((tiny_world / MANIFEST).read_text())
+    assert manifest["status"] == "complete"
+    assert len(manifest["fabrics"]) == 3 and "bending_length_mm" in manifest["fabrics"][0]
+    assert (tiny_world / "contact_sheet.png").is_file()
+
+
+def test_world_passes_the_dataset_checker(tiny_world: Path) -> None:
+    catalog = check_dataset(tiny_world, workers=1)
+    assert [str(p) for p in catalog.errors] == []
+    assert len(catalog.fabrics) == 3
+    assert all(len(f.items[Modality.TOUCH]) == 3 for f in catalog.fabrics)
+
+
+def test_same_seed_gives_byte_identical_files_whatever_the_workers(
+    tiny_world: Path, tmp_path: Path
+) -> None:
+    again = tmp_path / "again"
+    generate(dataclasses.replace(TINY, workers=2), again, progress=False)
+    a, b = _digest(tiny_world), _digest(again)
+    assert a.keys() == b.keys()
+    assert [k for k in a if a[k] != b[k]] == []
+    other = tmp_path / "other"
+    generate(dataclasses.replace(TINY, seed=1, fabrics=1), other, progress=False)
+    assert (other / "color/F0001_1.jpg").read_bytes() != a["color/F0001_1.jpg"]
+
+
+# ---- label-conditioned mode --------------------------------------------------------------------
+
+
+def test_label_mode_keeps_ids_and_columns_and_renders_only_what_is_asked(tmp_path: Path) -> None:
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split,roughness\n"
+        "3,4,2.1,1.43,1.6,1,test,0.2\n"
+        "42,0,2.0,1.5,3.5,0,train,\n"
+        "107,0,,,,,excluded,\n"
+    )
+    cfg = dataclasses.replace(TINY, fabrics=50, presses_flat=0, presses_fold=1, frames=1)
+    out = generate(cfg, tmp_path / "out", labels=labels, progress=False)
+    assert out.mode == "labels" and out.fabrics == 3 and out.depth_images == 0
+    assert not (tmp_path / "out/depth").exists()
+    ids = {int(p.name[1:5]) for p in (tmp_path / "out/color").iterdir()}
+    assert ids == {3, 42, 107}
+    assert sorted(p.name for p in (tmp_path / "out/touch").iterdir())[0] == "F0003_fold_01_2001.jpg"
+    assert (tmp_path / "out/labels.csv").read_text() == labels.read_text()
+
+    with_depth = generate(
+        dataclasses.replace(cfg, modalities=(Modality.DEPTH,)),
+        tmp_path / "depth_only",
+        labels=labels,
+        progress=False,
+    )
+    assert with_depth.depth_images == 3 * cfg.drapes and with_depth.color_images == 0
+    assert not (tmp_path / "depth_only/touch").exists()
+
+
+def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
+    bad = tmp_path / "labels.csv"
+    bad.write_text("fabric_id,thickness_mm\n1,thick\n")
+    with pytest.raises(ValueError, match="line 2.*thickness_mm"):
+        generate(TINY, tmp_path / "out", labels=bad, progress=False)
+
+
+# ---- the output folder -------------------------------------------------------------------------
+
+
+def test_refuses_a_folder_that_is_not_synth_output(tmp_path: Path) -> None:
+    (tmp_path / "mine.txt").write_text("keep me")
+    with pytest.raises(FileExistsError, match="not empty"):
+        generate(TINY, tmp_path, progress=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
+
+
+def test_rerun_replaces_its_own_files_and_keeps_the_users(tmp_path: Path) -> None:
+    one = dataclasses.replace(TINY, fabrics=2, contact_sheet=False)
+    generate(one, tmp_path, progress=False)
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "color" / "mine.png").write_bytes(b"x")
+    generate(dataclasses.replace(one, fabrics=1), tmp_path, progress=False)
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+    assert (tmp_path / "color" / "mine.png").exists()
+    assert not list(tmp_path.rglob("F0002_*"))
+    assert (tmp_path / "color" / "F0001_1.jpg").exists()
+
+
+def test_a_killed_run_leaves_no_truncated_image_and_can_be_rerun(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = {"n": 0}
+    real_replace = os.replace
+
+    def dying_replace(src: str, dst: str) -> None:
+        calls["n"] += 1
+        if calls["n"] == 5:
+            raise KeyboardInterrupt  # killed between writing a temp file and renaming it
+        real_replace(src, dst)
+
+    monkeypatch.setattr(world_module.os, "replace", dying_replace)
+    cfg = dataclasses.replace(TINY, fabrics=1, contact_sheet=False)
+    with pytest.raises(KeyboardInterrupt):
+        generate(cfg, tmp_path, progress=False)
+    monkeypatch.setattr(world_module.os, "replace", real_replace)
+    images = [p for p in tmp_path.rglob("F*") if p.suffix in (".png", ".jpg")]
+    assert images  # some were written before the kill ...
+    for p in images:  # ... and every one under a real name decodes completely
+        Image.open(p).load()
+    assert json.loads((tmp_path / MANIFEST).read_text())["status"] == "running"
+    generate(cfg, tmp_path, progress=False)
+    assert not list(tmp_path.rglob("*.tmp"))
+    assert json.loads((tmp_path / MANIFEST).read_text())["status"] == "complete"
+
+
+# ---- physics shows in the pixels ---------------------------------------------------------------
+
+
+def test_drape_extent_and_fold_count_follow_the_bending_length() -> None:
+    fabrics = sample_fabrics(16, seed=7)
+    cam = depth_camera(224)
+    room = background_depth(cam)
+    extent, folds, bend = [], [], []
+    for f in fabrics:
+        e, k = [], []
+        for d in range(3):
+            p = sample_drape(f, np.random.default_rng([7, f.fabric_id, d]))
+            img = render_depth(
+                drape_surface(f, p).densify(4), cam, np.random.default_rng([8, f.fabric_id, d])
+            )
+            e.append(drape_extent(img, room))
+            k.append(fold_count(img, room))
+        extent.append(np.mean(e))
+        folds.append(np.mean(k))
+        bend.append(f.bending_length_mm)
+    # Stiffer, lighter fabrics stand out further with fewer folds (measured from pixels).
+    assert stats.spearmanr(bend, extent)[0] > 0.85
+    assert stats.spearmanr(bend, folds)[0] < -0.7
+
+
+def test_fold_presses_show_a_band_whose_width_follows_thickness_flat_ones_texture() -> None:
+    s = sensor(320, 240)
+    bg = no_contact_frame(s)
+    fabrics = sample_fabrics(14, seed=3)
+    widths, thick, fold_elong, flat_elong, flat_tex = [], [], [], [], []
+    for f in fabrics:
+        w = []
+        for i in range(4):
+            rng = np.random.default_rng([3, f.fabric_id, i])
+            fold = render_press(f, PressKind.FOLD, s, rng, 3)[-2]
+            width, elong = touch_fold_width(fold, bg)
+            w.append(width)
+            fold_elong.append(elong)
+        flat = render_press(f, PressKind.FLAT, s, np.random.default_rng([4, f.fabric_id]), 3)
+        flat_elong.append(touch_fold_width(flat[-2], bg)[1])
+        flat_tex.append(touch_texture(flat[-1], bg))
+        widths.append(np.median(w))
+        thick.append(f.thickness_mm)
+    assert stats.spearmanr(thick, widths)[0] > 0.6
+    # A fold makes a long band; a flat press a round patch.
+    assert np.median(fold_elong) > 1.4 * np.median(flat_elong)
+    # Flat presses show texture above the sensor's noise floor.
+    noisy = bg + np.random.default_rng(1).normal(0.0, 1.2, bg.shape)
+    floor = touch_texture(np.clip(np.rint(noisy), 0, 255).astype(np.uint8), bg)
+    assert np.median(flat_tex) > 1.5 * floor
+
+
+def test_appearance_is_independent_of_physics() -> None:
+    # Same id and seed, very different physics: same colour and print (a network must look
+    # past the print to match colour with touch).
+    a = make_fabric(5, 0.6, 0.4, 1.0, 0.0, seed=0)
+    b = make_fabric(5, 9.0, 4.0, 5.0, 1.0, seed=0)
+    assert (a.base_rgb, a.print_kind, a.print_rgb, a.sheen) == (
+        b.base_rgb,
+        b.print_kind,
+        b.print_rgb,
+        b.sheen,
+    )
+    assert a.bending_length_mm != b.bending_length_mm
+    kinds = [f.print_kind for f in sample_fabrics(200, seed=0)]
+    assert 0.5 < kinds.count("solid") / len(kinds) < 0.7  # paper: about 60% single colour
+
+
+# ---- held against the real data (skipped without ../shared) ----------------------------------
+
+
+@pytest.mark.real_data
+def test_room_matches_the_real_depth_images(real_data: Path) -> None:
+    files = sorted((real_data / "depth").glob("*.png"))[::20]
+    real = np.stack([np.asarray(Image.open(p), dtype=np.float32) for p in files])
+    real[real == 0] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pixels that are holes in every image
+        far = np.nanpercentile(real, 90, axis=0)  # mostly the empty room
+    room = background_depth(depth_camera(224))
+    wall = np.s_[0:55, 20:85]
+    floor = np.s_[190:224, 30:200]
+    assert np.nanmedian(np.abs(room[wall] - far[wall])) < 15
+    assert np.nanmedian(np.abs(room[floor] - far[floor])) < 15
+
+
+@pytest.mark.real_data
+def test_label_mode_renders_touch_and_colour_for_the_real_fabrics(
+    real_data: Path, tmp_path: Path
+) -> None:
+    cfg = dataclasses.replace(TINY, drapes=1, presses_flat=0, presses_fold=1, frames=1)
+    summary = generate(cfg, tmp_path, labels=real_data / "labels.csv", progress=False)
+    lines = (real_data / "labels.csv").read_text().splitlines()[1:]
+    real_ids = [int(line.split(",")[0]) for line in lines]
+    assert summary.fabrics == len(real_ids) == 119
+    assert sorted(int(p.name[1:5]) for p in (tmp_path / "color").iterdir()) == real_ids
+    assert (tmp_path / "labels.csv").read_text() == (real_data / "labels.csv").read_text()
+    assert check_dataset(tmp_path, workers=1).errors == ()
+
+
+@pytest.mark.real_data
+def test_sensor_matches_the_reference_gelsight_frame() -> None:
+    ref_path = REFERENCE / "markers_nocontact.jpg"
+    if not ref_path.is_file():
+        pytest.skip(f"reference GelSight frames not found at {REFERENCE}")
+    ref = np.asarray(Image.open(ref_path).convert("RGB").resize((320, 240)), dtype=np.float32)
+    ours = no_contact_frame(sensor(320, 240)).astype(np.float32)
+    # Same illumination layout (red lower right, green left, blue top) within ~25 grey levels.
+    assert np.abs(ref - ours).mean() < 25
+    assert np.abs(ref.mean((0, 1)) - ours.mean((0, 1))).max() < 15
