@@ -437,6 +437,11 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_set(parser: argparse.ArgumentParser, help: str) -> None:
+    """The repeatable ``--set KEY=VALUE`` config override."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lookfeel`` command."""
     parser = argparse.ArgumentParser(
@@ -536,13 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--config", type=Path, required=True, help="run config YAML (configs/...)")
     tr.add_argument("--data", type=Path, required=True, help="dataset folder")
     tr.add_argument("--out", type=Path, required=True, help="run directory to write")
-    tr.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a config key, e.g. --set train.steps=100 (repeatable)",
-    )
+    _add_set(tr, "override a config key, e.g. --set train.steps=100 (repeatable)")
     tr.add_argument("--resume", action="store_true", help="continue the run in --out")
     tr.add_argument(
         "--pretrained",
@@ -571,13 +570,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--pretrained", type=Path, default=None, help="ImageNet AlexNet weights")
     rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
-    rep.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override every run's config",
-    )
+    _add_set(rep, "override every run's config")
     rep.set_defaults(func=_cmd_reproduce)
 
     emb = sub.add_parser(
@@ -638,13 +631,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --checkpoint: which items are the test set (default val)",
     )
     ev.add_argument("--config", type=Path, default=None, help="evaluation config YAML (EvalConfig)")
-    ev.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override an EvalConfig key, e.g. --set n_boot=200 (repeatable)",
-    )
+    _add_set(ev, "override an EvalConfig key, e.g. --set n_boot=200 (repeatable)")
     ev.add_argument(
         "--released-variant",
         action="store_true",
@@ -782,13 +769,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", type=Path, default=Path("demo-output"), help="demo folder")
     demo.add_argument("--fabrics", type=int, default=36, help="fabrics in the synthetic world")
     demo.add_argument("--budget", choices=["tiny", "small"], default="tiny")
-    demo.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override every run's config",
-    )
+    _add_set(demo, "override every run's config")
     demo.set_defaults(func=_cmd_demo)
     return parser
 

@@ -288,6 +288,29 @@ class _Log:
 # The entry point
 
 
+def _keep_freed_memory() -> None:
+    """Ask glibc to keep freed large blocks for reuse instead of returning them to the OS.
+
+    Every step frees and reallocates the same large buffers (the fc7 gradients alone are 3 x 64
+    MB); by default glibc unmaps each and the next step page-faults them back in, ~10% of a
+    cached step of the paper's Multi-input Net on 2 cores. Peak memory is unchanged. A no-op
+    where the C library is not glibc.
+    """
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return
+    try:
+        mallopt = ctypes.CDLL(name).mallopt
+    except (OSError, AttributeError):
+        return
+    m_trim_threshold, m_mmap_threshold = -1, -3
+    mallopt(m_mmap_threshold, 1 << 30)
+    mallopt(m_trim_threshold, 1 << 30)
+
+
 def _adam(
     params: list[torch.nn.Parameter], lr: float, weight_decay: float
 ) -> torch.optim.Optimizer:
@@ -373,6 +396,7 @@ def _train(
         )
     if t.threads:
         torch.set_num_threads(t.threads)
+    _keep_freed_memory()
     device = dist.device
     modalities = t.modalities
 
