@@ -6,6 +6,7 @@
 3. Reproduce the paper's experiments on it at the ``tiny`` budget: train the Flat,
    Cross-modal, Auxiliary and Multi-input nets, the colour-augmentation variants and Table 4's
    pair, evaluate each on held-out fabrics, and write the report beside the paper's numbers.
+4. Evaluate the Multi-input Net in full: calibration, confusion matrices, pick examples.
 """
 
 from __future__ import annotations
@@ -16,7 +17,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from lookfeel.config import EvalConfig
 from lookfeel.data import scan
+from lookfeel.evaluate import evaluate_checkpoint, write_report
 from lookfeel.reproduce import ReproduceResult, headline, reproduce
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import MANIFEST
@@ -30,6 +33,8 @@ class DemoResult:
 
     world: Path
     reproduction: ReproduceResult
+    evaluation: Path | None
+    """The full evaluation report (figures included) of the Multi-input Net, when it ran."""
     seconds: float
 
 
@@ -84,7 +89,13 @@ def run_demo(
     result = reproduce(
         world, out / "reproduce", budget=budget, seeds=1, n_boot=500, overrides=overrides, log=log
     )
-    return DemoResult(world, result, time.perf_counter() - started)
+    report = None
+    run = out / "reproduce" / "runs" / "multi_input" / "seed0" / "checkpoints" / "last.pt"
+    if run.exists():
+        log("Evaluating the Multi-input Net in full (calibration, confusion, pick examples) ...")
+        evaluated = evaluate_checkpoint(run, world, split="val", config=EvalConfig(n_boot=500))
+        report = write_report(evaluated, out / "evaluate").report
+    return DemoResult(world, result, report, time.perf_counter() - started)
 
 
 def print_demo_result(result: DemoResult, log: Callable[[str], None] = print) -> None:
@@ -98,5 +109,7 @@ def print_demo_result(result: DemoResult, log: Callable[[str], None] = print) ->
         log(f"  {f['verdict']:>13}: {f['claim']}")
     log("")
     log(f"Report:        {result.reproduction.report}")
+    if result.evaluation is not None:
+        log(f"Evaluation:    {result.evaluation} (figures beside it)")
     log(f"Contact sheet: {result.world / 'contact_sheet.png'}")
     log(f"Done in {result.seconds / 60:.1f} min.")
