@@ -20,28 +20,13 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
+from benchmarks.bench_metrics import DIM, SIZES, _embeddings  # one synthetic-embedding recipe
 from lookfeel.config import EvalConfig
 from lookfeel.evaluate import embedded_from_arrays, evaluate_embeddings
 from lookfeel.metrics import all_pairs
-from lookfeel.modality import Modality
 
 TARGET_S = 20.0
 RUNS = 3
-SIZES = {Modality.DEPTH: 3334, Modality.COLOR: 3333, Modality.TOUCH: 3333}
-DIM = 128
-
-
-def _embeddings(n_fabrics: int, seed: int = 0) -> tuple[dict, dict]:
-    rng = np.random.default_rng(seed)
-    centres = rng.standard_normal((n_fabrics, DIM))
-    emb, fab = {}, {}
-    for m, n in SIZES.items():
-        fabric = np.arange(n) % n_fabrics
-        emb[m] = 0.3 * centres[fabric] + rng.standard_normal((n, DIM))
-        fab[m] = fabric
-    return emb, fab
 
 
 def _median(fn: object) -> tuple[float, list[float]]:
