@@ -333,3 +333,21 @@ def test_sensor_matches_the_reference_gelsight_frame() -> None:
     # Same illumination layout (red lower right, green left, blue top) within ~25 grey levels.
     assert np.abs(ref - ours).mean() < 25
     assert np.abs(ref.mean((0, 1)) - ours.mean((0, 1))).max() < 15
+
+
+def test_contact_sheet_beside_another_datasets_depth(tmp_path: Path) -> None:
+    from ._tiny import write_tiny_dataset
+
+    real = write_tiny_dataset(tmp_path / "real", fabrics=3, drapes=2)
+    labels = real / "labels.csv"
+    cfg = dataclasses.replace(TINY, presses_flat=1, presses_fold=1, frames=2)
+    alone = generate(cfg, tmp_path / "alone", labels=labels, progress=False)
+    beside = generate(cfg, tmp_path / "beside", labels=labels, progress=False, beside=real)
+    assert alone.contact_sheet is not None and beside.contact_sheet is not None
+    w_alone, h_alone = Image.open(alone.contact_sheet).size
+    w_beside, h_beside = Image.open(beside.contact_sheet).size
+    assert h_beside == h_alone and w_beside > w_alone  # the same rows, two real tiles more
+    with pytest.raises(ValueError, match="no depth image of any fabric id"):
+        generate(cfg, tmp_path / "none", labels=labels, progress=False, beside=tmp_path / "alone")
+    with pytest.raises(ValueError, match="not a folder"):
+        generate(cfg, tmp_path / "x", labels=labels, progress=False, beside=tmp_path / "nope")

@@ -182,3 +182,32 @@ def test_two_processes_agree_with_one(data: Path, tmp_path: Path):
     assert _states_equal(
         tmp_path / "one/checkpoints/last.pt", tmp_path / "two/checkpoints/last.pt", atol=1e-5
     )
+
+
+def test_init_from_another_run_copies_matching_weights(data: Path, tmp_path: Path):
+    from lookfeel.checkpoint import CheckpointError, init_from_checkpoint
+    from lookfeel.models import create_model
+
+    source = train(_config("train.views=[depth,depth]", "train.split=none"), data, tmp_path / "a")
+    # Same architecture: every tensor is copied, so the fresh model equals the source run's.
+    cfg = _config("train.views=[depth,depth]")
+    model = create_model(cfg.model, [Modality.DEPTH])
+    assert init_from_checkpoint(model, source.last_checkpoint) == []
+    saved = torch.load(source.last_checkpoint, weights_only=True)["model"]
+    assert all(torch.equal(model.state_dict()[k], v) for k, v in saved.items())
+    # A different projection size: the backbone is copied, the projection starts fresh (and
+    # training says so), and a model with no branch in common is refused.
+    with pytest.warns(UserWarning, match="start fresh"):
+        train(
+            _config(
+                "train.views=[depth,depth]",
+                "train.steps=2",
+                "model.embed_dim=12",
+                f"model.init_from={source.last_checkpoint}",
+            ),
+            data,
+            tmp_path / "b",
+        )
+    touch_only = create_model(cfg.model, [Modality.TOUCH])
+    with pytest.raises(CheckpointError, match="no weight fits this model"):
+        init_from_checkpoint(touch_only, source.last_checkpoint)

@@ -25,6 +25,7 @@ __all__ = [
     "CHECKPOINT_VERSION",
     "CheckpointError",
     "LoadedModel",
+    "init_from_checkpoint",
     "load_model",
     "read_checkpoint",
     "save_checkpoint",
@@ -76,6 +77,31 @@ class LoadedModel:
     split: dict[str, Any]
     """The run's split.json: ``kind``, ``train`` and ``val`` fabric ids; for the ``seen`` split
     also ``val_items`` (held-out item paths) and ``novel`` (held-out fabric ids)."""
+
+
+def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[str]:
+    """Start ``model`` from another run's weights (``model.init_from``: e.g. pre-training on
+    the synthetic world, then training on real data).
+
+    Every parameter and buffer whose name and shape match is copied; the rest (a head of
+    another size, a branch the other run lacks) keep their fresh initialisation.
+
+    Returns:
+        The names of the tensors that were not copied.
+
+    Raises:
+        CheckpointError: the file is not a checkpoint, or no tensor of it fits this model.
+    """
+    source = read_checkpoint(path)["model"]
+    own = model.state_dict()
+    fits = {k: v for k, v in source.items() if k in own and own[k].shape == v.shape}
+    if not fits:
+        raise CheckpointError(
+            f"{path}: no weight fits this model (its branches or backbone differ: the "
+            f"checkpoint has e.g. {', '.join(list(source)[:3])})"
+        )
+    model.load_state_dict(fits, strict=False)
+    return [k for k in own if k not in fits]
 
 
 def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu") -> LoadedModel:

@@ -178,6 +178,30 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_cv(args: argparse.Namespace) -> int:
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.crossval import cross_validate, format_summary
+
+    overrides = list(args.set)
+    if args.folds is not None:
+        overrides.append(f"train.folds={args.folds}")
+    if args.fold_size is not None:
+        overrides.append(f"train.fold_size={args.fold_size}")
+    config = load_config(RunConfig, args.config, overrides)
+    summary = cross_validate(
+        config,
+        args.data,
+        args.out,
+        seeds=args.seeds,
+        folds=args.only_folds,
+        tta=args.tta,
+        n_boot=args.n_boot,
+    )
+    print(format_summary(summary), end="")
+    print(f"Wrote {args.out / 'cv.json'} and {args.out / 'cv.md'}")
+    return 0
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from lookfeel.reproduce import headline, reproduce
 
@@ -423,7 +447,9 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             modalities=args.modalities,
             contact_sheet=not args.no_contact_sheet,
         )
-        summary = generate(config, args.out, labels=args.labels, progress=not args.quiet)
+        summary = generate(
+            config, args.out, labels=args.labels, progress=not args.quiet, beside=args.beside
+        )
     except (ValueError, FileExistsError) as e:
         print(f"lookfeel synth: {e}", file=sys.stderr)
         return 2
@@ -435,6 +461,17 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     if summary.contact_sheet is not None:
         print(f"Contact sheet: {summary.contact_sheet}")
     return 0
+
+
+def _int_list(text: str) -> list[int]:
+    """``"0,1,2"`` -> ``[0, 1, 2]`` (an argparse type)."""
+    try:
+        values = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers") from None
+    if not values:
+        raise argparse.ArgumentTypeError("an empty list")
+    return values
 
 
 def _add_set(parser: argparse.ArgumentParser, help: str) -> None:
@@ -526,6 +563,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     syn.add_argument("--format", choices=["jpg", "png"], default="jpg", help="colour and touch")
     syn.add_argument("--no-contact-sheet", action="store_true", help="skip contact_sheet.png")
+    syn.add_argument(
+        "--beside",
+        type=Path,
+        default=None,
+        metavar="ROOT",
+        help="a dataset folder (e.g. the real GelFabric data, with --labels ROOT/labels.csv) "
+        "whose depth images of the same fabrics open each row of the contact sheet",
+    )
     syn.add_argument("--quiet", action="store_true", help="no progress bar")
     syn.set_defaults(func=_cmd_synth)
 
@@ -551,6 +596,49 @@ def build_parser() -> argparse.ArgumentParser:
         "never downloaded",
     )
     tr.set_defaults(func=_cmd_train)
+
+    cv = sub.add_parser(
+        "cv",
+        help="cross-validate a config over fabric-disjoint folds, beside raw pixels and chance",
+        description=(
+            "Train a config on every fold of cluster-stratified, fabric-disjoint folds (and "
+            "every seed), score each run's last checkpoint by pick 1 of 10 among the fabrics its "
+            "fold held out, beside the raw-pixel nearest neighbour and chance, and predict the "
+            "physical labels of held-out fabrics from their embeddings. Writes OUT/cv.json, "
+            "OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps finished "
+            "runs and resumes an interrupted one."
+        ),
+    )
+    cv.add_argument("--config", type=Path, required=True, help="run config YAML (configs/...)")
+    cv.add_argument("--data", type=Path, required=True, help="dataset folder")
+    cv.add_argument("--out", type=Path, required=True, help="cross-validation folder to write")
+    cv.add_argument(
+        "--folds", type=int, default=None, help="number of folds (default: the config's)"
+    )
+    cv.add_argument(
+        "--fold-size",
+        type=int,
+        default=None,
+        help="fabrics per fold (default: the config's; 18 holds out test sets like the paper's)",
+    )
+    cv.add_argument(
+        "--only-folds",
+        type=_int_list,
+        default=None,
+        metavar="F,F",
+        help="run only these folds, e.g. 0,1,2 (default: all)",
+    )
+    cv.add_argument(
+        "--seeds", type=_int_list, default=[0], metavar="S,S", help="training seeds (default 0)"
+    )
+    cv.add_argument(
+        "--tta",
+        action="store_true",
+        help="test-time pooling: average each image's embedding with its mirror image's",
+    )
+    cv.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples (default 1000)")
+    _add_set(cv, "override a config key, e.g. --set train.steps=100 (repeatable)")
+    cv.set_defaults(func=_cmd_cv)
 
     rep = sub.add_parser(
         "reproduce",

@@ -13,7 +13,7 @@ from lookfeel.data import Catalog, ImageLoader, Item
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder
 
-__all__ = ["EmbeddedItems", "embed_catalog", "embed_items"]
+__all__ = ["EmbeddedItems", "embed_catalog", "embed_items", "raw_pixels"]
 
 
 @dataclass(frozen=True)
@@ -45,8 +45,14 @@ def embed_items(
     loader: ImageLoader,
     batch_size: int = 64,
     device: torch.device | str = "cpu",
+    *,
+    flip: bool = False,
 ) -> np.ndarray:
     """Embed items of one modality in batches, in eval mode.
+
+    Args:
+        flip: test-time pooling: also embed each image mirrored left to right and return the
+            mean of the two embeddings.
 
     Returns:
         (N, D) float32 embeddings, in the order of ``items``.
@@ -64,10 +70,21 @@ def embed_items(
             if modality is Modality.TOUCH:
                 x = x.unsqueeze(1)  # (B, 3, S, S) -> (B, P=1, 3, S, S)
             x = x.contiguous(memory_format=torch.channels_last) if x.dim() == 4 else x
-            out.append(model({modality.value: x})[modality.value].float().cpu())
+            e = model({modality.value: x})[modality.value].float()
+            if flip:
+                e = 0.5 * (e + model({modality.value: x.flip(-1)})[modality.value].float())
+            out.append(e.cpu())
     finally:
         model.train(was_training)
     return torch.cat(out).numpy()
+
+
+def raw_pixels(items: Sequence[Item], loader: ImageLoader) -> np.ndarray:
+    """The raw-pixel baseline's "embedding": each preprocessed image (the network's input, at
+    the config's size) flattened, as (N, C * S * S) float32."""
+    if not items:
+        return np.zeros((0, 0), np.float32)
+    return torch.stack([loader.load(it).reshape(-1) for it in items]).float().numpy()
 
 
 def embed_catalog(

@@ -48,7 +48,8 @@ class LossConfig:
     cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
     property_weight: float = 1.0
     """Weight of the masked property regression (mean squared error over known labels, summed
-    over slots). Needs the model's property head; standardise the targets first."""
+    over slots). Needs the model's property head. The targets are standardised over the training
+    fabrics, so every label weighs alike."""
 
     def __post_init__(self) -> None:
         for key, choice, allowed in (

@@ -47,6 +47,10 @@ class ModelConfig:
     """Path to a local torchvision state dict to start from (``alexnet-owt-7be5be79.pth`` for
     ``alexnet``, ``resnet18-f37072fd.pth`` for ``resnet18``). Weights are never downloaded;
     ``None`` starts from random weights."""
+    init_from: str | None = None
+    """Path to a lookfeel checkpoint (``RUN/checkpoints/last.pt``) to start from: every weight
+    whose name and shape match is copied (e.g. a depth branch pre-trained on the synthetic
+    world, then trained on real depth); the rest start fresh. Applied after ``pretrained``."""
     freeze: str | None = None
     """Where the frozen trunk ends (see `BACKBONE_FREEZE_POINTS`); ``None`` takes the backbone's
     default (`BACKBONE_DEFAULT_FREEZE`: ``to_fc6`` for AlexNet as the paper, else ``none``).
@@ -101,6 +105,8 @@ class ModelConfig:
                 )
             if not self.pretrained.strip():
                 raise ConfigError("model.pretrained: empty path; use null for random weights")
+        if self.init_from is not None and not self.init_from.strip():
+            raise ConfigError("model.init_from: empty path; use null to start from scratch")
         for key, value, allowed in (
             ("depth_stem", self.depth_stem, ("replicate", "sum")),
             ("press_pool", self.press_pool, ("max", "mean")),

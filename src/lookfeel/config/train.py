@@ -53,6 +53,11 @@ class TrainConfig:
     """Fabrics held out by the ``stratified`` split (the paper's test set has 18)."""
     folds: int = 5
     """Number of folds for the ``fold`` split."""
+    fold_size: int | None = None
+    """Fabrics each fold of the ``fold`` split holds out; ``None`` deals every fabric into the
+    folds (sizes differ by at most one). With a size, ``folds * fold_size`` fabrics chosen
+    evenly over the clusters are dealt and the rest always train (5 folds of 18: five test sets
+    like the paper's)."""
     fold: int = 0
     """Which fold the ``fold`` split holds out (0-based)."""
     split_seed: int = 0
@@ -105,6 +110,8 @@ class TrainConfig:
             raise ConfigError(f"train.device: {self.device!r} is not auto, cpu or cuda")
         if not 0 <= self.fold < self.folds:
             raise ConfigError(f"train.fold: must be in 0..{self.folds - 1}, got {self.fold}")
+        if self.fold_size is not None and self.fold_size < 1:
+            raise ConfigError(f"train.fold_size: must be >= 1 or null, got {self.fold_size}")
         for pair in self.val_pairs:
             q, sep, g = pair.partition("_to_")
             valid = {m.value for m in Modality}

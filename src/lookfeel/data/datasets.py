@@ -33,6 +33,19 @@ def _labels_vector(values: dict[str, float], columns: Sequence[str]) -> torch.Te
     return torch.tensor([values.get(c, math.nan) for c in columns], dtype=torch.float32)
 
 
+def _nan_mean_std(values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-column mean and standard deviation of (N, L) values over the non-NaN entries; a
+    column with fewer than two values or no spread gets mean 0 and std 1 (left as it is)."""
+    known = ~torch.isnan(values)
+    n = known.sum(dim=0)
+    filled = torch.where(known, values, torch.zeros_like(values))
+    mean = filled.sum(dim=0) / n.clamp_min(1)
+    var = torch.where(known, (values - mean) ** 2, torch.zeros_like(values)).sum(dim=0)
+    std = (var / (n - 1).clamp_min(1)).sqrt()
+    usable = (n >= 2) & (std > 0)
+    return torch.where(usable, mean, 0.0), torch.where(usable, std, 1.0)
+
+
 class TupleDataset(Dataset[dict[str, Any]]):
     """Tuples of slots from one fabric (y = 0) or from different fabrics (y = 1).
 
@@ -51,7 +64,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
         ``fabric_ids``: slot name -> int64 scalar.
         ``clusters``: slot name -> int64 scalar (-1 when unknown).
         ``properties``: slot name -> (L,) float32 labels in ``catalog.label_columns`` order,
-            NaN where unknown.
+            standardised (zero mean, unit variance over this dataset's fabrics: see
+            ``label_mean`` and ``label_std``), NaN where unknown.
         ``y``: float32 scalar, 0 for one fabric and 1 for different fabrics (paper's Y).
 
     Raises:
@@ -92,6 +106,10 @@ class TupleDataset(Dataset[dict[str, Any]]):
             m: {f.id: f.items_of(m, self.kinds) for f in catalog.fabrics} for m in modalities
         }
         self._fabrics = {f.id: f for f in catalog.fabrics}
+        known = torch.stack(
+            [_labels_vector(dict(f.labels), self.label_columns) for f in catalog.fabrics]
+        ).reshape(len(catalog.fabrics), len(self.label_columns))
+        self.label_mean, self.label_std = _nan_mean_std(known)
         if self.same_fraction < 1.0 and len(self.fabric_ids) < len(self.views):
             raise DatasetError(
                 f"{len(self.views)} slots from different fabrics need at least that many "
@@ -130,9 +148,10 @@ class TupleDataset(Dataset[dict[str, Any]]):
             out["clusters"][slot] = torch.tensor(
                 [-1 if f.cluster is None else f.cluster for f in fabrics], dtype=torch.int64
             )
-            out["properties"][slot] = torch.stack(
+            raw = torch.stack(
                 [_labels_vector(dict(f.labels), self.label_columns) for f in fabrics]
             ).reshape(len(ids), len(self.label_columns))
+            out["properties"][slot] = (raw - self.label_mean) / self.label_std
         return out
 
     def _choose(

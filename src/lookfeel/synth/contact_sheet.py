@@ -4,6 +4,10 @@ Rows are fabrics chosen evenly from the stiffest to the most flexible (by bendin
 the sheet shows the physics at a glance: depth (false colour, near = bright), colour photos,
 and the second-to-last frame of a flat press and of two fold presses. Images are read back
 from the files written, so the sheet shows exactly what is on disk.
+
+With ``beside`` (another dataset folder, e.g. the real GelFabric data in label-conditioned mode)
+each row starts with that dataset's depth images of the same fabric id, outlined in red, so the
+synthetic renders stand beside real ones; only fabrics the other dataset has are shown then.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ __all__ = ["write_contact_sheet"]
 
 _TILE = 128
 _LABEL_W = 150
+_HEAD = 18  # a row of column titles
 # A perceptual ramp (dark blue -> teal -> yellow) for depth, near = bright.
 _RAMP = np.array([[20, 20, 70], [40, 90, 140], [40, 160, 130], [170, 210, 70], [250, 240, 80]])
 
@@ -56,23 +61,52 @@ def write_contact_sheet(
     cfg: SynthConfig,
     modalities: Sequence[Modality],
     rows: int = 6,
+    beside: Path | None = None,
 ) -> Path:
-    """Compose and write ``out/contact_sheet.png``; returns its path."""
+    """Compose and write ``out/contact_sheet.png``; returns its path.
+
+    Args:
+        beside: a dataset folder whose depth images of the same fabric ids open each row.
+    """
+    other: dict[int, list[Path]] = {}
+    if beside is not None:
+        from lookfeel.data import scan
+
+        catalog = scan(beside)
+        other = {
+            f.id: sorted(it.path for it in f.items_of(Modality.DEPTH))[:2]
+            for f in catalog.fabrics
+            if f.items_of(Modality.DEPTH)
+        }
+        fabrics = [f for f in fabrics if f.fabric_id in other]
+        if not fabrics:
+            raise ValueError(f"{beside}: no depth image of any fabric id of this world")
     order = sorted(fabrics, key=lambda f: f.bending_length_mm)
     idx = np.unique(np.linspace(0, len(order) - 1, min(rows, len(order))).round().astype(int))
     picked = [order[i] for i in idx]
     ext = cfg.image_format
     mid = f"{max(1, cfg.frames - 1):02d}"  # the authors' "second-to-last" frame
     strips = []
+    heads: list[list[str]] = []
     for f in picked:
         fid = f"F{f.fabric_id:04d}"
         tiles: list[Image.Image] = []
+        titles: list[str] = []
+        for p in other.get(f.fabric_id, []):
+            tile = _fit(_depth_tile(p))
+            ImageDraw.Draw(tile).rectangle(
+                (0, 0, tile.size[0] - 1, _TILE - 1), outline=(220, 30, 30), width=3
+            )
+            tiles.append(tile)
+            titles.append(f"depth: {beside.name}" if beside is not None else "depth")
         if Modality.DEPTH in modalities:
             for p in sorted((out / "depth").glob(f"{fid}_*.png"))[:2]:
                 tiles.append(_fit(_depth_tile(p)))
+                titles.append("depth (synthetic)")
         if Modality.COLOR in modalities:
             for p in sorted((out / "color").glob(f"{fid}_*.{ext}"))[:2]:
                 tiles.append(_fit(np.asarray(Image.open(p).convert("RGB"))))
+                titles.append("colour (synthetic)")
         if Modality.TOUCH in modalities:
             for kind, n in (("flat", 1), ("fold", 2)):
                 presses = sorted(
@@ -85,6 +119,7 @@ def write_contact_sheet(
                     frame = _first(out, f"touch/{fid}_{kind}_{mid}_{press}.{ext}")
                     if frame is not None:
                         tiles.append(_fit(np.asarray(Image.open(frame).convert("RGB"))))
+                        titles.append(f"touch, {kind} (synthetic)")
         label = Image.new("RGB", (_LABEL_W, _TILE), (255, 255, 255))
         draw = ImageDraw.Draw(label)
         text = (
@@ -93,12 +128,19 @@ def write_contact_sheet(
         )
         draw.multiline_text((6, 8), text, fill=(0, 0, 0), spacing=4)
         strips.append([label, *tiles])
+        heads.append(titles)
     width = max(sum(t.size[0] + 2 for t in s) for s in strips)
-    sheet = Image.new("RGB", (width, len(strips) * (_TILE + 2)), (255, 255, 255))
+    sheet = Image.new("RGB", (width, _HEAD + len(strips) * (_TILE + 2)), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    longest = max(range(len(strips)), key=lambda r: len(heads[r]))
+    x = _LABEL_W + 2
+    for t, title in zip(strips[longest][1:], heads[longest], strict=True):
+        draw.text((x + 4, 4), title, fill=(0, 0, 0))
+        x += t.size[0] + 2
     for r, strip in enumerate(strips):
         x = 0
         for t in strip:
-            sheet.paste(t, (x, r * (_TILE + 2)))
+            sheet.paste(t, (x, _HEAD + r * (_TILE + 2)))
             x += t.size[0] + 2
     buf = io.BytesIO()
     sheet.save(buf, format="PNG", compress_level=6)

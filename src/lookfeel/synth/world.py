@@ -266,6 +266,7 @@ def generate(
     out: Path,
     labels: Path | None = None,
     progress: bool = True,
+    beside: Path | None = None,
 ) -> SynthSummary:
     """Generate a synthetic visuo-tactile fabric world into ``out``.
 
@@ -277,6 +278,8 @@ def generate(
             the file are rendered, ids kept, their physics read from the labels (missing labels
             filled from the fabric's cluster); its rows are copied to ``out/labels.csv``.
         progress: show a progress bar (tqdm) on stderr.
+        beside: a dataset folder (e.g. the real GelFabric data) whose depth images of the same
+            fabric ids open each row of the contact sheet, beside the synthetic renders.
 
     Returns:
         Counts and paths of what was written.
@@ -290,6 +293,8 @@ def generate(
     """
     started = time.perf_counter()
     out = Path(out)
+    if beside is not None and not Path(beside).is_dir():
+        raise ValueError(f"--beside {beside}: not a folder")
     if labels is not None:
         lf: LabelFile | None = read_label_file(Path(labels))
         assert lf is not None
@@ -343,7 +348,7 @@ def generate(
     if config.contact_sheet:
         from lookfeel.synth.contact_sheet import write_contact_sheet
 
-        sheet = write_contact_sheet(out, fabrics, config, mods)
+        sheet = write_contact_sheet(out, fabrics, config, mods, beside=beside)
     manifest["status"] = "complete"
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     return SynthSummary(

@@ -27,7 +27,7 @@ from torch import Tensor
 from torch.utils.data import DataLoader, Sampler
 
 from lookfeel.atomic import atomic_write_text
-from lookfeel.checkpoint import read_checkpoint, save_checkpoint
+from lookfeel.checkpoint import init_from_checkpoint, read_checkpoint, save_checkpoint
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
 from lookfeel.data import (
     Augmenter,
@@ -108,8 +108,11 @@ def select_split(
         )
     clusters = catalog.clusters()
     if t.split == "fold":
-        split = stratified_fabric_folds(pool, clusters, t.folds, seed=t.split_seed)[t.fold]
-        info = {"kind": "fold", "fold": t.fold, "folds": t.folds, "seed": t.split_seed}
+        split = stratified_fabric_folds(
+            pool, clusters, t.folds, seed=t.split_seed, fold_size=t.fold_size
+        )[t.fold]
+        info = {"kind": "fold", "fold": t.fold, "folds": t.folds, "fold_size": t.fold_size}
+        info["seed"] = t.split_seed
     else:
         split = stratified_fabric_split(pool, clusters, n_test=t.val_fabrics, seed=t.split_seed)
         info = {"kind": "stratified", "seed": t.split_seed}
@@ -415,7 +418,16 @@ def _train(
     loader.preload([*ds.items(), *(it for v in val_items.values() for it in v)])
 
     torch.manual_seed(t.seed)
-    model = create_model(config.model, modalities).to(device)
+    model = create_model(config.model, modalities)
+    if state is None and config.model.init_from is not None:
+        fresh = init_from_checkpoint(model, config.model.init_from)
+        if fresh:
+            warnings.warn(
+                f"model.init_from: {len(fresh)} tensors of this model are not in "
+                f"{config.model.init_from} and start fresh (e.g. {', '.join(fresh[:3])})",
+                stacklevel=3,
+            )
+    model = model.to(device)
     loss_fn = create_loss(config.loss).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)

@@ -1,0 +1,375 @@
+"""Fabric-disjoint cross-validation: train one config on every fold (and seed), score the fabrics
+each fold held out, and put the model beside the raw-pixel baseline and chance.
+
+The folds are ``train.folds`` cluster-stratified folds of ``train.fold_size`` fabrics (5 of 18:
+five test sets chosen as the paper chose its 18). Each run trains on the other fabrics, is scored
+by its *last* checkpoint (no choice is made on the held-out fabrics), and reports, per pair:
+
+- pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3;
+- the same for raw pixels (nearest neighbour on the preprocessed images; same-modality pairs);
+- chance.
+
+Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
+that resamples the held-out fabrics (all their queries together). Physical properties are
+predicted from the fabric-mean embeddings of the held-out fabrics by a ridge probe fitted on the
+training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels.
+
+Every run lives in ``OUT/seed{S}-fold{F}/`` and its scores in ``result.json`` there; a rerun
+skips finished runs and resumes an interrupted one, so a killed cross-validation loses at most
+the steps since a run's last checkpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lookfeel.atomic import atomic_write_text
+from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.config import RunConfig
+from lookfeel.config._core import ConfigError, to_dict
+from lookfeel.data import Catalog, ImageLoader, Item, scan
+from lookfeel.embedding import embed_items, raw_pixels
+from lookfeel.metrics import (
+    bootstrap_ci,
+    mean_and_spread,
+    pairwise_distances,
+    pick_k_of_n_exact,
+    property_probe,
+)
+from lookfeel.modality import Modality
+from lookfeel.train import train
+from lookfeel.train.validate import default_pairs
+
+__all__ = ["cross_validate", "format_summary", "score_checkpoint"]
+
+RESULT = "result.json"
+SUMMARY = "cv.json"
+REPORT = "cv.md"
+_KS = (1, 3)
+
+
+def _run_config(config: RunConfig, fold: int, seed: int) -> RunConfig:
+    t = dataclasses.replace(config.train, split="fold", fold=fold, seed=seed)
+    return dataclasses.replace(config, train=t)
+
+
+def _pairs(config: RunConfig) -> list[str]:
+    return list(config.train.val_pairs) or default_pairs(config.train.modalities)
+
+
+def _pick(
+    emb: dict[Modality, np.ndarray], fab: dict[Modality, np.ndarray], pair: str
+) -> tuple[np.ndarray, list[float]]:
+    """(Q, 2) per-query exact top-1 and top-3 of pick 1 of 10 for one pair, and chance (of
+    pick 1 of n_effective when a fold has fewer than 10 fabrics)."""
+    q, _, g = pair.partition("_to_")
+    mq, mg = Modality(q), Modality(g)
+    dist = pairwise_distances(emb[mq], emb[mg])
+    exclude = np.arange(len(emb[mq])) if mq is mg else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a fold of fewer than 10 fabrics: n_effective shrinks
+        res = pick_k_of_n_exact(dist, fab[mq], fab[mg], n=10, ks=_KS, exclude_self=exclude)
+    return res.per_query, [float(c) for c in res.chance]
+
+
+def _labels(catalog: Catalog, fabric_ids: np.ndarray) -> np.ndarray:
+    cols = catalog.label_columns
+    return np.array(
+        [[catalog.fabric(int(i)).labels.get(c, math.nan) for c in cols] for i in fabric_ids],
+        dtype=np.float64,
+    ).reshape(len(fabric_ids), len(cols))
+
+
+def _probe(
+    catalog: Catalog,
+    train_x: np.ndarray,
+    train_f: np.ndarray,
+    test_x: np.ndarray,
+    test_f: np.ndarray,
+) -> dict[str, dict[str, float]]:
+    if not catalog.label_columns:
+        return {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return property_probe(
+            train_x,
+            _labels(catalog, train_f),
+            test_x,
+            _labels(catalog, test_f),
+            "ridge",
+            names=list(catalog.label_columns),
+            train_fabric=train_f,
+            test_fabric=test_f,
+        )
+
+
+def _score(
+    lm: LoadedModel,
+    catalog: Catalog,
+    held_ids: Sequence[int],
+    seen_ids: Sequence[int],
+    pairs: Sequence[str],
+    tta: bool,
+) -> dict[str, Any]:
+    """Per-query pick 1 of 10 of the model and of raw pixels on ``held_ids``' items, and
+    property probes fitted on ``seen_ids``' items (none when it is empty)."""
+    cfg = lm.config
+    loader = ImageLoader(cfg.data)
+    held = catalog.subset(held_ids)
+    seen = catalog.subset(seen_ids) if seen_ids else None
+    wanted = {Modality(p.partition("_to_")[0]) for p in pairs} | {
+        Modality(p.partition("_to_")[2]) for p in pairs
+    }
+    emb: dict[Modality, np.ndarray] = {}
+    pix: dict[Modality, np.ndarray] = {}
+    fab: dict[Modality, np.ndarray] = {}
+    props: dict[str, Any] = {}
+    for m in sorted(wanted, key=lambda m: m.value):
+        items: list[Item] = held.items(m, cfg.data.touch_kinds)
+        train_items: list[Item] = seen.items(m, cfg.data.touch_kinds) if seen else []
+        loader.preload([*items, *train_items])
+        emb[m] = embed_items(lm.model, items, loader, flip=tta)
+        pix[m] = raw_pixels(items, loader)
+        fab[m] = np.array([it.fabric_id for it in items], dtype=np.int64)
+        if train_items:
+            train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
+            train_e = embed_items(lm.model, train_items, loader, flip=tta)
+            props[m.value] = {
+                "model": _probe(catalog, train_e, train_f, emb[m], fab[m]),
+                "raw_pixels": _probe(
+                    catalog, raw_pixels(train_items, loader), train_f, pix[m], fab[m]
+                ),
+            }
+    out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
+    for pair in pairs:
+        q, _, g = pair.partition("_to_")
+        model_q, chance = _pick(emb, fab, pair)
+        entry: dict[str, Any] = {
+            "query_fabric": fab[Modality(q)].tolist(),
+            "model": model_q.tolist(),
+            "chance": chance,
+        }
+        if q == g:  # raw pixels only compare images of one kind
+            entry["raw_pixels"] = _pick(pix, fab, pair)[0].tolist()
+        out["pairs"][pair] = entry
+    out["properties"] = props
+    return out
+
+
+def score_checkpoint(
+    checkpoint: str | Path,
+    data: str | Path,
+    *,
+    pairs: Sequence[str] = (),
+    tta: bool = False,
+    n_boot: int = 1000,
+) -> dict[str, Any]:
+    """Score a trained model on every fabric of another dataset, beside raw pixels and chance.
+
+    The transfer test of the synthetic world: a depth encoder trained on synthetic depth only,
+    scored on real depth (pick 1 of 10 among all the dataset's fabrics).
+
+    Args:
+        checkpoint: a run's checkpoint.
+        data: the dataset to score on (every fabric is a test fabric).
+        pairs: pairs to score; default: the run's validation pairs, else every pair.
+        tta: test-time pooling over each image and its mirror.
+        n_boot: bootstrap resamples for the intervals.
+
+    Returns:
+        ``{"pairs": {pair: {"model_top1": {"mean", "ci95", ...}, "raw_pixels_top1": ...,
+        "chance_top1": ...}}, "checkpoint", "data", "step"}``.
+    """
+    lm = load_model(checkpoint)
+    wanted = list(pairs) or _pairs(lm.config)
+    modalities = {Modality(x) for p in wanted for x in p.split("_to_")}
+    catalog = scan(data, require=sorted(modalities, key=lambda m: m.value), strict=True)
+    res = _score(lm, catalog, catalog.ids, [], wanted, tta)
+    summary = _summarise([res], wanted, n_boot)
+    return {
+        "checkpoint": str(checkpoint),
+        "data": str(data),
+        "step": lm.step,
+        "tta": tta,
+        "pairs": summary["pairs"],
+    }
+
+
+def _evaluate_run(run_dir: Path, catalog: Catalog, pairs: Sequence[str], tta: bool) -> dict:
+    """Score a finished run's last checkpoint on its held-out fabrics."""
+    lm = load_model(run_dir / "checkpoints" / "last.pt")
+    return _score(lm, catalog, lm.split["val"], lm.split["train"], pairs, tta)
+
+
+def _summarise(results: list[dict], pairs: Sequence[str], n_boot: int) -> dict[str, Any]:
+    summary: dict[str, Any] = {"runs": len(results), "pairs": {}, "properties": {}}
+    for pair in pairs:
+        entry: dict[str, Any] = {}
+        groups = np.concatenate([r["pairs"][pair]["query_fabric"] for r in results])
+        for method in ("model", "raw_pixels"):
+            if method not in results[0]["pairs"][pair]:
+                continue
+            per_run = [np.asarray(r["pairs"][pair][method], dtype=np.float64) for r in results]
+            pooled = np.concatenate(per_run)
+            low, high = bootstrap_ci(pooled, groups, n_boot=n_boot, seed=0)
+            for j, k in enumerate(_KS):
+                runs = [float(np.nanmean(v[:, j])) for v in per_run]
+                spread = mean_and_spread(runs)
+                entry[f"{method}_top{k}"] = {
+                    "mean": spread["mean"],
+                    "std_over_runs": spread["std"],
+                    "ci95": [float(low[j]), float(high[j])],
+                    "per_run": runs,
+                }
+        for j, k in enumerate(_KS):
+            entry[f"chance_top{k}"] = float(
+                np.mean([r["pairs"][pair]["chance"][j] for r in results])
+            )
+        summary["pairs"][pair] = entry
+    for m, per in results[0]["properties"].items():  # none when no run had training fabrics
+        summary["properties"][m] = {}
+        for method in per:
+            table: dict[str, dict[str, float]] = {}
+            for label in per[method]:
+                for score in ("r2", "spearman"):
+                    vals = [r["properties"][m][method][label][score] for r in results]
+                    s = mean_and_spread(vals)
+                    table.setdefault(label, {})[score] = s["mean"]
+                    table[label][f"{score}_std"] = s["std"]
+            summary["properties"][m][method] = table
+    return summary
+
+
+def _fmt(x: dict[str, Any]) -> str:
+    lo, hi = x["ci95"]
+    return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]"
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
+    lines = [
+        f"Fabric-disjoint cross-validation: {summary['runs']} runs "
+        f"(folds {summary['folds']}, seeds {summary['seeds']}, {summary['fold_size']} fabrics "
+        "per fold). Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
+        "[95% interval, resampling held-out fabrics].",
+        "",
+        "| pair | model top-1 | model top-3 | raw pixels top-1 | raw pixels top-3 | chance |",
+        "|---|---|---|---|---|---|",
+    ]
+    for pair, e in summary["pairs"].items():
+        raw = (
+            (_fmt(e["raw_pixels_top1"]), _fmt(e["raw_pixels_top3"]))
+            if "raw_pixels_top1" in e
+            else ("-", "-")
+        )
+        lines.append(
+            f"| {pair} | {_fmt(e['model_top1'])} | {_fmt(e['model_top3'])} | {raw[0]} | {raw[1]} "
+            f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
+        )
+    for m, per in summary["properties"].items():
+        if not per.get("model"):
+            continue
+        lines += [
+            "",
+            f"Physical properties from {m} (ridge probe on fabric-mean embeddings, fitted on "
+            "each fold's training fabrics; mean ± std over runs):",
+            "",
+            "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |",
+            "|---|---|---|---|---|",
+        ]
+        for label, s in per["model"].items():
+            r = per["raw_pixels"][label]
+            lines.append(
+                f"| {label} | {s['r2']:.2f} ± {s['r2_std']:.2f} | {s['spearman']:.2f} ± "
+                f"{s['spearman_std']:.2f} | {r['r2']:.2f} ± {r['r2_std']:.2f} | "
+                f"{r['spearman']:.2f} ± {r['spearman_std']:.2f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def cross_validate(
+    config: RunConfig,
+    data: str | Path,
+    out: str | Path,
+    *,
+    seeds: Sequence[int] = (0,),
+    folds: Sequence[int] | None = None,
+    tta: bool = False,
+    n_boot: int = 1000,
+    log: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Train and score ``config`` on every requested fold and seed; write ``cv.json`` and ``cv.md``.
+
+    Args:
+        config: the run config; its ``train.split``, ``train.fold`` and ``train.seed`` are set
+            per run, ``train.folds``, ``train.fold_size`` and ``train.split_seed`` define the
+            folds.
+        data: the dataset folder.
+        out: the cross-validation folder (created; reruns skip finished runs).
+        seeds: training seeds.
+        folds: which folds to run (default: all ``train.folds``).
+        tta: embed each image and its left-right mirror and average the two (test-time pooling).
+        n_boot: bootstrap resamples for the intervals.
+        log: where progress lines go.
+
+    Returns:
+        The summary that ``cv.json`` holds.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t = config.train
+    fold_list = list(range(t.folds)) if folds is None else list(folds)
+    for f in fold_list:
+        if not 0 <= f < t.folds:
+            raise ConfigError(f"fold {f}: the config has train.folds={t.folds} (0..{t.folds - 1})")
+    if not seeds:
+        raise ConfigError("seeds: at least one training seed is needed")
+    pairs = _pairs(config)
+    catalog = scan(data, require=config.train.modalities, strict=True)
+    results = []
+    for seed in seeds:
+        for fold in fold_list:
+            run_dir = out / f"seed{seed}-fold{fold}"
+            cfg = _run_config(config, fold, seed)
+            result_path = run_dir / RESULT
+            key = {"config": to_dict(cfg), "tta": tta, "pairs": pairs}
+            if result_path.exists():
+                saved = json.loads(result_path.read_text())
+                if saved.get("key") == key:
+                    log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
+                    results.append(saved)
+                    continue
+            started = time.perf_counter()
+            last = run_dir / "checkpoints" / "last.pt"
+            if last.exists():
+                log(f"seed {seed} fold {fold}: resuming {run_dir}")
+            else:
+                log(f"seed {seed} fold {fold}: training in {run_dir}")
+            train(cfg, data, run_dir, resume=last.exists())
+            seconds = time.perf_counter() - started
+            res = _evaluate_run(run_dir, catalog, pairs, tta)
+            res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
+            atomic_write_text(result_path, json.dumps(res) + "\n")
+            top1 = np.nanmean(np.asarray(res["pairs"][pairs[0]]["model"])[:, 0])
+            log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f} ({seconds:.0f} s)")
+            results.append(res)
+    summary = _summarise(results, pairs, n_boot) | {
+        "folds": fold_list,
+        "seeds": list(seeds),
+        "fold_size": t.fold_size,
+        "tta": tta,
+        "train_seconds": mean_and_spread([r["train_seconds"] for r in results]),
+        "config": to_dict(config),
+    }
+    atomic_write_text(out / SUMMARY, json.dumps(summary, indent=1) + "\n")
+    atomic_write_text(out / REPORT, format_summary(summary))
+    return summary

@@ -1,0 +1,136 @@
+"""Cross-validation: folds of a fixed size, resumable runs, intervals, baseline and the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lookfeel.cli import main
+from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.crossval import cross_validate
+from lookfeel.data import scan, stratified_fabric_folds
+from lookfeel.train import train
+
+from ._tiny import write_tiny_dataset
+
+TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+OVERRIDES = [
+    "train.views=[depth,depth]",
+    "train.val_pairs=[depth_to_depth]",
+    "train.folds=2",
+    "train.fold_size=3",
+    "train.steps=6",
+    "train.val_every=0",
+]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_tiny_dataset(tmp_path_factory.mktemp("cv") / "data", fabrics=7, drapes=3)
+
+
+def test_folds_of_a_fixed_size_are_disjoint_and_spread_over_clusters():
+    ids = list(range(1, 101))
+    clusters = {i: i % 8 for i in ids}
+    folds = stratified_fabric_folds(ids, clusters, 5, seed=3, fold_size=18)
+    tests = [set(f.test) for f in folds]
+    assert [len(t) for t in tests] == [18] * 5
+    assert len(set().union(*tests)) == 90  # disjoint
+    for f in folds:
+        assert set(f.train) | set(f.test) == set(ids)
+        per_cluster = np.bincount([clusters[i] for i in f.test], minlength=8)
+        assert per_cluster.max() - per_cluster.min() <= 1  # 18 over 8 clusters: 2 or 3 each
+    with pytest.raises(ValueError, match="5 folds of 21 fabrics need 105"):
+        stratified_fabric_folds(ids, clusters, 5, fold_size=21)
+
+
+def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path):
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    logs: list[str] = []
+    summary = cross_validate(
+        config, data, tmp_path / "cv", seeds=[0, 1], n_boot=50, log=logs.append
+    )
+    assert summary["runs"] == 4
+    pair = summary["pairs"]["depth_to_depth"]
+    for key in ("model_top1", "model_top3", "raw_pixels_top1", "raw_pixels_top3"):
+        low, high = pair[key]["ci95"]
+        assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
+        assert len(pair[key]["per_run"]) == 4
+    # 3 held-out fabrics: pick 1 of 10 offers only 3 candidates, and chance says so.
+    assert pair["chance_top1"] == pytest.approx(1 / 3)
+    assert pair["chance_top3"] == pytest.approx(1.0)
+    # Each run held out the fold's own fabrics and trained on the rest.
+    seen = set()
+    for seed in (0, 1):
+        for fold in (0, 1):
+            run = tmp_path / "cv" / f"seed{seed}-fold{fold}"
+            split = json.loads((run / "split.json").read_text())
+            res = json.loads((run / "result.json").read_text())
+            assert res["test_fabrics"] == split["val"] and len(split["val"]) == 3
+            assert not set(split["val"]) & set(split["train"])
+            seen.add(tuple(split["val"]))
+    assert len(seen) == 2
+    props = summary["properties"]["depth"]
+    assert set(props["model"]) == set(scan(data).label_columns)
+    assert (tmp_path / "cv" / "cv.md").read_text().startswith("Fabric-disjoint cross-validation")
+
+    # A rerun keeps every finished run (nothing is retrained) and gives the same summary.
+    before = {p: p.stat().st_mtime_ns for p in (tmp_path / "cv").rglob("last.pt")}
+    logs.clear()
+    again = cross_validate(config, data, tmp_path / "cv", seeds=[0, 1], n_boot=50, log=logs.append)
+    assert all("done before" in line for line in logs)
+    assert {p: p.stat().st_mtime_ns for p in before} == before
+    assert again["pairs"] == summary["pairs"]
+
+
+def test_cross_validate_resumes_an_interrupted_run(data: Path, tmp_path: Path):
+    config = load_config(RunConfig, TINY, [*OVERRIDES, "train.checkpoint_every=3"])
+    run = tmp_path / "cv" / "seed0-fold1"
+    # A run of the same config that stopped at step 3 of 6 (as if killed after a checkpoint).
+    stopped = ["train.split=fold", "train.fold=1", "train.seed=0", "train.steps=3"]
+    train(
+        load_config(RunConfig, TINY, [*OVERRIDES, "train.checkpoint_every=3", *stopped]), data, run
+    )
+    logs: list[str] = []
+    cross_validate(config, data, tmp_path / "cv", folds=[1], n_boot=20, log=logs.append)
+    assert any("resuming" in line for line in logs)
+    assert json.loads((run / "result.json").read_text())["step"] == 6
+
+
+def test_cross_validate_errors_name_the_value(data: Path, tmp_path: Path):
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    with pytest.raises(ConfigError, match="fold 5: the config has train.folds=2"):
+        cross_validate(config, data, tmp_path / "cv", folds=[5])
+
+
+def test_cli_cv_writes_the_report(data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    args = ["cv", "--config", str(TINY), "--data", str(data), "--out", str(tmp_path / "o")]
+    args += ["--only-folds", "0", "--tta", "--n-boot", "20"]
+    for o in OVERRIDES:
+        args += ["--set", o]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "| depth_to_depth |" in out and "raw pixels" in out
+    summary = json.loads((tmp_path / "o" / "cv.json").read_text())
+    assert summary["tta"] is True and summary["folds"] == [0]
+    with pytest.raises(SystemExit):
+        main([*args[:7], "--only-folds", "a,b"])
+
+
+def test_score_checkpoint_on_another_dataset(data: Path, tmp_path: Path):
+    from lookfeel.crossval import score_checkpoint
+
+    other = write_tiny_dataset(tmp_path / "other", fabrics=5, drapes=3)
+    config = load_config(RunConfig, TINY, [*OVERRIDES, "train.split=none"])
+    run = train(config, data, tmp_path / "run")
+    scored = score_checkpoint(run.last_checkpoint, other, n_boot=30)
+    pair = scored["pairs"]["depth_to_depth"]
+    assert pair["chance_top1"] == pytest.approx(1 / 5)  # pick 1 of 10 offers the 5 fabrics
+    for key in ("model_top1", "raw_pixels_top1"):
+        low, high = pair[key]["ci95"]
+        assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0
+    # The tiny drapes of one fabric are near-copies: raw pixels find them.
+    assert pair["raw_pixels_top1"]["mean"] > 0.9
