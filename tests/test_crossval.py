@@ -134,3 +134,18 @@ def test_score_checkpoint_on_another_dataset(data: Path, tmp_path: Path):
         assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0
     # The tiny drapes of one fabric are near-copies: raw pixels find them.
     assert pair["raw_pixels_top1"]["mean"] > 0.9
+
+
+def test_rescoring_keeps_the_runs_and_refuses_another_config(data: Path, tmp_path: Path):
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    first = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
+    logs: list[str] = []
+    again = cross_validate(
+        config, data, tmp_path / "cv", folds=[0], tta=True, n_boot=20, log=logs.append
+    )
+    assert logs[0] == "seed 0 fold 0: trained before, scoring again"
+    assert again["train_seconds"]["mean"] == first["train_seconds"]["mean"]
+    assert again["tta"] is True
+    other = load_config(RunConfig, TINY, [*OVERRIDES, "train.lr=0.01"])
+    with pytest.raises(ConfigError, match="finished run of another config"):
+        cross_validate(other, data, tmp_path / "cv", folds=[0], n_boot=20)

@@ -342,20 +342,27 @@ def cross_validate(
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
             key = {"config": to_dict(cfg), "tta": tta, "pairs": pairs}
-            if result_path.exists():
-                saved = json.loads(result_path.read_text())
-                if saved.get("key") == key:
-                    log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
-                    results.append(saved)
-                    continue
-            started = time.perf_counter()
+            saved = json.loads(result_path.read_text()) if result_path.exists() else None
+            if saved is not None and saved.get("key") == key:
+                log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
+                results.append(saved)
+                continue
             last = run_dir / "checkpoints" / "last.pt"
-            if last.exists():
-                log(f"seed {seed} fold {fold}: resuming {run_dir}")
+            done = load_model(last) if last.exists() else None
+            if done is not None and done.step >= cfg.train.steps:
+                if to_dict(done.config) != to_dict(cfg):
+                    raise ConfigError(
+                        f"{run_dir} holds a finished run of another config; use another --out"
+                    )
+                # Trained before, scored differently (e.g. --tta): score again, keep the time.
+                log(f"seed {seed} fold {fold}: trained before, scoring again")
+                seconds = float(saved["train_seconds"]) if saved else math.nan
             else:
-                log(f"seed {seed} fold {fold}: training in {run_dir}")
-            train(cfg, data, run_dir, resume=last.exists())
-            seconds = time.perf_counter() - started
+                started = time.perf_counter()
+                verb = "resuming" if last.exists() else "training in"
+                log(f"seed {seed} fold {fold}: {verb} {run_dir}")
+                train(cfg, data, run_dir, resume=last.exists())
+                seconds = time.perf_counter() - started
             res = _evaluate_run(run_dir, catalog, pairs, tta)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             atomic_write_text(result_path, json.dumps(res) + "\n")
