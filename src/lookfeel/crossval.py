@@ -62,6 +62,17 @@ def _run_config(config: RunConfig, fold: int, seed: int) -> RunConfig:
     return dataclasses.replace(config, train=t)
 
 
+_NO_EFFECT = ("checkpoint_every", "log_every", "progress")
+"""Train keys that do not change a run's result: runs differing only in them are the same."""
+
+
+def _result_config(config: RunConfig) -> dict[str, Any]:
+    """The config as plain data, without the keys that do not change the result."""
+    d = to_dict(config)
+    d["train"] = {k: v for k, v in d["train"].items() if k not in _NO_EFFECT}
+    return d
+
+
 def _pairs(config: RunConfig) -> list[str]:
     return list(config.train.val_pairs) or default_pairs(config.train.modalities)
 
@@ -341,7 +352,7 @@ def cross_validate(
             run_dir = out / f"seed{seed}-fold{fold}"
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
-            key = {"config": to_dict(cfg), "tta": tta, "pairs": pairs}
+            key = {"config": _result_config(cfg), "tta": tta, "pairs": pairs}
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
             if saved is not None and saved.get("key") == key:
                 log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
@@ -350,7 +361,7 @@ def cross_validate(
             last = run_dir / "checkpoints" / "last.pt"
             done = load_model(last) if last.exists() else None
             if done is not None and done.step >= cfg.train.steps:
-                if to_dict(done.config) != to_dict(cfg):
+                if _result_config(done.config) != _result_config(cfg):
                     raise ConfigError(
                         f"{run_dir} holds a finished run of another config; use another --out"
                     )
