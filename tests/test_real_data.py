@@ -84,3 +84,56 @@ def test_kmeans_on_real_labels(real_data: Path):
     assert all(ours[i] is not None for i in labelled)
     assert all(ours[f.id] is None for f in catalog.fabrics if not f.has_physical_labels)
     assert len({ours[i] for i in labelled}) == 8
+
+
+def test_real_depth_config_trains_embeds_and_evaluates(real_data: Path, tmp_path: Path, capsys):
+    """The issue-7 workflow on the real data, at a few steps: train on all 100 fabrics, embed
+    fabrics, evaluate the embeddings file."""
+    import json
+
+    from lookfeel.cli import main
+
+    config = Path(__file__).resolve().parents[1] / "configs" / "real_depth.yaml"
+    run, emb, rep = tmp_path / "run", tmp_path / "emb.npz", tmp_path / "report"
+    fast = ["--set", "train.steps=4", "--set", "train.batch_size=8"]
+    args = ["--config", str(config), "--data", str(real_data), "--out", str(run), *fast]
+    assert main(["train", *args]) == 0
+    split = json.loads((run / "split.json").read_text())
+    assert len(split["train"]) == 100 and split["val"] == []
+    ckpt = str(run / "checkpoints" / "last.pt")
+    assert (
+        main(
+            [
+                "embed",
+                "--checkpoint",
+                ckpt,
+                "--data",
+                str(real_data),
+                "--out",
+                str(emb),
+                "--split",
+                "all",
+            ]
+        )
+        == 0
+    )
+    with np.load(emb) as z:
+        assert z["embeddings_depth"].shape == (1104, 128)
+    assert (
+        main(
+            [
+                "evaluate",
+                "--embeddings",
+                str(emb),
+                "--data",
+                str(real_data),
+                "--out",
+                str(rep),
+                "--set",
+                "n_boot=20",
+            ]
+        )
+        == 0
+    )
+    metrics = json.loads((rep / "metrics.json").read_text())
+    assert "depth_to_depth" in json.dumps(metrics)
