@@ -562,3 +562,15 @@ def test_no_warnings_on_normal_use():
         evaluate_pair(
             emb, fabric, emb, fabric, query="touch", gallery="touch", same_items=True, n_boot=20
         )
+
+
+def test_property_probe_ignores_columns_constant_in_training():
+    # A column (a saturated pixel, a dead unit) that never moves in training but does in test
+    # must not swamp the prediction.
+    rng = np.random.default_rng(16)
+    x = rng.standard_normal((120, 5))
+    y = x @ np.array([1.0, 0.5, 0.0, -1.0, 0.0])
+    x[:80, 4] = 1e-7 * rng.standard_normal(80)
+    x[80:, 4] = 3.0
+    res = property_probe(x[:80], y[:80], x[80:], y[80:], "ridge")
+    assert res["0"]["r2"] > 0.95

@@ -265,6 +265,12 @@ def _fmt(x: dict[str, Any]) -> str:
     return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]"
 
 
+def _pm(scores: dict[str, float], name: str) -> str:
+    """``mean ± std`` over runs (just the mean for one run)."""
+    std = scores[f"{name}_std"]
+    return f"{scores[name]:.2f}" + ("" if math.isnan(std) else f" ± {std:.2f}")
+
+
 def format_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
     lines = [
@@ -299,11 +305,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         ]
         for label, s in per["model"].items():
             r = per["raw_pixels"][label]
-            lines.append(
-                f"| {label} | {s['r2']:.2f} ± {s['r2_std']:.2f} | {s['spearman']:.2f} ± "
-                f"{s['spearman_std']:.2f} | {r['r2']:.2f} ± {r['r2_std']:.2f} | "
-                f"{r['spearman']:.2f} ± {r['spearman_std']:.2f} |"
-            )
+            cells = [_pm(x, score) for x in (s, r) for score in ("r2", "spearman")]
+            lines.append(f"| {label} | {' | '.join(cells)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -19,8 +19,6 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import spearmanr
 from sklearn.linear_model import RidgeCV
 from sklearn.neighbors import KNeighborsRegressor
-from sklearn.pipeline import make_pipeline
-from sklearn.preprocessing import StandardScaler
 
 __all__ = ["property_probe"]
 
@@ -41,6 +39,25 @@ def _per_fabric(
         with np.errstate(invalid="ignore", divide="ignore"):
             lab[:, j] = s / n  # labels are per fabric; the mean just collapses repeats
     return e, lab, uniq
+
+
+def _ridge(
+    xtr: NDArray[np.float64], ytr: NDArray[np.float64], xte: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Ridge regression with its penalty chosen by leave-one-out (efficient, RidgeCV).
+
+    Features are centred and divided by one common scale (the root mean column variance), not
+    per column: a column nearly constant in training (a saturated pixel, a dead unit) would
+    otherwise be blown up and dominate any test row where it moves. The penalty grid grows with
+    the dimension, since the Gram matrix of D unit-variance columns does.
+    """
+    mu = xtr.mean(axis=0)
+    scale = float(np.sqrt(((xtr - mu) ** 2).mean()))
+    scale = scale if scale > 0 else 1.0
+    d = xtr.shape[1]
+    ridge = RidgeCV(alphas=np.logspace(-3, 3, 25) * max(1, d))
+    ridge.fit((xtr - mu) / scale, ytr)
+    return np.asarray(ridge.predict((xte - mu) / scale), dtype=np.float64)
 
 
 def property_probe(
@@ -64,8 +81,8 @@ def property_probe(
         test_emb: (M, D) test embeddings (other fabrics than training).
         test_labels: (M,) or (M, L).
         method: ``"knn"``: mean label of the k nearest training rows (Euclidean, the
-            embedding's own metric); ``"ridge"``: ridge regression on standardised embeddings,
-            its penalty chosen by leave-one-out over a log grid.
+            embedding's own metric); ``"ridge"``: ridge regression on centred embeddings under
+            one common scale, its penalty chosen by leave-one-out over a log grid (`_ridge`).
         names: a name per label column (default ``"0"``, ``"1"``, ...).
         train_fabric, test_fabric: (N,), (M,) fabric ids; when given, embeddings are averaged
             per fabric first, and a fabric in both sets raises.
@@ -120,11 +137,11 @@ def property_probe(
         if n_tr < 2 or n_te < 1:
             continue
         if method == "knn":
-            model = KNeighborsRegressor(n_neighbors=min(k, n_tr))
+            knn = KNeighborsRegressor(n_neighbors=min(k, n_tr))
+            knn.fit(xtr[tr], ytr[tr, j])
+            pred = np.asarray(knn.predict(xte[te]), dtype=np.float64)
         else:
-            model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-3, 3, 13)))
-        model.fit(xtr[tr], ytr[tr, j])
-        pred = np.asarray(model.predict(xte[te]), dtype=np.float64)
+            pred = _ridge(xtr[tr], ytr[tr, j], xte[te])
         truth = yte[te, j]
         scores["mae"] = float(np.abs(pred - truth).mean())
         if n_te >= 2 and np.ptp(truth) > 0:
