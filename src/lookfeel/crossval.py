@@ -93,11 +93,10 @@ def _pick(
 
 
 def _labels(catalog: Catalog, fabric_ids: np.ndarray) -> np.ndarray:
-    cols = catalog.label_columns
-    return np.array(
-        [[catalog.fabric(int(i)).labels.get(c, math.nan) for c in cols] for i in fabric_ids],
-        dtype=np.float64,
-    ).reshape(len(fabric_ids), len(cols))
+    """(N, L) labels of each row's fabric, in ``catalog.label_columns`` order, NaN if unknown."""
+    rows = catalog.label_matrix(catalog.label_columns)
+    cols = len(catalog.label_columns)
+    return np.array([rows[int(i)] for i in fabric_ids], dtype=np.float64).reshape(-1, cols)
 
 
 def _probe(
