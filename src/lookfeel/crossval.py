@@ -41,13 +41,11 @@ from lookfeel.embedding import embed_items, raw_pixels
 from lookfeel.metrics import (
     bootstrap_ci,
     mean_and_spread,
-    pairwise_distances,
-    pick_k_of_n_exact,
     property_probe,
 )
 from lookfeel.modality import Modality
 from lookfeel.train import train
-from lookfeel.train.validate import default_pairs
+from lookfeel.train.validate import default_pairs, pick_pair
 
 __all__ = ["cross_validate", "format_summary", "score_checkpoint"]
 
@@ -80,15 +78,8 @@ def _pairs(config: RunConfig) -> list[str]:
 def _pick(
     emb: dict[Modality, np.ndarray], fab: dict[Modality, np.ndarray], pair: str
 ) -> tuple[np.ndarray, list[float]]:
-    """(Q, 2) per-query exact top-1 and top-3 of pick 1 of 10 for one pair, and chance (of
-    pick 1 of n_effective when a fold has fewer than 10 fabrics)."""
-    q, _, g = pair.partition("_to_")
-    mq, mg = Modality(q), Modality(g)
-    dist = pairwise_distances(emb[mq], emb[mg])
-    exclude = np.arange(len(emb[mq])) if mq is mg else None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # a fold of fewer than 10 fabrics: n_effective shrinks
-        res = pick_k_of_n_exact(dist, fab[mq], fab[mg], n=10, ks=_KS, exclude_self=exclude)
+    """(Q, 2) per-query exact top-1 and top-3 of pick 1 of 10 for one pair, and chance."""
+    res = pick_pair(emb, fab, pair)
     return res.per_query, [float(c) for c in res.chance]
 
 
@@ -129,11 +120,12 @@ def _score(
     seen_ids: Sequence[int],
     pairs: Sequence[str],
     tta: bool,
+    loader: ImageLoader,
 ) -> dict[str, Any]:
     """Per-query pick 1 of 10 of the model and of raw pixels on ``held_ids``' items, and
-    property probes fitted on ``seen_ids``' items (none when it is empty)."""
+    property probes fitted on ``seen_ids``' items (none when it is empty). ``loader`` must
+    preprocess as the model's config says; it keeps its decoded images for the next call."""
     cfg = lm.config
-    loader = ImageLoader(cfg.data)
     held = catalog.subset(held_ids)
     seen = catalog.subset(seen_ids) if seen_ids else None
     wanted = {Modality(p.partition("_to_")[0]) for p in pairs} | {
@@ -203,7 +195,7 @@ def score_checkpoint(
     wanted = list(pairs) or _pairs(lm.config)
     modalities = {Modality(x) for p in wanted for x in p.split("_to_")}
     catalog = scan(data, require=sorted(modalities, key=lambda m: m.value), strict=True)
-    res = _score(lm, catalog, catalog.ids, [], wanted, tta)
+    res = _score(lm, catalog, catalog.ids, [], wanted, tta, ImageLoader(lm.config.data))
     summary = _summarise([res], wanted, n_boot)
     return {
         "checkpoint": str(checkpoint),
@@ -214,10 +206,12 @@ def score_checkpoint(
     }
 
 
-def _evaluate_run(run_dir: Path, catalog: Catalog, pairs: Sequence[str], tta: bool) -> dict:
+def _evaluate_run(
+    run_dir: Path, catalog: Catalog, pairs: Sequence[str], tta: bool, loader: ImageLoader
+) -> dict:
     """Score a finished run's last checkpoint on its held-out fabrics."""
     lm = load_model(run_dir / "checkpoints" / "last.pt")
-    return _score(lm, catalog, lm.split["val"], lm.split["train"], pairs, tta)
+    return _score(lm, catalog, lm.split["val"], lm.split["train"], pairs, tta, loader)
 
 
 def _summarise(results: list[dict], pairs: Sequence[str], n_boot: int) -> dict[str, Any]:
@@ -348,6 +342,7 @@ def cross_validate(
         raise ConfigError("seeds: at least one training seed is needed")
     pairs = _pairs(config)
     catalog = scan(data, require=config.train.modalities, strict=True)
+    loader = ImageLoader(config.data)  # runs differ only in train keys: one decode for all
     results = []
     for seed in seeds:
         for fold in fold_list:
@@ -376,7 +371,7 @@ def cross_validate(
                 log(f"seed {seed} fold {fold}: {verb} {run_dir}")
                 train(cfg, data, run_dir, resume=last.exists())
                 seconds = time.perf_counter() - started
-            res = _evaluate_run(run_dir, catalog, pairs, tta)
+            res = _evaluate_run(run_dir, catalog, pairs, tta, loader)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             atomic_write_text(result_path, json.dumps(res) + "\n")
             top1 = np.nanmean(np.asarray(res["pairs"][pairs[0]]["model"])[:, 0])

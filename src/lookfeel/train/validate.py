@@ -11,12 +11,12 @@ import torch
 
 from lookfeel.data import ImageLoader, Item
 from lookfeel.embedding import embed_items
-from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
+from lookfeel.metrics import PickResult, pairwise_distances, pick_k_of_n_exact
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder
 from lookfeel.train.features import FeatureTable
 
-__all__ = ["default_pairs", "validate"]
+__all__ = ["default_pairs", "pick_pair", "validate"]
 
 
 def default_pairs(modalities: Sequence[Modality]) -> list[str]:
@@ -39,6 +39,21 @@ def _embed_cached(
             f = f.unsqueeze(1)  # (B, *F) -> (B, P=1, *F)
         out.append(model({m.value: f}, from_trunk=True)[m.value].float().cpu())
     return torch.cat(out).numpy()
+
+
+def pick_pair(
+    emb: Mapping[Modality, np.ndarray], fab: Mapping[Modality, np.ndarray], pair: str
+) -> PickResult:
+    """Exact pick 1 of 10, top-1 and top-3, for one ``query_to_gallery`` pair of embeddings
+    (a query never counts itself when both sides are one modality). With fewer than 10
+    fabrics the candidates offered shrink, and ``chance`` says so."""
+    q, _, g = pair.partition("_to_")
+    mq, mg = Modality(q), Modality(g)
+    dist = pairwise_distances(emb[mq], emb[mg])
+    exclude = np.arange(len(emb[mq])) if mq is mg else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is reported
+        return pick_k_of_n_exact(dist, fab[mq], fab[mg], n=10, ks=(1, 3), exclude_self=exclude)
 
 
 def validate(
@@ -75,14 +90,9 @@ def validate(
     out: dict[str, Any] = {"primary_pair": wanted[0]}
     for pair in wanted:
         q, _, g = pair.partition("_to_")
-        mq, mg = Modality(q), Modality(g)
-        if mq not in emb or mg not in emb:
+        if Modality(q) not in emb or Modality(g) not in emb:
             continue
-        dist = pairwise_distances(emb[mq], emb[mg])
-        exclude = np.arange(len(emb[mq])) if mq is mg else None
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is reported
-            res = pick_k_of_n_exact(dist, fab[mq], fab[mg], n=10, ks=(1, 3), exclude_self=exclude)
+        res = pick_pair(emb, fab, pair)
         out[f"{pair}_top1"] = float(res.mean[0])
         out[f"{pair}_top3"] = float(res.mean[1])
         out[f"{pair}_chance"] = float(res.chance[0])
