@@ -349,5 +349,6 @@ def test_contact_sheet_beside_another_datasets_depth(tmp_path: Path) -> None:
     assert h_beside == h_alone and w_beside > w_alone  # the same rows, two real tiles more
     with pytest.raises(ValueError, match="no depth image of any fabric id"):
         generate(cfg, tmp_path / "none", labels=labels, progress=False, beside=tmp_path / "alone")
+    assert not (tmp_path / "none").exists()  # refused before anything was rendered
     with pytest.raises(ValueError, match="not a folder"):
         generate(cfg, tmp_path / "x", labels=labels, progress=False, beside=tmp_path / "nope")

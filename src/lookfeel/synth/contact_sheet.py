@@ -13,7 +13,7 @@ synthetic renders stand beside real ones; only fabrics the other dataset has are
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,7 @@ from lookfeel.modality import Modality
 from lookfeel.synth.config import SynthConfig
 from lookfeel.synth.fabric import Fabric
 
-__all__ = ["write_contact_sheet"]
+__all__ = ["depth_beside", "write_contact_sheet"]
 
 _TILE = 128
 _LABEL_W = 150
@@ -55,32 +55,45 @@ def _first(out: Path, pattern: str) -> Path | None:
     return hits[0] if hits else None
 
 
+def depth_beside(root: Path, fabric_ids: Iterable[int]) -> tuple[str, dict[int, list[Path]]]:
+    """Up to two depth images per fabric of ``fabric_ids`` from the dataset at ``root``, to
+    open the contact sheet's rows (checked before anything is rendered).
+
+    Raises:
+        ValueError: ``root`` is not a folder, or holds no depth image of any of the fabrics.
+    """
+    from lookfeel.data import scan
+
+    if not Path(root).is_dir():
+        raise ValueError(f"beside {root}: not a folder")
+    wanted = set(fabric_ids)
+    found = {
+        f.id: sorted(it.path for it in f.items_of(Modality.DEPTH))[:2]
+        for f in scan(root).fabrics
+        if f.id in wanted and f.items_of(Modality.DEPTH)
+    }
+    if not found:
+        raise ValueError(f"beside {root}: no depth image of any fabric id of this world")
+    return Path(root).name, found
+
+
 def write_contact_sheet(
     out: Path,
     fabrics: Sequence[Fabric],
     cfg: SynthConfig,
     modalities: Sequence[Modality],
     rows: int = 6,
-    beside: Path | None = None,
+    beside: tuple[str, Mapping[int, Sequence[Path]]] | None = None,
 ) -> Path:
     """Compose and write ``out/contact_sheet.png``; returns its path.
 
     Args:
-        beside: a dataset folder whose depth images of the same fabric ids open each row.
+        beside: (a name, fabric id -> depth images) from `depth_beside`: these open each row,
+            and only the fabrics they cover are shown.
     """
-    other: dict[int, list[Path]] = {}
+    name, other = beside if beside is not None else ("", {})
     if beside is not None:
-        from lookfeel.data import scan
-
-        catalog = scan(beside)
-        other = {
-            f.id: sorted(it.path for it in f.items_of(Modality.DEPTH))[:2]
-            for f in catalog.fabrics
-            if f.items_of(Modality.DEPTH)
-        }
         fabrics = [f for f in fabrics if f.fabric_id in other]
-        if not fabrics:
-            raise ValueError(f"{beside}: no depth image of any fabric id of this world")
     order = sorted(fabrics, key=lambda f: f.bending_length_mm)
     idx = np.unique(np.linspace(0, len(order) - 1, min(rows, len(order))).round().astype(int))
     picked = [order[i] for i in idx]
@@ -98,7 +111,7 @@ def write_contact_sheet(
                 (0, 0, tile.size[0] - 1, _TILE - 1), outline=(220, 30, 30), width=3
             )
             tiles.append(tile)
-            titles.append(f"depth: {beside.name}" if beside is not None else "depth")
+            titles.append(f"depth: {name}")
         if Modality.DEPTH in modalities:
             for p in sorted((out / "depth").glob(f"{fid}_*.png"))[:2]:
                 tiles.append(_fit(_depth_tile(p)))

@@ -293,8 +293,6 @@ def generate(
     """
     started = time.perf_counter()
     out = Path(out)
-    if beside is not None and not Path(beside).is_dir():
-        raise ValueError(f"--beside {beside}: not a folder")
     if labels is not None:
         lf: LabelFile | None = read_label_file(Path(labels))
         assert lf is not None
@@ -303,6 +301,11 @@ def generate(
         lf = None
         fabrics = sample_fabrics(config.fabrics, config.seed)
     mods = config.resolved_modalities(label_mode=lf is not None)
+    real = None
+    if beside is not None and config.contact_sheet:  # a bad folder fails before rendering
+        from lookfeel.synth.contact_sheet import depth_beside
+
+        real = depth_beside(Path(beside), [f.fabric_id for f in fabrics])
     files = [rel for f in fabrics for rel in _fabric_files(f.fabric_id, config, mods)]
     _prepare_out(out, files)
     for sub, m in (("depth", Modality.DEPTH), ("color", Modality.COLOR), ("touch", Modality.TOUCH)):
@@ -348,7 +351,7 @@ def generate(
     if config.contact_sheet:
         from lookfeel.synth.contact_sheet import write_contact_sheet
 
-        sheet = write_contact_sheet(out, fabrics, config, mods, beside=beside)
+        sheet = write_contact_sheet(out, fabrics, config, mods, beside=real)
     manifest["status"] = "complete"
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     return SynthSummary(
