@@ -78,6 +78,11 @@ class Distributed:
         if self.world > 1:
             torch_dist.barrier()
 
-    def close(self) -> None:
+    def close(self, sync: bool = False) -> None:
+        """Destroy the process group this object made. ``sync``: first wait for every process
+        (a normal end), so no process tears its connections down while another still uses
+        them (gloo aborts a process whose peer vanished mid-operation)."""
         if self.owns_group and torch_dist.is_initialized():
+            if sync:
+                torch_dist.barrier()
             torch_dist.destroy_process_group()

@@ -378,9 +378,12 @@ def train(
     t = config.train
     dist = Distributed.from_env(t.device)
     try:
-        return _train(config, Path(data), run_dir, state, dist, on_step)
-    finally:
-        dist.close()
+        result = _train(config, Path(data), run_dir, state, dist, on_step)
+    except BaseException:
+        dist.close()  # no barrier: the other processes may be gone
+        raise
+    dist.close(sync=True)
+    return result
 
 
 def _train(
