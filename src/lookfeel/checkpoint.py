@@ -18,6 +18,7 @@ import torch
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import ConfigError, RunConfig, from_dict
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder, create_model
 
@@ -34,7 +35,7 @@ __all__ = [
 CHECKPOINT_VERSION = 1
 
 
-class CheckpointError(ValueError):
+class CheckpointError(LookfeelError):
     """A checkpoint file cannot be used; the message names the file."""
 
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from lookfeel import __version__
-from lookfeel.data import Catalog, DatasetError, check_dataset, scan
+from lookfeel.data import Catalog, check_dataset, scan
 from lookfeel.modality import Modality, PressKind, parse_modalities
 
 
@@ -871,13 +871,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    from lookfeel.checkpoint import CheckpointError
-    from lookfeel.config import ConfigError
-    from lookfeel.models import PretrainedError
+    from lookfeel.errors import LookfeelError
 
     try:
         status: int = args.func(args)
-    except (DatasetError, ConfigError, CheckpointError, PretrainedError) as e:
+    except LookfeelError as e:
         print(f"lookfeel: {e}", file=sys.stderr)
         return 1
     return status

@@ -25,6 +25,7 @@ from typing import Any, TypeVar, Union
 import yaml
 
 from lookfeel.atomic import atomic_write_text
+from lookfeel.errors import LookfeelError
 
 __all__ = [
     "ConfigError",
@@ -38,7 +39,7 @@ __all__ = [
 T = TypeVar("T")
 
 
-class ConfigError(ValueError):
+class ConfigError(LookfeelError):
     """A configuration key or value is wrong; the message names the dotted key."""
 
 

@@ -31,6 +31,7 @@ from scipy import ndimage
 from lookfeel.atomic import atomic_write
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -50,7 +51,7 @@ GELSIGHT_SIZE = (960, 720)
 """Frame size of the authors' fingertip GelSight; their code crops its central 720x720."""
 
 
-class ImageError(ValueError):
+class ImageError(LookfeelError):
     """An image file cannot be used; the message names the file and what is wrong."""
 
     def __init__(self, path: Path, message: str) -> None:

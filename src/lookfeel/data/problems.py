@@ -6,6 +6,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from lookfeel.errors import LookfeelError
+
 __all__ = ["DatasetError", "Problem"]
 
 
@@ -40,7 +42,7 @@ class Problem:
         }
 
 
-class DatasetError(ValueError):
+class DatasetError(LookfeelError):
     """A dataset cannot be used as asked; ``problems`` lists every reason, not the first only."""
 
     def __init__(self, problems: Iterable[Problem] | str, root: Path | None = None) -> None:

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike
 from lookfeel.atomic import atomic_write
 from lookfeel.data import Catalog, Item
 from lookfeel.embedding import EmbeddedItems
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -47,7 +48,7 @@ EMBEDDINGS_FORMAT = 1
 """Version of the npz layout; a newer file is refused with a clear message."""
 
 
-class EmbeddingFileError(ValueError):
+class EmbeddingFileError(LookfeelError):
     """An embeddings file cannot be read; the message names the file."""
 
 

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, from_dict
+from lookfeel.errors import LookfeelError
 from lookfeel.index.calibrate import Calibration
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
 from lookfeel.modality import Modality
@@ -59,7 +60,7 @@ LIBRARY_VERSION = 1
 MANIFEST = "manifest.json"
 
 
-class LibraryError(ValueError):
+class LibraryError(LookfeelError):
     """A library cannot be built, opened or queried; the message names the file or value."""
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import torch
 from torch import Tensor, nn
 
+from lookfeel.errors import LookfeelError
 from lookfeel.models.backbone import Backbone
 
 __all__ = ["PretrainedError", "apply_state_dict", "load_pretrained", "read_state_dict"]
@@ -21,7 +22,7 @@ __all__ = ["PretrainedError", "apply_state_dict", "load_pretrained", "read_state
 _SHOWN = 3  # offending keys named in an error message
 
 
-class PretrainedError(ValueError):
+class PretrainedError(LookfeelError):
     """A pretrained weights file is missing, unreadable, or does not fit the model."""
 
 
