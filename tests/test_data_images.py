@@ -102,7 +102,7 @@ def test_loader_decodes_each_file_once_and_returns_copies(
     catalog = scan(tiny_dataset)
     calls = []
     real = images_module.decode_depth
-    monkeypatch.setattr(images_module, "decode_depth", lambda p: calls.append(p) or real(p))
+    monkeypatch.setattr(images_module, "decode_depth", lambda p, *a: calls.append(p) or real(p, *a))
     loader = ImageLoader(tiny_config)
     items = catalog.items(Modality.DEPTH)
     assert loader.preload(items) == len(items)

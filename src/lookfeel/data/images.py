@@ -8,20 +8,32 @@
   GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
   Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1].
 
+Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
+(a FIFO, device or folder named like an image is refused at once, never waited on), and its
+declared width x height must not exceed ``max_pixels`` (`DEFAULT_MAX_PIXELS`), checked from the
+header before a pixel is decoded, so a small "decompression bomb" costs nothing. A truncated or
+undecodable file raises `ImageError` naming the file. (Symbolic links leaving a dataset's folder
+are refused by `lookfeel.data.layout.scan`, which knows the folder.)
+
 `ImageLoader` keeps every preprocessed image in memory (as uint8 for RGB, float32 for depth)
 and, with ``cache_dir``, on disk keyed by the file's content and the preprocessing settings.
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import io
 import json
+import os
+import stat
 import threading
+import warnings
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from struct import error as struct_error
 
 import numpy as np
 import torch
@@ -35,15 +47,18 @@ from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
 __all__ = [
+    "DEFAULT_MAX_PIXELS",
     "ImageError",
     "ImageLoader",
     "PreprocessSettings",
     "decode_depth",
     "decode_rgb",
     "depth_to_unit",
+    "file_kind",
     "fill_holes",
     "preprocess_depth",
     "preprocess_rgb",
+    "read_image_file",
 ]
 
 ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated file must fail, never decode half-grey
@@ -60,29 +75,127 @@ class ImageError(LookfeelError):
         super().__init__(f"{path}: {message}")
 
 
-def _open(path: Path) -> Image.Image:
+DEFAULT_MAX_PIXELS = 50_000_000
+"""Largest width x height decoded (a 50-megapixel photo; GelSight frames are 0.7 MP, Kinect depth
+0.3 MP). Checked from the header, before decoding: 13000 x 13000 declared in a 0.4 MB PNG would
+otherwise cost 2 GB."""
+_MAX_FILE_BYTES = 512 * 1024 * 1024
+
+
+def file_kind(mode: int) -> str:
+    """What a non-regular file is, in words ("a FIFO (named pipe)"), from its ``st_mode``."""
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "a special file"
+
+
+def read_image_file(path: str | os.PathLike[str]) -> bytes:
+    """The bytes of an image file, which must be a regular file (symbolic links followed).
+
+    The file is opened without blocking and checked on the open descriptor, so a FIFO named
+    like an image is refused at once rather than waited on, and nothing can swap the file
+    between the check and the read.
+
+    Raises:
+        ImageError: missing, unreadable, not a regular file, or larger than 512 MB.
+    """
+    p = Path(path)
     try:
-        im = Image.open(path)
-        im.load()
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
-        raise ImageError(path, "file not found") from None
-    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
-        if "truncated" in str(e).lower():
+        raise ImageError(p, "file not found") from None
+    except OSError as e:
+        if e.errno == errno.EISDIR:
+            raise ImageError(p, "is a folder, not an image file") from None
+        if e.errno == errno.ENXIO:  # a socket, or a FIFO with no writer on some systems
+            raise ImageError(p, "not a regular file") from None
+        raise ImageError(p, f"cannot read file: {e.strerror}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            kind = file_kind(st.st_mode)
+            raise ImageError(
+                p,
+                "is a folder, not an image file"
+                if kind == "a folder"
+                else f"is {kind}, not a regular image file",
+            )
+        if st.st_size > _MAX_FILE_BYTES:
+            raise ImageError(p, f"file of {st.st_size} bytes is larger than {_MAX_FILE_BYTES}")
+        chunks = []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    except OSError as e:
+        raise ImageError(p, f"cannot read file: {e.strerror}") from None
+    finally:
+        os.close(fd)
+
+
+def _open(path: Path, data: bytes | None = None, max_pixels: int | None = None) -> Image.Image:
+    """Decode ``data`` (default: the file at ``path``), refusing oversized images unread.
+
+    Errors name ``path`` and never echo Pillow's message (it may hold a temp path).
+    """
+    limit = DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels
+    blob = read_image_file(path) if data is None else data
+    if not blob:
+        raise ImageError(path, "file is empty")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(io.BytesIO(blob))
+            w, h = im.size
+            if w * h > limit:
+                raise ImageError(
+                    path,
+                    f"image declares {w}x{h} = {w * h / 1e6:.1f} megapixels; at most "
+                    f"{limit / 1e6:g} are decoded",
+                )
+            im.load()
+    except ImageError:
+        raise
+    except Image.DecompressionBombError:
+        raise ImageError(path, "image declares too many pixels to decode") from None
+    except (OSError, SyntaxError, ValueError, EOFError, struct_error, MemoryError) as e:
+        text = str(e).lower()
+        if "truncated" in text or isinstance(e, EOFError):
             raise ImageError(path, "file is truncated") from None
-        raise ImageError(path, f"cannot decode image: {e}") from None
+        if "cannot identify image file" in text:
+            raise ImageError(
+                path, "cannot decode image: not a PNG or JPEG Pillow can read"
+            ) from None
+        raise ImageError(
+            path, f"cannot decode image ({type(e).__name__}: damaged or unsupported)"
+        ) from None
     return im
 
 
-def decode_depth(path: Path) -> np.ndarray:
+def decode_depth(
+    path: str | os.PathLike[str], data: bytes | None = None, max_pixels: int | None = None
+) -> np.ndarray:
     """Read a depth PNG as millimetres.
+
+    Args:
+        path: the file; with ``data``, only the name used in errors.
+        data: the file's bytes (an upload), read from ``path`` when ``None``.
+        max_pixels: largest width x height decoded (default `DEFAULT_MAX_PIXELS`).
 
     Returns:
         (H, W) uint16 array; 0 where the sensor had no reading.
 
     Raises:
-        ImageError: undecodable or truncated, or not 16-bit greyscale.
+        ImageError: not a regular file, undecodable or truncated, too many pixels, or not 16-bit
+            greyscale.
     """
-    im = _open(path)
+    path = Path(path)
+    im = _open(path, data, max_pixels)
     if im.mode not in ("I;16", "I;16B", "I;16L", "I"):
         raise ImageError(
             path, f"depth image is mode {im.mode}; expected 16-bit greyscale (millimetres)"
@@ -95,16 +208,22 @@ def decode_depth(path: Path) -> np.ndarray:
     return a
 
 
-def decode_rgb(path: Path) -> np.ndarray:
+def decode_rgb(
+    path: str | os.PathLike[str], data: bytes | None = None, max_pixels: int | None = None
+) -> np.ndarray:
     """Read a colour or GelSight image as 8-bit RGB (greyscale and alpha are converted).
+
+    Args: as `decode_depth`.
 
     Returns:
         (H, W, 3) uint8 array.
 
     Raises:
-        ImageError: undecodable or truncated, or 16-bit (not an 8-bit RGB image).
+        ImageError: not a regular file, undecodable or truncated, too many pixels, or 16-bit
+            (not an 8-bit RGB image).
     """
-    im = _open(path)
+    path = Path(path)
+    im = _open(path, data, max_pixels)
     if im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         raise ImageError(path, f"image is mode {im.mode} (16-bit or float); expected 8-bit RGB")
     if im.mode != "RGB":
@@ -244,11 +363,9 @@ class ImageLoader:
 
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
         disk: Path | None = None
+        data = read_image_file(path)
         if self.cache_dir is not None:
-            try:
-                digest = hashlib.sha1(path.read_bytes()).hexdigest()
-            except OSError as e:
-                raise ImageError(path, f"cannot read file: {e.strerror}") from None
+            digest = hashlib.sha1(data).hexdigest()
             disk = self.cache_dir / f"{digest}_{modality.value}.npy"
             if disk.exists():
                 try:
@@ -256,9 +373,9 @@ class ImageLoader:
                 except (OSError, ValueError):
                     pass  # a damaged cache entry is rebuilt below
         if modality is Modality.DEPTH:
-            a = preprocess_depth(decode_depth(path), self.config)
+            a = preprocess_depth(decode_depth(path, data), self.config)
         else:
-            a = preprocess_rgb(decode_rgb(path), modality, self.config)
+            a = preprocess_rgb(decode_rgb(path, data), modality, self.config)
         if disk is not None:
             buf = io.BytesIO()
             np.save(buf, a, allow_pickle=False)

@@ -355,6 +355,26 @@ class Library:
                 f"{root}: the library build did not finish; run `lookfeel index build` again "
                 "with the same arguments to resume it"
             )
+        try:
+            return cls._open(root, manifest, checkpoint)
+        except LibraryError:
+            raise
+        except KeyError as e:
+            raise LibraryError(
+                f"{root / MANIFEST}: no {e.args[0]!r} entry; the manifest is damaged or from "
+                "another tool; rebuild with `lookfeel index build`"
+            ) from None
+        except (TypeError, ValueError, AttributeError) as e:
+            raise LibraryError(
+                f"{root / MANIFEST}: malformed manifest ({type(e).__name__}: {e}); rebuild with "
+                "`lookfeel index build`"
+            ) from None
+
+    @classmethod
+    def _open(
+        cls, root: Path, manifest: dict[str, Any], checkpoint: str | os.PathLike[str] | None
+    ) -> Library:
+        width = int(manifest["embed_dim"])
         tables: dict[Modality, ModalityTable] = {}
         searches: dict[Modality, Search] = {}
         for name, entry in manifest["modalities"].items():
@@ -367,6 +387,7 @@ class Library:
                         f"{root / shard['file']}: shard missing or damaged; rebuild with "
                         "`lookfeel index build` (unchanged shards are reused)"
                     )
+                _check_shard(root / shard["file"], arrays, width)
                 parts.append(arrays)
             merged = {k: np.concatenate([p[k] for p in parts]) for k in _SHARD_ARRAYS}
             if len(merged["embeddings"]) != entry["rows"]:
@@ -385,6 +406,27 @@ class Library:
                 searches[m] = ExactSearch(tables[m].embeddings)
         ck = Path(checkpoint) if checkpoint is not None else Path(manifest["checkpoint"]["path"])
         return cls(root, manifest, tables, searches, ck)
+
+
+def _check_shard(path: Path, arrays: dict[str, NDArray[Any]], width: int) -> None:
+    """A shard's embeddings must be (N, width) finite numbers and its fabric ids integers.
+
+    Raises:
+        LibraryError: naming the shard and what is wrong (a wrong width or a NaN would
+            otherwise be served as a fabric with no id).
+    """
+    emb = arrays["embeddings"]
+    if emb.ndim != 2 or emb.shape[1] != width or emb.dtype.kind != "f":
+        raise LibraryError(
+            f"{path}: embeddings are {emb.dtype} of shape {emb.shape}; the manifest says width "
+            f"{width}; rebuild with `lookfeel index build`"
+        )
+    if not np.isfinite(emb).all():
+        raise LibraryError(
+            f"{path}: embeddings hold NaN or infinite values; rebuild with `lookfeel index build`"
+        )
+    if arrays["fabric_ids"].dtype.kind not in "iu":
+        raise LibraryError(f"{path}: fabric ids are {arrays['fabric_ids'].dtype}, not integers")
 
 
 def read_manifest(root: Path) -> dict[str, Any]:

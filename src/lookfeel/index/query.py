@@ -9,7 +9,6 @@ uses. No image is cached, so a path reused for different content is always read 
 
 from __future__ import annotations
 
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -17,8 +16,13 @@ import numpy as np
 import torch
 
 from lookfeel.config import DataConfig
-from lookfeel.data import ImageError, decode_depth, decode_rgb
-from lookfeel.data.images import preprocess_depth, preprocess_rgb
+from lookfeel.data import decode_depth, decode_rgb
+from lookfeel.data.images import (
+    DEFAULT_MAX_PIXELS,
+    preprocess_depth,
+    preprocess_rgb,
+    read_image_file,
+)
 from lookfeel.modality import Modality
 
 __all__ = ["IMAGE_TYPES", "load_query_bytes", "load_query_image", "query_batch", "sniff_type"]
@@ -35,41 +39,52 @@ def sniff_type(head: bytes) -> str | None:
     return None
 
 
-def load_query_image(path: str | Path, modality: Modality, config: DataConfig) -> torch.Tensor:
+def _preprocess(
+    name: Path, data: bytes, modality: Modality, config: DataConfig, max_pixels: int
+) -> torch.Tensor:
+    if modality is Modality.DEPTH:
+        a = preprocess_depth(decode_depth(name, data, max_pixels), config)  # (S, S) float32
+        return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
+    rgb = preprocess_rgb(decode_rgb(name, data, max_pixels), modality, config)  # (S, S, 3)
+    return torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
+
+
+def load_query_image(
+    path: str | Path,
+    modality: Modality,
+    config: DataConfig,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+) -> torch.Tensor:
     """Decode and preprocess one query image as training does.
+
+    The file must be a regular file (a FIFO or device is refused at once, never waited on) of
+    at most ``max_pixels`` pixels, checked from its header before decoding.
 
     Returns:
         (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1].
 
     Raises:
-        ImageError: naming the file when it is missing, not an image, or the wrong kind
-            (e.g. an 8-bit PNG given as depth).
+        ImageError: naming the file when it is missing, not a regular file, not an image, too
+            large, or the wrong kind (e.g. an 8-bit PNG given as depth).
     """
     path = Path(path)
-    if path.is_dir():
-        raise ImageError(path, "is a folder, not an image file")
-    if modality is Modality.DEPTH:
-        a = preprocess_depth(decode_depth(path), config)  # (S, S) float32
-        return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
-    rgb = preprocess_rgb(decode_rgb(path), modality, config)  # (S, S, 3) uint8
-    return torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
+    return _preprocess(path, read_image_file(path), modality, config, max_pixels)
 
 
 def load_query_bytes(
-    data: bytes, name: str, modality: Modality, config: DataConfig
+    data: bytes,
+    name: str,
+    modality: Modality,
+    config: DataConfig,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
 ) -> torch.Tensor:
-    """`load_query_image` for an upload: errors name ``name`` (the client's file name).
+    """`load_query_image` for an upload, decoded from memory: errors name ``name`` (the
+    client's file name) and nothing of the server's disk.
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
     """
-    with tempfile.TemporaryDirectory(prefix="lookfeel-query-") as tmp:
-        path = Path(tmp) / "query"
-        path.write_bytes(data)
-        try:
-            return load_query_image(path, modality, config)
-        except ImageError as e:
-            raise ImageError(Path(name), e.reason) from None
+    return _preprocess(Path(name), data, modality, config, max_pixels)
 
 
 def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Tensor:

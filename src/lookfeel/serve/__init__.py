@@ -6,7 +6,14 @@
 or ``lookfeel serve --index lib/``.
 """
 
-from lookfeel.serve.app import ServeConfig, create_app
+from lookfeel.serve.app import ServeConfig, ServeOptionError, ServeOptions, create_app
 from lookfeel.serve.server import background_server, serve
 
-__all__ = ["ServeConfig", "background_server", "create_app", "serve"]
+__all__ = [
+    "ServeConfig",
+    "ServeOptionError",
+    "ServeOptions",
+    "background_server",
+    "create_app",
+    "serve",
+]

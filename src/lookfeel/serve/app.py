@@ -12,8 +12,12 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
   files are the presses of one query, pooled as the Multi-input Net).
 - ``POST /api/match/item``: match a library item as a query (itself left out).
 
-Uploads are limited in size and number and must be PNG or JPEG by content; a bad upload gets a
-4xx with a message naming the file. The model runs in a thread pool, at most
+Uploads are limited in size and number and must be PNG or JPEG by content; an image declaring
+more than ``max_pixels`` pixels is refused (413) from its header, before anything is decoded (a
+0.4 MB PNG can declare 13000 x 13000). A bad upload gets a 4xx with a message naming the file
+and no path of the server's disk. Every response carries ``X-Content-Type-Options: nosniff``, a
+``Content-Security-Policy`` allowing only this server's own scripts and styles, and
+``X-Frame-Options: DENY``. The model runs in a thread pool, at most
 ``max_concurrency`` queries at a time (a semaphore); beyond ``max_waiting`` waiting queries
 the server answers 503 instead of queueing without bound.
 """
@@ -23,9 +27,12 @@ from __future__ import annotations
 import asyncio
 import io
 import os
+import re
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from importlib import resources
+from math import inf
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -38,6 +45,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
+from lookfeel.errors import LookfeelError
 from lookfeel.index import (
     FabricMatch,
     ItemRef,
@@ -52,7 +60,30 @@ from lookfeel.index import (
 )
 from lookfeel.modality import Modality
 
-__all__ = ["ServeConfig", "create_app"]
+__all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
+
+SECURITY_HEADERS = {
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+    "Content-Security-Policy": (
+        "default-src 'self'; img-src 'self' data: blob:; object-src 'none'; "
+        "base-uri 'none'; frame-ancestors 'none'; form-action 'self'"
+    ),
+    "Referrer-Policy": "no-referrer",
+}
+"""Headers on every response: no MIME sniffing, no framing, only this server's resources."""
+
+_ABS_PATH = re.compile(r"(?<![\w.])(?:[A-Za-z]:)?[/\\](?:[^\s'\":,/\\]+[/\\])+([^\s'\":,/\\]+)")
+
+
+def public_message(text: str) -> str:
+    """An error message fit for a client: every absolute path cut to its file name."""
+    return _ABS_PATH.sub(r"\1", text)
+
+
+class ServeOptionError(LookfeelError):
+    """A server option is out of range; the message names the option and the value."""
+
 
 _STATIC = {
     "index.html": "text/html; charset=utf-8",
@@ -61,9 +92,14 @@ _STATIC = {
 }
 
 
+def _need(ok: bool, option: str, value: object, rule: str) -> None:
+    if not ok:
+        raise ServeOptionError(f"{option} must be {rule}; got {value!r}")
+
+
 @dataclass(frozen=True)
 class ServeConfig:
-    """Limits of the web app.
+    """Limits of the web app, checked when made.
 
     Attributes:
         max_upload_bytes: largest accepted file (413 above).
@@ -72,6 +108,11 @@ class ServeConfig:
         max_waiting: queries that may wait for the model before the server answers 503.
         max_top: largest ``top`` a request may ask for.
         thumbnail_size: longest side of the item images served, in pixels.
+        max_pixels: largest width x height of an upload, checked from its header before
+            decoding (413 above).
+
+    Raises:
+        ServeOptionError: a limit below 1, naming it.
     """
 
     max_upload_bytes: int = 8 * 1024 * 1024
@@ -80,6 +121,114 @@ class ServeConfig:
     max_waiting: int = 64
     max_top: int = 20
     thumbnail_size: int = 256
+    max_pixels: int = 25_000_000
+
+    def __post_init__(self) -> None:
+        for name in (
+            "max_upload_bytes",
+            "max_files",
+            "max_concurrency",
+            "max_waiting",
+            "max_top",
+            "thumbnail_size",
+            "max_pixels",
+        ):
+            v = getattr(self, name)
+            _need(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 1,
+                name,
+                v,
+                "a whole number of at least 1",
+            )
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    """The options of ``lookfeel serve``, validated in one place when made.
+
+    Attributes:
+        host: address to listen on (default loopback only).
+        port: TCP port, 1-65535 (0 is refused: a server a user must reach needs a known port).
+        threads: PyTorch threads per query, at least 1.
+        max_upload_mb: largest upload in MB, more than 0.
+        max_concurrency: queries the model runs at once, at least 1 (0 would hang every query).
+        max_megapixels: largest upload in megapixels (width x height / 1e6), more than 0.
+
+    Raises:
+        ServeOptionError: naming the option (as spelt on the command line) and the value.
+
+    Example:
+        >>> opts = ServeOptions(port=8080, max_upload_mb=4)
+        >>> app = create_app("lib/", opts.config())
+    """
+
+    host: str = "127.0.0.1"
+    port: int = 8000
+    threads: int = 1
+    max_upload_mb: float = 8.0
+    max_concurrency: int = 2
+    max_megapixels: float = 25.0
+
+    def __post_init__(self) -> None:
+        def whole(v: object) -> bool:
+            return isinstance(v, int) and not isinstance(v, bool)
+
+        def number(v: object) -> bool:
+            return whole(v) or (isinstance(v, float) and v == v and v not in (inf, -inf))
+
+        _need(
+            isinstance(self.host, str) and bool(self.host.strip()),
+            "--host",
+            self.host,
+            "an address such as 127.0.0.1",
+        )
+        _need(
+            whole(self.port) and 1 <= self.port <= 65535, "--port", self.port, "between 1 and 65535"
+        )
+        _need(
+            whole(self.threads) and 1 <= self.threads <= 1024,
+            "--threads",
+            self.threads,
+            "between 1 and 1024",
+        )
+        _need(
+            whole(self.max_concurrency) and 1 <= self.max_concurrency <= 1024,
+            "--max-concurrency",
+            self.max_concurrency,
+            "between 1 and 1024 (0 would make every query wait forever)",
+        )
+        _need(
+            number(self.max_upload_mb) and 0 < self.max_upload_mb <= 1024,
+            "--max-upload-mb",
+            self.max_upload_mb,
+            "more than 0 and at most 1024",
+        )
+        _need(
+            number(self.max_megapixels) and 0 < self.max_megapixels <= 1000,
+            "--max-megapixels",
+            self.max_megapixels,
+            "more than 0 and at most 1000",
+        )
+
+    def config(self) -> ServeConfig:
+        """The app's limits from these options."""
+        return ServeConfig(
+            max_upload_bytes=max(1, int(self.max_upload_mb * 1024 * 1024)),
+            max_concurrency=self.max_concurrency,
+            max_pixels=max(1, int(self.max_megapixels * 1e6)),
+        )
+
+
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """Width and height an image declares in its header (nothing decoded); None if unreadable."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as im:
+                w, h = im.size
+                return int(w), int(h)
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError):
+        return None
 
 
 class LibraryInfo(BaseModel):
@@ -214,6 +363,31 @@ class _BodyLimit:
         await self.app(scope, counted, send)
 
 
+class _SecurityHeaders:
+    """Add `SECURITY_HEADERS` to every HTTP response (errors included)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                present = {k.lower() for k, _ in message.get("headers", [])}
+                extra = [
+                    (k.lower().encode("latin-1"), v.encode("latin-1"))
+                    for k, v in SECURITY_HEADERS.items()
+                    if k.lower().encode("latin-1") not in present
+                ]
+                message = {**message, "headers": [*message.get("headers", []), *extra]}
+            await send(message)
+
+        await self.app(scope, receive, with_headers)
+
+
 def create_app(
     library: Library | str | os.PathLike[str],
     config: ServeConfig | None = None,
@@ -264,6 +438,7 @@ def create_app(
 
     max_body = cfg.max_files * cfg.max_upload_bytes + 64 * 1024
     app.add_middleware(_BodyLimit, limit=max_body)
+    app.add_middleware(_SecurityHeaders)
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def page() -> Response:
@@ -294,6 +469,7 @@ def create_app(
                 "max_upload_bytes": cfg.max_upload_bytes,
                 "max_files": cfg.max_files,
                 "max_top": cfg.max_top,
+                "max_pixels": cfg.max_pixels,
             },
             calibration=lib.calibration.to_dict(),
         )
@@ -338,7 +514,8 @@ def create_app(
                 png = await run_in_threadpool(_thumbnail, item, lib, cfg.thumbnail_size)
             except ImageError as e:
                 raise HTTPException(
-                    410, f"item {item.id}: its file can no longer be read ({e.reason})"
+                    410,
+                    public_message(f"item {item.id}: its file can no longer be read ({e.reason})"),
                 ) from None
             thumbnails[item.id] = png
             while len(thumbnails) > 2048:
@@ -357,7 +534,7 @@ def create_app(
             if gallery is not None:
                 lib.table(gallery)
         except LibraryError as e:
-            raise HTTPException(422, str(e)) from None
+            raise HTTPException(422, public_message(str(e))) from None
 
     @app.post(
         "/api/match",
@@ -398,10 +575,24 @@ def create_app(
                 raise HTTPException(422, f"{name}: the file is empty")
             if sniff_type(data[:16]) is None:
                 raise HTTPException(415, f"{name}: not a PNG or JPEG image")
+            size = image_size(data)
+            if size is None:
+                raise HTTPException(
+                    422, f"{name}: cannot decode the image header (not a whole PNG or JPEG)"
+                )
+            if size[0] * size[1] > cfg.max_pixels:
+                raise HTTPException(
+                    413,
+                    f"{name}: declares {size[0]}x{size[1]} pixels; at most "
+                    f"{cfg.max_pixels / 1e6:g} megapixels are decoded",
+                )
             blobs.append((name, data))
 
         def work() -> list[MatchResult]:
-            images = [load_query_bytes(d, n, modality, match.data_config) for n, d in blobs]
+            images = [
+                load_query_bytes(d, n, modality, match.data_config, cfg.max_pixels)
+                for n, d in blobs
+            ]
             x = query_batch(images, modality)
             emb = match.embed(x, modality)
             names = [n for n, _ in blobs]
@@ -414,9 +605,9 @@ def create_app(
         try:
             results = await run_model(work)
         except ImageError as e:
-            raise HTTPException(422, str(e)) from None
+            raise HTTPException(422, public_message(str(e))) from None
         except LibraryError as e:
-            raise HTTPException(422, str(e)) from None
+            raise HTTPException(422, public_message(str(e))) from None
         return MatchResponse(results=[_public(r) for r in results])
 
     @app.post("/api/match/item", response_model=MatchResponse)
@@ -430,7 +621,7 @@ def create_app(
                 lambda: match.match_item(item.id, top=query.top, gallery=query.gallery)
             )
         except LibraryError as e:
-            raise HTTPException(422, str(e)) from None
+            raise HTTPException(422, public_message(str(e))) from None
         return MatchResponse(results=[_public(result)])
 
     return app

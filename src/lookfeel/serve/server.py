@@ -16,7 +16,14 @@ __all__ = ["background_server", "serve"]
 
 
 def serve(app: FastAPI, host: str = "127.0.0.1", port: int = 8000, log_level: str = "info") -> None:
-    """Serve ``app`` until interrupted (Ctrl-C)."""
+    """Serve ``app`` until interrupted (Ctrl-C).
+
+    Raises:
+        ServeOptionError: ``host`` or ``port`` (1-65535) is not usable, before anything binds.
+    """
+    from lookfeel.serve.app import ServeOptions
+
+    ServeOptions(host=host, port=port)  # validates
     uvicorn.run(app, host=host, port=port, log_level=log_level, access_log=False)
 
 
