@@ -7,7 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
-from lookfeel.data.catalog import Catalog
+from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb
 from lookfeel.data.layout import scan
 from lookfeel.data.problems import Problem
@@ -38,7 +38,9 @@ def check_dataset(
     """Scan ``root`` and decode every file the scan accepted (all frames of every press).
 
     Files are only read. Problems found while decoding (truncated or undecodable files, depth
-    that is not 16-bit) are added to the scan's; those items are dropped from the catalog.
+    that is not 16-bit) are added to the scan's; those items are dropped from the catalog. A
+    dataset with no usable fabric or only one is an error (no command can hold fabrics out of
+    it), as is an unfinished `lookfeel synth` world.
 
     Args:
         root: the dataset folder.
@@ -63,8 +65,6 @@ def check_dataset(
     else:
         found = [_decode_problem(*j) for j in jobs]
     new = [p for p in found if p is not None]
-    if not new:
-        return catalog
     bad = {p.path for p in new if p.severity == "error"}
     fabrics = []
     for f in catalog.fabrics:
@@ -73,5 +73,29 @@ def check_dataset(
             for m, its in f.items.items()
         }
         fabrics.append(replace(f, items={m: its for m, its in items.items() if its}))
+    usable = tuple(f for f in fabrics if f.items)
+    new.extend(_size_problems(catalog.root, usable))
     problems = sorted([*catalog.problems, *new], key=lambda p: (str(p.path), p.line or 0))
-    return replace(catalog, fabrics=tuple(f for f in fabrics if f.items), problems=tuple(problems))
+    return replace(catalog, fabrics=usable, problems=tuple(problems))
+
+
+def _size_problems(root: Path, fabrics: tuple[Fabric, ...]) -> list[Problem]:
+    """An empty dataset, or one of a single fabric, can be trained, evaluated or calibrated on
+    by no command (each holds fabrics out), so ``data check`` fails on it."""
+    if not fabrics:
+        return [
+            Problem(
+                root,
+                "no usable image found: a dataset holds depth/, color/ or touch/ folders of "
+                "F<id>_... images (see `lookfeel data check --help`)",
+            )
+        ]
+    if len(fabrics) == 1:
+        return [
+            Problem(
+                root,
+                f"only one fabric (id {fabrics[0].id}) has usable images; training, evaluation "
+                "and calibration hold fabrics out, so at least 2 are needed",
+            )
+        ]
+    return []

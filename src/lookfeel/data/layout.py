@@ -15,13 +15,17 @@ the first bytes of each file (cheap); `lookfeel.data.check_dataset` decodes ever
 
 from __future__ import annotations
 
+import json
+import os
 import re
+import stat
 from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 from lookfeel.data.catalog import Catalog, Fabric, Item
+from lookfeel.data.images import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
@@ -63,7 +67,11 @@ def parse_touch_name(name: str) -> TouchName | None:
     if m is None:
         return None
     kind = PressKind(m["kind"].lower()) if m["kind"] else None
-    return TouchName(int(m["fabric"]), kind, int(m["frame"]), m["press"])
+    fabric = _fabric_id(m["fabric"].lstrip("0") or "0")
+    frame = int(m["frame"]) if len(m["frame"]) <= 9 else None
+    if frame is None:
+        return None
+    return TouchName(MAX_FABRIC_ID + 1 if fabric is None else fabric, kind, frame, m["press"])
 
 
 def _folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:
@@ -109,10 +117,68 @@ def _header_problem(path: Path, modality: Modality) -> str | None:
     return None
 
 
+MAX_FABRIC_ID = 2**31 - 1
+"""Largest fabric id a file name may carry (ids are stored as 64-bit integers everywhere; a
+name like ``F99999999999999999999999_1.jpg`` is reported, not overflowed)."""
+SYNTH_MANIFEST = "synth.json"
+
+
+def _id_message(path: Path) -> str:
+    return f"fabric id in the file name is larger than {MAX_FABRIC_ID}; expected F<id>_..."
+
+
 def _walk(folder: Path) -> Iterable[Path]:
     for p in sorted(folder.rglob("*")):
-        if p.is_file() or p.is_symlink():
+        if p.is_symlink() or not p.is_dir():
             yield p
+
+
+def _file_problem(path: Path, real_root: Path) -> str | None:
+    """A file the image policy refuses: a special file, or a link leaving the dataset folder."""
+    try:
+        st = path.stat()  # follows links
+    except FileNotFoundError:
+        return f"symbolic link to {os.readlink(path)}, which does not exist"
+    except OSError as e:
+        return f"cannot read file: {e.strerror}"
+    if not stat.S_ISREG(st.st_mode):
+        return f"is {file_kind(st.st_mode)}, not a regular image file"
+    if path.is_symlink():
+        target = path.resolve()
+        if not target.is_relative_to(real_root):
+            return (
+                f"symbolic link to {target}, outside the dataset folder {real_root}; copy the "
+                "file in, or link the whole dataset folder instead"
+            )
+    return None
+
+
+def _fabric_id(text: str) -> int | None:
+    """A file name's fabric id, or None when it is out of range."""
+    if len(text) > 10:
+        return None
+    fid = int(text)
+    return fid if fid <= MAX_FABRIC_ID else None
+
+
+def _synth_problem(root: Path) -> Problem | None:
+    """An unfinished ``lookfeel synth`` world (its manifest's status is not ``complete``)."""
+    path = root / SYNTH_MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return Problem(path, "synthetic-world manifest is unreadable; run `lookfeel synth` again")
+    if not isinstance(data, dict) or data.get("generator") != "lookfeel.synth":
+        return None
+    if data.get("status") != "complete":
+        return Problem(
+            path,
+            f"this synthetic world was not finished (status {data.get('status')!r}: `lookfeel "
+            "synth` was stopped while rendering); run the same `lookfeel synth` command again",
+        )
+    return None
 
 
 def scan(
@@ -146,6 +212,9 @@ def scan(
         )
     problems: list[Problem] = []
     skipped: list[Problem] = []
+    real_root = root.resolve()
+    if (unfinished := _synth_problem(root)) is not None:
+        problems.append(unfinished)
 
     # ---- which folders hold which modality -------------------------------------------------
     folders: list[tuple[Path, Modality, PressKind | None]] = []
@@ -189,8 +258,14 @@ def scan(
             if path.name.startswith(".") or path.suffix.lower() not in IMAGE_SUFFIXES:
                 skipped.append(Problem(path, "not an image (.png, .jpg, .jpeg)", "skip"))
                 continue
+            if msg := _file_problem(path, real_root):
+                problems.append(Problem(path, msg))
+                continue
             if modality is Modality.TOUCH:
                 tn = parse_touch_name(path.name)
+                if tn is not None and tn.fabric_id > MAX_FABRIC_ID:
+                    problems.append(Problem(path, _id_message(path)))
+                    continue
                 if tn is None:
                     problems.append(
                         Problem(
@@ -243,10 +318,14 @@ def scan(
                         )
                     )
                     continue
+                fid = _fabric_id(name_match.group(1))
+                if fid is None:
+                    problems.append(Problem(path, _id_message(path)))
+                    continue
                 if check_headers and (msg := _header_problem(path, modality)):
                     problems.append(Problem(path, msg))
                     continue
-                singles[int(name_match.group(1))][modality].append(path)
+                singles[fid][modality].append(path)
 
     items: dict[int, dict[Modality, list[Item]]] = defaultdict(lambda: defaultdict(list))
     for fid, by_mod in singles.items():

@@ -43,13 +43,23 @@ class Problem:
 
 
 class DatasetError(LookfeelError):
-    """A dataset cannot be used as asked; ``problems`` lists every reason, not the first only."""
+    """A dataset cannot be used as asked; ``problems`` lists every reason, not the first only.
+
+    One problem reads as one line (``path: what is wrong``); several as a count and one line
+    each.
+    """
 
     def __init__(self, problems: Iterable[Problem] | str, root: Path | None = None) -> None:
         if isinstance(problems, str):
             problems = [Problem(root, problems)]
         self.problems = tuple(problems)
         self.root = root
+        if len(self.problems) == 1:
+            only = self.problems[0]
+            super().__init__(
+                str(only) if only.path is not None or root is None else f"{root}: {only}"
+            )
+            return
         head = f"{len(self.problems)} problem(s)" + (f" in {root}" if root is not None else "")
         lines = [f"  {p}" for p in self.problems[:50]]
         if len(self.problems) > 50:

@@ -4,6 +4,7 @@ folds, the within-fabric "seen fabrics" split of Table 4, and k-means clusters f
 from __future__ import annotations
 
 import math
+import warnings
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -12,11 +13,13 @@ import numpy as np
 
 from lookfeel.data.catalog import PHYSICAL_LABELS, Catalog, Item
 from lookfeel.data.problems import DatasetError
+from lookfeel.errors import LookfeelError
 
 __all__ = [
     "PAPER_EXCLUDED_IDS",
     "PAPER_TEST_IDS",
     "FabricSplit",
+    "SplitError",
     "kmeans_clusters",
     "paper_split",
     "seen_fabric_split",
@@ -28,6 +31,11 @@ PAPER_TEST_IDS = (3, 7, 16, 24, 30, 35, 39, 42, 43, 44, 52, 56, 70, 71, 75, 78, 
 """The paper's 18 test fabrics, "selected evenly from the 8 clusters" (section 5)."""
 PAPER_EXCLUDED_IDS = (107,)
 """Fabric 107, which the authors' code always excludes."""
+
+
+class SplitError(LookfeelError):
+    """Fabrics cannot be split as asked (too few for the held-out count or folds); the message
+    says how many there are and how many the split needs."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +84,7 @@ def stratified_fabric_split(
     n_test: int | None = None,
     test_fraction: float = 0.18,
     seed: int = 0,
+    excluded: int = 0,
 ) -> FabricSplit:
     """A fabric-disjoint split with test fabrics spread evenly over clusters (as the paper).
 
@@ -89,12 +98,28 @@ def stratified_fabric_split(
         n_test: number of test fabrics; default ``round(test_fraction * len(fabric_ids))``.
         test_fraction: used when ``n_test`` is None.
         seed: random seed.
+        excluded: how many fabrics the caller kept out of ``fabric_ids`` beforehand (the
+            paper's test fabrics); errors say so, since the user counts every fabric.
+
+    Raises:
+        SplitError: ``n_test`` is not between 1 and one less than the number of fabrics.
+
+    Warns:
+        UserWarning: fewer fabrics are left to train on than are held out.
     """
     ids = sorted(set(fabric_ids))
     n = len(ids)
     k = round(test_fraction * n) if n_test is None else n_test
     if not 0 < k < n:
-        raise ValueError(f"n_test must be between 1 and {n - 1} for {n} fabrics, got {k}")
+        if n < 2:
+            raise SplitError(
+                f"{n} fabric(s) cannot be split into training and held-out fabrics; a "
+                f"fabric-disjoint split needs at least 2{_left_out(excluded)}"
+            )
+        raise SplitError(
+            f"cannot hold out {k} of {n} fabrics: n_test must be between 1 and {n - 1} "
+            f"(train.val_fabrics){_left_out(excluded)}"
+        )
     groups = _by_cluster(ids, clusters)
     sizes = {c: len(g) for c, g in groups.items()}
     quota = {c: k * s / n for c, s in sizes.items()}
@@ -121,7 +146,22 @@ def stratified_fabric_split(
         if take[c]:
             test.extend(int(x) for x in rng.choice(g, size=take[c], replace=False))
     test_set = set(test)
+    if n - k < k:
+        warnings.warn(
+            f"holding out {k} of {n} fabrics leaves {n - k} to train on"
+            f"{_left_out(excluded)}; lower train.val_fabrics to train on more",
+            stacklevel=2,
+        )
     return FabricSplit(tuple(i for i in ids if i not in test_set), tuple(sorted(test_set)))
+
+
+def _left_out(excluded: int) -> str:
+    if not excluded:
+        return ""
+    return (
+        f" ({excluded} more fabric(s) marked paper_split=test in labels.csv are never trained "
+        "on and are not counted)"
+    )
 
 
 def stratified_fabric_folds(
@@ -130,6 +170,7 @@ def stratified_fabric_folds(
     n_folds: int = 5,
     seed: int = 0,
     fold_size: int | None = None,
+    excluded: int = 0,
 ) -> list[FabricSplit]:
     """K fabric-disjoint folds, each cluster's fabrics dealt evenly across the folds.
 
@@ -138,16 +179,27 @@ def stratified_fabric_folds(
     fold_size`` fabrics are first chosen evenly over the clusters (as `stratified_fabric_split`
     chooses a test set; e.g. 5 folds of 18 of 100 fabrics, as the paper's 18 test fabrics), the
     rest are on the training side of every fold.
+
+    ``excluded`` is as in `stratified_fabric_split`.
+
+    Raises:
+        SplitError: too few fabrics for ``n_folds`` (of ``fold_size``).
     """
     ids = sorted(set(fabric_ids))
     if not 2 <= n_folds <= len(ids):
-        raise ValueError(f"n_folds must be between 2 and {len(ids)}, got {n_folds}")
+        raise SplitError(
+            f"{n_folds} folds of {len(ids)} fabric(s): train.folds must be between 2 and {len(ids)}"
+            if len(ids) >= 2
+            else f"{len(ids)} fabric(s) cannot be split into folds; at least 2 are needed"
+        )
     tested = ids
     if fold_size is not None:
         if fold_size < 1 or n_folds * fold_size > len(ids):
-            raise ValueError(
-                f"{n_folds} folds of {fold_size} fabrics need {n_folds * fold_size} fabrics; "
-                f"there are {len(ids)}"
+            raise SplitError(
+                f"{n_folds} folds of {fold_size} fabrics need {n_folds * fold_size} training "
+                f"fabrics (train.folds x train.fold_size); there are {len(ids)}"
+                + _left_out(excluded)
+                + (f"; train.fold_size={len(ids) // n_folds} fits" if len(ids) >= n_folds else "")
             )
         if n_folds * fold_size < len(ids):
             chosen = stratified_fabric_split(ids, clusters, n_test=n_folds * fold_size, seed=seed)
