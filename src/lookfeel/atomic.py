@@ -2,18 +2,43 @@
 
 Checkpoints, caches, indexes, configs and reports all go through here, so a run killed at any
 moment leaves every file it had written intact (write to a temp file in the same folder, flush,
-fsync, then ``os.replace``).
+fsync, then ``os.replace``). The file gets the mode a plain ``open(path, "w")`` would give:
+``0o666`` less the process's umask (a temp file alone would be ``0o600``, unreadable by a
+teammate).
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO
 
-__all__ = ["atomic_write", "atomic_write_bytes", "atomic_write_text"]
+__all__ = ["atomic_write", "atomic_write_bytes", "atomic_write_text", "current_umask", "file_mode"]
+
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process's umask, read without changing it where the system allows (Linux)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:  # elsewhere: set and restore it at once (briefly process-wide)
+        mask = os.umask(0o077)
+        os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """Mode of a new file under the current umask: ``0o666 & ~umask``."""
+    return 0o666 & ~current_umask()
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object]) -> Path:
@@ -24,13 +49,15 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
         write: writes the whole content to the binary file object it is given.
 
     Returns:
-        The destination path.
+        The destination path, of mode ``0o666 & ~umask`` (as `open` would create it).
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
+            if hasattr(os, "fchmod"):
+                os.fchmod(f.fileno(), file_mode())
             write(f)
             f.flush()
             os.fsync(f.fileno())

@@ -13,7 +13,10 @@
 Work is spread over processes one fabric at a time; every random stream is keyed by
 ``(seed, fabric id, item)``, so the files do not depend on the number of workers or the order
 in which they finish. Images are written to a hidden temporary name and renamed into place, so
-a killed run never leaves a truncated image under a real name.
+a killed run never leaves a truncated image under a real name. Workers die with the process
+that started them, even one killed by SIGKILL (Linux: ``PR_SET_PDEATHSIG``; everywhere: each
+worker checks its parent every second). ``synth.json`` says ``"status": "running"`` until the
+last file is written, so `lookfeel data check` (and every scan) refuses a half-rendered world.
 """
 
 from __future__ import annotations
@@ -22,6 +25,9 @@ import io
 import json
 import math
 import os
+import signal
+import sys
+import threading
 import time
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -169,6 +175,33 @@ def render_fabric(
                 counts["frames"] += 1
             counts["presses"] += 1
     return counts
+
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: end this process when ``parent`` (the `generate` caller) ends.
+
+    On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); a
+    daemon thread also checks every second that the parent is still this process's parent
+    (it covers other systems and a parent that died before the ``prctl``).
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent:
+                os._exit(1)
+            time.sleep(1.0)
+
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(target=watch, name="lookfeel-parent-watch", daemon=True).start()
 
 
 def _run_task(task: _Task) -> dict[str, int]:
@@ -340,7 +373,9 @@ def generate(
                 bar.update(1)
         else:
             ctx = get_context("spawn")
-            with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
+            with ProcessPoolExecutor(
+                n_workers, mp_context=ctx, initializer=_die_with_parent, initargs=(os.getpid(),)
+            ) as pool:
                 for r in pool.map(_run_task, tasks, chunksize=1):
                     _add(totals, r)
                     bar.update(1)

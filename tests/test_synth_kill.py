@@ -1,0 +1,85 @@
+"""Killing `lookfeel synth` (even with SIGKILL) kills its workers, and the half-rendered world
+it leaves fails `data check`."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from lookfeel.data import check_dataset
+
+pytestmark = pytest.mark.skipif(
+    not Path("/proc/self/stat").exists(), reason="reads process parents from /proc (Linux)"
+)
+
+
+def _children(pid: int) -> set[int]:
+    """Processes whose parent is ``pid`` (read from /proc)."""
+    out = set()
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        if int(fields[1]) == pid:
+            out.add(int(d.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return state[state.rindex(")") + 2] != "Z"
+
+
+def _images(root: Path) -> int:
+    return sum(1 for p in root.rglob("*") if p.suffix in (".png", ".jpg"))
+
+
+def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: Path):
+    out = tmp_path / "world"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    args = ["--size", "tiny", "--fabrics", "60", "--workers", "2", "--no-contact-sheet"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lookfeel", "synth", str(out), *args, "--quiet"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        workers: set[int] = set()
+        while time.monotonic() < deadline and proc.poll() is None:
+            workers = {w for w in _children(proc.pid) if _alive(w)}
+            if len(workers) >= 2 and out.is_dir() and _images(out) > 0:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "synth finished before it could be killed; raise --fabrics"
+        assert len(workers) >= 2, f"expected 2 worker processes, found {workers}"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and any(_alive(w) for w in workers):
+            time.sleep(0.05)
+        assert not any(_alive(w) for w in workers), "workers outlived the killed synth"
+        n = _images(out)
+        time.sleep(1.5)
+        assert _images(out) == n, "files kept appearing after synth was killed"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    catalog = check_dataset(out)
+    messages = [str(p) for p in catalog.errors]
+    assert any("synthetic world was not finished" in m for m in messages), messages
