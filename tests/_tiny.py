@@ -61,3 +61,22 @@ def write_tiny_dataset(
             lines.append(f"{f},{(f - 1) % 3},{0.5 * f},{density},{f % 5},{f % 2},train\n")
         (root / "labels.csv").write_text("".join(lines))
     return root
+
+
+def bomb_png(width: int, height: int) -> bytes:
+    """A real greyscale PNG of ``width`` x ``height`` zeros: small on disk (zlib), huge decoded
+    (13000 x 13000 is about 0.2 MB here and 169 MB as pixels, 507 MB as RGB)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        )
+
+    z = zlib.compressobj(1)
+    row = bytes(width + 1)  # filter byte 0, then the row
+    idat = b"".join(z.compress(row * 64) for _ in range(height // 64))
+    idat += z.compress(row * (height % 64)) + z.flush()
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")

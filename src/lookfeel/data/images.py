@@ -80,6 +80,7 @@ DEFAULT_MAX_PIXELS = 50_000_000
 0.3 MP). Checked from the header, before decoding: 13000 x 13000 declared in a 0.4 MB PNG would
 otherwise cost 2 GB."""
 _MAX_FILE_BYTES = 512 * 1024 * 1024
+_MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff")
 
 
 def file_kind(mode: int) -> str:
@@ -167,6 +168,10 @@ def _open(path: Path, data: bytes | None = None, max_pixels: int | None = None) 
         text = str(e).lower()
         if "truncated" in text or isinstance(e, EOFError):
             raise ImageError(path, "file is truncated") from None
+        if "cannot identify image file" in text and blob.startswith(_MAGIC):
+            raise ImageError(
+                path, "file is truncated or damaged (its header is incomplete)"
+            ) from None
         if "cannot identify image file" in text:
             raise ImageError(
                 path, "cannot decode image: not a PNG or JPEG Pillow can read"
