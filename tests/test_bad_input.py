@@ -526,3 +526,33 @@ def test_public_messages_keep_file_names_only():
 
     text = "/srv/lib/shards/depth_0000.npz: damaged; see /home/a/b/run/last.pt, or C:\\x\\y.png"
     assert public_message(text) == "depth_0000.npz: damaged; see last.pt, or y.png"
+
+
+# ---- the demo shows that it is alive ------------------------------------------------------------
+
+
+def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import lookfeel.demo as demo
+
+    seen: dict[str, object] = {}
+
+    def fake_generate(config, out, progress):
+        seen["synth_progress"] = progress
+        write_tiny_dataset(out, fabrics=3)
+
+    def fake_reproduce(world, out, **kwargs):
+        seen["overrides"] = kwargs["overrides"]
+        raise KeyboardInterrupt  # stop here: the rest is the real demo's (test_cli)
+
+    monkeypatch.setattr(demo, "generate", fake_generate)
+    monkeypatch.setattr(demo, "reproduce", fake_reproduce)
+    lines: list[str] = []
+    with pytest.raises(KeyboardInterrupt):
+        demo.run_demo(tmp_path / "demo", overrides=["train.steps=2"], log=lines.append)
+    assert seen["synth_progress"] is True
+    assert seen["overrides"] == ["train.progress=true", "train.steps=2"]  # the user's win
+    steps = [ln for ln in lines if ln.startswith("[")]
+    assert [s[:4] for s in steps] == ["[2/4", "[3/4"], lines
+    assert " min] Generating a synthetic world of 36 fabrics" in steps[0]

@@ -7,6 +7,11 @@
    Cross-modal, Auxiliary and Multi-input nets, the colour-augmentation variants and Table 4's
    pair, evaluate each on held-out fabrics, and write the report beside the paper's numbers.
 4. Evaluate the Multi-input Net in full: calibration, confusion matrices, pick examples.
+
+Every long step shows that it is alive: each step's line says which of the four it is and the
+minutes so far, the world's rendering and every training run show a progress bar on stderr
+(``train.progress=true``, which a ``--set train.progress=false`` turns off), and each
+reproduction run prints a line as it starts.
 """
 
 from __future__ import annotations
@@ -72,27 +77,39 @@ def run_demo(
     from lookfeel.cli import format_summary
 
     started = time.perf_counter()
+
+    def step(k: int, text: str) -> None:
+        log(f"[{k}/4, {(time.perf_counter() - started) / 60:.1f} min] {text}")
+
     if real_data is not None and real_data.is_dir():
-        log(f"Real GelFabric data at {real_data}:")
+        step(1, f"Real GelFabric data at {real_data}:")
         log(format_summary(scan(real_data)))
         log("")
     world = out / "world"
     config = SynthConfig(fabrics=fabrics, seed=seed, workers=2)
     if _complete_world(world, config):
-        log(f"Reusing the synthetic world in {world}.")
+        step(2, f"Reusing the synthetic world in {world}.")
     else:
-        log(f"Generating a synthetic world of {fabrics} fabrics in {world} ...")
+        step(2, f"Generating a synthetic world of {fabrics} fabrics in {world} ...")
         generate(config, world, progress=True)
     log(format_summary(scan(world)))
     log("")
-    log(f"Reproducing the paper's experiments (budget {budget}) in {out / 'reproduce'} ...")
+    step(3, f"Reproducing the paper's experiments (budget {budget}) in {out / 'reproduce'} ...")
     result = reproduce(
-        world, out / "reproduce", budget=budget, seeds=1, n_boot=500, overrides=overrides, log=log
+        world,
+        out / "reproduce",
+        budget=budget,
+        seeds=1,
+        n_boot=500,
+        overrides=["train.progress=true", *overrides],  # a bar per run; the user's come last
+        log=log,
     )
     report = None
     run = out / "reproduce" / "runs" / "multi_input" / "seed0" / "checkpoints" / "last.pt"
     if run.exists():
-        log("Evaluating the Multi-input Net in full (calibration, confusion, pick examples) ...")
+        step(
+            4, "Evaluating the Multi-input Net in full (calibration, confusion, pick examples) ..."
+        )
         evaluated = evaluate_checkpoint(run, world, split="val", config=EvalConfig(n_boot=500))
         report = write_report(evaluated, out / "evaluate").report
     return DemoResult(world, result, report, time.perf_counter() - started)
