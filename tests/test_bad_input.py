@@ -556,3 +556,28 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     steps = [ln for ln in lines if ln.startswith("[")]
     assert [s[:4] for s in steps] == ["[2/4", "[3/4"], lines
     assert " min] Generating a synthetic world of 36 fabrics" in steps[0]
+
+
+# ---- match on an image of the library ----------------------------------------------------------
+
+
+def test_match_on_a_library_image_names_its_fabric(library: Path, run, capsys):
+    from lookfeel.index import Matcher
+    from lookfeel.modality import Modality
+
+    data, _ = run
+    image = data / "depth" / "F0004_Depth_New_000001.png"
+    assert main(["match", "--index", str(library), "--modality", "depth", str(image)]) == 0
+    out = capsys.readouterr().out
+    assert "fabric 4: the query is library item depth:" in out, out
+    matcher = Matcher(Library.open(library))
+    r = matcher.match_files([image], Modality.DEPTH)[0]
+    assert r.known and r.message.startswith("fabric 4: the query is library item depth:")
+    # A library item matched as a query leaves itself out: no identity, the usual verdict.
+    item = next(
+        i
+        for i in (matcher.library.table(Modality.DEPTH).item(k) for k in range(50))
+        if i.path == str(image)
+    )
+    r = matcher.match_item(item.id)
+    assert "the query is library item" not in r.message and "chance 1/6 = 0.167" in r.message

@@ -8,7 +8,13 @@ is the sum over its items, times ``1 - P(unknown)``, the calibrated unknown clas
 to e in every modality of the library say what it looks like (depth, colour) and how it feels
 (touch). Physical properties are predicted from the top ``k_properties`` fabrics, each weighted
 by its probability: the weighted mean and standard deviation of their known labels. When the
-best probability is below the calibrated threshold the answer is "no known fabric".
+best probability is below the calibrated threshold the answer is "no known fabric", with the
+chance level 1/F beside it, and a note when the pair's threshold accepted no known fabric at all
+in calibration (its ranking is then still worth reading).
+
+A query whose embedding is identical (distance below `IDENTICAL_DISTANCE`) to a library item of
+its own modality is that item: it is reported as known, its fabric named, whatever the
+threshold says (a user matching a file of the library expects its fabric, not "unknown").
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
 from lookfeel.index.calibrate import unknown_probability
-from lookfeel.index.library import Library, LibraryError
+from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import load_query_image, query_batch
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
@@ -40,6 +46,9 @@ __all__ = [
     "format_match",
 ]
 
+IDENTICAL_DISTANCE = 1e-3
+"""Embedding distance under which a query is taken to be the library item itself (unit-norm
+embeddings: distinct images are typically 0.1-1.4 apart; one file re-embedded, ~1e-6)."""
 FAISS_CANDIDATES = 2048
 """Items a faiss search returns; probabilities are normalised over these."""
 
@@ -299,15 +308,30 @@ class Matcher:
         ranked = [(int(table.fabrics[j]), float(pf[j])) for j in order[:k_properties]]
         properties = self._properties(ranked)
         best_id = int(table.fabrics[order[0]]) if len(order) else None
-        if known:
-            message = f"fabric {best_id} (P = {best:.3f}, P(unknown) = {p_unknown:.3f})"
+        chance = f"chance 1/{nf} = {1 / max(nf, 1):.3f}"
+        same = self._identical(e, modality, exclude)
+        if same is not None:
+            known = True
+            message = f"fabric {same.fabric_id}: the query is library item {same.id} itself"
+            if best_id != same.fabric_id:
+                message += (
+                    f"; against {g.value} the best match is fabric {best_id} (P = {best:.3f}, "
+                    f"{chance})"
+                )
+        elif known:
+            message = f"fabric {best_id} (P = {best:.3f}, P(unknown) = {p_unknown:.3f}, {chance})"
         else:
             message = (
                 f"no known fabric: the best match, fabric {best_id}, has P = {best:.3f} "
-                f"(P(unknown) = {p_unknown:.3f}), below the threshold {cal.threshold:.3f} "
-                f"calibrated for a {100 * cal.target_false_accept:g}% false-accept rate on "
-                "held-out fabrics"
+                f"(P(unknown) = {p_unknown:.3f}, {chance}), below the threshold "
+                f"{cal.threshold:.3f} calibrated for a {100 * cal.target_false_accept:g}% "
+                "false-accept rate on held-out fabrics"
             )
+            if cal.n_absent and not cal.true_accept > 0:
+                message += (
+                    f" (at that rate this pair accepted no known fabric in calibration, true "
+                    f"accept {cal.true_accept:.3f}: read the ranking, not the verdict)"
+                )
         return MatchResult(
             query_modality=modality,
             gallery_modality=g,
@@ -324,6 +348,22 @@ class Matcher:
             backend=search.name,
             timing_ms={"search": 1e3 * (t1 - t0)},
         )
+
+    def _identical(
+        self, e: NDArray[np.floating], modality: Modality, exclude: str | None
+    ) -> LibraryItem | None:
+        """The library item of the query's modality whose embedding is the query's, if any."""
+        if modality not in self.library.tables:
+            return None
+        table = self.library.table(modality)
+        d, idx = self.library.search(modality).search(np.asarray(e)[None, :], 2)
+        for dist, row in zip(d[0], idx[0], strict=True):
+            if row < 0 or f"{modality.value}:{int(row)}" == exclude:
+                continue
+            if dist > IDENTICAL_DISTANCE:
+                return None
+            return table.item(int(row))
+        return None
 
     def _fabric(
         self,
