@@ -581,3 +581,23 @@ def test_match_on_a_library_image_names_its_fabric(library: Path, run, capsys):
     )
     r = matcher.match_item(item.id)
     assert "the query is library item" not in r.message and "chance 1/6 = 0.167" in r.message
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "expected"),
+    [
+        (
+            "--false-accept",
+            "1.5",
+            "--false-accept (target_false_accept) must be in [0, 1); got 1.5",
+        ),
+        ("--folds", "-1", "--folds must be 0 or more"),
+    ],
+)
+def test_index_build_options_are_one_line(
+    option: str, value: str, expected: str, run, tmp_path: Path, capsys
+):
+    data, ckpt = run
+    argv = ["index", "build", "--checkpoint", ckpt, "--data", data, "--out", tmp_path / "lib"]
+    _fails(capsys, [*argv, option, value], expected)
+    assert not (tmp_path / "lib").exists()

@@ -35,12 +35,19 @@ from torch import Tensor, nn
 from lookfeel.atomic import atomic_write_bytes, atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import to_dict
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 from lookfeel.models import Branch
 
-__all__ = ["EXPORT_FORMATS", "ExportedBranch", "export_onnx"]
+__all__ = ["EXPORT_FORMATS", "ExportError", "ExportedBranch", "export_onnx"]
 
 EXPORT_FORMATS = ("onnx",)
+
+
+class ExportError(LookfeelError):
+    """A checkpoint cannot be exported as asked; the message says which branch and why."""
+
+
 _CHANNELS = {Modality.DEPTH: 1, Modality.COLOR: 3, Modality.TOUCH: 3}
 
 
@@ -123,7 +130,7 @@ def export_onnx(
     for m in wanted:
         if m not in model.modalities:
             have = ", ".join(x.value for x in model.modalities)
-            raise ValueError(f"the model has no {m.value} branch (it has: {have})")
+            raise ExportError(f"the model has no {m.value} branch (it has: {have})")
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = torch.Generator().manual_seed(0)
@@ -165,7 +172,7 @@ def export_onnx(
             data = (Path(tmp) / "branch.onnx").read_bytes()
         diff = _check(data, module, checks, name) if check else None
         if diff is not None and diff > atol:
-            raise ValueError(
+            raise ExportError(
                 f"{m.value} branch: ONNX outputs differ from PyTorch's by {diff:.3g} "
                 f"(> {atol:g}) under onnxruntime; not written"
             )

@@ -176,6 +176,14 @@ def build_library(
     out = Path(out)
     if shard_size < 1 or batch_size < 1:
         raise LibraryError(f"shard_size and batch_size must be >= 1 ({shard_size}, {batch_size})")
+    if not 0.0 <= target_false_accept < 1.0:
+        raise LibraryError(
+            f"--false-accept (target_false_accept) must be in [0, 1); got {target_false_accept}"
+        )
+    if folds < 0:
+        raise LibraryError(f"--folds must be 0 or more (below 2: no unknown class); got {folds}")
+    if calibration_queries < 1:
+        raise LibraryError(f"--calibration-queries must be at least 1; got {calibration_queries}")
     try:
         choose_backend(backend, 0)  # validate before any work
     except ValueError as e:
