@@ -190,24 +190,31 @@ def test_huge_fabric_id_is_a_problem_not_an_overflow(copy: Path, capsys):
     assert tree_digest(copy) == before
 
 
+@pytest.mark.parametrize("bad", ["huge id", "not an image"])
 @pytest.mark.parametrize("command", ["embed", "evaluate"])
 @pytest.mark.xfail(
     strict=True,
-    reason="needs evaluate/from_checkpoint.py to scan with strict=True (lines 206, 309, 333): "
-    "files the scan refuses are dropped silently and the command exits 0",
+    reason="needs evaluate/from_checkpoint.py to scan with require=(), strict=True (lines 206, "
+    "309, 333): files the scan refuses are dropped silently and the command exits 0",
 )
 def test_embed_and_evaluate_refuse_files_the_scan_refuses(
-    command: str, run, copy: Path, tmp_path: Path, capsys
+    command: str, bad: str, run, copy: Path, tmp_path: Path, capsys
 ):
     _, ckpt = run
-    shutil.copy(sorted((copy / "color").glob("*.png"))[0], copy / "color" / f"{HUGE}.png")
-    (copy / "depth" / "F0001_Depth_New_000009.png").write_bytes(b"not an image at all")
+    if bad == "huge id":
+        name = f"{HUGE}.png"
+        shutil.copy(sorted((copy / "color").glob("*.png"))[0], copy / "color" / name)
+    else:
+        name = "F0001_Depth_New_000009.png"
+        (copy / "depth" / name).write_bytes(b"not an image at all")
+    before = tree_digest(copy)
     out = tmp_path / "out"
     argv = {
         "embed": ["embed", "--checkpoint", ckpt, "--data", copy, "--out", out / "e.npz"],
         "evaluate": ["evaluate", "--checkpoint", ckpt, "--data", copy, "--out", out],
     }[command]
-    _fails(capsys, argv, HUGE)
+    _fails(capsys, argv, name)
+    assert tree_digest(copy) == before
 
 
 def test_symlink_outside_the_dataset_and_fifo_are_errors(copy: Path, tmp_path: Path, capsys):
