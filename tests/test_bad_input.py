@@ -313,7 +313,7 @@ def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
 @pytest.mark.xfail(
     strict=True,
     reason="needs train/loop.py select_split to pass excluded=len(paper.test) to "
-    "stratified_fabric_folds / stratified_fabric_split (lines 117-131)",
+    "stratified_fabric_folds / stratified_fabric_split (lines 111 and 117)",
 )
 def test_synth_cross_error_says_which_fabrics_were_left_out(tmp_path: Path, capsys):
     data = _thirty(tmp_path / "w")
