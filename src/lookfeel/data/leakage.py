@@ -441,6 +441,15 @@ def _ci(ci: tuple[float, float]) -> str:
     return "[ n/a ]" if math.isnan(ci[0]) else f"[{ci[0]:.2f}, {ci[1]:.2f}]"
 
 
+def _source(m: ModalityLeakage) -> str:
+    return "pixels still across images" if m.mask_source == "static" else f"mask {m.mask_source}"
+
+
+def _tolerance(report: LeakageReport) -> str:
+    units = {"depth": " mm"}
+    return ", ".join(f"{k} {v:g}{units.get(k, ' levels')}" for k, v in report.tolerance.items())
+
+
 def _verdict(m: ModalityLeakage, factor: float) -> str:
     if m.background_fraction == 0.0:
         return "no background pixel found (nothing is still across images): nothing to check"
@@ -457,15 +466,15 @@ def format_leakage(report: LeakageReport) -> str:
     """The report as text: a table per modality and a verdict line for each."""
     lines = [
         f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over fabrics] from raw pixels",
-        f"(background = pixels within tolerance {dict(report.tolerance)} of their median in "
-        f">= {report.static_fraction:.0%} of images, or a --mask; {report.seconds:.1f} s)",
+        f"(background: pixels within {_tolerance(report)} of their median in "
+        f">= {report.static_fraction:.0%} of images, or a mask; {report.seconds:.1f} s)",
     ]
     for m in report.modalities:
         lines += [
             "",
             f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} fabrics, pooled "
             f"{m.pool}x{m.pool} to {m.pooled_shape[0]}x{m.pooled_shape[1]}, background "
-            f"{m.background_fraction:.0%} of the image ({m.mask_source})",
+            f"{m.background_fraction:.0%} of the image ({_source(m)})",
             f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
             f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
             f"  chance            {m.chance:.3f}",
@@ -482,7 +491,7 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
         Problem(
             report.root / m.modality.value,
             f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
-            f"{m.mask_source}) identifies the fabric at pick-1-of-10 top-1 "
+            f"{_source(m)}) identifies the fabric at pick-1-of-10 top-1 "
             f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
             "a model can learn the capture session, not the material "
             "(see `lookfeel data leakage`)",
