@@ -5,7 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lookfeel.data.register import Intrinsics, RegistrationError, register_depth
+from lookfeel.data.register import (
+    Intrinsics,
+    RegistrationError,
+    register_depth,
+    register_items,
+)
 
 from ._scene import Scene
 
@@ -127,3 +132,24 @@ def test_real_depth_registration(real_data):
         assert 0.15 < reg.cloth.mean() < 0.7
         assert reg.residual_mm < 5.0
         assert reg.post_uv is not None and reg.post_uv[1] < 30  # the drape hangs from the top
+
+
+def test_register_items_reads_files_and_names_the_bad_one(tmp_path):
+    from PIL import Image
+
+    from lookfeel.data.catalog import Item
+    from lookfeel.modality import Modality
+
+    items = []
+    for k, scene in enumerate([BASE, dataclasses.replace(BASE, wall_y=560.0)]):
+        path = tmp_path / f"F{k + 1:04d}_Depth_New_000000.png"
+        Image.fromarray(scene.render()["depth"]).save(path)
+        items.append(Item(Modality.DEPTH, k + 1, (path,)))
+    batch = register_items(items, BASE.intrinsics)
+    assert batch.cloth.shape == batch.height.shape == (2, BASE.size, BASE.size)
+    one = register_depth(BASE.render()["depth"], BASE.intrinsics)
+    assert np.array_equal(batch.cloth[0], one.cloth) and np.array_equal(batch.height[0], one.height)
+    flat = tmp_path / "F0003_Depth_New_000000.png"
+    Image.fromarray(np.full((BASE.size, BASE.size), 0, np.uint16)).save(flat)
+    with pytest.raises(RegistrationError, match="F0003_Depth_New_000000.png: depth image has no"):
+        register_items([*items, Item(Modality.DEPTH, 3, (flat,))])
