@@ -1,0 +1,501 @@
+"""Leak check: how well does an image's background alone identify its fabric?
+
+A capture session leaves its fingerprint in the pixels where no material lies: the wall, the
+floor, the sensor's border sit a few millimetres (or grey levels) differently in every session,
+and every drape of a fabric was captured in one session. A model can then learn the session
+instead of the material. `leakage_report` measures this, per image modality, for any dataset:
+
+1. **Background pixels.** A pixel is background where it is *static* across the modality's
+   images: within ``tolerance`` of its per-pixel median (depth: millimetres; colour and touch:
+   8-bit grey levels, the largest of the three channels) in at least ``static_fraction`` of the
+   images. Cloth moves by tens of centimetres between drapes, the room by millimetres, so the
+   rule finds the room without being told where it is. A user's mask image (white =
+   background; resized to the images) replaces the rule for a modality.
+2. **Scoring.** Each image is decoded (depth holes filled from the nearest reading),
+   mean-pooled by ``pool`` (default: the smallest factor that brings the longer side to at most
+   64 px), restricted to the background pixels, and every pixel z-scored over the images. The
+   score is the exact pick 1 of 10 (`pick_k_of_n_exact`: each image queries the others, its own
+   fabric's other images are the true candidates) top-1, with a 95% bootstrap interval that
+   resamples fabrics (`bootstrap_ci`). The same is computed for the whole image, beside chance.
+3. **Verdict.** A background *leaks* when its interval's lower bound is above ``factor`` (2)
+   times chance: the room alone then tells fabrics apart far better than guessing.
+   `leakage_problems` turns each leak into a warning for ``lookfeel data check``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image
+
+from lookfeel.data.catalog import Catalog, Item
+from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
+from lookfeel.data.problems import Problem
+from lookfeel.errors import LookfeelError
+from lookfeel.metrics.bootstrap import bootstrap_ci
+from lookfeel.metrics.distances import pairwise_distances
+from lookfeel.metrics.pick import pick_k_of_n_exact
+from lookfeel.modality import Modality
+
+__all__ = [
+    "DEFAULT_TOLERANCE",
+    "LeakageReport",
+    "MaskError",
+    "ModalityLeakage",
+    "format_leakage",
+    "leakage_problems",
+    "leakage_report",
+    "load_pooled",
+    "parse_mask_options",
+    "read_mask",
+    "static_mask",
+]
+
+DEFAULT_TOLERANCE: Mapping[Modality, float] = {
+    Modality.DEPTH: 20.0,  # mm: sessions move the room by a few, drapes move cloth by tens+
+    Modality.COLOR: 12.0,  # 8-bit levels
+    Modality.TOUCH: 12.0,
+}
+"""Per modality, how far (depth: mm; colour, touch: 8-bit levels) a static pixel may stray."""
+
+_MAX_SIDE = 64
+_N = 10
+
+
+class MaskError(LookfeelError):
+    """A background mask image cannot be used; the message names the file and why."""
+
+
+@dataclass(frozen=True)
+class ModalityLeakage:
+    """The leak check of one modality.
+
+    Attributes:
+        modality: the modality scored.
+        n_items: images scored (one per depth or colour item, one frame per touch press).
+        n_fabrics: fabrics they belong to.
+        pooled_shape: (h, w) of the pooled images the scores use.
+        pool: the mean-pooling factor.
+        mask_source: ``"static"`` (the data-driven rule) or the mask file's path.
+        background_fraction: share of the (pooled) pixels that are background.
+        whole_top1, whole_ci95: pick 1 of 10 top-1 of the whole image and its 95% interval.
+        background_top1, background_ci95: the same on background pixels only (NaN without any).
+        chance: top-1 of random guessing (1 / candidates).
+        leak: whether the background's interval lies above ``factor`` x chance.
+    """
+
+    modality: Modality
+    n_items: int
+    n_fabrics: int
+    pooled_shape: tuple[int, int]
+    pool: int
+    mask_source: str
+    background_fraction: float
+    whole_top1: float
+    whole_ci95: tuple[float, float]
+    background_top1: float
+    background_ci95: tuple[float, float]
+    chance: float
+    leak: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["modality"] = self.modality.value
+        return {k: _json_num(v) for k, v in d.items()}
+
+
+@dataclass(frozen=True)
+class LeakageReport:
+    """`leakage_report`'s answer: one `ModalityLeakage` per modality scored.
+
+    Attributes:
+        root: the dataset.
+        modalities: per modality, its scores.
+        skipped: modalities not scored, and why (too few fabrics or images).
+        tolerance, static_fraction, factor: the settings used (tolerance per modality).
+        seconds: how long the check took.
+    """
+
+    root: Path
+    modalities: tuple[ModalityLeakage, ...]
+    skipped: Mapping[str, str] = field(default_factory=dict)
+    tolerance: Mapping[str, float] = field(default_factory=dict)
+    static_fraction: float = 0.95
+    factor: float = 2.0
+    seconds: float = 0.0
+
+    @property
+    def leaks(self) -> tuple[ModalityLeakage, ...]:
+        """The modalities whose background identifies fabrics far above chance."""
+        return tuple(m for m in self.modalities if m.leak)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "root": str(self.root),
+            "leak": bool(self.leaks),
+            "modalities": {m.modality.value: m.to_dict() for m in self.modalities},
+            "skipped": dict(self.skipped),
+            "tolerance": dict(self.tolerance),
+            "static_fraction": self.static_fraction,
+            "factor": self.factor,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def _json_num(v: Any) -> Any:
+    if isinstance(v, float):
+        return None if math.isnan(v) else round(v, 4)
+    if isinstance(v, tuple | list):
+        return [_json_num(x) for x in v]
+    return v
+
+
+# ---- pixels --------------------------------------------------------------------------------
+
+
+def _frame(item: Item) -> Path:
+    # Touch: the frame the models see by default (DataConfig.touch_frame, second to last).
+    return item.frame(-2) if item.modality is Modality.TOUCH else item.path
+
+
+def _decode(item: Item) -> NDArray[np.float32]:
+    """(H, W, C) float32: depth in mm (holes filled), colour/touch in 8-bit levels."""
+    path = _frame(item)
+    if item.modality is Modality.DEPTH:
+        return fill_holes(decode_depth(path)).astype(np.float32)[..., None]
+    return decode_rgb(path).astype(np.float32)
+
+
+def _resize(a: NDArray[np.float32], shape: tuple[int, int]) -> NDArray[np.float32]:
+    if a.shape[:2] == shape:
+        return a
+    chans = [
+        np.asarray(
+            Image.fromarray(a[..., c]).resize((shape[1], shape[0]), Image.Resampling.BILINEAR),
+            dtype=np.float32,
+        )
+        for c in range(a.shape[2])
+    ]
+    return np.stack(chans, axis=-1)
+
+
+def _pool(a: NDArray[np.float32], k: int) -> NDArray[np.float32]:
+    """Mean-pool the leading two axes of (H, W, ...) by k (the ragged edge is dropped)."""
+    if k == 1:
+        return a
+    h, w = a.shape[0] // k, a.shape[1] // k
+    a = a[: h * k, : w * k]
+    return a.reshape(h, k, w, k, *a.shape[2:]).mean(axis=(1, 3), dtype=np.float32)
+
+
+def auto_pool(shape: tuple[int, int]) -> int:
+    """The smallest pooling factor bringing the longer side to at most 64 px."""
+    return max(1, math.ceil(max(shape) / _MAX_SIDE))
+
+
+def load_pooled(
+    items: Sequence[Item], pool: int | None = None
+) -> tuple[NDArray[np.float32], tuple[int, int], int]:
+    """Decode and mean-pool each item's image.
+
+    Images of another size than the first are resized to it (bilinear) first.
+
+    Returns:
+        ``(stack, shape, pool)``: (N, h, w, C) float32, the full-size (H, W), the factor used.
+    """
+    first = _decode(items[0])
+    shape = (int(first.shape[0]), int(first.shape[1]))
+    k = auto_pool(shape) if pool is None else int(pool)
+    if k < 1:
+        raise LookfeelError(f"pool must be >= 1; got {pool}")
+    out = [_pool(first, k)]
+    for it in items[1:]:
+        out.append(_pool(_resize(_decode(it), shape), k))
+    return np.stack(out), shape, k
+
+
+def static_mask(
+    stack: NDArray[np.float32], tolerance: float, static_fraction: float = 0.95
+) -> NDArray[np.bool_]:
+    """Pixels that hold still across the images: the background rule (see the module doc).
+
+    Args:
+        stack: (N, h, w, C) images.
+        tolerance: how far from its per-pixel median a pixel may be and still count as still
+            (the largest deviation over channels).
+        static_fraction: the share of images in which it must be still.
+
+    Returns:
+        (h, w) bool, True where background.
+    """
+    med = np.median(stack, axis=0)
+    near = (np.abs(stack - med[None]).max(axis=-1) <= tolerance).mean(axis=0)
+    return np.asarray(near >= static_fraction)
+
+
+def read_mask(path: str | Path, shape: tuple[int, int], pool: int) -> NDArray[np.bool_]:
+    """A user's background mask (white = background), resized to ``shape`` and pooled.
+
+    A pooled pixel is background when at least half of what it pools is.
+
+    Raises:
+        MaskError: the file is missing or undecodable, or has no white pixel.
+    """
+    p = Path(path)
+    try:
+        im = Image.open(p)
+        im.load()
+    except FileNotFoundError:
+        raise MaskError(f"{p}: mask file not found") from None
+    except (OSError, SyntaxError, ValueError) as e:
+        raise MaskError(f"{p}: cannot decode mask image: {e}") from None
+    grey = np.asarray(im.convert("L").resize((shape[1], shape[0]), Image.Resampling.NEAREST))
+    full = (grey >= 128).astype(np.float32)
+    if not full.any():
+        raise MaskError(f"{p}: mask has no white (background) pixel")
+    return np.asarray(_pool(full, pool) >= 0.5)
+
+
+def parse_mask_options(values: Sequence[str]) -> dict[Modality, Path]:
+    """``--mask`` values: ``PATH`` (every modality) or ``MODALITY=PATH`` -> modality -> path.
+
+    Later values win: ``--mask all.png --mask depth=room.png`` masks depth with room.png.
+
+    Raises:
+        MaskError: ``MODALITY=`` with no path.
+    """
+    out: dict[Modality, Path] = {}
+    names = {m.value for m in Modality}
+    for v in values:
+        name, sep, rest = v.partition("=")
+        if sep and name in names:
+            if not rest:
+                raise MaskError(f"--mask {v}: no path after '{name}='")
+            out[Modality(name)] = Path(rest)
+        else:
+            out.update({m: Path(v) for m in Modality})
+    return out
+
+
+# ---- scoring -------------------------------------------------------------------------------
+
+
+def _top1(
+    x: NDArray[np.float32], fabric: NDArray[np.int64], seed: int, n_boot: int
+) -> tuple[float, tuple[float, float], float]:
+    """Exact pick 1 of 10 top-1 of raw features (z-scored per column), its interval, chance."""
+    x = x.astype(np.float64)
+    sd = x.std(axis=0)
+    keep = sd > 1e-9
+    z = (x[:, keep] - x[:, keep].mean(axis=0)) / sd[keep]
+    if z.shape[1] == 0:  # nothing varies: every image is the same, nothing to tell apart
+        z = np.zeros((len(x), 1))
+    dist = pairwise_distances(z, z)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: the chance reported says so
+        res = pick_k_of_n_exact(dist, fabric, fabric, n=_N, ks=(1,), exclude_self=np.arange(len(x)))
+    per_q = res.per_query[:, 0]
+    ok = ~np.isnan(per_q)
+    lo, hi = bootstrap_ci(per_q[ok], fabric[ok], n_boot=n_boot, seed=seed)
+    return float(res.mean[0]), (float(lo), float(hi)), float(res.chance[0])
+
+
+def _score_modality(
+    catalog: Catalog,
+    modality: Modality,
+    tolerance: float,
+    static_fraction: float,
+    mask: Path | None,
+    pool: int | None,
+    factor: float,
+    seed: int,
+    n_boot: int,
+) -> ModalityLeakage | str:
+    items = catalog.items(modality)
+    fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
+    ids, counts = np.unique(fabric, return_counts=True)
+    if (counts >= 2).sum() < 1 or len(ids) < 2:
+        return "needs two fabrics, one of them with two or more images"
+    try:
+        stack, shape, k = load_pooled(items, pool)
+    except ImageError as e:
+        return f"cannot decode {e.path}: {e.reason}"
+    n, h, w, c = stack.shape
+    if mask is not None:
+        bg = read_mask(mask, shape, k)
+        if bg.shape != (h, w):  # pooled mask drops the same ragged edge
+            bg = bg[:h, :w]
+        source = str(mask)
+    else:
+        bg = static_mask(stack, tolerance, static_fraction)
+        source = "static"
+    flat = stack.reshape(n, h * w * c)
+    with np.errstate(all="ignore"):
+        whole, whole_ci, chance = _top1(flat, fabric, seed, n_boot)
+        if bg.any():
+            sel = np.repeat(bg.reshape(-1), c)
+            back, back_ci, _ = _top1(flat[:, sel], fabric, seed, n_boot)
+        else:
+            back, back_ci = math.nan, (math.nan, math.nan)
+    leak = bool(not math.isnan(back_ci[0]) and back_ci[0] > factor * chance)
+    return ModalityLeakage(
+        modality=modality,
+        n_items=n,
+        n_fabrics=len(ids),
+        pooled_shape=(h, w),
+        pool=k,
+        mask_source=source,
+        background_fraction=float(bg.mean()),
+        whole_top1=whole,
+        whole_ci95=whole_ci,
+        background_top1=back,
+        background_ci95=back_ci,
+        chance=chance,
+        leak=leak,
+    )
+
+
+def leakage_report(
+    catalog: Catalog,
+    *,
+    modalities: Sequence[Modality] | None = None,
+    masks: Mapping[Modality, str | Path] | None = None,
+    tolerance: Mapping[Modality, float] | None = None,
+    static_fraction: float = 0.95,
+    pool: int | None = None,
+    factor: float = 2.0,
+    n_boot: int = 1000,
+    seed: int = 0,
+) -> LeakageReport:
+    """Score each modality's background against its whole image and chance (module doc).
+
+    Args:
+        catalog: the dataset (`scan`).
+        modalities: which to score; default every image modality the catalog has.
+        masks: per modality, a user's mask image (white = background) replacing the static
+            rule.
+        tolerance: per modality, how far a static pixel may stray from its median
+            (default `DEFAULT_TOLERANCE`: depth 20 mm, colour and touch 12 levels).
+        static_fraction: share of images in which a background pixel must be still.
+        pool: mean-pooling factor; default: longer side to at most 64 px.
+        factor: a background leaks when its interval's lower bound exceeds factor x chance.
+        n_boot, seed: the bootstrap over fabrics.
+
+    Returns:
+        A `LeakageReport`; modalities that cannot be scored are in ``skipped`` with why.
+
+    Raises:
+        MaskError: a mask file that cannot be used.
+        LookfeelError: bad settings (fractions outside (0, 1], negative tolerance).
+    """
+    if not 0.0 < static_fraction <= 1.0:
+        raise LookfeelError(f"static_fraction must be in (0, 1]; got {static_fraction}")
+    tol = {**DEFAULT_TOLERANCE, **(tolerance or {})}
+    if any(v < 0 for v in tol.values()):
+        raise LookfeelError(f"tolerance must be >= 0; got {tol}")
+    mods = list(modalities) if modalities is not None else list(catalog.modalities)
+    masks = dict(masks or {})
+    start = time.perf_counter()
+    done: list[ModalityLeakage] = []
+    skipped: dict[str, str] = {}
+    for m in mods:
+        mask = masks.get(m)
+        res = _score_modality(
+            catalog,
+            m,
+            tol[m],
+            static_fraction,
+            None if mask is None else Path(mask),
+            pool,
+            factor,
+            seed,
+            n_boot,
+        )
+        if isinstance(res, str):
+            skipped[m.value] = res
+        else:
+            done.append(res)
+    return LeakageReport(
+        root=catalog.root,
+        modalities=tuple(done),
+        skipped=skipped,
+        tolerance={m.value: tol[m] for m in mods},
+        static_fraction=static_fraction,
+        factor=factor,
+        seconds=time.perf_counter() - start,
+    )
+
+
+# ---- words ---------------------------------------------------------------------------------
+
+
+def _ci(ci: tuple[float, float]) -> str:
+    return "[ n/a ]" if math.isnan(ci[0]) else f"[{ci[0]:.2f}, {ci[1]:.2f}]"
+
+
+def _source(m: ModalityLeakage) -> str:
+    return "pixels still across images" if m.mask_source == "static" else f"mask {m.mask_source}"
+
+
+def _tolerance(report: LeakageReport) -> str:
+    units = {"depth": " mm"}
+    return ", ".join(f"{k} {v:g}{units.get(k, ' levels')}" for k, v in report.tolerance.items())
+
+
+def _verdict(m: ModalityLeakage, factor: float) -> str:
+    if m.background_fraction == 0.0:
+        return "no background pixel found (nothing is still across images): nothing to check"
+    if m.leak:
+        return (
+            f"LEAK: the background alone identifies the fabric at {m.background_top1:.2f} top-1, "
+            f"{m.background_top1 / m.chance:.1f}x chance (interval above {factor:g}x chance); "
+            "a model can learn the capture session instead of the material"
+        )
+    return f"no leak found: background top-1 is not far above chance ({factor:g}x)"
+
+
+def format_leakage(report: LeakageReport) -> str:
+    """The report as text: a table per modality and a verdict line for each."""
+    lines = [
+        f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over fabrics] from raw pixels",
+        f"(background: pixels within {_tolerance(report)} of their median in "
+        f">= {report.static_fraction:.0%} of images, or a mask; {report.seconds:.1f} s)",
+    ]
+    for m in report.modalities:
+        lines += [
+            "",
+            f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} fabrics, pooled "
+            f"{m.pool}x{m.pool} to {m.pooled_shape[0]}x{m.pooled_shape[1]}, background "
+            f"{m.background_fraction:.0%} of the image ({_source(m)})",
+            f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
+            f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
+            f"  chance            {m.chance:.3f}",
+            f"  {_verdict(m, report.factor)}",
+        ]
+    for name, why in report.skipped.items():
+        lines += ["", f"{name}: not scored: {why}"]
+    return "\n".join(lines)
+
+
+def leakage_problems(report: LeakageReport) -> list[Problem]:
+    """One warning per leaking modality, for ``lookfeel data check``."""
+    return [
+        Problem(
+            report.root / m.modality.value,
+            f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
+            f"{_source(m)}) identifies the fabric at pick-1-of-10 top-1 "
+            f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
+            "a model can learn the capture session, not the material "
+            "(see `lookfeel data leakage`)",
+            "warning",
+        )
+        for m in report.leaks
+    ]

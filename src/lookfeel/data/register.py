@@ -1,0 +1,425 @@
+"""Scene registration for depth: fit the room in each image, keep only the cloth, relative to it.
+
+A depth image of a drape shows the cloth in front of a room (floor, back wall, a side panel).
+Between capture sessions the camera and the room sit a few millimetres differently, and that is
+enough to tell sessions, hence fabrics, apart (`lookfeel.data.leakage`). `register_depth`
+removes it, per image, with no calibration of the rig:
+
+1. **Room planes.** A plane seen by a pinhole camera is linear in *inverse* depth over the
+   image, ``1/z = a u + b v + c``, whatever the camera's pose and focal length, so the planes
+   are fitted in image space. A sequential RANSAC finds up to ``max_planes`` planes: each
+   hypothesis (three pixels) is scored by its inliers (within ``inlier_mm`` of the plane, in
+   depth) minus a heavy penalty for pixels *behind* it, since no pixel can lie behind the
+   room's walls; a plane through the cloth has the wall behind it and loses. The winner is
+   refined by least squares on its inliers (weighted so residuals are in millimetres), and
+   rejected (its pixels set aside, the search goes on) when more than 1% of the image lies
+   behind it or, with ``box_deg``, when it is not square to the planes already found.
+2. **Cloth.** The room's depth at a pixel is the nearest of its planes along the ray (the room
+   is a convex box around the camera). Cloth is every pixel more than ``margin_mm`` in front of
+   it; strips thinner than a few pixels (the room's corners, flying pixels) and specks smaller
+   than ``min_blob`` pixels are dropped.
+3. **Registered geometry.** With the camera's intrinsics (default: GelFabric's crop, scaled
+   to the image) each plane becomes a normal and a distance in the camera frame; the plane
+   whose normal points down the image is the floor, the one facing the camera the wall. The
+   registered image is the cloth's height above the fitted floor (its distance in front of the
+   nearest room plane when no floor was found), in millimetres, and 0 where there is no cloth.
+   The post is the cloth's top (the drape hangs from it): `Registration.post_uv`.
+
+A room moved by a few millimetres changes the raw depth of every background pixel but neither
+the cloth mask nor the registered image (tests move it and check).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from lookfeel.data.catalog import Item
+from lookfeel.data.images import decode_depth, fill_holes
+from lookfeel.errors import LookfeelError
+
+__all__ = [
+    "Intrinsics",
+    "Plane",
+    "RegisteredBatch",
+    "Registration",
+    "RegistrationError",
+    "register_depth",
+    "register_items",
+]
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+
+# GelFabric's 224x224 crop (see lookfeel.synth.scene): focal length and principal point.
+_GF_SIZE = 224
+_GF_F = 373.0
+_GF_C = 111.5
+
+
+class RegistrationError(LookfeelError):
+    """A depth image in which no room could be found (the message says what is missing)."""
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """A pinhole camera: focal length and principal point in pixels (pixel centres at integers)."""
+
+    f: float
+    cx: float
+    cy: float
+
+    @classmethod
+    def gelfabric(cls, width: int = _GF_SIZE, height: int = _GF_SIZE) -> Intrinsics:
+        """GelFabric's Kinect crop (calibrated at 224 px), scaled to ``width`` x ``height``."""
+        s = width / _GF_SIZE
+        return cls(_GF_F * s, (_GF_C + 0.5) * s - 0.5, (_GF_C + 0.5) * height / _GF_SIZE - 0.5)
+
+
+@dataclass(frozen=True)
+class Plane:
+    """One fitted room plane.
+
+    Attributes:
+        coef: (a, b, c) with ``1/z = a u + b v + c`` (z in mm, u column, v row).
+        normal: unit normal in the camera frame (x right, y down, z forward), pointing away
+            from the camera: points X on the plane satisfy ``normal . X = distance``.
+        distance: the camera's distance to the plane (mm).
+        label: ``"floor"``, ``"wall"`` or ``"side"``.
+        inlier_fraction: share of the image's pixels within ``inlier_mm`` of it.
+    """
+
+    coef: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    distance: float
+    label: str
+    inlier_fraction: float
+
+    def depth(self, u: F64, v: F64) -> F64:
+        """Depth (mm) of the plane along each pixel's ray; inf where the ray misses it."""
+        a, b, c = self.coef
+        p = a * u + b * v + c
+        with np.errstate(divide="ignore"):
+            return np.where(p > 1e-12, 1.0 / np.maximum(p, 1e-12), np.inf)
+
+
+@dataclass(frozen=True)
+class Registration:
+    """`register_depth`'s result for one image (arrays are (H, W)).
+
+    Attributes:
+        planes: the fitted room planes, largest first.
+        room: the fitted empty room's depth (mm).
+        cloth: True where the cloth is (more than the margin in front of the room).
+        height: the cloth's height above the fitted floor (mm; without a floor, its distance
+            in front of the nearest room plane), 0 off the cloth: the registered image.
+        clearance: the cloth's distance in front of the nearest room plane (mm), 0 off it.
+        post_uv: (u, v) pixel of the cloth's top, where the post holds it; None without cloth.
+        residual_mm: median absolute depth residual of the room's inlier pixels.
+    """
+
+    planes: tuple[Plane, ...]
+    room: F32
+    cloth: NDArray[np.bool_]
+    height: F32
+    clearance: F32
+    post_uv: tuple[float, float] | None
+    residual_mm: float
+
+    def plane(self, label: str) -> Plane | None:
+        """The plane labelled ``label`` (``"floor"``, ``"wall"``), if one was found."""
+        return next((p for p in self.planes if p.label == label), None)
+
+
+def _fit_inverse(u: F64, v: F64, z: F64) -> F64:
+    """Least-squares (a, b, c) of 1/z = a u + b v + c, weighted so residuals are in mm."""
+    w = z**2  # d(1/z) = -dz / z^2: scaling by z^2 makes the residual a depth residual
+    a = np.stack([u, v, np.ones_like(u)], axis=1) * w[:, None]
+    coef, *_ = np.linalg.lstsq(a, w / z, rcond=None)
+    return np.asarray(coef, dtype=np.float64)
+
+
+def _residual(coef: F64, u: F64, v: F64, z: F64) -> F64:
+    """(..., N) z minus the plane's depth; -inf where the ray misses the plane (never behind).
+
+    ``coef`` is (3,) or (K, 3) for K hypotheses at once.
+    """
+    c = np.atleast_2d(coef)
+    p = c[:, 0:1] * u[None] + c[:, 1:2] * v[None] + c[:, 2:3]
+    with np.errstate(divide="ignore"):
+        zp = np.where(p > 1e-12, 1.0 / np.maximum(p, 1e-12), np.inf)
+    r = z[None] - zp
+    return r[0] if np.ndim(coef) == 1 else r
+
+
+def _ransac_plane(
+    u: F64,
+    v: F64,
+    z: F64,
+    free: NDArray[np.bool_],
+    grid: tuple[int, int],
+    rng: np.random.Generator,
+    iterations: int,
+    inlier_mm: float,
+    behind_mm: float,
+) -> tuple[F64, NDArray[np.bool_]] | None:
+    """The best plane among ``free`` pixels: most inliers, nearly nothing behind it.
+
+    Half the hypotheses draw three pixels anywhere, half draw two more near a first one (within
+    a tenth of the image): a plane that fills 5% of the image is then still drawn often.
+    """
+    idx = np.flatnonzero(free)
+    if len(idx) < 3:
+        return None
+    hs, ws = grid
+    n_glob = iterations // 2
+    glob = idx[rng.integers(0, len(idx), (n_glob, 3))]
+    first = idx[rng.integers(0, len(idx), iterations - n_glob)]
+    r0, c0 = np.divmod(first, ws)
+    rad = max(2, max(hs, ws) // 10)
+    rr = np.clip(r0[:, None] + rng.integers(-rad, rad + 1, (len(first), 2)), 0, hs - 1)
+    cc = np.clip(c0[:, None] + rng.integers(-rad, rad + 1, (len(first), 2)), 0, ws - 1)
+    local = np.concatenate([first[:, None], rr * ws + cc], axis=1)
+    local = local[free[local].all(axis=1)]
+    picks = np.concatenate([glob, local])
+    a = np.stack([u[picks], v[picks], np.ones(picks.shape)], axis=2)  # (K, 3, 3)
+    ok = np.abs(np.linalg.det(a)) > 1e-6
+    if not ok.any():
+        return None
+    coefs = np.linalg.solve(a[ok], (1.0 / z[picks[ok]])[..., None])[..., 0]  # (K, 3)
+    best: tuple[float, F64] | None = None
+    for chunk in np.array_split(coefs, max(1, len(coefs) // 64)):
+        r = _residual(chunk, u, v, z)  # (k, N)
+        inl = ((np.abs(r) < inlier_mm) & free[None]).sum(axis=1)
+        behind = (r > behind_mm).sum(axis=1)
+        score = inl - 20.0 * behind
+        j = int(np.argmax(score))
+        if best is None or score[j] > best[0]:
+            best = (float(score[j]), chunk[j])
+    assert best is not None
+    coef = best[1]
+    for _ in range(3):  # refine on the inliers, then re-select them
+        inliers = free & (np.abs(_residual(coef, u, v, z)) < inlier_mm)
+        if inliers.sum() < 3:
+            return None
+        coef = _fit_inverse(u[inliers], v[inliers], z[inliers])
+    inliers = free & (np.abs(_residual(coef, u, v, z)) < inlier_mm)
+    return coef, inliers
+
+
+def _metric(coef: F64, k: Intrinsics) -> tuple[F64, float]:
+    """Inverse-depth coefficients -> camera-frame unit normal and distance (n . X = d)."""
+    a, b, c = coef
+    w = np.array([a * k.f, b * k.f, c + a * k.cx + b * k.cy])  # = n / d
+    d = 1.0 / float(np.linalg.norm(w))
+    return w * d, d
+
+
+def _labels(normals: list[F64]) -> list[str]:
+    labels = ["side"] * len(normals)
+    if not normals:
+        return labels
+    ny = [n[1] for n in normals]
+    floor = int(np.argmax(ny))
+    if ny[floor] > 0.5:  # the normal points down the image (camera y is down)
+        labels[floor] = "floor"
+    rest = [i for i in range(len(normals)) if labels[i] == "side"]
+    if rest:
+        wall = max(rest, key=lambda i: normals[i][2])
+        if normals[wall][2] > 0.5:  # faces the camera
+            labels[wall] = "wall"
+    return labels
+
+
+def _post(cloth: NDArray[np.bool_]) -> tuple[float, float] | None:
+    """The top of the largest cloth region: (u, v) mean over its top two rows."""
+    lab, n = ndimage.label(cloth)
+    if n == 0:
+        return None
+    sizes = np.bincount(lab.ravel())[1:]
+    main = lab == (1 + int(np.argmax(sizes)))
+    rows = np.flatnonzero(main.any(axis=1))
+    top = rows[0]
+    vv, uu = np.nonzero(main[top : top + 2])
+    return float(uu.mean()), float(top + vv.mean())
+
+
+def register_depth(
+    depth_mm: NDArray[np.generic],
+    intrinsics: Intrinsics | None = None,
+    *,
+    margin_mm: float = 15.0,
+    inlier_mm: float = 8.0,
+    max_planes: int = 4,
+    min_plane_fraction: float = 0.03,
+    min_blob: int | None = None,
+    open_px: int | None = None,
+    box_deg: float | None = 20.0,
+    iterations: int = 400,
+    stride: int | None = None,
+    seed: int = 0,
+) -> Registration:
+    """Fit the room of one depth image and express the cloth relative to it (module doc).
+
+    Args:
+        depth_mm: (H, W) depth in millimetres, 0 where the sensor had no reading.
+        intrinsics: the camera; default `Intrinsics.gelfabric` scaled to the image. Only the
+            metric outputs (normals, heights, labels) use it; planes and cloth do not.
+        margin_mm: cloth is more than this in front of the fitted room.
+        inlier_mm: a pixel within this of a plane (in depth) belongs to it.
+        max_planes: room planes to look for (GelFabric: floor, back wall, side panel, and
+            sometimes the panel's edge).
+        min_plane_fraction: a plane must hold this share of the pixels.
+        min_blob: cloth regions smaller than this many pixels are dropped (default 0.1% of
+            the image).
+        open_px: radius (px) of the morphological opening that removes strips thinner than
+            about twice it (the room's edges and corners, flying pixels at the cloth's rim);
+            default: 2 px at 224 px, scaled with the image.
+        box_deg: a plane after the first must be square (within this many degrees) to every
+            plane found before it, as a room's walls and floor are; None: any plane.
+        iterations: RANSAC hypotheses per plane.
+        stride: the fit uses every ``stride``-th pixel in each direction (speed); default:
+            about 64 pixels along the longer side.
+        seed: seeds the RANSAC draws (the result is deterministic).
+
+    Returns:
+        A `Registration`.
+
+    Raises:
+        RegistrationError: the image has no valid pixel or no plane could be fitted.
+    """
+    d = np.asarray(depth_mm)
+    if d.ndim != 2:
+        raise RegistrationError(f"depth image must be 2-D (H, W); got shape {d.shape}")
+    if not (d > 0).any():
+        raise RegistrationError("depth image has no valid pixel (all 0)")
+    h, w = d.shape
+    k = intrinsics or Intrinsics.gelfabric(w, h)
+    z_full = fill_holes(d).astype(np.float64)
+    vg, ug = np.mgrid[0:h, 0:w].astype(np.float64)
+    step = max(1, round(max(h, w) / 64)) if stride is None else stride
+    sub = (slice(None, None, step), slice(None, None, step))
+    u, v, z = ug[sub].ravel(), vg[sub].ravel(), z_full[sub].ravel()
+    rng = np.random.default_rng(seed)
+    free = np.ones(len(z), dtype=bool)
+    found: list[tuple[F64, float]] = []
+    behind_mm = max(margin_mm, 2.0 * inlier_mm)
+    for _ in range(2 * max_planes):  # a rejected candidate costs an attempt, not the search
+        if len(found) == max_planes:
+            break
+        fit = _ransac_plane(u, v, z, free, z_full[sub].shape, rng, iterations, inlier_mm, behind_mm)
+        if fit is None:
+            break
+        coef, inliers = fit
+        if inliers.sum() < min_plane_fraction * len(z):
+            break
+        r = _residual(coef, u, v, z)
+        behind = (r > behind_mm).mean() > 0.01  # part of the room lies behind it
+        if not behind and box_deg is not None and found:
+            n_new = _metric(coef, k)[0]
+            cos = [abs(float(n_new @ _metric(c, k)[0])) for c, _ in found]
+            behind = max(cos) > np.sin(np.radians(box_deg))  # not square to the room
+        if behind:  # cloth (a heap covering the floor, a flat fold): not a room plane
+            free &= ~inliers
+            continue
+        found.append((coef, float(inliers.mean())))
+        # Also retire what lies just above it (cloth lying flat on the floor), so the next
+        # plane found is another wall, not the floor again a few millimetres higher.
+        free &= ~((r > -behind_mm) & (r < inlier_mm))
+    if not found:
+        raise RegistrationError("no room plane found: no large flat background in the image")
+    metric = [_metric(c, k) for c, _ in found]
+    labels = _labels([n for n, _ in metric])
+    planes = tuple(
+        Plane(
+            coef=(float(c[0]), float(c[1]), float(c[2])),
+            normal=(float(n[0]), float(n[1]), float(n[2])),
+            distance=dist,
+            label=lab,
+            inlier_fraction=frac,
+        )
+        for (c, frac), (n, dist), lab in zip(found, metric, labels, strict=True)
+    )
+    room = np.min([p.depth(ug, vg) for p in planes], axis=0)
+    in_front = room - z_full
+    cloth = np.isfinite(room) & (in_front > margin_mm)
+    rad = round(min(h, w) / 112) if open_px is None else open_px
+    if rad > 0:  # thin strips along the room's corners and edges are not cloth
+        disk = np.hypot(*np.mgrid[-rad : rad + 1, -rad : rad + 1]) <= rad + 0.5
+        cloth = ndimage.binary_opening(cloth, structure=disk)
+    blob = max(1, int(0.001 * h * w)) if min_blob is None else min_blob
+    lab, n = ndimage.label(cloth)
+    if n:
+        sizes = np.bincount(lab.ravel())
+        cloth &= sizes[lab] >= blob
+    # Metric geometry: each pixel's 3-D point, its distance in front of each plane.
+    pts = np.stack([(ug - k.cx) / k.f * z_full, (vg - k.cy) / k.f * z_full, z_full], axis=-1)
+    gaps = np.stack([dist - pts @ np.asarray(n) for n, dist in metric])  # (P, H, W)
+    clearance = np.where(cloth, gaps.min(axis=0), 0.0)
+    floor = [i for i, lab_ in enumerate(labels) if lab_ == "floor"]
+    height = np.where(cloth, gaps[floor[0]], 0.0) if floor else clearance
+    resid = -in_front[sub].ravel()
+    inl = np.abs(resid) < inlier_mm
+    return Registration(
+        planes=planes,
+        room=np.where(np.isfinite(room), room, 0.0).astype(np.float32),
+        cloth=cloth,
+        height=height.astype(np.float32),
+        clearance=clearance.astype(np.float32),
+        post_uv=_post(cloth),
+        residual_mm=float(np.median(np.abs(resid[inl]))) if inl.any() else float("nan"),
+    )
+
+
+@dataclass(frozen=True)
+class RegisteredBatch:
+    """`register_items`' result: (N, H, W) arrays, one row per item.
+
+    Attributes:
+        depth: the decoded depth (mm, holes filled).
+        cloth: the cloth masks.
+        room: the fitted rooms' depth (mm).
+        height: the registered images (mm above the fitted floor, 0 off the cloth).
+    """
+
+    depth: F32
+    cloth: NDArray[np.bool_]
+    room: F32
+    height: F32
+
+
+def register_items(
+    items: Sequence[Item], intrinsics: Intrinsics | None = None, **kwargs: float
+) -> RegisteredBatch:
+    """Decode and register depth items (all of one size), e.g. for `swap_backgrounds`.
+
+    Args:
+        items: depth items.
+        intrinsics: the camera (default: GelFabric's, scaled to the images).
+        **kwargs: passed to `register_depth` (margin_mm, inlier_mm ...).
+
+    Raises:
+        RegistrationError: naming the file whose room could not be fitted, or whose size
+            differs from the first item's.
+    """
+    rows = []
+    shape = None
+    for it in items:
+        d = decode_depth(it.path)
+        if shape is not None and d.shape != shape:
+            raise RegistrationError(f"{it.path}: depth image is {d.shape}, the first is {shape}")
+        shape = d.shape
+        try:
+            reg = register_depth(d, intrinsics, **kwargs)  # type: ignore[arg-type]
+        except RegistrationError as e:
+            raise RegistrationError(f"{it.path}: {e}") from None
+        rows.append((fill_holes(d).astype(np.float32), reg.cloth, reg.room, reg.height))
+    if not rows:
+        empty = np.zeros((0, 0, 0), np.float32)
+        return RegisteredBatch(empty, empty.astype(bool), empty, empty)
+    depth, cloth, room, height = (np.stack(col) for col in zip(*rows, strict=True))
+    return RegisteredBatch(depth, cloth, room, height)

@@ -1,0 +1,73 @@
+"""The background control: cloth kept, background from another fabric's image, reproducibly."""
+
+import numpy as np
+import pytest
+
+from lookfeel.data.background_swap import pair_other_fabric, swap_backgrounds
+from lookfeel.errors import LookfeelError
+
+
+def _batch(n_fabrics: int = 5, per: int = 3, size: int = 8):
+    """Image i is filled with 1000 * (i + 1); its cloth is a square whose place varies."""
+    n = n_fabrics * per
+    fab = np.repeat(np.arange(10, 10 + n_fabrics), per)
+    images = (1000.0 * (np.arange(n) + 1))[:, None, None] * np.ones((n, size, size))
+    cloth = np.zeros((n, size, size), bool)
+    for i in range(n):
+        r = i % (size - 3)
+        cloth[i, r : r + 3, 2:5] = True
+        images[i][cloth[i]] += 1.0  # cloth pixels: 1000 (i + 1) + 1
+    return images, cloth, fab
+
+
+def test_pairs_are_other_fabrics_deterministic_and_uniform():
+    fab = np.repeat([1, 2, 3, 4], [1, 2, 3, 4])
+    p = pair_other_fabric(fab, seed=5)
+    assert np.array_equal(p, pair_other_fabric(fab, seed=5))
+    assert not np.array_equal(p, pair_other_fabric(fab, seed=6))
+    assert (fab[p] != fab).all()
+    # Uniform over the other fabrics' items: the lone fabric-1 item draws each of the 9 others.
+    draws = np.array([pair_other_fabric(fab, seed=s)[0] for s in range(1800)])
+    counts = np.bincount(draws, minlength=10)[1:]
+    assert counts.min() > 120 and counts.max() < 280  # 200 expected each
+
+
+def test_swap_keeps_cloth_and_takes_background_from_the_partner():
+    images, cloth, fab = _batch()
+    out = swap_backgrounds(images, cloth, fab, seed=1)
+    assert out.images.shape == images.shape
+    for i, j in enumerate(out.partner):
+        assert fab[j] != fab[i]
+        assert np.array_equal(out.images[i][cloth[i]], images[i][cloth[i]])
+        back = ~cloth[i]
+        # Every background pixel is the partner's background: 1000 (j + 1), never its cloth
+        # (1000 (j + 1) + 1) and never image i's own background.
+        assert (out.images[i][back] == 1000.0 * (j + 1)).all()
+
+
+def test_partner_cloth_hole_is_filled_from_its_room_when_given():
+    images, cloth, fab = _batch()
+    rooms = np.full(images.shape, 7.0)
+    out = swap_backgrounds(images, cloth, fab, seed=2, rooms=rooms)
+    for i, j in enumerate(out.partner):
+        hole = cloth[j] & ~cloth[i]
+        assert (out.images[i][hole] == 7.0).all()
+        rest = ~cloth[j] & ~cloth[i]
+        assert (out.images[i][rest] == images[j][rest]).all()
+
+
+def test_swap_is_deterministic_and_keeps_dtype():
+    images, cloth, fab = _batch()
+    a = swap_backgrounds(images.astype(np.uint16), cloth, fab, seed=3)
+    b = swap_backgrounds(images.astype(np.uint16), cloth, fab, seed=3)
+    assert a.images.dtype == np.uint16 and np.array_equal(a.images, b.images)
+
+
+def test_swap_rejects_bad_input():
+    images, cloth, fab = _batch()
+    with pytest.raises(LookfeelError, match="must agree"):
+        swap_backgrounds(images, cloth[:, :4], fab)
+    with pytest.raises(LookfeelError, match="two or more fabrics"):
+        swap_backgrounds(images, cloth, np.zeros(len(fab)))
+    with pytest.raises(LookfeelError, match="rooms"):
+        swap_backgrounds(images, cloth, fab, rooms=images[:2])

@@ -1,0 +1,155 @@
+"""Scene registration on rendered rooms with a known answer: planes, cloth, invariance."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from lookfeel.data.register import (
+    Intrinsics,
+    RegistrationError,
+    register_depth,
+    register_items,
+)
+
+from ._scene import Scene
+
+BASE = Scene(spread_mm=90.0, panel_x=330.0)
+# Another rig: camera higher, further, yawed and rolled, a longer lens, a bigger image.
+OTHER = Scene(
+    eye=(150.0, -800.0, 700.0),
+    target=(-50.0, 250.0, 50.0),
+    roll_deg=6.0,
+    f=110.0,
+    wall_y=620.0,
+    panel_x=300.0,
+    size=80,
+    spread_mm=90.0,
+)
+
+
+def _angle_deg(a, b) -> float:
+    return float(np.degrees(np.arccos(min(1.0, abs(float(np.dot(a, b)))))))
+
+
+@pytest.mark.parametrize("scene", [BASE, OTHER], ids=["base", "other-rig"])
+def test_fitted_room_matches_the_truth(scene: Scene):
+    r = scene.render()
+    reg = register_depth(r["depth"], scene.intrinsics)
+    truth = scene.planes()
+    assert sorted(p.label for p in reg.planes) == ["floor", "side", "wall"]
+    for p in reg.planes:
+        normal, _ = truth[p.label]
+        assert _angle_deg(p.normal, normal) < 1.0, p
+    seen_room = r["clearance"] < 3.0  # pixels that show the room itself
+    err = np.abs(reg.room - r["room"])[seen_room]
+    assert np.median(err) < 1.0 and np.percentile(err, 99) < 6.0
+    assert reg.residual_mm < 2.0  # noise is 1 mm
+
+
+@pytest.mark.parametrize("scene", [BASE, OTHER], ids=["base", "other-rig"])
+def test_cloth_mask_and_height_match_the_truth(scene: Scene):
+    r = scene.render()
+    reg = register_depth(r["depth"], scene.intrinsics, margin_mm=15.0)
+    clear = r["clearance"]
+    assert ((clear > 20.0) & ~reg.cloth).mean() < 0.002  # cloth missed
+    assert ((clear < 10.0) & reg.cloth).mean() < 0.002  # room taken for cloth
+    assert 0.15 < reg.cloth.mean() < 0.5
+    on = reg.cloth & (clear > 20.0)
+    assert np.median(np.abs(reg.height - r["height"])[on]) < 5.0  # mm above the floor
+    assert (reg.height[~reg.cloth] == 0).all() and (reg.clearance[~reg.cloth] == 0).all()
+    u, v = reg.post_uv or (np.nan, np.nan)
+    rows, cols = np.nonzero(clear > 15.0)
+    top = rows.min()
+    assert abs(v - top) <= 2.0 and abs(u - cols[rows == top].mean()) <= 2.0
+
+
+def test_unknown_intrinsics_still_find_room_and_cloth():
+    """Planes and cloth are fitted in image space: a wrong focal length changes neither."""
+    r = OTHER.render()
+    right = register_depth(r["depth"], OTHER.intrinsics)
+    default = register_depth(r["depth"])  # GelFabric's intrinsics, wrong for this rig
+    assert np.array_equal(right.cloth, default.cloth)
+    assert np.allclose(right.room, default.room)
+    assert {p.label for p in default.planes} == {"floor", "wall", "side"}
+
+
+def test_registered_image_ignores_a_moved_wall():
+    a = BASE.render()
+    b = dataclasses.replace(BASE, wall_y=BASE.wall_y + 6.0).render()
+    raw_change = np.abs(a["depth"].astype(float) - b["depth"].astype(float))
+    assert raw_change.max() >= 5.0  # the session fingerprint is in the raw depth
+    ra, rb = (
+        register_depth(a["depth"], BASE.intrinsics),
+        register_depth(b["depth"], BASE.intrinsics),
+    )
+    assert (ra.cloth != rb.cloth).mean() < 0.003  # a few pixels at the margin's edge
+    both = ra.cloth & rb.cloth
+    assert np.abs(ra.height - rb.height)[both].max() < 1.5
+    assert (ra.height[~ra.cloth & ~rb.cloth] == rb.height[~ra.cloth & ~rb.cloth]).all()
+
+
+def test_registered_image_ignores_a_moved_camera():
+    """The camera a few mm off (another session): raw depth changes everywhere, the
+    registered image hardly (only the cloth's sub-pixel resampling)."""
+    moved = dataclasses.replace(BASE, eye=(3.0, -704.0, 562.0))
+    a, b = BASE.render(), moved.render()
+    raw = np.abs(a["depth"].astype(float) - b["depth"].astype(float))
+    ra, rb = (
+        register_depth(a["depth"], BASE.intrinsics),
+        register_depth(b["depth"], BASE.intrinsics),
+    )
+    reg = np.abs(ra.height - rb.height)
+    back = ~ra.cloth & ~rb.cloth
+    assert np.median(raw[back]) >= 2.0 and reg[back].max() == 0.0
+    assert reg.mean() < 0.5 * raw.mean()
+
+
+def test_deterministic_and_errors():
+    d = BASE.render()["depth"]
+    a, b = register_depth(d, seed=3), register_depth(d, seed=3)
+    assert np.array_equal(a.height, b.height) and a.planes == b.planes
+    with pytest.raises(RegistrationError, match="no valid pixel"):
+        register_depth(np.zeros((16, 16), np.uint16))
+    with pytest.raises(RegistrationError, match="2-D"):
+        register_depth(np.ones((2, 16, 16), np.uint16))
+
+
+def test_gelfabric_intrinsics_scale_with_the_image():
+    k = Intrinsics.gelfabric()
+    assert (k.f, k.cx, k.cy) == (373.0, 111.5, 111.5)
+    half = Intrinsics.gelfabric(112, 112)
+    assert half.f == pytest.approx(186.5) and half.cx == pytest.approx(55.5)
+
+
+def test_real_depth_registration(real_data):
+    from lookfeel.data.images import decode_depth
+
+    paths = sorted((real_data / "depth").glob("F00*_Depth_New_*.png"))[::300][:2]
+    for p in paths:
+        reg = register_depth(decode_depth(p))
+        assert {"floor", "wall"} <= {pl.label for pl in reg.planes}
+        assert 0.15 < reg.cloth.mean() < 0.7
+        assert reg.residual_mm < 5.0
+        assert reg.post_uv is not None and reg.post_uv[1] < 30  # the drape hangs from the top
+
+
+def test_register_items_reads_files_and_names_the_bad_one(tmp_path):
+    from PIL import Image
+
+    from lookfeel.data.catalog import Item
+    from lookfeel.modality import Modality
+
+    items = []
+    for k, scene in enumerate([BASE, dataclasses.replace(BASE, wall_y=560.0)]):
+        path = tmp_path / f"F{k + 1:04d}_Depth_New_000000.png"
+        Image.fromarray(scene.render()["depth"]).save(path)
+        items.append(Item(Modality.DEPTH, k + 1, (path,)))
+    batch = register_items(items, BASE.intrinsics)
+    assert batch.cloth.shape == batch.height.shape == (2, BASE.size, BASE.size)
+    one = register_depth(BASE.render()["depth"], BASE.intrinsics)
+    assert np.array_equal(batch.cloth[0], one.cloth) and np.array_equal(batch.height[0], one.height)
+    flat = tmp_path / "F0003_Depth_New_000000.png"
+    Image.fromarray(np.full((BASE.size, BASE.size), 0, np.uint16)).save(flat)
+    with pytest.raises(RegistrationError, match="F0003_Depth_New_000000.png: depth image has no"):
+        register_items([*items, Item(Modality.DEPTH, 3, (flat,))])
