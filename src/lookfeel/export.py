@@ -35,6 +35,7 @@ from torch import Tensor, nn
 from lookfeel.atomic import atomic_write_bytes, atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import to_dict
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 from lookfeel.models import Branch
 
@@ -113,7 +114,7 @@ def export_onnx(
 
     Raises:
         CheckpointError: the checkpoint cannot be read.
-        ValueError: naming a modality the model has no branch for, or a branch whose
+        LookfeelError: naming a modality the model has no branch for, or a branch whose
             ONNX outputs differ from PyTorch's by more than ``atol`` (nothing is written then).
     """
     loaded = load_model(checkpoint)
@@ -123,7 +124,7 @@ def export_onnx(
     for m in wanted:
         if m not in model.modalities:
             have = ", ".join(x.value for x in model.modalities)
-            raise ValueError(f"the model has no {m.value} branch (it has: {have})")
+            raise LookfeelError(f"the model has no {m.value} branch (it has: {have})")
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = torch.Generator().manual_seed(0)
@@ -165,7 +166,7 @@ def export_onnx(
             data = (Path(tmp) / "branch.onnx").read_bytes()
         diff = _check(data, module, checks, name) if check else None
         if diff is not None and diff > atol:
-            raise ValueError(
+            raise LookfeelError(
                 f"{m.value} branch: ONNX outputs differ from PyTorch's by {diff:.3g} "
                 f"(> {atol:g}) under onnxruntime; not written"
             )
