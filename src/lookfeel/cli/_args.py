@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,6 +63,13 @@ def modalities(text: str) -> tuple[Modality, ...]:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+def add_modalities(parser: argparse.ArgumentParser, flag: str, what: str, default: str) -> None:
+    """An option naming modalities, e.g. ``--require depth,touch``: a tuple of `Modality`, or None
+    when it is not given (``default`` says what that means)."""
+    help = f"{what}, e.g. depth,touch (default: {default})"
+    parser.add_argument(flag, type=modalities, default=None, metavar="MODALITIES", help=help)
+
+
 def int_list(text: str) -> list[int]:
     """``"0,1,2"`` -> ``[0, 1, 2]`` (an argparse type)."""
     try:
@@ -112,3 +119,29 @@ def add_library(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--checkpoint", type=Path, default=None, help="the library's checkpoint, if it moved"
     )
+
+
+def add_command(
+    subparsers: Subparsers, name: str, doc: str | None, run: Callable[[argparse.Namespace], int]
+) -> argparse.ArgumentParser:
+    """Add the command ``name``, run by ``run``.
+
+    Its ``--help`` describes it with ``doc`` (its module's docstring) but for the first paragraph,
+    the one-line purpose that the package docstring lists.
+    """
+    description = (doc or "").partition("\n\n")[2].strip() or None  # doc is None under -OO
+    parser = subparsers.add_parser(name, description=description)
+    parser.set_defaults(func=run)
+    return parser
+
+
+def add_choice(
+    parser: argparse.ArgumentParser, flag: str, choices: Choices, default: str | None, help: str
+) -> None:
+    """An option taking one of ``choices``, which it names in ``help`` with ``%(choices)s``.
+
+    The ``metavar`` (the flag's name in capitals) keeps argparse from reading the choices when
+    the option is added.
+    """
+    metavar = flag.lstrip("-").upper()
+    parser.add_argument(flag, choices=choices, default=default, metavar=metavar, help=help)

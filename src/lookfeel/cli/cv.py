@@ -1,27 +1,23 @@
 """``lookfeel cv``: cross-validate a run config over fabric-disjoint folds, beside raw pixels and
-chance."""
+chance.
+
+Train a config on every fold of cluster-stratified, fabric-disjoint folds (and every seed),
+score each run's last checkpoint by pick 1 of 10 among the fabrics its fold held out, beside the
+raw-pixel nearest neighbour and chance, and predict the physical labels of held-out fabrics from
+their embeddings. Writes OUT/cv.json, OUT/cv.md and a run per fold and seed
+(OUT/seed{S}-fold{F}); a rerun keeps finished runs and resumes an interrupted one.
+"""
 
 from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_run_config, int_list
+from lookfeel.cli._args import Subparsers, add_command, add_run_config, int_list
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``cv``."""
-    cv = subparsers.add_parser(
-        "cv",
-        help="cross-validate a config over fabric-disjoint folds, beside raw pixels and chance",
-        description=(
-            "Train a config on every fold of cluster-stratified, fabric-disjoint folds (and "
-            "every seed), score each run's last checkpoint by pick 1 of 10 among the fabrics its "
-            "fold held out, beside the raw-pixel nearest neighbour and chance, and predict the "
-            "physical labels of held-out fabrics from their embeddings. Writes OUT/cv.json, "
-            "OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps finished "
-            "runs and resumes an interrupted one."
-        ),
-    )
+    cv = add_command(subparsers, "cv", __doc__, run)
     add_run_config(cv, "cross-validation folder to write")
     cv.add_argument(
         "--folds", type=int, default=None, help="number of folds (default: the config's)"
@@ -48,7 +44,6 @@ def add_parser(subparsers: Subparsers) -> None:
         help="test-time pooling: average each image's embedding with its mirror image's",
     )
     cv.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples (default 1000)")
-    cv.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

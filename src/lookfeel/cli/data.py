@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_json, modalities
+from lookfeel.cli._args import Subparsers, add_json, add_modalities
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -35,13 +35,8 @@ def add_parser(subparsers: Subparsers) -> None:
         ),
     )
     check.add_argument("root", type=Path, help="dataset folder")
-    check.add_argument(
-        "--require",
-        type=modalities,
-        default=None,
-        metavar="MODALITIES",
-        help="modalities every fabric must have, e.g. depth,touch "
-        "(default: each modality any fabric has)",
+    add_modalities(
+        check, "--require", "modalities every fabric must have", "each modality any fabric has"
     )
     check.add_argument("--strict", action="store_true", help="treat warnings as errors")
     add_json(check, "print the report as JSON")

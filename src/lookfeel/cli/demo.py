@@ -1,24 +1,21 @@
-"""``lookfeel demo``: the whole system on a generated synthetic world, in minutes."""
+"""``lookfeel demo``: the whole system on a generated synthetic world, in minutes.
+
+Summarise the real GelFabric data when present, generate a small synthetic fabric world (or
+reuse a complete one), reproduce the paper's experiments on it at the tiny budget, and print the
+headline numbers and where the report is.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_set
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_set
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``demo``."""
-    demo = subparsers.add_parser(
-        "demo",
-        help="the whole system on a generated synthetic world, in minutes",
-        description=(
-            "Summarise the real GelFabric data when present, generate a small synthetic fabric "
-            "world (or reuse a complete one), reproduce the paper's experiments on it at the "
-            "tiny budget, and print the headline numbers and where the report is."
-        ),
-    )
+    demo = add_command(subparsers, "demo", __doc__, run)
     demo.add_argument(
         "--data",
         type=Path,
@@ -27,15 +24,14 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     demo.add_argument("--out", type=Path, default=Path("demo-output"), help="demo folder")
     demo.add_argument("--fabrics", type=int, default=36, help="fabrics in the synthetic world")
-    demo.add_argument(
+    add_choice(
+        demo,
         "--budget",
-        choices=Choices("lookfeel.demo", "DEMO_BUDGETS"),
-        default="tiny",
-        metavar="BUDGET",
-        help="reproduction budget: %(choices)s (default tiny)",
+        Choices("lookfeel.demo", "DEMO_BUDGETS"),
+        "tiny",
+        "reproduction budget: %(choices)s (default tiny)",
     )
     add_set(demo, "override every run's config")
-    demo.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

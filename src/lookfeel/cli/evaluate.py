@@ -1,5 +1,13 @@
 """``lookfeel evaluate``: score a checkpoint or an embeddings file into metrics, a report and
-figures."""
+figures.
+
+Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, recall@k and
+median rank, with chance levels and bootstrap intervals over test fabrics; multi-press touch
+queries; calibration of P ~ exp(-c D^2) with confusion matrices; physical-property probes.
+Writes OUT/metrics.json, OUT/report.md and OUT/figures/*.png. --split: val (default) the run's
+held-out items, c and probes fitted on its training items; train; novel (a seen run's held-out
+fabrics); paper (the paper's 18 test fabrics); all.
+"""
 
 from __future__ import annotations
 
@@ -7,24 +15,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_forward, add_set
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_forward, add_set
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``evaluate``."""
-    ev = subparsers.add_parser(
-        "evaluate",
-        help="score a checkpoint or an embeddings file: metrics.json, report.md, figures",
-        description=(
-            "Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, "
-            "recall@k and median rank, with chance levels and bootstrap intervals over test "
-            "fabrics; multi-press touch queries; calibration of P ~ exp(-c D^2) with confusion "
-            "matrices; physical-property probes. Writes OUT/metrics.json, OUT/report.md and "
-            "OUT/figures/*.png. --split: val (default) the run's held-out items, c and probes "
-            "fitted on its training items; train; novel (a seen run's held-out fabrics); paper "
-            "(the paper's 18 test fabrics); all."
-        ),
-    )
+    ev = add_command(subparsers, "evaluate", __doc__, run)
     src = ev.add_mutually_exclusive_group(required=True)
     src.add_argument("--checkpoint", type=Path, help="a run's checkpoint (.pt); needs --data")
     src.add_argument("--embeddings", type=Path, help="an .npz written by `lookfeel embed`")
@@ -35,12 +31,12 @@ def add_parser(subparsers: Subparsers) -> None:
         help="dataset folder (with --embeddings: optional, for clusters, labels and images)",
     )
     ev.add_argument("--out", type=Path, required=True, help="folder for the report")
-    ev.add_argument(
+    add_choice(
+        ev,
         "--split",
-        choices=Choices("lookfeel.evaluate", "SPLITS"),
-        default=None,
-        metavar="SPLIT",
-        help="with --checkpoint: which items are the test set, one of %(choices)s (default val)",
+        Choices("lookfeel.evaluate", "SPLITS"),
+        None,
+        "with --checkpoint: which items are the test set, one of %(choices)s (default val)",
     )
     ev.add_argument("--config", type=Path, default=None, help="evaluation config YAML (EvalConfig)")
     add_set(ev, "override an EvalConfig key, e.g. --set n_boot=200 (repeatable)")
@@ -50,7 +46,6 @@ def add_parser(subparsers: Subparsers) -> None:
         help="also score the released code's sampled variant (own fabric may be a distractor)",
     )
     add_forward(ev)
-    ev.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

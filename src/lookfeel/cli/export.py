@@ -1,35 +1,31 @@
 """``lookfeel export``: each modality branch of a checkpoint as a file that runs without PyTorch
-(ONNX)."""
+(ONNX).
+
+Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses) and
+DIR/export.json, each checked against PyTorch under onnxruntime.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``export``."""
-    ex = subparsers.add_parser(
-        "export",
-        help="export each modality branch of a checkpoint (ONNX)",
-        description=(
-            "Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses) "
-            "and DIR/export.json, each checked against PyTorch under onnxruntime."
-        ),
-    )
+    ex = add_command(subparsers, "export", __doc__, run)
     ex.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
-    ex.add_argument(
+    add_choice(
+        ex,
         "--format",
-        choices=Choices("lookfeel.export", "EXPORT_FORMATS"),
-        default="onnx",
-        metavar="FORMAT",
-        help="export format: %(choices)s (default onnx)",
+        Choices("lookfeel.export", "EXPORT_FORMATS"),
+        "onnx",
+        "export format: %(choices)s (default onnx)",
     )
     ex.add_argument("--out", type=Path, required=True, help="output folder")
     ex.add_argument("--opset", type=int, default=17, help="ONNX opset (17)")
-    ex.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_data_out, add_forward, add_json
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, add_forward, add_json
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -28,12 +28,12 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     ib.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
     add_data_out(ib, "library folder to write")
-    ib.add_argument(
+    add_choice(
+        ib,
         "--backend",
-        choices=Choices("lookfeel.index", "BACKENDS"),
-        default="auto",
-        metavar="BACKEND",
-        help="search: exact numpy, faiss HNSW, or auto by size (default; faiss from 100,000 "
+        Choices("lookfeel.index", "BACKENDS"),
+        "auto",
+        "search: exact numpy, faiss HNSW, or auto by size (default; faiss from 100,000 "
         "items in a modality): %(choices)s",
     )
     ib.add_argument("--shard-size", type=int, default=2048, help="items per shard (2048)")

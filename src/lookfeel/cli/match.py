@@ -1,5 +1,11 @@
 """``lookfeel match``: which library fabric query images show, how it looks and feels, and its
-properties."""
+properties.
+
+Rank the library's fabrics for query images of one modality: calibrated probabilities, each
+fabric's nearest items in every modality, predicted physical properties, and 'no known fabric'
+below the calibrated threshold. Several touch images are the presses of one query (pooled);
+depth and colour images are matched one by one.
+"""
 
 from __future__ import annotations
 
@@ -8,23 +14,13 @@ import dataclasses
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_json, add_library
+from lookfeel.cli._args import Subparsers, add_command, add_json, add_library
 from lookfeel.modality import Modality
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``match``."""
-    mt = subparsers.add_parser(
-        "match",
-        help="which library fabric is this image, how does it look and feel, its properties",
-        description=(
-            "Rank the library's fabrics for query images of one modality: calibrated "
-            "probabilities, each fabric's nearest items in every modality, predicted physical "
-            "properties, and 'no known fabric' below the calibrated threshold. Several touch "
-            "images are the presses of one query (pooled); depth and colour images are matched "
-            "one by one."
-        ),
-    )
+    mt = add_command(subparsers, "match", __doc__, run)
     mt.add_argument("images", type=Path, nargs="+", metavar="IMAGE", help="query image file(s)")
     add_library(mt)
     mt.add_argument(
@@ -39,7 +35,6 @@ def add_parser(subparsers: Subparsers) -> None:
         help="modality to match against (default: the best in calibration)",
     )
     add_json(mt, "print the results as JSON")
-    mt.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,41 +1,35 @@
-"""``lookfeel reproduce``: every experiment of the paper on a dataset, reported beside its
-numbers."""
+"""``lookfeel reproduce``: every experiment of the paper on a dataset, reported beside its numbers.
+
+Train and evaluate the paper's experiments (Figure 5, Tables 1-4) on a dataset and write
+DIR/report.md and DIR/results.json. Budgets: tiny (seconds per run), small (minutes per run,
+compact CNN at 64 px), paper (the paper's AlexNet configs; needs --pretrained). Runs whose
+modalities the data lacks are skipped with the reason. Re-running resumes finished runs.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_data_out, add_set
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_data_out, add_set
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``reproduce``."""
-    rep = subparsers.add_parser(
-        "reproduce",
-        help="run every experiment of the paper and report ours beside its numbers",
-        description=(
-            "Train and evaluate the paper's experiments (Figure 5, Tables 1-4) on a dataset and "
-            "write DIR/report.md and DIR/results.json. Budgets: tiny (seconds per run), small "
-            "(minutes per run, compact CNN at 64 px), paper (the paper's AlexNet configs; needs "
-            "--pretrained). Runs whose modalities the data lacks are skipped with the reason. "
-            "Re-running resumes finished runs."
-        ),
-    )
+    rep = add_command(subparsers, "reproduce", __doc__, run)
     add_data_out(rep, "output folder")
-    rep.add_argument(
+    add_choice(
+        rep,
         "--budget",
-        choices=Choices("lookfeel.reproduce", "BUDGETS"),
-        default="small",
-        metavar="BUDGET",
-        help="%(choices)s (default small; see above)",
+        Choices("lookfeel.reproduce", "BUDGETS"),
+        "small",
+        "%(choices)s (default small; see above)",
     )
     rep.add_argument("--seeds", type=int, default=1, help="training seeds per experiment")
     rep.add_argument("--pretrained", type=Path, default=None, help="ImageNet AlexNet weights")
     rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
     add_set(rep, "override every run's config")
-    rep.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

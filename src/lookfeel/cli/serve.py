@@ -1,19 +1,18 @@
-"""``lookfeel serve``: a web page and a JSON API that match images against a library."""
+"""``lookfeel serve``: a web page and a JSON API that match images against a library.
+
+Serve a page and a JSON API (OpenAPI at /openapi.json) over a library.
+"""
 
 from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_library
+from lookfeel.cli._args import Subparsers, add_command, add_library
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``serve``."""
-    sv = subparsers.add_parser(
-        "serve",
-        help="web page and JSON API to match images against a library",
-        description="Serve a page and a JSON API (OpenAPI at /openapi.json) over a library.",
-    )
+    sv = add_command(subparsers, "serve", __doc__, run)
     add_library(sv)
     sv.add_argument("--host", default="127.0.0.1", help="address (127.0.0.1: this machine only)")
     sv.add_argument("--port", type=int, default=8000, help="port (8000)")
@@ -22,7 +21,6 @@ def add_parser(subparsers: Subparsers) -> None:
         "--max-concurrency", type=int, default=2, help="queries the model runs at once (2)"
     )
     sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (1)")
-    sv.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,4 +1,11 @@
-"""``lookfeel synth``: generate a synthetic visuo-tactile fabric world in the dataset layout."""
+"""``lookfeel synth``: generate a synthetic visuo-tactile fabric world in the dataset layout.
+
+Generate depth and colour images of fabrics draped over the post and GelSight press sequences
+(flat and on a fold) from physical fabric parameters, in the layout that `lookfeel data check`
+reads. With --labels, render exactly the fabrics of a labels.csv (ids kept) from their labels:
+by default colour and touch, to stand beside real depth images. The same seed gives
+byte-identical files. See docs/synth.md.
+"""
 
 from __future__ import annotations
 
@@ -6,22 +13,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, modalities
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_modalities
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``synth``."""
-    syn = subparsers.add_parser(
-        "synth",
-        help="generate a synthetic visuo-tactile fabric world in the dataset layout",
-        description=(
-            "Generate depth and colour images of fabrics draped over the post and GelSight press "
-            "sequences (flat and on a fold) from physical fabric parameters, in the layout that "
-            "`lookfeel data check` reads. With --labels, render exactly the fabrics of a "
-            "labels.csv (ids kept) from their labels: by default colour and touch, to stand "
-            "beside real depth images. The same seed gives byte-identical files. See docs/synth.md."
-        ),
-    )
+    syn = add_command(subparsers, "synth", __doc__, run)
     syn.add_argument(
         "out", type=Path, help="output folder (new, empty, or an earlier synth output)"
     )
@@ -30,12 +27,12 @@ def add_parser(subparsers: Subparsers) -> None:
     syn.add_argument("--presses-flat", type=int, default=10, help="flat presses (default 10)")
     syn.add_argument("--presses-fold", type=int, default=15, help="fold presses (default 15)")
     syn.add_argument("--frames", type=int, default=3, help="frames per press (default 3)")
-    syn.add_argument(
+    add_choice(
+        syn,
         "--size",
-        choices=Choices("lookfeel.synth.config", "SIZE_PRESETS"),
-        default="net",
-        metavar="SIZE",
-        help="image sizes: net (depth 224, colour 256, touch 320x240), tiny, or full "
+        Choices("lookfeel.synth.config", "SIZE_PRESETS"),
+        "net",
+        "image sizes: net (depth 224, colour 256, touch 320x240), tiny, or full "
         "(touch 960x720 like the authors' sensor)",
     )
     syn.add_argument("--seed", type=int, default=0)
@@ -43,18 +40,13 @@ def add_parser(subparsers: Subparsers) -> None:
     syn.add_argument(
         "--labels", type=Path, default=None, help="label-conditioned mode: a labels.csv"
     )
-    syn.add_argument(
-        "--modalities",
-        type=modalities,
-        default=None,
-        help="what to render, e.g. depth,color,touch (default: all; with --labels: color,touch)",
-    )
-    syn.add_argument(
+    add_modalities(syn, "--modalities", "what to render", "all; with --labels: color,touch")
+    add_choice(
+        syn,
         "--format",
-        choices=Choices("lookfeel.synth.config", "IMAGE_FORMATS"),
-        default="jpg",
-        metavar="FORMAT",
-        help="file format of colour and touch images: %(choices)s (default jpg)",
+        Choices("lookfeel.synth.config", "IMAGE_FORMATS"),
+        "jpg",
+        "file format of colour and touch images: %(choices)s (default jpg)",
     )
     syn.add_argument("--no-contact-sheet", action="store_true", help="skip contact_sheet.png")
     syn.add_argument(
@@ -66,7 +58,6 @@ def add_parser(subparsers: Subparsers) -> None:
         "whose depth images of the same fabrics open each row of the contact sheet",
     )
     syn.add_argument("--quiet", action="store_true", help="no progress bar")
-    syn.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,24 +1,21 @@
-"""``lookfeel train``: train a run config on a dataset, in one process or many (torchrun)."""
+"""``lookfeel train``: train a run config on a dataset, in one process or many (torchrun).
+
+Train a run config (see configs/) on a dataset folder. Writes RUN/config.yaml, RUN/split.json,
+RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on many processes under `torchrun
+--nproc_per_node N -m lookfeel train ...`.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_run_config
+from lookfeel.cli._args import Subparsers, add_command, add_run_config
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``train``."""
-    tr = subparsers.add_parser(
-        "train",
-        help="train a model from a config on a dataset",
-        description=(
-            "Train a run config (see configs/) on a dataset folder. Writes RUN/config.yaml, "
-            "RUN/split.json, RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on "
-            "many processes under `torchrun --nproc_per_node N -m lookfeel train ...`."
-        ),
-    )
+    tr = add_command(subparsers, "train", __doc__, run)
     add_run_config(tr, "run directory to write")
     tr.add_argument("--resume", action="store_true", help="continue the run in --out")
     tr.add_argument(
@@ -28,7 +25,6 @@ def add_parser(subparsers: Subparsers) -> None:
         help="local ImageNet weights file for the backbone (torchvision's AlexNet layout); "
         "never downloaded",
     )
-    tr.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
