@@ -18,10 +18,12 @@ Commands (``lookfeel COMMAND --help`` gives each one's options):
   demo                the whole system on a generated synthetic world, in minutes
 
 Each command module (``data``, ``synth``, ..., ``demo``) holds ``add_parser(subparsers)``, which
-defines the command's options, beside ``run(args) -> int``, its handler; ``_args`` holds what
-several commands share. A handler imports the library when it runs, so that ``lookfeel --help``
-and each command load only what they use. An error a user can cause is a `LookfeelError`:
-handlers let it through and `main` prints ``lookfeel: <message>`` and returns 1.
+defines the command's options, beside ``run(args) -> int``, its handler; the module's docstring
+is the command's purpose, then its ``--help`` description. ``_args`` holds what several commands
+share, and `Choices` reads an option's values (splits, budgets, ...) from the module that defines
+them. A handler imports the library when it runs, so that ``lookfeel --help`` and each command
+load only what they use. An error a user can cause is a `LookfeelError`: handlers let it through,
+and `main` prints ``lookfeel: <message>`` and returns 1.
 """
 
 from __future__ import annotations

@@ -55,7 +55,7 @@ class Choices:
         return len(self.values())
 
 
-def modalities(text: str) -> tuple[Modality, ...]:
+def _modalities(text: str) -> tuple[Modality, ...]:
     """``"depth,touch"`` -> ``(Modality.DEPTH, Modality.TOUCH)`` (an argparse type)."""
     try:
         return parse_modalities(text)
@@ -67,20 +67,7 @@ def add_modalities(parser: argparse.ArgumentParser, flag: str, what: str, defaul
     """An option naming modalities, e.g. ``--require depth,touch``: a tuple of `Modality`, or None
     when it is not given (``default`` says what that means)."""
     help = f"{what}, e.g. depth,touch (default: {default})"
-    parser.add_argument(flag, type=modalities, default=None, metavar="MODALITIES", help=help)
-
-
-def int_list(text: str) -> list[int]:
-    """``"0,1,2"`` -> ``[0, 1, 2]`` (an argparse type)."""
-    try:
-        values = [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} is not a comma-separated list of integers"
-        ) from None
-    if not values:
-        raise argparse.ArgumentTypeError("an empty list")
-    return values
+    parser.add_argument(flag, type=_modalities, default=None, metavar="MODALITIES", help=help)
 
 
 def add_set(parser: argparse.ArgumentParser, help: str) -> None:

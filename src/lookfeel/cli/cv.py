@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_command, add_run_config, int_list
+from lookfeel.cli._args import Subparsers, add_command, add_run_config
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -30,13 +30,13 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     cv.add_argument(
         "--only-folds",
-        type=int_list,
+        type=_int_list,
         default=None,
         metavar="F,F",
         help="run only these folds, e.g. 0,1,2 (default: all)",
     )
     cv.add_argument(
-        "--seeds", type=int_list, default=[0], metavar="S,S", help="training seeds (default 0)"
+        "--seeds", type=_int_list, default=[0], metavar="S,S", help="training seeds (default 0)"
     )
     cv.add_argument(
         "--tta",
@@ -44,6 +44,19 @@ def add_parser(subparsers: Subparsers) -> None:
         help="test-time pooling: average each image's embedding with its mirror image's",
     )
     cv.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples (default 1000)")
+
+
+def _int_list(text: str) -> list[int]:
+    """``"0,1,2"`` -> ``[0, 1, 2]`` (an argparse type)."""
+    try:
+        values = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a comma-separated list of integers"
+        ) from None
+    if not values:
+        raise argparse.ArgumentTypeError("an empty list")
+    return values
 
 
 def run(args: argparse.Namespace) -> int:
