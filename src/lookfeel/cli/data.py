@@ -12,7 +12,7 @@ from lookfeel.cli._args import Subparsers, add_json, add_modalities
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``data info`` and ``data check``."""
-    data = subparsers.add_parser("data", help="inspect and check a dataset folder")
+    data = subparsers.add_parser("data", description="Inspect and check a dataset folder.")
     actions = data.add_subparsers(dest="data_command", metavar="ACTION", required=True)
     info = actions.add_parser(
         "info",

@@ -13,7 +13,7 @@ from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, ad
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``index build`` and ``index info``."""
     index = subparsers.add_parser(
-        "index", help="build and inspect a fabric library (for match, serve)"
+        "index", description="Build and inspect a fabric library (for match, serve)."
     )
     actions = index.add_subparsers(dest="index_command", metavar="ACTION", required=True)
     ib = actions.add_parser(
