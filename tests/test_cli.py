@@ -1,12 +1,16 @@
 """Every subcommand in-process through `main(argv)`."""
 
+import argparse
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
-from lookfeel.cli import main
+import lookfeel.cli
+from lookfeel.cli import build_parser, main
 
 
 def test_data_info_text_and_json(tiny_dataset: Path, capsys):
@@ -50,3 +54,60 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     assert "## Table 4" in report
     assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0
     assert "Reusing the synthetic world" in capsys.readouterr().out
+
+
+def _commands(
+    parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()
+) -> list[tuple[str, ...]]:
+    """Every command the parser runs, as its words: ("data", "info"), ("train",), ..."""
+    [sub] = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)] or [None]
+    if sub is None:
+        return [prefix]
+    return [c for name, p in sub.choices.items() for c in _commands(p, (*prefix, name))]
+
+
+COMMANDS = _commands(build_parser())
+
+
+def test_the_docstring_and_help_list_every_command(capsys):
+    assert len(COMMANDS) == 14
+    listed = re.findall(r"^  ([a-z]+(?: [a-z]+)?)(?: [A-Z.]+)? {2,}\S", lookfeel.cli.__doc__, re.M)
+    assert sorted(listed) == sorted(" ".join(c) for c in COMMANDS)
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: lookfeel [-h] [--version] COMMAND ...")
+    for words in COMMANDS:
+        assert re.search(rf"^  {' '.join(words)} .*\w", out, re.M), words
+
+
+@pytest.mark.parametrize("words", COMMANDS, ids=" ".join)
+def test_every_command_has_help(words: tuple[str, ...], capsys):
+    with pytest.raises(SystemExit) as e:
+        main([*words, "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: lookfeel {' '.join(words)} ")
+    assert "%(" not in out
+
+
+def test_choices_come_from_where_they_are_defined(capsys):
+    from lookfeel.demo import DEMO_BUDGETS
+    from lookfeel.reproduce import BUDGETS
+
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--help"])
+    assert f"--budget BUDGET       {', '.join(BUDGETS)} (default small" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as e:
+        main(["demo", "--budget", "paper"])
+    assert e.value.code == 2
+    choices = ", ".join(map(repr, DEMO_BUDGETS))
+    assert f"invalid choice: 'paper' (choose from {choices})" in capsys.readouterr().err
+
+
+def test_building_the_parser_loads_no_torch():
+    """`lookfeel --help` and argument errors stay fast: handlers import the library."""
+    code = "import sys, lookfeel.cli; lookfeel.cli.build_parser(); print('torch' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"

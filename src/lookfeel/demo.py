@@ -24,12 +24,16 @@ from pathlib import Path
 
 from lookfeel.config import EvalConfig
 from lookfeel.data import scan
+from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import evaluate_checkpoint, write_report
-from lookfeel.reproduce import ReproduceResult, headline, reproduce
+from lookfeel.reproduce import BUDGETS, ReproduceResult, headline, reproduce
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import MANIFEST
 
-__all__ = ["DemoResult", "run_demo"]
+__all__ = ["DEMO_BUDGETS", "DemoResult", "print_demo_result", "run_demo"]
+
+DEMO_BUDGETS = tuple(b for b in BUDGETS if b != "paper")
+"""The reproduction budgets the demo offers: ``paper`` needs ImageNet weights the demo never has."""
 
 
 @dataclass(frozen=True)
@@ -74,8 +78,6 @@ def run_demo(
         overrides: ``key=value`` overrides of every training run.
         log: where progress lines go.
     """
-    from lookfeel.cli import format_summary
-
     started = time.perf_counter()
 
     def step(k: int, text: str) -> None:

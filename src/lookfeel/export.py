@@ -120,7 +120,7 @@ def export_onnx(
 
     Raises:
         CheckpointError: the checkpoint cannot be read.
-        ValueError: naming a modality the model has no branch for, or a branch whose
+        ExportError: naming a modality the model has no branch for, or a branch whose
             ONNX outputs differ from PyTorch's by more than ``atol`` (nothing is written then).
     """
     loaded = load_model(checkpoint)

@@ -9,7 +9,7 @@ from typing import Any
 from lookfeel.config import ConfigError
 from lookfeel.modality import Modality, parse_modalities
 
-__all__ = ["SIZE_PRESETS", "SynthConfig", "SynthSummary"]
+__all__ = ["IMAGE_FORMATS", "SIZE_PRESETS", "SynthConfig", "SynthSummary"]
 
 SIZE_PRESETS: dict[str, dict[str, Any]] = {
     "tiny": {"depth_size": 56, "color_size": 64, "touch_size": (80, 60)},
@@ -21,7 +21,8 @@ real files, colour 256 (room for 227 crops), touch 320x240 (the sensor's 4:3 fie
 GelSight Mini or DIGIT frame). ``full`` renders touch at the authors' 960x720. ``tiny`` is for
 tests and CI."""
 
-_FORMATS = ("jpg", "png")
+IMAGE_FORMATS = ("jpg", "png")
+"""File formats of the colour and touch images (depth is always 16-bit PNG)."""
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ class SynthConfig:
             "must be (width, height), each an integer in [16, 4096]",
         )
         object.__setattr__(self, "touch_size", (int(ts[0]), int(ts[1])))
-        need("image_format", self.image_format in _FORMATS, f"must be one of {_FORMATS}")
+        need("image_format", self.image_format in IMAGE_FORMATS, f"must be one of {IMAGE_FORMATS}")
         need("contact_sheet", isinstance(self.contact_sheet, bool), "must be true or false")
         if self.modalities is not None:
             try:

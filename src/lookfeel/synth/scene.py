@@ -167,11 +167,6 @@ def background_plane_index(camera: Camera) -> NDArray[np.int8]:
     return _room(camera)[1]
 
 
-def room_normals_world() -> F64:
-    """Unit normals (world) of floor, wall and panel, facing the camera; shape (3, 3)."""
-    return np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
-
-
 def splat(camera: Camera, xyz_cam: F32) -> tuple[F32, NDArray[np.int64], NDArray[np.int64]]:
     """Z-buffer points into the image.
 

@@ -1,0 +1,100 @@
+"""The ``lookfeel`` command: flags become config objects here; library code never sees argv.
+
+Commands (``lookfeel COMMAND --help`` gives each one's options):
+
+  data info ROOT      what a dataset holds: fabrics, items per modality and press kind, labels
+  data check ROOT     decode every file and report every problem; exit 1 if there is an error
+  synth OUT           generate a synthetic visuo-tactile fabric world in the dataset layout
+  train               train a model from a run config on a dataset (one process or torchrun)
+  cv                  cross-validate a config over fabric-disjoint folds, beside pixels and chance
+  reproduce           run every experiment of the paper and report ours beside its numbers
+  embed               embed a dataset's items with a trained checkpoint into an .npz file
+  evaluate            score a checkpoint or an embeddings file: metrics.json, report.md, figures
+  index build         embed a dataset into a calibrated fabric library (for match, serve)
+  index info LIBRARY  what a library holds and how it is calibrated
+  match IMAGE...      which library fabric an image shows, how it looks and feels, its properties
+  serve               web page and JSON API to match images against a library
+  export              export each modality branch of a checkpoint (ONNX)
+  demo                the whole system on a generated synthetic world, in minutes
+
+Each command module (``data``, ``synth``, ..., ``demo``) holds ``add_parser(subparsers)``, which
+defines the command's options, beside ``run(args) -> int``, its handler; the module's docstring
+is the command's purpose, then its ``--help`` description. ``_args`` holds what several commands
+share, and `Choices` reads an option's values (splits, budgets, ...) from the module that defines
+them. A handler imports the library when it runs, so that ``lookfeel --help`` and each command
+load only what they use. An error a user can cause is a `LookfeelError`: handlers let it through,
+and `main` prints ``lookfeel: <message>`` and returns 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from lookfeel import __version__
+from lookfeel.cli import (
+    cv,
+    data,
+    demo,
+    embed,
+    evaluate,
+    export,
+    index,
+    match,
+    reproduce,
+    serve,
+    synth,
+    train,
+)
+from lookfeel.errors import LookfeelError
+
+__all__ = ["build_parser", "main"]
+
+_COMMANDS = (data, synth, train, cv, reproduce, embed, evaluate, index, match, serve, export, demo)
+"""The command modules, in the order ``lookfeel --help`` lists them."""
+
+
+def _command_list() -> str:
+    """The list of commands in this module's docstring, for ``lookfeel --help``."""
+    doc = __doc__ or ""  # None under ``python -OO``
+    start = doc.find("Commands")
+    if start < 0:
+        return ""
+    end = doc.find("\n\n", doc.find("\n\n", start) + 2)
+    return doc[start:end]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``lookfeel`` command: every command module adds its own."""
+    parser = argparse.ArgumentParser(
+        prog="lookfeel",
+        usage="%(prog)s [-h] [--version] COMMAND ...",
+        description="Connect how fabrics look (colour, depth) with how they feel (GelSight).\n\n"
+        + _command_list(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"lookfeel {__version__}")
+    # The description lists the commands with their purpose; argparse's own list would repeat
+    # them without the actions of `data` and `index`.
+    subparsers = parser.add_subparsers(
+        dest="command", metavar="COMMAND", help=argparse.SUPPRESS, prog=parser.prog
+    )
+    for command in _COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    try:
+        status: int = args.func(args)
+    except LookfeelError as e:
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    return status

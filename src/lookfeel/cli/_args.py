@@ -1,0 +1,134 @@
+"""Arguments that several commands share, defined once: argparse types and option groups.
+
+A command module calls these from its ``add_parser``; the help text says what the option means
+for that command where it differs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from lookfeel.modality import Modality, parse_modalities
+
+if TYPE_CHECKING:
+    Subparsers = argparse._SubParsersAction[argparse.ArgumentParser]
+else:  # generic only in typeshed
+    Subparsers = argparse._SubParsersAction
+"""What ``ArgumentParser.add_subparsers`` returns: each command module adds its parser to it."""
+
+
+class Choices:
+    """The allowed values of an option, read from the module that defines them when first needed.
+
+    argparse reads ``choices`` only to check a value given on the command line or to write help
+    and errors, provided the option has a ``metavar`` (without one, ``add_argument`` lists the
+    choices at once). Importing the defining module then, not when the parser is built, keeps
+    ``lookfeel --help`` and every other command from loading torch, matplotlib or scikit-learn
+    for options they never see. Name the values in the help with ``%(choices)s``.
+
+    Args:
+        module: the module that defines the values, e.g. ``"lookfeel.evaluate"``.
+        name: the name of a collection of strings there (a dict gives its keys), e.g. ``"SPLITS"``.
+    """
+
+    def __init__(self, module: str, name: str) -> None:
+        self.module, self.name = module, name
+        self._values: tuple[str, ...] | None = None
+
+    def values(self) -> tuple[str, ...]:
+        """The allowed values, in the defining module's order."""
+        if self._values is None:
+            self._values = tuple(getattr(importlib.import_module(self.module), self.name))
+        return self._values
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.values())
+
+    def __contains__(self, value: object) -> bool:
+        return value in self.values()
+
+    def __len__(self) -> int:
+        return len(self.values())
+
+
+def _modalities(text: str) -> tuple[Modality, ...]:
+    """``"depth,touch"`` -> ``(Modality.DEPTH, Modality.TOUCH)`` (an argparse type)."""
+    try:
+        return parse_modalities(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def add_modalities(parser: argparse.ArgumentParser, flag: str, what: str, default: str) -> None:
+    """An option naming modalities, e.g. ``--require depth,touch``: a tuple of `Modality`, or None
+    when it is not given (``default`` says what that means)."""
+    help = f"{what}, e.g. depth,touch (default: {default})"
+    parser.add_argument(flag, type=_modalities, default=None, metavar="MODALITIES", help=help)
+
+
+def add_set(parser: argparse.ArgumentParser, help: str) -> None:
+    """The repeatable ``--set KEY=VALUE`` config override."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=help)
+
+
+def add_json(parser: argparse.ArgumentParser, help: str = "print as JSON") -> None:
+    """``--json``: machine-readable output instead of lines for a person."""
+    parser.add_argument("--json", action="store_true", help=help)
+
+
+def add_data_out(parser: argparse.ArgumentParser, out_help: str) -> None:
+    """The required ``--data`` (a dataset folder) and ``--out`` (what the command writes)."""
+    parser.add_argument("--data", type=Path, required=True, help="dataset folder")
+    parser.add_argument("--out", type=Path, required=True, help=out_help)
+
+
+def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:
+    """``--config`` (a run config YAML), ``--data``, ``--out`` and ``--set`` of a training run."""
+    parser.add_argument("--config", type=Path, required=True, help="run config YAML (configs/...)")
+    add_data_out(parser, out_help)
+    add_set(parser, "override a config key, e.g. --set train.steps=100 (repeatable)")
+
+
+def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:
+    """``--batch-size`` (and ``--device``) of the forward passes that embed images."""
+    parser.add_argument("--batch-size", type=int, default=64, help="images per forward pass (64)")
+    if device:
+        parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
+
+
+def add_library(parser: argparse.ArgumentParser) -> None:
+    """``--index`` (a library folder) and ``--checkpoint`` (its model, if it moved)."""
+    parser.add_argument("--index", type=Path, required=True, help="library folder")
+    parser.add_argument(
+        "--checkpoint", type=Path, default=None, help="the library's checkpoint, if it moved"
+    )
+
+
+def add_command(
+    subparsers: Subparsers, name: str, doc: str | None, run: Callable[[argparse.Namespace], int]
+) -> argparse.ArgumentParser:
+    """Add the command ``name``, run by ``run``.
+
+    Its ``--help`` describes it with ``doc`` (its module's docstring) but for the first paragraph,
+    the one-line purpose that the package docstring lists.
+    """
+    description = (doc or "").partition("\n\n")[2].strip() or None  # doc is None under -OO
+    parser = subparsers.add_parser(name, description=description)
+    parser.set_defaults(func=run)
+    return parser
+
+
+def add_choice(
+    parser: argparse.ArgumentParser, flag: str, choices: Choices, default: str | None, help: str
+) -> None:
+    """An option taking one of ``choices``, which it names in ``help`` with ``%(choices)s``.
+
+    The ``metavar`` (the flag's name in capitals) keeps argparse from reading the choices when
+    the option is added.
+    """
+    metavar = flag.lstrip("-").upper()
+    parser.add_argument(flag, choices=choices, default=default, metavar=metavar, help=help)

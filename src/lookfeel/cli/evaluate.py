@@ -1,0 +1,90 @@
+"""``lookfeel evaluate``: score a checkpoint or an embeddings file into metrics, a report and
+figures.
+
+Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, recall@k and
+median rank, with chance levels and bootstrap intervals over test fabrics; multi-press touch
+queries; calibration of P ~ exp(-c D^2) with confusion matrices; physical-property probes.
+Writes OUT/metrics.json, OUT/report.md and OUT/figures/*.png. --split: val (default) the run's
+held-out items, c and probes fitted on its training items; train; novel (a seen run's held-out
+fabrics); paper (the paper's 18 test fabrics); all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_forward, add_set
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``evaluate``."""
+    ev = add_command(subparsers, "evaluate", __doc__, run)
+    src = ev.add_mutually_exclusive_group(required=True)
+    src.add_argument("--checkpoint", type=Path, help="a run's checkpoint (.pt); needs --data")
+    src.add_argument("--embeddings", type=Path, help="an .npz written by `lookfeel embed`")
+    ev.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="dataset folder (with --embeddings: optional, for clusters, labels and images)",
+    )
+    ev.add_argument("--out", type=Path, required=True, help="folder for the report")
+    add_choice(
+        ev,
+        "--split",
+        Choices("lookfeel.evaluate", "SPLITS"),
+        None,
+        "with --checkpoint: which items are the test set, one of %(choices)s (default val)",
+    )
+    ev.add_argument("--config", type=Path, default=None, help="evaluation config YAML (EvalConfig)")
+    add_set(ev, "override an EvalConfig key, e.g. --set n_boot=200 (repeatable)")
+    ev.add_argument(
+        "--released-variant",
+        action="store_true",
+        help="also score the released code's sampled variant (own fabric may be a distractor)",
+    )
+    add_forward(ev)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate and write the report; print each pair's top-k with its interval and chance."""
+    from lookfeel.config import EvalConfig, load_config
+    from lookfeel.evaluate import evaluate_checkpoint, evaluate_embedding_file, write_report
+
+    overrides = list(args.set)
+    if args.released_variant:
+        overrides.append("released_variant=true")
+    config = load_config(EvalConfig, args.config, overrides)
+    if args.checkpoint is not None:
+        if args.data is None:
+            print("lookfeel evaluate: --checkpoint needs --data", file=sys.stderr)
+            return 2
+        result = evaluate_checkpoint(
+            args.checkpoint,
+            args.data,
+            args.split or "val",
+            config,
+            batch_size=args.batch_size,
+            device=args.device,
+        )
+    else:
+        if args.split is not None:
+            print(
+                "lookfeel evaluate: --split applies to --checkpoint; an embeddings file holds "
+                "the split it was embedded with",
+                file=sys.stderr,
+            )
+            return 2
+        result = evaluate_embedding_file(args.embeddings, config, args.data)
+    files = write_report(result, args.out)
+    k = result.config.ks[0]
+    print(f"Evaluated {result.info.get('split_description', 'the embeddings')}:")
+    for pair in result.pairs:
+        m = result.metrics
+        v, lo, hi = (m.get(f"{pair}_top{k}{s}", float("nan")) for s in ("", "_ci_low", "_ci_high"))
+        chance = m.get(f"{pair}_top{k}_chance", float("nan"))
+        print(f"  {pair:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}")
+    print(f"Wrote {files.metrics}, {files.report} and {len(files.figures)} figures")
+    return 0

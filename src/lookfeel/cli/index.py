@@ -1,0 +1,129 @@
+"""``lookfeel index build`` and ``lookfeel index info``: build a calibrated fabric library from a
+dataset, and say what one holds."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, add_forward, add_json
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``index build`` and ``index info``."""
+    index = subparsers.add_parser(
+        "index", description="Build and inspect a fabric library (for match, serve)."
+    )
+    actions = index.add_subparsers(dest="index_command", metavar="ACTION", required=True)
+    ib = actions.add_parser(
+        "build",
+        help="embed every item of a dataset into a library, calibrated; resumable",
+        description=(
+            "Embed every item of every modality of DATA with the model of CHECKPOINT into the "
+            "library folder OUT (shards, manifest; written atomically). A killed build continues "
+            "when run again with the same arguments. Calibrates c of P ∝ exp(-c D²) and an "
+            "'unknown' threshold on held-out fabrics (leave fabrics out)."
+        ),
+    )
+    ib.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
+    add_data_out(ib, "library folder to write")
+    add_choice(
+        ib,
+        "--backend",
+        Choices("lookfeel.index", "BACKENDS"),
+        "auto",
+        "search: exact numpy, faiss HNSW, or auto by size (default; faiss from 100,000 "
+        "items in a modality): %(choices)s",
+    )
+    ib.add_argument("--shard-size", type=int, default=2048, help="items per shard (2048)")
+    add_forward(ib, device=False)
+    ib.add_argument(
+        "--kinds", default=None, help="touch press kinds, e.g. fold,flat (default: the run's)"
+    )
+    ib.add_argument(
+        "--false-accept",
+        type=float,
+        default=0.05,
+        help="target rate of unknown materials accepted as a known fabric (0.05)",
+    )
+    ib.add_argument("--folds", type=int, default=5, help="leave-fabrics-out folds (5)")
+    ib.add_argument("--seed", type=int, default=0, help="calibration seed (0)")
+    ib.add_argument(
+        "--calibration-queries",
+        type=int,
+        default=1000,
+        help="held-out queries per modality pair (1000)",
+    )
+    ib.add_argument("--quiet", action="store_true", help="no line per shard")
+    ib.set_defaults(func=run_build)
+
+    ii = actions.add_parser("info", help="what a library holds and how it is calibrated")
+    ii.add_argument("library", type=Path, help="library folder")
+    add_json(ii)
+    ii.set_defaults(func=run_info)
+
+
+def run_build(args: argparse.Namespace) -> int:
+    """Build (or finish) the library; print its items and each pair's calibration."""
+    from lookfeel.index import build_library
+    from lookfeel.modality import PressKind
+
+    kinds = None
+    if args.kinds:
+        kinds = [PressKind(k.strip()) for k in args.kinds.split(",") if k.strip()]
+    result = build_library(
+        args.checkpoint,
+        args.data,
+        args.out,
+        backend=args.backend,
+        shard_size=args.shard_size,
+        batch_size=args.batch_size,
+        kinds=kinds,
+        target_false_accept=args.false_accept,
+        folds=args.folds,
+        seed=args.seed,
+        calibration_queries=args.calibration_queries,
+        progress=not args.quiet,
+    )
+    items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())
+    print(
+        f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded, "
+        f"{result.shards_reused} reused; search {result.backend}; {result.seconds:.1f} s"
+    )
+    for key, p in result.calibration.pairs.items():
+        print(
+            f"  {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  unknown below P {p.threshold:.3g}: "
+            f"false accept {p.false_accept:.3f}, true accept {p.true_accept:.3f}"
+        )
+    return 0
+
+
+def run_info(args: argparse.Namespace) -> int:
+    """Print what a library holds, its model and its calibration (or all of it as JSON)."""
+    from lookfeel.index import Library
+
+    library = Library.open(args.library)
+    summary = library.summary()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    model = summary["model"]
+    print(f"Library {library.root}")
+    print(f"  checkpoint  {library.checkpoint} (step {model['step']})")
+    print(
+        f"  model       {model['backbone']} at {model['image_size']} px, D = {model['embed_dim']}"
+    )
+    print(f"  data        {summary['data_root']}")
+    items = ", ".join(f"{n} {m}" for m, n in summary["items"].items())
+    print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")
+    cal = library.calibration
+    print(f"  calibration target false-accept {cal.target_false_accept:g}, {cal.folds} folds")
+    for key, p in cal.pairs.items():
+        print(
+            f"    {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  threshold {p.threshold:.3g}  "
+            f"false accept {p.false_accept:.3f}  true accept {p.true_accept:.3f}"
+        )
+    for note in cal.notes:
+        print(f"    note: {note}")
+    return 0

@@ -1,0 +1,52 @@
+"""``lookfeel match``: which library fabric query images show, how it looks and feels, and its
+properties.
+
+Rank the library's fabrics for query images of one modality: calibrated probabilities, each
+fabric's nearest items in every modality, predicted physical properties, and 'no known fabric'
+below the calibrated threshold. Several touch images are the presses of one query (pooled);
+depth and colour images are matched one by one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from lookfeel.cli._args import Subparsers, add_command, add_json, add_library
+from lookfeel.modality import Modality
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``match``."""
+    mt = add_command(subparsers, "match", __doc__, run)
+    mt.add_argument("images", type=Path, nargs="+", metavar="IMAGE", help="query image file(s)")
+    add_library(mt)
+    mt.add_argument(
+        "--modality", choices=[m.value for m in Modality], required=True, help="what they show"
+    )
+    mt.add_argument("--top", type=int, default=5, help="fabrics to list (5)")
+    mt.add_argument(
+        "--gallery",
+        type=Modality,
+        default=None,
+        metavar="MODALITY",
+        help="modality to match against (default: the best in calibration)",
+    )
+    add_json(mt, "print the results as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Match the images and print each result (or all of them as JSON)."""
+    from lookfeel.index import Library, Matcher, format_match
+
+    matcher = Matcher(Library.open(args.index, checkpoint=args.checkpoint))
+    results = matcher.match_files(
+        args.images, Modality(args.modality), top=args.top, gallery=args.gallery
+    )
+    if args.json:
+        print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
+    else:
+        print("\n\n".join(format_match(r) for r in results))
+    return 0

@@ -1,0 +1,43 @@
+"""``lookfeel serve``: a web page and a JSON API that match images against a library.
+
+Serve a page and a JSON API (OpenAPI at /openapi.json) over a library.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from lookfeel.cli._args import Subparsers, add_command, add_library
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``serve``."""
+    sv = add_command(subparsers, "serve", __doc__, run)
+    add_library(sv)
+    sv.add_argument("--host", default="127.0.0.1", help="address (127.0.0.1: this machine only)")
+    sv.add_argument("--port", type=int, default=8000, help="port (8000)")
+    sv.add_argument("--max-upload-mb", type=float, default=8.0, help="largest upload (8 MB)")
+    sv.add_argument(
+        "--max-concurrency", type=int, default=2, help="queries the model runs at once (2)"
+    )
+    sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Open the library and serve it until interrupted."""
+    import torch
+
+    from lookfeel.index import Library
+    from lookfeel.serve import ServeConfig, create_app, serve
+
+    # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
+    # beats several queries sharing two-thread teams that spin waiting for each other.
+    torch.set_num_threads(args.threads)
+    config = ServeConfig(
+        max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
+        max_concurrency=args.max_concurrency,
+    )
+    app = create_app(Library.open(args.index, checkpoint=args.checkpoint), config)
+    print(f"Serving {args.index} at http://{args.host}:{args.port}/ (Ctrl-C stops)")
+    serve(app, host=args.host, port=args.port)
+    return 0

@@ -1,0 +1,94 @@
+"""The dataset summary a person reads: `format_summary` of a `Catalog` (``lookfeel data info``,
+the demo).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from lookfeel.data.catalog import Catalog
+from lookfeel.modality import Modality
+
+__all__ = ["format_summary"]
+
+
+def _ranges(ids: Sequence[int]) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"``."""
+    out, start, prev = [], None, None
+    for i in sorted(ids):
+        if start is None:
+            start = prev = i
+        elif prev is not None and i == prev + 1:
+            prev = i
+        else:
+            out.append(f"{start}-{prev}" if start != prev else f"{start}")
+            start = prev = i
+    if start is not None:
+        out.append(f"{start}-{prev}" if start != prev else f"{start}")
+    return ", ".join(out)
+
+
+def format_summary(catalog: Catalog) -> str:
+    """A dataset summary a person reads (``lookfeel data info``)."""
+    s = catalog.summary()
+    rows: list[tuple[str, str]] = [("fabrics", f"{s['fabrics']} (ids {_ranges(catalog.ids)})")]
+    per = s["items_per_fabric"]
+    assert isinstance(per, dict)
+    items = s["items"]
+    assert isinstance(items, dict)
+    for m in Modality:
+        if m.value not in items:
+            rows.append((m.value, "none"))
+            continue
+        rng = per[m.value]
+        unit = "presses" if m is Modality.TOUCH else "images"
+        line = f"{items[m.value]} {unit} ({rng['min']}-{rng['max']} per fabric)"
+        if m is Modality.TOUCH:
+            kinds = s["touch_presses_by_kind"]
+            assert isinstance(kinds, dict)
+            line += ": " + ", ".join(f"{k} {v}" for k, v in kinds.items())
+            line += f"; {s['touch_frames']} frames"
+        rows.append((m.value, line))
+    cols = s["label_columns"]
+    assert isinstance(cols, list)
+    rows.append(
+        (
+            "labels",
+            (", ".join(cols) if cols else "no labels.csv")
+            + f"; {s['fabrics_with_physical_labels']} fabrics with physical labels",
+        )
+    )
+    clusters = s["clusters"]
+    assert isinstance(clusters, dict)
+    if clusters:
+        dist = " ".join(f"{k}:{v}" for k, v in clusters.items())
+        rows.append(
+            (
+                "clusters",
+                f"{len(clusters)} from {s['cluster_column'] or 'k-means'}, "
+                f"{s['fabrics_with_cluster']} of {s['fabrics']} fabrics ({dist})",
+            )
+        )
+    else:
+        rows.append(("clusters", "none (add a cluster8 column, or use k-means on labels)"))
+    split = s["paper_split"]
+    assert isinstance(split, dict)
+    if split:
+        rows.append(("paper split", ", ".join(f"{k} {v}" for k, v in split.items())))
+    held = s["labelled_without_images"]
+    assert isinstance(held, list)
+    if held:
+        rows.append(("no images", f"{len(held)} labelled fabrics: {_ranges(held)}"))
+    if catalog.skipped:
+        names = ", ".join(p.path.name for p in catalog.skipped[:5] if p.path is not None)
+        more = f" and {len(catalog.skipped) - 5} more" if len(catalog.skipped) > 5 else ""
+        rows.append(("skipped", f"{len(catalog.skipped)} not in the layout: {names}{more}"))
+    rows.append(
+        (
+            "problems",
+            f"{s['errors']} errors, {s['warnings']} warnings"
+            + (" (run `lookfeel data check`)" if s["errors"] or s["warnings"] else ""),
+        )
+    )
+    width = max(len(k) for k, _ in rows)
+    return "\n".join([f"Dataset {catalog.root}"] + [f"  {k:<{width}}  {v}" for k, v in rows])
