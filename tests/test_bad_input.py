@@ -389,20 +389,13 @@ def no_serving(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(uvicorn, "run", refuse)
 
 
-_WIRING = pytest.mark.xfail(
-    strict=True,
-    reason="needs cli wiring: _cmd_serve must build ServeOptions(...) from its arguments first "
-    "(today ServeConfig refuses the value but names max_concurrency / max_upload_bytes)",
-)
-
-
 @pytest.mark.parametrize(
     ("option", "value", "expected"),
     [
         ("--port", "99999", "--port must be between 1 and 65535; got 99999"),
-        pytest.param("--max-concurrency", "0", "--max-concurrency", marks=_WIRING),
-        pytest.param("--max-upload-mb", "0", "--max-upload-mb", marks=_WIRING),
-        pytest.param("--max-upload-mb", "-1", "--max-upload-mb", marks=_WIRING),
+        ("--max-concurrency", "0", "--max-concurrency"),
+        ("--max-upload-mb", "0", "--max-upload-mb"),
+        ("--max-upload-mb", "-1", "--max-upload-mb"),
     ],
 )
 def test_serve_options_are_checked(
@@ -411,20 +404,6 @@ def test_serve_options_are_checked(
     _fails(capsys, ["serve", "--index", library, option, value], expected)
 
 
-@pytest.mark.parametrize(
-    ("option", "value", "expected"),
-    [("--max-concurrency", "0", "max_concurrency"), ("--max-upload-mb", "-1", "max_upload")],
-)
-def test_serve_refuses_bad_limits_already_without_wiring(
-    option: str, value: str, expected: str, library: Path, capsys, no_serving
-):
-    _fails(capsys, ["serve", "--index", library, option, value], expected)
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="needs cli wiring: _cmd_serve must build ServeOptions(...) before torch.set_num_threads",
-)
 def test_serve_threads_are_checked(library: Path, capsys, no_serving):
     _fails(capsys, ["serve", "--index", library, "--threads", "-3"], "--threads", "-3")
 

@@ -145,7 +145,6 @@ def test_too_few_fabrics_is_skipped_with_reason(leaky: Path):
     assert report.modalities == () and "two fabrics" in report.skipped["depth"]
 
 
-@pytest.mark.xfail(strict=True, reason="needs cli wiring")
 def test_cli_data_leakage(leaky: Path, clean: Path, capsys):
     from lookfeel.cli import main
 
@@ -165,7 +164,6 @@ def test_real_depth_wall_leak_is_flagged(real_data: Path):
     assert depth.chance == pytest.approx(0.1)
 
 
-@pytest.mark.xfail(strict=True, reason="needs cli wiring")
 def test_cli_data_check_warns_of_a_leak(leaky: Path, clean: Path, capsys):
     from lookfeel.cli import main
 

@@ -4,6 +4,7 @@ Commands (``lookfeel COMMAND --help`` gives each one's options):
 
   data info ROOT      what a dataset holds: fabrics, items per modality and press kind, labels
   data check ROOT     decode every file and report every problem; exit 1 if there is an error
+  data leakage ROOT   does the background alone (no cloth) identify the fabric? per modality
   synth OUT           generate a synthetic visuo-tactile fabric world in the dataset layout
   train               train a model from a run config on a dataset (one process or torchrun)
   cv                  cross-validate a config over fabric-disjoint folds, beside pixels and chance

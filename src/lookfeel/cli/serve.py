@@ -21,6 +21,12 @@ def add_parser(subparsers: Subparsers) -> None:
         "--max-concurrency", type=int, default=2, help="queries the model runs at once (2)"
     )
     sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (1)")
+    sv.add_argument(
+        "--max-megapixels",
+        type=float,
+        default=25.0,
+        help="largest upload, width x height from its header, checked before decoding (25)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -28,16 +34,21 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from lookfeel.index import Library
-    from lookfeel.serve import ServeConfig, create_app, serve
+    from lookfeel.serve import ServeOptions, create_app, serve
 
+    # Every option is checked in one place, before anything is loaded.
+    options = ServeOptions(
+        host=args.host,
+        port=args.port,
+        threads=args.threads,
+        max_upload_mb=args.max_upload_mb,
+        max_concurrency=args.max_concurrency,
+        max_megapixels=args.max_megapixels,
+    )
     # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
     # beats several queries sharing two-thread teams that spin waiting for each other.
-    torch.set_num_threads(args.threads)
-    config = ServeConfig(
-        max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
-        max_concurrency=args.max_concurrency,
-    )
-    app = create_app(Library.open(args.index, checkpoint=args.checkpoint), config)
-    print(f"Serving {args.index} at http://{args.host}:{args.port}/ (Ctrl-C stops)")
-    serve(app, host=args.host, port=args.port)
+    torch.set_num_threads(options.threads)
+    app = create_app(Library.open(args.index, checkpoint=args.checkpoint), options.config())
+    print(f"Serving {args.index} at http://{options.host}:{options.port}/ (Ctrl-C stops)")
+    serve(app, host=options.host, port=options.port)
     return 0
