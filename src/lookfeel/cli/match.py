@@ -4,7 +4,9 @@ properties.
 Rank the library's fabrics for query images of one modality: calibrated probabilities, each
 fabric's nearest items in every modality, predicted physical properties, and 'no known fabric'
 below the calibrated threshold. Several touch images are the presses of one query (pooled);
-depth and colour images are matched one by one.
+depth and colour images are matched one by one. A query identical to an item of the library is
+reported as that item's fabric; otherwise, below the calibrated threshold, the answer is 'no
+known fabric', shown beside the chance level 1/F (F: the library's fabrics).
 """
 
 from __future__ import annotations
