@@ -3,7 +3,8 @@
 The same synthetic embeddings as ``bench_metrics`` (D = 128; 3,334 depth, 3,333 colour, 3,333
 touch presses; 118 and 18 fabrics in 8 clusters), scored with the default `EvalConfig`: all 9
 pairs by exact and sampled pick 1 of 10, mAP, recall@k, median rank and 1,000 bootstrap
-resamples (that part is `lookfeel.metrics.all_pairs`, timed alone beside it), plus the touch
+resamples (that part is `lookfeel.metrics.score_pairs`, timed alone beside it as
+``all_pairs_median_s``), plus the touch
 press curve P = 1..5, calibration of ``P ∝ exp(-c D^2)`` for every pair, the fabric and
 cluster confusion matrices and the pick examples. No reference fabrics (c is the paper's, no
 probes), no figures.
@@ -23,7 +24,7 @@ from pathlib import Path
 from benchmarks.bench_metrics import DIM, SIZES, _embeddings  # one synthetic-embedding recipe
 from lookfeel.config import EvalConfig
 from lookfeel.evaluate import embedded_from_arrays, evaluate_embeddings
-from lookfeel.metrics import all_pairs
+from lookfeel.metrics import PAPER_PROTOCOL, score_pairs
 
 TARGET_S = 20.0
 RUNS = 3
@@ -50,7 +51,7 @@ def _measure(n_fabrics: int) -> dict[str, object]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         median, times = _median(evaluate)
-        core, _ = _median(lambda: all_pairs(emb, fab, n_boot=1000, sampled=True))
+        core, _ = _median(lambda: score_pairs(emb, fab, PAPER_PROTOCOL))
     metrics = out["result"].metrics  # type: ignore[attr-defined]
     return {
         "fabrics": n_fabrics,

@@ -1,3 +1,5 @@
+import dataclasses
+import typing
 from pathlib import Path
 
 import pytest
@@ -6,13 +8,19 @@ from lookfeel.config import (
     AugmentConfig,
     ConfigError,
     DataConfig,
+    EvalConfig,
+    LossConfig,
+    ModelConfig,
+    RunConfig,
+    TrainConfig,
     apply_overrides,
     from_dict,
     load_config,
     save_config,
     to_dict,
 )
-from lookfeel.modality import Modality, PressKind
+from lookfeel.config.model import BACKBONE_FREEZE_POINTS, BackboneName
+from lookfeel.modality import Modality, Pair, PressKind
 
 
 def test_defaults_then_yaml_then_overrides(tmp_path: Path):
@@ -83,3 +91,59 @@ def test_save_and_load_round_trip(tmp_path: Path):
     assert load_config(DataConfig, tmp_path / "run" / "config.yaml") == cfg
     assert to_dict(cfg)["touch_kinds"] == ["flat"]
     assert [p.name for p in (tmp_path / "run").iterdir()] == ["config.yaml"]  # no temp left
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (
+            ["train.split=random"],
+            "train.split: 'random' is not one of stratified, paper, seen, fold",
+        ),
+        (["loss.kind=arcface"], "loss.kind: 'arcface' is not one of contrastive, infonce, triplet"),
+        (["loss.distance=cosine"], "loss.distance: 'cosine' is not one of euclidean, mean_squared"),
+        (["model.backbone=vgg"], "model.backbone: 'vgg' is not one of alexnet, compact, resnet18"),
+        (["model.press_pool=sum"], "model.press_pool: 'sum' is not one of max, mean"),
+        (["data.touch_crop=left"], "data.touch_crop: 'left' is not one of auto, center, none"),
+        (["train.device=tpu"], "train.device: 'tpu' is not one of auto, cpu, cuda"),
+        (["train.lr_schedule=step"], "train.lr_schedule: 'step' is not one of constant, cosine"),
+        (["train.split=1"], r"train.split: expected a string, got 1"),
+    ],
+)
+def test_a_bad_literal_choice_names_the_key_and_the_allowed_values(overrides, message):
+    with pytest.raises(ConfigError, match=message):
+        load_config(RunConfig, overrides=overrides)
+
+
+def test_literal_choices_are_checked_when_built_in_code_too():
+    with pytest.raises(ConfigError, match="loss.kind: 'arcface' is not one of contrastive"):
+        LossConfig(kind="arcface")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"eval.probes: 'svm' is not one of knn, ridge"):
+        load_config(EvalConfig, overrides=["probes=[knn,svm]"])
+    with pytest.raises(ConfigError, match="train.split: 'random' is not one of"):
+        dataclasses.replace(TrainConfig(), split="random")  # type: ignore[arg-type]
+
+
+def test_every_choice_field_is_a_literal():
+    # A choice kept as a bare ``str`` would escape the loader's check.
+    for cls in (DataConfig, ModelConfig, LossConfig, TrainConfig, EvalConfig):
+        for name, tp in typing.get_type_hints(cls).items():
+            assert tp is not str, f"{cls.__name__}.{name} is a bare str"
+    assert set(typing.get_args(BackboneName)) == set(BACKBONE_FREEZE_POINTS)
+
+
+def test_pairs_load_as_pairs_and_save_as_their_names(tmp_path: Path):
+    cfg = load_config(RunConfig, overrides=["train.val_pairs=[touch_to_depth,depth_to_depth]"])
+    assert cfg.train.val_pairs == ("touch_to_depth", "depth_to_depth")
+    assert all(isinstance(p, Pair) for p in cfg.train.val_pairs)
+    assert cfg.train.val_pairs[0].gallery is Modality.DEPTH
+    save_config(cfg, tmp_path / "config.yaml")
+    assert "- touch_to_depth" in (tmp_path / "config.yaml").read_text()
+    assert load_config(RunConfig, tmp_path / "config.yaml") == cfg
+    assert to_dict(cfg)["train"]["val_pairs"] == ["touch_to_depth", "depth_to_depth"]
+    assert type(to_dict(cfg)["train"]["val_pairs"][0]) is str
+    assert TrainConfig(val_pairs=("color_to_touch",)).val_pairs[0].query is Modality.COLOR
+    with pytest.raises(ConfigError, match=r"train.val_pairs\[1\]: 'touch_depth' is not a modality"):
+        load_config(RunConfig, overrides=["train.val_pairs=[touch_to_depth,touch_depth]"])
+    with pytest.raises(ConfigError, match="eval.figure_pairs: 'touch_to_smell' is not a modality"):
+        EvalConfig(figure_pairs=("touch_to_smell",))  # type: ignore[arg-type]

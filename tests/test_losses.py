@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from typing import get_args
 
 import pytest
 import torch
 
 from lookfeel.config import ConfigError, LossConfig, from_dict, load_config
+from lookfeel.config.loss import Distance, LossKind
 from lookfeel.losses import (
     BatchHardTripletLoss,
     CombinedLoss,
@@ -25,6 +27,7 @@ from lookfeel.losses import (
     pairwise_mean_squared,
     tuple_label,
 )
+from lookfeel.losses.combined import _DISTANCES, _PAIR_LOSSES
 from lookfeel.models import head_key
 
 torch.set_num_threads(2)
@@ -369,6 +372,22 @@ def test_combined_loss_errors_and_weights() -> None:
         {"depth": out["depth"], "depth.1": out["touch"]}, y=torch.ones(2)
     )
     assert "depth_depth1_loss" in snn
+
+
+def test_create_loss_refuses_an_unknown_kind_or_distance() -> None:
+    # A LossConfig checks its Literal choices, so force a bad one past that check: create_loss
+    # must say so rather than fall through to some objective.
+    for field, bad, allowed in [
+        ("kind", "arcface", "contrastive, infonce, triplet"),
+        ("distance", "cosine", "euclidean, mean_squared"),
+    ]:
+        cfg = LossConfig()
+        object.__setattr__(cfg, field, bad)
+        with pytest.raises(ValueError, match=f"loss.{field}: '{bad}' is not one of {allowed}"):
+            create_loss(cfg)
+    assert set(get_args(LossKind)) == set(_PAIR_LOSSES) and set(get_args(Distance)) == set(
+        _DISTANCES
+    )
 
 
 def test_loss_config_validates_with_key_names() -> None:

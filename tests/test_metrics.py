@@ -4,22 +4,18 @@ from __future__ import annotations
 
 import itertools
 import math
-import warnings
 
 import numpy as np
 import pytest
 
 import lookfeel.metrics._ranking as ranking
 from lookfeel.metrics import (
-    all_pairs,
     bootstrap_ci,
     chance_average_precision,
     chance_median_rank,
     chance_recall,
     cluster_confusion_matrix,
     confusion_matrix,
-    evaluate_distances,
-    evaluate_pair,
     expected_calibration_error,
     fabric_predictions,
     fabric_probabilities,
@@ -35,7 +31,6 @@ from lookfeel.metrics import (
     property_probe,
     reliability_curve,
 )
-from lookfeel.modality import Modality
 
 # ---------------------------------------------------------------- oracles (slow, obvious)
 
@@ -507,60 +502,6 @@ def test_property_probe_per_fabric_and_disjoint_fabrics():
     with pytest.raises(ValueError, match="in both train and test"):
         property_probe(
             emb, label[fabric], emb, label[fabric], train_fabric=fabric, test_fabric=fabric
-        )
-
-
-# ---------------------------------------------------------------- all pairs
-
-
-def test_evaluate_pair_keys_and_consistency():
-    emb, fabric = clustered_embeddings(12, 5, seed=14)
-    touch = emb + 0.5 * np.random.default_rng(15).standard_normal(emb.shape)
-    out = evaluate_pair(
-        touch, fabric, emb, fabric, query=Modality.TOUCH, gallery="depth", n_boot=200
-    )
-    exact = pick_k_of_n_exact(pairwise_distances(touch, emb), fabric, fabric)
-    assert out["touch_to_depth_top1"] == pytest.approx(exact.mean[0], abs=1e-12)
-    assert out["touch_to_depth_top1_chance"] == pytest.approx(0.1)
-    for name in ("top1", "top3", "map", "recall1", "recall5", "recall10", "median_rank"):
-        low, high = out[f"touch_to_depth_{name}_ci_low"], out[f"touch_to_depth_{name}_ci_high"]
-        assert low <= out[f"touch_to_depth_{name}"] <= high, name
-    assert out["touch_to_depth_n_queries"] == 60 and out["touch_to_depth_n_fabrics"] == 12
-    assert abs(out["touch_to_depth_top1"] - out["touch_to_depth_top1_sampled"]) < (
-        2 * out["touch_to_depth_top1_sampled_se"] + 0.02
-    )
-
-
-def test_all_pairs_covers_nine_pairs_and_excludes_self():
-    rng = np.random.default_rng(16)
-    fabric = np.repeat(np.arange(11), 4)
-    embs = {m: rng.standard_normal((44, 8)) for m in Modality}
-    fabs = {m: fabric for m in Modality}
-    out = all_pairs(embs, fabs, n_boot=50, sampled=False)
-    for q, g in itertools.product(Modality, Modality):
-        assert f"{q.value}_to_{g.value}_top1" in out
-        assert f"{q.value}_to_{g.value}_top1_ci_high" in out
-    # Random embeddings: a same-modality pair that saw the query itself would score ~1.
-    assert out["depth_to_depth_top1"] < 0.3
-    assert out["depth_to_depth_n_queries"] == 44
-    direct = evaluate_distances(
-        pairwise_distances(embs[Modality.COLOR], embs[Modality.TOUCH]),
-        fabric,
-        fabric,
-        prefix="x_",
-        n_boot=50,
-        sampled=False,
-    )
-    assert out["color_to_touch_map"] == pytest.approx(direct["x_map"], abs=1e-12)
-    assert out["color_to_touch_top1_ci_low"] == pytest.approx(direct["x_top1_ci_low"])
-
-
-def test_no_warnings_on_normal_use():
-    emb, fabric = clustered_embeddings(10, 3, seed=17)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        evaluate_pair(
-            emb, fabric, emb, fabric, query="touch", gallery="touch", same_items=True, n_boot=20
         )
 
 

@@ -39,15 +39,18 @@ from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.data import Catalog, ImageLoader, Item, scan
 from lookfeel.embedding import embed_items, raw_pixels
 from lookfeel.metrics import (
+    EXACT_PICK,
+    PairScore,
     bootstrap_ci,
     mean_and_spread,
     property_probe,
+    score_pairs,
 )
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
-from lookfeel.train.validate import default_pairs, pick_pair
+from lookfeel.train.validate import default_pairs
 
-__all__ = ["cross_validate", "format_summary", "score_checkpoint"]
+__all__ = ["cross_validate", "format_cv_summary", "score_checkpoint"]
 
 RESULT = "result.json"
 SUMMARY = "cv.json"
@@ -71,16 +74,22 @@ def _result_config(config: RunConfig) -> dict[str, Any]:
     return d
 
 
-def _pairs(config: RunConfig) -> list[str]:
+def _pairs(config: RunConfig) -> list[Pair]:
     return list(config.train.val_pairs) or default_pairs(config.train.modalities)
 
 
+def _modalities(pairs: Sequence[Pair]) -> list[Modality]:
+    """The modalities the pairs use, in name order."""
+    return sorted({m for p in pairs for m in (p.query, p.gallery)}, key=lambda m: m.value)
+
+
 def _pick(
-    emb: dict[Modality, np.ndarray], fab: dict[Modality, np.ndarray], pair: str
-) -> tuple[np.ndarray, list[float]]:
-    """(Q, 2) per-query exact top-1 and top-3 of pick 1 of 10 for one pair, and chance."""
-    res = pick_pair(emb, fab, pair)
-    return res.per_query, [float(c) for c in res.chance]
+    emb: dict[Modality, np.ndarray], fab: dict[Modality, np.ndarray], pairs: Sequence[Pair]
+) -> dict[Pair, PairScore]:
+    """Exact pick 1 of 10, top-1 and top-3 per query, of each pair (`EXACT_PICK`)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
+        return score_pairs(emb, fab, EXACT_PICK, pairs)
 
 
 def _labels(catalog: Catalog, fabric_ids: np.ndarray) -> np.ndarray:
@@ -118,7 +127,7 @@ def _score(
     catalog: Catalog,
     held_ids: Sequence[int],
     seen_ids: Sequence[int],
-    pairs: Sequence[str],
+    pairs: Sequence[Pair],
     tta: bool,
     loader: ImageLoader,
 ) -> dict[str, Any]:
@@ -128,14 +137,11 @@ def _score(
     cfg = lm.config
     held = catalog.subset(held_ids)
     seen = catalog.subset(seen_ids) if seen_ids else None
-    wanted = {Modality(p.partition("_to_")[0]) for p in pairs} | {
-        Modality(p.partition("_to_")[2]) for p in pairs
-    }
     emb: dict[Modality, np.ndarray] = {}
     pix: dict[Modality, np.ndarray] = {}
     fab: dict[Modality, np.ndarray] = {}
     props: dict[str, Any] = {}
-    for m in sorted(wanted, key=lambda m: m.value):
+    for m in _modalities(pairs):
         items: list[Item] = held.items(m, cfg.data.touch_kinds)
         train_items: list[Item] = seen.items(m, cfg.data.touch_kinds) if seen else []
         loader.preload([*items, *train_items])
@@ -152,16 +158,16 @@ def _score(
                 ),
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
+    model = _pick(emb, fab, pairs)
+    raw = _pick(pix, fab, [p for p in pairs if p.same])  # raw pixels: images of one kind
     for pair in pairs:
-        q, _, g = pair.partition("_to_")
-        model_q, chance = _pick(emb, fab, pair)
         entry: dict[str, Any] = {
-            "query_fabric": fab[Modality(q)].tolist(),
-            "model": model_q.tolist(),
-            "chance": chance,
+            "query_fabric": fab[pair.query].tolist(),
+            "model": model[pair].pick.per_query.tolist(),
+            "chance": [float(c) for c in model[pair].pick.chance],
         }
-        if q == g:  # raw pixels only compare images of one kind
-            entry["raw_pixels"] = _pick(pix, fab, pair)[0].tolist()
+        if pair in raw:
+            entry["raw_pixels"] = raw[pair].pick.per_query.tolist()
         out["pairs"][pair] = entry
     out["properties"] = props
     return out
@@ -171,7 +177,7 @@ def score_checkpoint(
     checkpoint: str | Path,
     data: str | Path,
     *,
-    pairs: Sequence[str] = (),
+    pairs: Sequence[Pair | str] = (),
     tta: bool = False,
     n_boot: int = 1000,
 ) -> dict[str, Any]:
@@ -192,9 +198,8 @@ def score_checkpoint(
         "chance_top1": ...}}, "checkpoint", "data", "step"}``.
     """
     lm = load_model(checkpoint)
-    wanted = list(pairs) or _pairs(lm.config)
-    modalities = {Modality(x) for p in wanted for x in p.split("_to_")}
-    catalog = scan(data, require=sorted(modalities, key=lambda m: m.value), strict=True)
+    wanted = [Pair.parse(p) for p in pairs] or _pairs(lm.config)
+    catalog = scan(data, require=_modalities(wanted), strict=True)
     res = _score(lm, catalog, catalog.ids, [], wanted, tta, ImageLoader(lm.config.data))
     summary = _summarise([res], wanted, n_boot)
     return {
@@ -207,14 +212,14 @@ def score_checkpoint(
 
 
 def _evaluate_run(
-    run_dir: Path, catalog: Catalog, pairs: Sequence[str], tta: bool, loader: ImageLoader
+    run_dir: Path, catalog: Catalog, pairs: Sequence[Pair], tta: bool, loader: ImageLoader
 ) -> dict:
     """Score a finished run's last checkpoint on its held-out fabrics."""
     lm = load_model(run_dir / "checkpoints" / "last.pt")
     return _score(lm, catalog, lm.split["val"], lm.split["train"], pairs, tta, loader)
 
 
-def _summarise(results: list[dict], pairs: Sequence[str], n_boot: int) -> dict[str, Any]:
+def _summarise(results: list[dict], pairs: Sequence[Pair], n_boot: int) -> dict[str, Any]:
     summary: dict[str, Any] = {"runs": len(results), "pairs": {}, "properties": {}}
     for pair in pairs:
         entry: dict[str, Any] = {}
@@ -264,7 +269,7 @@ def _pm(scores: dict[str, float], name: str) -> str:
     return f"{scores[name]:.2f}" + ("" if math.isnan(std) else f" ± {std:.2f}")
 
 
-def format_summary(summary: dict[str, Any]) -> str:
+def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
     lines = [
         f"Fabric-disjoint cross-validation: {summary['runs']} runs "
@@ -301,6 +306,11 @@ def format_summary(summary: dict[str, Any]) -> str:
             cells = [_pm(x, score) for x in (s, r) for score in ("r2", "spearman")]
             lines.append(f"| {label} | {' | '.join(cells)} |")
     return "\n".join(lines) + "\n"
+
+
+format_summary = format_cv_summary
+"""The old name of `format_cv_summary`, kept while ``lookfeel.cli`` imports it (``cli`` has a
+`format_summary` of its own, for datasets); remove once the CLI imports the new name."""
 
 
 def cross_validate(
@@ -386,5 +396,5 @@ def cross_validate(
         "config": to_dict(config),
     }
     atomic_write_text(out / SUMMARY, json.dumps(summary, indent=1) + "\n")
-    atomic_write_text(out / REPORT, format_summary(summary))
+    atomic_write_text(out / REPORT, format_cv_summary(summary))
     return summary

@@ -1,14 +1,18 @@
-"""Modalities and touch press kinds: the keys every model, loss and metric is indexed by.
+"""Modalities, touch press kinds and (query, gallery) pairs: the keys every model, loss and
+metric is indexed by.
 
-Both are ``str`` enums, so ``Modality.DEPTH == "depth"`` and they round-trip through YAML and
+All three are ``str`` types, so ``Modality.DEPTH == "depth"``,
+``Pair(Modality.TOUCH, Modality.DEPTH) == "touch_to_depth"`` and they round-trip through YAML and
 JSON unchanged (ImageBind's ``ModalityType``, made an enum).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from enum import Enum
+from typing import Any
 
-__all__ = ["Modality", "PressKind", "parse_modalities", "slot_modality", "slot_names"]
+__all__ = ["Modality", "Pair", "PressKind", "parse_modalities", "slot_modality", "slot_names"]
 
 
 class Modality(str, Enum):
@@ -37,6 +41,86 @@ class PressKind(str, Enum):
 
     def __str__(self) -> str:
         return self.value
+
+
+class Pair(str):
+    """An ordered (query, gallery) pair of modalities, written ``"{query}_to_{gallery}"``.
+
+    Retrieval is directional (the paper's Table 3 lists both ``Gel2Color`` and ``Color2Gel``):
+    ``touch_to_depth`` matches a GelSight press against depth images. A `Pair` is the ``str``
+    of that name, so metric keys (``f"{pair}_top1"``), JSON and YAML keep the plain text and a
+    pair equals its name; but only a valid pair can be built, and its two modalities are typed
+    attributes, so no code splits or joins the text itself.
+
+    Example:
+        >>> p = Pair.parse("touch_to_depth")
+        >>> p.query, p.gallery, p == Pair(Modality.TOUCH, Modality.DEPTH) == "touch_to_depth"
+        (<Modality.TOUCH: 'touch'>, <Modality.DEPTH: 'depth'>, True)
+    """
+
+    SEPARATOR = "_to_"
+
+    query: Modality
+    gallery: Modality
+
+    def __new__(cls, query: Modality | str, gallery: Modality | str) -> Pair:
+        q, g = _modality(query), _modality(gallery)
+        self = super().__new__(cls, f"{q.value}{cls.SEPARATOR}{g.value}")
+        object.__setattr__(self, "query", q)
+        object.__setattr__(self, "gallery", g)
+        return self
+
+    @classmethod
+    def parse(cls, text: str) -> Pair:
+        """``"touch_to_depth"`` (or a `Pair`) -> ``Pair(Modality.TOUCH, Modality.DEPTH)``.
+
+        Raises:
+            ValueError: naming the text and the form a pair takes.
+        """
+        if isinstance(text, Pair):
+            return text
+        if not isinstance(text, str):
+            raise ValueError(f"{text!r} is not a modality pair; expected query_to_gallery")
+        q, sep, g = text.partition(cls.SEPARATOR)
+        try:
+            if not sep:
+                raise ValueError
+            return cls(q, g)
+        except ValueError:
+            valid = ", ".join(m.value for m in Modality)
+            raise ValueError(
+                f"{text!r} is not a modality pair query_to_gallery (e.g. touch_to_depth) of "
+                f"the modalities {valid}"
+            ) from None
+
+    @classmethod
+    def every(cls, modalities: Iterable[Modality]) -> list[Pair]:
+        """Every ordered pair of ``modalities``, same-modality pairs included, query-major."""
+        mods = list(modalities)
+        return [cls(q, g) for q in mods for g in mods]
+
+    @property
+    def same(self) -> bool:
+        """Query and gallery are one modality (``depth_to_depth``)."""
+        return self.query is self.gallery
+
+    def reverse(self) -> Pair:
+        """The pair the other way round: ``touch_to_depth`` -> ``depth_to_touch``."""
+        return Pair(self.gallery, self.query)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"Pair is immutable; cannot set {name!r}")
+
+    def __reduce__(self) -> tuple[type[Pair], tuple[str, str]]:
+        return (Pair, (self.query.value, self.gallery.value))
+
+
+def _modality(m: Modality | str) -> Modality:
+    try:
+        return Modality(m)
+    except ValueError:
+        valid = ", ".join(x.value for x in Modality)
+        raise ValueError(f"unknown modality {m!r}; expected one of: {valid}") from None
 
 
 def parse_modalities(text: str | list[str] | tuple[str, ...]) -> tuple[Modality, ...]:

@@ -20,18 +20,21 @@ import typing
 from collections.abc import Mapping, Sequence
 from enum import Enum
 from pathlib import Path
-from typing import Any, TypeVar, Union
+from typing import Any, Literal, TypeVar, Union
 
 import yaml
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.errors import LookfeelError
+from lookfeel.modality import Pair
 
 __all__ = [
     "ConfigError",
     "apply_overrides",
+    "check_choices",
     "from_dict",
     "load_config",
+    "parse_pairs",
     "save_config",
     "to_dict",
 ]
@@ -51,12 +54,84 @@ def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
 
 
+def _not_one_of(key: str, value: Any, allowed: Sequence[Any]) -> ConfigError:
+    return ConfigError(f"{key}: {value!r} is not one of {', '.join(str(a) for a in allowed)}")
+
+
+def _choices(tp: Any) -> tuple[tuple[Any, ...], bool] | None:
+    """The allowed values of a ``Literal`` field type, and whether it is a tuple of them.
+
+    ``Literal["a", "b"]``, ``Literal[...] | None`` and ``tuple[Literal[...], ...]`` have choices;
+    any other type has none (None).
+    """
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is Literal:
+        return args, False
+    if origin in (Union, types.UnionType):
+        inner = [_choices(a) for a in args if a is not type(None)]
+        return inner[0] if len(inner) == 1 else None
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        one = _choices(args[0])
+        return (one[0], True) if one is not None and not one[1] else None
+    return None
+
+
+def check_choices(config: Any, section: str) -> None:
+    """Check every ``Literal`` field of a config dataclass (also when built directly in code).
+
+    Each config's ``__post_init__`` calls this first, so a choice outside its ``Literal`` raises
+    however the config was made: loaded by `from_dict` or constructed by hand.
+
+    Args:
+        config: a config dataclass instance.
+        section: its dotted key in a `RunConfig` (``"loss"``), used in the message.
+
+    Raises:
+        ConfigError: ``"{section}.{field}: 'x' is not one of a, b"``.
+    """
+    hints = typing.get_type_hints(type(config))
+    for f in dataclasses.fields(config):
+        found = _choices(hints[f.name])
+        if found is None:
+            continue
+        allowed, many = found
+        value = getattr(config, f.name)
+        for v in value if many else (value,):
+            if v is not None and v not in allowed:
+                raise _not_one_of(f"{section}.{f.name}", v, allowed)
+
+
+def parse_pairs(values: Sequence[str], key: str) -> tuple[Pair, ...]:
+    """Parse ``("touch_to_depth", ...)`` into `Pair` values (for a config built in code).
+
+    Raises:
+        ConfigError: ``"{key}: 'x' is not a modality pair ..."``.
+    """
+    try:
+        return tuple(Pair.parse(v) for v in values)
+    except ValueError as e:
+        raise ConfigError(f"{key}: {e}") from None
+
+
 def _convert(value: Any, tp: Any, key: str) -> Any:
     """Convert a plain YAML value to type ``tp``; raise `ConfigError` naming ``key``."""
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
     if tp is Any:
         return value
+    if origin is Literal:
+        # The type is checked here; whether the value is one of the choices, by the config's
+        # own check_choices, which names the key as the config's section does.
+        return _convert(value, type(args[0]), key)
+    if tp is Pair:
+        if isinstance(value, Pair):
+            return value
+        if not isinstance(value, str):
+            raise ConfigError(f"{key}: expected a pair query_to_gallery, got {value!r}")
+        try:
+            return Pair.parse(value)
+        except ValueError as e:
+            raise ConfigError(f"{key}: {e}") from None
     if origin in (Union, types.UnionType):
         if value is None and type(None) in args:
             return None
@@ -175,6 +250,8 @@ def to_dict(obj: Any) -> Any:
         return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
     if isinstance(obj, Enum):
         return obj.value
+    if isinstance(obj, Pair):
+        return str(obj)
     if isinstance(obj, Mapping):
         return {to_dict(k): to_dict(v) for k, v in obj.items()}
     if isinstance(obj, (tuple, list)):

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
-from lookfeel.config._core import ConfigError
+from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality, PressKind
 
 __all__ = ["AugmentConfig", "DataConfig"]
@@ -47,12 +48,12 @@ class DataConfig:
     """Depth mapped to 0; the authors' code maps ``clip((d - 800) / 500, 0, 1)``."""
     depth_range_mm: float = 500.0
     """Depth span mapped onto [0, 1]."""
-    depth_holes: str = "nearest"
+    depth_holes: Literal["nearest", "clip"] = "nearest"
     """Pixels with no reading (0 mm): ``nearest`` fills each from the nearest valid pixel;
     ``clip`` keeps the authors' behaviour (0 mm is below the range, so it maps to 0)."""
-    color_crop: str = "none"
+    color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
-    touch_crop: str = "auto"
+    touch_crop: Literal["auto", "center", "none"] = "auto"
     """``auto`` crops the central 720x720 of 960x720 GelSight frames (authors' code) and leaves
     other sizes (GelSight Mini, DIGIT) whole; ``center`` always crops the central square;
     ``none`` never crops."""
@@ -73,17 +74,11 @@ class DataConfig:
     """Threads used to decode and preprocess images."""
 
     def __post_init__(self) -> None:
+        check_choices(self, "data")
         if self.image_size < 8:
             raise ConfigError(f"data.image_size: must be >= 8, got {self.image_size}")
         if self.depth_range_mm <= 0:
             raise ConfigError(f"data.depth_range_mm: must be > 0, got {self.depth_range_mm}")
-        for key, value, allowed in (
-            ("depth_holes", self.depth_holes, ("nearest", "clip")),
-            ("color_crop", self.color_crop, ("none", "center")),
-            ("touch_crop", self.touch_crop, ("auto", "center", "none")),
-        ):
-            if value not in allowed:
-                raise ConfigError(f"data.{key}: {value!r} is not one of {', '.join(allowed)}")
         if self.presses < 1:
             raise ConfigError(f"data.presses: must be >= 1, got {self.presses}")
         if not 0.0 <= self.same_fraction <= 1.0:

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
-from lookfeel.config._core import ConfigError
+from lookfeel.config._core import ConfigError, check_choices, parse_pairs
+from lookfeel.modality import Modality, Pair
 
-__all__ = ["EvalConfig"]
+__all__ = ["EvalConfig", "ProbeKind"]
 
-_PROBES = ("knn", "ridge")
+ProbeKind = Literal["knn", "ridge"]
+"""Physical-property probes: k nearest neighbours or ridge regression."""
 
 
 @dataclass(frozen=True)
@@ -58,11 +61,11 @@ class EvalConfig:
     """Fit c on the reference fabrics (per pair) when ``c`` is not fixed."""
     n_bins: int = 10
     """Equal-width confidence bins of the reliability curve and the ECE."""
-    probes: tuple[str, ...] = ("knn", "ridge")
+    probes: tuple[ProbeKind, ...] = ("knn", "ridge")
     """Physical-property probes fitted on the reference fabrics: ``knn`` and/or ``ridge``."""
     probe_k: int = 5
     """Neighbours of the k-NN probe."""
-    figure_pairs: tuple[str, ...] = ("touch_to_depth",)
+    figure_pairs: tuple[Pair, ...] = (Pair(Modality.TOUCH, Modality.DEPTH),)
     """Pairs (``query_to_gallery``) that get confusion, reliability and pick-example figures
     (paper Figures 6-7 show touch to depth); when none is present, the first cross-modal pair."""
     examples: int = 4
@@ -70,6 +73,10 @@ class EvalConfig:
     occur)."""
 
     def __post_init__(self) -> None:
+        check_choices(self, "eval")
+        object.__setattr__(
+            self, "figure_pairs", parse_pairs(self.figure_pairs, "eval.figure_pairs")
+        )
         if self.n < 2:
             raise ConfigError(f"eval.n: must be >= 2, got {self.n}")
         for key, ks in (("ks", self.ks), ("recall_ks", self.recall_ks)):
@@ -94,12 +101,3 @@ class EvalConfig:
             raise ConfigError(f"eval.alpha: must be in (0, 1), got {self.alpha}")
         if self.c is not None and not self.c > 0:
             raise ConfigError(f"eval.c: must be positive, got {self.c}")
-        bad = [p for p in self.probes if p not in _PROBES]
-        if bad:
-            raise ConfigError(f"eval.probes: {bad[0]!r} is not one of {', '.join(_PROBES)}")
-        for pair in self.figure_pairs:
-            if "_to_" not in pair:
-                raise ConfigError(
-                    f"eval.figure_pairs: {pair!r} is not of the form query_to_gallery "
-                    "(e.g. touch_to_depth)"
-                )

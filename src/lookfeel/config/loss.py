@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
-from lookfeel.config._core import ConfigError
+from lookfeel.config._core import ConfigError, check_choices
 
-__all__ = ["LossConfig"]
+__all__ = ["Distance", "LossConfig", "LossKind"]
+
+LossKind = Literal["contrastive", "infonce", "triplet"]
+"""The objectives between slots that `lookfeel.losses.create_loss` builds."""
+Distance = Literal["euclidean", "mean_squared"]
+"""Distances between two embeddings for the contrastive and triplet objectives."""
 
 
 @dataclass(frozen=True)
@@ -18,14 +24,14 @@ class LossConfig:
     their sum.
     """
 
-    kind: str = "contrastive"
+    kind: LossKind = "contrastive"
     """The objective between slots: ``contrastive`` (the paper's equation 2 on the tuple
     distance D3), ``infonce`` (multi-positive InfoNCE over every slot pair) or ``triplet``
     (batch-hard triplet over every slot pair)."""
     margin: float = 2.0
     """Contrastive margin m: pairs of different fabrics are pushed until their distance reaches
     it (paper: 2; the authors' code also used 1 with ``mean_squared``)."""
-    distance: str = "euclidean"
+    distance: Distance = "euclidean"
     """Distance between two embeddings, for ``contrastive`` and ``triplet``: ``euclidean`` (the
     paper's ``||E1 - E2||``) or ``mean_squared`` (the authors' released code: the mean over
     dimensions of the squared difference)."""
@@ -52,12 +58,7 @@ class LossConfig:
     fabrics, so every label weighs alike."""
 
     def __post_init__(self) -> None:
-        for key, choice, allowed in (
-            ("kind", self.kind, ("contrastive", "infonce", "triplet")),
-            ("distance", self.distance, ("euclidean", "mean_squared")),
-        ):
-            if choice not in allowed:
-                raise ConfigError(f"loss.{key}: {choice!r} is not one of {', '.join(allowed)}")
+        check_choices(self, "loss")
         for key, value in (
             ("margin", self.margin),
             ("temperature", self.temperature),

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
-from lookfeel.config._core import ConfigError
+from lookfeel.config._core import ConfigError, check_choices
 
-__all__ = ["BACKBONE_DEFAULT_FREEZE", "BACKBONE_FREEZE_POINTS", "ModelConfig"]
+__all__ = ["BACKBONE_DEFAULT_FREEZE", "BACKBONE_FREEZE_POINTS", "BackboneName", "ModelConfig"]
+
+BackboneName = Literal["alexnet", "compact", "resnet18"]
+"""The built-in backbones (`lookfeel.models.list_backbones`; a test keeps the three in step)."""
 
 BACKBONE_FREEZE_POINTS: dict[str, tuple[str, ...]] = {
     "alexnet": ("none", "to_conv5", "to_fc6", "all"),
@@ -39,7 +43,7 @@ class ModelConfig:
     ``press_pool``; the SNN is a model of one modality fed two slots of it.
     """
 
-    backbone: str = "alexnet"
+    backbone: BackboneName = "alexnet"
     """Backbone of every branch: ``alexnet`` (the paper's; torchvision's layout, 227 px inputs,
     at least 63 px), ``compact`` (a small CNN for 64-112 px inputs on a CPU) or ``resnet18``
     (torchvision's layout)."""
@@ -56,7 +60,7 @@ class ModelConfig:
     default (`BACKBONE_DEFAULT_FREEZE`: ``to_fc6`` for AlexNet as the paper, else ``none``).
     A frozen trunk always runs in eval mode (no dropout, fixed BatchNorm statistics), so its
     output per image can be cached."""
-    depth_stem: str = "replicate"
+    depth_stem: Literal["replicate", "sum"] = "replicate"
     """How one-channel depth enters a backbone: ``replicate`` copies it into three channels;
     ``sum`` uses a one-channel first convolution whose pretrained filters are the sums of the
     RGB filters (a third of conv1's work, near-identical outputs)."""
@@ -71,7 +75,7 @@ class ModelConfig:
     (AlexNet fc7: 4096, as the paper)."""
     normalize: bool = False
     """L2-normalise each embedding (CLIP style). The paper does not."""
-    press_pool: str = "max"
+    press_pool: Literal["max", "mean"] = "max"
     """How the embeddings of a touch input's presses become one: ``max`` (element-wise maximum,
     the paper's Multi-input Net) or ``mean``."""
     cluster_head: bool = False
@@ -88,9 +92,7 @@ class ModelConfig:
         return self.freeze if self.freeze is not None else BACKBONE_DEFAULT_FREEZE[self.backbone]
 
     def __post_init__(self) -> None:
-        if self.backbone not in BACKBONE_FREEZE_POINTS:
-            valid = ", ".join(BACKBONE_FREEZE_POINTS)
-            raise ConfigError(f"model.backbone: {self.backbone!r} is not one of {valid}")
+        check_choices(self, "model")
         points = BACKBONE_FREEZE_POINTS[self.backbone]
         if self.freeze is not None and self.freeze not in points:
             raise ConfigError(
@@ -107,12 +109,6 @@ class ModelConfig:
                 raise ConfigError("model.pretrained: empty path; use null for random weights")
         if self.init_from is not None and not self.init_from.strip():
             raise ConfigError("model.init_from: empty path; use null to start from scratch")
-        for key, value, allowed in (
-            ("depth_stem", self.depth_stem, ("replicate", "sum")),
-            ("press_pool", self.press_pool, ("max", "mean")),
-        ):
-            if value not in allowed:
-                raise ConfigError(f"model.{key}: {value!r} is not one of {', '.join(allowed)}")
         if not 0.0 <= self.dropout < 1.0:
             raise ConfigError(f"model.dropout: must be in [0, 1), got {self.dropout}")
         if self.width is not None:

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
-from lookfeel.config._core import ConfigError
+from lookfeel.config._core import ConfigError, check_choices, parse_pairs
 from lookfeel.config.data import DataConfig
 from lookfeel.config.loss import LossConfig
 from lookfeel.config.model import ModelConfig
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 
-__all__ = ["RunConfig", "TrainConfig"]
+__all__ = ["RunConfig", "SplitKind", "TrainConfig"]
 
-_SPLITS = ("stratified", "paper", "seen", "fold", "none")
+SplitKind = Literal["stratified", "paper", "seen", "fold", "none"]
+"""How a run chooses its validation items (`TrainConfig.split`)."""
 
 
 def _default_views() -> tuple[Modality, ...]:
@@ -38,13 +40,13 @@ class TrainConfig:
     """Adam learning rate (paper: 1e-3, constant)."""
     weight_decay: float = 0.0
     """Decoupled weight decay (AdamW when > 0)."""
-    lr_schedule: str = "constant"
+    lr_schedule: Literal["constant", "cosine"] = "constant"
     """``constant`` (the paper) or ``cosine`` (decay to 0 over ``steps`` after warm-up)."""
     warmup_steps: int = 0
     """Linear warm-up steps for the learning rate."""
     seed: int = 0
     """Seeds the model's initialisation, tuple draws, augmentation and dropout."""
-    split: str = "stratified"
+    split: SplitKind = "stratified"
     """Validation fabrics: ``stratified`` holds out ``val_fabrics`` training fabrics evenly
     over clusters; ``paper`` validates on the paper's 18 test fabrics (when the data has them);
     ``seen`` holds out 20% of every fabric's items (Table 4's seen fabrics); ``fold`` holds out
@@ -64,7 +66,7 @@ class TrainConfig:
     """Seed of the split (kept apart from ``seed`` so seeds vary over one split)."""
     val_every: int = 1000
     """Validate every this many steps (and at the end); 0 only at the end."""
-    val_pairs: tuple[str, ...] = ()
+    val_pairs: tuple[Pair, ...] = ()
     """Pairs to validate, as ``query_to_gallery`` (e.g. ``touch_to_depth``); empty: every pair
     of the run's modalities. The first is the one `best.pt` is chosen by."""
     checkpoint_every: int = 1000
@@ -83,12 +85,14 @@ class TrainConfig:
     """DataLoader worker processes for the uncached path (0: in the main process)."""
     threads: int = 0
     """torch CPU threads (0: leave torch's default)."""
-    device: str = "auto"
+    device: Literal["auto", "cpu", "cuda"] = "auto"
     """``auto`` (CUDA when available, else CPU), ``cpu``, or ``cuda``."""
     progress: bool = True
     """Show a progress bar with the loss and rate."""
 
     def __post_init__(self) -> None:
+        check_choices(self, "train")
+        object.__setattr__(self, "val_pairs", parse_pairs(self.val_pairs, "train.val_pairs"))
         if len(self.views) < 2:
             raise ConfigError(
                 "train.views: a training tuple needs at least two slots (e.g. [depth, touch], "
@@ -102,23 +106,10 @@ class TrainConfig:
                 raise ConfigError(f"train.{key}: must be >= 0, got {getattr(self, key)}")
         if self.lr <= 0:
             raise ConfigError(f"train.lr: must be > 0, got {self.lr}")
-        if self.split not in _SPLITS:
-            raise ConfigError(f"train.split: {self.split!r} is not one of {', '.join(_SPLITS)}")
-        if self.lr_schedule not in ("constant", "cosine"):
-            raise ConfigError(f"train.lr_schedule: {self.lr_schedule!r} is not constant or cosine")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ConfigError(f"train.device: {self.device!r} is not auto, cpu or cuda")
         if not 0 <= self.fold < self.folds:
             raise ConfigError(f"train.fold: must be in 0..{self.folds - 1}, got {self.fold}")
         if self.fold_size is not None and self.fold_size < 1:
             raise ConfigError(f"train.fold_size: must be >= 1 or null, got {self.fold_size}")
-        for pair in self.val_pairs:
-            q, sep, g = pair.partition("_to_")
-            valid = {m.value for m in Modality}
-            if not sep or q not in valid or g not in valid:
-                raise ConfigError(
-                    f"train.val_pairs: {pair!r} is not query_to_gallery, e.g. touch_to_depth"
-                )
 
     @property
     def modalities(self) -> tuple[Modality, ...]:

@@ -35,14 +35,14 @@ from lookfeel.evaluate.from_checkpoint import (
     pools_final_embedding,
 )
 from lookfeel.evaluate.report import ReportFiles, write_metrics, write_report
-from lookfeel.evaluate.result import EvalResult, PairCalibration, PickExample, PressCurve
+from lookfeel.evaluate.result import CalibrationResult, EvalResult, PickExample, PressCurve
 
 __all__ = [
     "SPLITS",
+    "CalibrationResult",
     "EmbeddingFileError",
     "EmbeddingSet",
     "EvalResult",
-    "PairCalibration",
     "PickExample",
     "PressCurve",
     "PressPooler",

@@ -1,7 +1,10 @@
 """Score embeddings by every protocol of the paper's section 5, from one distance matrix per pair.
 
 `evaluate_embeddings` takes per-modality embeddings (ours, a baseline's, a user's) and returns
-an `EvalResult`; it knows nothing of models except through the optional press pooler.
+an `EvalResult`; it knows nothing of models except through the optional press pooler. The pick
+and gallery metrics come from the one scoring path (`lookfeel.metrics.score_distances` over
+`lookfeel.metrics.pair_distances`, with `scoring_protocol` of the `EvalConfig`); calibration,
+confusion matrices, examples, the press curve and the probes are added around it.
 """
 
 from __future__ import annotations
@@ -10,7 +13,7 @@ import math
 import warnings
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -20,26 +23,27 @@ from lookfeel.config import DataConfig, EvalConfig
 from lookfeel.embedding import EmbeddedItems
 from lookfeel.metrics import (
     PAPER_C,
-    bootstrap_ci,
+    PairDistances,
+    QuerySet,
+    ScoringProtocol,
     cluster_confusion_matrix,
     confusion_matrix,
-    evaluate_distances,
     fabric_probabilities,
     fit_temperature,
     group_queries,
     n_effective,
     order_by_cluster,
+    pair_distances,
     pairwise_distances,
-    pick_k_of_n_exact,
-    pick_k_of_n_sampled,
     property_probe,
     reliability_curve,
+    score_distances,
 )
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 
-from .result import EvalResult, PairCalibration, PickExample
+from .result import CalibrationResult, EvalResult, PickExample
 
-__all__ = ["PressPooler", "evaluate_embeddings", "max_pool_presses"]
+__all__ = ["PressPooler", "evaluate_embeddings", "max_pool_presses", "scoring_protocol"]
 
 PressPooler = Callable[[EmbeddedItems, NDArray[np.int64]], NDArray[np.float64]]
 """Embeds multi-press touch queries: (touch items, (M, P) rows of each group) -> (M, D)."""
@@ -67,43 +71,31 @@ def max_pool_presses(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArra
     return np.asarray(e[members].max(axis=1), dtype=np.float64)
 
 
-@dataclass(frozen=True)
-class _Queries:
-    """The queries of one modality: embeddings, fabrics, and the gallery rows each pools."""
-
-    emb: NDArray[np.float64]
-    fabric: NDArray[np.int64]
-    members: NDArray[np.int64]
-    """(Q, P) rows into the modality's items (P = 1: the query is item i itself)."""
-
-    def exclusion(self, n_gallery: int) -> NDArray[np.int64] | NDArray[np.bool_]:
-        """What a same-modality gallery must leave out: the query's own item(s).
-
-        Returns:
-            (Q,) the own item's index for single items, else a (Q, G) mask of own presses.
-        """
-        if self.members.shape[1] == 1:
-            return self.members[:, 0]
-        mask = np.zeros((len(self.members), n_gallery), dtype=bool)
-        mask[np.arange(len(self.members))[:, None], self.members] = True
-        return mask
+def scoring_protocol(config: EvalConfig) -> ScoringProtocol:
+    """The pick and gallery protocol an `EvalConfig` asks for."""
+    return ScoringProtocol(
+        n=config.n,
+        ks=config.ks,
+        recall_ks=config.recall_ks,
+        sampled=config.sampled,
+        queries_per_fabric=config.queries_per_fabric,
+        repeats=config.repeats,
+        released_variant=config.released_variant,
+        n_boot=config.n_boot,
+        alpha=config.alpha,
+        seed=config.seed,
+    )
 
 
-def _queries(e: EmbeddedItems, presses: int, seed: int, pool: PressPooler) -> _Queries:
+def _queries(e: EmbeddedItems, presses: int, seed: int, pool: PressPooler) -> QuerySet:
     emb = np.asarray(e.embeddings, dtype=np.float64)
     fab = np.asarray(e.fabric_ids, dtype=np.int64)
     if presses == 1:
-        return _Queries(emb, fab, np.arange(len(emb), dtype=np.int64)[:, None])
+        return QuerySet.single(emb, fab)
     g = group_queries(emb, fab, presses=presses, seed=seed)
     members = g.members.astype(np.int64)
     pooled = g.emb if pool is max_pool_presses else pool(e, members)
-    return _Queries(np.asarray(pooled, dtype=np.float64), fab[members[:, 0]], members)
-
-
-def _exclusion(
-    q: _Queries, same: bool, n_gallery: int
-) -> NDArray[np.int64] | NDArray[np.bool_] | None:
-    return q.exclusion(n_gallery) if same else None
+    return QuerySet(np.asarray(pooled, dtype=np.float64), fab[members[:, 0]], members)
 
 
 class _Notes:
@@ -126,100 +118,26 @@ class _Notes:
             self.add(text if text.startswith("pick ") else f"{where}: {text}")
 
 
-def _figure_pairs(config: EvalConfig, pairs: Sequence[str]) -> list[str]:
+def _figure_pairs(config: EvalConfig, pairs: Sequence[Pair]) -> list[Pair]:
     wanted = [p for p in config.figure_pairs if p in pairs]
     if wanted:
         return wanted
-    cross = [p for p in pairs if p.split("_to_")[0] != p.split("_to_")[1]]
+    cross = [p for p in pairs if not p.same]
     return (cross or list(pairs))[:1]
-
-
-def _pick_keys(
-    dist: NDArray[np.float64],
-    q: _Queries,
-    gallery_fabric: NDArray[np.int64],
-    exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
-    prefix: str,
-    config: EvalConfig,
-) -> dict[str, float]:
-    out = evaluate_distances(
-        dist,
-        q.fabric,
-        gallery_fabric,
-        prefix=prefix,
-        exclude_self=exclude,
-        n=config.n,
-        ks=config.ks,
-        recall_ks=config.recall_ks,
-        sampled=config.sampled,
-        queries_per_fabric=config.queries_per_fabric,
-        repeats=config.repeats,
-        n_boot=config.n_boot,
-        alpha=config.alpha,
-        seed=config.seed,
-    )
-    if config.released_variant:
-        s = pick_k_of_n_sampled(
-            dist,
-            q.fabric,
-            gallery_fabric,
-            n=config.n,
-            ks=config.ks,
-            queries_per_fabric=config.queries_per_fabric,
-            repeats=config.repeats,
-            seed=config.seed,
-            exclude_self=exclude,
-            allow_true_distractor=True,
-        )
-        for j, k in enumerate(config.ks):
-            out[f"{prefix}top{k}_released"] = float(s.mean[j])
-            out[f"{prefix}top{k}_released_se"] = float(s.se[j])
-    return out
 
 
 def _curve_keys(config: EvalConfig) -> list[str]:
     """The keys of one point of the press curve (a subset of the main pick keys)."""
     keys = []
     for k in config.ks:
-        keys += [f"top{k}", f"top{k}_chance", f"top{k}_ci_low", f"top{k}_ci_high"]
+        keys += [f"top{k}", f"top{k}_chance"]
+        if config.n_boot > 0:
+            keys += [f"top{k}_ci_low", f"top{k}_ci_high"]
     return [*keys, "n_queries", "n_fabrics", "n_effective"]
 
 
-def _curve_point(
-    dist: NDArray[np.float64],
-    q: _Queries,
-    gallery_fabric: NDArray[np.int64],
-    exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
-    prefix: str,
-    config: EvalConfig,
-) -> dict[str, float]:
-    """Exact top-k with its bootstrap interval: the press curve needs no gallery metrics."""
-    res = pick_k_of_n_exact(dist, q.fabric, gallery_fabric, config.n, config.ks, exclude)
-    ok = ~np.isnan(res.per_query[:, 0])
-    out: dict[str, float] = {}
-    low = high = np.full(len(config.ks), np.nan)
-    if config.n_boot > 0 and ok.any():
-        low, high = bootstrap_ci(
-            res.per_query[ok],
-            q.fabric[ok],
-            n_boot=config.n_boot,
-            alpha=config.alpha,
-            seed=config.seed,
-        )
-    for j, k in enumerate(config.ks):
-        out[f"top{k}"] = float(res.mean[j])
-        out[f"top{k}_chance"] = float(res.chance[j])
-        if config.n_boot > 0:
-            out[f"top{k}_ci_low"] = float(low[j])
-            out[f"top{k}_ci_high"] = float(high[j])
-    out["n_queries"] = float(res.n_queries)
-    out["n_fabrics"] = float(len(np.unique(q.fabric[ok])))
-    out["n_effective"] = float(res.n_effective)
-    return {prefix + k: v for k, v in out.items()}
-
-
 def _fit_c(
-    rq: _Queries,
+    rq: QuerySet,
     gallery: EmbeddedItems,
     q: Modality,
     g: Modality,
@@ -235,18 +153,21 @@ def _fit_c(
     if len(rq.fabric) == 0 or len(np.unique(gf)) < 2:
         return None
     dist = pairwise_distances(rq.emb, gallery.embeddings)
+    pair = Pair(q, g)
     try:
-        with notes.catching(f"fitting c for {q.value}_to_{g.value}"):
-            return fit_temperature(dist, rq.fabric, gf, _exclusion(rq, q is g, len(gf)))
+        with notes.catching(f"fitting c for {pair}"):
+            return fit_temperature(
+                dist, rq.fabric, gf, rq.exclusion(len(gf)) if pair.same else None
+            )
     except ValueError as e:
-        notes.add(f"c for {q.value}_to_{g.value} not fitted ({e}); the paper's c is used")
+        notes.add(f"c for {pair} not fitted ({e}); the paper's c is used")
         return None
 
 
 def _calibrate(
-    pair: str,
+    pair: Pair,
     dist: NDArray[np.float64],
-    q: _Queries,
+    q: QuerySet,
     gallery_fabric: NDArray[np.int64],
     exclude: NDArray[np.int64] | NDArray[np.bool_] | None,
     c: float,
@@ -254,7 +175,7 @@ def _calibrate(
     config: EvalConfig,
     clusters: Mapping[Hashable, Hashable] | None,
     figure: bool,
-) -> PairCalibration:
+) -> CalibrationResult:
     probs, fabrics = fabric_probabilities(dist, gallery_fabric, c, exclude)  # (Q, F)
     rows = np.arange(len(probs))
     best = np.argmax(probs, axis=1) if len(probs) else np.zeros(0, dtype=np.int64)
@@ -275,7 +196,7 @@ def _calibrate(
             cluster_conf = cluster_confusion_matrix(
                 dist, q.fabric, gallery_fabric, clusters, c, exclude
             )
-    return PairCalibration(
+    return CalibrationResult(
         pair=pair,
         c=c,
         c_source=c_source,
@@ -290,9 +211,9 @@ def _calibrate(
 
 
 def _draw_examples(
-    pair: str,
+    pair: Pair,
     dist: NDArray[np.float64],
-    q: _Queries,
+    q: QuerySet,
     gallery_fabric: NDArray[np.int64],
     same: bool,
     config: EvalConfig,
@@ -509,20 +430,23 @@ def evaluate_embeddings(
         presses = 1
         config = replace(config, presses=1)
         queries[Modality.TOUCH] = _queries(embedded[Modality.TOUCH], 1, config.seed, pool)
-    pairs = [f"{q.value}_to_{g.value}" for q in mods for g in mods]
+    pairs = Pair.every(mods)
     figure_pairs = _figure_pairs(config, pairs)
-    per_pair: dict[str, dict[str, float]] = {}
-    ref_queries: dict[Modality, _Queries] = {}  # built once per modality, when c is fitted
-    calibration: dict[str, PairCalibration] = {}
-    examples: dict[str, tuple[PickExample, ...]] = {}
+    protocol = scoring_protocol(config)
+    gallery = {m: np.asarray(embedded[m].embeddings, dtype=np.float64) for m in mods}
+    gallery_fabric = {m: np.asarray(embedded[m].fabric_ids, dtype=np.int64) for m in mods}
+    per_pair: dict[Pair, dict[str, float]] = {}
+    ref_queries: dict[Modality, QuerySet] = {}  # built once per modality, when c is fitted
+    calibration: dict[Pair, CalibrationResult] = {}
+    examples: dict[Pair, tuple[PickExample, ...]] = {}
 
-    def score(q: Modality, g: Modality, dist: NDArray[np.float64]) -> None:
-        pair = f"{q.value}_to_{g.value}"
-        qs = queries[q]
-        gf = np.asarray(embedded[g].fabric_ids, dtype=np.int64)
-        excl = _exclusion(qs, q is g, len(gf))
+    def score(pd: PairDistances) -> None:
+        pair, dist, qs, excl = pd.pair, pd.dist, pd.queries, pd.exclude
+        gf = np.asarray(pd.gallery_fabric, dtype=np.int64)  # already int64: no copy
+        q, g = pair.query, pair.gallery
         with notes.catching(pair):
-            out = _pick_keys(dist, qs, gf, excl, f"{pair}_", config)
+            scored = score_distances(dist, qs.fabric, gf, protocol, exclude=excl)
+        out = {f"{pair}_{k}": v for k, v in scored.metrics.items()}
         c_used, source = config.c, "fixed"
         if c_used is None:
             fitted = None
@@ -545,46 +469,39 @@ def evaluate_embeddings(
         out[f"{pair}_nll_chance"] = math.log(max(cal.n_fabrics, 1))
         per_pair[pair] = out
         if figure:
-            examples[pair] = _draw_examples(pair, dist, qs, gf, q is g, config)
+            examples[pair] = _draw_examples(pair, dist, qs, gf, pair.same, config)
 
-    # One distance matrix per unordered pair where both sides are single items (its transpose
-    # serves the reverse pair); pooled touch queries need their own.
-    for i, a in enumerate(mods):
-        for b in mods[i:]:
-            dist = pairwise_distances(queries[a].emb, embedded[b].embeddings)
-            score(a, b, dist)
-            if a is b:
-                continue
-            if queries[b].members.shape[1] == 1 and queries[a].members.shape[1] == 1:
-                score(b, a, dist.T)
-            else:
-                del dist
-                score(b, a, pairwise_distances(queries[b].emb, embedded[a].embeddings))
+    for pd in pair_distances(gallery, gallery_fabric, pairs, queries=queries):
+        score(pd)
     metrics: dict[str, float] = {}
     for pair in pairs:
         metrics.update(per_pair[pair])
     calibration = {pair: calibration[pair] for pair in pairs}
 
     if Modality.TOUCH in mods:
+        # The press curve: exact top-k with intervals of touch queries pooling P presses.
+        curve = replace(protocol, gallery=False, sampled=False, released_variant=False)
         touch = embedded[Modality.TOUCH]
+        to_every = [Pair(Modality.TOUCH, g) for g in mods]
         for p in range(1, config.max_presses + 1):
             qs = queries[Modality.TOUCH] if p == presses else _queries(touch, p, config.seed, pool)
             if len(qs.fabric) == 0:
                 notes.add(f"no fabric has {p} touch presses: the press curve stops before {p}")
                 break
-            for g in mods:
-                gf = np.asarray(embedded[g].fabric_ids, dtype=np.int64)
-                prefix = f"touch_to_{g.value}_presses{p}_"
-                if p == presses:  # the main keys already hold these
-                    head = f"touch_to_{g.value}_"
+            if p == presses:  # the main keys already hold these
+                for pair in to_every:
                     for key in _curve_keys(config):
-                        if head + key in metrics:
-                            metrics[prefix + key] = metrics[head + key]
-                    continue
-                dist = pairwise_distances(qs.emb, embedded[g].embeddings)
-                excl = _exclusion(qs, g is Modality.TOUCH, len(gf))
-                with notes.catching(f"touch ({p} presses) to {g.value}"):
-                    metrics.update(_curve_point(dist, qs, gf, excl, prefix, config))
+                        if f"{pair}_{key}" in metrics:
+                            metrics[f"{pair}_presses{p}_{key}"] = metrics[f"{pair}_{key}"]
+                continue
+            touch_queries = {Modality.TOUCH: qs}
+            for pd in pair_distances(gallery, gallery_fabric, to_every, queries=touch_queries):
+                with notes.catching(f"touch ({p} presses) to {pd.pair.gallery.value}"):
+                    point = score_distances(
+                        pd.dist, qs.fabric, pd.gallery_fabric, curve, exclude=pd.exclude
+                    ).metrics
+                for key in _curve_keys(config):
+                    metrics[f"{pd.pair}_presses{p}_{key}"] = point.get(key, math.nan)
 
     properties: dict[Modality, dict[str, dict[str, dict[str, float]]]] = {}
     if labels is None:

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write_text
 from lookfeel.config import DataConfig
 from lookfeel.data import ImageError, ImageLoader
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 from lookfeel.plots import (
     PickRow,
     confusion_figure,
@@ -25,7 +25,7 @@ from lookfeel.plots import (
     save_figure,
 )
 
-from .result import EvalResult, PairCalibration, PickExample
+from .result import CalibrationResult, EvalResult, PickExample, PressCurve
 
 __all__ = ["ReportFiles", "write_metrics", "write_report"]
 
@@ -66,9 +66,8 @@ def _ci(m: dict[str, float], key: str, digits: int = 3) -> str:
     return f"{lo:.{digits}f} – {hi:.{digits}f}"
 
 
-def _pretty(pair: str) -> str:
-    q, _, g = pair.partition("_to_")
-    return f"{q} {_ARROW} {g}"
+def _pretty(pair: Pair) -> str:
+    return f"{pair.query.value} {_ARROW} {pair.gallery.value}"
 
 
 def _table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -77,7 +76,7 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
     return [*out, ""]
 
 
-def _pair_rows(result: EvalResult, pair: str) -> list[list[str]]:
+def _pair_rows(result: EvalResult, pair: Pair) -> list[list[str]]:
     m, cfg = result.metrics, result.config
     p = f"{pair}_"
     rows = []
@@ -186,13 +185,18 @@ def _section_pick(result: EvalResult) -> list[str]:
     return lines
 
 
+def _curve_n_effective(result: EvalResult, curve: PressCurve) -> int:
+    """Candidates per pick at the curve's first press count (the config's n when unknown)."""
+    key = f"{Pair(Modality.TOUCH, curve.gallery)}_presses{curve.presses[0]}_n_effective"
+    return int(result.metrics.get(key, result.config.n))
+
+
 def _section_presses(result: EvalResult, figure: str | None) -> list[str]:
     curves = result.press_curves(result.config.ks[0])
     if not curves:
         return []
     k = result.config.ks[0]
-    first = f"touch_to_{curves[0].gallery.value}_presses{curves[0].presses[0]}_n_effective"
-    n_eff = int(result.metrics.get(first, result.config.n))
+    n_eff = _curve_n_effective(result, curves[0])
     lines = [
         "## Touch queries: accuracy against presses (Multi-input Net)",
         "",
@@ -223,7 +227,7 @@ def _section_presses(result: EvalResult, figure: str | None) -> list[str]:
     return lines
 
 
-def _section_calibration(result: EvalResult, figures: dict[str, list[str]]) -> list[str]:
+def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> list[str]:
     lines = [
         "## Calibration of P ∝ exp(-c D²) (paper section 5.2)",
         "",
@@ -322,11 +326,10 @@ def _example_rows(result: EvalResult, examples: tuple[PickExample, ...]) -> list
     loader = ImageLoader(result.data_config or DataConfig(image_size=128))
     rows = []
     for ex in examples:
-        q, _, g = ex.pair.partition("_to_")
-        mq, mg = Modality(q), Modality(g)
+        mq, mg = ex.pair.query, ex.pair.gallery
         q_items = result.embedded[mq]
         fid = int(q_items.fabric_ids[ex.query_rows[0]])
-        label = f"query: {q} F{fid}"
+        label = f"query: {mq.value} F{fid}"
         if len(ex.query_rows) > 1:
             label += f"\n(1st of {len(ex.query_rows)} presses)"
         g_fab = result.embedded[mg].fabric_ids
@@ -397,8 +400,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     curves = result.press_curves(result.config.ks[0])
     if curves:
         name = {c.gallery: f"touch {_ARROW} {c.gallery.value}" for c in curves}
-        first = f"touch_to_{curves[0].gallery.value}_presses{curves[0].presses[0]}_n_effective"
-        n_eff = int(result.metrics.get(first, result.config.n))
+        n_eff = _curve_n_effective(result, curves[0])
         presses_png = save(
             presses_figure(
                 curves[0].presses,
@@ -410,10 +412,10 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
             ),
             "presses.png",
         )
-    cal_figures: dict[str, list[str]] = {}
+    cal_figures: dict[Pair, list[str]] = {}
     for pair in result.figure_pairs:
-        cal: PairCalibration = result.calibration[pair]
-        q, _, g = pair.partition("_to_")
+        cal: CalibrationResult = result.calibration[pair]
+        q, g = pair.query.value, pair.gallery.value
         paths = []
         rel = cal.reliability
         paths.append(
@@ -480,7 +482,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
         except (ImageError, OSError) as e:
             notes.append(f"pick examples of {pair} not drawn: {e}")
             continue
-        q, _, g = pair.partition("_to_")
+        q, g = pair.query.value, pair.gallery.value
         png = save(
             pick_examples_figure(
                 rows,

@@ -12,17 +12,21 @@ from numpy.typing import NDArray
 from lookfeel.config import DataConfig, EvalConfig
 from lookfeel.embedding import EmbeddedItems
 from lookfeel.metrics import Confusion, ReliabilityCurve
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 
-__all__ = ["EvalResult", "PairCalibration", "PickExample", "PressCurve"]
+__all__ = ["CalibrationResult", "EvalResult", "PickExample", "PressCurve"]
 
 
 @dataclass(frozen=True)
-class PairCalibration:
-    """Match probabilities ``P ∝ exp(-c D^2)`` of one pair (paper section 5.2), calibrated.
+class CalibrationResult:
+    """How calibrated the match probabilities ``P ∝ exp(-c D^2)`` of one pair are (paper
+    section 5.2), measured on the test items.
+
+    Not to be confused with `lookfeel.index.PairCalibration`, what a fabric library fits to
+    match new images (c, an unknown class and its threshold).
 
     Attributes:
-        pair: ``query_to_gallery``.
+        pair: the pair.
         c: the coefficient used.
         c_source: ``"fixed"`` (EvalConfig.c), ``"fitted"`` (maximum likelihood on the reference
             fabrics) or ``"paper"`` (0.085).
@@ -36,7 +40,7 @@ class PairCalibration:
         cluster_confusion: cluster-level confusion (Figure 7b), when clusters are known.
     """
 
-    pair: str
+    pair: Pair
     c: float
     c_source: str
     reliability: ReliabilityCurve
@@ -53,7 +57,7 @@ class PickExample:
     """One drawn pick-1-of-n trial, for a figure like the paper's Figure 6.
 
     Attributes:
-        pair: ``query_to_gallery``.
+        pair: the pair.
         query_rows: the query's rows in the query modality's `EmbeddedItems` (several for a
             pooled multi-press touch query).
         candidates: gallery rows of the candidates, nearest first.
@@ -61,7 +65,7 @@ class PickExample:
         true_position: index into ``candidates`` of the true (same-fabric) candidate.
     """
 
-    pair: str
+    pair: Pair
     query_rows: tuple[int, ...]
     candidates: tuple[int, ...]
     distances: tuple[float, ...]
@@ -90,7 +94,7 @@ class EvalResult:
         metrics: flat JSON-able floats keyed ``{query}_to_{gallery}_{metric}`` (see
             `lookfeel.evaluate`), plus ``property_*`` and calibration keys.
         config: the evaluation settings (``presses`` resolved).
-        pairs: the scored ``query_to_gallery`` pairs, in order.
+        pairs: the scored pairs, in order.
         calibration: per pair, c and the calibration of ``P ∝ exp(-c D^2)``.
         examples: per figure pair, drawn pick trials.
         properties: modality -> probe -> label -> {r2, spearman, mae, mae_chance, n_train,
@@ -104,9 +108,9 @@ class EvalResult:
 
     metrics: dict[str, float]
     config: EvalConfig
-    pairs: tuple[str, ...]
-    calibration: dict[str, PairCalibration]
-    examples: dict[str, tuple[PickExample, ...]]
+    pairs: tuple[Pair, ...]
+    calibration: dict[Pair, CalibrationResult]
+    examples: dict[Pair, tuple[PickExample, ...]]
     properties: dict[Modality, dict[str, dict[str, dict[str, float]]]]
     embedded: Mapping[Modality, EmbeddedItems]
     clusters: dict[int, int | None] = field(default_factory=dict)
@@ -115,7 +119,7 @@ class EvalResult:
     data_config: DataConfig | None = None
 
     @property
-    def figure_pairs(self) -> tuple[str, ...]:
+    def figure_pairs(self) -> tuple[Pair, ...]:
         """The pairs with confusion matrices (and figures), in order."""
         return tuple(p for p, c in self.calibration.items() if c.confusion is not None)
 
@@ -126,7 +130,7 @@ class EvalResult:
         """
         out = []
         for g in Modality:
-            prefix = f"touch_to_{g.value}_presses"
+            prefix = f"{Pair(Modality.TOUCH, g)}_presses"
             ps = sorted(
                 int(key[len(prefix) :].split("_", 1)[0])
                 for key in self.metrics

@@ -51,7 +51,7 @@ from lookfeel.metrics import (
     match_probabilities,
     pairwise_distances,
 )
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
 
 __all__ = [
     "Calibration",
@@ -66,9 +66,9 @@ __all__ = [
 ]
 
 
-def pair_key(query: Modality, gallery: Modality) -> str:
-    """``touch_to_depth``: the project's ``query_to_gallery`` naming."""
-    return f"{query.value}_to_{gallery.value}"
+def pair_key(query: Modality, gallery: Modality) -> Pair:
+    """``touch_to_depth``: the project's ``query_to_gallery`` naming (a `Pair`)."""
+    return Pair(query, gallery)
 
 
 @dataclass(frozen=True)

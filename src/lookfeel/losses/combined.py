@@ -6,11 +6,12 @@ back-propagates ``"loss"`` (open_clip's task layer).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from typing import get_args
 
 from torch import Tensor, nn
 
-from lookfeel.config.loss import LossConfig
+from lookfeel.config.loss import Distance, LossConfig, LossKind
 from lookfeel.losses._naming import embeddings_of, head_output
 from lookfeel.losses.cluster import masked_cross_entropy
 from lookfeel.losses.contrastive import ContrastiveD3Loss
@@ -107,6 +108,38 @@ class CombinedLoss(nn.Module):
         return terms
 
 
+_DISTANCES: dict[str, tuple[Callable[[Tensor, Tensor], Tensor], Callable[[Tensor, Tensor], Tensor]]]
+_DISTANCES = {
+    "euclidean": (euclidean_distance, pairwise_euclidean),
+    "mean_squared": (mean_squared_distance, pairwise_mean_squared),
+}
+"""`LossConfig.distance` -> (row-by-row distance, pairwise distance)."""
+
+
+def _contrastive(config: LossConfig) -> nn.Module:
+    dist = _DISTANCES[config.distance][0]
+    return ContrastiveD3Loss(config.margin, dist, per_pair=config.contrastive_pairs)
+
+
+def _infonce(config: LossConfig) -> nn.Module:
+    return MultiPositiveInfoNCE(
+        config.temperature, config.learn_temperature, config.max_logit_scale
+    )
+
+
+def _triplet(config: LossConfig) -> nn.Module:
+    return BatchHardTripletLoss(config.triplet_margin, _DISTANCES[config.distance][1])
+
+
+_PAIR_LOSSES: dict[str, Callable[[LossConfig], nn.Module]] = {
+    "contrastive": _contrastive,
+    "infonce": _infonce,
+    "triplet": _triplet,
+}
+"""`LossConfig.kind` -> the pairwise objective it names (a test keeps this and `LossKind` in
+step)."""
+
+
 def create_loss(config: LossConfig) -> CombinedLoss:
     """Build the loss a `LossConfig` describes.
 
@@ -117,20 +150,19 @@ def create_loss(config: LossConfig) -> CombinedLoss:
         A `CombinedLoss`; call it as ``loss_fn(model(inputs, heads=True), y=..., fabric=...,
         cluster=..., properties=...)``. With ``infonce`` and a learnt temperature it has a
         parameter: optimise ``loss_fn.parameters()`` too.
+
+    Raises:
+        ValueError: a ``kind`` or ``distance`` with nothing built for it (a `LossConfig` checks
+            its choices, so only one forced past that check gets here).
     """
-    pair_loss: nn.Module
-    if config.kind == "contrastive":
-        dist = euclidean_distance if config.distance == "euclidean" else mean_squared_distance
-        pair_loss = ContrastiveD3Loss(config.margin, dist, per_pair=config.contrastive_pairs)
-    elif config.kind == "infonce":
-        pair_loss = MultiPositiveInfoNCE(
-            config.temperature, config.learn_temperature, config.max_logit_scale
-        )
-    else:
-        pdist = pairwise_euclidean if config.distance == "euclidean" else pairwise_mean_squared
-        pair_loss = BatchHardTripletLoss(config.triplet_margin, pdist)
+    for what, value, known, allowed in (
+        ("kind", config.kind, _PAIR_LOSSES, get_args(LossKind)),
+        ("distance", config.distance, _DISTANCES, get_args(Distance)),
+    ):
+        if value not in known:
+            raise ValueError(f"loss.{what}: {value!r} is not one of {', '.join(allowed)}")
     return CombinedLoss(
-        pair_loss,
+        _PAIR_LOSSES[config.kind](config),
         pair_weight=config.pair_weight,
         cluster_weight=config.cluster_weight,
         property_weight=config.property_weight,

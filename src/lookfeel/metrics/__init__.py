@@ -8,7 +8,9 @@
 - `match_probabilities`, `fit_temperature`, `confusion_matrix`, `cluster_confusion_matrix`,
   `reliability_curve`: ``P ∝ exp(-c D^2)``, its confusion matrices and calibration (5.2).
 - `property_probe`: predict physical labels from embeddings.
-- `evaluate_pair`, `all_pairs`: everything above for every modality pair, as one flat dict.
+- `score_pairs`: the one scoring path: ordered modality pairs (`lookfeel.modality.Pair`)
+  scored by a `ScoringProtocol` from embeddings; `score_distances` scores one distance matrix,
+  `pair_distances` walks the pairs' matrices, `flat_metrics` flattens the result.
 """
 
 from lookfeel.metrics.bootstrap import bootstrap_ci, fabric_weights, mean_and_spread
@@ -29,7 +31,6 @@ from lookfeel.metrics.confusion import (
     order_by_cluster,
 )
 from lookfeel.metrics.distances import pairwise_distances
-from lookfeel.metrics.evaluate import all_pairs, evaluate_distances, evaluate_pair
 from lookfeel.metrics.gallery import (
     GalleryResult,
     chance_average_precision,
@@ -46,38 +47,57 @@ from lookfeel.metrics.pick import (
     pick_k_of_n_sampled,
 )
 from lookfeel.metrics.properties import property_probe
+from lookfeel.metrics.scoring import (
+    EXACT_PICK,
+    PAPER_PROTOCOL,
+    PairDistances,
+    PairScore,
+    QuerySet,
+    ScoringProtocol,
+    flat_metrics,
+    pair_distances,
+    score_distances,
+    score_pairs,
+)
 
 __all__ = [
+    "EXACT_PICK",
     "PAPER_C",
+    "PAPER_PROTOCOL",
     "Confusion",
     "GalleryResult",
+    "PairDistances",
+    "PairScore",
     "PickResult",
     "PressGroups",
+    "QuerySet",
     "ReliabilityCurve",
     "SampledPickResult",
-    "all_pairs",
+    "ScoringProtocol",
     "bootstrap_ci",
     "chance_average_precision",
     "chance_median_rank",
     "chance_recall",
     "cluster_confusion_matrix",
     "confusion_matrix",
-    "evaluate_distances",
-    "evaluate_pair",
     "expected_calibration_error",
     "fabric_predictions",
     "fabric_probabilities",
     "fabric_weights",
     "fit_temperature",
+    "flat_metrics",
     "gallery_metrics",
     "group_queries",
     "match_probabilities",
     "mean_and_spread",
     "n_effective",
     "order_by_cluster",
+    "pair_distances",
     "pairwise_distances",
     "pick_k_of_n_exact",
     "pick_k_of_n_sampled",
     "property_probe",
     "reliability_curve",
+    "score_distances",
+    "score_pairs",
 ]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.reproduce.paper import (
@@ -15,11 +15,9 @@ from lookfeel.reproduce.paper import (
     TABLE_3,
     TABLE_4,
 )
+from lookfeel.reproduce.result import ReproduceResult
 
-if TYPE_CHECKING:
-    from lookfeel.reproduce.run import ReproduceResult
-
-__all__ = ["findings", "write_report"]
+__all__ = ["findings", "write_reproduction_report"]
 
 _COLOR_PAIRS = ("touch_to_color", "color_to_touch", "depth_to_color", "color_to_depth")
 
@@ -129,7 +127,7 @@ def _table(
     return lines
 
 
-def write_report(result: ReproduceResult, meta: Mapping[str, Any]) -> None:
+def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) -> None:
     """Write ``report.md``: tables with ours and (the paper's) numbers, findings, skipped runs."""
     r = result.results
     lines = [

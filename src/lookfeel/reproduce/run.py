@@ -21,7 +21,7 @@ import json
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -34,13 +34,16 @@ from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.data import Catalog, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import (
-    all_pairs,
+    EXACT_PICK,
+    ScoringProtocol,
+    flat_metrics,
     group_queries,
     mean_and_spread,
-    pairwise_distances,
-    pick_k_of_n_exact,
+    score_pairs,
 )
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, Pair
+from lookfeel.reproduce.report import findings, write_reproduction_report
+from lookfeel.reproduce.result import ReproduceResult
 from lookfeel.train import train
 
 __all__ = ["BUDGETS", "EXPERIMENTS", "Experiment", "ReproduceResult", "reproduce"]
@@ -97,17 +100,6 @@ def config_dir() -> Path:
     return Path(str(resources.files("lookfeel") / "configs" / "paper"))
 
 
-@dataclass
-class ReproduceResult:
-    """What a reproduction produced."""
-
-    out: Path
-    report: Path
-    results: dict[str, Any] = field(default_factory=dict)
-    skipped: dict[str, str] = field(default_factory=dict)
-    findings: dict[str, dict[str, Any]] = field(default_factory=dict)
-
-
 # ---------------------------------------------------------------------------------------------
 
 
@@ -147,19 +139,29 @@ def _score(
         vectors[m], fabrics[m] = e.embeddings, e.fabric_ids
         if m is Modality.TOUCH:
             vectors[m], fabrics[m] = _pooled(e.embeddings, e.fabric_ids, config.data.presses, seed)
+    protocol = ScoringProtocol(n_boot=n_boot, seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is in the result
-        return all_pairs(vectors, fabrics, n_boot=n_boot, seed=seed)
+        return flat_metrics(score_pairs(vectors, fabrics, protocol))
+
+
+_DEPTH_TO_DEPTH = Pair(Modality.DEPTH, Modality.DEPTH)
 
 
 def _depth_pick(model: Any, catalog: Catalog, config: RunConfig) -> dict[str, float]:
+    """Exact pick 1 of 10 of depth against depth (Table 4), top-1 and top-3."""
     emb = embed_catalog(model, catalog, ImageLoader(config.data), modalities=[Modality.DEPTH])
     d = emb[Modality.DEPTH]
-    dist = pairwise_distances(d.embeddings, d.embeddings)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = pick_k_of_n_exact(dist, d.fabric_ids, d.fabric_ids, exclude_self=np.arange(len(dist)))
-    return {"top1": float(res.mean[0]), "top3": float(res.mean[1]), "chance": float(res.chance[0])}
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
+        scores = score_pairs(
+            {Modality.DEPTH: d.embeddings},
+            {Modality.DEPTH: d.fabric_ids},
+            EXACT_PICK,
+            [_DEPTH_TO_DEPTH],
+        )
+    m = scores[_DEPTH_TO_DEPTH].metrics
+    return {"top1": m["top1"], "top3": m["top3"], "chance": m["top1_chance"]}
 
 
 def _run_one(
@@ -253,8 +255,6 @@ def reproduce(
     Raises:
         ConfigError: an unknown budget or experiment, or ``paper`` without weights.
     """
-    from lookfeel.reproduce.report import findings, write_report
-
     if budget not in BUDGETS:
         raise ConfigError(f"budget {budget!r} is not one of {', '.join(BUDGETS)}")
     if budget == "paper" and pretrained is None:
@@ -340,7 +340,7 @@ def reproduce(
         )
         + "\n",
     )
-    write_report(result, meta)
+    write_reproduction_report(result, meta)
     return result
 
 

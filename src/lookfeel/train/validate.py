@@ -11,20 +11,23 @@ import torch
 
 from lookfeel.data import ImageLoader, Item
 from lookfeel.embedding import embed_items
-from lookfeel.metrics import PickResult, pairwise_distances, pick_k_of_n_exact
-from lookfeel.modality import Modality
+from lookfeel.metrics import EXACT_PICK, score_pairs
+from lookfeel.modality import Modality, Pair
 from lookfeel.models import Embedder
 from lookfeel.train.features import FeatureTable
 
-__all__ = ["default_pairs", "pick_pair", "validate"]
+__all__ = ["MAIN_PAIR", "default_pairs", "validate"]
+
+MAIN_PAIR = Pair(Modality.TOUCH, Modality.DEPTH)
+"""The paper's main task: a GelSight press matched against depth images."""
 
 
-def default_pairs(modalities: Sequence[Modality]) -> list[str]:
+def default_pairs(modalities: Sequence[Modality]) -> list[Pair]:
     """Every ordered (query, gallery) pair, ``touch_to_depth`` (the paper's main task) first."""
-    pairs = [f"{q.value}_to_{g.value}" for q in modalities for g in modalities]
-    if "touch_to_depth" in pairs:
-        pairs.remove("touch_to_depth")
-        pairs.insert(0, "touch_to_depth")
+    pairs = Pair.every(modalities)
+    if MAIN_PAIR in pairs:
+        pairs.remove(MAIN_PAIR)
+        pairs.insert(0, MAIN_PAIR)
     return pairs
 
 
@@ -41,21 +44,6 @@ def _embed_cached(
     return torch.cat(out).numpy()
 
 
-def pick_pair(
-    emb: Mapping[Modality, np.ndarray], fab: Mapping[Modality, np.ndarray], pair: str
-) -> PickResult:
-    """Exact pick 1 of 10, top-1 and top-3, for one ``query_to_gallery`` pair of embeddings
-    (a query never counts itself when both sides are one modality). With fewer than 10
-    fabrics the candidates offered shrink, and ``chance`` says so."""
-    q, _, g = pair.partition("_to_")
-    mq, mg = Modality(q), Modality(g)
-    dist = pairwise_distances(emb[mq], emb[mg])
-    exclude = np.arange(len(emb[mq])) if mq is mg else None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is reported
-        return pick_k_of_n_exact(dist, fab[mq], fab[mg], n=10, ks=(1, 3), exclude_self=exclude)
-
-
 def validate(
     model: Embedder,
     items: Mapping[Modality, list[Item]],
@@ -63,13 +51,20 @@ def validate(
     table: FeatureTable | None,
     batch_size: int,
     device: torch.device,
-    pairs: Sequence[str] = (),
+    pairs: Sequence[Pair | str] = (),
 ) -> dict[str, Any]:
     """Embed the validation items and score each pair by pick 1 of 10 (exact, top-1 and -3).
 
+    Same-modality pairs never offer a query its own item; with fewer than 10 fabrics the
+    candidates offered shrink, and ``chance`` says so (`lookfeel.metrics.EXACT_PICK`).
+
+    Args:
+        pairs: the pairs to score (``query_to_gallery``); default `default_pairs`. Pairs whose
+            modalities have no validation items are left out.
+
     Returns:
         ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per pair, and ``primary_pair``
-        (the first pair: what ``best.pt`` is chosen by).
+        (the first pair's name: what ``best.pt`` is chosen by).
     """
     was_training = model.training
     model.eval()
@@ -86,14 +81,14 @@ def validate(
             fab[m] = np.array([it.fabric_id for it in its])
     finally:
         model.train(was_training)
-    wanted = list(pairs) or default_pairs([m for m in items if m in emb])
-    out: dict[str, Any] = {"primary_pair": wanted[0]}
-    for pair in wanted:
-        q, _, g = pair.partition("_to_")
-        if Modality(q) not in emb or Modality(g) not in emb:
-            continue
-        res = pick_pair(emb, fab, pair)
-        out[f"{pair}_top1"] = float(res.mean[0])
-        out[f"{pair}_top3"] = float(res.mean[1])
-        out[f"{pair}_chance"] = float(res.chance[0])
+    wanted = [Pair.parse(p) for p in pairs] or default_pairs([m for m in items if m in emb])
+    out: dict[str, Any] = {"primary_pair": str(wanted[0])}
+    present = [p for p in wanted if p.query in emb and p.gallery in emb]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
+        scores = score_pairs(emb, fab, EXACT_PICK, present)
+    for pair, s in scores.items():
+        out[f"{pair}_top1"] = s.metrics["top1"]
+        out[f"{pair}_top3"] = s.metrics["top3"]
+        out[f"{pair}_chance"] = s.metrics["top1_chance"]
     return out
