@@ -192,11 +192,6 @@ def test_huge_fabric_id_is_a_problem_not_an_overflow(copy: Path, capsys):
 
 @pytest.mark.parametrize("bad", ["huge id", "not an image"])
 @pytest.mark.parametrize("command", ["embed", "evaluate"])
-@pytest.mark.xfail(
-    strict=True,
-    reason="needs evaluate/from_checkpoint.py to scan with require=(), strict=True (lines 206, "
-    "309, 333): files the scan refuses are dropped silently and the command exits 0",
-)
 def test_embed_and_evaluate_refuse_files_the_scan_refuses(
     command: str, bad: str, run, copy: Path, tmp_path: Path, capsys
 ):

@@ -308,11 +308,6 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-format_summary = format_cv_summary
-"""The old name of `format_cv_summary`, kept while ``lookfeel.cli`` imports it (``cli`` has a
-`format_summary` of its own, for datasets); remove once the CLI imports the new name."""
-
-
 def cross_validate(
     config: RunConfig,
     data: str | Path,

@@ -62,7 +62,7 @@ def _int_list(text: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
     from lookfeel.config import RunConfig, load_config
-    from lookfeel.crossval import cross_validate, format_summary
+    from lookfeel.crossval import cross_validate, format_cv_summary
 
     overrides = list(args.set)
     if args.folds is not None:
@@ -79,6 +79,6 @@ def run(args: argparse.Namespace) -> int:
         tta=args.tta,
         n_boot=args.n_boot,
     )
-    print(format_summary(summary), end="")
+    print(format_cv_summary(summary), end="")
     print(f"Wrote {args.out / 'cv.json'} and {args.out / 'cv.md'}")
     return 0

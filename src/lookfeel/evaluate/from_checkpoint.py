@@ -49,6 +49,12 @@ SPLITS = ("val", "train", "novel", "paper", "all")
 """The ``split`` values of `evaluate_checkpoint` and `embed_checkpoint`."""
 
 
+def _scan(data_root: str | os.PathLike[str]) -> Catalog:
+    """The dataset, refusing it whole if any file is unusable: embedding or scoring a dataset
+    with files silently left out would report on data the user did not ask for."""
+    return scan_dataset(Path(data_root), require=(), strict=True)
+
+
 def pools_final_embedding(model: Embedder) -> bool:
     """Whether the model's multi-press touch embedding is the max of its per-press embeddings.
 
@@ -203,7 +209,14 @@ def embed_checkpoint(
         CheckpointError, DatasetError: naming the file or fabric ids at fault.
     """
     loaded = _load(checkpoint, device)
-    emb, _ = _embed(loaded, scan_dataset(Path(data_root)), split, reference, batch_size, device)
+    emb, _ = _embed(
+        loaded,
+        _scan(data_root),
+        split,
+        reference,
+        batch_size,
+        device,
+    )
     return emb
 
 
@@ -306,7 +319,7 @@ def evaluate_checkpoint(
         `EvalResult`, with ``info`` naming the checkpoint, step, split and data.
     """
     loaded = _load(checkpoint, device)
-    catalog = scan_dataset(Path(data_root))
+    catalog = _scan(data_root)
     emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
     exact = bool(emb.meta["pool_exact"])
     pool = None if exact else _model_pooler(loaded.model, loader, batch_size, device)
@@ -330,7 +343,7 @@ def evaluate_embedding_file(
         config: the protocol; ``presses`` defaults to the file's ``presses`` (else 1).
         data_root: the dataset the embeddings came from.
     """
-    catalog = scan_dataset(Path(data_root)) if data_root is not None else None
+    catalog = _scan(data_root) if data_root is not None else None
     emb = load_embeddings(path, catalog)
     notes = []
     if not emb.meta.get("pool_exact", True):
