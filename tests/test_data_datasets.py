@@ -7,7 +7,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from lookfeel.config import AugmentConfig, DataConfig
-from lookfeel.data import DatasetError, ImageLoader, ItemDataset, TupleDataset, scan
+from lookfeel.data import DatasetError, ImageLoader, ImageStore, TupleDataset, scan
 from lookfeel.modality import Modality, PressKind
 
 D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
@@ -62,13 +62,12 @@ def test_siamese_slots_take_distinct_items(tiny_dataset: Path):
     assert set(ds[0]["inputs"]) == {"depth", "depth.1"}
 
 
-def test_seeded_by_seed_epoch_and_index(tiny_dataset: Path):
+def test_seeded_by_seed_and_index(tiny_dataset: Path):
     a, b = _ds(tiny_dataset, seed=1), _ds(tiny_dataset, seed=1)
     assert [a.draw(i) for i in range(30)] == [b.draw(i) for i in range(30)]
     assert torch.equal(a[5]["inputs"]["color"], b[5]["inputs"]["color"])
     first = [a.draw(i) for i in range(30)]
-    a.set_epoch(1)
-    assert [a.draw(i) for i in range(30)] != first
+    assert [a.draw(i) for i in range(30, 60)] != first
     assert [_ds(tiny_dataset, seed=2).draw(i) for i in range(30)] != first
 
 
@@ -97,12 +96,18 @@ def test_clear_errors_for_unusable_catalogs(tiny_dataset: Path):
         TupleDataset(small, ImageLoader(DataConfig(image_size=16)), (D, C, T), length=4)
 
 
-def test_item_dataset_one_row_per_item_or_press(tiny_dataset: Path):
+def test_image_store_holds_one_row_per_item_or_press(tiny_dataset: Path):
     catalog, loader = scan(tiny_dataset), ImageLoader(DataConfig(image_size=16))
-    depth = ItemDataset(catalog, loader, D)
-    touch = ItemDataset(catalog, loader, T)
+    depth, touch = catalog.items(D), catalog.items(T, loader.config.touch_kinds)
     assert len(depth) == 18 and len(touch) == 18  # fold presses by default
-    assert len(ItemDataset(catalog, loader, T, kinds=[PressKind.FLAT])) == 12
-    row = touch[4]
-    assert row["input"].shape == (1, 3, 16, 16)
-    assert int(row["fabric_id"]) == touch.item_list[4].fabric_id
+    assert len(catalog.items(T, [PressKind.FLAT])) == 12
+    store = ImageStore(loader, [*depth, *touch, *depth[:3]])  # duplicates held once
+    assert store.modalities == (D, T) and depth[0] in store
+    assert store.rows(T, touch[4:6]) == [4, 5]
+    x = store.batch(T, store.rows(T, touch[4:6]))
+    assert x.shape == (2, 3, 16, 16) and x.dtype == torch.float32
+    assert torch.equal(x[0], loader.load(touch[4]))  # exactly the loader's tensor
+    d = store.batch(D, [17])
+    assert d.shape == (1, 1, 16, 16) and torch.equal(d[0], loader.load(depth[17]))
+    with pytest.raises(KeyError):
+        store.rows(C, depth[:1])
