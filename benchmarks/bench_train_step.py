@@ -130,7 +130,7 @@ def _child(mode: str, data: Path, out: Path, steps: int, device: str) -> dict[st
     lines = [json.loads(x) for x in (out / "metrics.jsonl").read_text().splitlines()]
     windows = [x for x in lines if "steps_per_s" in x]
     rates = [x["steps_per_s"] for x in windows][1:] or [x["steps_per_s"] for x in windows]
-    cache = next((x for x in lines if "trunk_cache_s" in x), {})
+    cache: dict[str, object] = next((x for x in lines if "trunk_cache_s" in x), {})
     result: dict[str, object] = {
         "steps": steps,
         "steps_per_s": statistics.median(rates),

@@ -98,18 +98,17 @@ def _crop_grids(
     draws: Sequence[tuple[int, int, int]], h: int, w: int, device: torch.device
 ) -> torch.Tensor:
     """Sampling grids that crop square (top, left, side) and resize to (h, w) like
-    `square_crop` (bilinear, half-pixel centres, edges clamped)."""
+    `square_crop`: output pixel i samples source (i + 0.5) * side / size - 0.5 + offset,
+    clamped to the crop (bilinear, half-pixel centres), in ``grid_sample``'s units."""
     t = torch.tensor(draws, dtype=torch.float64)
-    top, left, side = t[:, 0], t[:, 1], t[:, 2]
-    # Output pixel i samples source coordinate (i + 0.5) * side / h - 0.5 + top: in grid
-    # units (align_corners=False), g = side / h * (x_out + 1) + 2 * top / h - 1.
-    theta = torch.zeros((len(draws), 2, 3), dtype=torch.float64)
-    theta[:, 0, 0] = side / w
-    theta[:, 0, 2] = side / w + 2 * left / w - 1
-    theta[:, 1, 1] = side / h
-    theta[:, 1, 2] = side / h + 2 * top / h - 1
-    grid = F.affine_grid(theta, [len(draws), 1, h, w], align_corners=False)
-    return grid.to(device=device, dtype=torch.float32)
+    top, left, side = t[:, 0:1], t[:, 1:2], t[:, 2:3]
+    i = torch.arange(h, dtype=torch.float64)[None]
+    j = torch.arange(w, dtype=torch.float64)[None]
+    sy = torch.minimum(((i + 0.5) * side / h - 0.5).clamp_min(0) + top, top + side - 1)
+    sx = torch.minimum(((j + 0.5) * side / w - 0.5).clamp_min(0) + left, left + side - 1)
+    gy, gx = (2 * sy + 1) / h - 1, (2 * sx + 1) / w - 1  # (N, h), (N, w)
+    grid = torch.stack(torch.broadcast_tensors(gx[:, None, :], gy[:, :, None]), dim=-1)
+    return grid.to(device=device, dtype=torch.float32)  # (N, h, w, 2) as (x, y)
 
 
 class Augmenter:

@@ -490,11 +490,10 @@ def _train(
                 f"{config.model.init_from} and start fresh (e.g. {', '.join(fresh[:3])})",
                 stacklevel=3,
             )
+    model = model.to(device)
     if device.type == "cuda":
-        torch.backends.cudnn.benchmark = True
-        model = model.to(device, memory_format=torch.channels_last)
-    else:
-        model = model.to(device)
+        torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest
+        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     loss_fn = create_loss(config.loss).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)
