@@ -111,3 +111,26 @@ def test_image_store_holds_one_row_per_item_or_press(tiny_dataset: Path):
     assert d.shape == (1, 1, 16, 16) and torch.equal(d[0], loader.load(depth[17]))
     with pytest.raises(KeyError):
         store.rows(C, depth[:1])
+
+
+def test_a_drawn_batch_keeps_the_tuple_rules_and_its_targets(tiny_dataset: Path):
+    import numpy as np
+
+    ds = _ds(tiny_dataset, views=(D, D, T), same_fraction=0.5, presses=3)
+    b = ds.draw_batch(np.random.default_rng(7), 300)
+    assert b.y.shape == (300,) and b.fabrics.shape == (300, 3)
+    assert [p.shape for p in b.items] == [(300, 1), (300, 1), (300, 3)]
+    same = b.y == 0.0
+    assert 0.4 < same.mean() < 0.6
+    assert (b.fabrics[same] == b.fabrics[same][:, :1]).all()
+    assert all(len(set(row)) == 3 for row in b.fabrics[~same])
+    for j, m in enumerate(ds.views):  # every item is of its slot's fabric
+        ids = np.array([[ds.pool_items[m][i].fabric_id for i in row] for row in b.items[j]])
+        assert (ids == np.array(ds.fabric_ids)[b.fabrics[:, j]][:, None]).all()
+    assert (b.items[0] != b.items[1]).all()  # the Siamese depth slots: two images
+    assert all(len(set(row)) == 3 for row in b.items[2])  # three distinct presses
+    targets = ds.batch_targets(b.fabrics[:5])
+    assert targets["fabric_ids"]["depth.1"].tolist() == [ds.fabric_ids[i] for i in b.fabrics[:5, 1]]
+    assert targets["properties"]["touch"].shape == (5, 4)
+    again = ds.draw_batch(np.random.default_rng(7), 300)
+    assert all(np.array_equal(x, y) for x, y in zip(b.items, again.items, strict=True))
