@@ -1,8 +1,9 @@
 """Embedding speed of the paper's AlexNet branch at 227 px: images/s once decoded, and end to
 end from image files (decode, preprocess, embed).
 
-``decoded`` embeds preprocessed touch images already in memory (`embed_items` with the
-loader's cache filled); ``from_files`` starts from PNG files on disk with a fresh loader
+``decoded`` embeds preprocessed touch images already on the device (an `ImageStore`: GPU
+memory on CUDA); ``host`` embeds them from the loader's memory cache (copied over through
+pinned buffers); ``from_files`` starts from PNG files on disk with a fresh loader
 (`embed_catalog`: parallel decoding, then embedding). Medians over repeats.
 
     PYTHONPATH=src python -m benchmarks.bench_embed --device cuda \\
@@ -61,7 +62,7 @@ def run(
 ) -> dict[str, object]:
     """Measure on ``device``; the `benchmarks` runner's entry point (CPU)."""
     from lookfeel.config import DataConfig, ModelConfig
-    from lookfeel.data import ImageLoader, scan
+    from lookfeel.data import ImageLoader, ImageStore, scan
     from lookfeel.embedding import embed_catalog, embed_items
     from lookfeel.modality import Modality
 
@@ -84,12 +85,16 @@ def run(
         warm = ImageLoader(config)
         warm.preload(items)
         embed_items(model, items[: 2 * batch], warm, batch, dev)  # warm-up (cuDNN autotune)
-        decoded = []
+        store = ImageStore(warm, items, dev)
+        decoded, host = [], []
         for _ in range(repeats):
             _sync(dev)
             t0 = time.perf_counter()
-            embed_items(model, items, warm, batch, dev)
+            embed_items(model, items, warm, batch, dev, store=store)
             decoded.append(len(items) / (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            embed_items(model, items, warm, batch, dev)
+            host.append(len(items) / (time.perf_counter() - t0))
         files = []
         for _ in range(repeats):
             t0 = time.perf_counter()
@@ -102,6 +107,7 @@ def run(
         "images": len(items),
         "batch_size": batch,
         "decoded_images_per_s": round(statistics.median(decoded), 1),
+        "host_images_per_s": round(statistics.median(host), 1),
         "from_files_images_per_s": round(statistics.median(files), 1),
         "repeats": {
             "decoded": [round(x, 1) for x in decoded],

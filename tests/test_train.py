@@ -240,3 +240,24 @@ def test_init_from_another_run_copies_matching_weights(data: Path, tmp_path: Pat
     touch_only = create_model(cfg.model, [Modality.TOUCH])
     with pytest.raises(CheckpointError, match="no weight fits this model"):
         init_from_checkpoint(touch_only, source.last_checkpoint)
+
+
+def test_embedding_from_the_device_store_equals_from_the_loader(data: Path):
+    import numpy as np
+
+    from lookfeel.data import ImageStore
+    from lookfeel.embedding import embed_items
+    from lookfeel.models import create_model
+
+    cfg = _config()
+    model = create_model(cfg.model, [Modality.TOUCH, Modality.DEPTH])
+    loader = ImageLoader(cfg.data)
+    for m in (Modality.TOUCH, Modality.DEPTH):
+        items = scan(data).items(m)
+        store = ImageStore(loader, items)
+        a = embed_items(model, items, loader, batch_size=5)
+        b = embed_items(model, items, loader, batch_size=5, store=store)
+        assert a.shape == (len(items), 16) and np.array_equal(a, b)
+        c = embed_items(model, items, loader, batch_size=7, store=store)  # other batches
+        np.testing.assert_allclose(a, c, atol=1e-5, rtol=0)
+    assert model.training  # eval only inside
