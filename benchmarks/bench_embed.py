@@ -67,7 +67,7 @@ def run(
     from lookfeel.modality import Modality
 
     dev = torch.device(device)
-    n = images or (20_000 if dev.type == "cuda" else 256)
+    n = images or (10_000 if dev.type == "cuda" else 256)
     batch = 1024 if dev.type == "cuda" else 64
     warnings.simplefilter("ignore")  # random AlexNet: no ImageNet file here
     from lookfeel.models import create_model
