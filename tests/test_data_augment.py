@@ -38,3 +38,33 @@ def test_paper_colour_augmentation_is_seeded_and_in_range():
     assert a.shape == x.shape and a.min() >= 0.0 and a.max() <= 1.0
     depth = torch.rand(1, 16, 16)  # one channel: channel order is left alone
     assert aug(depth, torch.Generator().manual_seed(1)).shape == (1, 16, 16)
+
+
+def test_batched_augmentation_matches_one_image_at_a_time_and_is_seeded():
+    import numpy as np
+
+    from lookfeel.data.augment import AugmentDraw
+
+    aug = Augmenter(AugmentConfig(gamma=(0.5, 2.0), permute_channels=True, crop_p=0.7, hflip_p=0.5))
+    x = torch.rand(12, 3, 20, 20)
+    d = aug.draw_batch(np.random.default_rng(3), 12, 3, 20, 20)
+    assert len(d) == 12 and (d.crop[:, 2] > 0).any() and (d.crop[:, 2] == 0).any()
+    assert d.flip.any() and not d.flip.all()
+    again = aug.draw_batch(np.random.default_rng(3), 12, 3, 20, 20)
+    assert np.array_equal(d.crop, again.crop) and np.array_equal(d.order, again.order)
+    y = aug.apply_batch(x, d)
+    assert y.shape == x.shape and y.min() >= 0.0 and y.max() <= 1.0
+    for i in range(12):  # the reference, image by image: square_crop, hflip, gamma, order
+        ref = x[i]
+        top, left, side = (int(v) for v in d.crop[i])
+        if side:
+            ref = square_crop(ref, top, left, side)
+        if d.flip[i]:
+            ref = hflip(ref)
+        assert d.gamma is not None and d.order is not None
+        ref = permute_channels(apply_gamma(ref, float(d.gamma[i])), d.order[i].tolist())
+        torch.testing.assert_close(y[i], ref, atol=2e-5, rtol=0)
+    assert torch.equal(aug.apply_batch(x[3:5], d[3:5]), y[3:5])  # a share is the same images
+    off = Augmenter(AugmentConfig())
+    assert off.apply_batch(x, off.draw_batch(np.random.default_rng(0), 12, 3, 20, 20)) is x
+    assert isinstance(d[[0, 2]], AugmentDraw) and len(d[[0, 2]]) == 2

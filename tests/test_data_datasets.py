@@ -7,7 +7,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from lookfeel.config import AugmentConfig, DataConfig
-from lookfeel.data import DatasetError, ImageLoader, ItemDataset, TupleDataset, scan
+from lookfeel.data import DatasetError, ImageLoader, ImageStore, TupleDataset, scan
 from lookfeel.modality import Modality, PressKind
 
 D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
@@ -62,13 +62,12 @@ def test_siamese_slots_take_distinct_items(tiny_dataset: Path):
     assert set(ds[0]["inputs"]) == {"depth", "depth.1"}
 
 
-def test_seeded_by_seed_epoch_and_index(tiny_dataset: Path):
+def test_seeded_by_seed_and_index(tiny_dataset: Path):
     a, b = _ds(tiny_dataset, seed=1), _ds(tiny_dataset, seed=1)
     assert [a.draw(i) for i in range(30)] == [b.draw(i) for i in range(30)]
     assert torch.equal(a[5]["inputs"]["color"], b[5]["inputs"]["color"])
     first = [a.draw(i) for i in range(30)]
-    a.set_epoch(1)
-    assert [a.draw(i) for i in range(30)] != first
+    assert [a.draw(i) for i in range(30, 60)] != first
     assert [_ds(tiny_dataset, seed=2).draw(i) for i in range(30)] != first
 
 
@@ -97,12 +96,41 @@ def test_clear_errors_for_unusable_catalogs(tiny_dataset: Path):
         TupleDataset(small, ImageLoader(DataConfig(image_size=16)), (D, C, T), length=4)
 
 
-def test_item_dataset_one_row_per_item_or_press(tiny_dataset: Path):
+def test_image_store_holds_one_row_per_item_or_press(tiny_dataset: Path):
     catalog, loader = scan(tiny_dataset), ImageLoader(DataConfig(image_size=16))
-    depth = ItemDataset(catalog, loader, D)
-    touch = ItemDataset(catalog, loader, T)
+    depth, touch = catalog.items(D), catalog.items(T, loader.config.touch_kinds)
     assert len(depth) == 18 and len(touch) == 18  # fold presses by default
-    assert len(ItemDataset(catalog, loader, T, kinds=[PressKind.FLAT])) == 12
-    row = touch[4]
-    assert row["input"].shape == (1, 3, 16, 16)
-    assert int(row["fabric_id"]) == touch.item_list[4].fabric_id
+    assert len(catalog.items(T, [PressKind.FLAT])) == 12
+    store = ImageStore(loader, [*depth, *touch, *depth[:3]])  # duplicates held once
+    assert store.modalities == (D, T) and depth[0] in store
+    assert store.rows(T, touch[4:6]) == [4, 5]
+    x = store.batch(T, store.rows(T, touch[4:6]))
+    assert x.shape == (2, 3, 16, 16) and x.dtype == torch.float32
+    assert torch.equal(x[0], loader.load(touch[4]))  # exactly the loader's tensor
+    d = store.batch(D, [17])
+    assert d.shape == (1, 1, 16, 16) and torch.equal(d[0], loader.load(depth[17]))
+    with pytest.raises(KeyError):
+        store.rows(C, depth[:1])
+
+
+def test_a_drawn_batch_keeps_the_tuple_rules_and_its_targets(tiny_dataset: Path):
+    import numpy as np
+
+    ds = _ds(tiny_dataset, views=(D, D, T), same_fraction=0.5, presses=3)
+    b = ds.draw_batch(np.random.default_rng(7), 300)
+    assert b.y.shape == (300,) and b.fabrics.shape == (300, 3)
+    assert [p.shape for p in b.items] == [(300, 1), (300, 1), (300, 3)]
+    same = b.y == 0.0
+    assert 0.4 < same.mean() < 0.6
+    assert (b.fabrics[same] == b.fabrics[same][:, :1]).all()
+    assert all(len(set(row)) == 3 for row in b.fabrics[~same])
+    for j, m in enumerate(ds.views):  # every item is of its slot's fabric
+        ids = np.array([[ds.pool_items[m][i].fabric_id for i in row] for row in b.items[j]])
+        assert (ids == np.array(ds.fabric_ids)[b.fabrics[:, j]][:, None]).all()
+    assert (b.items[0] != b.items[1]).all()  # the Siamese depth slots: two images
+    assert all(len(set(row)) == 3 for row in b.items[2])  # three distinct presses
+    targets = ds.batch_targets(b.fabrics[:5])
+    assert targets["fabric_ids"]["depth.1"].tolist() == [ds.fabric_ids[i] for i in b.fabrics[:5, 1]]
+    assert targets["properties"]["touch"].shape == (5, 4)
+    again = ds.draw_batch(np.random.default_rng(7), 300)
+    assert all(np.array_equal(x, y) for x, y in zip(b.items, again.items, strict=True))

@@ -461,3 +461,23 @@ def test_fast_dropout_matches_dropout_statistics():
     a = FastDropout(0.5)(x)
     torch.manual_seed(1)
     assert torch.equal(a, FastDropout(0.5)(x))  # draws from the global generator: seeded
+
+
+def test_eval_mode_restores_training_flag_and_press_axis_round_trips() -> None:
+    from lookfeel.models import add_press_axis, drop_press_axis, eval_mode, to_channels_last
+
+    model = torch.nn.Sequential(torch.nn.Dropout(0.5))
+    with eval_mode(model):
+        assert not model.training
+    assert model.training
+    model.eval()
+    with pytest.raises(RuntimeError), eval_mode(model):
+        raise RuntimeError
+    assert not model.training  # restored as it was, also after an error
+    x = torch.rand(4, 3, 8, 8)
+    assert add_press_axis(x, Modality.TOUCH).shape == (4, 1, 3, 8, 8)
+    assert add_press_axis(x, Modality.COLOR) is x
+    assert torch.equal(drop_press_axis(add_press_axis(x, Modality.TOUCH), Modality.TOUCH), x)
+    five = to_channels_last(torch.rand(2, 3, 3, 8, 8))
+    assert five.flatten(0, 1).is_contiguous(memory_format=torch.channels_last)
+    assert torch.equal(to_channels_last(x), x)

@@ -91,6 +91,17 @@ def test_run_directory_and_determinism(data: Path, tmp_path: Path):
     assert not _states_equal(a.last_checkpoint, c.last_checkpoint)
 
 
+def _tensors(state: object, prefix: str = "") -> dict[str, torch.Tensor]:
+    """Every tensor in a checkpoint, by path."""
+    if isinstance(state, torch.Tensor):
+        return {prefix: state}
+    if isinstance(state, dict):
+        return {k: v for key, x in state.items() for k, v in _tensors(x, f"{prefix}/{key}").items()}
+    if isinstance(state, (list, tuple)):
+        return {k: v for i, x in enumerate(state) for k, v in _tensors(x, f"{prefix}/{i}").items()}
+    return {}
+
+
 class _Kill(Exception):
     pass
 
@@ -105,8 +116,21 @@ class _Kill(Exception):
             "data.augment.color.gamma=[0.5,2.0]",
             "data.augment.color.permute_channels=true",
         ),
+        (  # the model default dropout 0.5; pixels augmented live on the device
+            "model.dropout=0.5",
+            "data.augment.color.crop_p=0.5",
+            "data.augment.touch.hflip_p=0.5",
+            "data.augment.touch.gamma=[0.5,2.0]",
+        ),
+        (  # cached trunk, dropout 0.5, augmented colour through the trunk every step
+            "model.freeze=to_block4",
+            "model.dropout=0.5",
+            "train.augment_copies=0",
+            "data.augment.color.gamma=[0.5,2.0]",
+            "data.augment.color.crop_p=0.5",
+        ),
     ],
-    ids=["full", "cached"],
+    ids=["full", "cached", "full-dropout-augment", "cached-dropout-live-augment"],
 )
 def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrides):
     cfg = _config(*overrides)
@@ -121,6 +145,11 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
     assert torch.load(tmp_path / "broken/checkpoints/last.pt", weights_only=True)["step"] == 10
     resumed = train(cfg, data, tmp_path / "broken", resume=True)
     assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
+    a = torch.load(unbroken.last_checkpoint, weights_only=True)
+    b = torch.load(resumed.last_checkpoint, weights_only=True)
+    tensors_a, tensors_b = _tensors(a), _tensors(b)  # model, optimiser, RNG: bit for bit
+    assert tensors_a.keys() == tensors_b.keys() and len(tensors_a) > 20
+    assert [k for k in tensors_a if not torch.equal(tensors_a[k], tensors_b[k])] == []
     timing = ("steps_per_s", "trunk_cache_s")
 
     def log(run: Path) -> list[dict[str, object]]:
@@ -211,3 +240,24 @@ def test_init_from_another_run_copies_matching_weights(data: Path, tmp_path: Pat
     touch_only = create_model(cfg.model, [Modality.TOUCH])
     with pytest.raises(CheckpointError, match="no weight fits this model"):
         init_from_checkpoint(touch_only, source.last_checkpoint)
+
+
+def test_embedding_from_the_device_store_equals_from_the_loader(data: Path):
+    import numpy as np
+
+    from lookfeel.data import ImageStore
+    from lookfeel.embedding import embed_items
+    from lookfeel.models import create_model
+
+    cfg = _config()
+    model = create_model(cfg.model, [Modality.TOUCH, Modality.DEPTH])
+    loader = ImageLoader(cfg.data)
+    for m in (Modality.TOUCH, Modality.DEPTH):
+        items = scan(data).items(m)
+        store = ImageStore(loader, items)
+        a = embed_items(model, items, loader, batch_size=5)
+        b = embed_items(model, items, loader, batch_size=5, store=store)
+        assert a.shape == (len(items), 16) and np.array_equal(a, b)
+        c = embed_items(model, items, loader, batch_size=7, store=store)  # other batches
+        np.testing.assert_allclose(a, c, atol=1e-5, rtol=0)
+    assert model.training  # eval only inside

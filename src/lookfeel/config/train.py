@@ -82,7 +82,9 @@ class TrainConfig:
     feature_batch: int = 64
     """Images per forward pass when filling the trunk cache or embedding for validation."""
     workers: int = 0
-    """DataLoader worker processes for the uncached path (0: in the main process)."""
+    """Ignored: batches are built on the training device from images decoded once
+    (`lookfeel.data.ImageStore`), with no loader processes. Kept so older configs and run
+    directories still load; decoding threads are ``data.workers``."""
     threads: int = 0
     """torch CPU threads (0: leave torch's default)."""
     device: Literal["auto", "cpu", "cuda"] = "auto"

@@ -6,10 +6,10 @@ preprocess images (cached), split fabrics, and draw training tuples.
     100
 """
 
-from lookfeel.data.augment import Augmenter
+from lookfeel.data.augment import AugmentDraw, Augmenter
 from lookfeel.data.catalog import PHYSICAL_LABELS, Catalog, Fabric, Item
 from lookfeel.data.check import check_dataset
-from lookfeel.data.datasets import ItemDataset, TupleDataset
+from lookfeel.data.datasets import TupleDataset
 from lookfeel.data.images import (
     ImageError,
     ImageLoader,
@@ -32,11 +32,13 @@ from lookfeel.data.splits import (
     stratified_fabric_folds,
     stratified_fabric_split,
 )
+from lookfeel.data.tensors import ImageStore
 
 __all__ = [
     "PAPER_EXCLUDED_IDS",
     "PAPER_TEST_IDS",
     "PHYSICAL_LABELS",
+    "AugmentDraw",
     "Augmenter",
     "Catalog",
     "DatasetError",
@@ -44,8 +46,8 @@ __all__ = [
     "FabricSplit",
     "ImageError",
     "ImageLoader",
+    "ImageStore",
     "Item",
-    "ItemDataset",
     "Problem",
     "SplitError",
     "TupleDataset",

@@ -3,16 +3,19 @@
 `TupleDataset` draws the paper's training tuples: one item per slot (a slot is a modality;
 the Siamese net has two depth slots), all from one fabric (Y = 0) or each from a different
 fabric (Y = 1), at a configured ratio (paper section 4, equation 2). A touch slot holds P
-presses of its fabric (the Multi-input Net). Every draw is seeded by (seed, epoch, index), so
-a tuple does not depend on worker processes, batch order or a resumed run.
+presses of its fabric (the Multi-input Net). Every draw is seeded by (seed, index), so a tuple
+does not depend on worker processes, batch order or a resumed run.
 
-`ItemDataset` yields every item of one modality once, for embedding and evaluation.
+Training draws a step's tuples at once with `TupleDataset.draw_batch` (a few vectorised numpy
+calls) and builds the batch on the device (`lookfeel.train.loop`); ``ds[i]`` builds one
+tuple's tensors on the CPU (tuple ``i`` is a batch of one drawn from ``(seed, i)``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,7 +29,7 @@ from lookfeel.data.images import ImageLoader
 from lookfeel.data.problems import DatasetError
 from lookfeel.modality import Modality, PressKind, slot_modality, slot_names
 
-__all__ = ["ItemDataset", "TupleDataset"]
+__all__ = ["TupleBatch", "TupleDataset"]
 
 
 def _labels_vector(values: dict[str, float], columns: Sequence[str]) -> torch.Tensor:
@@ -46,6 +49,19 @@ def _nan_mean_std(values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return torch.where(usable, mean, 0.0), torch.where(usable, std, 1.0)
 
 
+@dataclass(frozen=True)
+class TupleBatch:
+    """A batch of drawn tuples (`TupleDataset.draw_batch`)."""
+
+    y: np.ndarray
+    """(B,) float32: 0 for one fabric, 1 for different fabrics."""
+    fabrics: np.ndarray
+    """(B, V) int64 positions in ``TupleDataset.fabric_ids`` of each slot's fabric."""
+    items: list[np.ndarray]
+    """Per slot, (B, k) int64 indices into ``TupleDataset.pool_items[modality]`` (k = 1, or
+    ``presses`` for touch)."""
+
+
 class TupleDataset(Dataset[dict[str, Any]]):
     """Tuples of slots from one fabric (y = 0) or from different fabrics (y = 1).
 
@@ -55,8 +71,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
             slot, the same-fabric fraction and augmentation.
         views: the modality of each slot, e.g. ``(DEPTH, COLOR, TOUCH)`` for the paper's
             three-branch nets or ``(DEPTH, DEPTH)`` for the Siamese net.
-        length: tuples per epoch.
-        seed: base seed; tuple ``i`` of epoch ``e`` is drawn from ``(seed, e, i)``.
+        length: tuples (a run draws ``steps * batch_size``).
+        seed: base seed; tuple ``i`` is drawn from ``(seed, i)``.
         augment: apply the configured augmentation (off for validation).
 
     Each item is a dict:
@@ -92,7 +108,6 @@ class TupleDataset(Dataset[dict[str, Any]]):
         self.slots = slot_names(self.views)
         self.length = length
         self.seed = seed
-        self.epoch = 0
         self.presses = cfg.presses
         self.same_fraction = cfg.same_fraction
         self.kinds: tuple[PressKind, ...] = cfg.touch_kinds
@@ -118,13 +133,30 @@ class TupleDataset(Dataset[dict[str, Any]]):
             )
         aug: dict[Modality, AugmentConfig] = cfg.augment if augment else {}
         self.augmenters = {m: Augmenter(aug[m]) for m in modalities if m in aug}
+        # Vectorised draws: per modality, every pool item once (`pool_items`) and a padded
+        # (fabrics, longest pool) matrix of indices into it (-1 past a pool's end).
+        self.pool_items: dict[Modality, list[Item]] = {}
+        self._pool: dict[Modality, np.ndarray] = {}
+        self._pool_len: dict[Modality, np.ndarray] = {}
+        for m in modalities:
+            pools = [self.pools[m][fid] for fid in self.fabric_ids]
+            flat = [it for pool in pools for it in pool]
+            self.pool_items[m] = flat
+            index = np.full((len(pools), max(len(p) for p in pools)), -1, np.int64)
+            start = 0
+            for row, pool in enumerate(pools):
+                index[row, : len(pool)] = np.arange(start, start + len(pool))
+                start += len(pool)
+            self._pool[m] = index
+            self._pool_len[m] = np.array([len(p) for p in pools], np.int64)
+        self._ids = np.array(self.fabric_ids, np.int64)
+        self._clusters = np.array(
+            [-1 if f.cluster is None else f.cluster for f in catalog.fabrics], np.int64
+        )
+        self._properties = (known - self.label_mean) / self.label_std  # (F, L), NaN unknown
 
     def __len__(self) -> int:
         return self.length
-
-    def set_epoch(self, epoch: int) -> None:
-        """Draw a fresh set of tuples for ``epoch`` (call once per epoch)."""
-        self.epoch = epoch
 
     def items(self) -> list[Item]:
         """Every item this dataset may draw (for `ImageLoader.preload`)."""
@@ -154,87 +186,87 @@ class TupleDataset(Dataset[dict[str, Any]]):
             out["properties"][slot] = (raw - self.label_mean) / self.label_std
         return out
 
-    def _choose(
-        self, rng: np.random.Generator, pool: list[Item], k: int, avoid: set[Item]
-    ) -> list[Item]:
-        fresh = [it for it in pool if it not in avoid]
-        source = fresh if len(fresh) >= k else pool
-        idx = rng.choice(len(source), size=k, replace=len(source) < k)
-        return [source[int(i)] for i in idx]
+    def draw_batch(self, rng: np.random.Generator, n: int) -> TupleBatch:
+        """``n`` tuples at once from ``rng``: each is all one fabric (y = 0) with probability
+        ``same_fraction``, else one distinct fabric per slot (y = 1). A slot takes one item
+        (touch: ``presses`` distinct presses, repeated only when its fabric has fewer),
+        preferring items not taken by an earlier slot of the tuple (the Siamese net's two
+        depth slots from one fabric see two different images)."""
+        nf, nv = len(self.fabric_ids), len(self.views)
+        same = rng.random(n) < self.same_fraction
+        one = rng.integers(nf, size=n)
+        if nf >= nv:
+            distinct = np.argsort(rng.random((n, nf)), axis=1)[:, :nv]
+        else:  # only reachable with same_fraction == 1 (checked in __init__)
+            distinct = np.repeat(one[:, None], nv, axis=1)
+        fab = np.where(same[:, None], one[:, None], distinct)  # (n, V) fabric positions
+        items: list[np.ndarray] = []
+        used: dict[Modality, list[np.ndarray]] = {}
+        for j, m in enumerate(self.views):
+            k = self.presses if m is Modality.TOUCH else 1
+            pool, count = self._pool[m][fab[:, j]], self._pool_len[m][fab[:, j]]  # (n, L), (n,)
+            keys = rng.random(pool.shape)
+            for earlier in used.get(m, []):  # taken items go last
+                keys += (pool[:, :, None] == earlier[:, None, :]).any(-1)
+            keys[pool < 0] = np.inf
+            pos = np.argsort(keys, axis=1, kind="stable")[:, :k]
+            if pos.shape[1] < k:
+                pos = np.pad(pos, ((0, 0), (0, k - pos.shape[1])), constant_values=pool.shape[1])
+            short = pos >= count[:, None]  # fewer items than presses: repeat at random
+            if short.any():
+                again = (rng.random(pos.shape) * count[:, None]).astype(np.int64)
+                pos = np.where(short, again, pos)
+            picked = np.take_along_axis(pool, pos, axis=1)  # (n, k) indices into pool_items
+            used.setdefault(m, []).append(picked)
+            items.append(picked)
+        return TupleBatch(y=np.where(same, 0.0, 1.0).astype(np.float32), fabrics=fab, items=items)
+
+    def batch_targets(self, fabrics: np.ndarray) -> dict[str, dict[str, torch.Tensor]]:
+        """Per-slot targets from a (B, V) matrix of fabric positions (`TupleBatch.fabrics`):
+        ``fabric_ids`` (B,), ``clusters`` (B,) with -1 for unknown, ``properties`` (B, L)
+        standardised with NaN for unknown."""
+        out: dict[str, dict[str, torch.Tensor]] = {
+            "fabric_ids": {},
+            "clusters": {},
+            "properties": {},
+        }
+        for j, slot in enumerate(self.slots):
+            pos = fabrics[:, j]
+            out["fabric_ids"][slot] = torch.from_numpy(self._ids[pos])
+            out["clusters"][slot] = torch.from_numpy(self._clusters[pos])
+            out["properties"][slot] = self._properties[torch.from_numpy(pos)]
+        return out
 
     def draw(self, index: int) -> tuple[float, list[int], list[list[Item]]]:
         """The tuple at ``index`` as records: (y, fabric per slot, items per slot)."""
-        rng = np.random.default_rng([self.seed, self.epoch, index])
-        same = bool(rng.random() < self.same_fraction)
-        if same:
-            fid = self.fabric_ids[int(rng.integers(len(self.fabric_ids)))]
-            fabrics = [fid] * len(self.views)
-        else:
-            idx = rng.choice(len(self.fabric_ids), size=len(self.views), replace=False)
-            fabrics = [self.fabric_ids[int(i)] for i in idx]
-        used: set[Item] = set()
-        chosen = []
-        for m, fid in zip(self.views, fabrics, strict=True):
-            k = self.presses if m is Modality.TOUCH else 1
-            picked = self._choose(rng, self.pools[m][fid], k, used)
-            used.update(picked)
-            chosen.append(picked)
-        return (0.0 if same else 1.0), fabrics, chosen
+        b = self.draw_batch(np.random.default_rng([self.seed, index]), 1)
+        fabrics = [int(self._ids[p]) for p in b.fabrics[0]]
+        chosen = [
+            [self.pool_items[m][int(i)] for i in picked[0]]
+            for m, picked in zip(self.views, b.items, strict=True)
+        ]
+        return float(b.y[0]), fabrics, chosen
+
+    def augment_rng(self, index: int) -> np.random.Generator:
+        """The generator tuple ``index``'s augmentations draw from (`__getitem__`)."""
+        return np.random.default_rng([self.seed, index, 1])
 
     def __getitem__(self, index: int) -> dict[str, Any]:
         if not 0 <= index < self.length:
             raise IndexError(index)
         y, fabrics, chosen = self.draw(index)
-        gen = torch.Generator().manual_seed(
-            int(np.random.default_rng([self.seed, self.epoch, index, 1]).integers(2**62))
-        )
+        rng = self.augment_rng(index)
         inputs = {}
         for slot, items in zip(self.slots, chosen, strict=True):
             m = slot_modality(slot)
             aug = self.augmenters.get(m)
-            xs = [self.loader.load(it) for it in items]
-            if aug is not None:
-                xs = [aug(x, gen) for x in xs]
-            inputs[slot] = torch.stack(xs) if m is Modality.TOUCH else xs[0]
+            x = torch.stack([self.loader.load(it) for it in items])
+            if aug is not None and aug.active:
+                x = aug.apply_batch(x, aug.draw_batch(rng, *x.shape))
+            inputs[slot] = x if m is Modality.TOUCH else x[0]
         targets = self.targets({s: [f] for s, f in zip(self.slots, fabrics, strict=True)})
         return {
             "inputs": inputs,
             **{k: {s: v[0] for s, v in per.items()} for k, per in targets.items()},
             "y": torch.tensor(y, dtype=torch.float32),
-        }
-
-
-class ItemDataset(Dataset[dict[str, Any]]):
-    """Every item of one modality once, in catalog order (for embedding and evaluation).
-
-    A touch item is one press; its input is (1, 3, S, S), the same press axis as training.
-
-    Each item is a dict: ``input`` (tensor), ``fabric_id`` (int64), ``index`` (int64 row).
-    """
-
-    def __init__(
-        self,
-        catalog: Catalog,
-        loader: ImageLoader,
-        modality: Modality,
-        kinds: Sequence[PressKind] | None = None,
-    ) -> None:
-        self.loader = loader
-        self.modality = modality
-        if modality is Modality.TOUCH and kinds is None:
-            kinds = loader.config.touch_kinds
-        self.item_list = catalog.items(modality, kinds)
-
-    def __len__(self) -> int:
-        return len(self.item_list)
-
-    def __getitem__(self, index: int) -> dict[str, Any]:
-        it = self.item_list[index]
-        x = self.loader.load(it)
-        if self.modality is Modality.TOUCH:
-            x = x.unsqueeze(0)  # (3, S, S) -> (1, 3, S, S): one press
-        return {
-            "input": x,
-            "fabric_id": torch.tensor(it.fabric_id, dtype=torch.int64),
-            "index": torch.tensor(index, dtype=torch.int64),
         }

@@ -13,6 +13,13 @@ from lookfeel.models.backbone import Backbone
 from lookfeel.models.branch import CLUSTER, PROPERTY, Branch
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.embedder import Embedder, create_model, head_key
+from lookfeel.models.modes import (
+    add_press_axis,
+    autocast,
+    drop_press_axis,
+    eval_mode,
+    to_channels_last,
+)
 from lookfeel.models.pretrained import (
     PretrainedError,
     apply_state_dict,
@@ -33,11 +40,16 @@ __all__ = [
     "Embedder",
     "PretrainedError",
     "ResNet18",
+    "add_press_axis",
     "apply_state_dict",
+    "autocast",
     "create_backbone",
     "create_model",
+    "drop_press_axis",
+    "eval_mode",
     "head_key",
     "list_backbones",
     "load_pretrained",
     "read_state_dict",
+    "to_channels_last",
 ]

@@ -17,15 +17,11 @@ import torch
 from torch import Tensor
 
 from lookfeel.config import AugmentConfig
-from lookfeel.data import Augmenter, ImageLoader, Item
+from lookfeel.data import Augmenter, ImageStore, Item
 from lookfeel.modality import Modality
-from lookfeel.models import Embedder
+from lookfeel.models import Embedder, add_press_axis, autocast, drop_press_axis, eval_mode
 
 __all__ = ["FeatureTable"]
-
-
-def _copy_seed(seed: int, row: int, copy: int) -> int:
-    return int(np.random.default_rng([seed, row, copy, 3]).integers(2**62))
 
 
 class FeatureTable:
@@ -33,13 +29,14 @@ class FeatureTable:
 
     Args:
         model: the embedder whose frozen trunks are run (in eval mode; no gradient).
-        loader: decodes and preprocesses images.
+        store: the decoded images (`ImageStore`) on the training device.
         items: per modality, every item training or validation may use.
         augment: per modality, the augmentation to cache copies of.
         copies: augmented copies per image (0: none cached).
-        seed: seeds the augmented copies (copy ``k`` of item row ``i`` uses ``(seed, i, k)``).
+        seed: seeds the augmented copies (copy ``k`` of every row is drawn from ``(seed, k)``).
         batch_size: images per trunk forward pass.
-        device: where the trunk runs; the table is stored on this device.
+        device: where the trunk runs; the table is stored on this device (float32; on CUDA
+            the trunk runs under bf16 autocast).
         rank, world: fill only every ``world``-th row here and sum across processes, so
             ``world`` processes share the work (rows of other ranks stay 0 before the sum).
     """
@@ -47,7 +44,7 @@ class FeatureTable:
     def __init__(
         self,
         model: Embedder,
-        loader: ImageLoader,
+        store: ImageStore,
         items: Mapping[Modality, Sequence[Item]],
         augment: Mapping[Modality, AugmentConfig],
         copies: int,
@@ -62,19 +59,16 @@ class FeatureTable:
         self.augmented: dict[Modality, Tensor] = {}
         self.copies = copies
         self.device = torch.device(device)
-        for m, its in items.items():
-            unique = list(dict.fromkeys(its))
-            self.rows[m] = {it: i for i, it in enumerate(unique)}
-            aug = Augmenter(augment[m]) if m in augment else None
-            self.plain[m] = self._run(
-                model, loader, m, unique, None, 0, seed, batch_size, rank, world
-            )
-            if aug is not None and aug.active and copies > 0:
-                per_copy = [
-                    self._run(model, loader, m, unique, aug, k, seed, batch_size, rank, world)
-                    for k in range(copies)
-                ]
-                self.augmented[m] = torch.stack(per_copy, dim=1)  # K x (N, *F) -> (N, K, *F)
+        with eval_mode(model):
+            for m, its in items.items():
+                unique = list(dict.fromkeys(its))
+                self.rows[m] = {it: i for i, it in enumerate(unique)}
+                aug = Augmenter(augment[m]) if m in augment else None
+                run = (model, store, m, unique, seed, batch_size, rank, world)
+                self.plain[m] = self._run(*run, None, 0)
+                if aug is not None and aug.active and copies > 0:
+                    per_copy = [self._run(*run, aug, k) for k in range(copies)]
+                    self.augmented[m] = torch.stack(per_copy, dim=1)  # K x (N, *F) -> (N, K, *F)
         if world > 1:
             import torch.distributed as dist
 
@@ -86,44 +80,37 @@ class FeatureTable:
     def _run(
         self,
         model: Embedder,
-        loader: ImageLoader,
+        store: ImageStore,
         modality: Modality,
         items: list[Item],
-        aug: Augmenter | None,
-        copy: int,
         seed: int,
         batch_size: int,
         rank: int,
         world: int,
+        aug: Augmenter | None,
+        copy: int,
     ) -> Tensor:
-        was_training = model.training
-        model.eval()
-        mine = [i for i in range(len(items)) if i % world == rank]
+        mine = [i for i in range(len(items)) if i % world == rank] or [0]
+        rows = store.rows(modality, items)
+        draws = None
+        if aug is not None:  # every row's draw, so every process draws alike
+            rng = np.random.default_rng([seed, copy, 3])
+            draws = aug.draw_batch(rng, len(items), *store.shape(modality))
         out: Tensor | None = None
-        try:
-            for start in range(0, len(mine), batch_size):
-                rows = mine[start : start + batch_size]
-                xs = []
-                for i in rows:
-                    x = loader.load(items[i])
-                    if aug is not None:
-                        g = torch.Generator().manual_seed(_copy_seed(seed, i, copy))
-                        x = aug(x, g)
-                    xs.append(x)
-                x = torch.stack(xs).to(self.device)
-                if modality is Modality.TOUCH:
-                    x = x.unsqueeze(1)  # (B, 3, S, S) -> (B, P=1, 3, S, S)
-                f = model.trunk({modality.value: x})[modality.value]
-                if modality is Modality.TOUCH:
-                    f = f.squeeze(1)  # (B, 1, *F) -> (B, *F)
-                if out is None:
-                    out = torch.zeros((len(items), *f.shape[1:]), dtype=f.dtype, device=self.device)
-                out[rows] = f
-        finally:
-            model.train(was_training)
-        if out is None:  # this rank had no row: learn the feature shape from one image
-            probe = self._run(model, loader, modality, items[:1], None, 0, seed, 1, 0, 1)
-            out = torch.zeros((len(items), *probe.shape[1:]), dtype=probe.dtype, device=self.device)
+        for start in range(0, len(mine), batch_size):
+            chunk = mine[start : start + batch_size]
+            x = store.batch(modality, [rows[i] for i in chunk])
+            if aug is not None and draws is not None:
+                x = aug.apply_batch(x, draws[np.array(chunk)])
+            with autocast(self.device):
+                f = model.trunk({modality.value: add_press_axis(x, modality)})[modality.value]
+            f = drop_press_axis(f, modality).float()
+            if out is None:
+                out = torch.zeros((len(items), *f.shape[1:]), dtype=f.dtype, device=self.device)
+            out[chunk] = f
+        assert out is not None
+        if not any(i % world == rank for i in range(len(items))):
+            out.zero_()  # this rank has no row: it ran one image only to learn the shape
         return out.clone()  # a normal tensor, usable outside inference mode
 
     def has_copies(self, modality: Modality) -> bool:
@@ -138,11 +125,17 @@ class FeatureTable:
         Returns:
             (len(items), *F).
         """
-        rows = torch.tensor([self.rows[modality][it] for it in items], device=self.device)
+        rows = torch.tensor([self.rows[modality][it] for it in items])
+        k = None if copies is None else torch.tensor(list(copies))
+        return self.gather_rows(modality, rows, k)
+
+    def gather_rows(self, modality: Modality, rows: Tensor, copies: Tensor | None = None) -> Tensor:
+        """Features of table rows (see ``rows``), of augmented copy ``copies[j]`` for row ``j``
+        when given and the modality has copies; (len(rows), *F) on the table's device."""
+        rows = rows.to(self.device, non_blocking=True)
         if copies is None or modality not in self.augmented:
             return self.plain[modality][rows]
-        k = torch.tensor(list(copies), device=self.device)
-        return self.augmented[modality][rows, k]
+        return self.augmented[modality][rows, copies.to(self.device, non_blocking=True)]
 
     def nbytes(self) -> int:
         """Memory held by the table."""

@@ -5,9 +5,15 @@ each side), ``metrics.jsonl`` (one JSON object per logged step or validation) an
 ``checkpoints/last.pt`` and ``best.pt``. The trainer knows nothing of which loss or how many
 modalities: it logs every term the loss returns and back-propagates ``"loss"``.
 
-Tuple ``i`` of the run is drawn from ``(seed, i)`` alone and step ``s`` uses tuples
-``s * B .. (s + 1) * B - 1`` (each process a contiguous share), so a resumed run, or a run on
-N processes with the same global batch, sees exactly the batches of an unbroken single run.
+Step ``s``'s global batch of B tuples, its augmentations and its choice of cached copies are
+drawn from ``(seed, s)`` alone (each process takes a contiguous share), so a resumed run, or a
+run on N processes with the same global batch, sees exactly the batches of an unbroken single
+run; with the torch RNG (dropout) saved in every checkpoint, a resumed run is bit-identical.
+
+The loop is short: `_Batches` builds step ``s``'s batch on the device (pixels from the
+`ImageStore`, augmented in one pass, or trunk features from the `FeatureTable` when the trunk
+is cached; the same draws either way) and `train_step` runs one optimisation step. On CUDA the
+forward pass runs under bf16 autocast with channels-last images; on CPU everything is fp32.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import json
 import math
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -24,16 +30,15 @@ from typing import Any
 import numpy as np
 import torch
 from torch import Tensor
-from torch.utils.data import DataLoader, Sampler
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import init_from_checkpoint, read_checkpoint, save_checkpoint
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
 from lookfeel.data import (
-    Augmenter,
     Catalog,
     DatasetError,
     ImageLoader,
+    ImageStore,
     Item,
     TupleDataset,
     kmeans_clusters,
@@ -45,12 +50,12 @@ from lookfeel.data import (
 )
 from lookfeel.losses import create_loss
 from lookfeel.modality import Modality, slot_modality
-from lookfeel.models import Embedder, create_model
+from lookfeel.models import Embedder, autocast, create_model, to_channels_last
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
 
-__all__ = ["TrainResult", "train"]
+__all__ = ["TrainResult", "TrainRun", "train", "train_step"]
 
 StepCallback = Callable[[int, Mapping[str, float]], None]
 
@@ -134,88 +139,143 @@ def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
     return catalog.with_clusters(kmeans_clusters(catalog, k=k, seed=0))
 
 
-class _StepSampler(Sampler[list[int]]):
-    """Batches of tuple indices: step ``s`` takes ``s*B + rank*b .. s*B + (rank+1)*b - 1``."""
+class _Batches:
+    """Step ``s``'s batch on the device, drawn from ``(seed, s)``.
 
-    def __init__(self, start: int, steps: int, batch: int, rank: int, world: int) -> None:
-        self.start, self.steps, self.batch, self.rank, self.world = start, steps, batch, rank, world
-
-    def __iter__(self) -> Iterator[list[int]]:
-        local = self.batch // self.world
-        for s in range(self.start, self.steps):
-            base = s * self.batch + self.rank * local
-            yield list(range(base, base + local))
-
-    def __len__(self) -> int:
-        return self.steps - self.start
-
-
-# ---------------------------------------------------------------------------------------------
-# Batches from the trunk cache
-
-
-class _CachedBatches:
-    """Builds batches of trunk features from tuple draws (no pixels touched per step)."""
+    A slot is served from the trunk cache when the table holds its modality (augmented
+    modalities: one of the cached copies per image); otherwise its images are gathered from the
+    store and augmented on the device, and, in a cached run, sent through the frozen trunk
+    without gradient (augmented modalities with ``augment_copies: 0``).
+    """
 
     def __init__(
         self,
         ds: TupleDataset,
-        table: FeatureTable,
-        loader: ImageLoader,
+        store: ImageStore,
+        table: FeatureTable | None,
         model: Embedder,
         config: RunConfig,
         device: torch.device,
+        rank: int,
+        world: int,
     ) -> None:
-        self.ds, self.table, self.loader, self.model = ds, table, loader, model
+        self.ds, self.store, self.table, self.model, self.device = ds, store, table, model, device
         self.seed = config.train.seed
-        self.device = device
-        aug = config.data.augment
-        # Augmented modalities without cached copies go through the trunk on every draw.
-        self.live_aug = {
-            m: Augmenter(aug[m])
-            for m in ds.views
-            if m in aug and Augmenter(aug[m]).active and not table.has_copies(m)
+        self.batch = config.train.batch_size
+        local = self.batch // world
+        self.lo, self.hi = rank * local, (rank + 1) * local
+        self.augmenters = {m: a for m, a in ds.augmenters.items() if a.active}
+        self.cached = {
+            m
+            for m in ds.pool_items
+            if table is not None and not (m in self.augmenters and not table.has_copies(m))
+        }
+        # Pool index (TupleDataset.pool_items) -> row of the store / of the table.
+        self.store_rows = {
+            m: torch.tensor(store.rows(m, its))
+            for m, its in ds.pool_items.items()
+            if m in store.modalities
+        }
+        self.table_rows = {
+            m: torch.tensor([table.rows[m][it] for it in ds.pool_items[m]])
+            for m in self.cached
+            if table is not None
         }
 
-    def _live(self, m: Modality, items: list[Item], index: int, slot: int) -> Tensor:
-        """Trunk features of freshly augmented images (augmentation without cached copies)."""
-        rng = np.random.default_rng([self.seed, index, slot, 2])
-        g = torch.Generator().manual_seed(int(rng.integers(2**62)))
-        x = torch.stack([self.live_aug[m](self.loader.load(it), g) for it in items]).to(self.device)
-        with torch.no_grad():
-            f = self.model.trunk({m.value: x.unsqueeze(0) if m is Modality.TOUCH else x})[m.value]
-        return f.squeeze(0) if m is Modality.TOUCH else f
+    def _pixels(self, m: Modality, picked: np.ndarray, aug_rng: np.random.Generator) -> Tensor:
+        """(B*k, C, S, S) images of picked pool indices (B, k): the global batch's draws are
+        made (so every process draws alike), this process's share is built."""
+        n, k = picked.shape
+        mine = torch.from_numpy(picked[self.lo : self.hi].reshape(-1))
+        x = self.store.batch(m, self.store_rows[m][mine])
+        aug = self.augmenters.get(m)
+        if aug is not None:
+            draws = aug.draw_batch(aug_rng, n * k, *self.store.shape(m))
+            x = aug.apply_batch(x, draws[self.lo * k : self.hi * k])
+        return x
 
-    def batch(self, indices: list[int]) -> dict[str, Any]:
-        draws = [self.ds.draw(i) for i in indices]
+    def __call__(self, step: int) -> dict[str, Any]:
+        b = self.ds.draw_batch(np.random.default_rng([self.seed, step]), self.batch)
+        aug_rng = np.random.default_rng([self.seed, step, 1])
+        copy_rng = np.random.default_rng([self.seed, step, 2])
+        lo, hi = self.lo, self.hi
         inputs: dict[str, Tensor] = {}
-        fabric: dict[str, list[int]] = {}
         for j, slot in enumerate(self.ds.slots):
             m = slot_modality(slot)
-            fabric[slot] = [fabrics[j] for _, fabrics, _ in draws]
-            per_tuple = [
-                chosen[j] for _, _, chosen in draws
-            ]  # B lists of P items (P = 1 but touch)
-            if m in self.live_aug:
-                feats = torch.stack(
-                    [self._live(m, its, i, j) for its, i in zip(per_tuple, indices, strict=True)]
-                )
-            else:
-                flat = [it for its in per_tuple for it in its]
+            picked = b.items[j]  # (B, k) pool indices; k = presses for touch, else 1
+            k = picked.shape[1]
+            if m in self.cached:
+                assert self.table is not None
+                rows = self.table_rows[m][torch.from_numpy(picked[lo:hi].reshape(-1))]
                 copies = None
-                if self.table.has_copies(m):  # one random cached copy per item, seeded per tuple
-                    copies = [
-                        int(c)
-                        for i, its in zip(indices, per_tuple, strict=True)
-                        for c in np.random.default_rng([self.seed, i, j, 2]).integers(
-                            self.table.copies, size=len(its)
-                        )
-                    ]
-                feats = self.table.gather(m, flat, copies)  # (B * P, *F)
-                feats = feats.unflatten(0, (len(indices), -1))  # -> (B, P, *F)
-            inputs[slot] = feats if m is Modality.TOUCH else feats[:, 0]
-        ys = torch.tensor([y for y, _, _ in draws])
-        return {"inputs": inputs, "y": ys, **self.ds.targets(fabric)}
+                if self.table.has_copies(m):
+                    drawn = copy_rng.integers(self.table.copies, size=picked.size)
+                    copies = torch.from_numpy(drawn[lo * k : hi * k])
+                f = self.table.gather_rows(m, rows, copies).unflatten(0, (hi - lo, k))
+                inputs[slot] = f if m is Modality.TOUCH else f[:, 0]
+                continue
+            x = self._pixels(m, picked, aug_rng)
+            x = x.unflatten(0, (hi - lo, k)) if m is Modality.TOUCH else x
+            if self.table is not None:  # cached run, live augmentation: trunk without grad
+                with torch.no_grad(), autocast(self.device):
+                    x = self.model.trunk({m.value: x})[m.value].float()
+            elif self.device.type == "cuda":
+                x = to_channels_last(x)
+            inputs[slot] = x
+        targets = self.ds.batch_targets(b.fabrics[lo:hi])
+        dev = self.device
+        return {
+            "inputs": inputs,
+            "y": torch.from_numpy(b.y[lo:hi]).to(dev, non_blocking=True),
+            **{
+                key: {s: v.to(dev, non_blocking=True) for s, v in per.items()}
+                for key, per in targets.items()
+            },
+        }
+
+
+@dataclass
+class TrainRun:
+    """What one optimisation step needs: the model (``net``: wrapped for DDP), the loss, the
+    optimiser and schedule, and how the batch's inputs are to be read."""
+
+    net: torch.nn.Module
+    loss_fn: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    scheduler: torch.optim.lr_scheduler.LRScheduler
+    device: torch.device
+    dist: Distributed
+    from_trunk: bool
+    """The inputs are cached trunk features."""
+    heads: bool
+    """The model has auxiliary heads (cluster, property) to train."""
+    cluster: bool
+    properties: bool
+
+
+def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
+    """One optimisation step on ``batch`` (from `_Batches`, on the device).
+
+    Returns:
+        The loss terms, detached, on the device (reading them waits for the GPU: the loop
+        reads them only at log steps).
+    """
+    with autocast(run.device):
+        outputs = run.net(batch["inputs"], from_trunk=run.from_trunk, heads=run.heads)
+    outputs = {k: v.float() for k, v in outputs.items()}  # the loss in fp32
+    terms = run.loss_fn(
+        outputs,
+        y=batch["y"],
+        fabric=batch["fabric_ids"],
+        cluster=batch["clusters"] if run.cluster else None,
+        properties=batch["properties"] if run.properties else None,
+    )
+    run.optimizer.zero_grad(set_to_none=True)
+    terms["loss"].backward()
+    run.dist.reduce_extra_grads(run.loss_fn)
+    run.optimizer.step()
+    run.scheduler.step()
+    return {k: v.detach() for k, v in terms.items()}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -431,24 +491,28 @@ def _train(
                 stacklevel=3,
             )
     model = model.to(device)
+    if device.type == "cuda":
+        torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest
+        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     loss_fn = create_loss(config.loss).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
-    heads = bool(config.model.cluster_head or config.model.num_properties)
 
     cached = t.cache_trunk and config.model.resolved_freeze != "none"
+    started = time.perf_counter()
+    table_items = {
+        m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
+    }
+    store = ImageStore(
+        loader, [it for its in table_items.values() for it in its] if cached else ds.items(), device
+    )
     table: FeatureTable | None = None
-    batches: _CachedBatches | None = None
     if cached:
-        started = time.perf_counter()
-        items = {
-            m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
-        }
         table = FeatureTable(
             model,
-            loader,
-            items,
+            store,
+            table_items,
             config.data.augment,
             t.augment_copies,
             seed=t.seed,
@@ -457,8 +521,8 @@ def _train(
             rank=dist.rank,
             world=dist.world,
         )
-        batches = _CachedBatches(ds, table, loader, model, config, device)
-        cache_s = time.perf_counter() - started
+    batches = _Batches(ds, store, table, model, config, device, dist.rank, dist.world)
+    cache_s = time.perf_counter() - started
     start_step = 0
     best = -math.inf
     if state is not None:
@@ -486,9 +550,23 @@ def _train(
                 )
         else:
             _trim_log(log.path, start_step)
-    if state is not None:
-        torch.set_rng_state(state["rng"])  # after every set-up draw: dropout resumes exactly
+    if state is not None:  # after every set-up draw: dropout resumes exactly
+        torch.set_rng_state(state["rng"])
+        if device.type == "cuda" and state.get("cuda_rng") is not None:
+            torch.cuda.set_rng_state(state["cuda_rng"], device)
     net = dist.wrap(model)
+    run = TrainRun(
+        net=net,
+        loss_fn=loss_fn,
+        optimizer=optimizer,
+        scheduler=scheduler,
+        device=device,
+        dist=dist,
+        from_trunk=cached,
+        heads=bool(config.model.cluster_head or config.model.num_properties),
+        cluster=bool(config.model.cluster_head),
+        properties=bool(config.model.num_properties),
+    )
 
     def checkpoint_state(step: int) -> dict[str, Any]:
         return {
@@ -502,13 +580,9 @@ def _train(
             "scheduler": scheduler.state_dict(),
             "loss": loss_fn.state_dict(),
             "rng": torch.get_rng_state(),
+            "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
             "best": best,
         }
-
-    loader_iter: Iterator[dict[str, Any]] | None = None
-    if not cached:
-        sampler = _StepSampler(start_step, t.steps, t.batch_size, dist.rank, dist.world)
-        loader_iter = iter(DataLoader(ds, batch_sampler=sampler, num_workers=t.workers))
 
     progress = None
     if t.progress and dist.is_main:
@@ -519,48 +593,25 @@ def _train(
         )
     primary = t.val_pairs[0] if t.val_pairs else None
     last_val: dict[str, float] = {}
-    sums: dict[str, float] = {}
+    sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
     window_start, window_steps = time.perf_counter(), 0
-    local = t.batch_size // dist.world
     model.train()
     for step in range(start_step, t.steps):
-        if batches is not None:
-            base = step * t.batch_size + dist.rank * local
-            batch = batches.batch(list(range(base, base + local)))
-        else:
-            assert loader_iter is not None
-            batch = next(loader_iter)
-        inputs = {k: v.to(device, non_blocking=True) for k, v in batch["inputs"].items()}
-        outputs = net(inputs, from_trunk=cached, heads=heads)
-        terms = loss_fn(
-            outputs,
-            y=batch["y"].to(device),
-            fabric={k: v.to(device) for k, v in batch["fabric_ids"].items()},
-            cluster={k: v.to(device) for k, v in batch["clusters"].items()}
-            if config.model.cluster_head
-            else None,
-            properties={k: v.to(device) for k, v in batch["properties"].items()}
-            if config.model.num_properties
-            else None,
-        )
-        optimizer.zero_grad(set_to_none=True)
-        terms["loss"].backward()
-        dist.reduce_extra_grads(loss_fn)
-        optimizer.step()
-        scheduler.step()
-        values = dist.mean_values({k: float(v.detach()) for k, v in terms.items()})
-        for k, v in values.items():
-            sums[k] = sums.get(k, 0.0) + v
+        terms = train_step(run, batches(step))
+        for k, v in terms.items():
+            sums[k] = sums[k] + v.double() if k in sums else v.double()
         window_steps += 1
         done = step + 1
+        if on_step is not None:  # per-step values: one device sync a step
+            on_step(done, dist.mean_values({k: float(v) for k, v in terms.items()}))
         if progress is not None:
             progress.update(1)
             if done % 10 == 0 or done == t.steps:
-                progress.set_postfix(loss=f"{values['loss']:.4f}")
+                progress.set_postfix(loss=f"{float(terms['loss']):.4f}")
         if done % max(t.log_every, 1) == 0 or done == t.steps:
+            means = dist.mean_values({k: float(v) / window_steps for k, v in sums.items()})
             elapsed = time.perf_counter() - window_start
-            record: dict[str, Any] = {"step": done}
-            record |= {k: v / window_steps for k, v in sums.items()}
+            record: dict[str, Any] = {"step": done, **means}
             record["lr"] = scheduler.get_last_lr()[0]
             record["steps_per_s"] = window_steps / elapsed if elapsed > 0 else None
             log.write(record)
@@ -570,9 +621,10 @@ def _train(
         )
         if is_val:
             if dist.is_main:
-                last_val = validate(
-                    model, val_items, loader, table, t.feature_batch, device, t.val_pairs
-                )
+                with autocast(device):
+                    last_val = validate(
+                        model, val_items, loader, table, t.feature_batch, device, t.val_pairs
+                    )
                 key = f"{primary or last_val['primary_pair']}_top1"
                 log.write(
                     {
@@ -588,8 +640,6 @@ def _train(
             if dist.is_main:
                 save_checkpoint(last, checkpoint_state(done))
             dist.barrier()
-        if on_step is not None:
-            on_step(done, values)
     if progress is not None:
         progress.close()
     log.close()

@@ -1,0 +1,120 @@
+"""Decoded images held once as tensors on the training device, gathered by row per batch.
+
+`ImageStore` takes every item a run may use from an `ImageLoader` (which decodes and
+preprocesses each file once) and packs each modality into one tensor: RGB (colour, touch) as
+uint8 (N, 3, S, S), exactly the loader's bytes; depth as float32 (N, 1, S, S), the loader's
+values (depth is mapped to [0, 1] from millimetres, which 8 bits would quantise). The tensors
+live on the GPU when they fit in a quarter of its free memory, else in pinned host memory and
+a batch is copied over asynchronously. A step then costs one gather and one conversion to
+float on the device: no file decoding and no per-image Python.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from lookfeel.data.catalog import Item
+from lookfeel.data.images import ImageLoader
+from lookfeel.modality import Modality
+
+__all__ = ["ImageStore"]
+
+_GPU_SHARE = 0.25
+"""Largest share of the GPU's free memory the store may take before it stays on the host."""
+
+
+class ImageStore:
+    """Every item's preprocessed image, one tensor per modality, indexed by item.
+
+    Args:
+        loader: decodes and preprocesses (its memory cache is filled as a side effect).
+        items: the items to hold (duplicates are held once).
+        device: where batches are needed. On CUDA the store is put on the GPU when it fits
+            (see ``on_device``), else pinned in host memory.
+
+    Example:
+        >>> store = ImageStore(loader, catalog.items(Modality.TOUCH), device)
+        >>> x = store.batch(Modality.TOUCH, store.rows(Modality.TOUCH, items))  # (B, 3, S, S)
+    """
+
+    def __init__(
+        self, loader: ImageLoader, items: Iterable[Item], device: torch.device | str = "cpu"
+    ) -> None:
+        self.device = torch.device(device)
+        per: dict[Modality, dict[Item, None]] = {}
+        for it in items:
+            per.setdefault(it.modality, {})[it] = None
+        loader.preload([it for its in per.values() for it in its])
+        self._rows: dict[Modality, dict[Item, int]] = {}
+        host: dict[Modality, Tensor] = {}
+        for m, its in per.items():
+            unique = list(its)
+            self._rows[m] = {it: i for i, it in enumerate(unique)}
+            arrays = [loader.array(loader.frame_path(it), m) for it in unique]
+            stacked = np.stack(arrays)
+            if stacked.dtype == np.uint8:  # (N, S, S, 3) -> (N, 3, S, S)
+                t = torch.from_numpy(stacked).permute(0, 3, 1, 2).contiguous()
+            else:  # (N, S, S) float32 depth -> (N, 1, S, S)
+                t = torch.from_numpy(stacked.astype(np.float32, copy=False)).unsqueeze(1)
+            host[m] = t
+        nbytes = sum(t.numel() * t.element_size() for t in host.values())
+        self.on_device = self.device.type == "cpu" or (
+            self.device.type == "cuda" and nbytes <= _GPU_SHARE * _free_cuda_bytes(self.device)
+        )
+        if self.device.type == "cpu":
+            self._data = host
+        elif self.on_device:
+            self._data = {m: t.to(self.device) for m, t in host.items()}
+        else:
+            self._data = {m: t.pin_memory() for m, t in host.items()}
+
+    @property
+    def modalities(self) -> tuple[Modality, ...]:
+        return tuple(self._data)
+
+    def __contains__(self, item: Item) -> bool:
+        return item in self._rows.get(item.modality, {})
+
+    def shape(self, modality: Modality) -> tuple[int, int, int]:
+        """(C, S, S) of one image of ``modality``."""
+        c, h, w = self._data[modality].shape[1:]
+        return int(c), int(h), int(w)
+
+    def nbytes(self) -> int:
+        """Memory the store holds."""
+        return sum(t.numel() * t.element_size() for t in self._data.values())
+
+    def rows(self, modality: Modality, items: Sequence[Item]) -> list[int]:
+        """Row of each item in ``modality``'s tensor.
+
+        Raises:
+            KeyError: an item is not in the store.
+        """
+        table = self._rows[modality]
+        return [table[it] for it in items]
+
+    def batch(self, modality: Modality, rows: Sequence[int] | Tensor) -> Tensor:
+        """Images of ``rows`` on the device as float32 in the loader's scale ([0, 1]):
+        (B, 1, S, S) depth, (B, 3, S, S) RGB; equal to ``loader.load`` image by image."""
+        data = self._data[modality]
+        if not isinstance(rows, Tensor):
+            rows = torch.tensor(list(rows), dtype=torch.int64)
+        if self.on_device:
+            x = data[rows.to(data.device)]
+        else:  # pinned host memory: gather on the host, copy asynchronously
+            x = data[rows.cpu()].pin_memory().to(self.device, non_blocking=True)
+        if x.dtype == torch.uint8:
+            return x.float().div_(255.0)
+        return x
+
+
+def _free_cuda_bytes(device: torch.device) -> int:
+    try:
+        free, _ = torch.cuda.mem_get_info(device)
+    except (RuntimeError, AssertionError):
+        return 0
+    return int(free)
