@@ -1,9 +1,5 @@
 """Bad input, as a new user or an attacker gives it: every case exits 1 or 2 with one line on
 stderr naming the file or option and what is wrong, no traceback, and the dataset unchanged.
-
-Cases marked ``xfail(strict=True, reason="needs cli wiring ...")`` pass once the command
-handler calls the library's validation named in the reason; strict, so the mark must be
-removed then.
 """
 
 from __future__ import annotations
@@ -305,11 +301,6 @@ def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
     )
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="needs train/loop.py select_split to pass excluded=len(paper.test) to "
-    "stratified_fabric_folds / stratified_fabric_split (lines 111 and 117)",
-)
 def test_synth_cross_error_says_which_fabrics_were_left_out(tmp_path: Path, capsys):
     data = _thirty(tmp_path / "w")
     _fails(

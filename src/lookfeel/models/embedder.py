@@ -201,7 +201,9 @@ def create_model(
     elif load_weights and freeze != "none":
         warnings.warn(
             f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers "
-            "because model.pretrained is not set; set it (alexnet, resnet18) or model.freeze=none",
+            "because model.pretrained is not set: pass --pretrained PATH (a local file of "
+            f"ImageNet weights for {config.backbone} in torchvision's layout, e.g. "
+            "alexnet-owt-7be5be79.pth; lookfeel never downloads) or set model.freeze=none",
             stacklevel=2,
         )
     branches: dict[Modality, Branch] = {}

@@ -114,12 +114,19 @@ def select_split(
     clusters = catalog.clusters()
     if t.split == "fold":
         split = stratified_fabric_folds(
-            pool, clusters, t.folds, seed=t.split_seed, fold_size=t.fold_size
+            pool,
+            clusters,
+            t.folds,
+            seed=t.split_seed,
+            fold_size=t.fold_size,
+            excluded=len(paper.test),
         )[t.fold]
         info = {"kind": "fold", "fold": t.fold, "folds": t.folds, "fold_size": t.fold_size}
         info["seed"] = t.split_seed
     else:
-        split = stratified_fabric_split(pool, clusters, n_test=t.val_fabrics, seed=t.split_seed)
+        split = stratified_fabric_split(
+            pool, clusters, n_test=t.val_fabrics, seed=t.split_seed, excluded=len(paper.test)
+        )
         info = {"kind": "stratified", "seed": t.split_seed}
     info |= {"train": list(split.train), "val": list(split.test)}
     return catalog.subset(split.train), catalog.subset(split.test), info
