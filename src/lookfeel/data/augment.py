@@ -107,8 +107,13 @@ def _crop_grids(
     sy = torch.minimum(((i + 0.5) * side / h - 0.5).clamp_min(0) + top, top + side - 1)
     sx = torch.minimum(((j + 0.5) * side / w - 0.5).clamp_min(0) + left, left + side - 1)
     gy, gx = (2 * sy + 1) / h - 1, (2 * sx + 1) / w - 1  # (N, h), (N, w)
+    # Only the (N, h) and (N, w) coordinates cross to the device; the (N, h, w, 2) grid is
+    # built there (for 384 touch crops at 227 px it is 160 MB: building it on the host and
+    # copying it cost ~12 ms a step on an H100 machine).
+    gx = gx.to(device=device, dtype=torch.float32, non_blocking=True)
+    gy = gy.to(device=device, dtype=torch.float32, non_blocking=True)
     grid = torch.stack(torch.broadcast_tensors(gx[:, None, :], gy[:, :, None]), dim=-1)
-    return grid.to(device=device, dtype=torch.float32)  # (N, h, w, 2) as (x, y)
+    return grid  # (N, h, w, 2) as (x, y)
 
 
 class Augmenter:

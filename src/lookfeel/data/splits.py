@@ -85,6 +85,7 @@ def stratified_fabric_split(
     test_fraction: float = 0.18,
     seed: int = 0,
     excluded: int = 0,
+    warn: bool = True,
 ) -> FabricSplit:
     """A fabric-disjoint split with test fabrics spread evenly over clusters (as the paper).
 
@@ -100,6 +101,8 @@ def stratified_fabric_split(
         seed: random seed.
         excluded: how many fabrics the caller kept out of ``fabric_ids`` beforehand (the
             paper's test fabrics); errors say so, since the user counts every fabric.
+        warn: warn when fewer fabrics are left to train on than are held out (off where the
+            held-out side is not what trains, e.g. choosing cross-validation's tested fabrics).
 
     Raises:
         SplitError: ``n_test`` is not between 1 and one less than the number of fabrics.
@@ -146,7 +149,7 @@ def stratified_fabric_split(
         if take[c]:
             test.extend(int(x) for x in rng.choice(g, size=take[c], replace=False))
     test_set = set(test)
-    if n - k < k:
+    if warn and n - k < k:
         warnings.warn(
             f"holding out {k} of {n} fabrics leaves {n - k} to train on"
             f"{_left_out(excluded)}; lower train.val_fabrics to train on more",
@@ -202,7 +205,10 @@ def stratified_fabric_folds(
                 + (f"; train.fold_size={len(ids) // n_folds} fits" if len(ids) >= n_folds else "")
             )
         if n_folds * fold_size < len(ids):
-            chosen = stratified_fabric_split(ids, clusters, n_test=n_folds * fold_size, seed=seed)
+            # Choosing the fabrics that are ever tested: each fold trains on all but its own.
+            chosen = stratified_fabric_split(
+                ids, clusters, n_test=n_folds * fold_size, seed=seed, warn=False
+            )
             tested = list(chosen.test)
     rng = np.random.default_rng(seed)
     folds: list[list[int]] = [[] for _ in range(n_folds)]

@@ -25,12 +25,12 @@ def _rows(logits: Tensor, pos: Tensor) -> Tensor:
     """Mean over rows with a positive of KL(uniform over the row's positives || softmax)."""
     logp = F.log_softmax(logits, dim=1)  # (N, M)
     n = pos.sum(dim=1)  # (N,) positives per row
-    valid = n > 0
-    if not bool(valid.any()):
-        return logits.sum() * 0.0  # no positive anywhere: zero, but keep the graph
+    valid = (n > 0).to(logp.dtype)
     n_safe = n.clamp_min(1).to(logp.dtype)
     ce = -torch.where(pos, logp, torch.zeros_like(logp)).sum(dim=1) / n_safe  # (N,)
-    return (ce - n_safe.log())[valid].mean()
+    # A weighted mean, not `[valid].mean()` behind `if valid.any()`: those wait for the GPU.
+    # No positive anywhere: 0, with the graph kept.
+    return ((ce - n_safe.log()) * valid).sum() / valid.sum().clamp_min(1.0)
 
 
 def multi_positive_info_nce(

@@ -23,8 +23,7 @@ def masked_mse(pred: Tensor, target: Tensor) -> Tensor:
         Scalar: the mean over known entries; 0 (with a zero gradient) when none is known.
     """
     known = ~torch.isnan(target)
-    if not bool(known.any()):
-        return pred.sum() * 0.0
     safe = torch.where(known, target, pred.detach())
-    sq = (pred - safe).pow(2)  # 0 where unknown
-    return sq.sum() / known.sum()
+    sq = (pred - safe).pow(2)  # 0 (and a zero gradient) where unknown
+    # clamp, not `if known.any()`: a branch on a GPU value would wait for the GPU every step.
+    return sq.sum() / known.sum().clamp_min(1)

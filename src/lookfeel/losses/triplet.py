@@ -44,12 +44,12 @@ def batch_hard_triplet(
     d = distance(anchor, candidate)  # (N, M)
     pos = anchor_fabric[:, None] == candidate_fabric[None, :]  # (N, M)
     valid = pos.any(dim=1) & (~pos).any(dim=1)  # (N,)
-    if not bool(valid.any()):
-        return d.sum() * 0.0
     inf = torch.full_like(d, float("inf"))
     hardest_pos = torch.where(pos, d, -inf).amax(dim=1)  # (N,)
     hardest_neg = torch.where(pos, inf, d).amin(dim=1)  # (N,)
-    return F.relu(hardest_pos - hardest_neg + margin)[valid].mean()
+    per_anchor = torch.where(valid, F.relu(hardest_pos - hardest_neg + margin), 0.0)
+    # A weighted mean, not `[valid].mean()` behind `if valid.any()`: those wait for the GPU.
+    return per_anchor.sum() / valid.sum().clamp_min(1)
 
 
 class BatchHardTripletLoss(nn.Module):

@@ -13,7 +13,7 @@ from lookfeel.data import ImageLoader, Item
 from lookfeel.embedding import embed_items
 from lookfeel.metrics import EXACT_PICK, score_pairs
 from lookfeel.modality import Modality, Pair
-from lookfeel.models import Embedder
+from lookfeel.models import Embedder, add_press_axis, eval_mode
 from lookfeel.train.features import FeatureTable
 
 __all__ = ["MAIN_PAIR", "default_pairs", "validate"]
@@ -37,9 +37,7 @@ def _embed_cached(
 ) -> np.ndarray:
     out = []
     for start in range(0, len(items), batch):
-        f = table.gather(m, items[start : start + batch])
-        if m is Modality.TOUCH:
-            f = f.unsqueeze(1)  # (B, *F) -> (B, P=1, *F)
+        f = add_press_axis(table.gather(m, items[start : start + batch]), m)
         out.append(model({m.value: f}, from_trunk=True)[m.value].float().cpu())
     return torch.cat(out).numpy()
 
@@ -66,11 +64,9 @@ def validate(
         ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per pair, and ``primary_pair``
         (the first pair's name: what ``best.pt`` is chosen by).
     """
-    was_training = model.training
-    model.eval()
-    try:
-        emb: dict[Modality, np.ndarray] = {}
-        fab: dict[Modality, np.ndarray] = {}
+    emb: dict[Modality, np.ndarray] = {}
+    fab: dict[Modality, np.ndarray] = {}
+    with eval_mode(model):
         for m, its in items.items():
             if not its:
                 continue
@@ -79,8 +75,6 @@ def validate(
             else:
                 emb[m] = embed_items(model, its, loader, batch_size, device)
             fab[m] = np.array([it.fabric_id for it in its])
-    finally:
-        model.train(was_training)
     wanted = [Pair.parse(p) for p in pairs] or default_pairs([m for m in items if m in emb])
     out: dict[str, Any] = {"primary_pair": str(wanted[0])}
     present = [p for p in wanted if p.query in emb and p.gallery in emb]
