@@ -202,8 +202,9 @@ def create_model(
         warnings.warn(
             f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers "
             "because model.pretrained is not set: pass --pretrained PATH (a local file of "
-            f"ImageNet weights for {config.backbone} in torchvision's layout, e.g. "
-            "alexnet-owt-7be5be79.pth; lookfeel never downloads) or set model.freeze=none",
+            f"weights for {config.backbone} in torchvision's layout"
+            + (", e.g. alexnet-owt-7be5be79.pth" if config.backbone == "alexnet" else "")
+            + "; lookfeel never downloads) or set model.freeze=none",
             stacklevel=2,
         )
     branches: dict[Modality, Branch] = {}
