@@ -275,39 +275,19 @@ def _thirty(root: Path) -> Path:
     return data
 
 
-def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
+def _synth_cross_on_thirty_fails(tmp_path: Path, capsys, *expected: str) -> None:
+    """Training configs/synth_cross.yaml on `_thirty`'s fabrics fails with ``expected``."""
     data = _thirty(tmp_path / "w")
-    _fails(
-        capsys,
-        [
-            "train",
-            "--config",
-            ROOT / "configs/synth_cross.yaml",
-            "--data",
-            data,
-            "--out",
-            tmp_path / "r",
-        ],
-        "5 folds of 18 fabrics need 90",
-        "there are 25",
-    )
+    train = ["train", "--config", ROOT / "configs/synth_cross.yaml", "--data", data]
+    _fails(capsys, [*train, "--out", tmp_path / "r"], *expected)
+
+
+def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
+    _synth_cross_on_thirty_fails(tmp_path, capsys, "5 folds of 18 fabrics need 90", "there are 25")
 
 
 def test_synth_cross_error_says_which_fabrics_were_left_out(tmp_path: Path, capsys):
-    data = _thirty(tmp_path / "w")
-    _fails(
-        capsys,
-        [
-            "train",
-            "--config",
-            ROOT / "configs/synth_cross.yaml",
-            "--data",
-            data,
-            "--out",
-            tmp_path / "r",
-        ],
-        "5 more fabric(s) marked paper_split=test",
-    )
+    _synth_cross_on_thirty_fails(tmp_path, capsys, "5 more fabric(s) marked paper_split=test")
 
 
 def test_split_errors_name_what_was_left_out_and_warn_on_few_training_fabrics():
