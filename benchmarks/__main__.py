@@ -37,6 +37,31 @@ def machine() -> dict[str, object]:
     }
 
 
+def stamp(name: str, started: float, result: dict[str, object]) -> dict[str, object]:
+    """``result`` headed by the benchmark's name, the time, its duration and the machine."""
+    return {
+        "benchmark": name,
+        "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "seconds": round(time.time() - started, 2),
+        "machine": machine(),
+        **result,
+    }
+
+
+def write_standalone(name: str, started: float, result: dict[str, object], out: Path | None) -> int:
+    """Stamp a benchmark run on its own, print its JSON and write it to ``out`` if given.
+
+    Returns:
+        The exit status: 1 when the benchmark says its targets were not met, else 0.
+    """
+    result = stamp(name, started, result)
+    text = json.dumps(result, indent=2) + "\n"
+    if out is not None:
+        atomic_write_text(out, text)
+    print(text)
+    return 1 if result.get("met") is False else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     parser.add_argument("--data", type=Path, default=None, help="real GelFabric root, if any")
@@ -55,14 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         module = importlib.import_module(f"benchmarks.bench_{name}")
         print(f"== {name}", flush=True)
         started = time.time()
-        result = module.run(data)
-        result = {
-            "benchmark": name,
-            "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            "seconds": round(time.time() - started, 2),
-            "machine": machine(),
-            **result,
-        }
+        result = stamp(name, started, module.run(data))
         path = atomic_write_text(args.out / f"{name}.json", json.dumps(result, indent=2) + "\n")
         print(json.dumps(result, indent=2))
         print(f"-> {path}")

@@ -16,7 +16,6 @@ cores: ~190 images/s decoded (the shipped code with channels-last).
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import tempfile
@@ -128,23 +127,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--images", type=int, default=None)
     parser.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = parser.parse_args(argv)
-    from benchmarks.__main__ import machine
-    from lookfeel.atomic import atomic_write_text
+    from benchmarks.__main__ import write_standalone
 
     started = time.time()
-    result = run(None, args.device, args.images)
-    result = {
-        "benchmark": "embed",
-        "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "seconds": round(time.time() - started, 2),
-        "machine": machine(),
-        **result,
-    }
-    text = json.dumps(result, indent=2) + "\n"
-    if args.out is not None:
-        atomic_write_text(args.out, text)
-    print(text)
-    return 1 if result.get("met") is False else 0
+    return write_standalone("embed", started, run(None, args.device, args.images), args.out)
 
 
 if __name__ == "__main__":

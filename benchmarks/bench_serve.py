@@ -11,6 +11,7 @@ share the 2 cores with the server, so the latency includes theirs.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import socket
 import statistics
@@ -19,6 +20,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -51,6 +53,32 @@ def _wait_ready(url: str, proc: subprocess.Popen[bytes], timeout: float = 120.0)
             pass
         time.sleep(0.2)
     raise RuntimeError(f"lookfeel serve did not answer at {url} in {timeout} s")
+
+
+@contextlib.contextmanager
+def serving(library: Path) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
+    """Run ``lookfeel serve`` on ``library`` at a free loopback port until the block ends.
+
+    Yields:
+        The server's base URL (once it answers) and its process.
+    """
+    port = _free_port()
+    url = f"http://127.0.0.1:{port}"
+    cmd = [
+        *(sys.executable, "-m", "lookfeel", "serve", "--index", str(library)),
+        *("--host", "127.0.0.1", "--port", str(port)),
+    ]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_ready(url, proc)
+        yield url, proc
+    finally:
+        proc.send_signal(signal.SIGINT)  # uvicorn shuts down gracefully on SIGINT
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
 
 
 def _load(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[str, object]:
@@ -129,23 +157,8 @@ def run(data: Path | None) -> dict[str, object]:
                 ],
             ),
         ]
-        port = _free_port()
-        url = f"http://127.0.0.1:{port}"
-        cmd = [
-            *(sys.executable, "-m", "lookfeel", "serve", "--index", f"{tmp}/lib"),
-            *("--host", "127.0.0.1", "--port", str(port)),
-        ]
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        try:
-            _wait_ready(url, proc)
+        with serving(Path(tmp) / "lib") as (url, _):
             result = _load(url, queries)
-        finally:
-            proc.send_signal(signal.SIGINT)  # uvicorn shuts down gracefully on SIGINT
-            try:
-                proc.wait(15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(5)
     return {
         "clients": CLIENTS,
         "duration_s": SECONDS,

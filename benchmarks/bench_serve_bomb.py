@@ -13,9 +13,6 @@ queries' latency (each must be a 200). Target: peak memory below 1 GB.
 from __future__ import annotations
 
 import platform
-import signal
-import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -26,7 +23,7 @@ import numpy as np
 from tests._tiny import bomb_png
 
 from benchmarks.bench_index import COMPACT, SIZE, write_checkpoint, write_dataset
-from benchmarks.bench_serve import _free_port, _wait_ready
+from benchmarks.bench_serve import serving
 
 CLIENTS = 20
 SECONDS = 20.0
@@ -139,25 +136,10 @@ def run(data: Path | None) -> dict[str, object]:
         ckpt = write_checkpoint(Path(tmp) / "compact.pt", COMPACT, SIZE)
         build_library(ckpt, root, Path(tmp) / "lib", progress=False)
         probe = (root / "depth/F0007_1.png").read_bytes()
-        port = _free_port()
-        url = f"http://127.0.0.1:{port}"
-        cmd = [
-            *(sys.executable, "-m", "lookfeel", "serve", "--index", f"{tmp}/lib"),
-            *("--host", "127.0.0.1", "--port", str(port)),
-        ]
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        try:
-            _wait_ready(url, proc)
+        with serving(Path(tmp) / "lib") as (url, proc):
             idle_kb = _status_kb(proc.pid, "VmRSS")
             result = _attack(url, bomb, probe)
             peak_kb = _status_kb(proc.pid, "VmHWM")
-        finally:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(5)
     peak_mb = peak_kb / 1024
     return {
         "device": _device(),

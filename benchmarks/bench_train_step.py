@@ -240,23 +240,12 @@ def main(argv: list[str] | None = None) -> int:
         }.items()
         if v is not None
     }
-    from benchmarks.__main__ import machine
-    from lookfeel.atomic import atomic_write_text
+    from benchmarks.__main__ import write_standalone
 
     started = time.time()
-    result = run(None, args.device, tuple(modes), steps)
-    result = {
-        "benchmark": "train_step",
-        "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "seconds": round(time.time() - started, 2),
-        "machine": machine(),
-        **result,
-    }
-    text = json.dumps(result, indent=2) + "\n"
-    if args.out is not None:
-        atomic_write_text(args.out, text)
-    print(text)
-    return 1 if result.get("met") is False else 0
+    return write_standalone(
+        "train_step", started, run(None, args.device, tuple(modes), steps), args.out
+    )
 
 
 if __name__ == "__main__":

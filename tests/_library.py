@@ -1,4 +1,4 @@
-"""A tiny trained model and dataset, made once per test process, for the library tests."""
+"""A tiny trained model and dataset, made once per test process, and what tests build on them."""
 
 from __future__ import annotations
 
@@ -8,9 +8,12 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import pytest
 import torch
 
+from lookfeel.cli import main
 from lookfeel.config import RunConfig, load_config
+from lookfeel.index import build_library
 from lookfeel.train import train
 
 from ._tiny import write_tiny_dataset
@@ -37,3 +40,18 @@ def tiny_run() -> tuple[Path, Path]:
     finally:
         torch.set_num_threads(threads)
     return data, result.last_checkpoint
+
+
+def tiny_library(tmp_path_factory: pytest.TempPathFactory, name: str, shard_size: int) -> Path:
+    """A library of `tiny_run`'s dataset under its model, in a fresh temporary folder ``name``."""
+    data, ckpt = tiny_run()
+    out = tmp_path_factory.mktemp(name) / "lib"
+    build_library(ckpt, data, out, shard_size=shard_size)
+    return out
+
+
+def evaluate_cli(ckpt: Path, data: Path, out: Path | str, *extra: str) -> int:
+    """``lookfeel evaluate --checkpoint CKPT --data DATA --out OUT EXTRA...``: its exit status."""
+    return main(
+        ["evaluate", "--checkpoint", str(ckpt), "--data", str(data), "--out", str(out), *extra]
+    )

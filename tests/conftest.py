@@ -12,6 +12,7 @@ import torch
 
 from lookfeel.config import DataConfig
 
+from ._library import tiny_run
 from ._tiny import write_tiny_dataset
 
 torch.set_num_threads(2)
@@ -36,6 +37,12 @@ def tiny_config() -> DataConfig:
 def tiny_dataset(tmp_path: Path) -> Path:
     """Six fabrics with depth, colour and touch (fold and flat presses) and labels.csv."""
     return write_tiny_dataset(tmp_path / "tiny")
+
+
+@pytest.fixture(scope="session")
+def run() -> tuple[Path, Path]:
+    """(dataset, checkpoint) of `tests._library.tiny_run`, shared read-only by every test."""
+    return tiny_run()
 
 
 @pytest.fixture

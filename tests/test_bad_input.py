@@ -17,10 +17,10 @@ import torch
 from lookfeel.cli import main
 from lookfeel.data import ImageError, check_dataset, decode_depth, decode_rgb, scan
 from lookfeel.data.splits import SplitError, stratified_fabric_folds, stratified_fabric_split
-from lookfeel.index import Library, LibraryError, build_library
+from lookfeel.index import Library, LibraryError
 from lookfeel.serve import ServeConfig, ServeOptionError, ServeOptions
 
-from ._library import TINY, tiny_run
+from ._library import TINY, evaluate_cli, tiny_library
 from ._tiny import bomb_png, write_tiny_dataset
 from .conftest import tree_digest
 
@@ -49,16 +49,8 @@ def _fails(
 
 
 @pytest.fixture(scope="module")
-def run() -> tuple[Path, Path]:
-    return tiny_run()
-
-
-@pytest.fixture(scope="module")
-def library(run: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
-    data, ckpt = run
-    out = tmp_path_factory.mktemp("bad") / "lib"
-    build_library(ckpt, data, out, shard_size=64)
-    return out
+def library(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tiny_library(tmp_path_factory, "bad", shard_size=64)
 
 
 @pytest.fixture
@@ -283,39 +275,19 @@ def _thirty(root: Path) -> Path:
     return data
 
 
-def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
+def _synth_cross_on_thirty_fails(tmp_path: Path, capsys, *expected: str) -> None:
+    """Training configs/synth_cross.yaml on `_thirty`'s fabrics fails with ``expected``."""
     data = _thirty(tmp_path / "w")
-    _fails(
-        capsys,
-        [
-            "train",
-            "--config",
-            ROOT / "configs/synth_cross.yaml",
-            "--data",
-            data,
-            "--out",
-            tmp_path / "r",
-        ],
-        "5 folds of 18 fabrics need 90",
-        "there are 25",
-    )
+    train = ["train", "--config", ROOT / "configs/synth_cross.yaml", "--data", data]
+    _fails(capsys, [*train, "--out", tmp_path / "r"], *expected)
+
+
+def test_synth_cross_on_thirty_fabrics_is_one_line(tmp_path: Path, capsys):
+    _synth_cross_on_thirty_fails(tmp_path, capsys, "5 folds of 18 fabrics need 90", "there are 25")
 
 
 def test_synth_cross_error_says_which_fabrics_were_left_out(tmp_path: Path, capsys):
-    data = _thirty(tmp_path / "w")
-    _fails(
-        capsys,
-        [
-            "train",
-            "--config",
-            ROOT / "configs/synth_cross.yaml",
-            "--data",
-            data,
-            "--out",
-            tmp_path / "r",
-        ],
-        "5 more fabric(s) marked paper_split=test",
-    )
+    _synth_cross_on_thirty_fails(tmp_path, capsys, "5 more fabric(s) marked paper_split=test")
 
 
 def test_split_errors_name_what_was_left_out_and_warn_on_few_training_fabrics():
@@ -435,20 +407,7 @@ def test_a_report_is_readable_by_the_group(run, tmp_path: Path, capsys):
     data, ckpt = run
     old = os.umask(0o022)
     try:
-        assert (
-            main(
-                [
-                    "evaluate",
-                    "--checkpoint",
-                    str(ckpt),
-                    "--data",
-                    str(data),
-                    "--out",
-                    str(tmp_path / "ev"),
-                ]
-            )
-            == 0
-        )
+        assert evaluate_cli(ckpt, data, tmp_path / "ev") == 0
     finally:
         os.umask(old)
     files = [p for p in (tmp_path / "ev").rglob("*") if p.is_file()]

@@ -32,6 +32,7 @@ from lookfeel.metrics import PAPER_C
 from lookfeel.modality import Modality
 from lookfeel.train import train
 
+from ._library import evaluate_cli
 from ._tiny import write_tiny_dataset
 
 TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
@@ -323,23 +324,7 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
         assert z["reference_embeddings_depth"].shape[0] == 3 * (8 - len(val))
     sets = ["--set", "n_boot=50", "--set", "max_presses=3"]
     a, b = tmp_path / "a", tmp_path / "b"
-    assert (
-        main(
-            [
-                "evaluate",
-                "--checkpoint",
-                str(ckpt),
-                "--data",
-                str(data),
-                "--out",
-                str(a),
-                "--split",
-                "val",
-                *sets,
-            ]
-        )
-        == 0
-    )
+    assert evaluate_cli(ckpt, data, a, "--split", "val", *sets) == 0
     assert (
         main(["evaluate", "--embeddings", str(npz), "--data", str(data), "--out", str(b), *sets])
         == 0
@@ -433,39 +418,9 @@ def test_cli_errors(
     assert "needs --data" in capsys.readouterr().err
     assert main(["evaluate", "--embeddings", str(tmp_path / "no.npz"), "--out", out]) == 1
     assert "not found" in capsys.readouterr().err
-    assert (
-        main(
-            [
-                "evaluate",
-                "--checkpoint",
-                str(ckpt),
-                "--data",
-                str(data),
-                "--out",
-                out,
-                "--set",
-                "nboot=1",
-            ]
-        )
-        == 1
-    )
+    assert evaluate_cli(ckpt, data, out, "--set", "nboot=1") == 1
     assert "unknown key" in capsys.readouterr().err
-    assert (
-        main(
-            [
-                "evaluate",
-                "--checkpoint",
-                str(ckpt),
-                "--data",
-                str(data),
-                "--out",
-                out,
-                "--split",
-                "paper",
-            ]
-        )
-        == 1
-    )
+    assert evaluate_cli(ckpt, data, out, "--split", "paper") == 1
     assert "paper's 18 test fabrics" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["evaluate", "--checkpoint", str(ckpt), "--embeddings", "e.npz", "--out", out])

@@ -29,20 +29,12 @@ from lookfeel.index.calibrate import fit_unknown_logit, threshold_for, unknown_p
 from lookfeel.metrics import pairwise_distances
 from lookfeel.modality import Modality
 
-from ._library import tiny_run
+from ._library import tiny_library
 
 
 @pytest.fixture(scope="module")
-def run() -> tuple[Path, Path]:
-    return tiny_run()
-
-
-@pytest.fixture(scope="module")
-def library(run: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
-    data, ckpt = run
-    out = tmp_path_factory.mktemp("index") / "lib"
-    build_library(ckpt, data, out, shard_size=8)
-    return out
+def library(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tiny_library(tmp_path_factory, "index", shard_size=8)
 
 
 # ---- search --------------------------------------------------------------------------------

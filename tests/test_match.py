@@ -17,21 +17,13 @@ from lookfeel.data import ImageError, ImageLoader, scan
 from lookfeel.index import Library, LibraryError, Matcher, build_library, load_query_image
 from lookfeel.modality import Modality
 
-from ._library import tiny_run
+from ._library import tiny_library
 from ._tiny import write_depth, write_rgb
 
 
 @pytest.fixture(scope="module")
-def run() -> tuple[Path, Path]:
-    return tiny_run()
-
-
-@pytest.fixture(scope="module")
-def matcher(run: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory) -> Matcher:
-    data, ckpt = run
-    out = tmp_path_factory.mktemp("match") / "lib"
-    build_library(ckpt, data, out, shard_size=64)
-    return Matcher(Library.open(out))
+def matcher(tmp_path_factory: pytest.TempPathFactory) -> Matcher:
+    return Matcher(Library.open(tiny_library(tmp_path_factory, "match", shard_size=64)))
 
 
 def test_query_images_are_preprocessed_exactly_as_training(run, matcher: Matcher):

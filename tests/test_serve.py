@@ -21,13 +21,6 @@ from lookfeel.index import Library, Matcher, build_library
 from lookfeel.modality import Modality
 from lookfeel.serve import ServeConfig, background_server, create_app
 
-from ._library import tiny_run
-
-
-@pytest.fixture(scope="module")
-def run() -> tuple[Path, Path]:
-    return tiny_run()
-
 
 class _CountingMatcher(Matcher):
     """Records how many queries are inside the model at once."""

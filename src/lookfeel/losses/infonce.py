@@ -10,13 +10,12 @@ at its optimum whatever the number of positives.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from lookfeel.losses._naming import require_fabric, slot_pairs, term_name
+from lookfeel.losses._pairwise import FabricPairLoss
 
 __all__ = ["MultiPositiveInfoNCE", "multi_positive_info_nce"]
 
@@ -60,12 +59,14 @@ def multi_positive_info_nce(
     return 0.5 * (_rows(logits, pos) + _rows(logits.T, pos.T))
 
 
-class MultiPositiveInfoNCE(nn.Module):
+class MultiPositiveInfoNCE(FabricPairLoss):
     """Multi-positive InfoNCE over every slot pair, with a learnt or fixed temperature.
 
     With ``learn_temperature`` the module owns a parameter (the log inverse temperature): give
     ``loss.parameters()`` to the optimiser and keep ``loss.state_dict()`` in checkpoints.
     """
+
+    loss_name = "InfoNCE"
 
     def __init__(
         self,
@@ -95,30 +96,6 @@ class MultiPositiveInfoNCE(nn.Module):
             return min(self._fixed_scale, self.max_logit_scale)
         return self.log_logit_scale.exp().clamp(max=self.max_logit_scale)
 
-    def forward(
-        self,
-        embeddings: Mapping[str, Tensor],
-        y: Tensor | None = None,
-        fabric: Mapping[str, Tensor] | None = None,
-    ) -> dict[str, Tensor]:
-        """One term per slot pair (``depth_touch_loss`` ...).
-
-        Args:
-            embeddings: slot -> (B, D), at least two slots.
-            y: unused (positives come from fabric ids).
-            fabric: slot -> (B,) fabric ids; required.
-
-        Returns:
-            Term name -> scalar loss.
-        """
-        slots = list(embeddings)
-        if len(slots) < 2:
-            raise ValueError(f"InfoNCE needs at least 2 slots, got {slots}")
-        fab = require_fabric(fabric, slots, "InfoNCE")
-        scale = self.logit_scale()
-        return {
-            term_name(a, b): multi_positive_info_nce(
-                embeddings[a], embeddings[b], fab[a], fab[b], scale
-            )
-            for a, b in slot_pairs(slots)
-        }
+    def pair_term(self, ea: Tensor, eb: Tensor, fa: Tensor, fb: Tensor) -> Tensor:
+        """Multi-positive InfoNCE between slots a and b at the current temperature."""
+        return multi_positive_info_nce(ea, eb, fa, fb, self.logit_scale())

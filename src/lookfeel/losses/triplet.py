@@ -6,13 +6,13 @@ other-fabric item in the other slot: ``max(0, d(a, p_hard) - d(a, n_hard) + marg
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 
 import torch
 import torch.nn.functional as F
-from torch import Tensor, nn
+from torch import Tensor
 
-from lookfeel.losses._naming import require_fabric, slot_pairs, term_name
+from lookfeel.losses._pairwise import FabricPairLoss
 from lookfeel.losses.distance import pairwise_euclidean
 
 __all__ = ["BatchHardTripletLoss", "batch_hard_triplet"]
@@ -52,8 +52,10 @@ def batch_hard_triplet(
     return per_anchor.sum() / valid.sum().clamp_min(1)
 
 
-class BatchHardTripletLoss(nn.Module):
+class BatchHardTripletLoss(FabricPairLoss):
     """Symmetric batch-hard triplet loss over every slot pair."""
+
+    loss_name = "the triplet loss"
 
     def __init__(self, margin: float = 0.2, distance: PairwiseFn = pairwise_euclidean) -> None:
         """Configure the loss.
@@ -66,31 +68,9 @@ class BatchHardTripletLoss(nn.Module):
         self.margin = margin
         self.distance = distance
 
-    def forward(
-        self,
-        embeddings: Mapping[str, Tensor],
-        y: Tensor | None = None,
-        fabric: Mapping[str, Tensor] | None = None,
-    ) -> dict[str, Tensor]:
-        """One term per slot pair: the mean of the a-to-b and b-to-a losses.
-
-        Args:
-            embeddings: slot -> (B, D), at least two slots.
-            y: unused (positives come from fabric ids).
-            fabric: slot -> (B,) fabric ids; required.
-
-        Returns:
-            Term name -> scalar loss.
-        """
-        slots = list(embeddings)
-        if len(slots) < 2:
-            raise ValueError(f"the triplet loss needs at least 2 slots, got {slots}")
-        fab = require_fabric(fabric, slots, "the triplet loss")
-        terms = {}
-        for a, b in slot_pairs(slots):
-            ea, eb, fa, fb = embeddings[a], embeddings[b], fab[a], fab[b]
-            terms[term_name(a, b)] = 0.5 * (
-                batch_hard_triplet(ea, eb, fa, fb, self.margin, self.distance)
-                + batch_hard_triplet(eb, ea, fb, fa, self.margin, self.distance)
-            )
-        return terms
+    def pair_term(self, ea: Tensor, eb: Tensor, fa: Tensor, fb: Tensor) -> Tensor:
+        """The mean of the a-to-b and b-to-a batch-hard triplet losses."""
+        return 0.5 * (
+            batch_hard_triplet(ea, eb, fa, fb, self.margin, self.distance)
+            + batch_hard_triplet(eb, ea, fb, fa, self.margin, self.distance)
+        )

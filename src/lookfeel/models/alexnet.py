@@ -24,30 +24,16 @@ class AlexNet(Backbone):
     Stages: conv1-5 with pooling (``features``), avgpool and flatten, fc6 (``classifier.0-2``:
     dropout, linear, ReLU), fc7 (``classifier.3-5``). Freeze points: ``none``; ``to_conv5``;
     ``to_fc6`` (the paper: "parameters of AlexNet before fc7 will be fixed"); ``all``.
+    Arguments: ``freeze`` ``None`` is the paper's ``to_fc6``; ``dropout`` is the probability
+    before fc6 and fc7 (torchvision: 0.5); ``width`` must be ``None`` (AlexNet's is fixed).
     """
 
     name = "alexnet"
     freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_conv5": 2, "to_fc6": 3, "all": 4}
     min_size = 63  # three stride-2 max pools after a stride-4 conv need 63 px
 
-    def __init__(
-        self,
-        in_channels: int = 3,
-        stem: str = "replicate",
-        freeze: str | None = None,
-        dropout: float = 0.5,
-        width: int | None = None,
-    ) -> None:
-        """Build AlexNet.
-
-        Args:
-            in_channels: 1 (depth) or 3.
-            stem: ``replicate`` or ``sum`` for one-channel input (see `Backbone`).
-            freeze: a freeze point; ``None`` is the paper's ``to_fc6``.
-            dropout: dropout probability before fc6 and fc7 (torchvision: 0.5).
-            width: must be ``None``: AlexNet's width is fixed.
-        """
-        super().__init__(in_channels, stem)
+    def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
+        """Build the layers."""
         if width is not None:
             raise ValueError("alexnet has a fixed width; width must be None")
         self.features = nn.Sequential(

@@ -24,8 +24,9 @@ IMAGENET_STD = (0.229, 0.224, 0.225)
 class Backbone(nn.Module):
     """Base class: input checks, ImageNet normalisation, the trunk/head split and freezing.
 
-    Subclasses build their layers (keeping torchvision's attribute names where one exists, so
-    state-dict keys match its files), then call `_set_stages`.
+    Every backbone is built as ``Cls(in_channels, stem, freeze, dropout, width)``. Subclasses build
+    their layers in `_build` (keeping torchvision's attribute names where one exists, so
+    state-dict keys match its files), which ends by calling `_set_stages`.
 
     Attributes:
         name: registry name (``alexnet``, ``compact``, ``resnet18``).
@@ -39,13 +40,23 @@ class Backbone(nn.Module):
     freeze_points: ClassVar[dict[str, int]]
     min_size: ClassVar[int] = 1
 
-    def __init__(self, in_channels: int = 3, stem: str = "replicate") -> None:
-        """Set up the input path.
+    def __init__(
+        self,
+        in_channels: int = 3,
+        stem: str = "replicate",
+        freeze: str | None = None,
+        dropout: float = 0.5,
+        width: int | None = None,
+    ) -> None:
+        """Set up the input path, then build the layers (`_build`).
 
         Args:
             in_channels: 1 (depth) or 3 (colour, touch).
             stem: for one-channel input, ``replicate`` copies it into three channels before a
                 three-channel first layer; ``sum`` makes the first layer one-channel.
+            freeze: a freeze point; ``None`` is the subclass's default.
+            dropout: dropout probability where the subclass has dropout.
+            width: the subclass's width parameter; ``None`` is its default.
         """
         super().__init__()
         if in_channels not in (1, 3):
@@ -70,6 +81,11 @@ class Backbone(nn.Module):
         self.freeze = "none"
         self._stages: list[nn.Module] = []
         self._cut = 0
+        self._build(freeze, dropout, width)
+
+    def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
+        """Build the layers and call `_set_stages` (each subclass says what its arguments mean)."""
+        raise NotImplementedError
 
     def _set_stages(
         self,

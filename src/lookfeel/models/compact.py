@@ -28,30 +28,16 @@ class CompactCNN(Backbone):
     At 64 px and w = 32 a forward pass costs about 60 MMAC per image (AlexNet at 227 px: 715).
     Like AlexNet's fc7, the embedding is the ReLU of a fully connected layer, D = 8w.
     Freeze points: ``none``, ``to_block4`` (all conv blocks), ``all``.
+    Arguments: ``freeze`` ``None`` trains everything; ``dropout`` is the probability before the
+    fc layer; ``width`` is w, the channels of the first block (default 32).
     """
 
     name = "compact"
     freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_block4": 5, "all": 6}
     min_size = 16
 
-    def __init__(
-        self,
-        in_channels: int = 3,
-        stem: str = "replicate",
-        freeze: str | None = None,
-        dropout: float = 0.5,
-        width: int | None = None,
-    ) -> None:
-        """Build the network.
-
-        Args:
-            in_channels: 1 (depth) or 3.
-            stem: ``replicate`` or ``sum`` for one-channel input (see `Backbone`).
-            freeze: a freeze point; ``None`` trains everything.
-            dropout: dropout probability before the fc layer.
-            width: channels of the first block (default 32).
-        """
-        super().__init__(in_channels, stem)
+    def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
+        """Build the layers."""
         w = width or 32
         self.features = nn.Sequential(
             _block(self.stem_channels, w),

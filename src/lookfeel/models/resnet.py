@@ -46,30 +46,17 @@ class ResNet18(Backbone):
 
     Stages: stem (conv1, bn1, ReLU, max pool), layer1-4, global average pool. Freeze points:
     ``none``, ``to_layer2``, ``to_layer3``, ``all``.
+    Arguments: ``freeze`` ``None`` trains everything; ``dropout`` is unused (ResNet-18 has no
+    dropout; accepted for a uniform interface); ``width`` is the channels of ``layer1``
+    (default 64, torchvision's).
     """
 
     name = "resnet18"
     freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_layer2": 3, "to_layer3": 4, "all": 6}
     min_size = 32
 
-    def __init__(
-        self,
-        in_channels: int = 3,
-        stem: str = "replicate",
-        freeze: str | None = None,
-        dropout: float = 0.5,
-        width: int | None = None,
-    ) -> None:
-        """Build the network.
-
-        Args:
-            in_channels: 1 (depth) or 3.
-            stem: ``replicate`` or ``sum`` for one-channel input (see `Backbone`).
-            freeze: a freeze point; ``None`` trains everything.
-            dropout: unused (ResNet-18 has no dropout); accepted for a uniform interface.
-            width: channels of ``layer1`` (default 64, torchvision's).
-        """
-        super().__init__(in_channels, stem)
+    def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
+        """Build the layers."""
         del dropout
         w = width or 64
         self.conv1 = nn.Conv2d(self.stem_channels, w, 7, stride=2, padding=3, bias=False)
