@@ -109,7 +109,9 @@ def _overrides(mode: str, steps: int, device: str) -> list[str]:
     ]
 
 
-def _child(mode: str, data: Path, out: Path, steps: int, device: str) -> dict[str, object]:
+def _child(
+    mode: str, data: Path, out: Path, steps: int, device: str, extra: tuple[str, ...] = ()
+) -> dict[str, object]:
     """Run one mode in this process; its measurements."""
     import warnings
 
@@ -119,7 +121,7 @@ def _child(mode: str, data: Path, out: Path, steps: int, device: str) -> dict[st
     from lookfeel.train import train
 
     warnings.simplefilter("ignore")  # frozen random AlexNet: no ImageNet file here
-    config = load_config(RunConfig, CONFIG, _overrides(mode, steps, device))
+    config = load_config(RunConfig, CONFIG, [*_overrides(mode, steps, device), *extra])
     if device == "cuda":
         torch.cuda.reset_peak_memory_stats()
     started = time.perf_counter()
@@ -150,9 +152,12 @@ def _child(mode: str, data: Path, out: Path, steps: int, device: str) -> dict[st
     return result
 
 
-def _run_mode(mode: str, root: Path, tmp: str, steps: int, device: str) -> dict[str, object]:
+def _run_mode(
+    mode: str, root: Path, tmp: str, steps: int, device: str, extra: tuple[str, ...] = ()
+) -> dict[str, object]:
     cmd = [sys.executable, "-m", "benchmarks.bench_train_step", "--child", mode, str(root)]
     cmd += [f"{tmp}/{mode}", "--steps", str(steps), "--device", device]
+    cmd += [f"--set={kv}" for kv in extra]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode:
         raise RuntimeError(f"bench_train_step {mode} failed:\n{proc.stderr[-3000:]}")
@@ -165,21 +170,24 @@ def run(
     device: str = "cpu",
     modes: tuple[str, ...] = ("cached", "uncached"),
     steps: dict[str, int] | None = None,
+    extra: tuple[str, ...] = (),
 ) -> dict[str, object]:
-    """Measure the modes on ``device``; the `benchmarks` runner's entry point (CPU)."""
+    """Measure the modes on ``device``; the `benchmarks` runner's entry point (CPU).
+    ``extra``: config overrides (``key=value``) added to every mode's."""
     default = {"cached": 60, "uncached": 4, "schedule": SCHEDULE}
     if device == "cuda":
         default |= {"cached": 3000, "uncached": 600}
     steps = default | (steps or {})
     with tempfile.TemporaryDirectory() as tmp:
         root = write_dataset(Path(tmp) / "data")
-        details = {m: _run_mode(m, root, tmp, steps[m], device) for m in modes}
+        details = {m: _run_mode(m, root, tmp, steps[m], device, extra) for m in modes}
     result: dict[str, object] = {
         "config": "configs/paper/multi_input.yaml",
         "device": device,
         "device_name": device_name(device),
         "image_size": 227,
         "batch_size": 128,
+        "overrides": list(extra),
     }
     if "cached" in details:
         result["cached_steps_per_s"] = round(float(details["cached"]["steps_per_s"]), 3)  # type: ignore[arg-type]
@@ -222,11 +230,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cached-steps", type=int, default=None)
     parser.add_argument("--uncached-steps", type=int, default=None)
     parser.add_argument("--out", type=Path, default=None, help="write the JSON here")
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="config override for every mode, e.g. train.cuda_graph=true; repeatable",
+    )  # fmt: skip
     parser.add_argument("--child", nargs=3, metavar=("MODE", "DATA", "OUT"), default=None)
     args = parser.parse_args(argv)
     if args.child:
         mode, data, out = args.child
-        print(json.dumps(_child(mode, Path(data), Path(out), args.steps, args.device)))
+        result = _child(mode, Path(data), Path(out), args.steps, args.device, tuple(args.set))
+        print(json.dumps(result))
         return 0
     modes = args.mode or (
         ["cached", "uncached", "schedule"] if args.device == "cuda" else ["cached", "uncached"]
@@ -244,7 +257,10 @@ def main(argv: list[str] | None = None) -> int:
 
     started = time.time()
     return write_standalone(
-        "train_step", started, run(None, args.device, tuple(modes), steps), args.out
+        "train_step",
+        started,
+        run(None, args.device, tuple(modes), steps, tuple(args.set)),
+        args.out,
     )
 
 

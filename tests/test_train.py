@@ -261,3 +261,23 @@ def test_embedding_from_the_device_store_equals_from_the_loader(data: Path):
         c = embed_items(model, items, loader, batch_size=7, store=store)  # other batches
         np.testing.assert_allclose(a, c, atol=1e-5, rtol=0)
     assert model.training  # eval only inside
+
+
+def test_cuda_graph_flag_changes_nothing_off_cuda(data: Path, tmp_path: Path):
+    """``train.cuda_graph`` only applies on CUDA: on CPU the run is bit for bit the eager one."""
+    eager = train(_config("train.steps=6", "train.val_every=0"), data, tmp_path / "eager")
+    flag = _config("train.steps=6", "train.val_every=0", "train.cuda_graph=true")
+    graphed = train(flag, data, tmp_path / "graphed")
+    a = _tensors(torch.load(eager.last_checkpoint, weights_only=True))
+    b = _tensors(torch.load(graphed.last_checkpoint, weights_only=True))
+    assert a.keys() == b.keys() and [k for k in a if not torch.equal(a[k], b[k])] == []
+
+
+def test_tree_map_pairs_nested_batches():
+    from lookfeel.train.loop import _tree_map
+
+    a = {"inputs": {"depth": torch.zeros(2)}, "y": torch.ones(2)}
+    b = {"inputs": {"depth": torch.full((2,), 3.0)}, "y": torch.full((2,), 4.0)}
+    out = _tree_map(lambda x, y: x + y, a, b)
+    assert torch.equal(out["inputs"]["depth"], torch.full((2,), 3.0))
+    assert torch.equal(out["y"], torch.full((2,), 5.0))

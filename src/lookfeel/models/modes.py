@@ -37,11 +37,12 @@ def drop_press_axis(x: Tensor, modality: Modality) -> Tensor:
     return x.squeeze(1) if modality is Modality.TOUCH else x
 
 
-def autocast(device: torch.device) -> contextlib.AbstractContextManager[object]:
+def autocast(device: torch.device, cache: bool = True) -> contextlib.AbstractContextManager[object]:
     """bf16 autocast on CUDA; nothing elsewhere (on CPU bf16 is ~100x slower than fp32 on the
-    machines this runs on, and fp32 keeps CPU runs bit-reproducible)."""
+    machines this runs on, and fp32 keeps CPU runs bit-reproducible). ``cache=False`` for code
+    captured in a CUDA graph (autocast's cast cache must not outlive the capture)."""
     if device.type == "cuda":
-        return torch.autocast("cuda", dtype=torch.bfloat16)
+        return torch.autocast("cuda", dtype=torch.bfloat16, cache_enabled=cache)
     return contextlib.nullcontext()
 
 

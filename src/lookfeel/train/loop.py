@@ -267,7 +267,15 @@ def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
         The loss terms, detached, on the device (reading them waits for the GPU: the loop
         reads them only at log steps).
     """
-    with autocast(run.device):
+    run.optimizer.zero_grad(set_to_none=True)
+    terms = _update(run, batch)
+    run.scheduler.step()
+    return terms
+
+
+def _update(run: TrainRun, batch: Mapping[str, Any], cache: bool = True) -> dict[str, Tensor]:
+    """Forward, loss, backward and the optimiser's update: what a CUDA graph captures."""
+    with autocast(run.device, cache):
         outputs = run.net(batch["inputs"], from_trunk=run.from_trunk, heads=run.heads)
     outputs = {k: v.float() for k, v in outputs.items()}  # the loss in fp32
     terms = run.loss_fn(
@@ -277,12 +285,83 @@ def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
         cluster=batch["clusters"] if run.cluster else None,
         properties=batch["properties"] if run.properties else None,
     )
-    run.optimizer.zero_grad(set_to_none=True)
     terms["loss"].backward()
     run.dist.reduce_extra_grads(run.loss_fn)
     run.optimizer.step()
-    run.scheduler.step()
     return {k: v.detach() for k, v in terms.items()}
+
+
+def _tree_map(fn: Callable[..., Any], *trees: Any) -> Any:
+    """``fn`` over the tensors of nested dicts of equal structure."""
+    if isinstance(trees[0], Mapping):
+        return {k: _tree_map(fn, *(t[k] for t in trees)) for k in trees[0]}
+    return fn(*trees)
+
+
+class GraphedStep:
+    """`train_step` replayed from a CUDA graph (``train.cuda_graph``).
+
+    The first ``warmup`` steps run eagerly on a side stream (real steps: they also give the
+    optimiser its state and cuBLAS its workspaces); the next step is captured once, and from
+    then on each step copies its batch into the captured input tensors and replays the graph.
+    The batch's shapes must not change (they do not: the batch size and presses are fixed). The
+    returned loss terms are the graph's own output tensors, overwritten by the next replay: the
+    loop reads or adds them before the next step, in stream order.
+    """
+
+    def __init__(self, run: TrainRun, warmup: int = 3) -> None:
+        for group in run.optimizer.param_groups:  # a captured step() must keep state on device
+            group["capturable"] = True
+        self.run = run
+        self.warmup = warmup
+        self.eager_steps = 0
+        self.graph: torch.cuda.CUDAGraph | None = None
+        self.inputs: Any = None
+        self.outputs: dict[str, Tensor] = {}
+
+    def __call__(self, batch: Mapping[str, Any]) -> dict[str, Tensor]:
+        run = self.run
+        if self.graph is None and self.eager_steps < self.warmup:
+            side = torch.cuda.Stream(run.device)
+            side.wait_stream(torch.cuda.current_stream(run.device))
+            with torch.cuda.stream(side):
+                terms = train_step(run, batch)
+            torch.cuda.current_stream(run.device).wait_stream(side)
+            self.eager_steps += 1
+            return terms
+        if self.graph is None:
+            self.inputs = _tree_map(lambda x: x.clone(), dict(batch))
+            run.optimizer.zero_grad(set_to_none=True)
+            graph = torch.cuda.CUDAGraph()
+            with torch.cuda.graph(graph):
+                self.outputs = _update(run, self.inputs, cache=False)
+            self.graph = graph
+        else:
+            _tree_map(lambda dst, src: dst.copy_(src, non_blocking=True), self.inputs, dict(batch))
+        self.graph.replay()
+        run.scheduler.step()
+        return self.outputs
+
+
+def _step_function(
+    run: TrainRun, config: RunConfig
+) -> Callable[[Mapping[str, Any]], dict[str, Tensor]]:
+    """`train_step`, or a `GraphedStep` where ``train.cuda_graph`` can apply."""
+    t = config.train
+    if not t.cuda_graph:
+        return lambda batch: train_step(run, batch)
+    why = None
+    if run.device.type != "cuda":
+        why = "it needs CUDA"
+    elif run.dist.world > 1:
+        why = "it runs in one process only"
+    elif t.lr_schedule != "constant" or t.warmup_steps:
+        why = "the learning rate must be constant (a captured optimiser step keeps its lr)"
+    if why is not None:
+        if run.device.type == "cuda":
+            warnings.warn(f"train.cuda_graph ignored: {why}", stacklevel=3)
+        return lambda batch: train_step(run, batch)
+    return GraphedStep(run)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -603,8 +682,9 @@ def _train(
     sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
     window_start, window_steps = time.perf_counter(), 0
     model.train()
+    step_fn = _step_function(run, config)
     for step in range(start_step, t.steps):
-        terms = train_step(run, batches(step))
+        terms = step_fn(batches(step))
         for k, v in terms.items():
             sums[k] = sums[k] + v.double() if k in sums else v.double()
         window_steps += 1
