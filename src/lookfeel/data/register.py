@@ -55,10 +55,12 @@ __all__ = [
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 
-# GelFabric's 224x224 crop (see lookfeel.synth.scene): focal length and principal point.
-_GF_SIZE = 224
-_GF_F = 373.0
-_GF_C = 111.5
+GELFABRIC_SIZE = 224
+"""Side in pixels of GelFabric's cropped Kinect depth images."""
+GELFABRIC_FOCAL = 373.0
+"""Focal length in pixels of that crop (the synthetic world's camera uses it too)."""
+GELFABRIC_CENTRE = 111.5
+"""Principal point (both axes) in pixels of that crop."""
 
 
 class RegistrationError(LookfeelError):
@@ -74,10 +76,14 @@ class Intrinsics:
     cy: float
 
     @classmethod
-    def gelfabric(cls, width: int = _GF_SIZE, height: int = _GF_SIZE) -> Intrinsics:
+    def gelfabric(cls, width: int = GELFABRIC_SIZE, height: int = GELFABRIC_SIZE) -> Intrinsics:
         """GelFabric's Kinect crop (calibrated at 224 px), scaled to ``width`` x ``height``."""
-        s = width / _GF_SIZE
-        return cls(_GF_F * s, (_GF_C + 0.5) * s - 0.5, (_GF_C + 0.5) * height / _GF_SIZE - 0.5)
+        s = width / GELFABRIC_SIZE
+        return cls(
+            GELFABRIC_FOCAL * s,
+            (GELFABRIC_CENTRE + 0.5) * s - 0.5,
+            (GELFABRIC_CENTRE + 0.5) * height / GELFABRIC_SIZE - 0.5,
+        )
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from lookfeel.data.register import GELFABRIC_CENTRE, GELFABRIC_FOCAL, GELFABRIC_SIZE
+
 __all__ = [
     "POST_HEIGHT_MM",
     "POST_RADIUS_MM",
@@ -39,9 +41,9 @@ POST_HEIGHT_MM = 307.0
 POST_RADIUS_MM = 31.5
 
 # Calibration at the real images' size (224 px): focal length and principal point.
-_REF_SIZE = 224
-_REF_F = 373.0
-_REF_C = 111.5
+_REF_SIZE = GELFABRIC_SIZE
+_REF_F = GELFABRIC_FOCAL
+_REF_C = GELFABRIC_CENTRE
 # Unit normals (camera coordinates, x right, y down, z forward) and distances of the room's
 # planes, from the inverse-depth fit described above.
 _FLOOR_N = np.array([-0.0605, 0.8865, 0.4587])
