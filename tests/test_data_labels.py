@@ -49,6 +49,6 @@ def test_header_is_required(tmp_path: Path):
     _, problems = _read(tmp_path, "1,2,0.5\n2,3,0.6\n")
     assert len(problems) == 1
     assert problems[0].line == 1
-    assert problems[0].message.startswith("no 'fabric_id' column in the header")
+    assert problems[0].message.startswith("no 'fabric_id' or 'object' column in the header")
     _, problems = _read(tmp_path, "")
     assert [p.message for p in problems] == ["labels file is empty"]

@@ -11,6 +11,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from lookfeel.data.labels import class_of
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
 
@@ -31,7 +32,8 @@ class Item:
         modality: which sensor made it.
         fabric_id: the fabric's integer id (``F<id>_`` in the file name).
         frames: the image file(s), ordered.
-        kind: the press kind for touch items, ``None`` otherwise.
+        kind: the press kind for touch items, ``None`` otherwise (and for a touch video whose
+            kind is not stated: an object's press in ``videos/``).
         press: the press id for touch items (``<press>`` in the name), ``None`` otherwise.
     """
 
@@ -65,6 +67,8 @@ class Fabric:
             or ``None`` when unknown.
         paper_split: ``"train"``, ``"test"`` or ``"excluded"`` when labels.csv says, else None.
         items: per modality, the fabric's items in file-name order.
+        name: the object's name when the data names objects (``videos/<name>_<n>.mov``).
+        text_labels: every known label cell as written, text columns (``material``) included.
     """
 
     id: int
@@ -72,13 +76,25 @@ class Fabric:
     cluster: int | None = None
     paper_split: str | None = None
     items: Mapping[Modality, tuple[Item, ...]] = field(default_factory=dict)
+    name: str | None = None
+    text_labels: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def display_name(self) -> str:
+        """``sponge`` for a named object, ``F0012`` for a numbered fabric."""
+        return self.name if self.name is not None else f"F{self.id:04d}"
+
+    def class_of(self, column: str) -> str | None:
+        """The fabric's class in a label column as text (``"2"``, ``"metal"``), None if unknown."""
+        return class_of(dict(self.labels), dict(self.text_labels), column)
 
     def items_of(self, modality: Modality, kinds: Iterable[PressKind] | None = None) -> list[Item]:
-        """Items of one modality; for touch, only presses of ``kinds`` when given."""
+        """Items of one modality; for touch, only presses of ``kinds`` when given (a press of
+        no stated kind, such as an object's video in ``videos/``, is of every kind)."""
         items = list(self.items.get(modality, ()))
         if kinds is not None and modality is Modality.TOUCH:
             wanted = set(kinds)
-            items = [it for it in items if it.kind in wanted]
+            items = [it for it in items if it.kind is None or it.kind in wanted]
         return items
 
     @property
@@ -94,8 +110,9 @@ class Catalog:
     Attributes:
         root: the folder scanned.
         fabrics: every fabric that has at least one usable item, by increasing id.
-        label_columns: the label columns of labels.csv beyond ``fabric_id`` (in file order),
+        label_columns: the numeric label columns of labels.csv beyond the key (in file order),
             other than ``paper_split`` and cluster columns.
+        text_columns: the label columns of words (``material``), usable as classes.
         cluster_column: the labels.csv column the clusters came from, if any.
         labelled_only: fabric ids that are in labels.csv but have no image.
         problems: everything the scan found wrong or worth a warning.
@@ -105,6 +122,7 @@ class Catalog:
     root: Path
     fabrics: tuple[Fabric, ...]
     label_columns: tuple[str, ...] = ()
+    text_columns: tuple[str, ...] = ()
     cluster_column: str | None = None
     labelled_only: Mapping[int, Fabric] = field(default_factory=dict)
     problems: tuple[Problem, ...] = ()
@@ -146,6 +164,26 @@ class Catalog:
     @property
     def warnings(self) -> tuple[Problem, ...]:
         return tuple(p for p in self.problems if p.severity == "warning")
+
+    def class_counts(self, columns: Iterable[str] | None = None) -> dict[str, dict[str, int]]:
+        """Per label column whose values are classes (text columns, and numeric columns of a
+        few whole numbers such as ranks 0, 1, 2): fabrics per class, in sorted class order."""
+        if columns is None:
+            columns = [*self.text_columns, *(c for c in self.label_columns if self._ranks(c))]
+        out: dict[str, dict[str, int]] = {}
+        for c in columns:
+            counts: dict[str, int] = {}
+            for f in self.fabrics:
+                k = f.class_of(c)
+                if k is not None:
+                    counts[k] = counts.get(k, 0) + 1
+            if counts and max(counts.values()) >= 2:  # all-unique cells (descriptions) are not
+                out[c] = dict(sorted(counts.items()))
+        return out
+
+    def _ranks(self, column: str) -> bool:
+        values = {f.labels[column] for f in self.fabrics if column in f.labels}
+        return 0 < len(values) <= 10 and all(float(v).is_integer() for v in values)
 
     def clusters(self) -> dict[int, int | None]:
         """Fabric id -> cluster (``None`` where unknown)."""
@@ -227,10 +265,14 @@ class Catalog:
                 items[m.value] = n
         kinds: dict[str, int] = {}
         frames = 0
+        videos = 0
         for it in self.items(Modality.TOUCH):
-            assert it.kind is not None
-            kinds[it.kind.value] = kinds.get(it.kind.value, 0) + 1
-            frames += len(it.frames)
+            kind = it.kind.value if it.kind is not None else "unstated"
+            kinds[kind] = kinds.get(kind, 0) + 1
+            if it.path.suffix.lower() in (".mov", ".mp4", ".avi", ".mkv"):
+                videos += 1
+            else:
+                frames += len(it.frames)
         clusters: dict[str, int] = {}
         for f in self.fabrics:
             if f.cluster is not None:
@@ -248,7 +290,11 @@ class Catalog:
             },
             "touch_presses_by_kind": dict(sorted(kinds.items())),
             "touch_frames": frames,
+            "touch_videos": videos,
+            "named_objects": sum(f.name is not None for f in self.fabrics),
             "label_columns": list(self.label_columns),
+            "text_columns": list(self.text_columns),
+            "classes": self.class_counts(),
             "fabrics_with_physical_labels": sum(f.has_physical_labels for f in self.fabrics),
             "cluster_column": self.cluster_column,
             "fabrics_with_cluster": sum(f.cluster is not None for f in self.fabrics),

@@ -1,8 +1,13 @@
-"""Reading ``labels.csv``: one row per fabric, ``fabric_id`` required, every other column optional.
+"""Reading ``labels.csv``: one row per fabric or object, every column but the key optional.
 
-Columns (shared/DATASET.md): ``cluster8`` (or any ``cluster*``), ``thickness_mm``, ``density``,
-``stiffness``, ``stretchiness``, ``paper_split`` (``train``, ``test``, ``excluded``), and any
-further numeric column, which becomes an extra regression target. Empty cells mean unknown.
+The key is ``fabric_id`` (GelFabric: ``12`` or ``F0012``) or ``object`` (a name, as in a folder
+of recordings: ``videos/<object>_<n>.mov``). Columns (README, *Data*): ``cluster8`` (or any
+``cluster*``), ``thickness_mm``, ``density``, ``stiffness``, ``stretchiness``, ``paper_split``
+(``train``, ``test``, ``excluded``), and any further column. A column whose cells are mostly
+numbers is numeric (a regression target; a bad cell is reported); a column whose cells are
+mostly words (``material``: ``fabric``, ``metal`` ...) is a text column, usable as classes.
+Every known cell is also kept as text, so a numeric rank (``hardness``: 0, 1, 2) can be a class
+too. Empty cells mean unknown.
 """
 
 from __future__ import annotations
@@ -10,12 +15,15 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from lookfeel.data.problems import Problem
 
-__all__ = ["PAPER_SPLITS", "LabelRow", "LabelTable", "read_labels"]
+__all__ = ["KEY_COLUMNS", "PAPER_SPLITS", "LabelRow", "LabelTable", "class_of", "read_labels"]
+
+KEY_COLUMNS = ("fabric_id", "object")
+"""The key column of labels.csv, by preference: fabric ids, or object names."""
 
 PAPER_SPLITS = ("train", "test", "excluded")
 _MISSING = {"", "na", "n/a", "nan", "none", "null"}
@@ -24,23 +32,51 @@ _ID = re.compile(r"^[Ff]?0*(\d+)$")
 
 @dataclass(frozen=True)
 class LabelRow:
-    """One fabric's row: known values only (unknown cells are absent)."""
+    """One fabric's row: known values only (unknown cells are absent).
+
+    ``fabric_id`` is 0 in a table keyed by ``object`` until `LabelTable.with_ids` numbers the
+    names; ``name`` is the object's name there (None in a ``fabric_id`` table).
+    """
 
     fabric_id: int
     line: int
     values: dict[str, float] = field(default_factory=dict)
     cluster: int | None = None
     paper_split: str | None = None
+    name: str | None = None
+    text: dict[str, str] = field(default_factory=dict)
+    """Every known cell of every label column as written (numeric ones too)."""
 
 
 @dataclass(frozen=True)
 class LabelTable:
-    """The parsed file: its label columns, the cluster column used, and rows by fabric id."""
+    """The parsed file: its label columns, the cluster column used, and rows by fabric id.
+
+    A table keyed by ``object`` holds its rows in ``named`` (by name) and none in ``rows``
+    until `with_ids` gives each name its id.
+    """
 
     path: Path
     columns: tuple[str, ...]
     cluster_column: str | None
     rows: dict[int, LabelRow]
+    text_columns: tuple[str, ...] = ()
+    """Columns of words rather than numbers (e.g. ``material``): classes, never regressed."""
+    key: str = "fabric_id"
+    named: dict[str, LabelRow] = field(default_factory=dict)
+
+    def with_ids(self, ids: dict[str, int]) -> LabelTable:
+        """The table with each named row under its id (``ids``: object name -> fabric id)."""
+        rows = {ids[n]: replace(r, fabric_id=ids[n]) for n, r in self.named.items() if n in ids}
+        return replace(self, rows=rows)
+
+
+def class_of(values: dict[str, float], text: dict[str, str], column: str) -> str | None:
+    """A fabric's class in ``column`` as text: the number written plainly for a numeric column
+    (``"2"``, not ``"2.0"``), the cell itself for a text column; None when unknown."""
+    if column in values:
+        return f"{values[column]:g}"
+    return text.get(column)
 
 
 def parse_fabric_id(text: str) -> int | None:
@@ -67,11 +103,13 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     if header is None:
         return LabelTable(path, (), None, {}), [Problem(path, "labels file is empty")]
     header = [h.strip() for h in header]
-    if "fabric_id" not in header:
+    key = next((k for k in KEY_COLUMNS if k in header), None)
+    if key is None:
         return LabelTable(path, (), None, {}), [
             Problem(
                 path,
-                "no 'fabric_id' column in the header (first line); found: " + ", ".join(header),
+                "no 'fabric_id' or 'object' column in the header (first line); found: "
+                + ", ".join(header),
                 line=1,
             )
         ]
@@ -84,10 +122,15 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     cluster_cols = [h for h in header if h.lower().startswith("cluster")]
     cluster_column = "cluster8" if "cluster8" in cluster_cols else next(iter(cluster_cols), None)
     value_cols = tuple(
-        h for h in header if h and h != "fabric_id" and h != "paper_split" and h not in cluster_cols
+        h
+        for h in header
+        if h and h not in KEY_COLUMNS and h != "paper_split" and h not in cluster_cols
     )
+    records = list(enumerate(reader, start=2))
+    text_cols = _text_columns(header, value_cols, [cells for _, cells in records])
     rows: dict[int, LabelRow] = {}
-    for lineno, cells in enumerate(reader, start=2):
+    named: dict[str, LabelRow] = {}
+    for lineno, cells in records:
         if not cells or all(not c.strip() for c in cells):
             continue
         if len(cells) != len(header):
@@ -96,7 +139,24 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             )
             continue
         record = {h: c.strip() for h, c in zip(header, cells, strict=True)}
-        fid = parse_fabric_id(record["fabric_id"])
+        name: str | None = None
+        fid: int | None = 0
+        if key == "object":
+            name = record["object"]
+            if not name or name.lower() in _MISSING:
+                problems.append(Problem(path, "empty 'object' name", line=lineno))
+                continue
+            if name in named:
+                problems.append(
+                    Problem(
+                        path,
+                        f"object {name!r} appears again (first at line {named[name].line})",
+                        line=lineno,
+                    )
+                )
+                continue
+        else:
+            fid = parse_fabric_id(record["fabric_id"])
         if fid is None:
             problems.append(
                 Problem(
@@ -106,7 +166,7 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
                 )
             )
             continue
-        if fid in rows:
+        if name is None and fid in rows:
             problems.append(
                 Problem(
                     path,
@@ -116,9 +176,13 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             )
             continue
         values: dict[str, float] = {}
+        text: dict[str, str] = {}
         for col in value_cols:
             raw = record[col]
             if raw.lower() in _MISSING:
+                continue
+            text[col] = raw
+            if col in text_cols:
                 continue
             try:
                 v = float(raw)
@@ -165,5 +229,35 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
                         line=lineno,
                     )
                 )
-        rows[fid] = LabelRow(fid, lineno, values, cluster, split)
-    return LabelTable(path, value_cols, cluster_column, rows), problems
+        row = LabelRow(fid or 0, lineno, values, cluster, split, name, text)
+        if name is not None:
+            named[name] = row
+        else:
+            rows[row.fabric_id] = row
+    numeric = tuple(c for c in value_cols if c not in text_cols)
+    table = LabelTable(path, numeric, cluster_column, rows, text_cols, key, named)
+    return table, problems
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _text_columns(
+    header: list[str], value_cols: tuple[str, ...], rows: list[list[str]]
+) -> tuple[str, ...]:
+    """Columns most of whose known cells are not numbers (so one typo in a numeric column is
+    reported as a bad number, not taken for a word)."""
+    out = []
+    for col in value_cols:
+        i = header.index(col)
+        cells = [r[i].strip() for r in rows if len(r) == len(header)]
+        known = [c for c in cells if c.lower() not in _MISSING]
+        words = sum(not _is_number(c) for c in known)
+        if known and words * 2 > len(known):
+            out.append(col)
+    return tuple(out)

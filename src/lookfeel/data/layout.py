@@ -6,6 +6,9 @@
     <root>/depth/F0001_Depth_New_204300.png one drape; 16-bit PNG, millimetres, 0 = no reading
     <root>/color/F0001_1.jpg                one drape; 8-bit RGB
     <root>/touch/F0001_fold_03_1502.jpg     frame 3 of press 1502, a fold press
+    <root>/touch/F0001_fold_1502.mp4        press 1502 as a video (GelSight Mini, DIGIT ...)
+    <root>/videos/sponge_0.mov              press 0 of the object ``sponge`` (labels.csv keyed
+                                            by ``object``; each name becomes a fabric id)
 
 The authors' folder names are aliases (``kinect_depth``, ``kinect_depth_new``; ``canon``,
 ``canon_resize``; ``image_fold``, ``image_flat``, ``image_rand*``, whose kind the names may then
@@ -30,14 +33,16 @@ from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
 
-__all__ = ["FOLDER_ALIASES", "IMAGE_SUFFIXES", "parse_touch_name", "scan"]
+__all__ = ["FOLDER_ALIASES", "IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "parse_touch_name", "scan"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
+"""Touch recordings read as videos (one press each; `lookfeel.data.video` decodes them)."""
 
 FOLDER_ALIASES: dict[Modality, tuple[str, ...]] = {
     Modality.DEPTH: ("depth", "kinect_depth_new", "kinect_depth"),
     Modality.COLOR: ("color", "canon_resize", "canon"),
-    Modality.TOUCH: ("touch", "image_fold", "image_flat", "image_rand"),
+    Modality.TOUCH: ("touch", "videos", "image_fold", "image_flat", "image_rand"),
 }
 """Folder names per modality, canonical first. For depth and colour the first folder present is
 read and the others are skipped (the authors' tree keeps raw and cropped copies side by side)."""
@@ -48,7 +53,29 @@ _TOUCH = re.compile(
     r"^F0*(?P<fabric>\d+)_(?:(?P<kind>fold|flat|rand)_)?(?P<frame>\d+)_(?P<press>[A-Za-z0-9-]+)$",
     re.IGNORECASE,
 )
+_TOUCH_VIDEO = re.compile(
+    r"^F0*(?P<fabric>\d+)_(?:(?P<kind>fold|flat|rand)_)?(?P<press>[A-Za-z0-9-]+)$", re.IGNORECASE
+)
+_OBJECT_VIDEO = re.compile(r"^(?P<object>.+)_(?P<press>\d+)$")
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _video_header_problem(path: Path) -> str | None:
+    """A cheap check that a video file is a container FFmpeg reads (QuickTime/MP4, AVI, MKV)."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(16)
+    except OSError as e:
+        return f"cannot read file: {e.strerror}"
+    if not head:
+        return "file is empty"
+    if head[4:8] in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip", b"pnot"):
+        return None  # QuickTime / MP4 atoms
+    if head[:4] == b"RIFF" and head[8:12] == b"AVI ":
+        return None
+    if head[:4] == b"\x1a\x45\xdf\xa3":
+        return None  # Matroska / WebM
+    return "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
 
 
 @dataclass(frozen=True)
@@ -181,6 +208,41 @@ def _synth_problem(root: Path) -> Problem | None:
     return None
 
 
+def _video_key(
+    path: Path, folder: Path, folder_kind: PressKind | None
+) -> tuple[tuple[int | str, PressKind | None, str] | None, str | None]:
+    """(owner, kind, press) of a video: ``F<id>_[<kind>_]<press>`` names a fabric (in any touch
+    folder); in ``videos/``, ``<object>_<n>`` names an object. Or a message saying why not."""
+    stem = path.stem
+    m = _TOUCH_VIDEO.match(stem)
+    if m is not None:
+        fid = _fabric_id(m["fabric"].lstrip("0") or "0")
+        if fid is None:
+            return None, _id_message(path)
+        kind = PressKind(m["kind"].lower()) if m["kind"] else folder_kind
+        if m["kind"] and folder_kind is not None and kind != folder_kind:
+            return None, f"name says a {m['kind'].lower()} press but folder {folder.name}/ holds "\
+                f"{folder_kind.value} presses"
+        if kind is None and folder.name.lower() != "videos":
+            return None, (
+                "touch video name has no press kind (fold, flat, rand) and its folder "
+                f"{folder.name}/ does not give one; expected F<id>_<kind>_<press>{path.suffix}"
+            )
+        return (fid, kind, m["press"]), None
+    if folder.name.lower() == "videos":
+        m = _OBJECT_VIDEO.match(stem)
+        if m is not None:
+            return (m["object"], None, m["press"]), None
+        return None, (
+            f"video name does not parse; expected <object>_<n>{path.suffix} "
+            f"(e.g. sponge_0{path.suffix}) or F<id>_<press>{path.suffix}"
+        )
+    return None, (
+        f"touch video name does not parse; expected F<id>_<fold|flat|rand>_<press>{path.suffix}, "
+        f"e.g. F0012_fold_1502{path.suffix}"
+    )
+
+
 def scan(
     root: str | Path,
     require: Iterable[Modality] | None = None,
@@ -253,13 +315,37 @@ def scan(
     # ---- files -------------------------------------------------------------------------------
     singles: dict[int, dict[Modality, list[Path]]] = defaultdict(lambda: defaultdict(list))
     presses: dict[tuple[int, PressKind, str], dict[int, Path]] = {}
+    videos: dict[tuple[int | str, PressKind | None, str], Path] = {}
     for folder, modality, folder_kind in kept:
+        in_videos = folder.name.lower() == "videos"
         for path in _walk(folder):
-            if path.name.startswith(".") or path.suffix.lower() not in IMAGE_SUFFIXES:
-                skipped.append(Problem(path, "not an image (.png, .jpg, .jpeg)", "skip"))
+            suffix = path.suffix.lower()
+            is_video = modality is Modality.TOUCH and suffix in VIDEO_SUFFIXES
+            if path.name.startswith(".") or not (
+                is_video or (suffix in IMAGE_SUFFIXES and not in_videos)
+            ):
+                what = (
+                    "not a video (" + ", ".join(VIDEO_SUFFIXES) + ")"
+                    if in_videos
+                    else "not an image (.png, .jpg, .jpeg)"
+                    + (" or a video" if modality is Modality.TOUCH else "")
+                )
+                skipped.append(Problem(path, what, "skip"))
                 continue
             if msg := _file_problem(path, real_root):
                 problems.append(Problem(path, msg))
+                continue
+            if is_video:
+                key, msg = _video_key(path, folder, folder_kind)
+                if msg is None and check_headers:
+                    msg = _video_header_problem(path)
+                if msg is not None or key is None:
+                    problems.append(Problem(path, msg or "unusable video name"))
+                    continue
+                if key in videos:
+                    problems.append(Problem(path, f"same press as {videos[key]}"))
+                    continue
+                videos[key] = path
                 continue
             if modality is Modality.TOUCH:
                 tn = parse_touch_name(path.name)
@@ -327,7 +413,26 @@ def scan(
                     continue
                 singles[fid][modality].append(path)
 
+    # ---- labels (read before numbering named objects) ---------------------------------------
+    table: LabelTable | None = None
+    if labels_path is not None:
+        table, label_problems = read_labels(labels_path)
+        problems.extend(label_problems)
+    names = sorted(
+        {k[0] for k in videos if isinstance(k[0], str)} | set(table.named if table else ())
+    )
+    first_named = max([*singles, *(k[0] for k in presses), 0]) + 1
+    first_named = max(
+        [first_named, *(k[0] + 1 for k in videos if isinstance(k[0], int))], default=first_named
+    )
+    name_ids = {n: first_named + i for i, n in enumerate(names)}
+    if table is not None and table.key == "object":
+        table = table.with_ids(name_ids)
+
     items: dict[int, dict[Modality, list[Item]]] = defaultdict(lambda: defaultdict(list))
+    for (owner, kind, press), path in sorted(videos.items(), key=lambda kv: str(kv[1])):
+        fid = name_ids[owner] if isinstance(owner, str) else owner
+        items[fid][Modality.TOUCH].append(Item(Modality.TOUCH, fid, (path,), kind, press))
     for fid, by_mod in singles.items():
         for modality, paths in by_mod.items():
             items[fid][modality] = [Item(modality, fid, (p,)) for p in sorted(paths)]
@@ -337,20 +442,15 @@ def scan(
         ordered = tuple(frames[k] for k in sorted(frames))
         items[fid][Modality.TOUCH].append(Item(Modality.TOUCH, fid, ordered, kind, press))
 
-    # ---- labels ------------------------------------------------------------------------------
-    table: LabelTable | None = None
-    if labels_path is not None:
-        table, label_problems = read_labels(labels_path)
-        problems.extend(label_problems)
+    id_names = {i: n for n, i in name_ids.items()}
+    if table is not None:
         for fid in sorted(items):
             if fid not in table.rows:
                 first = min(p for its in items[fid].values() for it in its for p in it.frames)
                 n = sum(len(its) for its in items[fid].values())
+                who = f"object {id_names[fid]!r}" if fid in id_names else f"fabric {fid}"
                 problems.append(
-                    Problem(
-                        first,
-                        f"fabric {fid} ({n} item(s)) has no row in {labels_path.name}",
-                    )
+                    Problem(first, f"{who} ({n} item(s)) has no row in {table.path.name}")
                 )
 
     present = {m for by_mod in items.values() for m, its in by_mod.items() if its}
@@ -359,10 +459,11 @@ def scan(
         for fid in sorted(items):
             if not items[fid].get(m):
                 folder = used_single.get(m) or root / m.value
+                who = f"object {id_names[fid]!r}" if fid in id_names else f"fabric {fid}"
                 problems.append(
                     Problem(
                         folder,
-                        f"fabric {fid} has no {m.value} item"
+                        f"{who} has no {m.value} item"
                         + (
                             " (other fabrics have; a run that uses it cannot)"
                             if require is None
@@ -371,7 +472,9 @@ def scan(
                     )
                 )
     if require is not None and not items:
-        problems.append(Problem(root, "no image found in the layout (depth/, color/, touch/)"))
+        problems.append(
+            Problem(root, "no image or video found in the layout (depth/, color/, touch/, videos/)")
+        )
 
     fabrics = []
     for fid in sorted(items):
@@ -383,18 +486,32 @@ def scan(
                 cluster=row.cluster if row else None,
                 paper_split=row.paper_split if row else None,
                 items={m: tuple(its) for m, its in items[fid].items() if its},
+                name=id_names.get(fid),
+                text_labels=dict(row.text) if row else {},
             )
         )
     labelled_only: dict[int, Fabric] = {}
     if table is not None:
         for fid, row in sorted(table.rows.items()):
             if fid not in items:
-                labelled_only[fid] = Fabric(fid, dict(row.values), row.cluster, row.paper_split)
+                labelled_only[fid] = Fabric(
+                    fid,
+                    dict(row.values),
+                    row.cluster,
+                    row.paper_split,
+                    name=row.name,
+                    text_labels=dict(row.text),
+                )
                 held = f" (paper_split={row.paper_split})" if row.paper_split else ""
+                who = (
+                    f"object {row.name!r} is in {table.path.name} but has no video"
+                    if row.name
+                    else f"fabric {fid} is in {table.path.name} but has no image"
+                )
                 problems.append(
                     Problem(
                         table.path,
-                        f"fabric {fid} is in {table.path.name} but has no image{held}",
+                        f"{who}{held}",
                         "warning",
                         row.line,
                     )
@@ -404,6 +521,7 @@ def scan(
         root=root,
         fabrics=tuple(fabrics),
         label_columns=table.columns if table else (),
+        text_columns=table.text_columns if table else (),
         cluster_column=table.cluster_column if table else None,
         labelled_only=labelled_only,
         problems=tuple(problems),
