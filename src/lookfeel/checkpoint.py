@@ -10,7 +10,7 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +78,9 @@ class LoadedModel:
     split: dict[str, Any]
     """The run's split.json: ``kind``, ``train`` and ``val`` fabric ids; for the ``seen`` split
     also ``val_items`` (held-out item paths) and ``novel`` (held-out fabric ids)."""
+    label_stats: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Per label column, the training fabrics' (mean, std) the property head's targets were
+    standardised with (empty in checkpoints from before it was saved)."""
 
 
 def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[str]:
@@ -129,5 +132,8 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         model=model,
         step=int(state.get("step", 0)),
         label_columns=tuple(state.get("label_columns", ())),
+        label_stats={
+            k: (float(v[0]), float(v[1])) for k, v in state.get("label_stats", {}).items()
+        },
         split=dict(state.get("split", {})),
     )

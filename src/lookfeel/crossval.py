@@ -13,6 +13,10 @@ Over runs, each number gets its mean, its spread over runs, and a 95% interval f
 that resamples the held-out fabrics (all their queries together). Physical properties are
 predicted from the fabric-mean embeddings of the held-out fabrics by a ridge probe fitted on the
 training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels.
+For a model with class heads (``model.class_heads``: hardness 0/1/2, material ...), each held-out
+press's class is read from the heads, one press at a time and with every press of an object
+pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training
+majority class: accuracy (95% interval resampling held-out objects) and macro-F1.
 
 Every run lives in ``OUT/seed{S}-fold{F}/`` and its scores in ``result.json`` there; a rerun
 skips finished runs and resumes an interrupted one, so a killed cross-validation loses at most
@@ -46,6 +50,7 @@ from lookfeel.metrics import (
     property_probe,
     score_pairs,
 )
+from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 from lookfeel.train.validate import default_pairs
@@ -170,6 +175,70 @@ def _score(
             entry["raw_pixels"] = raw[pair].pick.per_query.tolist()
         out["pairs"][pair] = entry
     out["properties"] = props
+    out["classes"] = _classes(lm, catalog, held, seen, loader, emb, pix, fab)
+    return out
+
+
+def _classes(
+    lm: LoadedModel,
+    catalog: Catalog,
+    held: Catalog,
+    seen: Catalog | None,
+    loader: ImageLoader,
+    emb: dict[Modality, np.ndarray],
+    pix: dict[Modality, np.ndarray],
+    fab: dict[Modality, np.ndarray],
+) -> dict[str, Any]:
+    """Per modality and class-head column, the held-out queries' true and predicted classes:
+    ``model`` (the head, one press), ``model_pooled`` (one per object, every press pooled),
+    ``probe``/``raw_pixels`` (5-NN on training embeddings / pixels), ``majority``."""
+    import torch
+
+    from lookfeel.data.datasets import class_matrix
+    from lookfeel.models import CLASSES, eval_mode
+
+    cfg = lm.config.model
+    if not cfg.class_heads or seen is None:
+        return {}
+    out: dict[str, Any] = {}
+    kinds = lm.config.data.touch_kinds
+    for m, e in emb.items():
+        branch = lm.model.branch(m.value)
+        train_items = seen.items(m, kinds)
+        train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
+        with torch.inference_mode():
+            logits = branch.heads(torch.from_numpy(e))[CLASSES].split(cfg.class_sizes, dim=-1)
+        objects = sorted(set(fab[m].tolist()))
+        pooled = []
+        with torch.inference_mode(), eval_mode(lm.model):
+            for fid in objects:
+                x = torch.stack([loader.load(it) for it in held.fabric(fid).items_of(m, kinds)])
+                x = x.unsqueeze(0) if m is Modality.TOUCH else x
+                z = lm.model({m.value: x}, heads=True)[f"{m.value}/{CLASSES}"]
+                pooled.append(z.amax(0) if m is not Modality.TOUCH else z[0])
+        pooled_logits = torch.stack(pooled).split(cfg.class_sizes, dim=-1)
+        train_e = embed_items(lm.model, train_items, loader)
+        train_pix = raw_pixels(train_items, loader)
+        fabrics = {f.id: f for f in catalog.fabrics}
+        per: dict[str, Any] = {}
+        for h, col in enumerate(cfg.class_heads):
+            n = len(cfg.classes[col])
+            one = {col: cfg.classes[col]}
+            truth = class_matrix([fabrics[int(i)] for i in fab[m]], one)[:, 0]
+            train_c = class_matrix([fabrics[int(i)] for i in train_f], one)[:, 0]
+            per[col] = {
+                "classes": list(cfg.classes[col]),
+                "query_fabric": fab[m].tolist(),
+                "truth": truth.tolist(),
+                "model": logits[h].argmax(-1).tolist(),
+                "probe": knn_classes(train_e, train_c, e, n).tolist(),
+                "raw_pixels": knn_classes(train_pix, train_c, pix[m], n).tolist(),
+                "majority": [majority_class(train_c, n)] * len(truth),
+                "object": objects,
+                "object_truth": class_matrix([fabrics[i] for i in objects], one)[:, 0].tolist(),
+                "model_pooled": pooled_logits[h].argmax(-1).tolist(),
+            }
+        out[m.value] = per
     return out
 
 
@@ -255,7 +324,54 @@ def _summarise(results: list[dict], pairs: Sequence[Pair], n_boot: int) -> dict[
                     table.setdefault(label, {})[score] = s["mean"]
                     table[label][f"{score}_std"] = s["std"]
             summary["properties"][m][method] = table
+    summary["classes"] = _summarise_classes(results, n_boot)
     return summary
+
+
+CLASS_METHODS = ("model", "model_pooled", "probe", "raw_pixels", "majority")
+"""How a held-out query's class is predicted in the class table (`_classes`)."""
+
+
+def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
+    """Accuracy (mean over runs, 95% interval resampling objects) and macro-F1 (mean and std
+    over runs) of each class-prediction method, per modality and column."""
+    out: dict[str, Any] = {}
+    for m, per in results[0].get("classes", {}).items():
+        out[m] = {}
+        for col, first in per.items():
+            entry: dict[str, Any] = {"classes": first["classes"]}
+            runs = [r["classes"][m][col] for r in results]
+            for method in CLASS_METHODS:
+                pooled = method == "model_pooled"
+                t_key, g_key = ("object_truth", "object") if pooled else ("truth", "query_fabric")
+                truth = [np.asarray(r[t_key]) for r in runs]
+                pred = [np.asarray(r[method]) for r in runs]
+                hits = np.concatenate(
+                    [
+                        np.where(t >= 0, (t == p).astype(float), np.nan)
+                        for t, p in zip(truth, pred, strict=True)
+                    ]
+                )
+                groups = np.concatenate([np.asarray(r[g_key]) for r in runs])
+                low, high = bootstrap_ci(hits, groups, n_boot=n_boot, seed=0)
+                acc = mean_and_spread([accuracy(t, p) for t, p in zip(truth, pred, strict=True)])
+                f1 = mean_and_spread(
+                    [
+                        macro_f1(t, p, len(first["classes"]))
+                        for t, p in zip(truth, pred, strict=True)
+                    ]
+                )
+                entry[method] = {
+                    "accuracy": acc["mean"],
+                    "accuracy_std": acc["std"],
+                    "ci95": [float(low), float(high)],
+                    "macro_f1": f1["mean"],
+                    "macro_f1_std": f1["std"],
+                    "queries": int(np.sum(~np.isnan(hits))),
+                }
+            entry["chance"] = 1.0 / len(first["classes"])
+            out[m][col] = entry
+    return out
 
 
 def _fmt(x: dict[str, Any]) -> str:
@@ -305,6 +421,23 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             r = per["raw_pixels"][label]
             cells = [_pm(x, score) for x in (s, r) for score in ("r2", "spearman")]
             lines.append(f"| {label} | {' | '.join(cells)} |")
+    for m, per in summary.get("classes", {}).items():
+        lines += [
+            "",
+            f"Classes from {m}: accuracy [95% interval, resampling held-out objects] / macro-F1. "
+            "model: the class head on one press; pooled: every press of an object at once; "
+            "probe: 5-NN on the training embeddings; raw pixels: 5-NN on training pixels; "
+            "majority: the training majority class.",
+            "",
+            "| label | model | pooled | probe | raw pixels | majority | chance |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for col, e in per.items():
+            cells = [
+                f"{_fmt({'mean': e[k]['accuracy'], 'ci95': e[k]['ci95']})} / {e[k]['macro_f1']:.2f}"
+                for k in CLASS_METHODS
+            ]
+            lines.append(f"| {col} | {' | '.join(cells)} | {e['chance']:.2f} |")
     return "\n".join(lines) + "\n"
 
 

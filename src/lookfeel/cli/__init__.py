@@ -14,6 +14,7 @@ Commands (``lookfeel COMMAND --help`` gives each one's options):
   index build         embed a dataset into a calibrated fabric library (for match, serve)
   index info LIBRARY  what a library holds and how it is calibrated
   match IMAGE...      which library fabric an image shows, how it looks and feels, its properties
+  predict INPUT...    what a video or image feels like: each property with its probability
   serve               web page and JSON API to match images against a library
   export              export each modality branch of a checkpoint (ONNX)
   demo                the whole system on a generated synthetic world, in minutes
@@ -43,6 +44,7 @@ from lookfeel.cli import (
     export,
     index,
     match,
+    predict,
     reproduce,
     serve,
     synth,
@@ -52,7 +54,21 @@ from lookfeel.errors import LookfeelError
 
 __all__ = ["build_parser", "main"]
 
-_COMMANDS = (data, synth, train, cv, reproduce, embed, evaluate, index, match, serve, export, demo)
+_COMMANDS = (
+    data,
+    synth,
+    train,
+    cv,
+    reproduce,
+    embed,
+    evaluate,
+    index,
+    match,
+    predict,
+    serve,
+    export,
+    demo,
+)
 """The command modules, in the order ``lookfeel --help`` lists them."""
 
 

@@ -52,6 +52,9 @@ class LossConfig:
     cluster_weight: float = 1.0
     """Weight of the cluster cross-entropy summed over slots (paper's Auxiliary Net: 1, the three
     cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
+    class_weight: float = 1.0
+    """Weight of the class heads' cross-entropy (one per ``model.class_heads`` column, unknown
+    labels masked), summed over columns and slots. Needs the model's class heads."""
     property_weight: float = 1.0
     """Weight of the masked property regression (mean squared error over known labels, summed
     over slots). Needs the model's property head. The targets are standardised over the training
@@ -76,6 +79,7 @@ class LossConfig:
             ("pair_weight", self.pair_weight),
             ("cluster_weight", self.cluster_weight),
             ("property_weight", self.property_weight),
+            ("class_weight", self.class_weight),
         ):
             if not (math.isfinite(weight) and weight >= 0):
                 raise ConfigError(f"loss.{key}: must be a finite number >= 0, got {weight}")

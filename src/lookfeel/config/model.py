@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
@@ -85,6 +85,13 @@ class ModelConfig:
     num_properties: int = 0
     """Outputs of a linear property-regression head on each branch's embedding (e.g. 4 for
     thickness, density, stiffness, stretchiness); 0 disables it."""
+    class_heads: tuple[str, ...] = ()
+    """Label columns to classify with a linear head on each branch's embedding: ranks
+    (``hardness``: 0, 1, 2) or words (``material``). Trained with cross-entropy
+    (``loss.class_weight``); `lookfeel predict` reports them with their probabilities."""
+    classes: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    """Each class head's class names, in output order. `lookfeel train` fills it in from the
+    dataset's labels (and saves it with the run); leave it unset."""
 
     @property
     def resolved_freeze(self) -> str:
@@ -126,3 +133,28 @@ class ModelConfig:
             raise ConfigError(f"model.num_clusters: must be >= 2, got {self.num_clusters}")
         if self.num_properties < 0:
             raise ConfigError(f"model.num_properties: must be >= 0, got {self.num_properties}")
+        if len(set(self.class_heads)) != len(self.class_heads):
+            raise ConfigError(f"model.class_heads: a column is named twice: {self.class_heads}")
+        for col in self.classes:
+            if col not in self.class_heads:
+                raise ConfigError(f"model.classes: {col!r} is not one of model.class_heads")
+        for col, names in self.classes.items():
+            if len(names) < 2 or len(set(names)) != len(names):
+                raise ConfigError(
+                    f"model.classes.{col}: needs two or more distinct classes, got {list(names)}"
+                )
+
+    @property
+    def class_sizes(self) -> tuple[int, ...]:
+        """Classes per head, in ``class_heads`` order (the heads must be resolved).
+
+        Raises:
+            ConfigError: a head's classes are not known yet (``model.classes`` lacks it).
+        """
+        missing = [c for c in self.class_heads if c not in self.classes]
+        if missing:
+            raise ConfigError(
+                f"model.classes: no classes for {', '.join(missing)}; `lookfeel train` fills "
+                "them in from the dataset's labels"
+            )
+        return tuple(len(self.classes[c]) for c in self.class_heads)

@@ -14,7 +14,7 @@ tuple's tensors on the CPU (tuple ``i`` is a batch of one drawn from ``(seed, i)
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,12 +24,25 @@ from torch.utils.data import Dataset
 
 from lookfeel.config import AugmentConfig, DataConfig
 from lookfeel.data.augment import Augmenter
-from lookfeel.data.catalog import Catalog, Item
+from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.images import ImageLoader
 from lookfeel.data.problems import DatasetError
 from lookfeel.modality import Modality, PressKind, slot_modality, slot_names
 
 __all__ = ["TupleBatch", "TupleDataset"]
+
+
+def class_matrix(fabrics: Sequence[Fabric], classes: Mapping[str, Sequence[str]]) -> np.ndarray:
+    """(F, H) int64: each fabric's class index in each ``classes`` column, -1 where unknown
+    (or a class the list does not name)."""
+    out = np.full((len(fabrics), len(classes)), -1, np.int64)
+    for h, (col, names) in enumerate(classes.items()):
+        index = {n: i for i, n in enumerate(names)}
+        for r, f in enumerate(fabrics):
+            k = f.class_of(col)
+            if k is not None:
+                out[r, h] = index.get(k, -1)
+    return out
 
 
 def _labels_vector(values: dict[str, float], columns: Sequence[str]) -> torch.Tensor:
@@ -74,6 +87,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
         length: tuples (a run draws ``steps * batch_size``).
         seed: base seed; tuple ``i`` is drawn from ``(seed, i)``.
         augment: apply the configured augmentation (off for validation).
+        classes: label column -> its class names, for class-head targets (``classes``).
 
     Each item is a dict:
         ``inputs``: slot name -> (1, S, S) depth, (3, S, S) colour, or (P, 3, S, S) touch.
@@ -82,6 +96,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
         ``properties``: slot name -> (L,) float32 labels in ``catalog.label_columns`` order,
             standardised (zero mean, unit variance over this dataset's fabrics: see
             ``label_mean`` and ``label_std``), NaN where unknown.
+        ``classes``: slot name -> (H,) int64 class index per ``classes`` column, -1 unknown.
         ``y``: float32 scalar, 0 for one fabric and 1 for different fabrics (paper's Y).
 
     Raises:
@@ -96,6 +111,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
         length: int,
         seed: int = 0,
         augment: bool = True,
+        classes: Mapping[str, Sequence[str]] | None = None,
     ) -> None:
         if not views:
             raise ValueError("views: at least one slot is needed")
@@ -154,6 +170,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
             [-1 if f.cluster is None else f.cluster for f in catalog.fabrics], np.int64
         )
         self._properties = (known - self.label_mean) / self.label_std  # (F, L), NaN unknown
+        self._classes = torch.from_numpy(class_matrix(catalog.fabrics, classes or {}))  # (F, H)
 
     def __len__(self) -> int:
         return self.length
@@ -173,9 +190,12 @@ class TupleDataset(Dataset[dict[str, Any]]):
             "fabric_ids": {},
             "clusters": {},
             "properties": {},
+            "classes": {},
         }
+        position = {fid: i for i, fid in enumerate(self.fabric_ids)}
         for slot, ids in fabric_ids.items():
             fabrics = [self._fabrics[i] for i in ids]
+            out["classes"][slot] = self._classes[[position[i] for i in ids]]
             out["fabric_ids"][slot] = torch.tensor(ids, dtype=torch.int64)
             out["clusters"][slot] = torch.tensor(
                 [-1 if f.cluster is None else f.cluster for f in fabrics], dtype=torch.int64
@@ -229,12 +249,14 @@ class TupleDataset(Dataset[dict[str, Any]]):
             "fabric_ids": {},
             "clusters": {},
             "properties": {},
+            "classes": {},
         }
         for j, slot in enumerate(self.slots):
             pos = fabrics[:, j]
             out["fabric_ids"][slot] = torch.from_numpy(self._ids[pos])
             out["clusters"][slot] = torch.from_numpy(self._clusters[pos])
             out["properties"][slot] = self._properties[torch.from_numpy(pos)]
+            out["classes"][slot] = self._classes[torch.from_numpy(pos)]
         return out
 
     def draw(self, index: int) -> tuple[float, list[int], list[list[Item]]]:

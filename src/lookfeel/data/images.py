@@ -328,7 +328,7 @@ class PreprocessSettings:
         return hashlib.sha1(blob).hexdigest()[:12]
 
 
-def _to_tensor(a: np.ndarray) -> torch.Tensor:
+def to_tensor(a: np.ndarray) -> torch.Tensor:
     if a.dtype == np.uint8:  # (S, S, 3) -> (3, S, S) in [0, 1]
         return torch.from_numpy(a).permute(2, 0, 1).float().div_(255.0)
     return torch.from_numpy(a).unsqueeze(0).clone()  # (S, S) -> (1, S, S); the cache stays intact
@@ -398,7 +398,7 @@ class ImageLoader:
 
     def load(self, item: Item) -> torch.Tensor:
         """One item as a tensor: (1, S, S) for depth, (3, S, S) for colour and touch, in [0, 1]."""
-        return _to_tensor(self.array(self.frame_path(item), item.modality))
+        return to_tensor(self.array(self.frame_path(item), item.modality))
 
     def preload(self, items: Iterable[Item], workers: int | None = None) -> int:
         """Decode and preprocess items in parallel threads (Pillow and numpy release the GIL).

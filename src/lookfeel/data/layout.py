@@ -221,8 +221,11 @@ def _video_key(
             return None, _id_message(path)
         kind = PressKind(m["kind"].lower()) if m["kind"] else folder_kind
         if m["kind"] and folder_kind is not None and kind != folder_kind:
-            return None, f"name says a {m['kind'].lower()} press but folder {folder.name}/ holds "\
-                f"{folder_kind.value} presses"
+            return (
+                None,
+                f"name says a {m['kind'].lower()} press but folder {folder.name}/ holds "
+                f"{folder_kind.value} presses",
+            )
         if kind is None and folder.name.lower() != "videos":
             return None, (
                 "touch video name has no press kind (fold, flat, rand) and its folder "

@@ -1,7 +1,8 @@
 """Query images: decoded and preprocessed exactly as in training, checked with clear errors.
 
 A query is one or more image files of one modality. Depth is a 16-bit PNG in millimetres,
-colour an 8-bit RGB photo, touch one GelSight frame per press (the frame you would use for
+colour an 8-bit RGB photo, touch a press's video (.mov, .mp4, .avi: its frame of deepest
+contact is found as in training) or one GelSight frame per press (the frame you would use for
 training: by default the second-to-last of a press). Preprocessing is the run's `DataConfig`
 through `lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training
 uses. No image is cached, so a path reused for different content is always read afresh.
@@ -19,10 +20,13 @@ from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth, decode_rgb
 from lookfeel.data.images import (
     DEFAULT_MAX_PIXELS,
+    ImageLoader,
     preprocess_depth,
     preprocess_rgb,
     read_image_file,
+    to_tensor,
 )
+from lookfeel.data.layout import VIDEO_SUFFIXES
 from lookfeel.modality import Modality
 
 __all__ = ["IMAGE_TYPES", "load_query_bytes", "load_query_image", "query_batch", "sniff_type"]
@@ -68,6 +72,9 @@ def load_query_image(
             large, or the wrong kind (e.g. an 8-bit PNG given as depth).
     """
     path = Path(path)
+    if modality is Modality.TOUCH and path.suffix.lower() in VIDEO_SUFFIXES:
+        # A press recorded as a video: its frame(s) chosen and preprocessed as in training.
+        return to_tensor(ImageLoader(config, cache_dir=None).array(path, modality))
     return _preprocess(path, read_image_file(path), modality, config, max_pixels)
 
 

@@ -40,6 +40,8 @@ class CombinedLoss(nn.Module):
         pair_weight: float = 1.0,
         cluster_weight: float = 1.0,
         property_weight: float = 1.0,
+        class_weight: float = 1.0,
+        class_sizes: tuple[int, ...] = (),
     ) -> None:
         """Assemble the loss.
 
@@ -49,12 +51,16 @@ class CombinedLoss(nn.Module):
             pair_weight: weight of its terms (0 leaves them out).
             cluster_weight: weight of the cluster cross-entropy, summed over slots.
             property_weight: weight of the property regression, summed over slots.
+            class_weight: weight of the class heads' cross-entropy, summed over heads and slots.
+            class_sizes: classes of each class head (how the ``classes`` logits split).
         """
         super().__init__()
         self.pair_loss = pair_loss
         self.pair_weight = pair_weight
         self.cluster_weight = cluster_weight
         self.property_weight = property_weight
+        self.class_weight = class_weight
+        self.class_sizes = tuple(class_sizes)
 
     def forward(
         self,
@@ -63,6 +69,7 @@ class CombinedLoss(nn.Module):
         fabric: Mapping[str, Tensor] | None = None,
         cluster: Mapping[str, Tensor] | None = None,
         properties: Mapping[str, Tensor] | None = None,
+        classes: Mapping[str, Tensor] | None = None,
     ) -> dict[str, Tensor]:
         """Compute every term and the total.
 
@@ -76,6 +83,8 @@ class CombinedLoss(nn.Module):
             cluster: slot -> (B,) cluster targets, -1 where unknown; gives ``cluster_loss``.
             properties: slot -> (B, Q) property targets, NaN where unknown; gives
                 ``property_loss``.
+            classes: slot -> (B, H) class indices per class head, -1 where unknown; gives
+                ``class_loss``.
 
         Returns:
             ``{"<a>_<b>_loss": ..., "cluster_loss": ..., "property_loss": ..., "loss": total}``,
@@ -101,6 +110,12 @@ class CombinedLoss(nn.Module):
                 for slot, target in properties.items()
             ]
             terms["property_loss"] = self.property_weight * sum(parts[1:], parts[0])
+        if classes is not None and self.class_weight > 0 and self.class_sizes:
+            parts = []
+            for slot, target in classes.items():
+                logits = head_output(outputs, slot, "classes").split(self.class_sizes, dim=-1)
+                parts += [masked_cross_entropy(z, target[:, h]) for h, z in enumerate(logits)]
+            terms["class_loss"] = self.class_weight * sum(parts[1:], parts[0])
         if not terms:
             raise ValueError("no loss term applies: every weight is 0 or its targets are missing")
         values = list(terms.values())
@@ -140,11 +155,12 @@ _PAIR_LOSSES: dict[str, Callable[[LossConfig], nn.Module]] = {
 step)."""
 
 
-def create_loss(config: LossConfig) -> CombinedLoss:
+def create_loss(config: LossConfig, class_sizes: tuple[int, ...] = ()) -> CombinedLoss:
     """Build the loss a `LossConfig` describes.
 
     Args:
         config: the loss configuration.
+        class_sizes: classes of each of the model's class heads (`ModelConfig.class_sizes`).
 
     Returns:
         A `CombinedLoss`; call it as ``loss_fn(model(inputs, heads=True), y=..., fabric=...,
@@ -166,4 +182,6 @@ def create_loss(config: LossConfig) -> CombinedLoss:
         pair_weight=config.pair_weight,
         cluster_weight=config.cluster_weight,
         property_weight=config.property_weight,
+        class_weight=config.class_weight,
+        class_sizes=class_sizes,
     )

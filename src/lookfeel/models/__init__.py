@@ -10,7 +10,7 @@ Example:
 
 from lookfeel.models.alexnet import AlexNet
 from lookfeel.models.backbone import Backbone
-from lookfeel.models.branch import CLUSTER, PROPERTY, Branch
+from lookfeel.models.branch import CLASSES, CLUSTER, PROPERTY, Branch
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.embedder import Embedder, create_model, head_key
 from lookfeel.models.modes import (
@@ -31,6 +31,7 @@ from lookfeel.models.resnet import ResNet18
 
 __all__ = [
     "BACKBONES",
+    "CLASSES",
     "CLUSTER",
     "PROPERTY",
     "AlexNet",

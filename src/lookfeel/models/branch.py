@@ -8,12 +8,14 @@ from torch import Tensor, nn
 from lookfeel.modality import Modality
 from lookfeel.models.backbone import Backbone
 
-__all__ = ["CLUSTER", "PROPERTY", "Branch"]
+__all__ = ["CLASSES", "CLUSTER", "PROPERTY", "Branch"]
 
 CLUSTER = "cluster"
 """Name of the cluster-classifier head's output (the paper's Auxiliary Net)."""
 PROPERTY = "property"
 """Name of the property-regression head's output."""
+CLASSES = "classes"
+"""Name of the class heads' output: every head's logits side by side (``model.class_heads``)."""
 
 
 class Branch(nn.Module):
@@ -35,6 +37,7 @@ class Branch(nn.Module):
         press_pool: str = "max",
         num_clusters: int = 0,
         num_properties: int = 0,
+        class_sizes: tuple[int, ...] = (),
     ) -> None:
         """Build a branch.
 
@@ -46,6 +49,8 @@ class Branch(nn.Module):
             press_pool: ``max`` or ``mean`` over presses.
             num_clusters: classes of a linear cluster head on the embedding; 0: no head.
             num_properties: outputs of a linear property-regression head; 0: no head.
+            class_sizes: classes of each linear class head (one per categorical label); the
+                heads share one linear layer whose outputs are their logits side by side.
         """
         super().__init__()
         if press_pool not in ("max", "mean"):
@@ -61,6 +66,8 @@ class Branch(nn.Module):
         self.press_pool = press_pool
         self.cluster_head = nn.Linear(self.embed_dim, num_clusters) if num_clusters else None
         self.property_head = nn.Linear(self.embed_dim, num_properties) if num_properties else None
+        self.class_sizes = tuple(class_sizes)
+        self.class_head = nn.Linear(self.embed_dim, sum(class_sizes)) if sum(class_sizes) else None
 
     def trunk(self, x: Tensor) -> Tensor:
         """The backbone's frozen trunk, applied per image (per press for touch).
@@ -109,12 +116,14 @@ class Branch(nn.Module):
             e: (B, D) embeddings from `forward`.
 
         Returns:
-            ``{"cluster": (B, K) logits, "property": (B, Q) predictions}``, for the heads that
-            exist.
+            ``{"cluster": (B, K) logits, "property": (B, Q) predictions, "classes": (B, sum of
+            class_sizes) logits}``, for the heads that exist.
         """
         out = {}
         if self.cluster_head is not None:
             out[CLUSTER] = self.cluster_head(e)
         if self.property_head is not None:
             out[PROPERTY] = self.property_head(e)
+        if self.class_head is not None:
+            out[CLASSES] = self.class_head(e)
         return out

@@ -227,5 +227,6 @@ def create_model(
             press_pool=config.press_pool,
             num_clusters=config.num_clusters if config.cluster_head else 0,
             num_properties=config.num_properties,
+            class_sizes=config.class_sizes,
         )
     return Embedder(branches, config)

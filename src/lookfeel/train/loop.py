@@ -132,6 +132,38 @@ def select_split(
     return catalog.subset(split.train), catalog.subset(split.test), info
 
 
+def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
+    """The config with ``model.classes`` filled in: each class head's classes, as the whole
+    dataset's labels name them (numbers in numeric order, words in alphabetical order).
+
+    Raises:
+        ConfigError: a ``model.class_heads`` column is not in labels.csv, or has < 2 classes.
+    """
+    model = config.model
+    if not model.class_heads:
+        return config
+    known = [*catalog.label_columns, *catalog.text_columns]
+    classes: dict[str, tuple[str, ...]] = {}
+    for col in model.class_heads:
+        if col not in known:
+            raise ConfigError(
+                f"model.class_heads: {col!r} is not a column of labels.csv (have: "
+                f"{', '.join(known) or 'none'})"
+            )
+        if col in model.classes:
+            classes[col] = model.classes[col]  # a resumed or fine-tuned run keeps its order
+            continue
+        names = {k for f in catalog.fabrics if (k := f.class_of(col)) is not None}
+        numeric = col in catalog.label_columns
+        classes[col] = tuple(sorted(names, key=float if numeric else str))
+        if len(classes[col]) < 2:
+            raise ConfigError(
+                f"model.class_heads: column {col!r} has {len(names)} class(es) in labels.csv; "
+                "a class head needs two or more"
+            )
+    return replace(config, model=replace(model, classes=classes))
+
+
 def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
     """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3)."""
     if not config.model.cluster_head or all(f.cluster is not None for f in catalog.fabrics):
@@ -255,9 +287,10 @@ class TrainRun:
     from_trunk: bool
     """The inputs are cached trunk features."""
     heads: bool
-    """The model has auxiliary heads (cluster, property) to train."""
+    """The model has auxiliary heads (cluster, property, classes) to train."""
     cluster: bool
     properties: bool
+    classes: bool = False
 
 
 def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
@@ -284,6 +317,7 @@ def _update(run: TrainRun, batch: Mapping[str, Any], cache: bool = True) -> dict
         fabric=batch["fabric_ids"],
         cluster=batch["clusters"] if run.cluster else None,
         properties=batch["properties"] if run.properties else None,
+        classes=batch["classes"] if run.classes else None,
     )
     terms["loss"].backward()
     run.dist.reduce_extra_grads(run.loss_fn)
@@ -553,6 +587,7 @@ def _train(
     modalities = t.modalities
 
     catalog = _with_clusters(scan(data, require=modalities, strict=True), config)
+    config = resolve_classes(catalog, config)
     if config.model.num_properties and config.model.num_properties != len(catalog.label_columns):
         raise ConfigError(
             f"model.num_properties={config.model.num_properties}, but labels.csv has "
@@ -560,7 +595,14 @@ def _train(
         )
     train_cat, val_cat, split_info = select_split(catalog, config)
     loader = ImageLoader(config.data)
-    ds = TupleDataset(train_cat, loader, t.views, length=t.steps * t.batch_size, seed=t.seed)
+    ds = TupleDataset(
+        train_cat,
+        loader,
+        t.views,
+        length=t.steps * t.batch_size,
+        seed=t.seed,
+        classes=config.model.classes,
+    )
     val_items: dict[Modality, list[Item]] = {}
     if val_cat is not None:
         val_items = {m: val_cat.items(m, config.data.touch_kinds) for m in modalities}
@@ -580,7 +622,7 @@ def _train(
     if device.type == "cuda":
         torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest
         model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
-    loss_fn = create_loss(config.loss).to(device)
+    loss_fn = create_loss(config.loss, config.model.class_sizes).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
@@ -649,9 +691,12 @@ def _train(
         device=device,
         dist=dist,
         from_trunk=cached,
-        heads=bool(config.model.cluster_head or config.model.num_properties),
+        heads=bool(
+            config.model.cluster_head or config.model.num_properties or config.model.class_heads
+        ),
         cluster=bool(config.model.cluster_head),
         properties=bool(config.model.num_properties),
+        classes=bool(config.model.class_heads),
     )
 
     def checkpoint_state(step: int) -> dict[str, Any]:
@@ -660,6 +705,10 @@ def _train(
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),
+            "label_stats": {
+                c: [float(ds.label_mean[i]), float(ds.label_std[i])]
+                for i, c in enumerate(catalog.label_columns)
+            },
             "split": split_info,
             "model": model.state_dict(),
             "optimizer": optimizer.state_dict(),

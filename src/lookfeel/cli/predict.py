@@ -1,0 +1,66 @@
+"""``lookfeel predict``: what an input feels like, each property with its probability.
+
+Read a trained model's property heads on query files: touch videos (.mov, .mp4, .avi), touch
+frames, depth maps or photos. Each file is one query; --together pools the files as presses of
+one object (the Multi-input Net's max over presses). A class head (model.class_heads, e.g.
+hardness 0/1/2 or material) answers with its most likely class in the label column's own terms
+and that class's probability; a property-regression head answers in the column's units.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from lookfeel.cli._args import Subparsers, add_command, add_json
+from lookfeel.modality import Modality
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``predict``."""
+    pr = add_command(subparsers, "predict", __doc__, run)
+    pr.add_argument("inputs", type=Path, nargs="+", metavar="INPUT", help="video or image file(s)")
+    pr.add_argument("--checkpoint", type=Path, required=True, help="a run's checkpoint (.pt)")
+    pr.add_argument(
+        "--modality",
+        choices=[m.value for m in Modality],
+        default=None,
+        help="what the files show (default: a video is touch; an image is the model's only "
+        "modality, or a 16-bit PNG depth)",
+    )
+    pr.add_argument(
+        "--together", action="store_true", help="the files are presses of one object: pool them"
+    )
+    pr.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    add_json(pr, "print a JSON list: per query its path(s) and properties")
+
+
+def _line(p: object) -> str:
+    from lookfeel.predict import Prediction
+
+    assert isinstance(p, Prediction)
+    parts = []
+    for col, v in p.properties.items():
+        prob = f" ({v.probability:.0%})" if v.probability is not None else ""
+        parts.append(f"{col} {v.value}{prob}")
+    name = p.path if len(p.paths) == 1 else f"{p.path} (+{len(p.paths) - 1} presses)"
+    return f"{name}: " + ", ".join(parts)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Predict and print one line per query (or a JSON list)."""
+    from lookfeel.checkpoint import load_model
+    from lookfeel.predict import predict_files
+
+    loaded = load_model(args.checkpoint, args.device)
+    modality = Modality(args.modality) if args.modality else None
+    results = predict_files(
+        loaded, args.inputs, modality, together=args.together, device=args.device
+    )
+    if args.json:
+        print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
+    else:
+        print("\n".join(_line(r) for r in results))
+    return 0

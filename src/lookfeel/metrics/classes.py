@@ -1,0 +1,90 @@
+"""Class labels (ranks such as hardness 0/1/2, words such as material): accuracy, macro-F1,
+the majority-class baseline, and a nearest-neighbour probe on any embedding.
+
+Pure functions of integer class indices (``-1``: unknown, left out) and arrays; they know
+nothing of models. A query's class is its object's, so intervals resample objects
+(`lookfeel.metrics.bootstrap_ci` with the object ids as groups).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["UNKNOWN", "accuracy", "knn_classes", "macro_f1", "majority_class"]
+
+UNKNOWN = -1
+"""Class index of a query whose label is unknown: scored by nothing."""
+
+
+def _known(truth: ArrayLike, predicted: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    t = np.asarray(truth, dtype=np.int64)
+    p = np.asarray(predicted, dtype=np.int64)
+    if t.shape != p.shape:
+        raise ValueError(f"truth {t.shape} and predictions {p.shape} differ in shape")
+    keep = t != UNKNOWN
+    return t[keep], p[keep]
+
+
+def accuracy(truth: ArrayLike, predicted: ArrayLike) -> float:
+    """Fraction of known queries whose predicted class is the true one (NaN when none known)."""
+    t, p = _known(truth, predicted)
+    return float(np.mean(t == p)) if t.size else float("nan")
+
+
+def macro_f1(truth: ArrayLike, predicted: ArrayLike, n_classes: int | None = None) -> float:
+    """The mean over classes of F1 = 2 TP / (2 TP + FP + FN), over the classes that occur in the
+    truth or the predictions (a class never seen nor predicted has no F1). NaN when none known.
+    """
+    t, p = _known(truth, predicted)
+    if not t.size:
+        return float("nan")
+    k = int(max(t.max(), p.max()) + 1) if n_classes is None else n_classes
+    scores = []
+    for c in range(k):
+        tp = int(np.sum((t == c) & (p == c)))
+        fp = int(np.sum((t != c) & (p == c)))
+        fn = int(np.sum((t == c) & (p != c)))
+        if tp + fp + fn:
+            scores.append(2 * tp / (2 * tp + fp + fn))
+    return float(np.mean(scores)) if scores else float("nan")
+
+
+def majority_class(train_classes: ArrayLike, n_classes: int) -> int:
+    """The most frequent known class (the lowest index on a tie); UNKNOWN when none is known."""
+    c = np.asarray(train_classes, dtype=np.int64)
+    c = c[c != UNKNOWN]
+    if not c.size:
+        return UNKNOWN
+    return int(np.bincount(c, minlength=n_classes).argmax())
+
+
+def knn_classes(
+    train_x: ArrayLike,
+    train_classes: ArrayLike,
+    test_x: ArrayLike,
+    n_classes: int,
+    k: int = 5,
+) -> NDArray[np.int64]:
+    """Each test row's class by a vote of its ``k`` nearest known training rows (Euclidean,
+    features z-scored on the training rows); ties go to the nearer neighbours' class.
+
+    Returns:
+        (N,) class indices; UNKNOWN for every row when no training row is known.
+    """
+    x = np.asarray(train_x, dtype=np.float64)
+    c = np.asarray(train_classes, dtype=np.int64)
+    q = np.asarray(test_x, dtype=np.float64)
+    keep = c != UNKNOWN
+    x, c = x[keep], c[keep]
+    if not len(c):
+        return np.full(len(q), UNKNOWN, np.int64)
+    mean, std = x.mean(0), x.std(0) + 1e-8
+    x, q = (x - mean) / std, (q - mean) / std
+    d = (q**2).sum(1)[:, None] - 2 * q @ x.T + (x**2).sum(1)[None, :]
+    k = min(k, len(c))
+    nearest = np.argsort(d, axis=1, kind="stable")[:, :k]  # (N, k), nearest first
+    votes = np.zeros((len(q), n_classes))
+    for j in range(k):  # a nearer neighbour's vote weighs a little more: it breaks ties
+        np.add.at(votes, (np.arange(len(q)), c[nearest[:, j]]), 1.0 + 1e-3 * (k - j))
+    return votes.argmax(1).astype(np.int64)

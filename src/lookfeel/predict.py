@@ -1,0 +1,195 @@
+"""What an input feels like: a trained model's heads read on query files.
+
+`predict_files` embeds each query (a touch video, a touch frame, a depth map or a photo) as
+training did and reads the model's heads: each class head (``model.class_heads``: ranks such as
+hardness 0/1/2, or words such as material) gives its most likely class and every class's
+probability; a property-regression head (``model.num_properties``) gives values in the label
+columns' own units. Several presses of one object can be pooled into one query, as the
+Multi-input Net pools presses (``together=True``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from lookfeel.checkpoint import LoadedModel
+from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from lookfeel.errors import LookfeelError
+from lookfeel.index.query import load_query_image, query_batch
+from lookfeel.modality import Modality
+from lookfeel.models import CLASSES, PROPERTY, eval_mode
+
+__all__ = ["PredictError", "Prediction", "PropertyValue", "guess_modality", "predict_files"]
+
+
+class PredictError(LookfeelError):
+    """A query the model cannot answer (no head to read, a modality it lacks)."""
+
+
+@dataclass(frozen=True)
+class PropertyValue:
+    """One predicted property.
+
+    Attributes:
+        value: the class in the label column's own terms (the rank ``2``, the word ``"metal"``)
+            or a regressed number.
+        probability: the class's probability (class heads); None for a regressed number.
+        probabilities: every class's probability, in the head's class order.
+    """
+
+    value: int | float | str
+    probability: float | None = None
+    probabilities: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What one query is predicted to feel like.
+
+    Attributes:
+        path: the query's file (the first, when presses are pooled).
+        paths: every file of the query.
+        modality: what the files show.
+        properties: label column -> its predicted `PropertyValue`.
+    """
+
+    path: str
+    paths: list[str]
+    modality: str
+    properties: dict[str, PropertyValue]
+
+
+def _plain(name: str) -> int | float | str:
+    """A class name in its column's own terms: ``"2"`` -> 2, ``"0.5"`` -> 0.5, words as they are."""
+    try:
+        number = float(name)
+    except ValueError:
+        return name
+    return int(number) if number.is_integer() else number
+
+
+def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality:
+    """The modality of a query file: a video is touch; an image is the model's only image
+    modality; a 16-bit PNG is depth.
+
+    Raises:
+        PredictError: the file's kind does not say, and the model has several modalities.
+    """
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        return Modality.TOUCH
+    if suffix not in IMAGE_SUFFIXES:
+        raise PredictError(
+            f"{path}: not an image ({', '.join(IMAGE_SUFFIXES)}) or a video "
+            f"({', '.join(VIDEO_SUFFIXES)})"
+        )
+    if len(model_modalities) == 1:
+        return model_modalities[0]
+    raise PredictError(
+        f"{path}: say which modality the image shows with --modality (the model has "
+        f"{', '.join(m.value for m in model_modalities)})"
+    )
+
+
+def _heads(loaded: LoadedModel) -> None:
+    cfg = loaded.config.model
+    if not cfg.class_heads and not cfg.num_properties:
+        raise PredictError(
+            f"{loaded.path}: this model has no property heads to read; train one with "
+            "model.class_heads (classes such as hardness or material) or model.num_properties "
+            "(e.g. configs/physiclear.yaml)"
+        )
+
+
+@torch.inference_mode()
+def predict_files(
+    loaded: LoadedModel,
+    paths: Sequence[str | Path],
+    modality: Modality | None = None,
+    *,
+    together: bool = False,
+    device: torch.device | str = "cpu",
+) -> list[Prediction]:
+    """Predict the properties of each query file (or of all of them as one object).
+
+    Args:
+        loaded: a checkpoint's model (`lookfeel.checkpoint.load_model`).
+        paths: query files: videos or images of one modality.
+        modality: what the files show; default: guessed per file (`guess_modality`).
+        together: the files are presses of one object: pool them into one query (touch only).
+        device: where the network runs.
+
+    Returns:
+        One `Prediction` per file, or one for all with ``together``.
+
+    Raises:
+        PredictError: the model has no heads, lacks the modality, or the files mix modalities.
+        ImageError: naming a file that cannot be read (video errors included).
+    """
+    _heads(loaded)
+    model = loaded.model
+    have = list(model.modalities)
+    files = [Path(p) for p in paths]
+    if not files:
+        raise PredictError("no input file given")
+    mods = [modality or guess_modality(p, have) for p in files]
+    for p, m in zip(files, mods, strict=True):
+        if m not in have:
+            raise PredictError(
+                f"{p}: the model has no {m.value} branch (it has "
+                f"{', '.join(x.value for x in have)})"
+            )
+    if together and len(set(mods)) > 1:
+        raise PredictError("--together pools presses of one object: give files of one modality")
+    if together and mods[0] is not Modality.TOUCH:
+        raise PredictError("--together pools touch presses; depth and colour are one image each")
+    data = loaded.config.data
+    groups = [files] if together else [[p] for p in files]
+    group_mods = [mods[0]] if together else mods
+    out = []
+    with eval_mode(model):
+        for group, m in zip(groups, group_mods, strict=True):
+            x = query_batch([load_query_image(p, m, data) for p in group], m).to(device)
+            outputs = model({m.value: x}, heads=True)
+            out.append(
+                Prediction(
+                    path=str(group[0]),
+                    paths=[str(p) for p in group],
+                    modality=m.value,
+                    properties=_read_heads(loaded, outputs, m.value),
+                )
+            )
+    return out
+
+
+def _read_heads(
+    loaded: LoadedModel, outputs: dict[str, torch.Tensor], slot: str
+) -> dict[str, PropertyValue]:
+    cfg = loaded.config.model
+    props: dict[str, PropertyValue] = {}
+    logits = outputs.get(f"{slot}/{CLASSES}")
+    if logits is not None:
+        parts = logits[0].float().split(cfg.class_sizes)
+        for col, z in zip(cfg.class_heads, parts, strict=True):
+            p = torch.softmax(z, dim=0).cpu().numpy().astype(np.float64)
+            names = cfg.classes[col]
+            best = int(p.argmax())
+            props[col] = PropertyValue(
+                value=_plain(names[best]),
+                probability=round(float(p[best]), 4),
+                probabilities={n: round(float(q), 4) for n, q in zip(names, p, strict=True)},
+            )
+    reg = outputs.get(f"{slot}/{PROPERTY}")
+    if reg is not None:
+        stats = loaded.label_stats
+        for col, v in zip(loaded.label_columns, reg[0].float().cpu().tolist(), strict=False):
+            if col in props:
+                continue  # a class head answers in the column's own terms already
+            mean, std = stats.get(col, (0.0, 1.0))
+            props[col] = PropertyValue(value=round(mean + std * float(v), 4))
+    return props

@@ -1,0 +1,185 @@
+"""Recordings as they lie: objects named in labels.csv, videos as touch presses, class labels
+(ranks and words), the class heads and the class metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from lookfeel.config import LossConfig, ModelConfig, RunConfig
+from lookfeel.config._core import ConfigError
+from lookfeel.data import scan
+from lookfeel.data.datasets import class_matrix
+from lookfeel.data.labels import read_labels
+from lookfeel.losses import create_loss
+from lookfeel.metrics.classes import UNKNOWN, accuracy, knn_classes, macro_f1, majority_class
+from lookfeel.modality import Modality, PressKind
+from lookfeel.models import CLASSES, create_model
+from lookfeel.train.loop import resolve_classes
+
+QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
+"""The first bytes of a QuickTime file: enough for the scan, which never decodes."""
+
+LABELS = """object,hardness,roughness,material,description
+sponge,0,2,fabric,a kitchen sponge
+steel_spoon,2,0,metal,a spoon
+cork,1,1,wood,a cork
+felt_pad,0,1,fabric,a felt pad
+apple,,,,
+"""
+
+
+def _recordings(root: Path, presses: dict[str, int], labels: str = LABELS) -> Path:
+    (root / "videos").mkdir(parents=True)
+    (root / "labels.csv").write_text(labels)
+    for name, n in presses.items():
+        for k in range(n):
+            (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
+    return root
+
+
+def test_object_keyed_labels_have_text_columns_and_keep_every_cell(tmp_path: Path):
+    path = tmp_path / "labels.csv"
+    path.write_text(LABELS)
+    table, problems = read_labels(path)
+    assert problems == []
+    assert table.key == "object"
+    assert table.columns == ("hardness", "roughness")  # numeric: regression targets
+    assert table.text_columns == ("material", "description")
+    row = table.named["steel_spoon"]
+    assert row.values == {"hardness": 2.0, "roughness": 0.0}
+    assert row.text == {
+        "hardness": "2",
+        "roughness": "0",
+        "material": "metal",
+        "description": "a spoon",
+    }
+    assert table.named["apple"].values == {} and table.named["apple"].text == {}
+
+
+def test_a_typo_in_a_numeric_column_is_reported_not_taken_for_a_word(tmp_path: Path):
+    path = tmp_path / "labels.csv"
+    path.write_text("object,hardness\na,0\nb,1\nc,2x\n")
+    table, problems = read_labels(path)
+    assert table.columns == ("hardness",)
+    assert [(p.line, p.message) for p in problems] == [
+        (4, "column 'hardness': '2x' is not a number")
+    ]
+
+
+def test_videos_folder_scans_named_objects_with_ids_in_name_order(tmp_path: Path):
+    root = _recordings(tmp_path / "rec", {"steel_spoon": 3, "sponge": 2, "cork": 2, "felt_pad": 1})
+    catalog = scan(root)
+    assert [f.name for f in catalog.fabrics] == ["cork", "felt_pad", "sponge", "steel_spoon"]
+    assert catalog.ids == [2, 3, 4, 5]  # apple (1) is labelled but has no video
+    spoon = catalog.fabric(5)
+    assert spoon.display_name == "steel_spoon"
+    presses = spoon.items_of(Modality.TOUCH)
+    assert [(it.press, it.kind, it.path.name) for it in presses] == [
+        ("0", None, "steel_spoon_0.mov"),
+        ("1", None, "steel_spoon_1.mov"),
+        ("2", None, "steel_spoon_2.mov"),
+    ]
+    # a press of no stated kind is of every kind: a fold-press config still reads it
+    assert len(spoon.items_of(Modality.TOUCH, [PressKind.FOLD])) == 3
+    assert spoon.class_of("hardness") == "2" and spoon.class_of("material") == "metal"
+    assert catalog.errors == ()
+    assert [(p.path.name, p.message) for p in catalog.warnings] == [
+        ("labels.csv", "object 'apple' is in labels.csv but has no video")
+    ]
+    s = catalog.summary()
+    assert (s["touch_videos"], s["named_objects"], s["touch_frames"]) == (8, 4, 0)
+    assert s["touch_presses_by_kind"] == {"unstated": 8}
+    # descriptions are all different: not classes; ranks and words are
+    assert s["classes"] == {
+        "material": {"fabric": 2, "metal": 1, "wood": 1},
+        "hardness": {"0": 2, "1": 1, "2": 1},
+        "roughness": {"0": 1, "1": 2, "2": 1},
+    }
+
+
+def test_video_names_and_containers_are_checked(tmp_path: Path):
+    root = _recordings(tmp_path / "rec", {"cork": 1})
+    (root / "videos" / "nonumber.mov").write_bytes(QUICKTIME)
+    (root / "videos" / "cork_1.mov").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(32))
+    (root / "videos" / "notes.txt").write_text("x")
+    (root / "touch").mkdir()
+    (root / "touch" / "F0009_fold_7.mp4").write_bytes(QUICKTIME)
+    (root / "touch" / "F0009_7.mp4").write_bytes(QUICKTIME)
+    catalog = scan(root, check_headers=True)
+    errors = {p.path.name: p.message for p in catalog.errors}
+    assert errors["nonumber.mov"].startswith("video name does not parse; expected <object>_<n>")
+    assert errors["cork_1.mov"] == "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
+    assert errors["F0009_7.mp4"].startswith("touch video name has no press kind")
+    assert [p.path.name for p in catalog.skipped if p.path.name == "notes.txt"] == ["notes.txt"]
+    (fold,) = catalog.fabric(9).items_of(Modality.TOUCH)
+    assert (fold.kind, fold.press, fold.frames) == (PressKind.FOLD, "7", (fold.path,))
+
+
+def _config(**model: object) -> RunConfig:
+    return RunConfig(
+        model=ModelConfig(backbone="compact", width=4, embed_dim=8, dropout=0.0, **model)  # type: ignore[arg-type]
+    )
+
+
+def test_classes_are_resolved_from_the_labels_in_their_own_order(tmp_path: Path):
+    catalog = scan(_recordings(tmp_path / "rec", {"sponge": 1, "steel_spoon": 1, "cork": 1}))
+    cfg = resolve_classes(catalog, _config(class_heads=("hardness", "material")))
+    assert cfg.model.classes == {
+        "hardness": ("0", "1", "2"),
+        "material": ("fabric", "metal", "wood"),
+    }
+    assert cfg.model.class_sizes == (3, 3)
+    m = class_matrix(catalog.fabrics, cfg.model.classes)
+    assert m.tolist() == [[1, 2], [0, 0], [2, 1]]  # cork, sponge, steel_spoon
+    with pytest.raises(ConfigError, match="'stiffness' is not a column of labels.csv"):
+        resolve_classes(catalog, _config(class_heads=("stiffness",)))
+    with pytest.raises(ConfigError, match="no classes for hardness"):
+        _ = _config(class_heads=("hardness",)).model.class_sizes
+
+
+def test_class_heads_and_their_loss_mask_unknown_labels():
+    cfg = ModelConfig(
+        backbone="compact",
+        width=4,
+        embed_dim=8,
+        dropout=0.0,
+        class_heads=("hardness", "material"),
+        classes={"hardness": ("0", "1", "2"), "material": ("fabric", "metal")},
+    )
+    torch.manual_seed(0)
+    model = create_model(cfg, [Modality.TOUCH])
+    x = torch.rand(4, 1, 3, 32, 32)
+    out = model({"touch": x}, heads=True)
+    assert out[f"touch/{CLASSES}"].shape == (4, 5)
+    loss_fn = create_loss(LossConfig(pair_weight=0.0, class_weight=2.0), cfg.class_sizes)
+    target = torch.tensor([[0, 1], [2, -1], [-1, -1], [1, 0]])
+    terms = loss_fn(out, classes={"touch": target})
+    assert set(terms) == {"class_loss", "loss"}
+    logits = out[f"touch/{CLASSES}"]
+    ce = torch.nn.functional.cross_entropy
+    expected = ce(logits[[0, 1, 3], :3], target[[0, 1, 3], 0]) + ce(
+        logits[[0, 3], 3:], target[[0, 3], 1]
+    )
+    torch.testing.assert_close(terms["class_loss"], 2.0 * expected)
+
+
+def test_accuracy_and_macro_f1_by_hand():
+    truth = [0, 0, 1, 1, 2, UNKNOWN]
+    pred = [0, 1, 1, 1, 0, 2]
+    assert accuracy(truth, pred) == pytest.approx(3 / 5)
+    # class 0: tp 1 fp 1 fn 1 -> 0.5; class 1: tp 2 fp 1 fn 0 -> 0.8; class 2: tp 0 fn 1 -> 0
+    assert macro_f1(truth, pred, 3) == pytest.approx((0.5 + 0.8 + 0.0) / 3)
+    assert np.isnan(accuracy([UNKNOWN], [0]))
+    assert majority_class([2, 1, 1, UNKNOWN, 2, 2], 3) == 2
+    assert majority_class([UNKNOWN], 3) == UNKNOWN
+
+
+def test_knn_classes_votes_among_known_neighbours():
+    train = np.array([[0.0], [0.1], [0.2], [5.0], [5.1], [9.0]])
+    classes = np.array([0, 0, 0, 1, 1, UNKNOWN])
+    got = knn_classes(train, classes, np.array([[0.05], [5.05], [8.9]]), 2, k=3)
+    assert got.tolist() == [0, 1, 1]  # 8.9: the unknown row at 9 does not vote
