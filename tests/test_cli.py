@@ -70,7 +70,7 @@ COMMANDS = _commands(build_parser())
 
 
 def test_the_docstring_and_help_list_every_command(capsys):
-    assert len(COMMANDS) == 15
+    assert len(COMMANDS) == 16
     listed = re.findall(r"^  ([a-z]+(?: [a-z]+)?)(?: [A-Z.]+)? {2,}\S", lookfeel.cli.__doc__, re.M)
     assert sorted(listed) == sorted(" ".join(c) for c in COMMANDS)
     with pytest.raises(SystemExit) as e:

@@ -176,12 +176,12 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             )
             continue
         values: dict[str, float] = {}
-        text: dict[str, str] = {}
+        cells_text: dict[str, str] = {}
         for col in value_cols:
             raw = record[col]
             if raw.lower() in _MISSING:
                 continue
-            text[col] = raw
+            cells_text[col] = raw
             if col in text_cols:
                 continue
             try:
@@ -229,7 +229,7 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
                         line=lineno,
                     )
                 )
-        row = LabelRow(fid or 0, lineno, values, cluster, split, name, text)
+        row = LabelRow(fid or 0, lineno, values, cluster, split, name, cells_text)
         if name is not None:
             named[name] = row
         else:

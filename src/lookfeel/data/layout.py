@@ -33,7 +33,14 @@ from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
 
-__all__ = ["FOLDER_ALIASES", "IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "parse_touch_name", "scan"]
+__all__ = [
+    "FOLDER_ALIASES",
+    "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
+    "parse_touch_name",
+    "scan",
+    "sniff_video",
+]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
@@ -60,6 +67,16 @@ _OBJECT_VIDEO = re.compile(r"^(?P<object>.+)_(?P<press>\d+)$")
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
+def sniff_video(head: bytes) -> bool:
+    """Whether a file's first 16 bytes begin a video container FFmpeg reads: QuickTime/MP4
+    (an atom such as ``ftyp`` at byte 4), AVI (``RIFF....AVI ``) or Matroska/WebM."""
+    if head[4:8] in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip", b"pnot"):
+        return True
+    if head[:4] == b"RIFF" and head[8:12] == b"AVI ":
+        return True
+    return head[:4] == b"\x1a\x45\xdf\xa3"
+
+
 def _video_header_problem(path: Path) -> str | None:
     """A cheap check that a video file is a container FFmpeg reads (QuickTime/MP4, AVI, MKV)."""
     try:
@@ -69,12 +86,8 @@ def _video_header_problem(path: Path) -> str | None:
         return f"cannot read file: {e.strerror}"
     if not head:
         return "file is empty"
-    if head[4:8] in (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip", b"pnot"):
-        return None  # QuickTime / MP4 atoms
-    if head[:4] == b"RIFF" and head[8:12] == b"AVI ":
+    if sniff_video(head):
         return None
-    if head[:4] == b"\x1a\x45\xdf\xa3":
-        return None  # Matroska / WebM
     return "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
 
 

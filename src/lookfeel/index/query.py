@@ -10,6 +10,7 @@ uses. No image is cached, so a path reused for different content is always read 
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -20,13 +21,14 @@ from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth, decode_rgb
 from lookfeel.data.images import (
     DEFAULT_MAX_PIXELS,
+    ImageError,
     ImageLoader,
     preprocess_depth,
     preprocess_rgb,
     read_image_file,
     to_tensor,
 )
-from lookfeel.data.layout import VIDEO_SUFFIXES
+from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
 from lookfeel.modality import Modality
 
 __all__ = ["IMAGE_TYPES", "load_query_bytes", "load_query_image", "query_batch", "sniff_type"]
@@ -91,7 +93,22 @@ def load_query_bytes(
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
     """
+    if modality is Modality.TOUCH and sniff_video(data[:16]):
+        return _video_bytes(data, name, config)
     return _preprocess(Path(name), data, modality, config, max_pixels)
+
+
+def _video_bytes(data: bytes, name: str, config: DataConfig) -> torch.Tensor:
+    """An uploaded press video: FFmpeg reads files, so it is written to a private temporary
+    folder (removed at once) and read as `load_query_image` reads one; errors name ``name``."""
+    suffix = Path(name).suffix.lower()
+    with tempfile.TemporaryDirectory(prefix="lookfeel-query-") as tmp:
+        path = Path(tmp) / ("query" + (suffix if suffix in VIDEO_SUFFIXES else ".mov"))
+        path.write_bytes(data)
+        try:
+            return to_tensor(ImageLoader(config, cache_dir=None).array(path, Modality.TOUCH))
+        except ImageError as e:
+            raise ImageError(Path(name), e.reason) from None
 
 
 def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Tensor:

@@ -45,6 +45,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
+from lookfeel.data.layout import sniff_video
 from lookfeel.errors import LookfeelError
 from lookfeel.index import (
     FabricMatch,
@@ -541,7 +542,7 @@ def create_app(
         response_model=MatchResponse,
         responses={
             413: {"description": "a file or the request is too large"},
-            415: {"description": "a file is not a PNG or JPEG image"},
+            415: {"description": "a file is not a PNG or JPEG image (or, for touch, a video)"},
             422: {"description": "a file cannot be decoded as this modality, or bad fields"},
             503: {"description": "too many queries waiting"},
         },
@@ -550,7 +551,10 @@ def create_app(
         modality: Annotated[Modality, Form(description="what the images show")],
         files: Annotated[
             list[UploadFile],
-            File(description="PNG or JPEG images; several touch files are one query's presses"),
+            File(
+                description="PNG or JPEG images, or touch videos (.mov, .mp4, .avi); several "
+                "touch files are one query's presses"
+            ),
         ],
         top: Annotated[int, Form(description="fabrics to return")] = 5,
         gallery: Annotated[Modality | None, Form(description="modality to match against")] = None,
@@ -573,8 +577,15 @@ def create_app(
                 )
             if not data:
                 raise HTTPException(422, f"{name}: the file is empty")
+            if modality is Modality.TOUCH and sniff_video(data[:16]):
+                blobs.append((name, data))  # a press video: its frames are checked on decoding
+                continue
             if sniff_type(data[:16]) is None:
-                raise HTTPException(415, f"{name}: not a PNG or JPEG image")
+                raise HTTPException(
+                    415,
+                    f"{name}: not a PNG or JPEG image"
+                    + (" or a video (.mov, .mp4, .avi)" if modality is Modality.TOUCH else ""),
+                )
             size = image_size(data)
             if size is None:
                 raise HTTPException(
