@@ -60,6 +60,16 @@ class DataConfig:
     touch_frame: int = -2
     """Which frame of a press is "the" image: an index into its ordered frames; negative
     counts from the end (authors' code: -2, the second-to-last). Clamped for short presses."""
+    video_frame: float | None = None
+    """Which frame of a press video (a touch item recorded as .mov/.mp4/.avi) is "the" image:
+    ``None`` the deepest contact; a number in [0, 1] that position across the contact span
+    (0 its first frame, 1 its last). The press is found automatically (`lookfeel.data.video`)."""
+    video_reference: Literal["subtract", "none"] = "subtract"
+    """``subtract``: a press video's frame becomes its difference from the no-contact frames
+    before the press, ``128 + video_gain * (frame - reference)`` (removes the sensor's own
+    light and drift); ``none``: the raw frame."""
+    video_gain: float = 4.0
+    """Gain of that difference (grey levels per grey level of change)."""
     touch_kinds: tuple[PressKind, ...] = (PressKind.FOLD,)
     """Press kinds used for training and evaluation (the paper's 'Flat' model uses flat)."""
     presses: int = 1
@@ -85,5 +95,12 @@ class DataConfig:
             raise ConfigError(f"data.same_fraction: must be in [0, 1], got {self.same_fraction}")
         if not self.touch_kinds:
             raise ConfigError("data.touch_kinds: at least one press kind is needed")
+        if self.video_frame is not None and not 0.0 <= self.video_frame <= 1.0:
+            raise ConfigError(
+                f"data.video_frame: must be null (deepest contact) or in [0, 1], got "
+                f"{self.video_frame}"
+            )
+        if not self.video_gain > 0:
+            raise ConfigError(f"data.video_gain: must be > 0, got {self.video_gain}")
         if self.workers < 1:
             raise ConfigError(f"data.workers: must be >= 1, got {self.workers}")

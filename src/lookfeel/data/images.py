@@ -6,7 +6,10 @@
 - Colour: 8-bit RGB, optionally centre-cropped to a square, resized. Output (3, S, S) in [0, 1].
 - Touch: one frame of a press (the second-to-last by default, as the authors' code); a 960x720
   GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
-  Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1].
+  Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1]. A touch item may also be a press
+  video (.mov, .mp4, .avi, .mkv): its press is found and one frame taken (the deepest contact
+  or ``video_frame``), by default as its difference from the no-contact frames
+  (`lookfeel.data.video.read_press`), then cropped and resized like a touch image.
 
 Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
 (a FIFO, device or folder named like an image is refused at once, never waited on), and its
@@ -311,6 +314,9 @@ class PreprocessSettings:
     depth_holes: str
     color_crop: str
     touch_crop: str
+    video_frame: float | None = None
+    video_reference: str = "subtract"
+    video_gain: float = 4.0
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -321,11 +327,20 @@ class PreprocessSettings:
             config.depth_holes,
             config.color_crop,
             config.touch_crop,
+            config.video_frame,
+            config.video_reference,
+            config.video_gain,
         )
 
     def digest(self) -> str:
         blob = json.dumps(self.__dict__, sort_keys=True).encode()
         return hashlib.sha1(blob).hexdigest()[:12]
+
+
+def _is_video(path: Path) -> bool:
+    from lookfeel.data.video import is_video  # video.py builds on this module
+
+    return is_video(path)
 
 
 def to_tensor(a: np.ndarray) -> torch.Tensor:
@@ -379,6 +394,8 @@ class ImageLoader:
                     pass  # a damaged cache entry is rebuilt below
         if modality is Modality.DEPTH:
             a = preprocess_depth(decode_depth(path, data), self.config)
+        elif modality is Modality.TOUCH and _is_video(path):
+            a = preprocess_rgb(self._video_image(path, data), modality, self.config)
         else:
             a = preprocess_rgb(decode_rgb(path, data), modality, self.config)
         if disk is not None:
@@ -386,6 +403,20 @@ class ImageLoader:
             np.save(buf, a, allow_pickle=False)
             atomic_write(disk, lambda f: f.write(buf.getvalue()))
         return a
+
+    def _video_image(self, path: Path, data: bytes) -> np.ndarray:
+        """The frame of a press video the config asks for, as (H, W, 3) uint8."""
+        from lookfeel.data.video import read_press  # video.py builds on this module
+
+        c = self.config
+        press = read_press(
+            path,
+            data=data,
+            position=c.video_frame,
+            subtract_reference=c.video_reference == "subtract",
+            gain=c.video_gain,
+        )
+        return press.images[0]
 
     def array(self, path: Path, modality: Modality) -> np.ndarray:
         """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else."""

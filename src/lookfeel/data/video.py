@@ -1,0 +1,591 @@
+"""Tactile videos in: decode a GelSight Mini / DIGIT recording and find its press.
+
+A person presses a sensor and gets a ``.mov``, ``.mp4`` or ``.avi``, not a folder of frames.
+This module decodes such a file with PyAV (FFmpeg's bindings; no OpenCV), finds the press in
+it, and returns the frames the model needs:
+
+- `read_video`: every frame as (T, H, W, 3) uint8 RGB.
+- `detect_press`: the no-contact reference frames at the start, the contact span and the frame
+  of deepest contact (`PressSpan`), from a per-frame contact signal: how far each frame's small
+  greyscale version moved from the median of the first frames (the mean of its 5% most changed
+  pixels, after removing a global brightness shift), thresholded relative to the noise of the
+  frames before contact and to the peak.
+- `contact_frames`, `reference_frame`, `difference_image`: the chosen frames and their
+  difference from the no-contact frame (``128 + gain * (frame - reference)``), which removes
+  the sensor's own light pattern and its drift.
+- `read_press`: all of it at once (`Press`); `lookfeel.data.images.ImageLoader` calls it for a
+  touch item whose file is a video, and caches the result like an image.
+
+Decoding is fast because full RGB is made only for the frames kept: the press is found on the
+luma plane of the decoded YUV frames (block-averaged to about 40x30), then the file is decoded
+again and only the chosen frames and the reference frames are converted to RGB.
+
+Every file goes through the image policy (`lookfeel.data.images.read_image_file`: a regular
+file, at most 512 MB); a frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`, checked from
+the stream's header before decoding) or a video longer than `MAX_VIDEO_FRAMES` is refused. A
+file that cannot be decoded, a video with no contact, or one too short raises `VideoError`
+naming the file.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from lookfeel.data.images import DEFAULT_MAX_PIXELS, ImageError, read_image_file
+
+if TYPE_CHECKING:
+    import av.video.frame
+
+__all__ = [
+    "DEFAULT_GAIN",
+    "MAX_VIDEO_FRAMES",
+    "MIN_VIDEO_FRAMES",
+    "VIDEO_SUFFIXES",
+    "Press",
+    "PressSpan",
+    "VideoError",
+    "contact_frames",
+    "detect_press",
+    "difference_image",
+    "frame_at",
+    "is_video",
+    "read_press",
+    "read_video",
+    "reference_frame",
+    "small_greyscale",
+]
+
+VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
+"""File suffixes read as videos (lower-case; the match ignores case)."""
+MAX_VIDEO_FRAMES = 10_000
+"""Most frames decoded from one video (400 s at 25 frames/s); a longer one is refused."""
+MIN_VIDEO_FRAMES = 5
+"""Fewest frames a press video may have: a few no-contact frames, then the press."""
+DEFAULT_GAIN = 4.0
+"""Default ``gain`` of `difference_image` (see `read_press`)."""
+_MAX_RGB_BYTES = 2 * 1024**3
+_KEEP_DECODED_BYTES = 256 * 1024**2
+"""`read_press` holds decoded (YUV) frames up to this size to convert the chosen ones to RGB
+without decoding again."""
+"""`read_video` refuses to hold more than this many bytes of RGB frames."""
+
+_SIGNAL_SIDE = 30
+"""The small greyscale version of a frame has about this many pixels on its short side."""
+_TOP_FRACTION = 0.05
+"""The contact signal averages this fraction of the most changed pixels of a frame."""
+
+
+class VideoError(ImageError):
+    """A video cannot be used: undecodable, too short, too large, or no press found in it."""
+
+
+def is_video(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` names a video file, by its suffix (`VIDEO_SUFFIXES`, any case)."""
+    return Path(path).suffix.lower() in VIDEO_SUFFIXES
+
+
+def _read_bytes(path: Path) -> bytes:
+    """The file's bytes under the image policy (`read_image_file`), errors worded for videos."""
+    try:
+        return read_image_file(path)
+    except VideoError:
+        raise
+    except ImageError as e:
+        raise VideoError(
+            path, e.reason.replace("an image", "a video").replace("image", "video")
+        ) from None
+
+
+def _import_av(path: Path) -> Any:
+    try:
+        import av
+    except ImportError:
+        raise VideoError(
+            path, "reading videos needs PyAV: install the `av` package (pip install av)"
+        ) from None
+    return av
+
+
+# ---------------------------------------------------------------------------------------------
+# Decoding.
+
+
+def _decode(
+    path: Path,
+    data: bytes | None,
+    max_pixels: int | None,
+    max_frames: int | None,
+) -> Iterator[av.video.frame.VideoFrame]:
+    """Every decoded frame of the file's first video stream, checked against the limits.
+
+    Raises:
+        VideoError: not a regular file, not a video, undecodable, truncated, frames larger than
+            ``max_pixels``, or more than ``max_frames`` frames.
+    """
+    av = _import_av(path)
+    blob = _read_bytes(path) if data is None else data
+    if not blob:
+        raise VideoError(path, "cannot decode video: file is empty")
+    limit = DEFAULT_MAX_PIXELS if max_pixels is None else max_pixels
+    most = MAX_VIDEO_FRAMES if max_frames is None else max_frames
+    errors = (av.FFmpegError, OSError, ValueError, EOFError, MemoryError)
+    try:
+        container = av.open(io.BytesIO(blob), mode="r")
+    except errors:
+        raise VideoError(path, "cannot decode video: not a video file FFmpeg can read") from None
+    with container:
+        fmt = container.format.name
+        if fmt.endswith("_pipe") or fmt == "image2":
+            raise VideoError(
+                path, f"cannot decode video: the file is an image ({fmt}), not a video"
+            )
+        if not container.streams.video:
+            raise VideoError(path, "cannot decode video: the file has no video stream")
+        stream = container.streams.video[0]
+        w, h = stream.codec_context.width, stream.codec_context.height
+        if w * h > limit:
+            raise VideoError(
+                path,
+                f"video declares {w}x{h} = {w * h / 1e6:.1f} megapixel frames; at most "
+                f"{limit / 1e6:g} are decoded",
+            )
+        stream.thread_type = "AUTO"
+        declared = stream.frames
+        n = 0
+        try:
+            for frame in container.decode(stream):
+                if frame.width * frame.height > limit:
+                    raise VideoError(
+                        path,
+                        f"frame {n} is {frame.width}x{frame.height}; at most "
+                        f"{limit / 1e6:g} megapixels are decoded",
+                    )
+                n += 1
+                if n > most:
+                    raise VideoError(
+                        path, f"video is too large: more than {most} frames (the limit)"
+                    )
+                yield frame
+        except VideoError:
+            raise
+        except errors:
+            raise VideoError(
+                path, f"cannot decode video: damaged after {n} frames (truncated or corrupt)"
+            ) from None
+    if n == 0:
+        raise VideoError(path, "cannot decode video: no frame could be decoded")
+    if declared > 0 and n < declared:
+        raise VideoError(
+            path, f"video is truncated: {n} of the {declared} frames it declares could be decoded"
+        )
+
+
+def read_video(
+    path: str | os.PathLike[str],
+    *,
+    data: bytes | None = None,
+    max_frames: int | None = None,
+    max_pixels: int | None = None,
+) -> np.ndarray:
+    """Decode every frame of a video.
+
+    Args:
+        path: the file; with ``data``, only the name used in errors.
+        data: the file's bytes, read from ``path`` when ``None``.
+        max_frames: most frames decoded (default `MAX_VIDEO_FRAMES`); a longer video raises.
+        max_pixels: largest width x height of a frame (default `DEFAULT_MAX_PIXELS`).
+
+    Returns:
+        (T, H, W, 3) uint8 RGB.
+
+    Raises:
+        VideoError: as `read_press`, or the frames would take more than 2 GiB.
+    """
+    p = Path(path)
+    out: list[np.ndarray] = []
+    size = 0
+    for frame in _decode(p, data, max_pixels, max_frames):
+        rgb = frame.to_ndarray(format="rgb24")
+        if out and rgb.shape != out[0].shape:
+            raise VideoError(p, f"frame {len(out)} changes size to {rgb.shape[1]}x{rgb.shape[0]}")
+        size += rgb.nbytes
+        if size > _MAX_RGB_BYTES:
+            raise VideoError(p, f"video is too large: its RGB frames exceed {_MAX_RGB_BYTES} bytes")
+        out.append(rgb)
+    return np.stack(out)
+
+
+_PLANAR_8BIT = frozenset(
+    ("yuv420p", "yuv422p", "yuv444p", "yuv411p", "yuv410p", "yuv440p", "nv12", "nv21", "gray")
+)
+_FULL_RANGE = frozenset(("yuvj420p", "yuvj422p", "yuvj444p", "yuvj440p", "yuvj411p"))
+_LIMITED_SCALE = np.float32(255.0 / 219.0)
+"""Video-range luma spans 16..235; ``(Y - 16) * 255 / 219`` is the full-range grey level."""
+
+
+def _luma(frame: av.video.frame.VideoFrame) -> tuple[np.ndarray, bool]:
+    """(H, W) uint8 luma of a decoded frame (the Y plane itself for 8-bit planar YUV), and
+    whether it is video range (16..235)."""
+    name = frame.format.name
+    if name in _PLANAR_8BIT or name in _FULL_RANGE:
+        plane = frame.planes[0]
+        a = np.frombuffer(memoryview(plane), np.uint8)
+        limited = name != "gray" and name not in _FULL_RANGE
+        return a.reshape(frame.height, plane.line_size)[:, : frame.width], limited
+    return np.asarray(frame.to_ndarray(format="gray")), False
+
+
+def _block_factor(h: int, w: int) -> int:
+    return max(1, min(h, w) // _SIGNAL_SIDE)
+
+
+def _shrink(grey: np.ndarray, f: int) -> np.ndarray:
+    """Mean of f x f blocks of an (H, W) or (T, H, W) image, float32 (remainder cropped)."""
+    if f == 1:
+        return grey.astype(np.float32)
+    h, w = grey.shape[-2] // f * f, grey.shape[-1] // f * f
+    g = grey[..., :h, :w].astype(np.uint32)
+    rows = g[..., 0::f, :]
+    for i in range(1, f):
+        rows = rows + g[..., i::f, :]
+    out = rows[..., 0::f]
+    for j in range(1, f):
+        out = out + rows[..., j::f]
+    return out.astype(np.float32) / np.float32(f * f)
+
+
+def _greyscale(frames: np.ndarray) -> np.ndarray:
+    """(T, H, W, 3) RGB or (T, H, W) grey -> (T, H, W) float32 grey (BT.601 luma weights)."""
+    if frames.ndim == 3:
+        return frames.astype(np.float32)
+    if frames.ndim != 4 or frames.shape[-1] != 3:
+        raise ValueError(f"frames must be (T, H, W, 3) or (T, H, W); got {frames.shape}")
+    w = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+    return frames.astype(np.float32) @ w
+
+
+def small_greyscale(
+    path: str | os.PathLike[str],
+    *,
+    data: bytes | None = None,
+    max_frames: int | None = None,
+    max_pixels: int | None = None,
+) -> np.ndarray:
+    """Decode a video into small greyscale frames: what `detect_press` needs, and fast.
+
+    Each frame's luma plane is block-averaged to about 40x30 pixels (no RGB conversion) and
+    put on the full-range 0..255 grey scale.
+
+    Returns:
+        (T, h, w) float32.
+
+    Raises:
+        VideoError: as `read_video`.
+    """
+    p = Path(path)
+    blob = _read_bytes(p) if data is None else data
+    return _scan(p, blob, max_frames, max_pixels, keep_bytes=0)[0]
+
+
+def _scan(
+    p: Path, blob: bytes, max_frames: int | None, max_pixels: int | None, keep_bytes: int
+) -> tuple[np.ndarray, list[av.video.frame.VideoFrame] | None]:
+    """Small greyscale frames, and the decoded frames themselves while they fit ``keep_bytes``
+    (``None`` beyond: the caller decodes again rather than hold a long video in memory)."""
+    small: list[np.ndarray] = []
+    kept: list[av.video.frame.VideoFrame] | None = [] if keep_bytes > 0 else None
+    held = 0
+    factor = 0
+    for frame in _decode(p, blob, max_pixels, max_frames):
+        if not factor:
+            factor = _block_factor(frame.height, frame.width)
+        y, limited = _luma(frame)
+        g = _shrink(y, factor)
+        if limited:
+            g -= np.float32(16.0)
+            g *= _LIMITED_SCALE
+        if small and g.shape != small[0].shape:
+            raise VideoError(p, f"frame {len(small)} changes size to {frame.width}x{frame.height}")
+        small.append(g)
+        if kept is not None:
+            held += frame.width * frame.height * 3 // 2
+            if held <= keep_bytes:
+                kept.append(frame)
+            else:
+                kept = None
+    return np.stack(small), kept
+
+
+# ---------------------------------------------------------------------------------------------
+# Finding the press.
+
+
+@dataclass(frozen=True)
+class PressSpan:
+    """Where the press is in a video of T frames (indices into its frames)."""
+
+    reference: tuple[int, int]
+    """The no-contact reference frames, ``range(*reference)``: the quiet frames just before
+    contact (at most ``reference_frames`` of them)."""
+    start: int
+    """First frame in contact."""
+    peak: int
+    """Frame of deepest contact (largest contact signal)."""
+    end: int
+    """First frame after the release (exclusive end of the contact span), or T."""
+    strength: np.ndarray
+    """(T,) float32 contact signal of every frame, in grey levels (0-255 scale)."""
+    floor: float
+    """The signal's level without contact (its 10th percentile after the first frames)."""
+    noise: float
+    """Frame-to-frame noise of the signal without contact (a robust standard deviation)."""
+    threshold: float
+    """Frames whose signal exceeds this are in contact."""
+
+    @property
+    def frames(self) -> int:
+        """T, the number of frames of the video."""
+        return len(self.strength)
+
+    @property
+    def contrast(self) -> float:
+        """Peak signal above the no-contact floor, in grey levels."""
+        return float(self.strength[self.peak]) - self.floor
+
+
+def _strength(grey: np.ndarray, first: int) -> np.ndarray:
+    """(T,) contact signal of (T, h, w) small grey frames against the median of the first ones.
+
+    Each frame's difference from the reference, less its median (a global brightness shift is
+    not contact), is scored by the mean of its most changed ``_TOP_FRACTION`` pixels: contact
+    is local, so averaging the whole frame would drown a fingertip-sized press.
+    """
+    ref = np.median(grey[:first], axis=0)
+    d = (grey - ref).reshape(len(grey), -1)
+    d -= np.median(d, axis=1, keepdims=True)
+    np.abs(d, out=d)
+    k = max(1, round(d.shape[1] * _TOP_FRACTION))
+    top = np.partition(d, d.shape[1] - k, axis=1)[:, -k:]
+    return top.mean(axis=1).astype(np.float32)
+
+
+def detect_press(
+    frames: np.ndarray,
+    path: str | os.PathLike[str] | None = None,
+    *,
+    first: int = 3,
+    reference_frames: int = 5,
+    contact_fraction: float = 0.2,
+    min_contrast: float = 1.0,
+    min_snr: float = 8.0,
+    min_frames: int = MIN_VIDEO_FRAMES,
+) -> PressSpan:
+    """Find the press in a video: its no-contact reference, contact span and deepest frame.
+
+    The contact signal (`PressSpan.strength`) measures how far each frame moved from the median
+    of the ``first`` frames. Its no-contact floor is its 10th percentile after those frames and
+    its noise the median absolute frame-to-frame change there; a frame is in contact when its
+    signal exceeds ``floor + contact_fraction * (peak - floor)``. The span is the run of
+    contact frames around the peak; the reference is the quiet frames just before it.
+
+    Args:
+        frames: (T, H, W, 3) uint8 RGB or (T, H, W) greyscale (small is enough: about 40x30).
+        path: the video, named in errors.
+        first: frames whose median is the signal's reference (the sensor untouched).
+        reference_frames: most frames in the returned reference span.
+        contact_fraction: threshold between the floor (0) and the peak (1).
+        min_contrast: the peak must exceed the floor by this many grey levels ...
+        min_snr: ... and by this many times the noise, else the video has no contact.
+        min_frames: fewest frames accepted.
+
+    Returns:
+        `PressSpan`.
+
+    Raises:
+        VideoError: fewer than ``min_frames`` frames, no contact, or contact from the first
+            frame (no no-contact reference before it).
+    """
+    p = Path(path) if path is not None else Path("<frames>")
+    t = len(frames)
+    min_frames = max(min_frames, first + 2)
+    if t < min_frames:
+        raise VideoError(
+            p,
+            f"video is too short: {t} frame{'s' if t != 1 else ''}; at least {min_frames} are "
+            f"needed ({first} without contact, then the press)",
+        )
+    s = _strength(_greyscale(frames), first)
+    rest = s[first:]
+    floor = float(np.percentile(rest, 10))
+    quiet = rest[rest <= np.percentile(rest, 50)]
+    jitter = np.abs(np.diff(quiet)) if len(quiet) > 2 else np.abs(np.diff(s[: first + 2]))
+    noise = float(1.4826 * np.median(jitter)) if len(jitter) else 0.0
+    peak = int(np.argmax(s))
+    contrast = float(s[peak]) - floor
+    need = max(min_contrast, min_snr * noise)
+    if contrast < need:
+        raise VideoError(
+            p,
+            f"no contact found: the frames change by at most {contrast:.2f} grey levels over "
+            f"the untouched sensor (noise {noise:.2f}); a press needs {need:.2f}",
+        )
+    thr = floor + contact_fraction * contrast
+    start = peak
+    while start > 0 and s[start - 1] > thr:
+        start -= 1
+    end = peak + 1
+    while end < t and s[end] > thr:
+        end += 1
+    if start == 0:
+        raise VideoError(
+            p, "contact from the first frame: no no-contact frames to take as the reference"
+        )
+    low = floor + 0.5 * contact_fraction * contrast
+    stop = start
+    while stop > 0 and s[stop - 1] > low:
+        stop -= 1
+    if stop == 0:
+        stop = min(start, first)
+    begin = stop - 1
+    while begin > 0 and stop - begin < reference_frames and s[begin - 1] <= low:
+        begin -= 1
+    return PressSpan(
+        reference=(begin, stop),
+        start=start,
+        peak=peak,
+        end=end,
+        strength=s,
+        floor=floor,
+        noise=noise,
+        threshold=thr,
+    )
+
+
+def frame_at(span: PressSpan, position: float) -> int:
+    """The frame at ``position`` in [0, 1] across the contact span (0: start, 1: last)."""
+    if not 0.0 <= position <= 1.0:
+        raise ValueError(f"position must be in [0, 1]; got {position}")
+    return round(span.start + position * (span.end - 1 - span.start))
+
+
+def contact_frames(span: PressSpan, n: int = 1) -> list[int]:
+    """Frames to show the model: ``[peak]`` for n == 1, else n spread evenly over the span.
+
+    For n > 1 the first is the span's start and the last its last frame; a span shorter than n
+    repeats frames.
+    """
+    if n < 1:
+        raise ValueError(f"n must be >= 1; got {n}")
+    if n == 1:
+        return [span.peak]
+    return [int(i) for i in np.linspace(span.start, span.end - 1, n).round()]
+
+
+def reference_frame(frames: np.ndarray, span: PressSpan) -> np.ndarray:
+    """(H, W, 3) float32 mean of the no-contact reference frames of (T, H, W, 3) ``frames``."""
+    a, b = span.reference
+    return frames[a:b].astype(np.float32).mean(axis=0)
+
+
+def difference_image(
+    frame: np.ndarray, reference: np.ndarray, gain: float = DEFAULT_GAIN
+) -> np.ndarray:
+    """(H, W, 3) uint8 ``128 + gain * (frame - reference)``, clipped to 0..255.
+
+    Subtracting the no-contact frame leaves what the contact changed (the sensor's own light
+    pattern and slow drift cancel); the gain spreads the small changes over the 8-bit range.
+    """
+    d = frame.astype(np.float32) - reference
+    d *= np.float32(gain)
+    d += np.float32(128.0)
+    return np.clip(np.rint(d), 0, 255).astype(np.uint8)
+
+
+# ---------------------------------------------------------------------------------------------
+# One call: a press video in, the frames the model needs out.
+
+
+@dataclass(frozen=True)
+class Press:
+    """What `read_press` took from a press video."""
+
+    path: Path
+    span: PressSpan
+    indices: tuple[int, ...]
+    """The frames selected (indices into the video)."""
+    images: np.ndarray
+    """(N, H, W, 3) uint8: the selected frames, or their `difference_image` from the reference."""
+    reference: np.ndarray
+    """(H, W, 3) float32 no-contact reference (mean of the reference frames)."""
+    subtracted: bool
+    """Whether ``images`` are differences from the reference."""
+
+
+def read_press(
+    path: str | os.PathLike[str],
+    *,
+    data: bytes | None = None,
+    frames: int = 1,
+    position: float | None = None,
+    subtract_reference: bool = True,
+    gain: float = DEFAULT_GAIN,
+    max_frames: int | None = None,
+    max_pixels: int | None = None,
+    detect: Callable[..., PressSpan] = detect_press,
+) -> Press:
+    """Decode a press video, find its press and return the frames the model needs.
+
+    Args:
+        path: the video; with ``data``, only the name used in errors.
+        data: the file's bytes, read from ``path`` when ``None``.
+        frames: how many frames: 1 is the deepest contact (or ``position``), more are spread
+            evenly over the contact span (`contact_frames`).
+        position: with ``frames == 1``, take the frame at this position in [0, 1] across the
+            contact span (`frame_at`) instead of the deepest one.
+        subtract_reference: return `difference_image` of each frame from the no-contact
+            reference, else the raw frames.
+        gain: the difference's gain.
+        max_frames: most frames decoded (default `MAX_VIDEO_FRAMES`).
+        max_pixels: largest frame (default `DEFAULT_MAX_PIXELS`).
+        detect: the press detector (`detect_press`), called with small greyscale frames.
+
+    Returns:
+        `Press`.
+
+    Raises:
+        VideoError: the file is not a regular file, cannot be decoded, is truncated, too large
+            (frames or pixels), too short, or shows no contact; the message names the file.
+    """
+    p = Path(path)
+    blob = _read_bytes(p) if data is None else data
+    small, decoded = _scan(p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES)
+    span = detect(small, p)
+    if position is not None and frames == 1:
+        indices = [frame_at(span, position)]
+    else:
+        indices = contact_frames(span, frames)
+    a, b = span.reference
+    wanted = set(indices) | set(range(a, b))
+    rgb: dict[int, np.ndarray] = {}
+    if decoded is not None:
+        rgb = {i: decoded[i].to_ndarray(format="rgb24") for i in sorted(wanted)}
+    else:  # a long video: decode again, converting only the frames wanted
+        last = max(wanted)
+        for i, frame in enumerate(_decode(p, blob, max_pixels, max_frames)):
+            if i in wanted:
+                rgb[i] = frame.to_ndarray(format="rgb24")
+            if i >= last:
+                break
+    reference = np.mean([rgb[i].astype(np.float32) for i in range(a, b)], axis=0).astype(np.float32)
+    if subtract_reference:
+        images = np.stack([difference_image(rgb[i], reference, gain) for i in indices])
+    else:
+        images = np.stack([rgb[i] for i in indices])
+    return Press(p, span, tuple(indices), images, reference, subtract_reference)

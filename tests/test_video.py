@@ -1,0 +1,327 @@
+"""Press videos: decoding with PyAV, finding the press, the frames taken, errors, the loader.
+
+Small videos are built here with PyAV: a few flat frames (the untouched sensor), then a blob
+pressing in and out over a known span, then flat again.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from lookfeel.config import ConfigError, DataConfig
+from lookfeel.data import ImageLoader
+from lookfeel.data import images as images_module
+from lookfeel.data import video as video_module
+from lookfeel.data.catalog import Item
+from lookfeel.data.images import PreprocessSettings
+from lookfeel.data.video import (
+    MIN_VIDEO_FRAMES,
+    PressSpan,
+    VideoError,
+    contact_frames,
+    detect_press,
+    difference_image,
+    frame_at,
+    is_video,
+    read_press,
+    read_video,
+    reference_frame,
+    small_greyscale,
+)
+from lookfeel.modality import Modality
+
+av = pytest.importorskip("av")
+
+REPO = Path(__file__).resolve().parents[1]
+PHYSICLEAR = [REPO.parent / "shared" / "data" / "physiclear", Path("/work/shared/data/physiclear")]
+
+W, H, T = 64, 48, 20
+START, PEAK, END = 5, 9, 13
+AMPLITUDE = {5: 0.4, 6: 0.6, 7: 0.75, 8: 0.85, 9: 1.0, 10: 0.8, 11: 0.65, 12: 0.45}
+"""Depth of the synthetic press per frame (others: no contact): start 5, peak 9, end 13."""
+
+
+def _sensor() -> np.ndarray:
+    """(H, W, 3) float32: the untouched sensor's light pattern (smooth colour gradients)."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+    return np.stack([90 + 60 * x / W, 100 + 50 * y / H, 150 - 40 * x / W], axis=-1)
+
+
+def press_frames(amplitude: dict[int, float] = AMPLITUDE, t: int = T) -> np.ndarray:
+    """(t, H, W, 3) uint8: the sensor, with a blob pressed in to ``amplitude[i]`` at frame i."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+    blob = np.exp(-((x - 30) ** 2 + (y - 22) ** 2) / (2 * 7.0**2))[..., None]
+    tint = np.array([70.0, -50.0, 40.0], dtype=np.float32)
+    rng = np.random.default_rng(0)
+    out = []
+    for i in range(t):
+        f = _sensor() + amplitude.get(i, 0.0) * blob * tint + rng.normal(0, 0.7, (H, W, 1))
+        out.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
+    return np.stack(out)
+
+
+def write_video(path: Path, frames: np.ndarray, codec: str = "mpeg4") -> Path:
+    """Encode (T, H, W, 3) uint8 RGB frames into ``path`` (container from its suffix)."""
+    with av.open(str(path), mode="w") as c:
+        s = c.add_stream(codec, rate=10)
+        s.width, s.height = frames.shape[2], frames.shape[1]
+        s.pix_fmt = "yuv420p"
+        s.bit_rate = 4_000_000
+        for f in frames:
+            for packet in s.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
+                c.mux(packet)
+        for packet in s.encode():
+            c.mux(packet)
+    return path
+
+
+@pytest.fixture(scope="module")
+def videos(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("videos")
+    frames = press_frames()
+    return {
+        suffix: write_video(root / f"press{suffix}", frames) for suffix in (".mp4", ".mov", ".avi")
+    }
+
+
+# ---- decoding and finding the press ---------------------------------------------------------
+
+
+def test_is_video_by_suffix():
+    assert is_video("a/b.MOV") and is_video("x.mp4") and is_video("x.avi")
+    assert not is_video("x.png") and not is_video("mov")
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".mov", ".avi"])
+def test_read_video_and_detect_the_known_press(videos: dict[str, Path], suffix: str):
+    frames = read_video(videos[suffix])
+    assert frames.shape == (T, H, W, 3) and frames.dtype == np.uint8
+    assert np.abs(frames.astype(float) - press_frames().astype(float)).mean() < 3  # lossy codec
+    span = detect_press(frames, videos[suffix])
+    assert abs(span.start - START) <= 1 and abs(span.peak - PEAK) <= 1 and abs(span.end - END) <= 1
+    a, b = span.reference
+    assert 0 <= a < b <= span.start and b - a >= 2
+    assert span.strength.shape == (T,) and span.strength.dtype == np.float32
+    assert span.contrast > 10 * max(span.noise, 0.1)
+
+
+def test_small_greyscale_from_the_luma_plane_agrees_with_rgb(videos: dict[str, Path]):
+    small = small_greyscale(videos[".mp4"])
+    assert small.shape == (T, H, W) and small.dtype == np.float32
+    rgb = read_video(videos[".mp4"]).astype(np.float32) @ np.array([0.299, 0.587, 0.114])
+    assert np.abs(small - rgb).mean() < 2.0  # same grey scale (video-range luma rescaled)
+    fast = detect_press(small, videos[".mp4"])
+    slow = detect_press(read_video(videos[".mp4"]), videos[".mp4"])
+    assert (fast.start, fast.peak, fast.end) == (slow.start, slow.peak, slow.end)
+
+
+def test_read_press_takes_the_deepest_frame_minus_the_reference(videos: dict[str, Path]):
+    path = videos[".mov"]
+    frames = read_video(path)
+    press = read_press(path, gain=2.0)
+    span = press.span
+    assert press.indices == (span.peak,) and press.subtracted
+    ref = reference_frame(frames, span)
+    assert press.reference.shape == (H, W, 3) and np.allclose(press.reference, ref, atol=1e-3)
+    expected = difference_image(frames[span.peak], ref, 2.0)
+    assert press.images.shape == (1, H, W, 3) and np.array_equal(press.images[0], expected)
+    # the difference is grey where nothing touched, and carries the blob's tint where it did
+    d = press.images[0].astype(float) - 128
+    assert np.abs(d[:6, -6:]).mean() < 3
+    assert d[22, 30, 0] > 80 and d[22, 30, 1] < -60
+    raw = read_press(path, subtract_reference=False)
+    assert np.array_equal(raw.images[0], frames[span.peak]) and not raw.subtracted
+
+
+def test_read_press_frames_across_the_span(videos: dict[str, Path]):
+    press = read_press(videos[".avi"], frames=5)
+    span = press.span
+    assert press.images.shape == (5, H, W, 3)
+    assert press.indices[0] == span.start and press.indices[-1] == span.end - 1
+    assert list(press.indices) == sorted(press.indices)
+    mid = read_press(videos[".avi"], position=0.5)
+    assert mid.indices == (frame_at(span, 0.5),)
+
+
+def test_contact_frames_and_frame_at():
+    span = PressSpan((0, 3), 4, 7, 12, np.zeros(14, np.float32), 1.0, 0.1, 2.0)
+    assert contact_frames(span) == [7]
+    assert contact_frames(span, 3) == [4, 8, 11]
+    assert contact_frames(span, 8) == list(range(4, 12))
+    assert frame_at(span, 0.0) == 4 and frame_at(span, 1.0) == 11 and frame_at(span, 0.5) == 8
+    with pytest.raises(ValueError):
+        contact_frames(span, 0)
+    with pytest.raises(ValueError):
+        frame_at(span, 1.5)
+
+
+def test_difference_image_is_128_plus_gain_times_the_change():
+    ref = np.full((2, 2, 3), 100.0, np.float32)
+    frame = np.array([[[100, 101, 90]] * 2, [[0, 255, 100]] * 2], np.uint8)
+    d = difference_image(frame, ref, 4.0)
+    assert d.dtype == np.uint8
+    assert d[0, 0].tolist() == [128, 132, 88] and d[1, 0].tolist() == [0, 255, 128]
+
+
+def test_a_video_with_no_contact_is_refused(tmp_path: Path):
+    path = write_video(tmp_path / "still.mp4", press_frames({}))
+    with pytest.raises(VideoError, match="no contact") as e:
+        read_press(path)
+    assert str(path) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_press_from_the_first_frame_has_no_reference():
+    frames = press_frames({i: 1.0 - 0.08 * i for i in range(12)})
+    with pytest.raises(VideoError, match="(no contact|first frame)"):
+        detect_press(frames, Path("early.mov"))
+
+
+def test_a_too_short_video_is_refused(tmp_path: Path):
+    path = write_video(tmp_path / "short.mov", press_frames({1: 1.0}, t=3))
+    with pytest.raises(VideoError, match=f"too short: 3 frames; at least {MIN_VIDEO_FRAMES}") as e:
+        read_press(path)
+    assert str(path) in str(e.value)
+
+
+def _png_bytes() -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(buf, "PNG")
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize(
+    ("name", "content"),
+    [
+        ("half.mp4", lambda good: good[: len(good) // 2]),
+        ("head.mov", lambda good: good[:600]),
+        ("random.mov", lambda good: np.random.default_rng(1).bytes(4000)),
+        ("image.mov", lambda good: _png_bytes()),
+        ("empty.avi", lambda good: b""),
+    ],
+)
+def test_a_corrupt_file_is_refused_naming_it(videos, tmp_path: Path, name, content):
+    suffix = Path(name).suffix
+    path = tmp_path / name
+    path.write_bytes(content(videos[suffix].read_bytes()))
+    for read in (read_press, read_video):
+        with pytest.raises(VideoError, match="(cannot decode|truncated)") as e:
+            read(path)
+        assert str(e.value).startswith(f"{path}: ") and "\n" not in str(e.value)
+
+
+def test_a_truncated_avi_is_refused(videos, tmp_path: Path):
+    good = videos[".avi"].read_bytes()
+    path = tmp_path / "cut.avi"
+    path.write_bytes(good[: int(len(good) * 0.6)])
+    with pytest.raises(VideoError, match="(truncated|cannot decode)"):
+        read_press(path)
+
+
+def test_limits_on_pixels_and_frames(videos: dict[str, Path]):
+    with pytest.raises(VideoError, match=r"64x48 = 0\.0 megapixel frames; at most 0\.001"):
+        read_video(videos[".mp4"], max_pixels=1000)
+    with pytest.raises(VideoError, match="more than 10 frames"):
+        read_press(videos[".mp4"], max_frames=10)
+    with pytest.raises(VideoError, match="is a folder, not a video file"):
+        read_press(videos[".mp4"].parent)
+
+
+def test_missing_pyav_says_what_to_install(monkeypatch, videos: dict[str, Path]):
+    monkeypatch.setitem(__import__("sys").modules, "av", None)
+    with pytest.raises(VideoError, match="install the `av` package"):
+        read_press(videos[".mp4"])
+
+
+# ---- the image loader --------------------------------------------------------------------------
+
+
+def _touch_item(path: Path) -> Item:
+    return Item(Modality.TOUCH, 1, (path,), None, path.stem)
+
+
+def test_loader_reads_a_video_touch_item_and_caches_it_on_disk(videos, tmp_path, monkeypatch):
+    item = _touch_item(videos[".mp4"])
+    cache = tmp_path / "cache"
+    config = DataConfig(image_size=16, video_gain=2.0)
+    first = ImageLoader(config, cache_dir=cache)
+    assert first.frame_path(item) == videos[".mp4"]
+    x = first.load(item)
+    assert x.shape == (3, 16, 16) and x.dtype == torch.float32
+    assert float(x.min()) >= 0.0 and float(x.max()) <= 1.0
+    expected = read_press(videos[".mp4"], gain=2.0).images[0]
+    assert np.array_equal(
+        first.array(videos[".mp4"], Modality.TOUCH),
+        images_module.preprocess_rgb(expected, Modality.TOUCH, config),
+    )
+    assert len(list(cache.rglob("*.npy"))) == 1
+
+    def fail(*args, **kwargs):
+        raise AssertionError("decoded again")
+
+    monkeypatch.setattr(video_module, "read_press", fail)
+    again = ImageLoader(config, cache_dir=cache).load(item)  # from disk, never decoded
+    assert torch.equal(x, again)
+
+
+def test_loader_follows_the_video_settings(videos: dict[str, Path]):
+    item = _touch_item(videos[".mov"])
+    diff = ImageLoader(DataConfig(image_size=16)).load(item)
+    raw = ImageLoader(DataConfig(image_size=16, video_reference="none")).load(item)
+    start = ImageLoader(DataConfig(image_size=16, video_frame=0.0)).load(item)
+    assert not torch.equal(diff, raw) and not torch.equal(diff, start)
+    assert abs(float(diff[:, :3, -3:].mean()) - 128 / 255) < 0.02  # untouched: mid-grey
+    keys = {
+        PreprocessSettings.of(DataConfig(**kw)).digest()
+        for kw in ({}, {"video_frame": 0.5}, {"video_reference": "none"}, {"video_gain": 2.0})
+    }
+    assert len(keys) == 4
+
+
+def test_loader_names_a_bad_video(tmp_path: Path):
+    path = tmp_path / "bad.mov"
+    path.write_bytes(b"not a video at all" * 10)
+    with pytest.raises(VideoError, match="bad.mov: cannot decode"):
+        ImageLoader(DataConfig(image_size=16)).load(_touch_item(path))
+
+
+@pytest.mark.parametrize(
+    ("kw", "msg"),
+    [({"video_frame": 1.5}, "data.video_frame"), ({"video_gain": 0.0}, "data.video_gain")],
+)
+def test_config_rejects_bad_video_settings(kw, msg):
+    with pytest.raises(ConfigError, match=msg):
+        DataConfig(**kw)
+    with pytest.raises(ConfigError, match="data.video_reference"):
+        DataConfig(video_reference="median")  # type: ignore[arg-type]
+
+
+# ---- real GelSight Mini videos -------------------------------------------------------------------
+
+
+@pytest.fixture
+def physiclear() -> Path:
+    for root in PHYSICLEAR:
+        if (root / "videos").is_dir():
+            return root / "videos"
+    pytest.skip(f"real PhysiCLeAR videos not found at {PHYSICLEAR[0]}")
+
+
+@pytest.mark.parametrize("name", ["blanket_3", "rice_5", "wood_ruler_1", "ripe_avocado_4"])
+def test_real_gelsight_mini_presses_are_found(physiclear: Path, name: str):
+    path = physiclear / f"{name}.mov"
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    press = read_press(path)
+    span = press.span
+    assert span.frames >= 100
+    assert 0 <= span.reference[0] < span.reference[1] <= span.start
+    assert 3 <= span.start < span.peak < span.end <= span.frames
+    assert span.end - span.start >= 15  # a hand press lasts more than half a second at 25 fps
+    assert span.contrast > 2.0
+    assert press.images.shape == (1, 240, 320, 3)
