@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +184,95 @@ def test_knn_classes_votes_among_known_neighbours():
     classes = np.array([0, 0, 0, 1, 1, UNKNOWN])
     got = knn_classes(train, classes, np.array([[0.05], [5.05], [8.9]]), 2, k=3)
     assert got.tolist() == [0, 1, 1]  # 8.9: the unknown row at 9 does not vote
+
+
+# ---- end to end: a folder of press videos, as a user records them ---------------------------
+
+OBJECTS = {  # name: (hardness, material)
+    "foam": ("0", "fabric"),
+    "felt": ("0", "fabric"),
+    "cork": ("1", "wood"),
+    "leaf": ("1", "paper"),
+    "spoon": ("2", "metal"),
+    "tile": ("2", "metal"),
+}
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    pytest.importorskip("av")
+    from ._video import PRESS, object_press, write_video
+
+    root = tmp_path_factory.mktemp("recordings")
+    (root / "videos").mkdir()
+    rows = ["object,hardness,material"]
+    for k, (name, (hardness, material)) in enumerate(OBJECTS.items()):
+        rows.append(f"{name},{hardness},{material}")
+        for n in range(3):
+            frames = object_press(k, PRESS, t=14, seed=10 * k + n)
+            write_video(root / "videos" / f"{name}_{n}.mov", frames)
+    write_video(root / "videos" / "foam_3.mov", object_press(0, {}, t=14))  # never pressed
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    return root
+
+
+TINY = [
+    "--set", "data.image_size=32", "--set", "model.width=4", "--set", "model.embed_dim=8",
+    "--set", "train.steps=4", "--set", "train.batch_size=8", "--set", "train.checkpoint_every=0",
+    "--set", "model.class_heads=[hardness, material]",
+]  # fmt: skip
+
+
+def test_recordings_train_predict_and_embed_as_the_readme_says(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.cli import main
+
+    assert main(["data", "check", str(recordings)]) == 0
+    out = capsys.readouterr()
+    assert "foam_3.mov" in out.out + out.err and "no contact found" in out.out + out.err
+
+    run = tmp_path / "run"
+    config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")
+    with pytest.warns(UserWarning, match=r"1 of 19 touch videos hold no press .*foam_3\.mov"):
+        code = main(
+            ["train", "--config", config, "--data", str(recordings), "--out", str(run), *TINY]
+        )
+    assert code == 0
+    ck = run / "checkpoints" / "last.pt"
+    capsys.readouterr()
+
+    videos = sorted(str(p) for p in (recordings / "videos").glob("*_0.mov"))
+    assert main(["predict", "--checkpoint", str(ck), *videos, "--json"]) == 0
+    answers = json.loads(capsys.readouterr().out)
+    assert [a["path"] for a in answers] == videos
+    for a in answers:
+        assert set(a["properties"]) == {"hardness", "material"}
+        hardness = a["properties"]["hardness"]
+        assert hardness["value"] in (0, 1, 2)  # the column's own terms: ranks, not "1.0"
+        assert sum(hardness["probabilities"].values()) == pytest.approx(1.0, abs=1e-3)
+        assert hardness["probability"] == max(hardness["probabilities"].values())
+        assert a["properties"]["material"]["value"] in {"fabric", "wood", "paper", "metal"}
+
+    together = [str(p) for p in sorted((recordings / "videos").glob("cork_*.mov"))]
+    assert main(["predict", "--checkpoint", str(ck), *together, "--together", "--json"]) == 0
+    (pooled,) = json.loads(capsys.readouterr().out)
+    assert pooled["paths"] == together
+
+    assert (
+        main(["predict", "--checkpoint", str(ck), str(recordings / "videos" / "foam_3.mov")]) == 1
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "foam_3.mov: no contact found" in err[0]
+
+    npz = tmp_path / "e.npz"
+    with pytest.warns(UserWarning, match="hold no press"):
+        code = main(
+            ["embed", "--checkpoint", str(ck), "--data", str(recordings), "--out", str(npz)]
+        )
+    assert code == 0
+    with np.load(npz) as e:
+        assert e["embeddings_touch"].shape == (18, 8)
+        ids = e["fabric_id_touch"]
+        assert len(set(ids.tolist())) == 6
+        assert not any("foam_3" in str(p) for p in e["path_touch"])

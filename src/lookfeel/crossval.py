@@ -41,6 +41,7 @@ from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.data import Catalog, ImageLoader, Item, scan
+from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import embed_items, raw_pixels
 from lookfeel.metrics import (
     EXACT_PICK,
@@ -268,8 +269,9 @@ def score_checkpoint(
     """
     lm = load_model(checkpoint)
     wanted = [Pair.parse(p) for p in pairs] or _pairs(lm.config)
-    catalog = scan(data, require=_modalities(wanted), strict=True)
-    res = _score(lm, catalog, catalog.ids, [], wanted, tta, ImageLoader(lm.config.data))
+    loader = ImageLoader(lm.config.data)
+    catalog = drop_unpressed(scan(data, require=_modalities(wanted), strict=True), loader)
+    res = _score(lm, catalog, catalog.ids, [], wanted, tta, loader)
     summary = _summarise([res], wanted, n_boot)
     return {
         "checkpoint": str(checkpoint),
@@ -479,8 +481,8 @@ def cross_validate(
     if not seeds:
         raise ConfigError("seeds: at least one training seed is needed")
     pairs = _pairs(config)
-    catalog = scan(data, require=config.train.modalities, strict=True)
     loader = ImageLoader(config.data)  # runs differ only in train keys: one decode for all
+    catalog = drop_unpressed(scan(data, require=config.train.modalities, strict=True), loader)
     results = []
     for seed in seeds:
         for fold in fold_list:

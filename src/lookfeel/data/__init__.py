@@ -21,6 +21,7 @@ from lookfeel.data.images import (
 from lookfeel.data.labels import read_labels
 from lookfeel.data.layout import parse_touch_name, scan
 from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.splits import (
     PAPER_EXCLUDED_IDS,
     PAPER_TEST_IDS,
@@ -55,6 +56,7 @@ __all__ = [
     "decode_depth",
     "decode_rgb",
     "depth_to_unit",
+    "drop_unpressed",
     "fill_holes",
     "kmeans_clusters",
     "paper_split",

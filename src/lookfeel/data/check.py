@@ -11,6 +11,7 @@ from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb
 from lookfeel.data.layout import scan
 from lookfeel.data.problems import Problem
+from lookfeel.data.video import NoPressError, is_video, read_press
 from lookfeel.modality import Modality
 
 __all__ = ["check_dataset"]
@@ -18,12 +19,16 @@ __all__ = ["check_dataset"]
 
 def _decode_problem(path: Path, modality: Modality) -> Problem | None:
     try:
-        if modality is Modality.DEPTH:
+        if modality is Modality.TOUCH and is_video(path):
+            read_press(path)  # decodes every frame and finds the press
+        elif modality is Modality.DEPTH:
             d = decode_depth(path)
             if not d.any():
                 return Problem(path, "depth image has no valid pixel (all 0)", "warning")
         else:
             decode_rgb(path)
+    except NoPressError as e:
+        return Problem(path, f"{e.reason}; runs leave this recording out", "warning")
     except ImageError as e:
         return Problem(path, e.reason)
     return None
@@ -39,6 +44,8 @@ def check_dataset(
 
     Files are only read. Problems found while decoding (truncated or undecodable files, depth
     that is not 16-bit) are added to the scan's; those items are dropped from the catalog. A
+    touch video is decoded and its press found; one without a press is a warning (runs leave
+    it out: `lookfeel.data.drop_unpressed`). A
     dataset with no usable fabric or only one is an error (no command can hold fabrics out of
     it), as is an unfinished `lookfeel synth` world.
 

@@ -31,6 +31,7 @@ from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.images import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.data.video import VIDEO_SUFFIXES
 from lookfeel.modality import Modality, PressKind
 
 __all__ = [
@@ -43,8 +44,6 @@ __all__ = [
 ]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
-"""Touch recordings read as videos (one press each; `lookfeel.data.video` decodes them)."""
 
 FOLDER_ALIASES: dict[Modality, tuple[str, ...]] = {
     Modality.DEPTH: ("depth", "kinect_depth_new", "kinect_depth"),

@@ -48,6 +48,7 @@ __all__ = [
     "MAX_VIDEO_FRAMES",
     "MIN_VIDEO_FRAMES",
     "VIDEO_SUFFIXES",
+    "NoPressError",
     "Press",
     "PressSpan",
     "VideoError",
@@ -84,6 +85,12 @@ _TOP_FRACTION = 0.05
 
 class VideoError(ImageError):
     """A video cannot be used: undecodable, too short, too large, or no press found in it."""
+
+
+class NoPressError(VideoError):
+    """A video decodes but holds no usable press: too short, no contact, or contact from its
+    first frame. A dataset's run leaves such a recording out with a warning
+    (`lookfeel.data.drop_unpressed`); a query that is one is an error."""
 
 
 def is_video(path: str | os.PathLike[str]) -> bool:
@@ -416,7 +423,7 @@ def detect_press(
     t = len(frames)
     min_frames = max(min_frames, first + 2)
     if t < min_frames:
-        raise VideoError(
+        raise NoPressError(
             p,
             f"video is too short: {t} frame{'s' if t != 1 else ''}; at least {min_frames} are "
             f"needed ({first} without contact, then the press)",
@@ -431,7 +438,7 @@ def detect_press(
     contrast = float(s[peak]) - floor
     need = max(min_contrast, min_snr * noise)
     if contrast < need:
-        raise VideoError(
+        raise NoPressError(
             p,
             f"no contact found: the frames change by at most {contrast:.2f} grey levels over "
             f"the untouched sensor (noise {noise:.2f}); a press needs {need:.2f}",
@@ -444,7 +451,7 @@ def detect_press(
     while end < t and s[end] > thr:
         end += 1
     if start == 0:
-        raise VideoError(
+        raise NoPressError(
             p, "contact from the first frame: no no-contact frames to take as the reference"
         )
     low = floor + 0.5 * contact_fraction * contrast

@@ -29,6 +29,7 @@ from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
+from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddedItems, embed_catalog
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder
@@ -150,8 +151,9 @@ def _embed(
     batch_size: int,
     device: str,
 ) -> tuple[EmbeddingSet, ImageLoader]:
-    test, ref, description = _select(loaded, catalog, split)
     loader = ImageLoader(loaded.config.data)
+    catalog = drop_unpressed(catalog, loader)
+    test, ref, description = _select(loaded, catalog, split)
     mods = [m for m in loaded.model.modalities if m in catalog.modalities]
     if not mods:
         have = ", ".join(m.value for m in catalog.modalities) or "none"

@@ -26,6 +26,7 @@ from lookfeel.checkpoint import load_model
 from lookfeel.config import to_dict
 from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
+from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import embed_items
 from lookfeel.index.calibrate import Calibration, calibrate
 from lookfeel.index.library import (
@@ -204,6 +205,8 @@ def build_library(
         raise LibraryError(f"{catalog.root}: no items of the model's modalities ({have})")
     data_config = replace(config.data, cache_dir=None)
     loader = ImageLoader(data_config)
+    catalog = drop_unpressed(catalog, loader)
+    items = {m: catalog.items(m, kinds) for m in items}
     shards = _plan(items, loader, shard_size, checkpoint_sha)
 
     manifest: dict[str, Any] = {

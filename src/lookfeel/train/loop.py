@@ -48,6 +48,7 @@ from lookfeel.data import (
     stratified_fabric_folds,
     stratified_fabric_split,
 )
+from lookfeel.data.recordings import drop_unpressed
 from lookfeel.losses import create_loss
 from lookfeel.modality import Modality, slot_modality
 from lookfeel.models import Embedder, autocast, create_model, to_channels_last
@@ -586,7 +587,9 @@ def _train(
     device = dist.device
     modalities = t.modalities
 
-    catalog = _with_clusters(scan(data, require=modalities, strict=True), config)
+    loader = ImageLoader(config.data)
+    catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader)
+    catalog = _with_clusters(catalog, config)
     config = resolve_classes(catalog, config)
     if config.model.num_properties and config.model.num_properties != len(catalog.label_columns):
         raise ConfigError(
@@ -594,7 +597,6 @@ def _train(
             f"{len(catalog.label_columns)} label columns ({', '.join(catalog.label_columns)})"
         )
     train_cat, val_cat, split_info = select_split(catalog, config)
-    loader = ImageLoader(config.data)
     ds = TupleDataset(
         train_cat,
         loader,

@@ -1,0 +1,56 @@
+"""Small press videos for tests, written with PyAV: a sensor's light pattern, then an object's
+texture pressed in and out over a known span."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+W, H = 64, 48
+
+
+def sensor() -> np.ndarray:
+    """(H, W, 3) float32: the untouched sensor's light pattern (smooth colour gradients)."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+    return np.stack([90 + 60 * x / W, 100 + 50 * y / H, 150 - 40 * x / W], axis=-1)
+
+
+def object_press(texture: int, depth: dict[int, float], t: int, seed: int = 0) -> np.ndarray:
+    """(t, H, W, 3) uint8: a press of object ``texture`` (stripes of its own period and angle
+    under a round contact), pressed to ``depth[i]`` at frame i (others: no contact)."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+    rng = np.random.default_rng(seed)
+    cx, cy = 32 + rng.uniform(-3, 3), 24 + rng.uniform(-3, 3)
+    contact = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * 12.0**2))
+    angle = 0.5 * texture
+    period = 4.0 + 2.0 * (texture % 3)
+    stripes = 0.5 + 0.5 * np.sin(2 * np.pi * (x * np.cos(angle) + y * np.sin(angle)) / period)
+    tint = np.array([70.0, 40.0, 20.0], dtype=np.float32)  # brighter where pressed (luma)
+    out = []
+    for i in range(t):
+        f = sensor() + depth.get(i, 0.0) * (contact * (0.4 + 0.6 * stripes))[..., None] * tint
+        f = f + rng.normal(0, 0.7, (H, W, 1))
+        out.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
+    return np.stack(out)
+
+
+PRESS = {5: 0.4, 6: 0.7, 7: 1.0, 8: 0.8, 9: 0.5}
+"""A press from frame 5 to 9, deepest at 7."""
+
+
+def write_video(path: Path, frames: np.ndarray, codec: str = "mpeg4") -> Path:
+    """Encode (T, H, W, 3) uint8 RGB frames into ``path`` (container from its suffix)."""
+    import av
+
+    with av.open(str(path), mode="w") as c:
+        s = c.add_stream(codec, rate=10)
+        s.width, s.height = frames.shape[2], frames.shape[1]
+        s.pix_fmt = "yuv420p"
+        s.bit_rate = 4_000_000
+        for f in frames:
+            for packet in s.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
+                c.mux(packet)
+        for packet in s.encode():
+            c.mux(packet)
+    return path
