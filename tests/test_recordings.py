@@ -93,7 +93,7 @@ def test_videos_folder_scans_named_objects_with_ids_in_name_order(tmp_path: Path
     ]
     s = catalog.summary()
     assert (s["touch_videos"], s["named_objects"], s["touch_frames"]) == (8, 4, 0)
-    assert s["touch_presses_by_kind"] == {"unstated": 8}
+    assert s["touch_presses_by_kind"] == {"any kind": 8}
     # descriptions are all different: not classes; ranks and words are
     assert s["classes"] == {
         "material": {"fabric": 2, "metal": 1, "wood": 1},

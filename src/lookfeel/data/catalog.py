@@ -267,7 +267,7 @@ class Catalog:
         frames = 0
         videos = 0
         for it in self.items(Modality.TOUCH):
-            kind = it.kind.value if it.kind is not None else "unstated"
+            kind = it.kind.value if it.kind is not None else "any kind"
             kinds[kind] = kinds.get(kind, 0) + 1
             if it.path.suffix.lower() in (".mov", ".mp4", ".avi", ".mkv"):
                 videos += 1

@@ -31,7 +31,12 @@ def _ranges(ids: Sequence[int]) -> str:
 def format_summary(catalog: Catalog) -> str:
     """A dataset summary a person reads (``lookfeel data info``)."""
     s = catalog.summary()
+    named = s["named_objects"]
     rows: list[tuple[str, str]] = [("fabrics", f"{s['fabrics']} (ids {_ranges(catalog.ids)})")]
+    if named:
+        names = [f.display_name for f in catalog.fabrics]
+        listed = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+        rows[0] = ("objects", f"{s['fabrics']} named in labels.csv or videos/: {listed}")
     per = s["items_per_fabric"]
     assert isinstance(per, dict)
     items = s["items"]
@@ -42,12 +47,18 @@ def format_summary(catalog: Catalog) -> str:
             continue
         rng = per[m.value]
         unit = "presses" if m is Modality.TOUCH else "images"
-        line = f"{items[m.value]} {unit} ({rng['min']}-{rng['max']} per fabric)"
+        per_what = "object" if named else "fabric"
+        line = f"{items[m.value]} {unit} ({rng['min']}-{rng['max']} per {per_what})"
         if m is Modality.TOUCH:
             kinds = s["touch_presses_by_kind"]
             assert isinstance(kinds, dict)
             line += ": " + ", ".join(f"{k} {v}" for k, v in kinds.items())
-            line += f"; {s['touch_frames']} frames"
+            parts = []
+            if s["touch_frames"]:
+                parts.append(f"{s['touch_frames']} frames")
+            if s["touch_videos"]:
+                parts.append(f"{s['touch_videos']} videos")
+            line += "; " + ", ".join(parts or ["0 frames"])
         rows.append((m.value, line))
     cols = s["label_columns"]
     assert isinstance(cols, list)
@@ -55,9 +66,22 @@ def format_summary(catalog: Catalog) -> str:
         (
             "labels",
             (", ".join(cols) if cols else "no labels.csv")
-            + f"; {s['fabrics_with_physical_labels']} fabrics with physical labels",
+            + (
+                f"; {sum(bool(f.labels or f.text_labels) for f in catalog.fabrics)} objects "
+                "labelled"
+                if named
+                else f"; {s['fabrics_with_physical_labels']} fabrics with physical labels"
+            ),
         )
     )
+    texts = s["text_columns"]
+    assert isinstance(texts, list)
+    if texts:
+        rows.append(("text labels", ", ".join(texts)))
+    classes = s["classes"]
+    assert isinstance(classes, dict)
+    for col, counts in classes.items():
+        rows.append((f"  {col}", " ".join(f"{k}:{v}" for k, v in counts.items())))
     clusters = s["clusters"]
     assert isinstance(clusters, dict)
     if clusters:
@@ -69,7 +93,7 @@ def format_summary(catalog: Catalog) -> str:
                 f"{s['fabrics_with_cluster']} of {s['fabrics']} fabrics ({dist})",
             )
         )
-    else:
+    elif not named:
         rows.append(("clusters", "none (add a cluster8 column, or use k-means on labels)"))
     split = s["paper_split"]
     assert isinstance(split, dict)
