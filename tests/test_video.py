@@ -283,6 +283,13 @@ def test_loader_follows_the_video_settings(videos: dict[str, Path]):
     assert len(keys) == 4
 
 
+def test_the_config_default_gain_is_the_measured_one():
+    assert DataConfig().video_gain == video_module.DEFAULT_GAIN
+    assert PreprocessSettings.of(DataConfig()) == PreprocessSettings(
+        227, 800.0, 500.0, "nearest", "none", "auto"
+    )
+
+
 def test_loader_names_a_bad_video(tmp_path: Path):
     path = tmp_path / "bad.mov"
     path.write_bytes(b"not a video at all" * 10)

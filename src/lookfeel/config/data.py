@@ -68,8 +68,9 @@ class DataConfig:
     """``subtract``: a press video's frame becomes its difference from the no-contact frames
     before the press, ``128 + video_gain * (frame - reference)`` (removes the sensor's own
     light and drift); ``none``: the raw frame."""
-    video_gain: float = 4.0
-    """Gain of that difference (grey levels per grey level of change)."""
+    video_gain: float = 8.0
+    """Gain of that difference (grey levels out per grey level of change): 8 saturates about 2%
+    of a GelSight Mini press's pixels (`lookfeel.data.video.DEFAULT_GAIN`)."""
     touch_kinds: tuple[PressKind, ...] = (PressKind.FOLD,)
     """Press kinds used for training and evaluation (the paper's 'Flat' model uses flat)."""
     presses: int = 1
