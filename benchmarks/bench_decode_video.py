@@ -8,6 +8,8 @@ frame and the reference frames to RGB and take their difference. Cold: nothing i
 - ``median_s``: all videos on ``--workers`` processes (default 2, forked fresh each repeat and
   counted in the time; they die with this process), median of ``--repeats`` (default 3);
 - ``per_video_ms``: one process, each video timed alone (median, 95th percentile);
+- ``loader_s``: the same through `ImageLoader.preload` (227x227 difference images, 2 threads, in
+  this process), the videos with a press only; median of ``--repeats``;
 - what was found: how many presses, which videos failed and why, and the distribution of the
   reference length, start, peak and end frames.
 
@@ -31,7 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
+from lookfeel.config import DataConfig
+from lookfeel.data import ImageLoader
+from lookfeel.data.catalog import Item
 from lookfeel.data.video import VIDEO_SUFFIXES, VideoError, read_press
+from lookfeel.modality import Modality
 from lookfeel.synth.world import _die_with_parent
 
 HERE = Path(__file__).resolve().parent
@@ -107,6 +113,17 @@ def run(
     spans = [r for _, r in found if not isinstance(r, str)]
     failed = {name: r for name, r in found if isinstance(r, str)}
     median = statistics.median(t for t, _, _ in runs)
+    items = [
+        Item(Modality.TOUCH, i, (Path(p),), None, Path(p).stem)
+        for i, p in enumerate(paths)
+        if Path(p).name not in failed
+    ]
+    loader_s = []
+    for _ in range(repeats):
+        loader = ImageLoader(DataConfig(image_size=227, workers=2))
+        start = time.perf_counter()
+        loader.preload(items)
+        loader_s.append(time.perf_counter() - start)
     return {
         "videos": len(paths),
         "folder": str(folder),
@@ -121,6 +138,8 @@ def run(
             "p95": round(1000 * float(np.percentile(single, 95)), 1),
             "one_process_total_s": round(sum(single), 2),
         },
+        "loader_s": round(statistics.median(loader_s), 2),
+        "loader_s_all": [round(t, 2) for t in loader_s],
         "presses_found": len(spans),
         "failed": failed,
         "reference_frames": _percentiles([s[1] - s[0] for s in spans]),

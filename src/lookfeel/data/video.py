@@ -74,6 +74,9 @@ deepest frame is at most 19 grey levels in 99% of pixels (median video), so gain
 about 2% of pixels and keeps the depth of the rest; pick 1 of 10 among objects from raw
 difference pixels is 0.38-0.39 top-1 for gains 2-8 (more saturation scores higher on raw pixels,
 0.46 at gain 64, by turning the image into a contact mask; see the benchmark notes)."""
+_MAX_DECODED_PIXELS = 4_000_000_000
+"""Most pixels decoded from one video, all frames together (10,000 frames of 640x480 are 3.1
+billion): a small file declaring many large frames would otherwise cost hours of decoding."""
 _MAX_RGB_BYTES = 2 * 1024**3
 _KEEP_DECODED_BYTES = 256 * 1024**2
 """`read_press` holds decoded (YUV) frames up to this size to convert the chosen ones to RGB
@@ -160,9 +163,19 @@ def _decode(
                 f"video declares {w}x{h} = {w * h / 1e6:.1f} megapixel frames; at most "
                 f"{limit / 1e6:g} are decoded",
             )
-        stream.thread_type = "AUTO"
         declared = stream.frames
-        n = 0
+        if declared > most:
+            raise VideoError(
+                path, f"video is too large: it declares {declared} frames; at most {most} are read"
+            )
+        if declared * w * h > _MAX_DECODED_PIXELS:
+            raise VideoError(
+                path,
+                f"video is too large: {declared} frames of {w}x{h} exceed "
+                f"{_MAX_DECODED_PIXELS / 1e9:g} gigapixels in all",
+            )
+        stream.thread_type = "AUTO"
+        n = total = 0
         try:
             for frame in container.decode(stream):
                 if frame.width * frame.height > limit:
@@ -172,9 +185,14 @@ def _decode(
                         f"{limit / 1e6:g} megapixels are decoded",
                     )
                 n += 1
+                total += frame.width * frame.height
                 if n > most:
+                    raise VideoError(path, f"video is too large: more than {most} frames")
+                if total > _MAX_DECODED_PIXELS:
                     raise VideoError(
-                        path, f"video is too large: more than {most} frames (the limit)"
+                        path,
+                        f"video is too large: its frames exceed {_MAX_DECODED_PIXELS / 1e9:g} "
+                        "gigapixels in all",
                     )
                 yield frame
         except VideoError:
