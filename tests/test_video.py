@@ -106,7 +106,7 @@ def test_read_video_and_detect_the_known_press(videos: dict[str, Path], suffix: 
     span = detect_press(frames, videos[suffix])
     assert abs(span.start - START) <= 1 and abs(span.peak - PEAK) <= 1 and abs(span.end - END) <= 1
     a, b = span.reference
-    assert 0 <= a < b <= span.start and b - a >= 2
+    assert a == 0 and 3 <= b <= span.start  # the first frames, never into the press
     assert span.strength.shape == (T,) and span.strength.dtype == np.float32
     assert span.contrast > 10 * max(span.noise, 0.1)
 
@@ -280,11 +280,24 @@ def test_loader_follows_the_video_settings(videos: dict[str, Path]):
     start = ImageLoader(DataConfig(image_size=16, video_frame=0.0)).load(item)
     assert not torch.equal(diff, raw) and not torch.equal(diff, start)
     assert abs(float(diff[:, :3, -3:].mean()) - 128 / 255) < 0.02  # untouched: mid-grey
+    mean = ImageLoader(DataConfig(image_size=16, video_frames=5)).array(
+        videos[".mov"], Modality.TOUCH
+    )
+    press = read_press(videos[".mov"], frames=5)
+    expected = np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
+    config = DataConfig(image_size=16)
+    assert np.array_equal(mean, images_module.preprocess_rgb(expected, Modality.TOUCH, config))
     keys = {
         PreprocessSettings.of(DataConfig(**kw)).digest()
-        for kw in ({}, {"video_frame": 0.5}, {"video_reference": "none"}, {"video_gain": 2.0})
+        for kw in (
+            {},
+            {"video_frame": 0.5},
+            {"video_frames": 3},
+            {"video_reference": "none"},
+            {"video_gain": 2.0},
+        )
     }
-    assert len(keys) == 4
+    assert len(keys) == 5
 
 
 def test_the_config_default_gain_is_the_measured_one():
@@ -303,7 +316,12 @@ def test_loader_names_a_bad_video(tmp_path: Path):
 
 @pytest.mark.parametrize(
     ("kw", "msg"),
-    [({"video_frame": 1.5}, "data.video_frame"), ({"video_gain": 0.0}, "data.video_gain")],
+    [
+        ({"video_frame": 1.5}, "data.video_frame"),
+        ({"video_gain": 0.0}, "data.video_gain"),
+        ({"video_frames": 0}, "data.video_frames"),
+        ({"video_frames": 3, "video_frame": 0.5}, "exclude each other"),
+    ],
 )
 def test_config_rejects_bad_video_settings(kw, msg):
     with pytest.raises(ConfigError, match=msg):

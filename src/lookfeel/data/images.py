@@ -8,8 +8,9 @@
   GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
   Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1]. A touch item may also be a press
   video (.mov, .mp4, .avi, .mkv): its press is found and one frame taken (the deepest contact
-  or ``video_frame``), by default as its difference from the no-contact frames
-  (`lookfeel.data.video.read_press`), then cropped and resized like a touch image.
+  or ``video_frame``) or the mean of ``video_frames`` across the contact span, by default as
+  its difference from the no-contact frames (`lookfeel.data.video.read_press`), then cropped
+  and resized like a touch image.
 
 Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
 (a FIFO, device or folder named like an image is refused at once, never waited on), and its
@@ -244,6 +245,7 @@ class PreprocessSettings:
     color_crop: str
     touch_crop: str
     video_frame: float | None = None
+    video_frames: int = 1
     video_reference: str = "subtract"
     video_gain: float = 8.0
 
@@ -257,6 +259,7 @@ class PreprocessSettings:
             config.color_crop,
             config.touch_crop,
             config.video_frame,
+            config.video_frames,
             config.video_reference,
             config.video_gain,
         )
@@ -328,16 +331,20 @@ class ImageLoader:
         return a
 
     def _video_image(self, path: Path, data: bytes) -> np.ndarray:
-        """The frame of a press video the config asks for, as (H, W, 3) uint8."""
+        """The image of a press video the config asks for, as (H, W, 3) uint8: one frame, or
+        the mean of ``video_frames`` frames across the contact span."""
         c = self.config
         press = read_press(
             path,
             data=data,
+            frames=c.video_frames,
             position=c.video_frame,
             subtract_reference=c.video_reference == "subtract",
             gain=c.video_gain,
         )
-        return press.images[0]
+        if len(press.images) == 1:
+            return press.images[0]
+        return np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
 
     def array(self, path: Path, modality: Modality) -> np.ndarray:
         """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else."""
