@@ -330,6 +330,16 @@ def test_config_rejects_bad_video_settings(kw, msg):
         DataConfig(video_reference="median")  # type: ignore[arg-type]
 
 
+def test_data_check_decodes_a_video_and_finds_its_press(videos, tmp_path: Path):
+    from lookfeel.data.check import _decode_problem
+
+    assert _decode_problem(videos[".mp4"], Modality.TOUCH) is None
+    still = write_video(tmp_path / "still.mov", press_frames({}))
+    problem = _decode_problem(still, Modality.TOUCH)
+    assert problem is not None and problem.path == still
+    assert problem.severity == "error" and problem.message.startswith("no contact found")
+
+
 # ---- real GelSight Mini videos -------------------------------------------------------------------
 
 

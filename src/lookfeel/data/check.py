@@ -11,6 +11,7 @@ from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb
 from lookfeel.data.layout import scan
 from lookfeel.data.problems import Problem
+from lookfeel.data.video import is_video, read_press
 from lookfeel.modality import Modality
 
 __all__ = ["check_dataset"]
@@ -22,6 +23,8 @@ def _decode_problem(path: Path, modality: Modality) -> Problem | None:
             d = decode_depth(path)
             if not d.any():
                 return Problem(path, "depth image has no valid pixel (all 0)", "warning")
+        elif modality is Modality.TOUCH and is_video(path):
+            read_press(path)  # decodes, and finds the press: no contact is an error too
         else:
             decode_rgb(path)
     except ImageError as e:

@@ -17,14 +17,16 @@ it, and returns the frames the model needs:
   touch item whose file is a video, and caches the result like an image.
 
 Decoding is fast because full RGB is made only for the frames kept: the press is found on the
-luma plane of the decoded YUV frames (block-averaged to about 40x30), then the file is decoded
-again and only the chosen frames and the reference frames are converted to RGB.
+luma plane of the decoded YUV frames (block-averaged to about 40x30), and only the chosen
+frames and the reference frames are converted to RGB (from the decoded frames held in memory,
+or, for a long video, by decoding again).
 
 Every file goes through the image policy (`lookfeel.data.files.read_image_file`: a regular
-file, at most 512 MB); a frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`, checked from
-the stream's header before decoding) or a video longer than `MAX_VIDEO_FRAMES` is refused. A
-file that cannot be decoded, a video with no contact, or one too short raises `VideoError`
-naming the file.
+file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`), a video of
+more than `MAX_VIDEO_FRAMES` frames or more than 4 gigapixels in all is refused, from the
+stream's header before decoding where it declares them. A file that cannot be decoded (not a
+video, an image renamed, damaged, or fewer frames than it declares), a video with no contact,
+or one too short raises `VideoError` naming the file.
 """
 
 from __future__ import annotations
@@ -78,10 +80,10 @@ _MAX_DECODED_PIXELS = 4_000_000_000
 """Most pixels decoded from one video, all frames together (10,000 frames of 640x480 are 3.1
 billion): a small file declaring many large frames would otherwise cost hours of decoding."""
 _MAX_RGB_BYTES = 2 * 1024**3
+"""`read_video` refuses to hold more than this many bytes of RGB frames."""
 _KEEP_DECODED_BYTES = 256 * 1024**2
 """`read_press` holds decoded (YUV) frames up to this size to convert the chosen ones to RGB
 without decoding again."""
-"""`read_video` refuses to hold more than this many bytes of RGB frames."""
 
 _SIGNAL_SIDE = 30
 """The small greyscale version of a frame has about this many pixels on its short side."""
