@@ -72,7 +72,9 @@ class DataConfig:
     video_reference: Literal["subtract", "none"] = "subtract"
     """``subtract``: a press video's frame becomes its difference from the no-contact frames
     before the press, ``128 + video_gain * (frame - reference)`` (removes the sensor's own
-    light and drift); ``none``: the raw frame."""
+    light and drift); ``none``: the raw frame. Raw frames mostly identify the recording
+    session: on PhysiCLeAR the no-contact frame alone picks the right object among 10 at 0.86
+    top-1 (raw pixels), the deepest raw frame at 0.57, its difference at 0.40."""
     video_gain: float = 8.0
     """Gain of that difference (grey levels out per grey level of change): 8 saturates about 2%
     of a GelSight Mini press's pixels (`lookfeel.data.video.DEFAULT_GAIN`)."""

@@ -71,11 +71,12 @@ MAX_VIDEO_FRAMES = 10_000
 MIN_VIDEO_FRAMES = 5
 """Fewest frames a press video may have: a few no-contact frames, then the press."""
 DEFAULT_GAIN = 8.0
-"""Default ``gain`` of `difference_image`. On the 398 PhysiCLeAR presses, the change at the
-deepest frame is at most 19 grey levels in 99% of pixels (median video), so gain 8 saturates
-about 2% of pixels and keeps the depth of the rest; pick 1 of 10 among objects from raw
-difference pixels is 0.38-0.39 top-1 for gains 2-8 (more saturation scores higher on raw pixels,
-0.46 at gain 64, by turning the image into a contact mask; see the benchmark notes)."""
+"""Default ``gain`` of `difference_image`: the largest that saturates few pixels. On the 398
+PhysiCLeAR presses the change at the deepest frame is at most 19 grey levels in 99% of pixels
+(median video), so gain 8 saturates about 2% of them and keeps the depth of the rest. Pick 1 of
+10 among objects from raw difference pixels is flat for gains 2-8 (0.40 top-1); larger gains
+score higher on raw pixels (0.48 at 64, saturating half the pixels) by turning the image into a
+contact mask (`benchmarks/bench_video_pixels.py`)."""
 _MAX_DECODED_PIXELS = 4_000_000_000
 """Most pixels decoded from one video, all frames together (10,000 frames of 640x480 are 3.1
 billion): a small file declaring many large frames would otherwise cost hours of decoding."""
