@@ -423,8 +423,8 @@ def detect_press(
 
     The signal is on brightness only (a GelSight press changes it; its colour channels are
     noisier after compression): a change of colour at constant brightness is not seen. On the
-    401 PhysiCLeAR videos, it finds the press in all 398 that have one (the other three: two of
-    3 frames, one of 7 frames with no visible contact).
+    401 PhysiCLeAR videos it finds a press in 398; the other three are two videos of 3 frames
+    and one of 7 frames that change by at most 0.4 grey levels.
 
     Args:
         frames: (T, H, W, 3) uint8 RGB or (T, H, W) greyscale (small is enough: about 40x30).
