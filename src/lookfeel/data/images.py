@@ -244,10 +244,10 @@ class PreprocessSettings:
     depth_holes: str
     color_crop: str
     touch_crop: str
-    video_frame: float | None = None
-    video_frames: int = 1
-    video_reference: str = "subtract"
-    video_gain: float = 8.0
+    video_frame: float | None
+    video_frames: int
+    video_reference: str
+    video_gain: float
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
