@@ -57,7 +57,7 @@ def press_frames(amplitude: dict[int, float] = AMPLITUDE, t: int = T) -> np.ndar
     """(t, H, W, 3) uint8: the sensor, with a blob pressed in to ``amplitude[i]`` at frame i."""
     y, x = np.mgrid[0:H, 0:W].astype(np.float32)
     blob = np.exp(-((x - 30) ** 2 + (y - 22) ** 2) / (2 * 7.0**2))[..., None]
-    tint = np.array([70.0, -50.0, 40.0], dtype=np.float32)
+    tint = np.array([70.0, 30.0, -40.0], dtype=np.float32)  # brighter (+34 luma), and coloured
     rng = np.random.default_rng(0)
     out = []
     for i in range(t):
@@ -66,12 +66,14 @@ def press_frames(amplitude: dict[int, float] = AMPLITUDE, t: int = T) -> np.ndar
     return np.stack(out)
 
 
-def write_video(path: Path, frames: np.ndarray, codec: str = "mpeg4") -> Path:
+def write_video(
+    path: Path, frames: np.ndarray, codec: str = "mpeg4", pix_fmt: str = "yuv420p"
+) -> Path:
     """Encode (T, H, W, 3) uint8 RGB frames into ``path`` (container from its suffix)."""
     with av.open(str(path), mode="w") as c:
         s = c.add_stream(codec, rate=10)
         s.width, s.height = frames.shape[2], frames.shape[1]
-        s.pix_fmt = "yuv420p"
+        s.pix_fmt = pix_fmt
         s.bit_rate = 4_000_000
         for f in frames:
             for packet in s.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
@@ -106,9 +108,27 @@ def test_read_video_and_detect_the_known_press(videos: dict[str, Path], suffix: 
     span = detect_press(frames, videos[suffix])
     assert abs(span.start - START) <= 1 and abs(span.peak - PEAK) <= 1 and abs(span.end - END) <= 1
     a, b = span.reference
-    assert 0 <= a < b <= span.start and b - a >= 2
+    assert a == 0 and 3 <= b <= span.start  # the first frames, never into the press
     assert span.strength.shape == (T,) and span.strength.dtype == np.float32
     assert span.contrast > 10 * max(span.noise, 0.1)
+
+
+@pytest.mark.parametrize(
+    ("name", "codec", "pix_fmt"),
+    [
+        ("mjpeg.avi", "mjpeg", "yuvj420p"),  # full-range luma
+        ("x264.mp4", "libx264", "yuv420p"),  # B-frames: decoded out of order
+        ("rgb.mkv", "ffv1", "bgr0"),  # packed RGB: no luma plane
+        ("grey.mkv", "ffv1", "gray"),
+    ],
+)
+def test_other_codecs_and_pixel_formats(tmp_path: Path, name: str, codec: str, pix_fmt: str):
+    path = write_video(tmp_path / name, press_frames(), codec, pix_fmt)
+    small = small_greyscale(path)
+    rgb = read_video(path).astype(np.float32) @ np.array([0.299, 0.587, 0.114])
+    assert np.abs(small - rgb).mean() < 2.0
+    span = read_press(path).span
+    assert abs(span.start - START) <= 1 and abs(span.peak - PEAK) <= 1 and abs(span.end - END) <= 1
 
 
 def test_small_greyscale_from_the_luma_plane_agrees_with_rgb(videos: dict[str, Path]):
@@ -134,7 +154,7 @@ def test_read_press_takes_the_deepest_frame_minus_the_reference(videos: dict[str
     # the difference is grey where nothing touched, and carries the blob's tint where it did
     d = press.images[0].astype(float) - 128
     assert np.abs(d[:6, -6:]).mean() < 3
-    assert d[22, 30, 0] > 80 and d[22, 30, 1] < -60
+    assert d[22, 30, 0] > 100 and d[22, 30, 2] < -60
     raw = read_press(path, subtract_reference=False)
     assert np.array_equal(raw.images[0], frames[span.peak]) and not raw.subtracted
 
@@ -223,11 +243,15 @@ def test_a_truncated_avi_is_refused(videos, tmp_path: Path):
         read_press(path)
 
 
-def test_limits_on_pixels_and_frames(videos: dict[str, Path]):
+def test_limits_on_pixels_and_frames(videos: dict[str, Path], monkeypatch):
     with pytest.raises(VideoError, match=r"64x48 = 0\.0 megapixel frames; at most 0\.001"):
         read_video(videos[".mp4"], max_pixels=1000)
-    with pytest.raises(VideoError, match="more than 10 frames"):
-        read_press(videos[".mp4"], max_frames=10)
+    for suffix in (".mp4", ".avi"):  # frame count declared in the header, or not
+        with pytest.raises(VideoError, match="too large: (it declares 20|more than 10) frames"):
+            read_press(videos[suffix], max_frames=10)
+    monkeypatch.setattr(video_module, "_MAX_DECODED_PIXELS", 64 * 48 * 19)
+    with pytest.raises(VideoError, match="too large: .*gigapixels in all"):
+        read_press(videos[".mp4"])
     with pytest.raises(VideoError, match="is a folder, not a video file"):
         read_press(videos[".mp4"].parent)
 
@@ -276,11 +300,35 @@ def test_loader_follows_the_video_settings(videos: dict[str, Path]):
     start = ImageLoader(DataConfig(image_size=16, video_frame=0.0)).load(item)
     assert not torch.equal(diff, raw) and not torch.equal(diff, start)
     assert abs(float(diff[:, :3, -3:].mean()) - 128 / 255) < 0.02  # untouched: mid-grey
+    mean = ImageLoader(DataConfig(image_size=16, video_frames=5)).array(
+        videos[".mov"], Modality.TOUCH
+    )
+    press = read_press(videos[".mov"], frames=5)
+    expected = np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
+    config = DataConfig(image_size=16)
+    assert np.array_equal(mean, images_module.preprocess_rgb(expected, Modality.TOUCH, config))
     keys = {
         PreprocessSettings.of(DataConfig(**kw)).digest()
-        for kw in ({}, {"video_frame": 0.5}, {"video_reference": "none"}, {"video_gain": 2.0})
+        for kw in (
+            {},
+            {"video_frame": 0.5},
+            {"video_frames": 3},
+            {"video_reference": "none"},
+            {"video_gain": 2.0},
+        )
     }
-    assert len(keys) == 4
+    assert len(keys) == 5
+
+
+def test_the_config_default_gain_is_the_measured_one():
+    assert DataConfig().video_gain == video_module.DEFAULT_GAIN
+    settings = PreprocessSettings.of(DataConfig())
+    assert (settings.video_frame, settings.video_frames, settings.video_reference) == (
+        None,
+        1,
+        "subtract",
+    )
+    assert settings.video_gain == video_module.DEFAULT_GAIN
 
 
 def test_loader_names_a_bad_video(tmp_path: Path):
@@ -292,13 +340,30 @@ def test_loader_names_a_bad_video(tmp_path: Path):
 
 @pytest.mark.parametrize(
     ("kw", "msg"),
-    [({"video_frame": 1.5}, "data.video_frame"), ({"video_gain": 0.0}, "data.video_gain")],
+    [
+        ({"video_frame": 1.5}, "data.video_frame"),
+        ({"video_gain": 0.0}, "data.video_gain"),
+        ({"video_frames": 0}, "data.video_frames"),
+        ({"video_frames": 3, "video_frame": 0.5}, "exclude each other"),
+    ],
 )
 def test_config_rejects_bad_video_settings(kw, msg):
     with pytest.raises(ConfigError, match=msg):
         DataConfig(**kw)
     with pytest.raises(ConfigError, match="data.video_reference"):
         DataConfig(video_reference="median")  # type: ignore[arg-type]
+
+
+def test_data_check_decodes_a_video_and_finds_its_press(videos, tmp_path: Path):
+    from lookfeel.data.check import _decode_problem
+
+    assert _decode_problem(videos[".mp4"], Modality.TOUCH) is None
+    still = write_video(tmp_path / "still.mov", press_frames({}))
+    problem = _decode_problem(still, Modality.TOUCH)
+    assert problem is not None and problem.path == still
+    # a recording with no press is a warning: runs leave it out (lookfeel.data.drop_unpressed)
+    assert problem.severity == "warning" and problem.message.startswith("no contact found")
+    assert problem.message.endswith("; runs leave this recording out")
 
 
 # ---- real GelSight Mini videos -------------------------------------------------------------------

@@ -8,8 +8,9 @@
   GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
   Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1]. A touch item may also be a press
   video (.mov, .mp4, .avi, .mkv): its press is found and one frame taken (the deepest contact
-  or ``video_frame``), by default as its difference from the no-contact frames
-  (`lookfeel.data.video.read_press`), then cropped and resized like a touch image.
+  or ``video_frame``) or the mean of ``video_frames`` across the contact span, by default as
+  its difference from the no-contact frames (`lookfeel.data.video.read_press`), then cropped
+  and resized like a touch image.
 
 Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
 (a FIFO, device or folder named like an image is refused at once, never waited on), and its
@@ -24,12 +25,10 @@ and, with ``cache_dir``, on disk keyed by the file's content and the preprocessi
 
 from __future__ import annotations
 
-import errno
 import hashlib
 import io
 import json
 import os
-import stat
 import threading
 import warnings
 from collections.abc import Iterable, Sequence
@@ -46,7 +45,8 @@ from scipy import ndimage
 from lookfeel.atomic import atomic_write
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
-from lookfeel.errors import LookfeelError
+from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
+from lookfeel.data.video import is_video, read_press
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -69,77 +69,7 @@ GELSIGHT_SIZE = (960, 720)
 """Frame size of the authors' fingertip GelSight; their code crops its central 720x720."""
 
 
-class ImageError(LookfeelError):
-    """An image file cannot be used; the message names the file and what is wrong."""
-
-    def __init__(self, path: Path, message: str) -> None:
-        self.path = path
-        self.reason = message
-        super().__init__(f"{path}: {message}")
-
-
-DEFAULT_MAX_PIXELS = 50_000_000
-"""Largest width x height decoded (a 50-megapixel photo; GelSight frames are 0.7 MP, Kinect depth
-0.3 MP). Checked from the header, before decoding: 13000 x 13000 declared in a 0.4 MB PNG would
-otherwise cost 2 GB."""
-_MAX_FILE_BYTES = 512 * 1024 * 1024
 _MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff")
-
-
-def file_kind(mode: int) -> str:
-    """What a non-regular file is, in words ("a FIFO (named pipe)"), from its ``st_mode``."""
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    return "a special file"
-
-
-def read_image_file(path: str | os.PathLike[str]) -> bytes:
-    """The bytes of an image file, which must be a regular file (symbolic links followed).
-
-    The file is opened without blocking and checked on the open descriptor, so a FIFO named
-    like an image is refused at once rather than waited on, and nothing can swap the file
-    between the check and the read.
-
-    Raises:
-        ImageError: missing, unreadable, not a regular file, or larger than 512 MB.
-    """
-    p = Path(path)
-    try:
-        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
-    except FileNotFoundError:
-        raise ImageError(p, "file not found") from None
-    except OSError as e:
-        if e.errno == errno.EISDIR:
-            raise ImageError(p, "is a folder, not an image file") from None
-        if e.errno == errno.ENXIO:  # a socket, or a FIFO with no writer on some systems
-            raise ImageError(p, "not a regular file") from None
-        raise ImageError(p, f"cannot read file: {e.strerror}") from None
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            kind = file_kind(st.st_mode)
-            raise ImageError(
-                p,
-                "is a folder, not an image file"
-                if kind == "a folder"
-                else f"is {kind}, not a regular image file",
-            )
-        if st.st_size > _MAX_FILE_BYTES:
-            raise ImageError(p, f"file of {st.st_size} bytes is larger than {_MAX_FILE_BYTES}")
-        chunks = []
-        while chunk := os.read(fd, 1 << 20):
-            chunks.append(chunk)
-        return b"".join(chunks)
-    except OSError as e:
-        raise ImageError(p, f"cannot read file: {e.strerror}") from None
-    finally:
-        os.close(fd)
 
 
 def _open(path: Path, data: bytes | None = None, max_pixels: int | None = None) -> Image.Image:
@@ -314,9 +244,10 @@ class PreprocessSettings:
     depth_holes: str
     color_crop: str
     touch_crop: str
-    video_frame: float | None = None
-    video_reference: str = "subtract"
-    video_gain: float = 4.0
+    video_frame: float | None
+    video_frames: int
+    video_reference: str
+    video_gain: float
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -328,6 +259,7 @@ class PreprocessSettings:
             config.color_crop,
             config.touch_crop,
             config.video_frame,
+            config.video_frames,
             config.video_reference,
             config.video_gain,
         )
@@ -335,12 +267,6 @@ class PreprocessSettings:
     def digest(self) -> str:
         blob = json.dumps(self.__dict__, sort_keys=True).encode()
         return hashlib.sha1(blob).hexdigest()[:12]
-
-
-def _is_video(path: Path) -> bool:
-    from lookfeel.data.video import is_video  # video.py builds on this module
-
-    return is_video(path)
 
 
 def to_tensor(a: np.ndarray) -> torch.Tensor:
@@ -394,7 +320,7 @@ class ImageLoader:
                     pass  # a damaged cache entry is rebuilt below
         if modality is Modality.DEPTH:
             a = preprocess_depth(decode_depth(path, data), self.config)
-        elif modality is Modality.TOUCH and _is_video(path):
+        elif modality is Modality.TOUCH and is_video(path):
             a = preprocess_rgb(self._video_image(path, data), modality, self.config)
         else:
             a = preprocess_rgb(decode_rgb(path, data), modality, self.config)
@@ -405,18 +331,20 @@ class ImageLoader:
         return a
 
     def _video_image(self, path: Path, data: bytes) -> np.ndarray:
-        """The frame of a press video the config asks for, as (H, W, 3) uint8."""
-        from lookfeel.data.video import read_press  # video.py builds on this module
-
+        """The image of a press video the config asks for, as (H, W, 3) uint8: one frame, or
+        the mean of ``video_frames`` frames across the contact span."""
         c = self.config
         press = read_press(
             path,
             data=data,
+            frames=c.video_frames,
             position=c.video_frame,
             subtract_reference=c.video_reference == "subtract",
             gain=c.video_gain,
         )
-        return press.images[0]
+        if len(press.images) == 1:
+            return press.images[0]
+        return np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
 
     def array(self, path: Path, modality: Modality) -> np.ndarray:
         """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else."""

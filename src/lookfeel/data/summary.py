@@ -34,8 +34,8 @@ def format_summary(catalog: Catalog) -> str:
     named = s["named_objects"]
     rows: list[tuple[str, str]] = [("fabrics", f"{s['fabrics']} (ids {_ranges(catalog.ids)})")]
     if named:
-        names = [f.display_name for f in catalog.fabrics]
-        listed = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+        shown = [f.display_name for f in catalog.fabrics]
+        listed = ", ".join(shown[:6]) + (f" and {len(shown) - 6} more" if len(shown) > 6 else "")
         rows[0] = ("objects", f"{s['fabrics']} named in labels.csv or videos/: {listed}")
     per = s["items_per_fabric"]
     assert isinstance(per, dict)

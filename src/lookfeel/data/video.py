@@ -17,14 +17,16 @@ it, and returns the frames the model needs:
   touch item whose file is a video, and caches the result like an image.
 
 Decoding is fast because full RGB is made only for the frames kept: the press is found on the
-luma plane of the decoded YUV frames (block-averaged to about 40x30), then the file is decoded
-again and only the chosen frames and the reference frames are converted to RGB.
+luma plane of the decoded YUV frames (block-averaged to about 40x30), and only the chosen
+frames and the reference frames are converted to RGB (from the decoded frames held in memory,
+or, for a long video, by decoding again).
 
-Every file goes through the image policy (`lookfeel.data.images.read_image_file`: a regular
-file, at most 512 MB); a frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`, checked from
-the stream's header before decoding) or a video longer than `MAX_VIDEO_FRAMES` is refused. A
-file that cannot be decoded, a video with no contact, or one too short raises `VideoError`
-naming the file.
+Every file goes through the image policy (`lookfeel.data.files.read_image_file`: a regular
+file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`), a video of
+more than `MAX_VIDEO_FRAMES` frames or more than 4 gigapixels in all is refused, from the
+stream's header before decoding where it declares them. A file that cannot be decoded (not a
+video, an image renamed, damaged, or fewer frames than it declares), a video with no contact,
+or one too short raises `VideoError` naming the file.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from lookfeel.data.images import DEFAULT_MAX_PIXELS, ImageError, read_image_file
+from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, read_image_file
 
 if TYPE_CHECKING:
     import av.video.frame
@@ -69,13 +71,21 @@ MAX_VIDEO_FRAMES = 10_000
 """Most frames decoded from one video (400 s at 25 frames/s); a longer one is refused."""
 MIN_VIDEO_FRAMES = 5
 """Fewest frames a press video may have: a few no-contact frames, then the press."""
-DEFAULT_GAIN = 4.0
-"""Default ``gain`` of `difference_image` (see `read_press`)."""
+DEFAULT_GAIN = 8.0
+"""Default ``gain`` of `difference_image`: the largest that saturates few pixels. On the 398
+PhysiCLeAR presses the change at the deepest frame is at most 19 grey levels in 99% of pixels
+(median video), so gain 8 saturates about 2% of them and keeps the depth of the rest. Pick 1 of
+10 among objects from raw difference pixels is flat for gains 2-8 (0.40 top-1); larger gains
+score higher on raw pixels (0.48 at 64, saturating half the pixels) by turning the image into a
+contact mask (`benchmarks/bench_video_pixels.py`)."""
+_MAX_DECODED_PIXELS = 4_000_000_000
+"""Most pixels decoded from one video, all frames together (10,000 frames of 640x480 are 3.1
+billion): a small file declaring many large frames would otherwise cost hours of decoding."""
 _MAX_RGB_BYTES = 2 * 1024**3
+"""`read_video` refuses to hold more than this many bytes of RGB frames."""
 _KEEP_DECODED_BYTES = 256 * 1024**2
 """`read_press` holds decoded (YUV) frames up to this size to convert the chosen ones to RGB
 without decoding again."""
-"""`read_video` refuses to hold more than this many bytes of RGB frames."""
 
 _SIGNAL_SIDE = 30
 """The small greyscale version of a frame has about this many pixels on its short side."""
@@ -163,9 +173,19 @@ def _decode(
                 f"video declares {w}x{h} = {w * h / 1e6:.1f} megapixel frames; at most "
                 f"{limit / 1e6:g} are decoded",
             )
-        stream.thread_type = "AUTO"
         declared = stream.frames
-        n = 0
+        if declared > most:
+            raise VideoError(
+                path, f"video is too large: it declares {declared} frames; at most {most} are read"
+            )
+        if declared * w * h > _MAX_DECODED_PIXELS:
+            raise VideoError(
+                path,
+                f"video is too large: {declared} frames of {w}x{h} exceed "
+                f"{_MAX_DECODED_PIXELS / 1e9:g} gigapixels in all",
+            )
+        stream.thread_type = "AUTO"
+        n = total = 0
         try:
             for frame in container.decode(stream):
                 if frame.width * frame.height > limit:
@@ -175,9 +195,14 @@ def _decode(
                         f"{limit / 1e6:g} megapixels are decoded",
                     )
                 n += 1
+                total += frame.width * frame.height
                 if n > most:
+                    raise VideoError(path, f"video is too large: more than {most} frames")
+                if total > _MAX_DECODED_PIXELS:
                     raise VideoError(
-                        path, f"video is too large: more than {most} frames (the limit)"
+                        path,
+                        f"video is too large: its frames exceed {_MAX_DECODED_PIXELS / 1e9:g} "
+                        "gigapixels in all",
                     )
                 yield frame
         except VideoError:
@@ -339,8 +364,8 @@ class PressSpan:
     """Where the press is in a video of T frames (indices into its frames)."""
 
     reference: tuple[int, int]
-    """The no-contact reference frames, ``range(*reference)``: the quiet frames just before
-    contact (at most ``reference_frames`` of them)."""
+    """The no-contact reference frames, ``range(*reference)``: the first frames of the video
+    (at least ``first`` of them when contact starts later, at most ``reference_frames``)."""
     start: int
     """First frame in contact."""
     peak: int
@@ -400,7 +425,13 @@ def detect_press(
     of the ``first`` frames. Its no-contact floor is its 10th percentile after those frames and
     its noise the median absolute frame-to-frame change there; a frame is in contact when its
     signal exceeds ``floor + contact_fraction * (peak - floor)``. The span is the run of
-    contact frames around the peak; the reference is the quiet frames just before it.
+    contact frames around the peak; the reference is the first frames, as many as stay quiet
+    (up to ``reference_frames``, never into the span).
+
+    The signal is on brightness only (a GelSight press changes it; its colour channels are
+    noisier after compression): a change of colour at constant brightness is not seen. On the
+    401 PhysiCLeAR videos it finds a press in 398; the other three are two videos of 3 frames
+    and one of 7 frames that change by at most 0.4 grey levels.
 
     Args:
         frames: (T, H, W, 3) uint8 RGB or (T, H, W) greyscale (small is enough: about 40x30).
@@ -454,17 +485,16 @@ def detect_press(
         raise NoPressError(
             p, "contact from the first frame: no no-contact frames to take as the reference"
         )
+    # The reference: the first frames (the signal's own reference, untouched by assumption),
+    # extended while quiet up to ``reference_frames``. Measured on PhysiCLeAR, this beats the
+    # quiet frames just before contact (pick 1 of 10 from difference pixels 0.40 vs 0.39),
+    # which are sometimes one or two frames between early light touches.
     low = floor + 0.5 * contact_fraction * contrast
-    stop = start
-    while stop > 0 and s[stop - 1] > low:
-        stop -= 1
-    if stop == 0:
-        stop = min(start, first)
-    begin = stop - 1
-    while begin > 0 and stop - begin < reference_frames and s[begin - 1] <= low:
-        begin -= 1
+    stop = min(first, start)
+    while stop < min(reference_frames, start) and s[stop] <= low:
+        stop += 1
     return PressSpan(
-        reference=(begin, stop),
+        reference=(0, stop),
         start=start,
         peak=peak,
         end=end,
