@@ -276,3 +276,35 @@ def test_recordings_train_predict_and_embed_as_the_readme_says(
         ids = e["fabric_id_touch"]
         assert len(set(ids.tolist())) == 6
         assert not any("foam_3" in str(p) for p in e["path_touch"])
+
+
+def test_the_untouched_control_shows_what_a_moment_without_contact_looks_like(tmp_path: Path):
+    pytest.importorskip("av")
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader
+    from lookfeel.data.catalog import Item
+    from lookfeel.data.touch_control import UntouchedControl
+
+    from ._video import PRESS, object_press, sensor, write_video
+
+    path = write_video(tmp_path / "cork_0.mov", object_press(3, PRESS, t=14))
+    item = Item(Modality.TOUCH, 1, (path,))
+    diff = DataConfig(image_size=32)
+    pressed = ImageLoader(diff).array(path, Modality.TOUCH).astype(np.float64)
+    control = UntouchedControl(diff)
+    assert control.applies([item])
+    untouched = control.loader([item]).array(path, Modality.TOUCH).astype(np.float64)
+    assert untouched.shape == pressed.shape == (32, 32, 3)
+    # the difference of two no-contact frames is flat grey: only noise is left
+    assert abs(untouched.mean() - 128) < 2 and untouched.std() < 0.25 * pressed.std()
+
+    raw = UntouchedControl(DataConfig(image_size=32, video_reference="none"))
+    light = raw.loader([item]).array(path, Modality.TOUCH).astype(np.float64)
+    expected = np.asarray(
+        torch.nn.functional.interpolate(
+            torch.from_numpy(sensor()).permute(2, 0, 1)[None], size=(32, 32), mode="area"
+        )[0].permute(1, 2, 0)
+    )
+    assert np.abs(light - expected).mean() < 4  # the sensor's own light pattern
+    frame_item = Item(Modality.TOUCH, 1, (tmp_path / "F0001_fold_01_1.png",), PressKind.FOLD, "1")
+    assert not UntouchedControl.applies([frame_item])
