@@ -18,7 +18,8 @@ import numpy as np
 import torch
 
 from lookfeel.checkpoint import LoadedModel
-from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from lookfeel.data.layout import IMAGE_SUFFIXES
+from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.errors import LookfeelError
 from lookfeel.index.query import load_query_image, query_batch
 from lookfeel.modality import Modality
@@ -55,13 +56,16 @@ class Prediction:
         path: the query's file (the first, when presses are pooled).
         paths: every file of the query.
         modality: what the files show.
-        properties: label column -> its predicted `PropertyValue`.
+        properties: label column -> its predicted `PropertyValue` (empty with ``error``).
+        error: why nothing is predicted: a press video that holds no press (too short, no
+            contact). None when the query was answered.
     """
 
     path: str
     paths: list[str]
     modality: str
     properties: dict[str, PropertyValue]
+    error: str | None = None
 
 
 def _plain(name: str) -> int | float | str:
@@ -129,7 +133,9 @@ def predict_files(
 
     Raises:
         PredictError: the model has no heads, lacks the modality, or the files mix modalities.
-        ImageError: naming a file that cannot be read (video errors included).
+        ImageError: naming a file that cannot be read (video errors included), or the only
+            query is a video that holds no press. With several queries, one without a press
+            is answered with its ``error`` instead (the others are still predicted).
     """
     _heads(loaded)
     model = loaded.model
@@ -154,7 +160,14 @@ def predict_files(
     out = []
     with eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
-            x = query_batch([load_query_image(p, m, data) for p in group], m).to(device)
+            try:
+                images = [load_query_image(p, m, data) for p in group]
+            except NoPressError as e:
+                if len(groups) == 1:
+                    raise
+                out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(e)))
+                continue
+            x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
             out.append(
                 Prediction(

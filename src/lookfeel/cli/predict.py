@@ -2,7 +2,9 @@
 
 Read a trained model's property heads on query files: touch videos (.mov, .mp4, .avi), touch
 frames, depth maps or photos. Each file is one query; --together pools the files as presses of
-one object (the Multi-input Net's max over presses). A class head (model.class_heads, e.g.
+one object (the Multi-input Net's max over presses). A video that holds no press (too short, no
+contact) is answered with an "error" and no properties, and a warning; the others are still
+predicted (the exit status is 1 only when nothing could be). A class head (model.class_heads, e.g.
 hardness 0/1/2 or material) answers with its most likely class in the label column's own terms
 and that class's probability; a property-regression head answers in the column's units.
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 from pathlib import Path
 
 from lookfeel.cli._args import Subparsers, add_command, add_json
@@ -41,6 +44,8 @@ def _line(p: object) -> str:
     from lookfeel.predict import Prediction
 
     assert isinstance(p, Prediction)
+    if p.error is not None:
+        return f"{p.error} (nothing predicted)"
     parts = []
     for col, v in p.properties.items():
         prob = f" ({v.probability:.0%})" if v.probability is not None else ""
@@ -59,8 +64,11 @@ def run(args: argparse.Namespace) -> int:
     results = predict_files(
         loaded, args.inputs, modality, together=args.together, device=args.device
     )
+    for r in results:
+        if r.error is not None:
+            print(f"lookfeel: warning: {r.error}; nothing predicted for it", file=sys.stderr)
     if args.json:
         print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
     else:
         print("\n".join(_line(r) for r in results))
-    return 0
+    return 0 if any(r.error is None for r in results) else 1
