@@ -268,11 +268,36 @@ def _resize_float(a: np.ndarray, size: int) -> np.ndarray:
 
 
 def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
-    """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize."""
+    """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize.
+
+    With ``config.depth_input == "registered"`` the image is first registered
+    (`lookfeel.data.register.registered_input`: the cloth's height above the fitted floor,
+    0 off the cloth) and mapped as ``clip(height / depth_range_mm, 0, 1)``.
+
+    Raises:
+        RegistrationError: registered input, and no room could be fitted in the image.
+    """
+    if config.depth_input == "registered":
+        from lookfeel.data.register import registered_input  # register imports this module
+
+        unit = registered_input(depth_mm, config) / np.float32(config.depth_range_mm)
+        return _resize_float(np.clip(unit, 0.0, 1.0).astype(np.float32), config.image_size)
     d = fill_holes(depth_mm) if config.depth_holes == "nearest" else depth_mm
     return _resize_float(
         depth_to_unit(d, config.depth_min_mm, config.depth_range_mm), config.image_size
     )
+
+
+def _preprocess_depth_file(path: Path, depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
+    """`preprocess_depth`, a registration failure naming the file (one line)."""
+    try:
+        return preprocess_depth(depth_mm, config)
+    except LookfeelError as e:
+        if config.depth_input != "registered":
+            raise
+        raise type(e)(
+            f"{path}: cannot register depth (data.depth_input: registered): {e}"
+        ) from None
 
 
 def _center_square(a: np.ndarray) -> np.ndarray:
@@ -311,9 +336,12 @@ class PreprocessSettings:
     depth_holes: str
     color_crop: str
     touch_crop: str
+    depth_registration: tuple[float, float | None, str] | None = None
+    """Registered depth input: (margin mm, focal px, cloth rule); ``None`` for raw depth."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
+        registered = config.depth_input == "registered"
         return cls(
             config.image_size,
             config.depth_min_mm,
@@ -321,10 +349,14 @@ class PreprocessSettings:
             config.depth_holes,
             config.color_crop,
             config.touch_crop,
+            (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
+            if registered
+            else None,
         )
 
     def digest(self) -> str:
-        blob = json.dumps(self.__dict__, sort_keys=True).encode()
+        d = {k: v for k, v in self.__dict__.items() if v is not None}  # raw: keys as before
+        blob = json.dumps(d, sort_keys=True).encode()
         return hashlib.sha1(blob).hexdigest()[:12]
 
 
@@ -378,7 +410,7 @@ class ImageLoader:
                 except (OSError, ValueError):
                     pass  # a damaged cache entry is rebuilt below
         if modality is Modality.DEPTH:
-            a = preprocess_depth(decode_depth(path, data), self.config)
+            a = _preprocess_depth_file(path, decode_depth(path, data), self.config)
         else:
             a = preprocess_rgb(decode_rgb(path, data), modality, self.config)
         if disk is not None:
