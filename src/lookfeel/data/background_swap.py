@@ -231,8 +231,8 @@ class BackgroundControl:
         def prep(i: int) -> np.ndarray:
             try:
                 return preprocess_depth(out.images[i], self.config)
-            except LookfeelError as e:
-                raise type(e)(
+            except RegistrationError as e:
+                raise RegistrationError(
                     f"{items[i].path}: background control (background of "
                     f"{items[int(out.partner[i])].path.name}): {e}"
                 ) from None

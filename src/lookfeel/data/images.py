@@ -290,12 +290,14 @@ def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
 
 def _preprocess_depth_file(path: Path, depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
     """`preprocess_depth`, a registration failure naming the file (one line)."""
+    if config.depth_input != "registered":
+        return preprocess_depth(depth_mm, config)
+    from lookfeel.data.register import RegistrationError  # register imports this module
+
     try:
         return preprocess_depth(depth_mm, config)
-    except LookfeelError as e:
-        if config.depth_input != "registered":
-            raise
-        raise type(e)(
+    except RegistrationError as e:
+        raise RegistrationError(
             f"{path}: cannot register depth (data.depth_input: registered): {e}"
         ) from None
 
