@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from lookfeel.data.background_swap import register_items
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
     register_depth,
-    register_items,
 )
 
 from ._scene import Scene

@@ -12,6 +12,7 @@ is swapped). `swap_backgrounds` builds the swapped batch from cloth masks (from
   ``rooms[j]`` (the fitted empty room) when given, else from ``j``'s nearest background pixel.
 
 So no pixel of the output comes from ``i``'s background or from any cloth but ``i``'s.
+`register_items` decodes and registers depth files into the masks and rooms this needs.
 
 `BackgroundControl` applies this to a run's depth items as ``lookfeel cv`` and ``lookfeel
 evaluate`` score them: each file is decoded and registered (`lookfeel.data.register`; cloth
@@ -37,6 +38,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.images import ImageLoader, decode_depth, fill_holes, preprocess_depth
 from lookfeel.data.register import (
+    Intrinsics,
     RegistrationError,
     drape_mask,
     register_depth,
@@ -45,7 +47,16 @@ from lookfeel.data.register import (
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
-__all__ = ["BackgroundControl", "SwappedBatch", "pair_other_fabric", "swap_backgrounds"]
+F32 = NDArray[np.float32]
+
+__all__ = [
+    "BackgroundControl",
+    "RegisteredBatch",
+    "SwappedBatch",
+    "pair_other_fabric",
+    "register_items",
+    "swap_backgrounds",
+]
 
 
 @dataclass(frozen=True)
@@ -245,3 +256,53 @@ class BackgroundControl:
     def loader(self, items: Sequence[Item]) -> ImageLoader:
         """A loader serving ``items``' swapped images in place of their files (module doc)."""
         return _ArrayLoader(self.config, self.arrays(items))
+
+
+@dataclass(frozen=True)
+class RegisteredBatch:
+    """`register_items`' result: (N, H, W) arrays, one row per item.
+
+    Attributes:
+        depth: the decoded depth (mm, holes filled).
+        cloth: the cloth masks.
+        room: the fitted rooms' depth (mm).
+        height: the registered images (mm above the fitted floor, 0 off the cloth).
+    """
+
+    depth: F32
+    cloth: NDArray[np.bool_]
+    room: F32
+    height: F32
+
+
+def register_items(
+    items: Sequence[Item], intrinsics: Intrinsics | None = None, **kwargs: float
+) -> RegisteredBatch:
+    """Decode and register depth items (all of one size), e.g. for `swap_backgrounds`.
+
+    Args:
+        items: depth items.
+        intrinsics: the camera (default: GelFabric's, scaled to the images).
+        **kwargs: passed to `register_depth` (margin_mm, inlier_mm ...).
+
+    Raises:
+        RegistrationError: naming the file whose room could not be fitted, or whose size
+            differs from the first item's.
+    """
+    rows = []
+    shape = None
+    for it in items:
+        d = decode_depth(it.path)
+        if shape is not None and d.shape != shape:
+            raise RegistrationError(f"{it.path}: depth image is {d.shape}, the first is {shape}")
+        shape = d.shape
+        try:
+            reg = register_depth(d, intrinsics, **kwargs)  # type: ignore[arg-type]
+        except RegistrationError as e:
+            raise RegistrationError(f"{it.path}: {e}") from None
+        rows.append((fill_holes(d).astype(np.float32), reg.cloth, reg.room, reg.height))
+    if not rows:
+        empty = np.zeros((0, 0, 0), np.float32)
+        return RegisteredBatch(empty, empty.astype(bool), empty, empty)
+    depth, cloth, room, height = (np.stack(col) for col in zip(*rows, strict=True))
+    return RegisteredBatch(depth, cloth, room, height)

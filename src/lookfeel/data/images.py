@@ -38,11 +38,11 @@ from struct import error as struct_error
 import numpy as np
 import torch
 from PIL import Image, ImageFile
-from scipy import ndimage
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
+from lookfeel.data.holes import fill_holes
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
@@ -234,22 +234,6 @@ def decode_rgb(
     if im.mode != "RGB":
         im = im.convert("RGB")
     return np.asarray(im)
-
-
-def fill_holes(depth: np.ndarray) -> np.ndarray:
-    """Fill pixels equal to 0 with the value of the nearest non-zero pixel.
-
-    Args:
-        depth: (H, W) array; 0 marks a hole.
-
-    Returns:
-        A filled copy (same dtype); an image with no valid pixel is returned unchanged.
-    """
-    holes = depth == 0
-    if not holes.any() or holes.all():
-        return depth.copy()
-    idx = ndimage.distance_transform_edt(holes, return_distances=False, return_indices=True)
-    return depth[tuple(idx)]
 
 
 def depth_to_unit(

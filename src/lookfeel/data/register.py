@@ -37,7 +37,6 @@ by the margin rule) are scene: their few-mm shifts between sessions would leak t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,19 +44,16 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from lookfeel.config import DataConfig
-from lookfeel.data.catalog import Item
-from lookfeel.data.images import decode_depth, fill_holes
+from lookfeel.data.holes import fill_holes
 from lookfeel.errors import LookfeelError
 
 __all__ = [
     "Intrinsics",
     "Plane",
-    "RegisteredBatch",
     "Registration",
     "RegistrationError",
     "drape_mask",
     "register_depth",
-    "register_items",
     "registered_input",
     "registered_intrinsics",
 ]
@@ -431,53 +427,3 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
     if config.depth_cloth == "all":
         return reg.height
     return np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0)).astype(np.float32)
-
-
-@dataclass(frozen=True)
-class RegisteredBatch:
-    """`register_items`' result: (N, H, W) arrays, one row per item.
-
-    Attributes:
-        depth: the decoded depth (mm, holes filled).
-        cloth: the cloth masks.
-        room: the fitted rooms' depth (mm).
-        height: the registered images (mm above the fitted floor, 0 off the cloth).
-    """
-
-    depth: F32
-    cloth: NDArray[np.bool_]
-    room: F32
-    height: F32
-
-
-def register_items(
-    items: Sequence[Item], intrinsics: Intrinsics | None = None, **kwargs: float
-) -> RegisteredBatch:
-    """Decode and register depth items (all of one size), e.g. for `swap_backgrounds`.
-
-    Args:
-        items: depth items.
-        intrinsics: the camera (default: GelFabric's, scaled to the images).
-        **kwargs: passed to `register_depth` (margin_mm, inlier_mm ...).
-
-    Raises:
-        RegistrationError: naming the file whose room could not be fitted, or whose size
-            differs from the first item's.
-    """
-    rows = []
-    shape = None
-    for it in items:
-        d = decode_depth(it.path)
-        if shape is not None and d.shape != shape:
-            raise RegistrationError(f"{it.path}: depth image is {d.shape}, the first is {shape}")
-        shape = d.shape
-        try:
-            reg = register_depth(d, intrinsics, **kwargs)  # type: ignore[arg-type]
-        except RegistrationError as e:
-            raise RegistrationError(f"{it.path}: {e}") from None
-        rows.append((fill_holes(d).astype(np.float32), reg.cloth, reg.room, reg.height))
-    if not rows:
-        empty = np.zeros((0, 0, 0), np.float32)
-        return RegisteredBatch(empty, empty.astype(bool), empty, empty)
-    depth, cloth, room, height = (np.stack(col) for col in zip(*rows, strict=True))
-    return RegisteredBatch(depth, cloth, room, height)
