@@ -3,7 +3,11 @@ real GelFabric depth (issue #3's target: it beats the raw-pixel nearest neighbou
 
 Generates a synthetic depth-only world, trains `configs/real_depth.yaml`'s recipe on all of it
 (no real image is seen), and scores pick 1 of 10 among the 100 real training fabrics, beside
-raw pixels and chance, with 95% intervals that resample the real fabrics. Needs --data.
+raw pixels and chance, with 95% intervals that resample the real fabrics, and the background
+control (each real image's background swapped with another fabric's, cloth kept). Since issue
+#12 the recipe trains on registered depth (`data.depth_input: registered`): the synthetic
+world's room registers as the real one does (floor, wall, side panel), so both worlds are
+seen as the cloth's height above the fitted floor. Needs --data.
 """
 
 from __future__ import annotations
@@ -55,6 +59,9 @@ def run(data: Path | None) -> dict[str, Any]:
         "raw_pixels_top1": raw["mean"],
         "raw_pixels_top1_ci95": raw["ci95"],
         "raw_pixels_top3": pair["raw_pixels_top3"]["mean"],
+        "depth_input": config.data.depth_input,
+        "model_top1_background_swapped": pair.get("model_swapped_top1", {}).get("mean"),
+        "raw_pixels_top1_background_swapped": pair.get("raw_pixels_swapped_top1", {}).get("mean"),
         "chance_top1": pair["chance_top1"],
         "target": "model top-1 > raw-pixel top-1",
         "met": model["mean"] > raw["mean"],

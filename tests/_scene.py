@@ -109,3 +109,52 @@ class Scene:
             "clearance": gaps.min(axis=0),
             "height": pts[..., 2],
         }
+
+
+def write_scene_dataset(
+    root,
+    fabrics: int = 6,
+    drapes: int = 3,
+    size: int = 48,
+    shift_mm: float = 8.0,
+    vary: float = 1.0,
+):
+    """A depth dataset of rendered drapes with a planted capture-session leak.
+
+    Each fabric is its own session: its room (wall, side panel) and camera sit ``shift_mm``
+    (times a few) differently from the next fabric's, as GelFabric's do by a few millimetres;
+    with ``shift_mm=0`` every session shares one room. The cloth (height, spread, place) is
+    drawn per drape (``vary`` scales how much drapes differ), independent of the fabric, so
+    only the room tells fabrics apart. Writes ``depth/F{id}_Depth_New_*.png``
+    and ``labels.csv``; returns ``root``.
+    """
+    from pathlib import Path
+
+    from PIL import Image
+
+    root = Path(root)
+    (root / "depth").mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(7)
+    lines = ["fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split\n"]
+    for f in range(1, fabrics + 1):
+        shift = shift_mm * (f - (fabrics + 1) / 2)
+        for k in range(drapes):
+            scene = Scene(
+                size=size,
+                f=90.0 * size / 64,
+                eye=(0.5 * shift, -700.0 + shift, 560.0),
+                wall_y=550.0 + 1.5 * shift,
+                panel_x=330.0 - shift,
+                peak_mm=260.0 + vary * float(rng.uniform(-60.0, 60.0)),
+                spread_mm=90.0 + vary * float(rng.uniform(-20.0, 20.0)),
+                cloth_offset=(
+                    vary * float(rng.uniform(-60, 60)),
+                    vary * float(rng.uniform(-60, 60)),
+                ),
+                seed=100 * f + k,
+            )
+            name = f"F{f:04d}_Depth_New_{k:06d}.png"
+            Image.fromarray(scene.render()["depth"]).save(root / "depth" / name)
+        lines.append(f"{f},{(f - 1) % 3},{0.5 * f},{0.2 * f:.2f},{f % 5},{f % 2},train\n")
+    (root / "labels.csv").write_text("".join(lines))
+    return root

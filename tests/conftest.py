@@ -45,6 +45,15 @@ def run() -> tuple[Path, Path]:
     return tiny_run()
 
 
+@pytest.fixture(scope="session")
+def leaky_depth(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Rendered drapes whose room identifies the fabric (a planted capture-session leak): 6
+    fabrics x 3 drapes at 32 px (`tests._scene.write_scene_dataset`), shared read-only."""
+    from ._scene import write_scene_dataset
+
+    return write_scene_dataset(tmp_path_factory.mktemp("leaky") / "data", 6, 3, 32, 20.0, 0.3)
+
+
 @pytest.fixture
 def real_data() -> Path:
     """The shared real GelFabric depth data; the test skips when it is absent."""

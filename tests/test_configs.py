@@ -44,3 +44,25 @@ def test_paper_configs_say_what_the_paper_says():
     assert c["multi_input_aug"].data.augment[Modality.COLOR].gamma == (0.5, 2.0)
     assert c["snn_depth"].train.views == (Modality.DEPTH, Modality.DEPTH)
     assert c["cross_modal_depth_touch"].train.views == (Modality.DEPTH, Modality.TOUCH)
+
+
+def test_real_depth_is_leak_free_and_the_leaky_recipe_is_kept():
+    root = Path(__file__).resolve().parents[1] / "configs"
+    free = load_config(RunConfig, root / "real_depth.yaml")
+    leaky = load_config(RunConfig, root / "real_depth_leaky.yaml")
+    assert free.data.depth_input == "registered" and free.data.depth_cloth == "drape"
+    assert leaky.data.depth_input == "raw" and not leaky.data.augment
+    # The same recipe otherwise: the comparison changes only the input.
+    assert free.model == leaky.model and free.loss == leaky.loss and free.train == leaky.train
+
+
+def test_both_config_trees_are_in_step():
+    """``configs/`` (the repository's) and ``lookfeel/configs`` (packaged) hold the same files."""
+    from importlib import resources
+
+    repo = Path(__file__).resolve().parents[1] / "configs"
+    packaged = Path(str(resources.files("lookfeel") / "configs"))
+    names = sorted(p.relative_to(repo) for p in repo.rglob("*.yaml"))
+    assert names == sorted(p.relative_to(packaged) for p in packaged.rglob("*.yaml"))
+    for name in names:
+        assert (repo / name).read_bytes() == (packaged / name).read_bytes(), name

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lookfeel.cli import main
-from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.config import ConfigError, EvalConfig, RunConfig, load_config
 from lookfeel.crossval import cross_validate
 from lookfeel.data import scan, stratified_fabric_folds
 from lookfeel.train import train
@@ -164,3 +164,44 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     terms = {k for row in logged for k in row if k.endswith("_loss")}
     assert {"depth_color_loss", "depth_touch_loss", "color_touch_loss", "property_loss"} <= terms
+
+
+@pytest.mark.filterwarnings("ignore:pick 10")
+def test_background_control_in_cv_and_evaluate(
+    leaky_depth: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+):
+    """A dataset whose room identifies the fabric (a planted session leak): raw pixels drop
+    when the backgrounds are swapped; the control's keys are in cv.json, cv.md, metrics.json
+    and report.md, and are gone when it is turned off."""
+    from lookfeel.evaluate import evaluate_checkpoint, write_report
+
+    data = leaky_depth
+    config = load_config(RunConfig, TINY, [*OVERRIDES, "train.steps=2", "train.split_seed=1"])
+    summary = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=print)
+    pair = summary["pairs"]["depth_to_depth"]
+    for key in ("model_swapped_top1", "model_swapped_top3", "raw_pixels_swapped_top1"):
+        low, high = pair[key]["ci95"]
+        assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
+    assert summary["background_control"] == {"on": True, "seed": 0, "skipped": None}
+    assert pair["raw_pixels_top1"]["mean"] > pair["raw_pixels_swapped_top1"]["mean"] + 0.2
+    md = (tmp_path / "cv" / "cv.md").read_text()
+    assert "Background control" in md and "raw pixels top-1, background swapped" in md
+    # Off: no control keys, and the summary says so.
+    off = cross_validate(
+        config, data, tmp_path / "cv", folds=[0], n_boot=20, background_control=False
+    )
+    assert "model_swapped_top1" not in off["pairs"]["depth_to_depth"]
+    assert off["background_control"]["on"] is False
+
+    ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
+    result = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20))
+    m = result.metrics
+    for key in ("depth_to_depth_top1_swapped", "depth_to_depth_raw_pixels_top1_swapped"):
+        assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
+    assert m["depth_to_depth_raw_pixels_top1"] > m["depth_to_depth_raw_pixels_top1_swapped"]
+    report = (write_report(result, tmp_path / "eval").report).read_text()
+    assert "## Background control" in report
+    plain = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20, background_control=False))
+    assert not any(k.endswith("_swapped") for k in plain.metrics)
+
+    capsys.readouterr()

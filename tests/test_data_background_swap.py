@@ -1,5 +1,7 @@
 """The background control: cloth kept, background from another fabric's image, reproducibly."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -71,3 +73,49 @@ def test_swap_rejects_bad_input():
         swap_backgrounds(images, cloth, np.zeros(len(fab)))
     with pytest.raises(LookfeelError, match="rooms"):
         swap_backgrounds(images, cloth, fab, rooms=images[:2])
+
+
+def _top1(x: np.ndarray, fab: np.ndarray) -> float:
+    """Exact pick-1 top-1 of pixels z-scored over the images (as the leak check scores)."""
+    from lookfeel.metrics import EXACT_PICK, score_pairs
+    from lookfeel.modality import Modality, Pair
+
+    sd = x.std(axis=0)
+    x = (x[:, sd > 1e-6] - x[:, sd > 1e-6].mean(axis=0)) / sd[sd > 1e-6]
+    d = Modality.DEPTH
+    pair = Pair(d, d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # 5 fabrics: pick 1 of 5
+        return float(score_pairs({d: x}, {d: fab}, EXACT_PICK, [pair])[pair].pick.mean[0])
+
+
+def test_background_control_exposes_the_planted_room_leak_and_not_registered_depth(leaky_depth):
+    """The room identifies the fabric, the cloth does not (`leaky_depth`)."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader, scan
+    from lookfeel.data.background_swap import BackgroundControl
+    from lookfeel.modality import Modality
+
+    items = scan(leaky_depth).items(Modality.DEPTH)
+    fab = np.array([it.fabric_id for it in items])
+    arrays = {}
+    for kind in ("raw", "registered"):
+        config = DataConfig(image_size=32, depth_input=kind)
+        loader = ImageLoader(config)
+        control = BackgroundControl(config, seed=0)
+        swapped = control.loader(items)
+        assert control.arrays(items) is control.arrays(items)  # kept, not redone
+        x = np.stack([loader.array(it.path, Modality.DEPTH) for it in items])
+        y = np.stack([swapped.array(it.path, Modality.DEPTH) for it in items])
+        arrays[kind] = (x.reshape(len(x), -1), y.reshape(len(y), -1))
+    raw, swapped_raw = arrays["raw"]
+    # Raw depth: the room alone picks the fabric; swapping the background takes that away
+    # (chance: 1/6).
+    assert _top1(raw, fab) > 0.8 and _top1(swapped_raw, fab) < 0.4
+    reg, swapped_reg = arrays["registered"]
+    # Registered depth: the room is gone (near chance), and the swap changes little: the cloth
+    # is kept in its own camera's pixels but measured from the partner's floor, so a session
+    # that moved the camera by tens of mm (here) moves the heights by that much, a few mm on
+    # GelFabric.
+    assert np.abs(reg - swapped_reg).mean() < 0.2 * np.abs(raw - swapped_raw).mean()
+    assert _top1(reg, fab) < 0.4 and _top1(swapped_reg, fab) < 0.4

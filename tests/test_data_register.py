@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from lookfeel.data.background_swap import register_items
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
     register_depth,
-    register_items,
 )
 
 from ._scene import Scene
@@ -153,3 +153,69 @@ def test_register_items_reads_files_and_names_the_bad_one(tmp_path):
     Image.fromarray(np.full((BASE.size, BASE.size), 0, np.uint16)).save(flat)
     with pytest.raises(RegistrationError, match="F0003_Depth_New_000000.png: depth image has no"):
         register_items([*items, Item(Modality.DEPTH, 3, (flat,))])
+
+
+def _write(path, depth):
+    from PIL import Image
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(depth).save(path)
+    return path
+
+
+def test_registered_loader_input_is_the_height_and_ignores_the_moved_room(tmp_path):
+    """`data.depth_input: registered` through the loader: the cloth's height above the floor
+    (known answer), the same whether the session moved the wall and camera or not."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.images import ImageLoader, PreprocessSettings
+    from lookfeel.modality import Modality
+
+    moved = dataclasses.replace(BASE, wall_y=BASE.wall_y + 6.0, eye=(3.0, -704.0, 562.0))
+    truth = BASE.render()
+    a = _write(tmp_path / "F0001_Depth_New_000000.png", truth["depth"])
+    b = _write(tmp_path / "F0002_Depth_New_000000.png", moved.render()["depth"])
+    reg = DataConfig(image_size=BASE.size, depth_input="registered", depth_focal_px=BASE.f)
+    raw = DataConfig(image_size=BASE.size)
+    rl, ll = ImageLoader(reg), ImageLoader(raw)
+    ra, rb = rl.array(a, Modality.DEPTH), rl.array(b, Modality.DEPTH)
+    la, lb = ll.array(a, Modality.DEPTH), ll.array(b, Modality.DEPTH)
+    assert np.abs(la - lb).mean() > 4 * np.abs(ra - rb).mean()  # the room moved, not the cloth
+    assert np.abs(ra - rb).mean() < 0.003  # 1.5 mm of the 500 mm range
+    cloth = truth["clearance"] > 25.0
+    height_mm = ra * reg.depth_range_mm
+    assert np.median(np.abs(height_mm - truth["height"])[cloth]) < 5.0
+    assert (ra[truth["clearance"] < 5.0] == 0).mean() > 0.99  # the room is masked
+    # The settings are part of every cache key; raw depth keeps the keys it always had.
+    assert PreprocessSettings.of(reg).digest() != PreprocessSettings.of(raw).digest()
+    assert PreprocessSettings.of(raw).digest() == "d26cb9e32ecc"  # as before #12
+    other = dataclasses.replace(reg, depth_margin_mm=25.0)
+    assert PreprocessSettings.of(other).digest() != PreprocessSettings.of(reg).digest()
+
+
+def test_drape_rule_drops_objects_apart_from_the_cloth():
+    from lookfeel.data.register import drape_mask
+
+    cloth = np.zeros((20, 20), bool)
+    cloth[2:15, 6:14] = True  # the drape
+    cloth[5:18, 0:2] = True  # a strip standing apart, at the image's edge
+    kept = drape_mask(cloth)
+    assert kept[2:15, 6:14].all() and not kept[:, 0:2].any()
+    assert np.array_equal(drape_mask(np.zeros((4, 4), bool)), np.zeros((4, 4), bool))
+
+
+def test_registered_loader_input_names_the_file_it_cannot_register(tmp_path):
+    from lookfeel.config import ConfigError, DataConfig
+    from lookfeel.data.images import ImageLoader
+    from lookfeel.modality import Modality
+
+    bad = _write(tmp_path / "F0003_Depth_New_000000.png", np.zeros((16, 16), np.uint16))
+    loader = ImageLoader(DataConfig(image_size=16, depth_input="registered"))
+    with pytest.raises(RegistrationError) as e:
+        loader.array(bad, Modality.DEPTH)
+    msg = str(e.value)
+    assert msg.startswith(f"{bad}: cannot register depth") and "no valid pixel" in msg
+    assert "\n" not in msg
+    with pytest.raises(ConfigError, match="data.depth_input: 'flat' is not one of"):
+        DataConfig(depth_input="flat")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="data.depth_margin_mm: must be > 0"):
+        DataConfig(depth_margin_mm=0.0)

@@ -324,7 +324,8 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
         assert z["reference_embeddings_depth"].shape[0] == 3 * (8 - len(val))
     sets = ["--set", "n_boot=50", "--set", "max_presses=3"]
     a, b = tmp_path / "a", tmp_path / "b"
-    assert evaluate_cli(ckpt, data, a, "--split", "val", *sets) == 0
+    # The background control (on by default for depth) needs the images, not only embeddings.
+    assert evaluate_cli(ckpt, data, a, "--split", "val", "--no-background-control", *sets) == 0
     assert (
         main(["evaluate", "--embeddings", str(npz), "--data", str(data), "--out", str(b), *sets])
         == 0

@@ -96,6 +96,8 @@ def test_real_depth_config_trains_embeds_and_evaluates(real_data: Path, tmp_path
     config = Path(__file__).resolve().parents[1] / "configs" / "real_depth.yaml"
     run, emb, rep = tmp_path / "run", tmp_path / "emb.npz", tmp_path / "report"
     fast = ["--set", "train.steps=4", "--set", "train.batch_size=8"]
+    # Registered depth (since #12): the cache lets `embed` reuse training's registrations.
+    fast += ["--set", f"data.cache_dir={tmp_path / 'cache'}"]
     args = ["--config", str(config), "--data", str(real_data), "--out", str(run), *fast]
     assert main(["train", *args]) == 0
     split = json.loads((run / "split.json").read_text())

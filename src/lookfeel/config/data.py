@@ -51,6 +51,22 @@ class DataConfig:
     depth_holes: Literal["nearest", "clip"] = "nearest"
     """Pixels with no reading (0 mm): ``nearest`` fills each from the nearest valid pixel;
     ``clip`` keeps the authors' behaviour (0 mm is below the range, so it maps to 0)."""
+    depth_input: Literal["raw", "registered"] = "raw"
+    """``raw``: the depth image as the sensor saw it, room included (the authors' input; the
+    room's few-mm shifts between capture sessions identify the session). ``registered``: per
+    image, the room's planes are fitted and the cloth's height above the fitted floor is kept,
+    everything else 0 (`lookfeel.data.register`), mapped as ``clip(height / depth_range_mm,
+    0, 1)``; ``depth_min_mm`` is not used. Needs a drape in a room with a floor and a wall."""
+    depth_margin_mm: float = 15.0
+    """Registered input: cloth is every pixel more than this in front of the fitted room."""
+    depth_focal_px: float | None = None
+    """Registered input: the depth camera's focal length in pixels at the files' resolution
+    (principal point at the image centre); ``None``: GelFabric's Kinect crop (373 px at
+    224 px), scaled to the image. Only heights use it; room and cloth are found without it."""
+    depth_cloth: Literal["all", "drape"] = "drape"
+    """Registered input: ``drape`` keeps only the cloth region connected to the drape's top
+    (where the post holds it), dropping separate objects that stand in the room;
+    ``all`` keeps every region in front of the room."""
     color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
     touch_crop: Literal["auto", "center", "none"] = "auto"
@@ -97,6 +113,10 @@ class DataConfig:
             raise ConfigError(f"data.image_size: must be >= 8, got {self.image_size}")
         if self.depth_range_mm <= 0:
             raise ConfigError(f"data.depth_range_mm: must be > 0, got {self.depth_range_mm}")
+        if self.depth_margin_mm <= 0:
+            raise ConfigError(f"data.depth_margin_mm: must be > 0, got {self.depth_margin_mm}")
+        if self.depth_focal_px is not None and self.depth_focal_px <= 0:
+            raise ConfigError(f"data.depth_focal_px: must be > 0, got {self.depth_focal_px}")
         if self.presses < 1:
             raise ConfigError(f"data.presses: must be >= 1, got {self.presses}")
         if not 0.0 <= self.same_fraction <= 1.0:

@@ -71,6 +71,12 @@ class EvalConfig:
     examples: int = 4
     """Queries shown in the pick-examples figure (half picked right, half wrong, when both
     occur)."""
+    background_control: bool = True
+    """Evaluating a checkpoint whose model has a depth branch: score every pair with depth
+    again with each test depth image's background replaced by another fabric's, the cloth
+    kept (`lookfeel.data.background_swap.BackgroundControl`), beside raw pixels
+    (``{pair}_top{k}_swapped`` keys). A model that reads the cloth, not the room, scores the
+    same."""
 
     def __post_init__(self) -> None:
         check_choices(self, "eval")

@@ -12,19 +12,51 @@ is swapped). `swap_backgrounds` builds the swapped batch from cloth masks (from
   ``rooms[j]`` (the fitted empty room) when given, else from ``j``'s nearest background pixel.
 
 So no pixel of the output comes from ``i``'s background or from any cloth but ``i``'s.
+`register_items` decodes and registers depth files into the masks and rooms this needs.
+
+`BackgroundControl` applies this to a run's depth items as ``lookfeel cv`` and ``lookfeel
+evaluate`` score them: each file is decoded and registered (`lookfeel.data.register`; cloth
+as the run's ``data.depth_cloth`` says), the backgrounds are swapped in millimetres, and each
+swapped image goes through the run's own preprocessing (`preprocess_depth`: raw depth is
+mapped as always, registered depth is registered again, in the swapped room). Its `loader`
+serves those arrays in place of the files, so the model and the raw-pixel baseline see
+swapped images exactly as they see the originals.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
+from lookfeel.config import DataConfig
+from lookfeel.data.catalog import Item
+from lookfeel.data.images import ImageLoader, decode_depth, fill_holes, preprocess_depth
+from lookfeel.data.register import (
+    Intrinsics,
+    RegistrationError,
+    drape_mask,
+    register_depth,
+    registered_intrinsics,
+)
 from lookfeel.errors import LookfeelError
+from lookfeel.modality import Modality
 
-__all__ = ["SwappedBatch", "pair_other_fabric", "swap_backgrounds"]
+F32 = NDArray[np.float32]
+
+__all__ = [
+    "BackgroundControl",
+    "RegisteredBatch",
+    "SwappedBatch",
+    "pair_other_fabric",
+    "register_items",
+    "swap_backgrounds",
+]
 
 
 @dataclass(frozen=True)
@@ -122,3 +154,155 @@ def _background_of(
         return image
     idx = ndimage.distance_transform_edt(cloth, return_distances=False, return_indices=True)
     return image[tuple(idx)]
+
+
+class _ArrayLoader(ImageLoader):
+    """An `ImageLoader` whose depth arrays are given (the swapped images), keyed by file."""
+
+    def __init__(self, config: DataConfig, arrays: dict[Path, np.ndarray]) -> None:
+        super().__init__(config, cache_dir=None)
+        self._arrays = arrays
+
+    def array(self, path: Path, modality: Modality) -> np.ndarray:
+        if modality is Modality.DEPTH and path in self._arrays:
+            return self._arrays[path]
+        return super().array(path, modality)
+
+
+class BackgroundControl:
+    """Background-swapped depth inputs of a run's items, preprocessed as the run's config says.
+
+    Args:
+        config: the run's data config (its depth preprocessing, registered or raw, and its
+            registration settings).
+        seed: seeds the pairing of each image with another fabric's (`pair_other_fabric`).
+
+    Registrations and swapped arrays are kept, so scoring the same items again (another
+    training seed of the same fold) costs nothing.
+
+    Example:
+        >>> control = BackgroundControl(lm.config.data)
+        >>> swapped = control.loader(items)  # embed_items(model, items, swapped)
+    """
+
+    def __init__(self, config: DataConfig, seed: int = 0) -> None:
+        self.config = config
+        self.seed = seed
+        self._scenes: dict[Path, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._swapped: dict[tuple[Path, ...], dict[Path, np.ndarray]] = {}
+
+    def _scene(self, item: Item) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(depth mm with holes filled, cloth mask, fitted room mm) of one depth file."""
+        got = self._scenes.get(item.path)
+        if got is None:
+            d = decode_depth(item.path)
+            try:
+                reg = register_depth(
+                    d,
+                    registered_intrinsics(d.shape, self.config),
+                    margin_mm=self.config.depth_margin_mm,
+                )
+            except RegistrationError as e:
+                raise RegistrationError(f"{item.path}: background control: {e}") from None
+            cloth = drape_mask(reg.cloth) if self.config.depth_cloth == "drape" else reg.cloth
+            got = (fill_holes(d).astype(np.float32), cloth, reg.room)
+            self._scenes[item.path] = got
+        return got
+
+    def arrays(self, items: Sequence[Item]) -> dict[Path, np.ndarray]:
+        """Each depth item's swapped image, preprocessed (file -> (S, S) float32).
+
+        Raises:
+            LookfeelError: fewer than two fabrics, images of different sizes, or a file whose
+                room cannot be fitted (named).
+        """
+        key = tuple(it.path for it in items)
+        if key in self._swapped:
+            return self._swapped[key]
+        workers = max(1, self.config.workers)
+        with ThreadPoolExecutor(workers) as pool:
+            scenes = list(pool.map(self._scene, items))
+        shapes = {s[0].shape for s in scenes}
+        if len(shapes) > 1:
+            first = scenes[0][0].shape
+            odd = next(it.path for it, s in zip(items, scenes, strict=True) if s[0].shape != first)
+            raise LookfeelError(
+                f"{odd}: background control needs depth images of one size; this one is "
+                f"{scenes[[it.path for it in items].index(odd)][0].shape}, the first {first}"
+            )
+        fab = np.array([it.fabric_id for it in items], dtype=np.int64)
+        out = swap_backgrounds(
+            np.stack([s[0] for s in scenes]),
+            np.stack([s[1] for s in scenes]),
+            fab,
+            seed=self.seed,
+            rooms=np.stack([s[2] for s in scenes]),
+        )
+
+        def prep(i: int) -> np.ndarray:
+            try:
+                return preprocess_depth(out.images[i], self.config)
+            except RegistrationError as e:
+                raise RegistrationError(
+                    f"{items[i].path}: background control (background of "
+                    f"{items[int(out.partner[i])].path.name}): {e}"
+                ) from None
+
+        with ThreadPoolExecutor(workers) as pool:
+            arrays = dict(zip(key, pool.map(prep, range(len(items))), strict=True))
+        self._swapped[key] = arrays
+        return arrays
+
+    def loader(self, items: Sequence[Item]) -> ImageLoader:
+        """A loader serving ``items``' swapped images in place of their files (module doc)."""
+        return _ArrayLoader(self.config, self.arrays(items))
+
+
+@dataclass(frozen=True)
+class RegisteredBatch:
+    """`register_items`' result: (N, H, W) arrays, one row per item.
+
+    Attributes:
+        depth: the decoded depth (mm, holes filled).
+        cloth: the cloth masks.
+        room: the fitted rooms' depth (mm).
+        height: the registered images (mm above the fitted floor, 0 off the cloth).
+    """
+
+    depth: F32
+    cloth: NDArray[np.bool_]
+    room: F32
+    height: F32
+
+
+def register_items(
+    items: Sequence[Item], intrinsics: Intrinsics | None = None, **kwargs: float
+) -> RegisteredBatch:
+    """Decode and register depth items (all of one size), e.g. for `swap_backgrounds`.
+
+    Args:
+        items: depth items.
+        intrinsics: the camera (default: GelFabric's, scaled to the images).
+        **kwargs: passed to `register_depth` (margin_mm, inlier_mm ...).
+
+    Raises:
+        RegistrationError: naming the file whose room could not be fitted, or whose size
+            differs from the first item's.
+    """
+    rows = []
+    shape = None
+    for it in items:
+        d = decode_depth(it.path)
+        if shape is not None and d.shape != shape:
+            raise RegistrationError(f"{it.path}: depth image is {d.shape}, the first is {shape}")
+        shape = d.shape
+        try:
+            reg = register_depth(d, intrinsics, **kwargs)  # type: ignore[arg-type]
+        except RegistrationError as e:
+            raise RegistrationError(f"{it.path}: {e}") from None
+        rows.append((fill_holes(d).astype(np.float32), reg.cloth, reg.room, reg.height))
+    if not rows:
+        empty = np.zeros((0, 0, 0), np.float32)
+        return RegisteredBatch(empty, empty.astype(bool), empty, empty)
+    depth, cloth, room, height = (np.stack(col) for col in zip(*rows, strict=True))
+    return RegisteredBatch(depth, cloth, room, height)

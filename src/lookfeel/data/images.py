@@ -40,12 +40,12 @@ from struct import error as struct_error
 import numpy as np
 import torch
 from PIL import Image, ImageFile
-from scipy import ndimage
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
+from lookfeel.data.holes import fill_holes
 from lookfeel.data.video import is_video, read_press
 from lookfeel.modality import Modality
 
@@ -169,22 +169,6 @@ def decode_rgb(
     return np.asarray(im)
 
 
-def fill_holes(depth: np.ndarray) -> np.ndarray:
-    """Fill pixels equal to 0 with the value of the nearest non-zero pixel.
-
-    Args:
-        depth: (H, W) array; 0 marks a hole.
-
-    Returns:
-        A filled copy (same dtype); an image with no valid pixel is returned unchanged.
-    """
-    holes = depth == 0
-    if not holes.any() or holes.all():
-        return depth.copy()
-    idx = ndimage.distance_transform_edt(holes, return_distances=False, return_indices=True)
-    return depth[tuple(idx)]
-
-
 def depth_to_unit(
     depth_mm: np.ndarray, min_mm: float = 800.0, range_mm: float = 500.0
 ) -> np.ndarray:
@@ -201,11 +185,38 @@ def _resize_float(a: np.ndarray, size: int) -> np.ndarray:
 
 
 def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
-    """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize."""
+    """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize.
+
+    With ``config.depth_input == "registered"`` the image is first registered
+    (`lookfeel.data.register.registered_input`: the cloth's height above the fitted floor,
+    0 off the cloth) and mapped as ``clip(height / depth_range_mm, 0, 1)``.
+
+    Raises:
+        RegistrationError: registered input, and no room could be fitted in the image.
+    """
+    if config.depth_input == "registered":
+        from lookfeel.data.register import registered_input  # register imports this module
+
+        unit = registered_input(depth_mm, config) / np.float32(config.depth_range_mm)
+        return _resize_float(np.clip(unit, 0.0, 1.0).astype(np.float32), config.image_size)
     d = fill_holes(depth_mm) if config.depth_holes == "nearest" else depth_mm
     return _resize_float(
         depth_to_unit(d, config.depth_min_mm, config.depth_range_mm), config.image_size
     )
+
+
+def _preprocess_depth_file(path: Path, depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
+    """`preprocess_depth`, a registration failure naming the file (one line)."""
+    if config.depth_input != "registered":
+        return preprocess_depth(depth_mm, config)
+    from lookfeel.data.register import RegistrationError  # register imports this module
+
+    try:
+        return preprocess_depth(depth_mm, config)
+    except RegistrationError as e:
+        raise RegistrationError(
+            f"{path}: cannot register depth (data.depth_input: registered): {e}"
+        ) from None
 
 
 def _center_square(a: np.ndarray) -> np.ndarray:
@@ -248,9 +259,12 @@ class PreprocessSettings:
     video_frames: int
     video_reference: str
     video_gain: float
+    depth_registration: tuple[float, float | None, str] | None = None
+    """Registered depth input: (margin mm, focal px, cloth rule); ``None`` for raw depth."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
+        registered = config.depth_input == "registered"
         return cls(
             config.image_size,
             config.depth_min_mm,
@@ -262,10 +276,14 @@ class PreprocessSettings:
             config.video_frames,
             config.video_reference,
             config.video_gain,
+            (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
+            if registered
+            else None,
         )
 
     def digest(self) -> str:
-        blob = json.dumps(self.__dict__, sort_keys=True).encode()
+        d = {k: v for k, v in self.__dict__.items() if v is not None}  # raw: keys as before
+        blob = json.dumps(d, sort_keys=True).encode()
         return hashlib.sha1(blob).hexdigest()[:12]
 
 
@@ -319,7 +337,7 @@ class ImageLoader:
                 except (OSError, ValueError):
                     pass  # a damaged cache entry is rebuilt below
         if modality is Modality.DEPTH:
-            a = preprocess_depth(decode_depth(path, data), self.config)
+            a = _preprocess_depth_file(path, decode_depth(path, data), self.config)
         elif modality is Modality.TOUCH and is_video(path):
             a = preprocess_rgb(self._video_image(path, data), modality, self.config)
         else:

@@ -10,6 +10,15 @@ Which items are "test" (``split``):
 - ``paper``: the paper's 18 test fabrics (labels.csv's ``paper_split``, else the built-in list);
   reference: the paper's training fabrics. The shared real data holds the test fabrics back.
 - ``all``: every item of the dataset; no reference (the paper's c, no probes).
+
+For a model with a depth branch, `evaluate_checkpoint` also runs the **background control**
+(``EvalConfig.background_control``, on by default): each test depth image's background is
+replaced by another fabric's, the cloth kept (`lookfeel.data.background_swap`), the images
+are embedded again and every pair with depth is scored again by the exact pick, beside the
+raw-pixel nearest neighbour on the same images (depth to depth). Keys:
+``{pair}_top{k}_swapped`` (+ ``_ci_low``/``_ci_high``), ``depth_to_depth_raw_pixels_top{k}``
+and ``depth_to_depth_raw_pixels_top{k}_swapped``. Touch queries are single presses there
+(pairs whose main keys pool several presses are skipped, with a note).
 """
 
 from __future__ import annotations
@@ -29,9 +38,12 @@ from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
+from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.recordings import drop_unpressed
-from lookfeel.embedding import EmbeddedItems, embed_catalog
-from lookfeel.modality import Modality
+from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
+from lookfeel.errors import LookfeelError
+from lookfeel.metrics import ScoringProtocol, score_pairs
+from lookfeel.modality import Modality, Pair
 from lookfeel.models import Embedder
 
 from .core import PressPooler, evaluate_embeddings
@@ -325,7 +337,67 @@ def evaluate_checkpoint(
     emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
     exact = bool(emb.meta["pool_exact"])
     pool = None if exact else _model_pooler(loaded.model, loader, batch_size, device)
-    return _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
+    result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
+    if not result.config.background_control or Modality.DEPTH not in emb.embedded:
+        return result
+    extra, notes = _background_control(loaded, emb, result, loader, batch_size, device)
+    return replace(result, metrics={**result.metrics, **extra}, notes=result.notes + tuple(notes))
+
+
+def _background_control(
+    loaded: LoadedModel,
+    emb: EmbeddingSet,
+    result: EvalResult,
+    loader: ImageLoader,
+    batch_size: int,
+    device: str,
+) -> tuple[dict[str, float], list[str]]:
+    """The background control's metrics (module doc) and notes on what was skipped."""
+    cfg = result.config
+    pairs = [p for p in result.pairs if Modality.DEPTH in (p.query, p.gallery)]
+    pooled = [p for p in pairs if p.query is Modality.TOUCH and (cfg.presses or 1) > 1]
+    notes = [
+        f"background control of {p} skipped: its touch queries pool {cfg.presses} presses"
+        for p in pooled
+    ]
+    pairs = [p for p in pairs if p not in pooled]
+    depth = emb.embedded[Modality.DEPTH]
+    control = BackgroundControl(loaded.config.data, cfg.seed)
+    try:
+        swapped = control.loader(depth.items)
+    except LookfeelError as e:
+        return {}, [*notes, f"background control skipped: {e}"]
+    items = list(depth.items)
+    fab = {m: np.asarray(e.fabric_ids, dtype=np.int64) for m, e in emb.embedded.items()}
+    vecs = {m: np.asarray(e.embeddings) for m, e in emb.embedded.items()}
+    vecs_sw = vecs | {Modality.DEPTH: embed_items(loaded.model, items, swapped, batch_size, device)}
+    protocol = ScoringProtocol(
+        n=cfg.n,
+        ks=cfg.ks,
+        gallery=False,
+        sampled=False,
+        n_boot=cfg.n_boot,
+        alpha=cfg.alpha,
+        seed=cfg.seed,
+    )
+    out: dict[str, float] = {}
+    for pair, score in score_pairs(vecs_sw, fab, protocol, pairs).items():
+        for k in cfg.ks:
+            for suffix in ("", "_ci_low", "_ci_high"):
+                key = f"top{k}{suffix}"
+                if key in score.metrics:
+                    out[f"{pair}_top{k}_swapped{suffix}"] = score.metrics[key]
+    d2d = Pair(Modality.DEPTH, Modality.DEPTH)
+    if d2d in pairs:
+        for name, ld in (("", loader), ("_swapped", swapped)):
+            pix = {Modality.DEPTH: raw_pixels(items, ld)}
+            score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
+            for k in cfg.ks:
+                for suffix in ("", "_ci_low", "_ci_high"):
+                    if f"top{k}{suffix}" in score.metrics:
+                        value = score.metrics[f"top{k}{suffix}"]
+                        out[f"{d2d}_raw_pixels_top{k}{name}{suffix}"] = value
+    return out, notes
 
 
 def evaluate_embedding_file(

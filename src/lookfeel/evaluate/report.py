@@ -185,6 +185,46 @@ def _section_pick(result: EvalResult) -> list[str]:
     return lines
 
 
+def _section_control(result: EvalResult) -> list[str]:
+    """The background control beside the scores as they are (when it ran)."""
+    m, ks = result.metrics, result.config.ks
+    pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_swapped" in m]
+    if not pairs:
+        return []
+    lines = [
+        "## Background control",
+        "",
+        "The same queries with every test depth image's background (room, wall, floor) "
+        "replaced by another fabric's, the cloth kept. A model that reads the cloth, not the "
+        "capture session, scores the same; raw pixels show how much the room alone carries.",
+        "",
+    ]
+    rows = []
+    for pair in pairs:
+        for k in ks:
+            rows.append(
+                [
+                    _pretty(pair),
+                    f"top-{k}",
+                    f"{_f(m.get(f'{pair}_top{k}'))} ({_ci(m, f'{pair}_top{k}')})",
+                    f"{_f(m.get(f'{pair}_top{k}_swapped'))} ({_ci(m, f'{pair}_top{k}_swapped')})",
+                    _f(m.get(f"{pair}_raw_pixels_top{k}")),
+                    _f(m.get(f"{pair}_raw_pixels_top{k}_swapped")),
+                ]
+            )
+    return lines + _table(
+        [
+            "pair",
+            "metric",
+            "model (95% interval)",
+            "model, background swapped",
+            "raw pixels",
+            "raw pixels, background swapped",
+        ],
+        rows,
+    )
+
+
 def _curve_n_effective(result: EvalResult, curve: PressCurve) -> int:
     """Candidates per pick at the curve's first press count (the config's n when unknown)."""
     key = f"{Pair(Modality.TOUCH, curve.gallery)}_presses{curve.presses[0]}_n_effective"
@@ -496,6 +536,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     metrics_path = write_metrics(result, out / "metrics.json")
     lines = _provenance(result)
     lines += _section_pick(result)
+    lines += _section_control(result)
     lines += _section_presses(result, presses_png)
     lines += _section_calibration(result, cal_figures)
     lines += _section_properties(result)
