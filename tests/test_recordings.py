@@ -308,3 +308,31 @@ def test_the_untouched_control_shows_what_a_moment_without_contact_looks_like(tm
     assert np.abs(light - expected).mean() < 4  # the sensor's own light pattern
     frame_item = Item(Modality.TOUCH, 1, (tmp_path / "F0001_fold_01_1.png",), PressKind.FOLD, "1")
     assert not UntouchedControl.applies([frame_item])
+
+
+def test_cv_on_recordings_reports_classes_and_the_untouched_control(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.cli import main
+
+    config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")
+    args = ["cv", "--config", config, "--data", str(recordings), "--out", str(tmp_path / "cv")]
+    with pytest.warns(UserWarning, match="hold no press"):
+        assert main([*args, *TINY, "--folds", "2", "--n-boot", "50"]) == 0
+    summary = json.loads((tmp_path / "cv" / "cv.json").read_text())
+    pair = summary["pairs"]["touch_to_touch"]
+    for key in (
+        "model_top1",
+        "raw_pixels_top1",
+        "model_untouched_top1",
+        "raw_pixels_untouched_top1",
+    ):
+        assert 0.0 <= pair[key]["mean"] <= 1.0 and len(pair[key]["per_run"]) == 2
+    hardness = summary["classes"]["touch"]["hardness"]
+    assert hardness["classes"] == ["0", "1", "2"] and hardness["chance"] == pytest.approx(1 / 3)
+    for method in ("model", "model_pooled", "probe", "raw_pixels", "majority"):
+        assert 0.0 <= hardness[method]["accuracy"] <= 1.0
+    assert hardness["model"]["queries"] == 18  # every press with a label, each held out once
+    assert hardness["model_pooled"]["queries"] == 6  # one per object
+    report = (tmp_path / "cv" / "cv.md").read_text()
+    assert "Untouched control" in report and "| hardness |" in report

@@ -13,7 +13,12 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
   cloth kept (`lookfeel.data.background_swap.BackgroundControl`), for the model and for raw pixels
   (``model_swapped_top1``, ``raw_pixels_swapped_top1`` ...). A model that reads the cloth, not
   the room, scores the same; one that reads the capture session drops. When the rooms cannot
-  be fitted the control is skipped and the summary says why (``background_control``).
+  be fitted the control is skipped and the summary says why (``background_control``);
+- for touch recorded as press videos, the **untouched control** (always on): the same queries
+  with every press replaced by a moment of its video with no contact
+  (`lookfeel.data.touch_control.UntouchedControl`; ``model_untouched_top1``,
+  ``raw_pixels_untouched_top1`` ...). The sensor's own light and drift identify a recording
+  session; a model that reads the contact falls to chance there.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
 that resamples the held-out fabrics (all their queries together). Physical properties are
@@ -49,6 +54,7 @@ from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.data import Catalog, ImageLoader, Item, scan
 from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.recordings import drop_unpressed
+from lookfeel.data.touch_control import UntouchedControl
 from lookfeel.embedding import embed_items, raw_pixels
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics import (
@@ -70,7 +76,14 @@ RESULT = "result.json"
 SUMMARY = "cv.json"
 REPORT = "cv.md"
 _KS = (1, 3)
-_METHODS = ("model", "raw_pixels", "model_swapped", "raw_pixels_swapped")
+_METHODS = (
+    "model",
+    "raw_pixels",
+    "model_swapped",
+    "raw_pixels_swapped",
+    "model_untouched",
+    "raw_pixels_untouched",
+)
 CONTROL_SEED = 0
 """Seeds the background control's pairing of images with other fabrics' backgrounds."""
 
@@ -194,6 +207,15 @@ def _score(
             pix_sw = pix | {Modality.DEPTH: raw_pixels(items, sw)}
             swapped["model_swapped"] = _pick(emb_sw, fab, depth_pairs)
             swapped["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
+    touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
+    touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
+    if UntouchedControl.applies(touch_items):
+        # The sensor's own light: every press replaced by a moment of its video with no contact.
+        still = UntouchedControl(cfg.data).loader(touch_items)
+        emb_un = emb | {Modality.TOUCH: embed_items(lm.model, touch_items, still, flip=tta)}
+        pix_un = pix | {Modality.TOUCH: raw_pixels(touch_items, still)}
+        swapped["model_untouched"] = _pick(emb_un, fab, touch_pairs)
+        swapped["raw_pixels_untouched"] = _pick(pix_un, fab, [p for p in touch_pairs if p.same])
     for pair in pairs:
         entry: dict[str, Any] = {
             "query_fabric": fab[pair.query].tolist(),
@@ -472,6 +494,33 @@ def _control_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _untouched_lines(summary: dict[str, Any]) -> list[str]:
+    """The untouched control's table (model and raw pixels, pressed and with no contact)."""
+    rows = [(p, e) for p, e in summary["pairs"].items() if "model_untouched_top1" in e]
+    if not rows:
+        return []
+    lines = [
+        "",
+        "Untouched control: the same queries with every press replaced by a moment of its video "
+        "with no contact, preprocessed alike (`lookfeel.data.touch_control`). A model that reads "
+        "the contact, not the sensor's own light or the session, falls to chance.",
+        "",
+        "| pair | model top-1 | model top-1, untouched | raw pixels top-1 "
+        "| raw pixels top-1, untouched | chance |",
+        "|---|---|---|---|---|---|",
+    ]
+    for pair, e in rows:
+        keys = (
+            "model_top1",
+            "model_untouched_top1",
+            "raw_pixels_top1",
+            "raw_pixels_untouched_top1",
+        )
+        cells = [_fmt(e[k]) if k in e else "-" for k in keys]
+        lines.append(f"| {pair} | {' | '.join(cells)} | {e['chance_top1']:.3f} |")
+    return lines
+
+
 def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
     lines = [
@@ -494,6 +543,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
     lines += _control_lines(summary)
+    lines += _untouched_lines(summary)
     for m, per in summary["properties"].items():
         if not per.get("model"):
             continue

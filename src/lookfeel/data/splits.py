@@ -56,9 +56,14 @@ def paper_split(catalog: Catalog) -> FabricSplit:
 
     Uses the ``paper_split`` column of labels.csv when any fabric has it, else the built-in
     list of the 18 test ids (fabric 107 excluded either way). Test fabrics absent from the data
-    (as in the shared real data, which holds them back) simply do not appear.
+    (as in the shared real data, which holds them back) simply do not appear. A dataset of
+    named objects without the column has no paper split: every object is on the train side.
     """
     labelled = {f.id: f.paper_split for f in catalog.fabrics if f.paper_split is not None}
+    if not labelled and any(f.name is not None for f in catalog.fabrics):
+        # Named objects (``videos/<object>_<n>.mov``) are numbered by name: GelFabric's test
+        # ids mean nothing there.
+        return FabricSplit(tuple(catalog.ids), ())
     if labelled:
         train = tuple(i for i in catalog.ids if labelled.get(i) == "train")
         test = tuple(i for i in catalog.ids if labelled.get(i) == "test")
