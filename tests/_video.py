@@ -39,14 +39,16 @@ PRESS = {5: 0.4, 6: 0.7, 7: 1.0, 8: 0.8, 9: 0.5}
 """A press from frame 5 to 9, deepest at 7."""
 
 
-def write_video(path: Path, frames: np.ndarray, codec: str = "mpeg4") -> Path:
+def write_video(
+    path: Path, frames: np.ndarray, codec: str = "mpeg4", pix_fmt: str = "yuv420p"
+) -> Path:
     """Encode (T, H, W, 3) uint8 RGB frames into ``path`` (container from its suffix)."""
     import av
 
     with av.open(str(path), mode="w") as c:
         s = c.add_stream(codec, rate=10)
         s.width, s.height = frames.shape[2], frames.shape[1]
-        s.pix_fmt = "yuv420p"
+        s.pix_fmt = pix_fmt
         s.bit_rate = 4_000_000
         for f in frames:
             for packet in s.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):

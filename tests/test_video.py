@@ -38,6 +38,8 @@ from lookfeel.modality import Modality
 
 av = pytest.importorskip("av")
 
+from ._video import write_video  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 PHYSICLEAR = [REPO.parent / "shared" / "data" / "physiclear", Path("/work/shared/data/physiclear")]
 
@@ -64,23 +66,6 @@ def press_frames(amplitude: dict[int, float] = AMPLITUDE, t: int = T) -> np.ndar
         f = _sensor() + amplitude.get(i, 0.0) * blob * tint + rng.normal(0, 0.7, (H, W, 1))
         out.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
     return np.stack(out)
-
-
-def write_video(
-    path: Path, frames: np.ndarray, codec: str = "mpeg4", pix_fmt: str = "yuv420p"
-) -> Path:
-    """Encode (T, H, W, 3) uint8 RGB frames into ``path`` (container from its suffix)."""
-    with av.open(str(path), mode="w") as c:
-        s = c.add_stream(codec, rate=10)
-        s.width, s.height = frames.shape[2], frames.shape[1]
-        s.pix_fmt = pix_fmt
-        s.bit_rate = 4_000_000
-        for f in frames:
-            for packet in s.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
-                c.mux(packet)
-        for packet in s.encode():
-            c.mux(packet)
-    return path
 
 
 @pytest.fixture(scope="module")

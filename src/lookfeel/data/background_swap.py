@@ -36,7 +36,13 @@ from scipy import ndimage
 
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
-from lookfeel.data.images import ImageLoader, decode_depth, fill_holes, preprocess_depth
+from lookfeel.data.images import (
+    ArrayLoader,
+    ImageLoader,
+    decode_depth,
+    fill_holes,
+    preprocess_depth,
+)
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
@@ -156,19 +162,6 @@ def _background_of(
     return image[tuple(idx)]
 
 
-class _ArrayLoader(ImageLoader):
-    """An `ImageLoader` whose depth arrays are given (the swapped images), keyed by file."""
-
-    def __init__(self, config: DataConfig, arrays: dict[Path, np.ndarray]) -> None:
-        super().__init__(config, cache_dir=None)
-        self._arrays = arrays
-
-    def array(self, path: Path, modality: Modality) -> np.ndarray:
-        if modality is Modality.DEPTH and path in self._arrays:
-            return self._arrays[path]
-        return super().array(path, modality)
-
-
 class BackgroundControl:
     """Background-swapped depth inputs of a run's items, preprocessed as the run's config says.
 
@@ -255,7 +248,7 @@ class BackgroundControl:
 
     def loader(self, items: Sequence[Item]) -> ImageLoader:
         """A loader serving ``items``' swapped images in place of their files (module doc)."""
-        return _ArrayLoader(self.config, self.arrays(items))
+        return ArrayLoader(self.config, self.arrays(items), Modality.DEPTH)
 
 
 @dataclass(frozen=True)

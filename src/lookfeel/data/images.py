@@ -400,3 +400,20 @@ class ImageLoader:
             with ThreadPoolExecutor(n) as pool:
                 list(pool.map(lambda p: self.array(p, todo[p]), paths))
         return len(paths)
+
+
+class ArrayLoader(ImageLoader):
+    """An `ImageLoader` serving given arrays in place of some files of one modality (a
+    control's altered images: swapped backgrounds, untouched presses), keyed by file."""
+
+    def __init__(
+        self, config: DataConfig, arrays: dict[Path, np.ndarray], modality: Modality
+    ) -> None:
+        super().__init__(config, cache_dir=None)
+        self._arrays = arrays
+        self._modality = modality
+
+    def array(self, path: Path, modality: Modality) -> np.ndarray:
+        if modality is self._modality and path in self._arrays:
+            return self._arrays[path]
+        return super().array(path, modality)

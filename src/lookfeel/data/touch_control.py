@@ -23,7 +23,7 @@ import numpy as np
 
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
-from lookfeel.data.images import ImageLoader, preprocess_rgb
+from lookfeel.data.images import ArrayLoader, ImageLoader, preprocess_rgb
 from lookfeel.data.video import detect_press, difference_image, is_video, read_video
 from lookfeel.modality import Modality
 
@@ -42,24 +42,11 @@ def untouched_image(path: Path, config: DataConfig) -> np.ndarray:
     if config.video_reference == "none":
         image = frames[a]
     elif b - a >= 2:
-        image = difference_image(frames[b - 1], frames[a : b - 1].astype(np.float32).mean(0),
-                                 config.video_gain)  # fmt: skip
+        earlier = frames[a : b - 1].astype(np.float32).mean(0)
+        image = difference_image(frames[b - 1], earlier, config.video_gain)
     else:
         image = difference_image(frames[a], frames[a].astype(np.float32), config.video_gain)
     return preprocess_rgb(image, Modality.TOUCH, config)
-
-
-class _Untouched(ImageLoader):
-    """An `ImageLoader` serving the untouched image in place of each given press video."""
-
-    def __init__(self, config: DataConfig, arrays: dict[Path, np.ndarray]) -> None:
-        super().__init__(config, cache_dir=None)
-        self._arrays = arrays
-
-    def array(self, path: Path, modality: Modality) -> np.ndarray:
-        if modality is Modality.TOUCH and path in self._arrays:
-            return self._arrays[path]
-        return super().array(path, modality)
 
 
 class UntouchedControl:
@@ -89,4 +76,5 @@ class UntouchedControl:
         with ThreadPoolExecutor(max(1, self.config.workers)) as pool:
             done = pool.map(lambda p: untouched_image(p, self.config), todo)
             self._arrays.update(zip(todo, done, strict=True))
-        return _Untouched(self.config, {it.path: self._arrays[it.path] for it in items})
+        arrays = {it.path: self._arrays[it.path] for it in items}
+        return ArrayLoader(self.config, arrays, Modality.TOUCH)
