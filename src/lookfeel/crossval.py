@@ -175,6 +175,7 @@ def _score(
     pix: dict[Modality, np.ndarray] = {}
     fab: dict[Modality, np.ndarray] = {}
     props: dict[str, Any] = {}
+    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for m in _modalities(pairs):
         items: list[Item] = held.items(m, cfg.data.touch_kinds)
         train_items: list[Item] = seen.items(m, cfg.data.touch_kinds) if seen else []
@@ -185,11 +186,11 @@ def _score(
         if train_items:
             train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
             train_e = embed_items(lm.model, train_items, loader, flip=tta)
+            train_pix = raw_pixels(train_items, loader)
+            train[m] = (train_f, train_e, train_pix)  # the class probes fit on them too
             props[m.value] = {
                 "model": _probe(catalog, train_e, train_f, emb[m], fab[m]),
-                "raw_pixels": _probe(
-                    catalog, raw_pixels(train_items, loader), train_f, pix[m], fab[m]
-                ),
+                "raw_pixels": _probe(catalog, train_pix, train_f, pix[m], fab[m]),
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
     model = _pick(emb, fab, pairs)
@@ -229,7 +230,7 @@ def _score(
                 entry[method] = scores[pair].pick.per_query.tolist()
         out["pairs"][pair] = entry
     out["properties"] = props
-    out["classes"] = _classes(lm, catalog, held, seen, loader, emb, pix, fab)
+    out["classes"] = _classes(lm, catalog, held, train, loader, emb, pix, fab)
     return out
 
 
@@ -237,7 +238,7 @@ def _classes(
     lm: LoadedModel,
     catalog: Catalog,
     held: Catalog,
-    seen: Catalog | None,
+    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]],
     loader: ImageLoader,
     emb: dict[Modality, np.ndarray],
     pix: dict[Modality, np.ndarray],
@@ -245,21 +246,23 @@ def _classes(
 ) -> dict[str, Any]:
     """Per modality and class-head column, the held-out queries' true and predicted classes:
     ``model`` (the head, one press), ``model_pooled`` (one per object, every press pooled),
-    ``probe``/``raw_pixels`` (5-NN on training embeddings / pixels), ``majority``."""
+    ``probe``/``raw_pixels`` (5-NN on training embeddings / pixels), ``majority``. ``train``:
+    per modality, the training items' (fabric ids, embeddings, raw pixels) from `_score`."""
     import torch
 
     from lookfeel.data.datasets import class_matrix
     from lookfeel.models import CLASSES, eval_mode
 
     cfg = lm.config.model
-    if not cfg.class_heads or seen is None:
+    if not cfg.class_heads or not train:
         return {}
     out: dict[str, Any] = {}
     kinds = lm.config.data.touch_kinds
     for m, e in emb.items():
+        if m not in train:
+            continue
         branch = lm.model.branch(m.value)
-        train_items = seen.items(m, kinds)
-        train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
+        train_f, train_e, train_pix = train[m]
         with torch.inference_mode():
             logits = branch.heads(torch.from_numpy(e))[CLASSES].split(cfg.class_sizes, dim=-1)
         objects = sorted(set(fab[m].tolist()))
@@ -271,8 +274,6 @@ def _classes(
                 z = lm.model({m.value: x}, heads=True)[f"{m.value}/{CLASSES}"]
                 pooled.append(z.amax(0) if m is not Modality.TOUCH else z[0])
         pooled_logits = torch.stack(pooled).split(cfg.class_sizes, dim=-1)
-        train_e = embed_items(lm.model, train_items, loader)
-        train_pix = raw_pixels(train_items, loader)
         fabrics = {f.id: f for f in catalog.fabrics}
         per: dict[str, Any] = {}
         for h, col in enumerate(cfg.class_heads):

@@ -11,6 +11,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.labels import class_of
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
@@ -269,7 +270,7 @@ class Catalog:
         for it in self.items(Modality.TOUCH):
             kind = it.kind.value if it.kind is not None else "any kind"
             kinds[kind] = kinds.get(kind, 0) + 1
-            if it.path.suffix.lower() in (".mov", ".mp4", ".avi", ".mkv"):
+            if it.path.suffix.lower() in VIDEO_SUFFIXES:
                 videos += 1
             else:
                 frames += len(it.frames)

@@ -15,6 +15,9 @@ from pathlib import Path
 
 from lookfeel.errors import LookfeelError
 
+VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
+"""File suffixes read as videos (lower-case; the match ignores case)."""
+
 __all__ = ["DEFAULT_MAX_PIXELS", "ImageError", "file_kind", "read_image_file"]
 
 

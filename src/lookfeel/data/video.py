@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, read_image_file
+from lookfeel.data.files import DEFAULT_MAX_PIXELS, VIDEO_SUFFIXES, ImageError, read_image_file
 
 if TYPE_CHECKING:
     import av.video.frame
@@ -65,8 +65,6 @@ __all__ = [
     "small_greyscale",
 ]
 
-VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
-"""File suffixes read as videos (lower-case; the match ignores case)."""
 MAX_VIDEO_FRAMES = 10_000
 """Most frames decoded from one video (400 s at 25 frames/s); a longer one is refused."""
 MIN_VIDEO_FRAMES = 5
