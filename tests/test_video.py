@@ -25,6 +25,7 @@ from lookfeel.data.video import (
     PressSpan,
     VideoError,
     contact_frames,
+    deep_frames,
     detect_press,
     difference_image,
     frame_at,
@@ -247,6 +248,16 @@ def test_missing_pyav_says_what_to_install(monkeypatch, videos: dict[str, Path])
         read_press(videos[".mp4"])
 
 
+def test_deep_frames_put_the_peak_first_and_skip_shallow_frames():
+    strength = np.array([0, 0, 0, 0, 2, 4, 6, 8, 10, 9, 7, 5, 3, 1], np.float32)
+    span = PressSpan((0, 3), 4, 8, 13, strength, 0.0, 0.1, 2.0)
+    assert deep_frames(span, 9) == [8, 4, 5, 6, 7, 9, 10, 11, 12]  # every frame, peak first
+    assert deep_frames(span, 9, 0.6) == [8, 6, 7, 9, 10]  # at least 6 of the peak's 10
+    assert deep_frames(span, 1, 0.6) == [8]
+    with pytest.raises(ValueError):
+        deep_frames(span, 3, 1.5)
+
+
 # ---- the image loader --------------------------------------------------------------------------
 
 
@@ -305,6 +316,55 @@ def test_loader_follows_the_video_settings(videos: dict[str, Path]):
     assert len(keys) == 5
 
 
+def test_loader_views_of_a_press_video(videos: dict[str, Path], tmp_path: Path, monkeypatch):
+    item = _touch_item(videos[".mov"])
+    config = DataConfig(image_size=16, video_views=9, video_views_min=0.6)
+    loader = ImageLoader(config, cache_dir=tmp_path)
+    assert loader.has_views(item)
+    views = loader.views(item)
+    press = read_press(videos[".mov"], choose=lambda span: deep_frames(span, 9, 0.6))
+    assert press.indices[0] == PEAK and all(AMPLITUDE[i] >= 0.6 for i in press.indices)
+    expected = [images_module.preprocess_rgb(im, Modality.TOUCH, config) for im in press.images]
+    assert views.shape == (len(press.indices), 16, 16, 3) and len(views) > 2
+    assert np.array_equal(views, np.stack(expected))
+    # The first view is the image evaluation uses, and a second loader reads both from disk.
+    assert np.array_equal(views[0], ImageLoader(config).array(videos[".mov"], Modality.TOUCH))
+
+    # One view where views are off, and for anything but a video.
+    single = ImageLoader(DataConfig(image_size=16), cache_dir=tmp_path)
+    assert not single.has_views(item)
+    assert np.array_equal(single.views(item), views[:1])
+
+    def fail(*args, **kwargs):
+        raise AssertionError("decoded again")
+
+    monkeypatch.setattr(images_module, "read_press", fail)
+    assert np.array_equal(ImageLoader(config, cache_dir=tmp_path).views(item), views)
+
+
+def test_store_draws_training_views_deterministically(videos: dict[str, Path]):
+    from lookfeel.data import ImageStore
+
+    items = [_touch_item(videos[s]) for s in (".mov", ".mp4")]
+    loader = ImageLoader(DataConfig(image_size=16, video_views=6))
+    plain = ImageStore(loader, items)
+    store = ImageStore(loader, items, views=True)
+    rows = torch.tensor(store.rows(Modality.TOUCH, items))
+    assert torch.equal(store.batch(Modality.TOUCH, rows), plain.batch(Modality.TOUCH, [0, 1]))
+    n = [len(loader.views(it)) for it in items]
+    assert rows.tolist() == [0, n[0]]
+    drawn = [
+        store.draw_views(Modality.TOUCH, rows.repeat(50), np.random.default_rng(7))
+        for _ in range(2)
+    ]
+    assert torch.equal(drawn[0], drawn[1])
+    first, second = drawn[0].view(50, 2).T
+    assert set(first.tolist()) == set(range(n[0]))  # every view of each, nothing beyond
+    assert set(second.tolist()) == set(range(n[0], n[0] + n[1]))
+    same = plain.draw_views(Modality.TOUCH, torch.tensor([0, 1]), np.random.default_rng(7))
+    assert same.tolist() == [0, 1]
+
+
 def test_the_config_default_gain_is_the_measured_one():
     assert DataConfig().video_gain == video_module.DEFAULT_GAIN
     settings = PreprocessSettings.of(DataConfig())
@@ -330,6 +390,9 @@ def test_loader_names_a_bad_video(tmp_path: Path):
         ({"video_gain": 0.0}, "data.video_gain"),
         ({"video_frames": 0}, "data.video_frames"),
         ({"video_frames": 3, "video_frame": 0.5}, "exclude each other"),
+        ({"video_views": 0}, "data.video_views"),
+        ({"video_views": 4, "video_frames": 3}, "needs the deepest frame"),
+        ({"video_views_min": -0.1}, "data.video_views_min"),
     ],
 )
 def test_config_rejects_bad_video_settings(kw, msg):

@@ -46,7 +46,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import fill_holes
-from lookfeel.data.video import is_video, read_press
+from lookfeel.data.video import deep_frames, is_video, read_press
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -314,6 +314,7 @@ class ImageLoader:
         cd = cache_dir if cache_dir is not None else config.cache_dir
         self.cache_dir = None if cd is None else Path(cd) / self.settings.digest()
         self._memory: dict[Path, np.ndarray] = {}
+        self._views: dict[Path, np.ndarray] = {}
         self._lock = threading.Lock()
 
     def __len__(self) -> int:
@@ -377,8 +378,64 @@ class ImageLoader:
         """One item as a tensor: (1, S, S) for depth, (3, S, S) for colour and touch, in [0, 1]."""
         return to_tensor(self.array(self.frame_path(item), item.modality))
 
-    def preload(self, items: Iterable[Item], workers: int | None = None) -> int:
+    def has_views(self, item: Item) -> bool:
+        """Whether ``item`` has several training views (a press video with ``video_views`` > 1)."""
+        return (
+            item.modality is Modality.TOUCH
+            and self.config.video_views > 1
+            and is_video(self.frame_path(item))
+        )
+
+    def views(self, item: Item) -> np.ndarray:
+        """(V, S, S, 3) uint8 training views of one item: its image first (``load``'s), then
+        for a press video with ``video_views`` > 1 its other deep frames (`deep_frames`);
+        (1, ...) for every other item. Cached in memory and on disk like images."""
+        path = self.frame_path(item)
+        if not self.has_views(item):
+            return self.array(path, item.modality)[None]
+        v = self._views.get(path)
+        if v is None:
+            v = self._read_views(path)
+            with self._lock:
+                self._views[path] = v
+                self._memory.setdefault(path, v[0])
+        return v
+
+    def _read_views(self, path: Path) -> np.ndarray:
+        c = self.config
+        data = read_image_file(path)
+        disk: Path | None = None
+        if self.cache_dir is not None:
+            digest = hashlib.sha1(data).hexdigest()
+            disk = self.cache_dir / f"{digest}_views{c.video_views}_{c.video_views_min:g}.npy"
+            if disk.exists():
+                try:
+                    return np.load(disk, allow_pickle=False)
+                except (OSError, ValueError):
+                    pass  # a damaged cache entry is rebuilt below
+        press = read_press(
+            path,
+            data=data,
+            choose=lambda span: deep_frames(span, c.video_views, c.video_views_min),
+            subtract_reference=c.video_reference == "subtract",
+            gain=c.video_gain,
+        )
+        v = np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
+        if disk is not None:
+            buf = io.BytesIO()
+            np.save(buf, v, allow_pickle=False)
+            atomic_write(disk, lambda f: f.write(buf.getvalue()))
+        return v
+
+    def preload(
+        self, items: Iterable[Item], workers: int | None = None, *, views: bool = False
+    ) -> int:
         """Decode and preprocess items in parallel threads (Pillow and numpy release the GIL).
+
+        Args:
+            items: what to decode.
+            workers: threads (default ``config.workers``).
+            views: decode the training `views` of each item (its image among them).
 
         Returns:
             The number of files decoded now (those already cached are skipped).
@@ -386,19 +443,28 @@ class ImageLoader:
         Raises:
             ImageError: for the first file that cannot be used, naming it.
         """
-        todo: dict[Path, Modality] = {}
+        todo: dict[Path, Item] = {}
         for it in items:
             p = self.frame_path(it)
-            if p not in self._memory:
-                todo[p] = it.modality
+            wanted = views and self.has_views(it)
+            if p not in (self._views if wanted else self._memory):
+                todo[p] = it
+
+        def one(p: Path) -> None:
+            it = todo[p]
+            if views and self.has_views(it):
+                self.views(it)
+            else:
+                self.array(p, it.modality)
+
         n = workers or self.config.workers
         paths: Sequence[Path] = list(todo)
         if n <= 1 or len(paths) < 8:
             for p in paths:
-                self.array(p, todo[p])
+                one(p)
         else:
             with ThreadPoolExecutor(n) as pool:
-                list(pool.map(lambda p: self.array(p, todo[p]), paths))
+                list(pool.map(one, paths))
         return len(paths)
 
 

@@ -5,7 +5,9 @@ preprocesses each file once) and packs each modality into one tensor: RGB (colou
 uint8 (N, 3, S, S), exactly the loader's bytes; depth as float32 (N, 1, S, S), the loader's
 values (depth is mapped to [0, 1] from millimetres, which 8 bits would quantise). The tensors
 live on the GPU when they fit in a quarter of its free memory, else in pinned host memory and
-a batch is copied over asynchronously. A step then costs one gather and one conversion to
+a batch is copied over asynchronously. With ``views``, a press video's other deep frames are
+held after its image and a training step draws one of them (`ImageStore.draw_views`). A step
+then costs one gather and one conversion to
 float on the device: no file decoding and no per-image Python.
 """
 
@@ -35,6 +37,8 @@ class ImageStore:
         items: the items to hold (duplicates are held once).
         device: where batches are needed. On CUDA the store is put on the GPU when it fits
             (see ``on_device``), else pinned in host memory.
+        views: also hold each item's other training views (`ImageLoader.views`: the deep
+            frames of a press video with ``data.video_views`` > 1), drawn by `draw_views`.
 
     Example:
         >>> store = ImageStore(loader, catalog.items(Modality.TOUCH), device)
@@ -42,20 +46,35 @@ class ImageStore:
     """
 
     def __init__(
-        self, loader: ImageLoader, items: Iterable[Item], device: torch.device | str = "cpu"
+        self,
+        loader: ImageLoader,
+        items: Iterable[Item],
+        device: torch.device | str = "cpu",
+        *,
+        views: bool = False,
     ) -> None:
         self.device = torch.device(device)
         per: dict[Modality, dict[Item, None]] = {}
         for it in items:
             per.setdefault(it.modality, {})[it] = None
-        loader.preload([it for its in per.values() for it in its])
+        loader.preload([it for its in per.values() for it in its], views=views)
         self._rows: dict[Modality, dict[Item, int]] = {}
+        self._views: dict[Modality, Tensor] = {}
         host: dict[Modality, Tensor] = {}
         for m, its in per.items():
             unique = list(its)
-            self._rows[m] = {it: i for i, it in enumerate(unique)}
-            arrays = [loader.array(loader.frame_path(it), m) for it in unique]
-            stacked = np.stack(arrays)
+            arrays = [  # (V, ...) each, the image first
+                loader.views(it) if views else loader.array(loader.frame_path(it), m)[None]
+                for it in unique
+            ]
+            counts = np.array([len(a) for a in arrays])
+            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            self._rows[m] = {it: int(r) for it, r in zip(unique, starts, strict=True)}
+            if counts.max() > 1:  # views of row r: rows r .. r + views[r] - 1
+                at = np.ones(int(counts.sum()), dtype=np.int64)
+                at[starts] = counts
+                self._views[m] = torch.from_numpy(at)
+            stacked = np.concatenate(arrays)
             if stacked.dtype == np.uint8:  # (N, S, S, 3) -> (N, 3, S, S)
                 t = torch.from_numpy(stacked).permute(0, 3, 1, 2).contiguous()
             else:  # (N, S, S) float32 depth -> (N, 1, S, S)
@@ -89,13 +108,24 @@ class ImageStore:
         return sum(t.numel() * t.element_size() for t in self._data.values())
 
     def rows(self, modality: Modality, items: Sequence[Item]) -> list[int]:
-        """Row of each item in ``modality``'s tensor.
+        """Row of each item's image (its first view) in ``modality``'s tensor.
 
         Raises:
             KeyError: an item is not in the store.
         """
         table = self._rows[modality]
         return [table[it] for it in items]
+
+    def draw_views(self, modality: Modality, rows: Tensor, rng: np.random.Generator) -> Tensor:
+        """Rows of one training view of each image, drawn uniformly from ``rng`` (`rows`' own
+        row is its image, the first view); ``rows`` unchanged when no image has several."""
+        views = self._views.get(modality)
+        u = rng.random(len(rows))  # drawn in every case, so that one stream serves any data
+        if views is None:
+            return rows
+        n = views[rows.cpu()]
+        pick = torch.from_numpy(np.floor(u * n.numpy()).astype(np.int64))
+        return rows + pick.to(rows.device)
 
     def batch(self, modality: Modality, rows: Sequence[int] | Tensor) -> Tensor:
         """Images of ``rows`` on the device as float32 in the loader's scale ([0, 1]):

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -55,6 +55,7 @@ __all__ = [
     "PressSpan",
     "VideoError",
     "contact_frames",
+    "deep_frames",
     "detect_press",
     "difference_image",
     "frame_at",
@@ -523,6 +524,21 @@ def contact_frames(span: PressSpan, n: int = 1) -> list[int]:
     return [int(i) for i in np.linspace(span.start, span.end - 1, n).round()]
 
 
+def deep_frames(span: PressSpan, n: int, min_fraction: float = 0.0) -> list[int]:
+    """The deepest frame, then the others of ``contact_frames(span, n)`` pressed at least
+    ``min_fraction`` as deep (contact signal above the floor, relative to the peak's).
+
+    These are the training views of a press (``data.video_views``): the same contact at
+    slightly different forces, so that a network learns the object, not one frame. The shallow
+    start and end of the span (the gel barely touched) are left out.
+    """
+    if not 0.0 <= min_fraction <= 1.0:
+        raise ValueError(f"min_fraction must be in [0, 1]; got {min_fraction}")
+    need = span.floor + min_fraction * span.contrast
+    rest = [i for i in dict.fromkeys(contact_frames(span, n)) if i != span.peak]
+    return [span.peak, *(i for i in rest if span.strength[i] >= need)]
+
+
 def reference_frame(frames: np.ndarray, span: PressSpan) -> np.ndarray:
     """(H, W, 3) float32 mean of the no-contact reference frames of (T, H, W, 3) ``frames``."""
     a, b = span.reference
@@ -574,6 +590,7 @@ def read_press(
     max_frames: int | None = None,
     max_pixels: int | None = None,
     detect: Callable[..., PressSpan] = detect_press,
+    choose: Callable[[PressSpan], Sequence[int]] | None = None,
 ) -> Press:
     """Decode a press video, find its press and return the frames the model needs.
 
@@ -590,6 +607,8 @@ def read_press(
         max_frames: most frames decoded (default `MAX_VIDEO_FRAMES`).
         max_pixels: largest frame (default `DEFAULT_MAX_PIXELS`).
         detect: the press detector (`detect_press`), called with small greyscale frames.
+        choose: picks the frames from the span instead of ``frames`` and ``position`` (for
+            example ``lambda span: deep_frames(span, 12)``).
 
     Returns:
         `Press`.
@@ -602,7 +621,9 @@ def read_press(
     blob = _read_bytes(p) if data is None else data
     small, decoded = _scan(p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES)
     span = detect(small, p)
-    if position is not None and frames == 1:
+    if choose is not None:
+        indices = list(choose(span))
+    elif position is not None and frames == 1:
         indices = [frame_at(span, position)]
     else:
         indices = contact_frames(span, frames)

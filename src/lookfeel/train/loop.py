@@ -222,12 +222,21 @@ class _Batches:
             if table is not None
         }
 
-    def _pixels(self, m: Modality, picked: np.ndarray, aug_rng: np.random.Generator) -> Tensor:
-        """(B*k, C, S, S) images of picked pool indices (B, k): the global batch's draws are
-        made (so every process draws alike), this process's share is built."""
+    def _pixels(
+        self,
+        m: Modality,
+        picked: np.ndarray,
+        aug_rng: np.random.Generator,
+        view_rng: np.random.Generator,
+    ) -> Tensor:
+        """(B*k, C, S, S) images of picked pool indices (B, k), each one of its training views:
+        the global batch's draws are made (so every process draws alike), this process's share
+        is built."""
         n, k = picked.shape
-        mine = torch.from_numpy(picked[self.lo : self.hi].reshape(-1))
-        x = self.store.batch(m, self.store_rows[m][mine])
+        rows = self.store.draw_views(
+            m, self.store_rows[m][torch.from_numpy(picked.reshape(-1))], view_rng
+        )
+        x = self.store.batch(m, rows[self.lo * k : self.hi * k])
         aug = self.augmenters.get(m)
         if aug is not None:
             draws = aug.draw_batch(aug_rng, n * k, *self.store.shape(m))
@@ -238,6 +247,7 @@ class _Batches:
         b = self.ds.draw_batch(np.random.default_rng([self.seed, step]), self.batch)
         aug_rng = np.random.default_rng([self.seed, step, 1])
         copy_rng = np.random.default_rng([self.seed, step, 2])
+        view_rng = np.random.default_rng([self.seed, step, 3])
         lo, hi = self.lo, self.hi
         inputs: dict[str, Tensor] = {}
         for j, slot in enumerate(self.ds.slots):
@@ -254,7 +264,7 @@ class _Batches:
                 f = self.table.gather_rows(m, rows, copies).unflatten(0, (hi - lo, k))
                 inputs[slot] = f if m is Modality.TOUCH else f[:, 0]
                 continue
-            x = self._pixels(m, picked, aug_rng)
+            x = self._pixels(m, picked, aug_rng, view_rng)
             x = x.unflatten(0, (hi - lo, k)) if m is Modality.TOUCH else x
             if self.table is not None:  # cached run, live augmentation: trunk without grad
                 with torch.no_grad(), autocast(self.device):
@@ -635,7 +645,10 @@ def _train(
         m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
     }
     store = ImageStore(
-        loader, [it for its in table_items.values() for it in its] if cached else ds.items(), device
+        loader,
+        [it for its in table_items.values() for it in its] if cached else ds.items(),
+        device,
+        views=not cached,
     )
     table: FeatureTable | None = None
     if cached:
