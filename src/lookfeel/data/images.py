@@ -31,7 +31,7 @@ import json
 import os
 import threading
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -326,28 +326,34 @@ class ImageLoader:
             return item.frame(self.config.touch_frame)
         return item.path
 
-    def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
-        disk: Path | None = None
-        data = read_image_file(path)
-        if self.cache_dir is not None:
-            digest = hashlib.sha1(data).hexdigest()
-            disk = self.cache_dir / f"{digest}_{modality.value}.npy"
-            if disk.exists():
-                try:
-                    return np.load(disk, allow_pickle=False)
-                except (OSError, ValueError):
-                    pass  # a damaged cache entry is rebuilt below
-        if modality is Modality.DEPTH:
-            a = _preprocess_depth_file(path, decode_depth(path, data), self.config)
-        elif modality is Modality.TOUCH and is_video(path):
-            a = preprocess_rgb(self._video_image(path, data), modality, self.config)
-        else:
-            a = preprocess_rgb(decode_rgb(path, data), modality, self.config)
-        if disk is not None:
-            buf = io.BytesIO()
-            np.save(buf, a, allow_pickle=False)
-            atomic_write(disk, lambda f: f.write(buf.getvalue()))
+    def _cached(self, data: bytes, suffix: str, build: Callable[[], np.ndarray]) -> np.ndarray:
+        """``build()``, or its copy in the disk cache under the file's content hash and
+        ``suffix`` (written atomically after a build; a damaged entry is rebuilt)."""
+        if self.cache_dir is None:
+            return build()
+        disk = self.cache_dir / f"{hashlib.sha1(data).hexdigest()}_{suffix}.npy"
+        if disk.exists():
+            try:
+                return np.load(disk, allow_pickle=False)
+            except (OSError, ValueError):
+                pass  # rebuilt below
+        a = build()
+        buf = io.BytesIO()
+        np.save(buf, a, allow_pickle=False)
+        atomic_write(disk, lambda f: f.write(buf.getvalue()))
         return a
+
+    def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
+        data = read_image_file(path)
+
+        def build() -> np.ndarray:
+            if modality is Modality.DEPTH:
+                return _preprocess_depth_file(path, decode_depth(path, data), self.config)
+            if modality is Modality.TOUCH and is_video(path):
+                return preprocess_rgb(self._video_image(path, data), modality, self.config)
+            return preprocess_rgb(decode_rgb(path, data), modality, self.config)
+
+        return self._cached(data, modality.value, build)
 
     def _video_image(self, path: Path, data: bytes) -> np.ndarray:
         """The image of a press video the config asks for, as (H, W, 3) uint8: one frame, or
@@ -404,28 +410,18 @@ class ImageLoader:
     def _read_views(self, path: Path) -> np.ndarray:
         c = self.config
         data = read_image_file(path)
-        disk: Path | None = None
-        if self.cache_dir is not None:
-            digest = hashlib.sha1(data).hexdigest()
-            disk = self.cache_dir / f"{digest}_views{c.video_views}_{c.video_views_min:g}.npy"
-            if disk.exists():
-                try:
-                    return np.load(disk, allow_pickle=False)
-                except (OSError, ValueError):
-                    pass  # a damaged cache entry is rebuilt below
-        press = read_press(
-            path,
-            data=data,
-            choose=lambda span: deep_frames(span, c.video_views, c.video_views_min),
-            subtract_reference=c.video_reference == "subtract",
-            gain=c.video_gain,
-        )
-        v = np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
-        if disk is not None:
-            buf = io.BytesIO()
-            np.save(buf, v, allow_pickle=False)
-            atomic_write(disk, lambda f: f.write(buf.getvalue()))
-        return v
+
+        def build() -> np.ndarray:
+            press = read_press(
+                path,
+                data=data,
+                choose=lambda span: deep_frames(span, c.video_views, c.video_views_min),
+                subtract_reference=c.video_reference == "subtract",
+                gain=c.video_gain,
+            )
+            return np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
+
+        return self._cached(data, f"views{c.video_views}_{c.video_views_min:g}", build)
 
     def preload(
         self, items: Iterable[Item], workers: int | None = None, *, views: bool = False
