@@ -336,3 +336,41 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
     assert hardness["model_pooled"]["queries"] == 6  # one per object
     report = (tmp_path / "cv" / "cv.md").read_text()
     assert "Untouched control" in report and "| hardness |" in report
+
+
+def test_training_views_change_the_run_and_resume_exactly(recordings: Path, tmp_path: Path):
+    from lookfeel.config import load_config
+    from lookfeel.train import train
+
+    config = Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml"
+    tiny = [TINY[i + 1] for i in range(0, len(TINY), 2)] + [
+        "train.steps=6",
+        "train.checkpoint_every=2",
+    ]
+    cfg = load_config(RunConfig, config, tiny)
+    assert cfg.data.video_views == 12
+
+    def weights(run: Path) -> dict[str, torch.Tensor]:
+        return torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"]
+
+    with pytest.warns(UserWarning, match="hold no press"):
+        unbroken = weights(train(cfg, recordings, tmp_path / "unbroken").run_dir)
+
+    class Kill(Exception):
+        pass
+
+    def kill(step: int, _: object) -> None:
+        if step == 5:
+            raise Kill
+
+    with pytest.warns(UserWarning, match="hold no press"), pytest.raises(Kill):
+        train(cfg, recordings, tmp_path / "broken", on_step=kill)
+    with pytest.warns(UserWarning, match="hold no press"):
+        resumed = weights(train(cfg, recordings, tmp_path / "broken", resume=True).run_dir)
+    assert unbroken.keys() == resumed.keys()
+    assert [k for k in unbroken if not torch.equal(unbroken[k], resumed[k])] == []
+
+    one = load_config(RunConfig, config, [*tiny, "data.video_views=1"])
+    with pytest.warns(UserWarning, match="hold no press"):
+        single = weights(train(one, recordings, tmp_path / "single").run_dir)
+    assert any(not torch.equal(unbroken[k], single[k]) for k in unbroken)  # views were drawn

@@ -425,9 +425,13 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
-    """The saved config, with a longer ``train.steps`` allowed; any other change is an error."""
+    """The saved config, with a longer ``train.steps`` allowed; any other change is an error.
+    The class heads' classes the run resolved from its labels (`resolve_classes`) count as
+    given when the config names none."""
     old = from_dict(RunConfig, saved)
     a, b = _flatten(to_dict(old)), _flatten(to_dict(given))
+    if not given.model.classes:
+        b |= {k: v for k, v in a.items() if k.startswith("model.classes.")}
     changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k != "train.steps")
     if changed:
         raise ConfigError(
