@@ -374,3 +374,25 @@ def test_training_views_change_the_run_and_resume_exactly(recordings: Path, tmp_
     with pytest.warns(UserWarning, match="hold no press"):
         single = weights(train(one, recordings, tmp_path / "single").run_dir)
     assert any(not torch.equal(unbroken[k], single[k]) for k in unbroken)  # views were drawn
+
+
+def test_a_training_run_decodes_each_press_video_once(
+    recordings: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    from lookfeel.config import load_config
+    from lookfeel.data import images as images_module
+    from lookfeel.train import train
+
+    decoded: list[str] = []
+    read_press = images_module.read_press
+
+    def counting(path, *args, **kwargs):
+        decoded.append(Path(path).name)
+        return read_press(path, *args, **kwargs)
+
+    monkeypatch.setattr(images_module, "read_press", counting)
+    config = Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml"
+    tiny = [TINY[i + 1] for i in range(0, len(TINY), 2)] + ["train.steps=2"]
+    with pytest.warns(UserWarning, match="hold no press"):
+        train(load_config(RunConfig, config, tiny), recordings, tmp_path / "run")
+    assert len(decoded) == 19 and len(set(decoded)) == 19  # every video, views and all, once

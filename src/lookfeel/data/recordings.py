@@ -30,9 +30,12 @@ class Unpressed:
     reason: str
 
 
-def find_unpressed(catalog: Catalog, loader: ImageLoader) -> list[Unpressed]:
+def find_unpressed(
+    catalog: Catalog, loader: ImageLoader, *, views: bool = False
+) -> list[Unpressed]:
     """Decode every touch video of ``catalog`` with ``loader`` (kept in its cache) and return
-    those with no press.
+    those with no press. With ``views`` it decodes each video's training views
+    (`ImageLoader.views`, its image among them), so that a training run decodes each once.
 
     Raises:
         VideoError: a video cannot be decoded at all (naming it).
@@ -41,7 +44,10 @@ def find_unpressed(catalog: Catalog, loader: ImageLoader) -> list[Unpressed]:
 
     def check(item: Item) -> Unpressed | None:
         try:
-            loader.array(loader.frame_path(item), item.modality)
+            if views:
+                loader.views(item)
+            else:
+                loader.array(loader.frame_path(item), item.modality)
         except NoPressError as e:
             return Unpressed(item, e.reason)
         return None
@@ -54,13 +60,16 @@ def find_unpressed(catalog: Catalog, loader: ImageLoader) -> list[Unpressed]:
     return [u for u in found if u is not None]
 
 
-def drop_unpressed(catalog: Catalog, loader: ImageLoader, warn: bool = True) -> Catalog:
-    """The catalog without its touch videos that hold no press (a warning names each).
+def drop_unpressed(
+    catalog: Catalog, loader: ImageLoader, warn: bool = True, *, views: bool = False
+) -> Catalog:
+    """The catalog without its touch videos that hold no press (a warning names each);
+    ``views`` as in `find_unpressed`.
 
     Raises:
         VideoError: a video cannot be decoded at all.
     """
-    bad = find_unpressed(catalog, loader)
+    bad = find_unpressed(catalog, loader, views=views)
     if not bad:
         return catalog
     if warn:

@@ -529,8 +529,9 @@ def deep_frames(span: PressSpan, n: int, min_fraction: float = 0.0) -> list[int]
     ``min_fraction`` as deep (contact signal above the floor, relative to the peak's).
 
     These are the training views of a press (``data.video_views``): the same contact at
-    slightly different forces, so that a network learns the object, not one frame. The shallow
-    start and end of the span (the gel barely touched) are left out.
+    slightly different forces, so that a network learns the object, not one frame. A
+    ``min_fraction`` above 0 leaves out the shallow start and end of the span (the gel barely
+    touched).
     """
     if not 0.0 <= min_fraction <= 1.0:
         raise ValueError(f"min_fraction must be in [0, 1]; got {min_fraction}")

@@ -602,7 +602,9 @@ def _train(
     modalities = t.modalities
 
     loader = ImageLoader(config.data)
-    catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader)
+    cached = t.cache_trunk and config.model.resolved_freeze != "none"
+    # A live run trains on the press videos' views: decode them once, while finding the presses.
+    catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
     catalog = _with_clusters(catalog, config)
     config = resolve_classes(catalog, config)
     if config.model.num_properties and config.model.num_properties != len(catalog.label_columns):
@@ -643,7 +645,6 @@ def _train(
     optimizer = _adam(params, t.lr, t.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
 
-    cached = t.cache_trunk and config.model.resolved_freeze != "none"
     started = time.perf_counter()
     table_items = {
         m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
