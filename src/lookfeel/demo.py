@@ -28,7 +28,7 @@ from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import evaluate_checkpoint, write_report
 from lookfeel.reproduce import BUDGETS, ReproduceResult, headline, reproduce
 from lookfeel.synth import SynthConfig, generate
-from lookfeel.synth.world import MANIFEST
+from lookfeel.synth.world import GENERATOR_VERSION, MANIFEST
 
 __all__ = ["DEMO_BUDGETS", "DemoResult", "print_demo_result", "run_demo"]
 
@@ -48,13 +48,18 @@ class DemoResult:
 
 
 def _complete_world(path: Path, config: SynthConfig) -> bool:
-    """Whether ``path`` holds a finished synthetic world made with ``config``."""
+    """Whether ``path`` holds a finished synthetic world made with ``config`` by this version
+    of the generator."""
     try:
         manifest = json.loads((path / MANIFEST).read_text())
     except (OSError, ValueError):
         return False
     wanted = {k: v for k, v in config.to_dict().items() if k != "workers"}
-    return bool(manifest.get("status") == "complete" and manifest.get("config") == wanted)
+    return bool(
+        manifest.get("status") == "complete"
+        and manifest.get("version") == GENERATOR_VERSION
+        and manifest.get("config") == wanted
+    )
 
 
 def run_demo(

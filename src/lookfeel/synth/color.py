@@ -3,9 +3,14 @@
 The print lives on the cloth (material coordinates), so it bends into the folds with it. Shading
 is Lambertian with a soft key light whose direction, strength and colour temperature change from
 capture to capture, plus ambient light darkened in the folds' hollows (a cavity term from the
-depth buffer), a satin-like highlight and a velvet-like rim for fabrics with sheen. Exposure and
-white balance vary per capture as they would between photos; sensor noise is added last.
-None of the appearance depends on the fabric's physics except through the drape's shape.
+depth buffer). The material shows as a camera resolves it at a drape's scale (a weave does not:
+one pixel is ~3 mm): a specular lobe as strong and sharp as the fibre and weave make it (silk
+satin's sheen), hairiness as asperity scattering, a bright rim at grazing angles and shading
+that wraps softly round the folds (fleece's matte fuzz: Koenderink & Pont, "The secret of
+velvety skin", Machine Vision and Applications 2003), and light let through a thin, light
+cloth, which flattens its shading (`Fabric.translucency`). Exposure and white balance vary per
+capture as they would between photos; sensor noise is added last. Colour and print are
+independent of everything else.
 """
 
 from __future__ import annotations
@@ -165,20 +170,32 @@ def render_color(
     key = np.array([math.sin(az) * math.cos(el), -math.sin(el), -math.cos(az) * math.cos(el)])
     key /= np.linalg.norm(key)
     ambient = rng.uniform(0.25, 0.45)
-    lambert = np.clip(normal @ key.astype(np.float32), 0.0, 1.0)
+    # Hairy cloth scatters light round its folds: a wrapped diffuse term (softer shading).
+    wrap = 0.6 * fabric.fuzz
+    lambert = np.clip((normal @ key.astype(np.float32) + wrap) / (1.0 + wrap), 0.0, 1.0)
     # Hollows between folds see less of the room's light.
     cavity = np.clip(ndimage.gaussian_filter(z, 3.0) - z, -40.0, 0.0)
     occl = np.exp(cavity / 25.0)
-    shade = (ambient * occl + (1.0 - ambient) * lambert)[..., None]
-    img = albedo * shade
-    # Sheen: a soft specular lobe and a bright rim at grazing angles.
+    shade = ambient * occl + (1.0 - ambient) * lambert
+    # A thin, light cloth lets light through from the room behind and round it: its shading
+    # flattens towards an even glow.
+    tau = fabric.translucency
+    shade = np.where(is_cloth, (1.0 - tau) * shade + tau * (0.35 + 0.4 * ambient), shade)
+    img = albedo * shade[..., None]
+    # Specular lobe (Blinn-Phong) as strong and sharp as the material makes it, white.
     view = np.array([0.0, 0.0, -1.0], np.float32)
     half = key + view
     half /= np.linalg.norm(half)
-    spec = np.clip(normal @ half.astype(np.float32), 0.0, 1.0) ** 24
-    rim = (1.0 - np.abs(normal[..., 2])) ** 3
-    sheen = fabric.sheen * is_cloth
-    img = img + (sheen * (0.5 * spec + 0.25 * rim * lambert))[..., None]
+    n_dot_h = np.clip(normal @ half.astype(np.float32), 0.0, 1.0)
+    gloss = fabric.gloss
+    spec = n_dot_h**gloss * ((gloss + 8.0) / 32.0)  # energy-normalised: 1 at peak for gloss 24
+    # Asperity scattering: fibre ends light up at grazing angles, in the fibres' own colour.
+    rim = (1.0 - np.abs(normal[..., 2])) ** 2
+    on = is_cloth[..., None]
+    img = img + on * (fabric.sheen * 0.5 * spec * np.clip(lambert, 0.0, 1.0))[..., None]
+    img = img + on * (fabric.fuzz * 0.35 * rim * (ambient + lambert))[..., None] * (
+        0.4 * albedo + 0.12
+    )
 
     # Camera: exposure and white balance per capture, then sRGB and noise.
     temp = rng.uniform(-0.12, 0.12)

@@ -137,7 +137,8 @@ def write_contact_sheet(
         draw = ImageDraw.Draw(label)
         text = (
             f"{fid}\nbend length {f.bending_length_mm:.0f} mm\nthick {f.thickness_mm:.1f} mm\n"
-            f"density {f.density:.2f}\nstiff {f.stiffness:.1f}\n{f.weave}, {f.print_kind}"
+            f"density {f.density:.2f}\nstiff {f.stiffness:.1f}\n"
+            f"{f.material} {f.weave}, {f.print_kind}"
         )
         draw.multiline_text((6, 8), text, fill=(0, 0, 0), spacing=4)
         strips.append([label, *tiles])

@@ -1,10 +1,14 @@
 """Fabrics of the synthetic world: physical, surface and appearance parameters, and their labels.
 
 A `Fabric` holds the world's truth. Four physical parameters (paper section 3: thickness,
-areal density, stiffness, stretchiness) are drawn like the 100 labelled fabrics of GelFabric;
-the surface (weave, yarn period, relief, pile) follows from them; the appearance (colour,
-print, sheen) is drawn independently of them, so a network must look past it. Human-style
-labels add the paper's measurement and rating noise, and k-means on them gives the clusters.
+areal density, stiffness, stretchiness) are drawn like the 100 labelled fabrics of GelFabric.
+The material (fibre: cotton, linen, wool, silk, synthetic, fleece) is drawn given them, as
+real fabrics come (thick, fluffy ones are mostly fleece or wool; thin, light ones silk or
+synthetic), and with the physics it sets what both senses perceive: the weave, yarn period,
+relief and hairiness a fingertip sensor feels, and the sheen, gloss, hairiness and
+translucency a camera sees. Colour and print are drawn independently of everything else, so a
+network must look past them. Human-style labels add the paper's measurement and rating noise,
+and k-means on them gives the clusters.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "LABEL_COLUMNS",
+    "MATERIALS",
     "PRINT_KINDS",
     "WEAVES",
     "Fabric",
@@ -34,6 +39,7 @@ __all__ = [
 
 LABEL_COLUMNS = ("thickness_mm", "density", "stiffness", "stretchiness")
 WEAVES = ("plain", "twill", "satin", "knit", "pile")
+MATERIALS = ("cotton", "linen", "wool", "silk", "synthetic", "fleece")
 PRINT_KINDS = ("solid", "stripes", "checks", "dots", "blobs", "camo")
 
 # Marginal deciles (0, 10, ..., 100 %) of the 100 labelled GelFabric fabrics, and the
@@ -71,6 +77,8 @@ class Fabric:
         thickness_mm, density, stiffness, stretchiness: the physical parameters on the scales
             of the paper's labels (density in label units, read as 100 g/m^2; stiffness on the
             0-5+ rating scale; stretchiness 0, 0.5 or 1).
+        material: the fibre family, one of `MATERIALS`; with the weave it sets the optical and
+            surface properties below.
         weave: surface structure, one of `WEAVES`.
         yarn_period_mm: period of the weave (or knit loop, or pile tuft) on the surface.
         relief_mm: peak-to-mean height of that surface structure.
@@ -79,7 +87,11 @@ class Fabric:
         print_rgb: further colours of the print (linear RGB).
         print_scale_mm: size of the print's motif on the fabric.
         print_angle: orientation of the print in radians.
-        sheen: 0 matte ... 1 satin-like specular and velvet-like rim.
+        sheen: strength of the specular highlight, 0 matte ... 1 (silk satin).
+        gloss: sharpness of that highlight (Blinn-Phong exponent): high for filament silk and
+            polyester, low for spun cotton.
+        fuzz: hairiness 0 ... 1: fibre ends standing off the surface. Felt as fine roughness;
+            seen as a soft, bright rim at grazing angles and softer shading.
         side_mm: side of the (square) sample, about 1 m.
         appearance_seed: seed of the print's random pattern.
     """
@@ -89,6 +101,7 @@ class Fabric:
     density: float
     stiffness: float
     stretchiness: float
+    material: str
     weave: str
     yarn_period_mm: float
     relief_mm: float
@@ -98,6 +111,8 @@ class Fabric:
     print_scale_mm: float
     print_angle: float
     sheen: float
+    gloss: float
+    fuzz: float
     side_mm: float
     appearance_seed: int
 
@@ -131,6 +146,15 @@ class Fabric:
         k = (self.bulk_density / 80.0) ** 1.5
         return float(np.clip(k / (1.0 + k), 0.12, 0.9))
 
+    @property
+    def translucency(self) -> float:
+        """Share of light a single layer lets through, in [0, 1): thin, light cloth (voile,
+        chiffon) glows; a heavy one does not. Beer-Lambert in the areal density, with filament
+        fibres (silk, polyester) more transparent than spun or hairy ones, which scatter."""
+        fibre = {"silk": 1.0, "synthetic": 0.9, "linen": 0.8, "cotton": 0.7, "wool": 0.45}
+        kg_m2 = self.density * _DENSITY_UNIT_KG_M2
+        return float(fibre.get(self.material, 0.3) * math.exp(-kg_m2 / 0.05))
+
     def truth(self) -> dict[str, float | str]:
         """The world's parameters of this fabric as plain values (for ``synth.json``)."""
         return {
@@ -141,12 +165,16 @@ class Fabric:
             "stretchiness": self.stretchiness,
             "bending_length_mm": round(self.bending_length_mm, 3),
             "bending_rigidity_uNm": round(self.bending_rigidity_nm * 1e6, 4),
+            "material": self.material,
             "weave": self.weave,
             "yarn_period_mm": round(self.yarn_period_mm, 4),
             "relief_mm": round(self.relief_mm, 4),
             "compliance": round(self.compliance, 4),
             "print_kind": self.print_kind,
             "sheen": round(self.sheen, 3),
+            "gloss": round(self.gloss, 2),
+            "fuzz": round(self.fuzz, 3),
+            "translucency": round(self.translucency, 4),
         }
 
 
@@ -175,18 +203,58 @@ def _physics(rng: np.random.Generator) -> tuple[float, float, float, float]:
     return thickness, density, stiffness, stretch
 
 
+def _pick(rng: np.random.Generator, options: dict[str, float]) -> str:
+    names = list(options)
+    p = np.asarray([options[n] for n in names], np.float64)
+    return str(names[int(rng.choice(len(names), p=p / p.sum()))])
+
+
+def _material(thickness: float, density: float, stretch: float, rng: np.random.Generator) -> str:
+    """The fibre family, drawn given the physics as real fabrics come."""
+    bulk = density * 100.0 / thickness
+    if thickness > 3.0 and bulk < 45.0:  # thick and fluffy: fleece, blankets, terry
+        return _pick(rng, {"fleece": 0.6, "wool": 0.25, "cotton": 0.15})
+    if stretch >= 0.5:  # jersey and other knits
+        return _pick(rng, {"synthetic": 0.4, "cotton": 0.4, "wool": 0.2})
+    if thickness < 1.2 and density < 1.2:  # thin and light: lining, chiffon, voile, shirting
+        return _pick(rng, {"silk": 0.35, "synthetic": 0.4, "cotton": 0.15, "linen": 0.1})
+    return _pick(rng, {"cotton": 0.4, "linen": 0.15, "wool": 0.2, "synthetic": 0.2, "silk": 0.05})
+
+
+# Per material: the chance of a knit when the fabric stretches, the woven structures it comes
+# in, and its optics and hairiness (specular strength, Blinn-Phong exponent, fuzz).
+_WOVEN = {
+    "cotton": {"plain": 0.55, "twill": 0.45},
+    "linen": {"plain": 0.85, "twill": 0.15},
+    "wool": {"twill": 0.6, "plain": 0.4},
+    "silk": {"satin": 0.6, "plain": 0.4},
+    "synthetic": {"satin": 0.4, "plain": 0.4, "twill": 0.2},
+}
+_KNIT_P = {"cotton": 0.6, "linen": 0.0, "wool": 0.7, "silk": 0.5, "synthetic": 0.75}
+_OPTICS = {  # sheen, gloss, fuzz
+    "cotton": (0.05, 8.0, 0.3),
+    "linen": (0.06, 10.0, 0.2),
+    "wool": (0.02, 5.0, 0.6),
+    "silk": (0.55, 40.0, 0.05),
+    "synthetic": (0.3, 25.0, 0.12),
+    "fleece": (0.0, 5.0, 0.9),
+}
+
+
 def _surface(
-    thickness: float, density: float, stretch: float, rng: np.random.Generator
+    material: str, thickness: float, density: float, stretch: float, rng: np.random.Generator
 ) -> tuple[str, float, float]:
-    """Weave, yarn period and relief that follow from the physical parameters."""
+    """Weave, yarn period and relief that follow from the material and the physics."""
     bulk = density * 100.0 / thickness
     r = rng.random()
-    if thickness > 3.0 and bulk < 45.0 and r < 0.85:
-        weave = "pile"  # thick and fluffy: terry, fleece, faux fur
-    elif stretch >= 0.5 and r < 0.35 + 0.5 * stretch:
+    if material == "fleece" or (
+        material == "cotton" and thickness > 3.0 and bulk < 45.0 and r < 0.5
+    ):
+        weave = "pile"  # fleece, faux fur, terry
+    elif stretch >= 0.5 and r < _KNIT_P.get(material, 0.5):
         weave = "knit"
     else:
-        weave = str(rng.choice(["plain", "twill", "satin"], p=[0.5, 0.32, 0.18]))
+        weave = _pick(rng, _WOVEN.get(material, {"plain": 1.0}))
     jitter = math.exp(0.2 * rng.standard_normal())
     # Yarn diameter grows with thickness (a plain weave is about two yarns thick).
     period = float(np.clip(0.24 * thickness**0.55 * jitter, 0.12, 1.6))
@@ -204,6 +272,21 @@ def _surface(
     return weave, period, float(relief)
 
 
+def _optics(material: str, weave: str, rng: np.random.Generator) -> tuple[float, float, float]:
+    """Sheen, gloss and fuzz of the material, each varying a little from fabric to fabric.
+
+    A satin weave's long floats shine more than a plain weave of the same fibre; a knit's
+    loops and a pile's tufts are hairier.
+    """
+    sheen, gloss, fuzz = _OPTICS[material]
+    sheen *= {"satin": 1.5, "plain": 1.0, "twill": 1.1}.get(weave, 0.7)
+    fuzz += {"knit": 0.1, "pile": 0.1}.get(weave, 0.0)
+    sheen = float(np.clip(sheen * math.exp(0.25 * rng.standard_normal()), 0.0, 1.0))
+    gloss = float(gloss * math.exp(0.2 * rng.standard_normal()))
+    fuzz = float(np.clip(fuzz + 0.06 * rng.standard_normal(), 0.0, 1.0))
+    return sheen, gloss, fuzz
+
+
 def _srgb_to_linear(c: float) -> float:
     return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
 
@@ -218,9 +301,7 @@ def _random_colour(rng: np.random.Generator) -> tuple[float, float, float]:
 
 def _appearance(
     rng: np.random.Generator,
-) -> tuple[
-    tuple[float, float, float], str, tuple[tuple[float, float, float], ...], float, float, float
-]:
+) -> tuple[tuple[float, float, float], str, tuple[tuple[float, float, float], ...], float, float]:
     base = _random_colour(rng)
     # Paper section 3: about 60% of the fabrics are of a single colour, the rest printed.
     kind = "solid" if rng.random() < 0.6 else str(rng.choice(PRINT_KINDS[1:]))
@@ -228,8 +309,7 @@ def _appearance(
     extra = tuple(_random_colour(rng) for _ in range(n_extra))
     scale = float(math.exp(rng.uniform(math.log(12.0), math.log(140.0))))
     angle = float(rng.choice([0.0, math.pi / 2, math.pi / 4, rng.uniform(0, math.pi)]))
-    sheen = float(rng.beta(1.1, 3.5))
-    return base, kind, extra, scale, angle, sheen
+    return base, kind, extra, scale, angle
 
 
 def make_fabric(
@@ -240,17 +320,21 @@ def make_fabric(
     stretch: float,
     seed: int,
 ) -> Fabric:
-    """A fabric with the given physics; surface and appearance drawn from ``(seed, id)``."""
+    """A fabric with the given physics; material, surface and appearance drawn from
+    ``(seed, id)`` (the material and surface given the physics, colour and print apart)."""
     srng = np.random.default_rng([seed, 11, fabric_id])
     arng = np.random.default_rng([seed, 12, fabric_id])
-    weave, period, relief = _surface(thickness, density, stretch, srng)
-    base, kind, extra, scale, angle, sheen = _appearance(arng)
+    material = _material(thickness, density, stretch, srng)
+    weave, period, relief = _surface(material, thickness, density, stretch, srng)
+    sheen, gloss, fuzz = _optics(material, weave, srng)
+    base, kind, extra, scale, angle = _appearance(arng)
     return Fabric(
         fabric_id=fabric_id,
         thickness_mm=thickness,
         density=density,
         stiffness=stiffness,
         stretchiness=stretch,
+        material=material,
         weave=weave,
         yarn_period_mm=period,
         relief_mm=relief,
@@ -260,6 +344,8 @@ def make_fabric(
         print_scale_mm=scale,
         print_angle=angle,
         sheen=sheen,
+        gloss=gloss,
+        fuzz=fuzz,
         side_mm=float(srng.uniform(900.0, 1100.0)),
         appearance_seed=int(arng.integers(0, 2**31 - 1)),
     )

@@ -9,10 +9,16 @@ was fitted to a published no-contact frame of such a sensor (a co-author's calib
 A press, step by step:
 
 1. The fabric's surface height under the sensor, in mm above the table: the weave (or knit, or
-   pile) relief of one layer, with the cloth's gentle waviness; for a fold, a loop of cloth
-   lying on the single layer: two layers and the gap inside the loop, rounded at its edges
-   with radius ``t + gap / 2``. The gap is what the loop's bending stiffness holds open against
-   the press (``gap ~ sqrt(B / F)``), so it shrinks as the force grows.
+   pile) relief of one layer, roughened by the fibres' hairiness, with the cloth's gentle
+   waviness. For a fold (the paper's "flat fold"), the cloth folded back over itself: two
+   layers on one side of the edge, parting near it where the loop at the edge holds them
+   open by ``gap``; the edge a half circle of radius ``t + gap / 2``; the table beyond. Left
+   alone, the loop stands open to about the bending length ``c = (B / w)^(1/3)``, the
+   elasto-gravity length of a heavy elastica (Wang, "Folding of elastica - similarity
+   solutions", J. Appl. Mech. 1981; Vella, Boudaoud & Adda-Bedia, "Statics and inertial
+   dynamics of a ruck in a rug", PRL 2009). Pressed with a line load ``q``, bending resists
+   as ``q ~ 4 B / gap^2`` (a ring pressed flat), so the gap is ``(1 / c^2 + q / 4B)^(-1/2)``:
+   open at first touch, closing as the force rises, wider for a stiffer cloth at every force.
 2. The domed gel comes down until the force (gel stiffness times indentation, integrated)
    reaches the frame's target. Gel and fabric are springs in series: a fluffy fabric takes most
    of the press itself and the gel hardly moves (`Fabric.compliance`).
@@ -23,7 +29,8 @@ A press, step by step:
 6. Camera noise.
 
 Frames of one press share position, orientation and texture phase; the force rises frame by
-frame. Position, orientation and peak force are random per press.
+frame, geometrically from first contact (0.4-0.8 N) to the press's peak (3-10 N), so the frames
+show the fold flattening. Position, orientation and forces are random per press.
 """
 
 from __future__ import annotations
@@ -39,7 +46,15 @@ from scipy import ndimage
 from lookfeel.modality import PressKind
 from lookfeel.synth.fabric import Fabric
 
-__all__ = ["FIELD_MM", "Sensor", "no_contact_frame", "render_press", "sensor"]
+__all__ = [
+    "FIELD_MM",
+    "Sensor",
+    "fold_gap_mm",
+    "no_contact_frame",
+    "press_forces",
+    "render_press",
+    "sensor",
+]
 
 F32 = NDArray[np.float32]
 
@@ -186,7 +201,8 @@ def _weave(fabric: Fabric, x: F32, y: F32, rng: np.random.Generator, pitch: floa
     rows, cols = x.shape
     oy, ox = int(rng.integers(0, rows)), int(rng.integers(0, cols))
     fuzz = _fuzz_bank(rows, cols)[oy : oy + rows, ox : ox + cols]
-    return (a * (h + 0.25 * fuzz)).astype(np.float32)
+    # Hairy fibres (wool, fleece) roughen the surface more than smooth filaments (silk).
+    return (a * (h + (0.1 + 0.6 * fabric.fuzz) * fuzz)).astype(np.float32)
 
 
 @lru_cache(maxsize=4)
@@ -212,28 +228,50 @@ class _Pose:
     shift: tuple[float, float]
     fold_angle: float
     fold_offset: float
-    fold_flat_mm: float
     peak_force: float
+    first_force: float
     tilt: tuple[float, float]
     shear: tuple[float, float]
     exposure: float
 
 
-def _fold_profile(u: F32, fabric: Fabric, pose: _Pose, force: float) -> F32:
-    """Height (mm) above the base layer of a fold lying across the field, at distance ``u``."""
+def fold_gap_mm(fabric: Fabric, force: float) -> float:
+    """The gap (mm) inside a fold's loop under the sensor pressing with ``force`` (N).
+
+    At no load the loop stands open to about the bending length; a line load ``q`` (the force
+    over the field's width) closes it to where bending holds it, ``q = 4 B / gap^2``.
+    """
+    q = max(force, 0.0) / FIELD_MM[0]  # N/mm
+    b = fabric.bending_rigidity_nm * 1000.0  # N mm
+    free = fabric.bending_length_mm
+    return float(1.0 / math.sqrt(1.0 / free**2 + q / (4.0 * b)))
+
+
+def _fold_surface(base: F32, table: F32, u: F32, fabric: Fabric, force: float) -> F32:
+    """Height (mm) of a flat fold under the sensor: the cloth folded back over itself.
+
+    ``u`` is the distance from the fold's edge (mm; negative over the folded cloth). Over the
+    fold two layers lie one on the other, and near the edge they part where the loop holds
+    them open: the top layer stands ``gap * exp(u / L)`` above the plateau, ``L = 1.3 gap`` (a
+    loop about as long as it is open). The edge itself is the loop's end, a half circle of
+    radius ``t + gap / 2``; beyond it lies the table. A limp fold is a crisp step; a stiff one
+    rises in a ridge along its edge, and both flatten as the force rises (`fold_gap_mm`).
+    """
     t = fabric.thickness_mm
-    # The loop's gap is what its bending stiffness holds open against the press: a loop
-    # pressed flat takes F / L ~ B / gap^2 (L: the field's width).
-    line_load = max(force, 0.05) / FIELD_MM[0] * 1000.0  # N/m
-    gap = 2.0 * 1000.0 * math.sqrt(fabric.bending_rigidity_nm / line_load)  # mm
-    gap = min(gap, 6.0)
+    gap = fold_gap_mm(fabric, force)
     radius = t + 0.5 * gap
-    half = radius + 0.5 * pose.fold_flat_mm
-    # A stadium: flat top of the given length, quarter-circle shoulders of ``radius``.
-    d = np.maximum(np.abs(u) - 0.5 * pose.fold_flat_mm, 0.0)
-    shoulder = np.sqrt(np.maximum(radius**2 - np.minimum(d, radius) ** 2, 0.0))
-    prof = np.where(np.abs(u) <= half, shoulder, 0.0) * ((2 * t + gap) / (2 * radius))
-    return prof.astype(np.float32)
+    opening = 1.3 * gap
+    flap = t + gap * np.exp(np.minimum(u, 0.0) / opening)
+    cap = radius + np.sqrt(np.maximum(radius**2 - np.minimum(u, radius) ** 2, 0.0)) - t
+    delta = np.where(u <= 0.0, flap, cap)
+    return np.where(u > radius, table, base + delta).astype(np.float32)
+
+
+def press_forces(pose_peak: float, first: float, frames: int) -> list[float]:
+    """Forces (N) of a press's frames: geometric from first contact to the peak."""
+    if frames == 1:
+        return [pose_peak]
+    return [first * (pose_peak / first) ** (k / (frames - 1)) for k in range(frames)]
 
 
 def render_press(
@@ -259,10 +297,10 @@ def render_press(
     pose = _Pose(
         angle=float(rng.uniform(0, math.pi)),
         shift=(float(rng.uniform(0, 50)), float(rng.uniform(0, 50))),
-        fold_angle=float(rng.uniform(0, math.pi)),
+        fold_angle=float(rng.uniform(0, 2 * math.pi)),
         fold_offset=float(rng.uniform(-0.22, 0.22) * FIELD_MM[1]),
-        fold_flat_mm=float(rng.uniform(0.0, 1.0) * fabric.thickness_mm),
         peak_force=float(math.exp(rng.uniform(math.log(3.0), math.log(10.0)))),
+        first_force=float(rng.uniform(0.4, 0.8)),
         tilt=(float(rng.normal(0, 0.012)), float(rng.normal(0, 0.012))),
         shear=(float(rng.normal(0, 0.06)), float(rng.normal(0, 0.06))),
         exposure=float(rng.normal(1.0, 0.02)),
@@ -277,6 +315,7 @@ def render_press(
     texture = _weave(fabric, xr, yr, rng, s.pitch_mm)
     wavy = _waviness((h, w), rng, 0.04 + 0.03 * math.sqrt(t))
     base = (t + texture + wavy).astype(np.float32)
+    table = (0.3 * wavy).astype(np.float32)  # beyond a fold's edge: the table
     if kind is PressKind.FOLD:
         u = math.cos(pose.fold_angle) * x + math.sin(pose.fold_angle) * y - pose.fold_offset
         u = u.astype(np.float32)
@@ -291,9 +330,9 @@ def render_press(
     noise = _noise_bank(h, w)
 
     out = []
-    for k in range(1, frames + 1):
-        force = pose.peak_force * (k / frames) ** 1.3
-        surf = base + _fold_profile(u, fabric, pose, force) if kind is PressKind.FOLD else base
+    forces = press_forces(pose.peak_force, pose.first_force, frames)
+    for k, force in enumerate(forces, start=1):
+        surf = _fold_surface(base, table, u, fabric, force) if kind is PressKind.FOLD else base
         # Bisection on the sensor's height: force = stiffness * sum of gel indentation.
         gap = surf[sub] - dome[sub]
         top = float(gap.max())

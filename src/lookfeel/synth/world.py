@@ -58,10 +58,13 @@ from lookfeel.synth.fabric import (
 from lookfeel.synth.gelsight import render_press, sensor
 from lookfeel.synth.scene import color_camera, depth_camera
 
-__all__ = ["MANIFEST", "generate", "render_fabric"]
+__all__ = ["GENERATOR_VERSION", "MANIFEST", "generate", "render_fabric"]
 
 MANIFEST = "synth.json"
 _GENERATOR = "lookfeel.synth"
+GENERATOR_VERSION = 2
+"""Bumped whenever the same config renders different images (a world made by an earlier
+version is not reused): 2 = touch carries the fold's mechanics and look the material (#17)."""
 _PRESS_BASE = {PressKind.FLAT: 1000, PressKind.FOLD: 2000}
 _KIND_CODE = {PressKind.FLAT: 1, PressKind.FOLD: 2}
 
@@ -347,6 +350,7 @@ def generate(
 
     manifest: dict[str, object] = {
         "generator": _GENERATOR,
+        "version": GENERATOR_VERSION,
         "status": "running",
         "mode": "labels" if lf is not None else "sampled",
         "labels_source": None if lf is None else str(lf.path),
