@@ -38,7 +38,7 @@ from lookfeel.data import ImageLoader
 from lookfeel.data.catalog import Item
 from lookfeel.data.video import VIDEO_SUFFIXES, VideoError, read_press
 from lookfeel.modality import Modality
-from lookfeel.synth.world import _die_with_parent
+from lookfeel.synth.world import die_with_parent
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_VIDEOS = HERE.parent.parent / "shared" / "data" / "physiclear" / "videos"
@@ -69,7 +69,7 @@ def _pool_run(paths: list[str], workers: int) -> tuple[float, float, list]:
     with ProcessPoolExecutor(
         workers,
         mp_context=get_context(_START),
-        initializer=_die_with_parent,
+        initializer=die_with_parent,
         initargs=(os.getpid(),),
     ) as pool:
         found = list(pool.map(_press, paths, chunksize=max(1, len(paths) // (8 * workers))))

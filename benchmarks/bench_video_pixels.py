@@ -40,7 +40,7 @@ from lookfeel.data.video import (
     reference_frame,
 )
 from lookfeel.metrics.scoring import ScoringProtocol, score_pairs
-from lookfeel.synth.world import _die_with_parent
+from lookfeel.synth.world import die_with_parent
 
 GAINS = (2, 4, 8, 16, 32, 64)
 MEANS = (3, 5, 9, 17)
@@ -100,7 +100,7 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
     with ProcessPoolExecutor(
         workers,
         mp_context=get_context(_START),
-        initializer=_die_with_parent,
+        initializer=die_with_parent,
         initargs=(os.getpid(),),
     ) as pool:
         found = [(p, f) for p, f in pool.map(features, paths, chunksize=8) if f is not None]

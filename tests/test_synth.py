@@ -346,13 +346,19 @@ def _cloth_photo(fabric: Fabric) -> tuple[np.ndarray, np.ndarray]:
     return photo(fabric), (bright - dark) > 20
 
 
-def test_a_shinier_material_shows_more_specular_highlight() -> None:
-    grey = dataclasses.replace(
+def _grey(level: float, **changes: object) -> Fabric:
+    """A plain fabric of one grey, its other properties changed as given."""
+    return dataclasses.replace(
         make_fabric(2, 1.5, 1.5, 3.0, 0.0, seed=0),
-        base_rgb=(0.2, 0.2, 0.2),
+        base_rgb=(level, level, level),
         print_kind="solid",
         print_rgb=(),
+        **changes,
     )
+
+
+def test_a_shinier_material_shows_more_specular_highlight() -> None:
+    grey = _grey(0.2)
     matte = dataclasses.replace(grey, material="wool", sheen=0.0, gloss=5.0, fuzz=0.0)
     shiny = dataclasses.replace(grey, material="silk", sheen=0.6, gloss=40.0, fuzz=0.0)
     lum_m, cloth = _cloth_photo(matte)
@@ -363,15 +369,7 @@ def test_a_shinier_material_shows_more_specular_highlight() -> None:
 
 
 def test_hairy_and_thin_cloth_shade_softer() -> None:
-    grey = dataclasses.replace(
-        make_fabric(2, 1.5, 1.5, 3.0, 0.0, seed=0),
-        base_rgb=(0.3, 0.3, 0.3),
-        print_kind="solid",
-        print_rgb=(),
-        sheen=0.0,
-        fuzz=0.0,
-        material="wool",
-    )
+    grey = _grey(0.3, sheen=0.0, fuzz=0.0, material="wool")
     lum, cloth = _cloth_photo(grey)
     fuzzy, _ = _cloth_photo(dataclasses.replace(grey, fuzz=1.0))
     sheer, _ = _cloth_photo(dataclasses.replace(grey, material="silk", density=0.2))

@@ -76,6 +76,7 @@ from PIL import Image
 from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
 from lookfeel.data.holes import fill_holes
+from lookfeel.data.layout import parse_touch_name
 
 __all__ = [
     "CLASS_LATENTS",
@@ -347,7 +348,6 @@ def _features_of_files(items: Sequence[tuple[str, str]]) -> NDArray[np.float32]:
 
 
 _FABRIC = re.compile(r"^F0*(\d+)_")
-_TOUCH_KIND = re.compile(r"^F0*\d+_(flat|fold)_(\d+)_([A-Za-z0-9-]+)$", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -412,10 +412,10 @@ def read_world(world: Path | str) -> tuple[list[dict[str, Any]], list[WorldImage
             kind = None
             group = p.stem
             if modality == "touch":
-                t = _TOUCH_KIND.match(p.stem)
-                if t is not None:
-                    kind = t[1].lower()
-                    group = f"{kind}_{t[3]}"
+                t = parse_touch_name(p.name)
+                if t is not None and t.kind is not None and t.kind.value in ("flat", "fold"):
+                    kind = t.kind.value
+                    group = f"{kind}_{t.press}"
             images.append(WorldImage(p, modality, fid, group, kind))
     if not images:
         raise WorldError(f"world {world} holds no depth/, color/ or touch/ image")
@@ -482,7 +482,14 @@ def extract_features(
         results = [fn(items) for _, items in jobs]
     else:
         ctx = get_context("spawn")
-        with ProcessPoolExecutor(min(n_workers, len(jobs)), mp_context=ctx) as pool:
+        from lookfeel.synth.world import die_with_parent
+
+        with ProcessPoolExecutor(
+            min(n_workers, len(jobs)),
+            mp_context=ctx,
+            initializer=die_with_parent,
+            initargs=(os.getpid(),),
+        ) as pool:
             results = list(pool.map(fn, [items for _, items in jobs]))
     for modality in MODALITIES:
         parts = [r for (m, _), r in zip(jobs, results, strict=True) if m == modality]

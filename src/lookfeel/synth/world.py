@@ -58,7 +58,7 @@ from lookfeel.synth.fabric import (
 from lookfeel.synth.gelsight import render_press, sensor
 from lookfeel.synth.scene import color_camera, depth_camera
 
-__all__ = ["GENERATOR_VERSION", "MANIFEST", "generate", "render_fabric"]
+__all__ = ["GENERATOR_VERSION", "MANIFEST", "die_with_parent", "generate", "render_fabric"]
 
 MANIFEST = "synth.json"
 _GENERATOR = "lookfeel.synth"
@@ -180,7 +180,7 @@ def render_fabric(
     return counts
 
 
-def _die_with_parent(parent: int) -> None:
+def die_with_parent(parent: int) -> None:
     """Worker initializer: end this process when ``parent`` (the `generate` caller) ends.
 
     On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); a
@@ -378,7 +378,7 @@ def generate(
         else:
             ctx = get_context("spawn")
             with ProcessPoolExecutor(
-                n_workers, mp_context=ctx, initializer=_die_with_parent, initargs=(os.getpid(),)
+                n_workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),)
             ) as pool:
                 for r in pool.map(_run_task, tasks, chunksize=1):
                     _add(totals, r)
