@@ -8,7 +8,6 @@ import json
 import math
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -138,7 +137,8 @@ def test_features_are_rotation_invariant_statistics_beside_the_thumbnail() -> No
     np.testing.assert_allclose(a[n_thumb:], b[n_thumb:], rtol=1e-4, atol=1e-3)
 
 
-def test_reading_decodes_small_and_features_are_cheap(tmp_path: Path) -> None:
+def test_reading_decodes_small(tmp_path: Path) -> None:
+    # (The features' cost is measured in benchmarks/bench_synth_information.py, not here.)
     rng = np.random.default_rng(2)
     p = tmp_path / "F0001_flat_02_1001.jpg"
     Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(p, quality=90)
@@ -150,11 +150,7 @@ def test_reading_decodes_small_and_features_are_cheap(tmp_path: Path) -> None:
     Image.fromarray(depth).save(d)
     dd = info.read_image(d, "depth")
     assert dd.shape == (112, 112) and dd[:2, :2].max() == 0 and dd[3:, 3:].min() >= 900
-    info.file_features(p, "touch")
-    started = time.perf_counter()
-    for _ in range(20):
-        info.file_features(p, "touch")
-    assert (time.perf_counter() - started) / 20 < 0.02  # ~2 ms; lenient for a busy machine
+    assert info.file_features(p, "touch").shape == (len(info.feature_names("touch")),)
 
 
 # ---- probes -------------------------------------------------------------------------------
