@@ -33,7 +33,10 @@ How it works, step by step:
    the majority-class rate.
 5. **Matching from probes alone**: within a held-out fold, an image of modality A is mapped to its
    predicted latent vector; each fabric of modality B is represented by its mean predicted vector;
-   the query picks 1 of 10 (its fabric plus 9 others of the same fold) by Euclidean distance.
+   the query picks 1 of 10 (its fabric plus 9 others of the same fold) by Euclidean distance,
+   scored as everywhere in lookfeel: the exact expectation over the 9 others
+   (`lookfeel.metrics.pick_k_of_n_exact`), an interval resampling fabrics
+   (`lookfeel.metrics.bootstrap_ci`).
    Continuous latents are in standard deviations of the training fabrics' truth; each class
    latent's probabilities are divided by ``sqrt(1 - sum p_k^2)`` (p: the training class
    frequencies), so that a one-hot truth block has total variance 1, like one latent.
@@ -77,6 +80,7 @@ from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
 from lookfeel.data.holes import fill_holes
 from lookfeel.data.layout import parse_touch_name
+from lookfeel.metrics import bootstrap_ci, pick_k_of_n_exact
 
 __all__ = [
     "CLASS_LATENTS",
@@ -789,57 +793,57 @@ def _match(
     pair_code: int,
 ) -> dict[str, Any]:
     """Pick 1 of `CANDIDATES` by Euclidean distance between A's image predictions and B's
-    fabric mean predictions, candidates from the query's held-out fold."""
+    fabric mean predictions, candidates from the query's held-out fold.
+
+    Scored as the rest of the project scores: the exact expectation over the distractor draw
+    (`lookfeel.metrics.pick_k_of_n_exact`, per fold) and a percentile interval resampling the
+    query fabrics (`lookfeel.metrics.bootstrap_ci`). With ``same`` (A = B) the query's own
+    drape or press is left out of its fabric's mean.
+    """
     b_fabs = np.unique(b.fabric)
-    b_sum = {int(f): b.vector[b.fabric == f].sum(axis=0) for f in b_fabs}
-    b_n = {int(f): int((b.fabric == f).sum()) for f in b_fabs}
-    b_group_sum: dict[tuple[int, str], tuple[NDArray[np.float64], int]] = {}
+    sums = {int(f): b.vector[b.fabric == f].sum(axis=0) for f in b_fabs}
+    counts = {int(f): int((b.fabric == f).sum()) for f in b_fabs}
+    group_sums: dict[tuple[int, str], tuple[NDArray[np.float64], int]] = {}
     if same:
-        for i, (f, g) in enumerate(zip(b.fabric, b.group, strict=True)):
-            s, n = b_group_sum.get((int(f), g), (np.zeros(b.vector.shape[1]), 0))
-            b_group_sum[(int(f), g)] = (s + b.vector[i], n + 1)
-    by_fold: dict[int, list[int]] = {}
-    for f in b_fabs:
-        by_fold.setdefault(fold_of[int(f)], []).append(int(f))
-    rng = np.random.default_rng([seed, 23, pair_code])
-    hits: dict[int, list[float]] = {}
-    sizes = []
-    for i in range(len(a.fabric)):
-        f = int(a.fabric[i])
-        if f not in b_sum or not np.isfinite(a.vector[i]).all():
+        for i, (fab, grp) in enumerate(zip(b.fabric, b.group, strict=True)):
+            part, k = group_sums.get((int(fab), grp), (np.zeros(b.vector.shape[1]), 0))
+            group_sums[(int(fab), grp)] = (part + b.vector[i], k + 1)
+    ok = np.isfinite(a.vector).all(axis=1)
+    values, groups, chance = [], [], []
+    for fold in sorted({fold_of[int(f)] for f in b_fabs}):
+        fabs = np.array([f for f in b_fabs if fold_of[int(f)] == fold])
+        if len(fabs) < 2:
             continue
+        gallery = np.stack([sums[int(fid)] / counts[int(fid)] for fid in fabs])
+        rows = np.flatnonzero(ok & np.isin(a.fabric, fabs))
+        dist = np.linalg.norm(a.vector[rows, None, :] - gallery[None], axis=-1)
         if same:
-            # The query's own drape or press is left out of its fabric's mean.
-            s, n = b_group_sum[(f, a.group[i])]
-            if b_n[f] - n < 1:
-                continue
-            own = (b_sum[f] - s) / (b_n[f] - n)
-        else:
-            own = b_sum[f] / b_n[f]
-        others = [g for g in by_fold[fold_of[f]] if g != f]
-        if not others:
+            keep = []
+            for r, q in enumerate(rows.tolist()):
+                fid = int(a.fabric[q])
+                part, k = group_sums[(fid, a.group[q])]
+                if counts[fid] - k < 1:
+                    continue  # nothing of its fabric left once its own drape or press is out
+                own = (sums[fid] - part) / (counts[fid] - k)
+                dist[r, int(np.searchsorted(fabs, fid))] = np.linalg.norm(a.vector[q] - own)
+                keep.append(r)
+            rows, dist = rows[keep], dist[keep]
+        if not len(rows):
             continue
-        k = min(CANDIDATES - 1, len(others))
-        picked = rng.choice(len(others), size=k, replace=False)
-        gallery = np.stack([b_sum[others[j]] / b_n[others[j]] for j in picked])
-        d_own = float(np.linalg.norm(a.vector[i] - own))
-        d = np.linalg.norm(gallery - a.vector[i], axis=1)
-        closer, ties = int((d < d_own).sum()), int((d == d_own).sum())
-        hits.setdefault(f, []).append(1.0 / (1 + ties) if closer == 0 else 0.0)
-        sizes.append(k + 1)
-    if not hits:
+        res = pick_k_of_n_exact(dist, a.fabric[rows], fabs, n=CANDIDATES, ks=(1,))
+        values.append(res.per_query[:, 0])
+        groups.append(a.fabric[rows])
+        chance.append(np.full(len(rows), res.chance[0]))
+    if not values:
         return {"top1": None, "ci95": [None, None], "chance": None, "queries": 0, "fabrics": 0}
-    per_fabric = np.array([np.mean(v) for _, v in sorted(hits.items())])
-    boot_rng = np.random.default_rng([seed, 29, pair_code])
-    idx = boot_rng.integers(0, len(per_fabric), size=(BOOTSTRAP, len(per_fabric)))
-    boots = per_fabric[idx].mean(axis=1)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
+    v, fabric = np.concatenate(values), np.concatenate(groups)
+    lo, hi = bootstrap_ci(v, fabric, n_boot=BOOTSTRAP, seed=seed * 1000 + pair_code)
     return {
-        "top1": _round(float(per_fabric.mean())),
+        "top1": _round(float(v.mean())),
         "ci95": [_round(float(lo)), _round(float(hi))],
-        "chance": _round(float(np.mean([1.0 / s for s in sizes]))),
-        "queries": len(sizes),
-        "fabrics": len(per_fabric),
+        "chance": _round(float(np.concatenate(chance).mean())),
+        "queries": len(v),
+        "fabrics": len(np.unique(fabric)),
     }
 
 
