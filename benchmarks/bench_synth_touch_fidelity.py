@@ -20,7 +20,6 @@ at its peak force. The output is the table and ``docs/images/synth_touch_vs_real
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -64,8 +63,7 @@ def measure(press: NDArray[np.uint8], rest: NDArray[np.uint8]) -> dict[str, floa
 
 def _synthetic(name: str) -> tuple[list[NDArray[np.uint8]], NDArray[np.uint8]]:
     t, d, s, material, weave = FABRICS[name]
-    base = make_fabric(1, t, d, s, 0.0, seed=0)
-    fabric = dataclasses.replace(base, material=material, weave=weave)
+    fabric = make_fabric(1, t, d, s, 0.0, seed=0, material=material, weave=weave)
     sen = sensor(320, 240)
     frames = [
         render_press(fabric, PressKind.FLAT, sen, np.random.default_rng([17, i]), 3)[-1]

@@ -192,7 +192,7 @@ def render_color(
     # Asperity scattering: fibre ends light up at grazing angles, in the fibres' own colour.
     rim = (1.0 - np.abs(normal[..., 2])) ** 2
     on = is_cloth[..., None]
-    img = img + on * (fabric.sheen * 0.5 * spec * np.clip(lambert, 0.0, 1.0))[..., None]
+    img = img + on * (fabric.sheen * 0.5 * spec * lambert)[..., None]
     img = img + on * (fabric.fuzz * 0.35 * rim * (ambient + lambert))[..., None] * (
         0.4 * albedo + 0.12
     )

@@ -151,9 +151,16 @@ class Fabric:
         """Share of light a single layer lets through, in [0, 1): thin, light cloth (voile,
         chiffon) glows; a heavy one does not. Beer-Lambert in the areal density, with filament
         fibres (silk, polyester) more transparent than spun or hairy ones, which scatter."""
-        fibre = {"silk": 1.0, "synthetic": 0.9, "linen": 0.8, "cotton": 0.7, "wool": 0.45}
+        fibre = {
+            "silk": 1.0,
+            "synthetic": 0.9,
+            "linen": 0.8,
+            "cotton": 0.7,
+            "wool": 0.45,
+            "fleece": 0.3,
+        }
         kg_m2 = self.density * _DENSITY_UNIT_KG_M2
-        return float(fibre.get(self.material, 0.3) * math.exp(-kg_m2 / 0.05))
+        return float(fibre[self.material] * math.exp(-kg_m2 / 0.05))
 
     def truth(self) -> dict[str, float | str]:
         """The world's parameters of this fabric as plain values (for ``synth.json``)."""
@@ -242,19 +249,26 @@ _OPTICS = {  # sheen, gloss, fuzz
 
 
 def _surface(
-    material: str, thickness: float, density: float, stretch: float, rng: np.random.Generator
+    material: str,
+    thickness: float,
+    density: float,
+    stretch: float,
+    rng: np.random.Generator,
+    weave: str | None = None,
 ) -> tuple[str, float, float]:
-    """Weave, yarn period and relief that follow from the material and the physics."""
+    """Weave (unless given), yarn period and relief that follow from the material and the
+    physics."""
     bulk = density * 100.0 / thickness
     r = rng.random()
-    if material == "fleece" or (
-        material == "cotton" and thickness > 3.0 and bulk < 45.0 and r < 0.5
-    ):
-        weave = "pile"  # fleece, faux fur, terry
-    elif stretch >= 0.5 and r < _KNIT_P.get(material, 0.5):
-        weave = "knit"
-    else:
-        weave = _pick(rng, _WOVEN.get(material, {"plain": 1.0}))
+    if weave is None:
+        if material == "fleece" or (
+            material == "cotton" and thickness > 3.0 and bulk < 45.0 and r < 0.5
+        ):
+            weave = "pile"  # fleece, faux fur, terry
+        elif stretch >= 0.5 and r < _KNIT_P.get(material, 0.5):
+            weave = "knit"
+        else:
+            weave = _pick(rng, _WOVEN.get(material, {"plain": 1.0}))
     jitter = math.exp(0.2 * rng.standard_normal())
     # Yarn diameter grows with thickness (a plain weave is about two yarns thick).
     period = float(np.clip(0.24 * thickness**0.55 * jitter, 0.12, 1.6))
@@ -319,13 +333,27 @@ def make_fabric(
     stiffness: float,
     stretch: float,
     seed: int,
+    material: str | None = None,
+    weave: str | None = None,
 ) -> Fabric:
     """A fabric with the given physics; material, surface and appearance drawn from
-    ``(seed, id)`` (the material and surface given the physics, colour and print apart)."""
+    ``(seed, id)`` (the material and surface given the physics, colour and print apart).
+
+    ``material`` (one of `MATERIALS`) and ``weave`` (one of `WEAVES`), when given, are taken
+    instead of drawn; what follows from them (relief, sheen, gloss, fuzz) is derived as usual.
+
+    Raises:
+        ValueError: an unknown material or weave.
+    """
+    if material is not None and material not in MATERIALS:
+        raise ValueError(f"material {material!r} is not one of {', '.join(MATERIALS)}")
+    if weave is not None and weave not in WEAVES:
+        raise ValueError(f"weave {weave!r} is not one of {', '.join(WEAVES)}")
     srng = np.random.default_rng([seed, 11, fabric_id])
     arng = np.random.default_rng([seed, 12, fabric_id])
-    material = _material(thickness, density, stretch, srng)
-    weave, period, relief = _surface(material, thickness, density, stretch, srng)
+    if material is None:
+        material = _material(thickness, density, stretch, srng)
+    weave, period, relief = _surface(material, thickness, density, stretch, srng, weave)
     sheen, gloss, fuzz = _optics(material, weave, srng)
     base, kind, extra, scale, angle = _appearance(arng)
     return Fabric(

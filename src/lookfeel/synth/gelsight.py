@@ -267,11 +267,11 @@ def _fold_surface(base: F32, table: F32, u: F32, fabric: Fabric, force: float) -
     return np.where(u > radius, table, base + delta).astype(np.float32)
 
 
-def press_forces(pose_peak: float, first: float, frames: int) -> list[float]:
+def press_forces(peak: float, first: float, frames: int) -> list[float]:
     """Forces (N) of a press's frames: geometric from first contact to the peak."""
     if frames == 1:
-        return [pose_peak]
-    return [first * (pose_peak / first) ** (k / (frames - 1)) for k in range(frames)]
+        return [peak]
+    return [first * (peak / first) ** (k / (frames - 1)) for k in range(frames)]
 
 
 def render_press(
