@@ -354,6 +354,30 @@ def test_multi_input_net_pools_any_number_of_presses(pool: str) -> None:
     torch.testing.assert_close(shuffled, many)
 
 
+@pytest.mark.parametrize("pool", ["max", "mean"])
+def test_views_of_a_press_are_averaged_before_the_presses_are_pooled(pool: str) -> None:
+    cfg = dataclasses.replace(COMPACT, press_pool=pool, embed_dim=8)
+    model = create_model(cfg, [Modality.TOUCH])
+    model.eval()
+    g = torch.Generator().manual_seed(7)
+    x = torch.rand(2, 3, 4, 3, SMALL_PX, SMALL_PX, generator=g)  # (B, P, V, 3, H, W)
+    branch = model.branch("touch")
+    features = branch.backbone(x.flatten(0, 2)).unflatten(0, (2, 3, 4))  # (B, P, V, D0)
+    press = features.mean(dim=2)
+    pooled = press.amax(dim=1) if pool == "max" else press.mean(dim=1)
+    torch.testing.assert_close(model({"touch": x})["touch"], branch.project(pooled))
+    # One press: the (linear) projection makes it the mean of its views' embeddings.
+    one = model({"touch": x[:, :1]})["touch"]
+    each = torch.stack([model({"touch": x[:, :1, v]})["touch"] for v in range(4)])
+    torch.testing.assert_close(one, each.mean(dim=0))
+    # V identical views are that one image.
+    same = x[:, :, :1].expand(-1, -1, 4, -1, -1, -1)
+    torch.testing.assert_close(
+        model({"touch": same})["touch"], model({"touch": x[:, :, 0]})["touch"]
+    )
+    assert not torch.allclose(one, each[0])
+
+
 def test_forward_from_cached_trunk_equals_forward() -> None:
     cfg = dataclasses.replace(COMPACT, freeze="to_block4", embed_dim=8, normalize=True)
     with pytest.warns(UserWarning, match="freezes randomly initialised compact"):

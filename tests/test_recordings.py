@@ -311,14 +311,25 @@ def test_the_untouched_control_shows_what_a_moment_without_contact_looks_like(tm
 
 
 def test_cv_on_recordings_reports_classes_and_the_untouched_control(
-    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch
 ):
     from lookfeel.cli import main
+    from lookfeel.data import touch_control
 
+    still: list[str] = []
+    untouched_image = touch_control.untouched_image
+
+    def counting(path, *args, **kwargs):
+        still.append(Path(path).name)
+        return untouched_image(path, *args, **kwargs)
+
+    monkeypatch.setattr(touch_control, "untouched_image", counting)
     config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")
     args = ["cv", "--config", config, "--data", str(recordings), "--out", str(tmp_path / "cv")]
     with pytest.warns(UserWarning, match="hold no press"):
-        assert main([*args, *TINY, "--folds", "2", "--n-boot", "50"]) == 0
+        assert main([*args, *TINY, "--folds", "2", "--seeds", "0,1", "--n-boot", "50"]) == 0
+    # each held-out press made untouched once, for both seeds of its fold
+    assert sorted(still) == sorted(set(still)) and len(still) == 18
     summary = json.loads((tmp_path / "cv" / "cv.json").read_text())
     pair = summary["pairs"]["touch_to_touch"]
     for key in (
@@ -327,13 +338,13 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
         "model_untouched_top1",
         "raw_pixels_untouched_top1",
     ):
-        assert 0.0 <= pair[key]["mean"] <= 1.0 and len(pair[key]["per_run"]) == 2
+        assert 0.0 <= pair[key]["mean"] <= 1.0 and len(pair[key]["per_run"]) == 4
     hardness = summary["classes"]["touch"]["hardness"]
     assert hardness["classes"] == ["0", "1", "2"] and hardness["chance"] == pytest.approx(1 / 3)
     for method in ("model", "model_pooled", "probe", "raw_pixels", "majority"):
         assert 0.0 <= hardness[method]["accuracy"] <= 1.0
-    assert hardness["model"]["queries"] == 18  # every press with a label, each held out once
-    assert hardness["model_pooled"]["queries"] == 6  # one per object
+    assert hardness["model"]["queries"] == 36  # every press with a label, held out once per seed
+    assert hardness["model_pooled"]["queries"] == 12  # one per object and seed
     report = (tmp_path / "cv" / "cv.md").read_text()
     assert "Untouched control" in report and "| hardness |" in report
 
@@ -370,7 +381,7 @@ def test_training_views_change_the_run_and_resume_exactly(recordings: Path, tmp_
     assert unbroken.keys() == resumed.keys()
     assert [k for k in unbroken if not torch.equal(unbroken[k], resumed[k])] == []
 
-    one = load_config(RunConfig, config, [*tiny, "data.video_views=1"])
+    one = load_config(RunConfig, config, [*tiny, "data.video_views=1", "data.video_embed=image"])
     with pytest.warns(UserWarning, match="hold no press"):
         single = weights(train(one, recordings, tmp_path / "single").run_dir)
     assert any(not torch.equal(unbroken[k], single[k]) for k in unbroken)  # views were drawn
@@ -396,3 +407,81 @@ def test_a_training_run_decodes_each_press_video_once(
     with pytest.warns(UserWarning, match="hold no press"):
         train(load_config(RunConfig, config, tiny), recordings, tmp_path / "run")
     assert len(decoded) == 19 and len(set(decoded)) == 19  # every video, views and all, once
+
+
+def test_a_press_is_embedded_as_the_mean_of_its_views_everywhere(recordings: Path):
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader
+    from lookfeel.data.recordings import drop_unpressed
+    from lookfeel.data.touch_control import UntouchedControl
+    from lookfeel.embedding import embed_items, raw_pixels
+    from lookfeel.index.query import load_query_image, query_batch
+
+    data = DataConfig(image_size=32, video_views=4, video_embed="views")
+    with pytest.warns(UserWarning, match="hold no press"):
+        catalog = drop_unpressed(scan(recordings), ImageLoader(data))
+    items = catalog.items(Modality.TOUCH)[:5]
+    model = create_model(ModelConfig(backbone="compact", width=4, embed_dim=8), [Modality.TOUCH])
+    model.eval()
+    loader = ImageLoader(data)
+    got = embed_items(model, items, loader, batch_size=2)
+    views = [loader.load_embedded(it) for it in items]
+    assert all(v.shape == (5, 3, 32, 32) for v in views)
+    with torch.no_grad():
+        each = [model({"touch": v.unsqueeze(1)})["touch"].mean(0) for v in views]
+    np.testing.assert_allclose(got, torch.stack(each).numpy(), rtol=1e-4, atol=1e-5)
+    deepest = embed_items(model, items, ImageLoader(DataConfig(image_size=32)))
+    assert not np.allclose(got, deepest, atol=1e-4)  # the views change the embedding
+    pixels = raw_pixels(items, loader)
+    np.testing.assert_allclose(pixels, torch.stack([v.mean(0).reshape(-1) for v in views]))
+
+    # A query file is embedded the same way (predict, match and serve read it so).
+    query = load_query_image(items[0].path, Modality.TOUCH, data)
+    with torch.no_grad():
+        one = model({"touch": query_batch([query], Modality.TOUCH)})["touch"]
+    np.testing.assert_allclose(one[0].numpy(), got[0], rtol=1e-4, atol=1e-5)
+
+    # The untouched control serves one image per press, embedded as such.
+    still = UntouchedControl(data).loader(items)
+    mixed = embed_items(model, items, still)
+    assert mixed.shape == got.shape and not np.allclose(mixed, got, atol=1e-4)
+
+
+def test_a_library_of_press_videos_decodes_each_once_and_matches_like_embed(
+    recordings: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    from lookfeel.config import load_config
+    from lookfeel.data import images as images_module
+    from lookfeel.index.build import build_library
+    from lookfeel.index.library import Library
+    from lookfeel.train import train
+
+    config = Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml"
+    tiny = [TINY[i + 1] for i in range(0, len(TINY), 2)] + ["train.steps=2"]
+    with pytest.warns(UserWarning, match="hold no press"):
+        run = train(load_config(RunConfig, config, tiny), recordings, tmp_path / "run").run_dir
+    decoded: list[str] = []
+    read_press = images_module.read_press
+
+    def counting(path, *args, **kwargs):
+        decoded.append(Path(path).name)
+        return read_press(path, *args, **kwargs)
+
+    monkeypatch.setattr(images_module, "read_press", counting)
+    with pytest.warns(UserWarning, match="hold no press"):
+        build_library(run / "checkpoints" / "last.pt", recordings, tmp_path / "lib", shard_size=5)
+    assert len(decoded) == 19 and len(set(decoded)) == 19  # every video, views and all, once
+    table = Library.open(tmp_path / "lib").table(Modality.TOUCH)
+    assert table.embeddings.shape == (18, 8)
+
+    # The rows are what `embed` computes: each press from its views (data.video_embed).
+    from lookfeel.checkpoint import load_model
+    from lookfeel.data import ImageLoader
+    from lookfeel.embedding import embed_items
+
+    monkeypatch.setattr(images_module, "read_press", read_press)
+    loaded = load_model(run / "checkpoints" / "last.pt")
+    assert loaded.config.data.video_embed == "views"
+    items = [it for it in scan(recordings).items(Modality.TOUCH) if "foam_3" not in str(it.path)]
+    want = embed_items(loaded.model, items, ImageLoader(loaded.config.data))
+    np.testing.assert_allclose(table.embeddings, want, rtol=1e-4, atol=1e-5)

@@ -6,6 +6,7 @@ pressing in and out over a known span, then flat again.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from pathlib import Path
 
@@ -34,6 +35,7 @@ from lookfeel.data.video import (
     read_video,
     reference_frame,
     small_greyscale,
+    view_frames,
 )
 from lookfeel.modality import Modality
 
@@ -258,6 +260,14 @@ def test_deep_frames_put_the_peak_first_and_skip_shallow_frames():
         deep_frames(span, 3, 1.5)
 
 
+def test_view_frames_are_the_peak_then_n_across_the_span_always_n_plus_one():
+    strength = np.array([0, 0, 0, 0, 2, 4, 6, 8, 10, 9, 7, 5, 3, 1], np.float32)
+    span = PressSpan((0, 3), 4, 8, 13, strength, 0.0, 0.1, 2.0)
+    assert view_frames(span, 3) == [8, 4, 8, 12]
+    assert view_frames(span, 12)[0] == 8 and len(view_frames(span, 12)) == 13  # repeats
+    assert set(deep_frames(span, 12)) <= set(view_frames(span, 12))  # training views among them
+
+
 # ---- the image loader --------------------------------------------------------------------------
 
 
@@ -342,6 +352,55 @@ def test_loader_views_of_a_press_video(videos: dict[str, Path], tmp_path: Path, 
     assert np.array_equal(ImageLoader(config, cache_dir=tmp_path).views(item), views)
 
 
+def test_loader_embeds_a_press_from_its_views_with_one_decode(
+    videos: dict[str, Path], tmp_path: Path, monkeypatch
+):
+    item = _touch_item(videos[".mov"])
+    config = DataConfig(image_size=16, video_views=6, video_views_min=0.6, video_embed="views")
+    decoded: list[Path] = []
+    real = images_module.read_press
+
+    def counting(path, *args, **kwargs):
+        decoded.append(Path(path))
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(images_module, "read_press", counting)
+    loader = ImageLoader(config, cache_dir=tmp_path)
+    assert loader.pools_views(item)
+    embedded = loader.embed_array(item)
+    train = loader.views(item)
+    assert len(decoded) == 1  # both from one decode
+    press = real(videos[".mov"], choose=lambda span: view_frames(span, 6))
+    expected = np.stack(
+        [images_module.preprocess_rgb(im, Modality.TOUCH, config) for im in press.images]
+    )
+    assert embedded.shape == (7, 16, 16, 3) and np.array_equal(embedded, expected)
+    alone = ImageLoader(dataclasses.replace(config, video_embed="image")).views(item)
+    assert np.array_equal(train, alone)  # the training views do not change
+    assert np.array_equal(embedded[0], ImageLoader(config).array(videos[".mov"], Modality.TOUCH))
+    tensor = loader.load_embedded(item)
+    assert tensor.shape == (7, 3, 16, 16)
+    assert torch.equal(tensor[3], images_module.to_tensor(embedded[3]))
+    # A second loader reads both from disk; the image-only setting never pools.
+    before = len(decoded)
+    again = ImageLoader(config, cache_dir=tmp_path)
+    assert np.array_equal(again.embed_array(item), embedded)
+    assert np.array_equal(again.views(item), train) and len(decoded) == before
+    assert not ImageLoader(DataConfig(image_size=16, video_views=6)).pools_views(item)
+
+
+def test_stack_views_repeats_a_single_image_as_every_view():
+    a = np.arange(2 * 4 * 4 * 3, dtype=np.uint8).reshape(2, 4, 4, 3)
+    b = np.full((4, 4, 3), 7, np.uint8)
+    s = images_module.stack_views([a, b])
+    assert s.shape == (2, 2, 4, 4, 3) and np.array_equal(s[1, 0], b) and np.array_equal(s[1, 1], b)
+    assert images_module.stack_views([b, b]).shape == (2, 4, 4, 3)
+    t = images_module.stack_views([torch.zeros(3, 4, 4), torch.ones(5, 3, 4, 4)])
+    assert t.shape == (2, 5, 3, 4, 4) and float(t[0].sum()) == 0.0
+    with pytest.raises(ValueError, match="different numbers of views"):
+        images_module.stack_views([a, a[:1]])
+
+
 def test_store_draws_training_views_deterministically(videos: dict[str, Path]):
     from lookfeel.data import ImageStore
 
@@ -393,6 +452,7 @@ def test_loader_names_a_bad_video(tmp_path: Path):
         ({"video_views": 0}, "data.video_views"),
         ({"video_views": 4, "video_frames": 3}, "needs the deepest frame"),
         ({"video_views_min": -0.1}, "data.video_views_min"),
+        ({"video_embed": "views"}, "needs video_views >= 2"),
     ],
 )
 def test_config_rejects_bad_video_settings(kw, msg):

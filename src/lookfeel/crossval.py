@@ -53,6 +53,7 @@ from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.data import Catalog, ImageLoader, Item, scan
 from lookfeel.data.background_swap import BackgroundControl
+from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.touch_control import UntouchedControl
 from lookfeel.embedding import embed_items, raw_pixels
@@ -161,13 +162,15 @@ def _score(
     tta: bool,
     loader: ImageLoader,
     control: BackgroundControl | None = None,
+    untouched: UntouchedControl | None = None,
 ) -> dict[str, Any]:
     """Per-query pick 1 of 10 of the model and of raw pixels on ``held_ids``' items, and
     property probes fitted on ``seen_ids``' items (none when it is empty). ``loader`` must
     preprocess as the model's config says; it keeps its decoded images for the next call.
     With ``control`` (made with the same data config) and depth among the pairs, also the
     background-swapped scores (``*_swapped``), or ``background_control_skipped`` saying why
-    not."""
+    not. Press videos are also scored untouched (``*_untouched``), with ``untouched`` if given
+    (made with the same data config, it keeps its images for the next call)."""
     cfg = lm.config
     held = catalog.subset(held_ids)
     seen = catalog.subset(seen_ids) if seen_ids else None
@@ -212,7 +215,7 @@ def _score(
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
     if UntouchedControl.applies(touch_items):
         # The sensor's own light: every press replaced by a moment of its video with no contact.
-        still = UntouchedControl(cfg.data).loader(touch_items)
+        still = (untouched or UntouchedControl(cfg.data)).loader(touch_items)
         emb_un = emb | {Modality.TOUCH: embed_items(lm.model, touch_items, still, flip=tta)}
         pix_un = pix | {Modality.TOUCH: raw_pixels(touch_items, still)}
         swapped["model_untouched"] = _pick(emb_un, fab, touch_pairs)
@@ -269,7 +272,8 @@ def _classes(
         pooled = []
         with torch.inference_mode(), eval_mode(lm.model):
             for fid in objects:
-                x = torch.stack([loader.load(it) for it in held.fabric(fid).items_of(m, kinds)])
+                items = held.fabric(fid).items_of(m, kinds)
+                x = stack_views([loader.load_embedded(it) for it in items])
                 x = x.unsqueeze(0) if m is Modality.TOUCH else x
                 z = lm.model({m.value: x}, heads=True)[f"{m.value}/{CLASSES}"]
                 pooled.append(z.amax(0) if m is not Modality.TOUCH else z[0])
@@ -348,10 +352,12 @@ def _evaluate_run(
     tta: bool,
     loader: ImageLoader,
     control: BackgroundControl | None,
+    untouched: UntouchedControl,
 ) -> dict:
     """Score a finished run's last checkpoint on its held-out fabrics."""
     lm = load_model(run_dir / "checkpoints" / "last.pt")
-    return _score(lm, catalog, lm.split["val"], lm.split["train"], pairs, tta, loader, control)
+    split = lm.split
+    return _score(lm, catalog, split["val"], split["train"], pairs, tta, loader, control, untouched)
 
 
 def _control_status(results: list[dict], asked: bool) -> dict[str, Any]:
@@ -628,6 +634,7 @@ def cross_validate(
     control = (
         BackgroundControl(config.data, CONTROL_SEED) if background_control and uses_depth else None
     )
+    untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
     results = []
     for seed in seeds:
         for fold in fold_list:
@@ -658,7 +665,7 @@ def cross_validate(
                 log(f"seed {seed} fold {fold}: {verb} {run_dir}")
                 train(cfg, data, run_dir, resume=last.exists())
                 seconds = time.perf_counter() - started
-            res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control)
+            res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             atomic_write_text(result_path, json.dumps(res) + "\n")
             top1 = np.nanmean(np.asarray(res["pairs"][pairs[0]]["model"])[:, 0])

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from lookfeel.data import Catalog, ImageLoader, ImageStore, Item
+from lookfeel.data.images import stack_views
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder, add_press_axis, autocast, eval_mode, to_channels_last
 
@@ -56,10 +57,15 @@ def embed_items(
     batch's network, and become float there; on CUDA the network runs under bf16 autocast,
     channels-last.
 
+    A press video whose loader `pools_views` (``data.video_embed: views``) is embedded from
+    all its views, their embeddings averaged (`Branch.forward`); the same function therefore
+    serves validation, ``embed``, ``cv``, evaluation and the index.
+
     Args:
         flip: test-time pooling: also embed each image mirrored left to right and return the
             mean of the two embeddings.
         store: images already on the device (`ImageStore` holding ``items``): no copies.
+            Ignored for items embedded from several views.
 
     Returns:
         (N, D) float32 embeddings, in the order of ``items``.
@@ -69,6 +75,8 @@ def embed_items(
     dev = torch.device(device)
     modality = items[0].modality
     stager = _Stager(dev)
+    if store is not None and any(loader.pools_views(it) for it in items):
+        store = None  # the store holds one image per item
     rows = store.rows(modality, items) if store is not None else None
     out = []
     with eval_mode(model), autocast(dev):
@@ -116,27 +124,39 @@ class _Stager:
         return buf[: shape[0]]
 
     def batch(self, loader: ImageLoader, items: Sequence[Item]) -> torch.Tensor:
-        arrays = [loader.array(loader.frame_path(it), it.modality) for it in items]
+        arrays = [loader.embed_array(it) for it in items]
+        shape = (len(arrays), *max((a.shape for a in arrays), key=len))
         if self.device.type == "cuda":
-            buf = self._pinned((len(arrays), *arrays[0].shape), arrays[0].dtype)
-            np.stack(arrays, out=buf.numpy())
+            buf = self._pinned(shape, arrays[0].dtype)
+            if len({a.ndim for a in arrays}) == 1:
+                np.stack(arrays, out=buf.numpy())
+            else:  # single images among views: repeated as every view
+                buf.numpy()[...] = stack_views(arrays)
             stacked = buf.to(self.device, non_blocking=True)
             event = torch.cuda.Event()
             event.record()
             self.buffers[self.turn] = (self.buffers[self.turn][0], event)
         else:
-            stacked = torch.from_numpy(np.stack(arrays))
-        if stacked.dtype == torch.uint8:  # (B, S, S, 3) -> (B, 3, S, S), channels-last strides
-            return stacked.permute(0, 3, 1, 2).float().div_(255.0)
+            stacked = torch.from_numpy(np.ascontiguousarray(stack_views(arrays)))
+        if stacked.dtype == torch.uint8:  # (B [, V], S, S, 3) -> (B [, V], 3, S, S)
+            if stacked.dim() == 5:
+                return stacked.permute(0, 1, 4, 2, 3).float().div_(255.0)
+            return stacked.permute(0, 3, 1, 2).float().div_(255.0)  # channels-last strides
         return stacked.unsqueeze(1)  # (B, S, S) depth -> (B, 1, S, S)
 
 
 def raw_pixels(items: Sequence[Item], loader: ImageLoader) -> np.ndarray:
     """The raw-pixel baseline's "embedding": each preprocessed image (the network's input, at
-    the config's size) flattened, as (N, C * S * S) float32."""
+    the config's size) flattened, as (N, C * S * S) float32. An item embedded from several
+    views (`ImageLoader.pools_views`) gives the mean of its views' pixels, as the model
+    averages their embeddings."""
     if not items:
         return np.zeros((0, 0), np.float32)
-    return torch.stack([loader.load(it).reshape(-1) for it in items]).float().numpy()
+    rows = []
+    for it in items:
+        x = loader.load_embedded(it)
+        rows.append((x.mean(0) if x.dim() == 4 else x).reshape(-1))
+    return torch.stack(rows).float().numpy()
 
 
 def embed_catalog(

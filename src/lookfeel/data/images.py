@@ -36,6 +36,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from struct import error as struct_error
+from typing import Any
 
 import numpy as np
 import torch
@@ -46,7 +47,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import fill_holes
-from lookfeel.data.video import deep_frames, is_video, read_press
+from lookfeel.data.video import deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -62,6 +63,7 @@ __all__ = [
     "preprocess_depth",
     "preprocess_rgb",
     "read_image_file",
+    "stack_views",
 ]
 
 ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated file must fail, never decode half-grey
@@ -288,9 +290,31 @@ class PreprocessSettings:
 
 
 def to_tensor(a: np.ndarray) -> torch.Tensor:
-    if a.dtype == np.uint8:  # (S, S, 3) -> (3, S, S) in [0, 1]
-        return torch.from_numpy(a).permute(2, 0, 1).float().div_(255.0)
+    """A preprocessed array as the network's input: (S, S, 3) or (V, S, S, 3) uint8 ->
+    (3, S, S) or (V, 3, S, S) in [0, 1]; (S, S) depth -> (1, S, S)."""
+    if a.dtype == np.uint8:  # channels last -> channels first, in [0, 1]
+        return torch.from_numpy(a).movedim(-1, -3).float().div_(255.0)
     return torch.from_numpy(a).unsqueeze(0).clone()  # (S, S) -> (1, S, S); the cache stays intact
+
+
+def stack_views(images: Sequence[Any]) -> Any:
+    """Stack images, some of them several views of one press (`ImageLoader.embed_array`,
+    `ImageLoader.load_embedded`): numpy arrays or tensors. With no views this is a plain stack;
+    otherwise a single image counts as every view (repeated), so the result has a view axis
+    after the first: (N, V, ...).
+
+    Raises:
+        ValueError: two presses have different numbers of views.
+    """
+    counts = {len(a) for a in images if a.ndim == 4}
+    if not counts:
+        return np.stack(images) if isinstance(images[0], np.ndarray) else torch.stack(list(images))
+    if len(counts) > 1:
+        raise ValueError(f"presses with different numbers of views: {sorted(counts)}")
+    v = counts.pop()
+    if isinstance(images[0], np.ndarray):
+        return np.stack([a if a.ndim == 4 else np.broadcast_to(a, (v, *a.shape)) for a in images])
+    return torch.stack([a if a.ndim == 4 else a.expand(v, *a.shape) for a in images])
 
 
 class ImageLoader:
@@ -315,6 +339,7 @@ class ImageLoader:
         self.cache_dir = None if cd is None else Path(cd) / self.settings.digest()
         self._memory: dict[Path, np.ndarray] = {}
         self._views: dict[Path, np.ndarray] = {}
+        self._embedded: dict[Path, np.ndarray] = {}
         self._lock = threading.Lock()
 
     def __len__(self) -> int:
@@ -401,27 +426,87 @@ class ImageLoader:
             return self.array(path, item.modality)[None]
         v = self._views.get(path)
         if v is None:
-            v = self._read_views(path)
-            with self._lock:
-                self._views[path] = v
-                self._memory.setdefault(path, v[0])
+            v = self._read_press_views(path)[0]
         return v
 
-    def _read_views(self, path: Path) -> np.ndarray:
+    def _read_press_views(self, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+        """A press video's training views and, with ``video_embed: views``, its embedding
+        views (`view_frames`, a superset of the training ones): one decode for both, each
+        cached in memory and on disk under its own key."""
         c = self.config
         data = read_image_file(path)
+        pools = c.video_embed == "views"
+        built: dict[str, np.ndarray] = {}
 
-        def build() -> np.ndarray:
-            press = read_press(
-                path,
-                data=data,
-                choose=lambda span: deep_frames(span, c.video_views, c.video_views_min),
-                subtract_reference=c.video_reference == "subtract",
-                gain=c.video_gain,
-            )
-            return np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
+        def read(key: str) -> np.ndarray:
+            if not built:
+                press = read_press(
+                    path,
+                    data=data,
+                    choose=(
+                        (lambda span: view_frames(span, c.video_views))
+                        if pools
+                        else (lambda span: deep_frames(span, c.video_views, c.video_views_min))
+                    ),
+                    subtract_reference=c.video_reference == "subtract",
+                    gain=c.video_gain,
+                )
+                ims = np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
+                built["embed"] = built["train"] = ims
+                if pools:
+                    first = {i: k for k, i in reversed(list(enumerate(press.indices)))}
+                    chosen = deep_frames(press.span, c.video_views, c.video_views_min)
+                    built["train"] = ims[[first[i] for i in chosen]]
+            return built[key]
 
-        return self._cached(data, f"views{c.video_views}_{c.video_views_min:g}", build)
+        train = self._cached(
+            data, f"views{c.video_views}_{c.video_views_min:g}", lambda: read("train")
+        )
+        embed = (
+            self._cached(data, f"embed{c.video_views}", lambda: read("embed")) if pools else None
+        )
+        with self._lock:
+            self._views[path] = train
+            self._memory.setdefault(path, train[0])
+            if embed is not None:
+                self._embedded[path] = embed
+        return train, embed
+
+    def pools_views(self, item: Item) -> bool:
+        """Whether ``item`` is embedded from several views (``data.video_embed: views`` and a
+        press video): `embed_array` then holds them all."""
+        return self._pools(self.frame_path(item), item.modality)
+
+    def _pools(self, path: Path, modality: Modality) -> bool:
+        return self.config.video_embed == "views" and modality is Modality.TOUCH and is_video(path)
+
+    def embed_array(self, item: Item) -> np.ndarray:
+        """What ``item`` is embedded from: `array`'s image, or with `pools_views` the press's
+        (V, S, S, 3) uint8 views (`view_frames`: the deepest frame, the image, first). Cached
+        in memory and on disk like images."""
+        return self.embed_file(self.frame_path(item), item.modality)
+
+    def embed_file(self, path: Path, modality: Modality) -> np.ndarray:
+        """`embed_array` of a file given as such (a query)."""
+        if not self._pools(path, modality):
+            return self.array(path, modality)
+        v = self._embedded.get(path)
+        if v is None:
+            v = self._read_press_views(path)[1]
+            assert v is not None  # _pools: video_embed is "views"
+        return v
+
+    def forget(self, items: Iterable[Item]) -> None:
+        """Drop ``items``' decoded arrays from memory (the disk cache keeps its copies)."""
+        with self._lock:
+            for it in items:
+                p = self.frame_path(it)
+                for kept in (self._memory, self._views, self._embedded):
+                    kept.pop(p, None)
+
+    def load_embedded(self, item: Item) -> torch.Tensor:
+        """`embed_array` as a tensor: `load`'s (C, S, S), or (V, 3, S, S) views in [0, 1]."""
+        return to_tensor(self.embed_array(item))
 
     def preload(
         self, items: Iterable[Item], workers: int | None = None, *, views: bool = False
@@ -429,7 +514,8 @@ class ImageLoader:
         """Decode and preprocess items in parallel threads (Pillow and numpy release the GIL).
 
         Args:
-            items: what to decode.
+            items: what to decode: each item's image, or its `embed_array` views where it
+                `pools_views`.
             workers: threads (default ``config.workers``).
             views: decode the training `views` of each item (its image among them).
 
@@ -442,14 +528,21 @@ class ImageLoader:
         todo: dict[Path, Item] = {}
         for it in items:
             p = self.frame_path(it)
-            wanted = views and self.has_views(it)
-            if p not in (self._views if wanted else self._memory):
+            if views and self.has_views(it):
+                have: dict[Path, np.ndarray] = self._views
+            elif self.pools_views(it):
+                have = self._embedded
+            else:
+                have = self._memory
+            if p not in have:
                 todo[p] = it
 
         def one(p: Path) -> None:
             it = todo[p]
             if views and self.has_views(it):
                 self.views(it)
+            elif self.pools_views(it):
+                self.embed_array(it)
             else:
                 self.array(p, it.modality)
 
@@ -479,3 +572,9 @@ class ArrayLoader(ImageLoader):
         if modality is self._modality and path in self._arrays:
             return self._arrays[path]
         return super().array(path, modality)
+
+    def _pools(self, path: Path, modality: Modality) -> bool:
+        # A given array is one image (a batch repeats it as every view: `stack_views`).
+        if modality is self._modality and path in self._arrays:
+            return False
+        return super()._pools(path, modality)

@@ -47,7 +47,7 @@ def find_unpressed(
             if views:
                 loader.views(item)
             else:
-                loader.array(loader.frame_path(item), item.modality)
+                loader.embed_array(item)  # what embedding will read next
         except NoPressError as e:
             return Unpressed(item, e.reason)
         return None

@@ -64,6 +64,7 @@ __all__ = [
     "read_video",
     "reference_frame",
     "small_greyscale",
+    "view_frames",
 ]
 
 MAX_VIDEO_FRAMES = 10_000
@@ -538,6 +539,14 @@ def deep_frames(span: PressSpan, n: int, min_fraction: float = 0.0) -> list[int]
     need = span.floor + min_fraction * span.contrast
     rest = [i for i in dict.fromkeys(contact_frames(span, n)) if i != span.peak]
     return [span.peak, *(i for i in rest if span.strength[i] >= need)]
+
+
+def view_frames(span: PressSpan, n: int) -> list[int]:
+    """The frames a press is embedded from with ``data.video_embed: views``: its deepest
+    frame, then ``contact_frames(span, n)`` (n spread evenly over the span, first to last).
+    Always n + 1 frames, so that every press has as many views (a short span repeats frames,
+    each then weighted by the time it lasts)."""
+    return [span.peak, *contact_frames(span, n)]
 
 
 def reference_frame(frames: np.ndarray, span: PressSpan) -> np.ndarray:

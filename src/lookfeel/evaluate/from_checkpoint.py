@@ -39,6 +39,7 @@ from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
 from lookfeel.data.background_swap import BackgroundControl
+from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
 from lookfeel.errors import LookfeelError
@@ -245,9 +246,8 @@ def _model_pooler(
         out = []
         for start in range(0, len(members), max(1, batch_size // p)):
             rows = members[start : start + max(1, batch_size // p)]
-            x = torch.stack(
-                [torch.stack([loader.load(touch.items[j]) for j in row]) for row in rows]
-            ).to(device)  # (B, P, 3, S, S)
+            x = stack_views([loader.load_embedded(touch.items[j]) for row in rows for j in row])
+            x = x.unflatten(0, (len(rows), p)).to(device)  # (B, P [, V], 3, S, S)
             out.append(model({Modality.TOUCH.value: x})[Modality.TOUCH.value].double().cpu())
         if not out:
             return np.zeros((0, model.embed_dim))

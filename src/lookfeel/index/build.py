@@ -240,25 +240,24 @@ def build_library(
         if arrays is not None and len(arrays["embeddings"]) == len(shard.items):
             reused += 1
         else:
-            shard_loader = ImageLoader(data_config)  # memory: one shard's images at a time
-            shard_loader.preload(shard.items)
-            emb = embed_items(loaded.model, shard.items, shard_loader, batch_size, device)
+            loader.preload(shard.items)  # videos were decoded by drop_unpressed already
+            emb = embed_items(loaded.model, shard.items, loader, batch_size, device)
             write_shard(
                 path,
                 shard.key,
                 emb,
                 [it.fabric_id for it in shard.items],
                 [str(it.path.resolve()) for it in shard.items],
-                [str(shard_loader.frame_path(it).resolve()) for it in shard.items],
+                [str(loader.frame_path(it).resolve()) for it in shard.items],
                 [it.kind.value if it.kind else "" for it in shard.items],
                 [it.press or "" for it in shard.items],
             )
-            del shard_loader
             arrays = read_shard(path, shard.key)
             assert arrays is not None
             embedded += 1
             if on_shard is not None:
                 on_shard(shard.file, len(shard.items))
+        loader.forget(shard.items)  # memory: one shard's images at a time
         parts[shard.modality].append(
             {"embeddings": arrays["embeddings"], "fabric_ids": arrays["fabric_ids"]}
         )

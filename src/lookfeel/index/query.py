@@ -26,6 +26,7 @@ from lookfeel.data.images import (
     preprocess_depth,
     preprocess_rgb,
     read_image_file,
+    stack_views,
     to_tensor,
 )
 from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
@@ -67,7 +68,8 @@ def load_query_image(
     at most ``max_pixels`` pixels, checked from its header before decoding.
 
     Returns:
-        (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1].
+        (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1]; for a press
+        video with ``data.video_embed: views``, its (V, 3, S, S) views.
 
     Raises:
         ImageError: naming the file when it is missing, not a regular file, not an image, too
@@ -75,8 +77,9 @@ def load_query_image(
     """
     path = Path(path)
     if modality is Modality.TOUCH and path.suffix.lower() in VIDEO_SUFFIXES:
-        # A press recorded as a video: its frame(s) chosen and preprocessed as in training.
-        return to_tensor(ImageLoader(config, cache_dir=None).array(path, modality))
+        # A press recorded as a video: its frame(s) chosen and preprocessed as in training
+        # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
+        return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
     return _preprocess(path, read_image_file(path), modality, config, max_pixels)
 
 
@@ -106,7 +109,7 @@ def _video_bytes(data: bytes, name: str, config: DataConfig) -> torch.Tensor:
         path = Path(tmp) / ("query" + (suffix if suffix in VIDEO_SUFFIXES else ".mov"))
         path.write_bytes(data)
         try:
-            return to_tensor(ImageLoader(config, cache_dir=None).array(path, Modality.TOUCH))
+            return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, Modality.TOUCH))
         except ImageError as e:
             raise ImageError(Path(name), e.reason) from None
 
@@ -115,11 +118,12 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Ten
     """Stack preprocessed images into the model's input for one modality.
 
     Depth and colour images are separate queries: (N, C, S, S). Touch images are the presses
-    of one query, pooled by the Multi-input Net: (1, P, 3, S, S).
+    of one query, pooled by the Multi-input Net: (1, P, 3, S, S), or (1, P, V, 3, S, S) when
+    presses come as V views each (a single image among them counts as every view).
     """
     if not images:
         raise ValueError("a query needs at least one image")
-    x = torch.stack(list(images))
+    x = stack_views(list(images))
     if modality is Modality.TOUCH:
         return x.unsqueeze(0)  # (P, 3, S, S) -> (1, P, 3, S, S)
     return x.contiguous(memory_format=torch.channels_last)

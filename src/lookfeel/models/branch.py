@@ -88,21 +88,27 @@ class Branch(nn.Module):
         """Embed a batch.
 
         Args:
-            x: images (B, C, H, W), or (B, P, C, H, W) for touch, in [0, 1]; with
+            x: images (B, C, H, W), or (B, P, C, H, W) for touch, in [0, 1], or
+                (B, P, V, C, H, W) for touch with V views of each press (a press's feature
+                is the mean of its views' before the press pooling and projection); with
                 ``from_trunk``, the output of `trunk` for those images instead.
             from_trunk: ``x`` holds trunk features (e.g. cached), so skip the trunk.
 
         Returns:
             (B, D) embeddings.
         """
-        b = p = 0
+        lead: tuple[int, ...] = ()
         if self.pressed:
-            b, p = x.shape[:2]
-            x = x.flatten(0, 1)  # (B, P, ...) -> (B * P, ...)
+            # (B, P, ...) presses, or (B, P, V, C, H, W): V views of each press.
+            views = not from_trunk and x.dim() == 6
+            lead = tuple(x.shape[: 3 if views else 2])
+            x = x.flatten(0, len(lead) - 1)  # -> (B * P [* V], ...)
         f = x if from_trunk else self.backbone.trunk(x)
         e = self.backbone.head(f)  # (N, D0)
         if self.pressed:
-            e = e.unflatten(0, (b, p))  # (B * P, D0) -> (B, P, D0)
+            e = e.unflatten(0, lead)  # -> (B, P [, V], D0)
+            if len(lead) == 3:
+                e = e.mean(dim=2)  # a press is the mean of its views (before projection)
             e = e.amax(dim=1) if self.press_pool == "max" else e.mean(dim=1)  # -> (B, D0)
         e = self.project(e)  # (B, D0) -> (B, D)
         if self.normalize:

@@ -94,10 +94,11 @@ class Embedder(nn.Module):
         m = self.branch(slot).modality
         c = _CHANNELS[m]
         if m is Modality.TOUCH:
-            if x.dim() != 5 or x.shape[2] != c:
+            if x.dim() not in (5, 6) or x.shape[-3] != c:
                 raise ValueError(
                     f"slot {slot!r}: touch input must be (B, P, {c}, H, W) with a press axis "
-                    f"(P = 1 for one press), got {tuple(x.shape)}"
+                    f"(P = 1 for one press), or (B, P, V, {c}, H, W) with V views of each "
+                    f"press, got {tuple(x.shape)}"
                 )
         elif x.dim() != 4 or x.shape[1] != c:
             raise ValueError(f"slot {slot!r}: expected (B, {c}, H, W), got {tuple(x.shape)}")
@@ -144,7 +145,8 @@ class Embedder(nn.Module):
 
         Args:
             inputs: slot -> images in [0, 1]: depth (B, 1, H, W), colour (B, 3, H, W), touch
-                (B, P, 3, H, W) with any P >= 1. With ``from_trunk``, slot -> `trunk` output.
+                (B, P, 3, H, W) with any P >= 1, or (B, P, V, 3, H, W) with V views of each
+                press (averaged; `Branch.forward`). With ``from_trunk``, slot -> `trunk` output.
             from_trunk: inputs are (cached) trunk features; only the trainable part runs.
             heads: also return the auxiliary heads' outputs, under ``head_key(slot, "cluster")``
                 ((B, K) logits) and ``head_key(slot, "property")`` ((B, Q)), for the heads the

@@ -48,9 +48,12 @@ def autocast(device: torch.device, cache: bool = True) -> contextlib.AbstractCon
 
 def to_channels_last(x: Tensor) -> Tensor:
     """Images in channels-last layout (what cuDNN's and oneDNN's fastest convolutions read):
-    (N, C, H, W) directly, (B, P, C, H, W) per press; other tensors unchanged."""
+    (N, C, H, W) directly, (B, P, C, H, W) per press, (B, P, V, C, H, W) per view; other
+    tensors unchanged."""
     if x.dim() == 4:
         return x.contiguous(memory_format=torch.channels_last)
     if x.dim() == 5:  # channels-last per press: flatten(0, 1) then gives an NHWC batch
         return x.permute(0, 1, 3, 4, 2).contiguous().permute(0, 1, 4, 2, 3)
+    if x.dim() == 6:  # (B, P, V, C, H, W): the same per view
+        return x.permute(0, 1, 2, 4, 5, 3).contiguous().permute(0, 1, 2, 5, 3, 4)
     return x
