@@ -485,3 +485,16 @@ def test_a_library_of_press_videos_decodes_each_once_and_matches_like_embed(
     items = [it for it in scan(recordings).items(Modality.TOUCH) if "foam_3" not in str(it.path)]
     want = embed_items(loaded.model, items, ImageLoader(loaded.config.data))
     np.testing.assert_allclose(table.embeddings, want, rtol=1e-4, atol=1e-5)
+
+    # match reads a query video the same way: a library press comes back as itself, and an
+    # upload of the same bytes (serve) is the same query.
+    from lookfeel.index.match import Matcher
+    from lookfeel.index.query import load_query_bytes, load_query_image
+
+    query = items[4].path
+    matcher = Matcher(Library.open(tmp_path / "lib"))
+    (r,) = matcher.match_files([query], Modality.TOUCH)
+    assert r.known and r.fabrics[0].fabric_id == items[4].fabric_id
+    uploaded = load_query_bytes(query.read_bytes(), "up.mov", Modality.TOUCH, loaded.config.data)
+    assert torch.equal(uploaded, load_query_image(query, Modality.TOUCH, loaded.config.data))
+    assert uploaded.shape == (13, 3, 32, 32)
