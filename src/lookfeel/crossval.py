@@ -530,10 +530,12 @@ def _untouched_lines(summary: dict[str, Any]) -> list[str]:
 
 def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
+    size = summary["fold_size"]
+    per_fold = "every fabric held out once" if size is None else f"{size} fabrics per fold"
     lines = [
         f"Fabric-disjoint cross-validation: {summary['runs']} runs "
-        f"(folds {summary['folds']}, seeds {summary['seeds']}, {summary['fold_size']} fabrics "
-        "per fold). Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
+        f"(folds {summary['folds']}, seeds {summary['seeds']}, {per_fold}). "
+        "Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
         "[95% interval, resampling held-out fabrics].",
         "",
         "| pair | model top-1 | model top-3 | raw pixels top-1 | raw pixels top-3 | chance |",
