@@ -216,6 +216,20 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+def _count_calls(monkeypatch: pytest.MonkeyPatch, module: object, name: str) -> list[str]:
+    """Replace ``module.name`` (a function whose first argument is a path) by one that also
+    records the file name of each call; returns the record."""
+    calls: list[str] = []
+    real = getattr(module, name)
+
+    def counting(path, *args, **kwargs):
+        calls.append(Path(path).name)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(module, name, counting)
+    return calls
+
+
 TINY = [
     "--set", "data.image_size=32", "--set", "model.width=4", "--set", "model.embed_dim=8",
     "--set", "train.steps=4", "--set", "train.batch_size=8", "--set", "train.checkpoint_every=0",
@@ -316,14 +330,7 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
     from lookfeel.cli import main
     from lookfeel.data import touch_control
 
-    still: list[str] = []
-    untouched_image = touch_control.untouched_image
-
-    def counting(path, *args, **kwargs):
-        still.append(Path(path).name)
-        return untouched_image(path, *args, **kwargs)
-
-    monkeypatch.setattr(touch_control, "untouched_image", counting)
+    still = _count_calls(monkeypatch, touch_control, "untouched_image")
     config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")
     args = ["cv", "--config", config, "--data", str(recordings), "--out", str(tmp_path / "cv")]
     with pytest.warns(UserWarning, match="hold no press"):
@@ -394,14 +401,7 @@ def test_a_training_run_decodes_each_press_video_once(
     from lookfeel.data import images as images_module
     from lookfeel.train import train
 
-    decoded: list[str] = []
-    read_press = images_module.read_press
-
-    def counting(path, *args, **kwargs):
-        decoded.append(Path(path).name)
-        return read_press(path, *args, **kwargs)
-
-    monkeypatch.setattr(images_module, "read_press", counting)
+    decoded = _count_calls(monkeypatch, images_module, "read_press")
     config = Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml"
     tiny = [TINY[i + 1] for i in range(0, len(TINY), 2)] + ["train.steps=2"]
     with pytest.warns(UserWarning, match="hold no press"):
@@ -460,14 +460,8 @@ def test_a_library_of_press_videos_decodes_each_once_and_matches_like_embed(
     tiny = [TINY[i + 1] for i in range(0, len(TINY), 2)] + ["train.steps=2"]
     with pytest.warns(UserWarning, match="hold no press"):
         run = train(load_config(RunConfig, config, tiny), recordings, tmp_path / "run").run_dir
-    decoded: list[str] = []
     read_press = images_module.read_press
-
-    def counting(path, *args, **kwargs):
-        decoded.append(Path(path).name)
-        return read_press(path, *args, **kwargs)
-
-    monkeypatch.setattr(images_module, "read_press", counting)
+    decoded = _count_calls(monkeypatch, images_module, "read_press")
     with pytest.warns(UserWarning, match="hold no press"):
         build_library(run / "checkpoints" / "last.pt", recordings, tmp_path / "lib", shard_size=5)
     assert len(decoded) == 19 and len(set(decoded)) == 19  # every video, views and all, once
