@@ -400,6 +400,10 @@ def test_embedder_rejects_bad_inputs() -> None:
         model({"touch": b["color"]})
     with pytest.raises(ValueError, match=r"slot 'depth': expected \(B, 1, H, W\)"):
         model({"depth": b["color"]})
+    views = b["touch"].unsqueeze(2).expand(-1, -1, 2, -1, -1, -1)  # (B, P, V, 3, H, W)
+    assert model({"touch": views})["touch"].shape == (2, model.embed_dim)
+    with pytest.raises(ValueError, match=r"slot 'touch'.*press axis"):
+        model.trunk({"touch": views})  # the trunk cache holds one image per press
     with pytest.raises(KeyError, match="no color branch"):
         model({"color": b["color"]})
     with pytest.raises(KeyError, match="'smell' names no modality"):

@@ -90,11 +90,11 @@ class Embedder(nn.Module):
         """Parameters that train (frozen trunks and unused ImageNet classifiers excluded)."""
         return [p for p in self.parameters() if p.requires_grad]
 
-    def _check(self, slot: str, x: Tensor) -> None:
+    def _check(self, slot: str, x: Tensor, views: bool = True) -> None:
         m = self.branch(slot).modality
         c = _CHANNELS[m]
         if m is Modality.TOUCH:
-            if x.dim() not in (5, 6) or x.shape[-3] != c:
+            if x.dim() not in ((5, 6) if views else (5,)) or x.shape[-3] != c:
                 raise ValueError(
                     f"slot {slot!r}: touch input must be (B, P, {c}, H, W) with a press axis "
                     f"(P = 1 for one press), or (B, P, V, {c}, H, W) with V views of each "
@@ -135,7 +135,7 @@ class Embedder(nn.Module):
             slot -> (B, *F), or (B, P, *F) for touch; feed back with ``from_trunk=True``.
         """
         for slot, x in inputs.items():
-            self._check(slot, x)
+            self._check(slot, x, views=False)
         return self._per_branch(inputs, lambda b, x: b.trunk(x))
 
     def forward(
