@@ -354,6 +354,13 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
     assert hardness["model_pooled"]["queries"] == 12  # one per object and seed
     report = (tmp_path / "cv" / "cv.md").read_text()
     assert "Untouched control" in report and "| hardness |" in report
+    assert "every fabric held out once" in report
+
+    # Scored again (--tta): the finished runs, whose configs now name their classes, are kept.
+    capsys.readouterr()
+    with pytest.warns(UserWarning, match="hold no press"):
+        assert main([*args, *TINY, "--folds", "2", "--seeds", "0,1", "--tta"]) == 0
+    assert "seed 1 fold 1: trained before, scoring again" in capsys.readouterr().out
 
 
 def test_training_views_change_the_run_and_resume_exactly(recordings: Path, tmp_path: Path):

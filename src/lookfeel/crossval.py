@@ -105,6 +105,15 @@ def _result_config(config: RunConfig) -> dict[str, Any]:
     return d
 
 
+def _same_run(trained: RunConfig, asked: RunConfig) -> bool:
+    """Whether a trained run's config is ``asked`` (training fills in ``model.classes`` from the
+    labels when the config leaves them empty: that is no difference)."""
+    done, want = _result_config(trained), _result_config(asked)
+    if not want["model"].get("classes"):
+        done["model"]["classes"] = want["model"].get("classes")
+    return done == want
+
+
 def _pairs(config: RunConfig) -> list[Pair]:
     return list(config.train.val_pairs) or default_pairs(config.train.modalities)
 
@@ -654,7 +663,7 @@ def cross_validate(
             last = run_dir / "checkpoints" / "last.pt"
             done = load_model(last) if last.exists() else None
             if done is not None and done.step >= cfg.train.steps:
-                if _result_config(done.config) != _result_config(cfg):
+                if not _same_run(done.config, cfg):
                     raise ConfigError(
                         f"{run_dir} holds a finished run of another config; use another --out"
                     )
