@@ -96,7 +96,8 @@ def embed_items(
 
 
 class _Stager:
-    """Batches of the loader's arrays on a device, equal to ``loader.load`` image by image.
+    """Batches of the loader's arrays on a device, equal to ``loader.load_embedded`` item by
+    item (a view axis after the batch's when some item has views: `stack_views`).
 
     On CUDA the arrays are stacked straight into one of two pinned buffers and copied
     asynchronously; a buffer is refilled only after its previous copy has finished.
