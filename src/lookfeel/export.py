@@ -5,7 +5,10 @@
 
 - depth: input ``image`` (B, 1, S, S); colour: ``image`` (B, 3, S, S);
 - touch: input ``presses`` (B, P, 3, S, S), the P presses of each query max-pooled inside the
-  graph (the Multi-input Net; P = 1 for one press).
+  graph (the Multi-input Net; P = 1 for one press). A run with ``data.video_embed: views``
+  embeds a press video as the mean of its views' embeddings: with one press per query, feed the
+  views as B images and average the B embeddings (the projection is linear, so this equals
+  lookfeel's own embedding when ``model.normalize`` is off).
 
 B (and P) are dynamic, S is the run's ``data.image_size``. ``DIR/export.json`` records the
 shapes, the embedding size and the run's data settings: preprocess inputs exactly as
