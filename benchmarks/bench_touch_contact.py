@@ -91,9 +91,8 @@ def run(data: Path | None, physiclear: Path | None = None, cv: Path | None = Non
     loader = ImageLoader(config.data)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the 3 videos without a press
-        catalog = drop_unpressed(scan(root), loader)
+        catalog = drop_unpressed(scan(root), loader)  # decodes every press's views, once
     items = catalog.items(Modality.TOUCH)
-    loader.preload(items)
     fabrics = {f.id: f for f in catalog.fabrics}
     object_of = np.array([it.fabric_id for it in items])
     stats = np.stack([contact_statistics(loader.embed_array(it)) for it in items])

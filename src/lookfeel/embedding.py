@@ -126,8 +126,8 @@ class _Stager:
 
     def batch(self, loader: ImageLoader, items: Sequence[Item]) -> torch.Tensor:
         arrays = [loader.embed_array(it) for it in items]
-        shape = (len(arrays), *max((a.shape for a in arrays), key=len))
         if self.device.type == "cuda":
+            shape = (len(arrays), *max((a.shape for a in arrays), key=len))
             buf = self._pinned(shape, arrays[0].dtype)
             if len({a.ndim for a in arrays}) == 1:
                 np.stack(arrays, out=buf.numpy())
