@@ -10,7 +10,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from lookfeel.checkpoint import load_model
+from lookfeel.checkpoint import load_model, read_checkpoint, save_checkpoint
 from lookfeel.cli import main
 from lookfeel.export import export_onnx
 from lookfeel.modality import Modality
@@ -81,3 +81,29 @@ def test_cli_export(exported, tmp_path: Path, capsys):
     assert "checkpoint not found" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["export", "--checkpoint", str(ckpt), "--format", "tflite", "--out", str(out)])
+
+
+def test_views_graph_equals_lookfeel_embedding_of_a_press_video(exported, tmp_path: Path):
+    # A run with data.video_embed: views embeds a press from V views, averaged inside the
+    # branch (and normalised after, when the run normalises): the graph must take them all.
+    ckpt, _ = exported
+    state = read_checkpoint(ckpt)
+    state["config"]["data"].update(video_embed="views", video_views=4)
+    views_ckpt = save_checkpoint(tmp_path / "views.pt", state)
+    [touch] = export_onnx(views_ckpt, tmp_path / "onnx", modalities=[Modality.TOUCH])
+    assert touch.input_name == "views"
+    assert touch.input_shape == ["batch", "presses", "views", 3, 32, 32]
+    model = load_model(views_ckpt).model
+    session = ort.InferenceSession(str(touch.path))
+    gen = torch.Generator().manual_seed(2)
+    for shape in [(1, 1, 5, 3, 32, 32), (3, 2, 7, 3, 32, 32)]:
+        x = torch.rand(*shape, generator=gen)
+        with torch.inference_mode():
+            want = model({"touch": x})["touch"].numpy()
+            first_view = model({"touch": x[:, :, 0]})["touch"].numpy()
+        got = session.run(None, {"views": x.numpy()})[0]
+        np.testing.assert_allclose(got, want, atol=1e-4, rtol=0)
+        assert np.abs(got - first_view).max() > 1e-3  # the views really are averaged
+    meta = json.loads((tmp_path / "onnx" / "export.json").read_text())
+    assert meta["branches"]["touch"]["input"] == "views"
+    assert meta["data"]["video_embed"] == "views" and meta["data"]["video_views"] == 4

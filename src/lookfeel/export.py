@@ -6,16 +6,17 @@
 - depth: input ``image`` (B, 1, S, S); colour: ``image`` (B, 3, S, S);
 - touch: input ``presses`` (B, P, 3, S, S), the P presses of each query max-pooled inside the
   graph (the Multi-input Net; P = 1 for one press). A run with ``data.video_embed: views``
-  embeds a press video as the mean of its views' embeddings: with one press per query, feed the
-  views as B images and average the B embeddings (the projection is linear, so this equals
-  lookfeel's own embedding when ``model.normalize`` is off).
+  embeds a press video from several views of it (`lookfeel.data.video.view_frames`: its
+  deepest frame and ``data.video_views`` frames across its contact span, each preprocessed as
+  an image); its graph takes input ``views`` (B, P, V, 3, S, S) and averages a press's V views
+  inside, as `lookfeel.models.Branch` does, so it equals lookfeel's own embedding.
 
-B (and P) are dynamic, S is the run's ``data.image_size``. ``DIR/export.json`` records the
+B (and P, V) are dynamic, S is the run's ``data.image_size``. ``DIR/export.json`` records the
 shapes, the embedding size and the run's data settings: preprocess inputs exactly as
 `lookfeel.data.images.preprocess_depth` / `preprocess_rgb` do (ImageNet normalisation is inside
 the graph). Each file is checked against PyTorch under onnxruntime on random inputs of two
-batch sizes (and two press counts) before it is written; the largest difference is recorded,
-and one above ``atol`` (1e-4) is an error.
+batch sizes (and two press and view counts) before it is written; the largest difference is
+recorded, and one above ``atol`` (1e-4) is an error.
 
 The export uses PyTorch's TorchScript-based exporter (``dynamo=False``): the newer exporter
 needs the ``onnxscript`` package, which lookfeel does not depend on.
@@ -72,7 +73,7 @@ class ExportedBranch:
     Attributes:
         modality: the branch's modality.
         path: the ``.onnx`` file.
-        input_name: ``image`` or ``presses``.
+        input_name: ``image``, ``presses`` or ``views``.
         input_shape: symbolic shape, e.g. ``["batch", "presses", 3, 64, 64]``.
         embed_dim: D.
         max_abs_diff: largest |onnxruntime - PyTorch| over the check inputs (None: not checked).
@@ -142,7 +143,15 @@ def export_onnx(
         shape: list[int | str]
         module = _BranchGraph(model.branch(m.value)).eval()  # eval: the exporter restores modes
         c = _CHANNELS[m]
-        if m is Modality.TOUCH:
+        if m is Modality.TOUCH and loaded.config.data.video_embed == "views":
+            name, shape = "views", ["batch", "presses", "views", c, size, size]
+            example = torch.rand(2, 2, 3, c, size, size, generator=gen)
+            axes = {name: {0: "batch", 1: "presses", 2: "views"}, "embedding": {0: "batch"}}
+            checks = [
+                torch.rand(1, 1, loaded.config.data.video_views + 1, c, size, size, generator=gen),
+                torch.rand(3, 2, 4, c, size, size, generator=gen),
+            ]
+        elif m is Modality.TOUCH:
             name, shape = "presses", ["batch", "presses", c, size, size]
             example = torch.rand(2, 3, c, size, size, generator=gen)
             axes = {name: {0: "batch", 1: "presses"}, "embedding": {0: "batch"}}

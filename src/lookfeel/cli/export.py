@@ -1,8 +1,9 @@
 """``lookfeel export``: each modality branch of a checkpoint as a file that runs without PyTorch
 (ONNX).
 
-Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses) and
-DIR/export.json, each checked against PyTorch under onnxruntime.
+Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses, and dynamic
+views for a run that embeds a press video from its views) and DIR/export.json, each checked
+against PyTorch under onnxruntime.
 """
 
 from __future__ import annotations
