@@ -68,3 +68,49 @@ def test_batched_augmentation_matches_one_image_at_a_time_and_is_seeded():
     off = Augmenter(AugmentConfig())
     assert off.apply_batch(x, off.draw_batch(np.random.default_rng(0), 12, 3, 20, 20)) is x
     assert isinstance(d[[0, 2]], AugmentDraw) and len(d[[0, 2]]) == 2
+
+
+def test_level_shift_and_tilt_move_the_foreground_by_a_plane_and_keep_the_mask():
+    # Registered depth: the room is 0; a floor fitted a few mm off moves the cloth's level by
+    # a plane. The augmentation must do exactly that, and never unmask or mask a pixel.
+    import numpy as np
+
+    from lookfeel.data.augment import shift_level
+
+    x = torch.zeros(2, 1, 4, 4)
+    x[:, :, 1:3, :] = 0.5
+    level = torch.tensor([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
+    y = shift_level(x, level)
+    assert torch.equal(y[x == 0], x[x == 0])  # the room stays 0
+    torch.testing.assert_close(y[0, 0, 1], torch.full((4,), 0.6))  # shifted by 0.1
+    # tilt along x: u = -0.75, -0.25, 0.25, 0.75 at the pixel centres
+    torch.testing.assert_close(y[1, 0, 2], 0.5 + 0.2 * torch.tensor([-0.75, -0.25, 0.25, 0.75]))
+    low = shift_level(x, torch.tensor([[-0.9, 0.0, 0.0]]).expand(2, 3))
+    assert (low[x > 0] > 0).all()  # a foreground pixel is never pushed into the mask
+
+    aug = Augmenter(AugmentConfig(level_shift=0.02, level_tilt=0.03))
+    d = aug.draw_batch(np.random.default_rng(0), 64, 1, 4, 4)
+    assert d.level is not None and d.level.shape == (64, 3)
+    assert np.abs(d.level[:, 0]).max() <= 0.02 and np.hypot(*d.level[:, 1:].T).max() <= 0.03
+    assert np.abs(d.level[:, 0]).max() > 0.01  # the range is used, not a constant
+    batch = x[:1].expand(64, 1, 4, 4)
+    y = aug.apply_batch(batch, d)
+    assert torch.equal(y[batch == 0], batch[batch == 0])
+    assert (y - batch).abs().max() <= 0.02 + 0.03 + 1e-6 and (y != batch).any()
+    one = aug(x[0], torch.Generator().manual_seed(5))  # the one-image path does the same kind
+    assert torch.equal(one[x[0] == 0], x[0][x[0] == 0]) and not torch.equal(one, x[0])
+
+
+def test_augmentation_amounts_out_of_range_name_their_key():
+    import re
+
+    import pytest
+
+    from lookfeel.config import ConfigError, RunConfig, load_config
+
+    for override, message in [
+        ("data.augment.depth.level_tilt=-0.1", "data.augment.depth.level_tilt: must be in [0, 1)"),
+        ("data.augment.color.hflip_p=1.5", "data.augment.color.hflip_p: must be in [0, 1]"),
+    ]:
+        with pytest.raises(ConfigError, match=re.escape(message)):
+            load_config(RunConfig, overrides=[override])

@@ -32,6 +32,15 @@ class AugmentConfig:
     """Standard deviation of additive Gaussian noise on the [0, 1] image."""
     hflip_p: float = 0.0
     """Probability of a left-right flip."""
+    level_shift: float = 0.0
+    """Largest shift of the image's level, in [0, 1] input units: every pixel above 0 moves by
+    one uniform draw in [-level_shift, level_shift], and 0 (masked: registered depth's room)
+    stays 0. For registered depth, a floor fitted a few mm higher or lower (0.02 = 10 mm at
+    ``depth_range_mm`` 500)."""
+    level_tilt: float = 0.0
+    """Largest tilt of the image's level: a plane through the image's centre, in a uniform
+    direction, adds up to ``level_tilt`` at the image's edge midpoints to the pixels above 0
+    (registered depth: a floor fitted slightly tilted)."""
 
 
 def _default_augment() -> dict[Modality, AugmentConfig]:
@@ -173,3 +182,11 @@ class DataConfig:
             raise ConfigError(f"data.video_gain: must be > 0, got {self.video_gain}")
         if self.workers < 1:
             raise ConfigError(f"data.workers: must be >= 1, got {self.workers}")
+        for modality, aug in self.augment.items():
+            key = f"data.augment.{Modality(modality).value}"
+            for name in ("crop_p", "hflip_p"):
+                if not 0.0 <= getattr(aug, name) <= 1.0:
+                    raise ConfigError(f"{key}.{name}: must be in [0, 1], got {getattr(aug, name)}")
+            for name in ("noise_std", "level_shift", "level_tilt"):
+                if not 0.0 <= getattr(aug, name) < 1.0:
+                    raise ConfigError(f"{key}.{name}: must be in [0, 1), got {getattr(aug, name)}")

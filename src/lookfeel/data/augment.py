@@ -26,6 +26,7 @@ __all__ = [
     "apply_gamma",
     "hflip",
     "permute_channels",
+    "shift_level",
     "square_crop",
 ]
 
@@ -60,6 +61,20 @@ def hflip(x: torch.Tensor) -> torch.Tensor:
     return x.flip(-1)
 
 
+def shift_level(x: torch.Tensor, level: torch.Tensor) -> torch.Tensor:
+    """Move the level of every pixel above 0 of a batch (N, C, H, W) by a plane per image.
+
+    ``level`` (N, 3) holds each image's (shift, tilt along x, tilt along y): the plane is
+    ``shift + tx * u + ty * v`` with u, v from -1 to 1 across the image (pixel centres).
+    Pixels at 0 (registered depth's masked room) stay 0; the others stay in (0, 1]."""
+    h, w = x.shape[-2:]
+    u = (torch.arange(w, device=x.device, dtype=x.dtype) + 0.5) * (2.0 / w) - 1.0
+    v = (torch.arange(h, device=x.device, dtype=x.dtype) + 0.5) * (2.0 / h) - 1.0
+    s, tx, ty = (level[:, k].view(-1, 1, 1, 1) for k in range(3))
+    plane = s + tx * u.view(1, 1, 1, w) + ty * v.view(1, 1, h, 1)  # (N, 1, H, W)
+    return torch.where(x > 0, (x + plane).clamp(1e-3, 1.0), x)
+
+
 def _uniform(generator: torch.Generator) -> float:
     return float(torch.rand((), generator=generator))
 
@@ -78,6 +93,8 @@ class AugmentDraw:
     """(N, C) channel order per image, or none."""
     noise_seed: np.ndarray | None
     """(N,) seeds of each image's Gaussian noise, or none."""
+    level: np.ndarray | None = None
+    """(N, 3) float (shift, tilt along x, tilt along y) of each image's level, or none."""
 
     def __len__(self) -> int:
         return len(self.flip)
@@ -90,7 +107,7 @@ class AugmentDraw:
 
         return AugmentDraw(
             self.crop[index], self.flip[index], pick(self.gamma), pick(self.order),
-            pick(self.noise_seed),
+            pick(self.noise_seed), pick(self.level),
         )  # fmt: skip
 
 
@@ -119,7 +136,7 @@ def _crop_grids(
 class Augmenter:
     """Applies one modality's `AugmentConfig` to an image with a given generator.
 
-    Order: crop, flip, gamma, channel order, noise. With a default config it returns the
+    Order: crop, flip, level, gamma, channel order, noise. With a default config it returns the
     input unchanged and draws nothing.
     """
 
@@ -130,7 +147,13 @@ class Augmenter:
     def active(self) -> bool:
         c = self.config
         return bool(
-            c.gamma is not None or c.permute_channels or c.crop_p or c.noise_std or c.hflip_p
+            c.gamma is not None
+            or c.permute_channels
+            or c.crop_p
+            or c.noise_std
+            or c.hflip_p
+            or c.level_shift
+            or c.level_tilt
         )
 
     def draw_batch(
@@ -157,7 +180,13 @@ class Augmenter:
         if c.permute_channels and channels > 1:
             order = np.argsort(rng.random((n, channels)), axis=1)
         noise_seed = rng.integers(0, 2**62, n) if c.noise_std else None
-        return AugmentDraw(crop, flip, gamma, order, noise_seed)
+        level = None
+        if c.level_shift or c.level_tilt:
+            shift = c.level_shift * (2.0 * rng.random(n) - 1.0)
+            angle = 2.0 * math.pi * rng.random(n)
+            tilt = c.level_tilt * rng.random(n)
+            level = np.stack([shift, tilt * np.cos(angle), tilt * np.sin(angle)], axis=1)
+        return AugmentDraw(crop, flip, gamma, order, noise_seed, level)
 
     def apply_batch(self, x: torch.Tensor, draws: AugmentDraw) -> torch.Tensor:
         """Apply one draw per image to a batch (N, C, H, W) in [0, 1], on ``x``'s device.
@@ -182,6 +211,8 @@ class Augmenter:
         if draws.flip.any():
             mask = torch.from_numpy(draws.flip).to(dev).view(n, 1, 1, 1)
             x = torch.where(mask, x.flip(-1), x)
+        if draws.level is not None:
+            x = shift_level(x, torch.from_numpy(draws.level).to(dev, x.dtype))
         if draws.gamma is not None:
             g = torch.from_numpy(draws.gamma).to(dev, x.dtype).view(n, 1, 1, 1)
             x = x.clamp(0.0, 1.0).pow(g)
@@ -213,6 +244,12 @@ class Augmenter:
             x = square_crop(x, top, left, side)
         if c.hflip_p and _uniform(generator) < c.hflip_p:
             x = hflip(x)
+        if c.level_shift or c.level_tilt:
+            shift = c.level_shift * (2.0 * _uniform(generator) - 1.0)
+            angle = 2.0 * math.pi * _uniform(generator)
+            tilt = c.level_tilt * _uniform(generator)
+            level = torch.tensor([[shift, tilt * math.cos(angle), tilt * math.sin(angle)]])
+            x = shift_level(x[None], level.to(x.dtype))[0]
         if c.gamma is not None:
             lo, hi = c.gamma  # log-uniform, so gamma and 1/gamma are equally likely
             g = math.exp(math.log(lo) + (math.log(hi) - math.log(lo)) * _uniform(generator))
