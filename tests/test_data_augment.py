@@ -87,6 +87,10 @@ def test_level_shift_and_tilt_move_the_foreground_by_a_plane_and_keep_the_mask()
     torch.testing.assert_close(y[1, 0, 2], 0.5 + 0.2 * torch.tensor([-0.75, -0.25, 0.25, 0.75]))
     low = shift_level(x, torch.tensor([[-0.9, 0.0, 0.0]]).expand(2, 3))
     assert (low[x > 0] > 0).all()  # a foreground pixel is never pushed into the mask
+    # ... unless it falls below the floor: cloth no longer above the margin is room
+    sunk = shift_level(x, torch.tensor([[0.0, 0.2, 0.0]]).expand(2, 3), floor=0.4)
+    assert torch.equal(sunk[0, 0, 1], torch.tensor([0.0, 0.45, 0.55, 0.65]))
+    assert torch.equal(sunk[x == 0], x[x == 0])
 
     aug = Augmenter(AugmentConfig(level_shift=0.02, level_tilt=0.03))
     d = aug.draw_batch(np.random.default_rng(0), 64, 1, 4, 4)

@@ -220,3 +220,28 @@ def test_registered_loader_input_names_the_file_it_cannot_register(tmp_path):
         DataConfig(depth_input="flat")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="data.depth_margin_mm: must be > 0"):
         DataConfig(depth_margin_mm=0.0)
+
+
+def test_lowest_cloth_is_dropped_above_a_minimum_height():
+    """`data.depth_min_height_mm`: cloth lying lower than it above the fitted floor is room
+    (0), the rest keeps its height; 0 keeps everything and the cache key of before."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.images import PreprocessSettings
+    from lookfeel.data.register import registered_input
+
+    depth = BASE.render()["depth"]
+    config = DataConfig(image_size=BASE.size, depth_input="registered", depth_focal_px=BASE.f)
+    every = registered_input(depth, config)
+    high = registered_input(depth, dataclasses.replace(config, depth_min_height_mm=40.0))
+    low = (every > 0) & (every < 40.0)
+    assert low.sum() > 20 and (every >= 40.0).sum() > 20  # the scene has both
+    assert (high[low] == 0).all() and (high[~low] == every[~low]).all()
+    digest = PreprocessSettings.of(config).digest()
+    assert (
+        digest
+        == PreprocessSettings.of(dataclasses.replace(config, depth_min_height_mm=0.0)).digest()
+    )
+    assert (
+        digest
+        != PreprocessSettings.of(dataclasses.replace(config, depth_min_height_mm=40.0)).digest()
+    )

@@ -41,6 +41,10 @@ class AugmentConfig:
     """Largest tilt of the image's level: a plane through the image's centre, in a uniform
     direction, adds up to ``level_tilt`` at the image's edge midpoints to the pixels above 0
     (registered depth: a floor fitted slightly tilted)."""
+    level_floor: float = 0.0
+    """With a level shift or tilt, pixels moved below this level become 0 (registered depth:
+    cloth that no longer stands ``depth_margin_mm`` above the moved floor is room; 0.03 = 15 mm
+    of 500). 0: none is masked."""
 
 
 def _default_augment() -> dict[Modality, AugmentConfig]:
@@ -76,6 +80,10 @@ class DataConfig:
     """Registered input: ``drape`` keeps only the cloth region connected to the drape's top
     (where the post holds it), dropping separate objects that stand in the room;
     ``all`` keeps every region in front of the room."""
+    depth_min_height_mm: float = 0.0
+    """Registered input: cloth lower than this above the fitted floor is dropped (0). The cloth
+    lying on the floor is where a floor fitted a few mm off changes the mask most (issue #12's
+    background control); 0: every cloth pixel is kept."""
     color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
     touch_crop: Literal["auto", "center", "none"] = "auto"
@@ -182,11 +190,15 @@ class DataConfig:
             raise ConfigError(f"data.video_gain: must be > 0, got {self.video_gain}")
         if self.workers < 1:
             raise ConfigError(f"data.workers: must be >= 1, got {self.workers}")
+        if not self.depth_min_height_mm >= 0:
+            raise ConfigError(
+                f"data.depth_min_height_mm: must be >= 0, got {self.depth_min_height_mm}"
+            )
         for modality, aug in self.augment.items():
             key = f"data.augment.{Modality(modality).value}"
             for name in ("crop_p", "hflip_p"):
                 if not 0.0 <= getattr(aug, name) <= 1.0:
                     raise ConfigError(f"{key}.{name}: must be in [0, 1], got {getattr(aug, name)}")
-            for name in ("noise_std", "level_shift", "level_tilt"):
+            for name in ("noise_std", "level_shift", "level_tilt", "level_floor"):
                 if not 0.0 <= getattr(aug, name) < 1.0:
                     raise ConfigError(f"{key}.{name}: must be in [0, 1), got {getattr(aug, name)}")

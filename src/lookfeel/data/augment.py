@@ -61,18 +61,22 @@ def hflip(x: torch.Tensor) -> torch.Tensor:
     return x.flip(-1)
 
 
-def shift_level(x: torch.Tensor, level: torch.Tensor) -> torch.Tensor:
+def shift_level(x: torch.Tensor, level: torch.Tensor, floor: float = 0.0) -> torch.Tensor:
     """Move the level of every pixel above 0 of a batch (N, C, H, W) by a plane per image.
 
     ``level`` (N, 3) holds each image's (shift, tilt along x, tilt along y): the plane is
     ``shift + tx * u + ty * v`` with u, v from -1 to 1 across the image (pixel centres).
-    Pixels at 0 (registered depth's masked room) stay 0; the others stay in (0, 1]."""
+    Pixels at 0 (registered depth's masked room) stay 0; the others stay in (0, 1], except
+    that those moved below ``floor`` become 0."""
     h, w = x.shape[-2:]
     u = (torch.arange(w, device=x.device, dtype=x.dtype) + 0.5) * (2.0 / w) - 1.0
     v = (torch.arange(h, device=x.device, dtype=x.dtype) + 0.5) * (2.0 / h) - 1.0
     s, tx, ty = (level[:, k].view(-1, 1, 1, 1) for k in range(3))
     plane = s + tx * u.view(1, 1, 1, w) + ty * v.view(1, 1, h, 1)  # (N, 1, H, W)
-    return torch.where(x > 0, (x + plane).clamp(1e-3, 1.0), x)
+    moved = (x + plane).clamp(1e-3, 1.0)
+    if floor > 0:
+        moved = torch.where(moved < floor, torch.zeros_like(moved), moved)
+    return torch.where(x > 0, moved, x)
 
 
 def _uniform(generator: torch.Generator) -> float:
@@ -212,7 +216,9 @@ class Augmenter:
             mask = torch.from_numpy(draws.flip).to(dev).view(n, 1, 1, 1)
             x = torch.where(mask, x.flip(-1), x)
         if draws.level is not None:
-            x = shift_level(x, torch.from_numpy(draws.level).to(dev, x.dtype))
+            x = shift_level(
+                x, torch.from_numpy(draws.level).to(dev, x.dtype), self.config.level_floor
+            )
         if draws.gamma is not None:
             g = torch.from_numpy(draws.gamma).to(dev, x.dtype).view(n, 1, 1, 1)
             x = x.clamp(0.0, 1.0).pow(g)
@@ -249,7 +255,7 @@ class Augmenter:
             angle = 2.0 * math.pi * _uniform(generator)
             tilt = c.level_tilt * _uniform(generator)
             level = torch.tensor([[shift, tilt * math.cos(angle), tilt * math.sin(angle)]])
-            x = shift_level(x[None], level.to(x.dtype))[0]
+            x = shift_level(x[None], level.to(x.dtype), c.level_floor)[0]
         if c.gamma is not None:
             lo, hi = c.gamma  # log-uniform, so gamma and 1/gamma are equally likely
             g = math.exp(math.log(lo) + (math.log(hi) - math.log(lo)) * _uniform(generator))

@@ -261,8 +261,9 @@ class PreprocessSettings:
     video_frames: int
     video_reference: str
     video_gain: float
-    depth_registration: tuple[float, float | None, str] | None = None
-    """Registered depth input: (margin mm, focal px, cloth rule); ``None`` for raw depth."""
+    depth_registration: tuple[float | str | None, ...] | None = None
+    """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
+    0]); ``None`` for raw depth."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -279,6 +280,7 @@ class PreprocessSettings:
             config.video_reference,
             config.video_gain,
             (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
+            + ((config.depth_min_height_mm,) if config.depth_min_height_mm else ())
             if registered
             else None,
         )

@@ -415,7 +415,8 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
 
     Registers with ``config``'s ``depth_margin_mm`` and ``depth_focal_px`` (principal point
     at the image centre; ``None``: GelFabric's crop, scaled) and keeps the cloth as
-    ``depth_cloth`` says (``drape``: `drape_mask`; ``all``: every cloth pixel); 0 elsewhere.
+    ``depth_cloth`` says (``drape``: `drape_mask`; ``all``: every cloth pixel), without the
+    cloth lower than ``depth_min_height_mm`` above the floor; 0 elsewhere.
 
     Raises:
         RegistrationError: no room could be fitted (the message says what is missing).
@@ -424,6 +425,9 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
     reg = register_depth(
         d, registered_intrinsics(d.shape, config), margin_mm=config.depth_margin_mm
     )
-    if config.depth_cloth == "all":
-        return reg.height
-    return np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0)).astype(np.float32)
+    height = reg.height
+    if config.depth_cloth == "drape":
+        height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
+    if config.depth_min_height_mm:
+        height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
+    return height.astype(np.float32, copy=False)
