@@ -79,6 +79,16 @@ def shift_level(x: torch.Tensor, level: torch.Tensor, floor: float = 0.0) -> tor
     return torch.where(x > 0, moved, x)
 
 
+def _level_plane(
+    c: AugmentConfig, a: np.ndarray, b: np.ndarray, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(shift, tilt along x, tilt along y) of `shift_level` from uniform draws in [0, 1): the
+    shift from ``a``, the tilt's direction from ``b`` and its size from ``t``."""
+    angle = 2.0 * math.pi * b
+    tilt = c.level_tilt * t
+    return c.level_shift * (2.0 * a - 1.0), tilt * np.cos(angle), tilt * np.sin(angle)
+
+
 def _uniform(generator: torch.Generator) -> float:
     return float(torch.rand((), generator=generator))
 
@@ -186,10 +196,7 @@ class Augmenter:
         noise_seed = rng.integers(0, 2**62, n) if c.noise_std else None
         level = None
         if c.level_shift or c.level_tilt:
-            shift = c.level_shift * (2.0 * rng.random(n) - 1.0)
-            angle = 2.0 * math.pi * rng.random(n)
-            tilt = c.level_tilt * rng.random(n)
-            level = np.stack([shift, tilt * np.cos(angle), tilt * np.sin(angle)], axis=1)
+            level = np.stack(_level_plane(c, *rng.random((3, n))), axis=1)
         return AugmentDraw(crop, flip, gamma, order, noise_seed, level)
 
     def apply_batch(self, x: torch.Tensor, draws: AugmentDraw) -> torch.Tensor:
@@ -251,11 +258,9 @@ class Augmenter:
         if c.hflip_p and _uniform(generator) < c.hflip_p:
             x = hflip(x)
         if c.level_shift or c.level_tilt:
-            shift = c.level_shift * (2.0 * _uniform(generator) - 1.0)
-            angle = 2.0 * math.pi * _uniform(generator)
-            tilt = c.level_tilt * _uniform(generator)
-            level = torch.tensor([[shift, tilt * math.cos(angle), tilt * math.sin(angle)]])
-            x = shift_level(x[None], level.to(x.dtype), c.level_floor)[0]
+            draws = [_uniform(generator) for _ in range(3)]
+            level = torch.tensor([_level_plane(c, *np.array(draws))], dtype=x.dtype)
+            x = shift_level(x[None], level, c.level_floor)[0]
         if c.gamma is not None:
             lo, hi = c.gamma  # log-uniform, so gamma and 1/gamma are equally likely
             g = math.exp(math.log(lo) + (math.log(hi) - math.log(lo)) * _uniform(generator))
