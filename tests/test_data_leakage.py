@@ -8,11 +8,13 @@ import pytest
 from PIL import Image
 
 from lookfeel.data import scan
+from lookfeel.data.files import ImageError
 from lookfeel.data.leakage import (
     MaskError,
     format_leakage,
     leakage_problems,
     leakage_report,
+    load_pooled,
     parse_mask_options,
     static_mask,
 )
@@ -67,6 +69,20 @@ def test_static_rule_finds_the_wall(leaky: Path):
     assert depth.mask_source == "static"
     assert depth.background_fraction == pytest.approx(_WALL_ROWS / _SIZE)
     assert depth.pool == 1 and depth.pooled_shape == (_SIZE, _SIZE)
+
+
+def test_threads_decode_the_same_pixels_and_name_the_first_bad_file(leaky: Path):
+    items = scan(leaky).items(Modality.DEPTH)
+    serial, shape, k = load_pooled(items, workers=1)
+    threaded, shape2, k2 = load_pooled(items, workers=2)
+    assert len(items) > 17  # enough for the thread pool
+    np.testing.assert_array_equal(serial, threaded)
+    assert (shape, k) == (shape2, k2)
+    for it in (items[30], items[20]):
+        it.path.write_bytes(it.path.read_bytes()[:60])  # truncated
+    with pytest.raises(ImageError) as e:
+        load_pooled(items, workers=2)
+    assert e.value.path == items[20].path
 
 
 def test_static_mask_is_per_pixel_median_rule():
