@@ -49,7 +49,8 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     out = capsys.readouterr().out
     assert "Generating a synthetic world of 10 fabrics" in out
     assert "touch->depth top-1" in out and "Report:" in out and "Evaluation:" in out
-    assert (tmp_path / "demo" / "evaluate" / "figures").is_dir()
+    assert (tmp_path / "demo" / "evaluate" / "figures" / "glance.png").is_file()
+    assert "At a glance:" in out
     report = (tmp_path / "demo" / "reproduce" / "report.md").read_text()
     assert "## Table 4" in report
     assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0

@@ -207,6 +207,43 @@ def test_property_probes_predict_labels_the_embedding_encodes():
     assert r.properties[D]["ridge"]["x"]["n_test"] == 16
 
 
+def test_glance_ranks_the_true_look_and_reads_the_feel_from_the_nearest_training_fabrics():
+    embedded, _ = _world(noise=0.0, n_fabrics=12, seed=3)
+    reference, _ = _world(noise=0.0, n_fabrics=12, seed=3, first_id=101)
+    # Training fabric 100 + f has fabric f's centre: every query's nearest training fabric.
+    labels = {f + 1: [float(f), np.nan] for f in range(12)}
+    labels |= {101 + f: [10.0 * f, 1.0] for f in range(12)}
+    cfg = dataclasses.replace(FAST, probe_k=1, presses=2)
+    r = evaluate_embeddings(
+        embedded, cfg, labels=labels, label_names=["x", "y"], reference=reference
+    )
+    assert len(r.glance) == 3
+    assert len({g.fabric for g in r.glance}) == 3  # distinct query fabrics
+    t_fab = embedded[T].fabric_ids
+    for g in r.glance:
+        assert len(g.query_rows) == 2 and set(t_fab[list(g.query_rows)]) == {g.fabric}
+        assert [look.modality for look in g.galleries] == [D, C]
+        for look in g.galleries:
+            assert look.true_rank == 1 and look.fabrics[0] == g.fabric
+            assert look.n_fabrics == 12 and len(look.rows) == len(set(look.fabrics)) == 5
+            rows_fab = embedded[look.modality].fabric_ids[list(look.rows)]
+            assert rows_fab.tolist() == list(look.fabrics)
+        assert g.label_names == ("x", "y") and g.neighbours == (g.fabric + 100,)
+        assert g.predicted == (10.0 * (g.fabric - 1), 1.0)
+        assert g.truth[0] == g.fabric - 1 and np.isnan(g.truth[1])
+    # The query's own fabric is never its own neighbour, even when training shares it.
+    same = evaluate_embeddings(embedded, cfg, labels=labels, reference=embedded)
+    assert all(g.fabric not in g.neighbours for g in same.glance)
+    # Noise moves the true look down the ranking; the rank counts from 1.
+    noisy, _ = _world(noise={D: 3.0, C: 0.0, T: 0.0}, seed=4)
+    ranks = [g.galleries[0].true_rank for g in evaluate_embeddings(noisy, FAST).glance]
+    assert all(1 <= k <= 12 for k in ranks) and max(ranks) > 1
+    assert not evaluate_embeddings(noisy, FAST).glance[0].label_names  # no labels: no feel
+    assert not evaluate_embeddings(embedded, dataclasses.replace(FAST, examples=0)).glance
+    only_touch, _ = _world(per={T: 4})
+    assert not evaluate_embeddings(only_touch, FAST).glance
+
+
 def test_without_reference_or_labels_the_probes_are_skipped_with_a_note():
     embedded, _ = _world()
     r = evaluate_embeddings(embedded, FAST, labels={1: [1.0]})
@@ -253,6 +290,7 @@ def test_report_files(tmp_path: Path):
         "confusion_clusters_touch_to_depth.png",
     }  # no example figure: these hand-made items have no image files
     assert any("pick examples of touch_to_depth not drawn" in line for line in text.splitlines())
+    assert any("glance figure not drawn" in line for line in text.splitlines())
     for p in files.figures:
         assert f"(figures/{p.name})" in text
     with Image.open(tmp_path / "eval" / "figures" / "presses.png") as im:
@@ -342,12 +380,14 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
         "confusion_touch_to_depth.png": (750, 650),
         "confusion_clusters_touch_to_depth.png": (750, 650),
         "examples_touch_to_depth.png": (550, 740),  # 3 fabrics: 3 candidates, 4 rows
+        "glance.png": (806, 1110),  # 3 queries, 3 fabrics shown, depth and colour, the feel
     }
     for name, size in sizes.items():
         with Image.open(a / "figures" / name) as im:
             assert im.size == size, name
     report = (a / "report.md").read_text()
     assert "![pick examples](figures/examples_touch_to_depth.png)" in report
+    assert "![at a glance](figures/glance.png)" in report
     assert "the run's held-out fabrics (3)" in report
 
 

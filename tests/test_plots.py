@@ -11,9 +11,12 @@ from matplotlib.colors import to_hex
 from PIL import Image
 
 from lookfeel.plots import (
+    GlanceLook,
+    GlanceRow,
     PickRow,
     confusion_figure,
     figure_png,
+    glance_figure,
     pick_examples_figure,
     presses_figure,
     reliability_figure,
@@ -155,3 +158,41 @@ def test_pick_examples_reject_bad_rows():
         pick_examples_figure(
             [PickRow(np.zeros((4, 4, 2)), "q", bad.candidate_images, bad.candidate_labels, 0)]
         )
+
+
+def _glance_row(true_at: int | None, feel: bool = True) -> GlanceRow:
+    rng = np.random.default_rng(1)
+    looks = [
+        GlanceLook(
+            name,
+            [rng.random((16, 16)) for _ in range(5)],
+            [f"{i + 1}. F{i}" for i in range(5)],
+            [i == true_at for i in range(5)],
+            note="the true one ranks 2",
+        )
+        for name in ("depth", "color")
+    ]
+    rows = [("thickness_mm", "1.2", "1.5"), ("stiffness", "2", "?")] if feel else []
+    return GlanceRow(rng.random((16, 16, 3)), "query: touch F1", looks, rows, "Feels like")
+
+
+def test_glance_figure_frames_the_true_fabric_and_shows_the_feel():
+    fig = glance_figure([_glance_row(1), _glance_row(None), _glance_row(4)], "At a glance")
+    green = [ax for ax in fig.axes if to_hex(ax.spines["left"].get_edgecolor()) == TRUE_COLOUR]
+    assert len(green) == 2 * 2  # two looks of the two rows whose true fabric is shown
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert sum("thickness_mm" in t and "1.5" in t for t in texts) == 3
+    assert _size(figure_png(fig)) == (1046, 1110)
+    without = glance_figure([_glance_row(0, feel=False)], "At a glance")
+    assert _size(figure_png(without)) == (756, 390)  # no feel column, one query
+
+
+def test_glance_figure_rejects_bad_rows():
+    with pytest.raises(ValueError, match="no glance queries"):
+        glance_figure([], "t")
+    row = _glance_row(0)
+    with pytest.raises(ValueError, match="same number of look rows"):
+        glance_figure([row, GlanceRow(row.query_image, "q", row.looks[:1])], "t")
+    bad = GlanceLook("depth", row.looks[0].images, ["1."], [True])
+    with pytest.raises(ValueError, match="images, labels and true flags differ"):
+        glance_figure([GlanceRow(row.query_image, "q", [bad])], "t")

@@ -135,5 +135,8 @@ def print_demo_result(result: DemoResult, log: Callable[[str], None] = print) ->
     log(f"Report:        {result.reproduction.report}")
     if result.evaluation is not None:
         log(f"Evaluation:    {result.evaluation} (figures beside it)")
+        glance = result.evaluation.parent / "figures" / "glance.png"
+        if glance.exists():
+            log(f"At a glance:   {glance} (touch queries, their nearest drapes and photos)")
     log(f"Contact sheet: {result.world / 'contact_sheet.png'}")
     log(f"Done in {result.seconds / 60:.1f} min.")

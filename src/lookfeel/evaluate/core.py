@@ -41,7 +41,7 @@ from lookfeel.metrics import (
 )
 from lookfeel.modality import Modality, Pair
 
-from .result import CalibrationResult, EvalResult, PickExample
+from .result import CalibrationResult, EvalResult, GlanceExample, GlanceGallery, PickExample
 
 __all__ = ["PressPooler", "evaluate_embeddings", "max_pool_presses", "scoring_protocol"]
 
@@ -269,6 +269,81 @@ def _draw_examples(
     return tuple(chosen[: config.examples])
 
 
+GLANCE_QUERIES = 3
+"""Touch queries in the glance figure (fewer when ``eval.examples`` asks for fewer)."""
+GLANCE_SHOWN = 5
+"""Nearest fabrics shown per look modality in the glance figure."""
+_LOOKS = (Modality.DEPTH, Modality.COLOR)
+
+
+def _glance_queries(q: QuerySet, count: int, seed: int) -> NDArray[np.int64]:
+    """``count`` touch queries of distinct fabrics, drawn with ``seed`` (not chosen by score)."""
+    rng = np.random.default_rng([seed, 7])
+    chosen: list[int] = []
+    if count <= 0:
+        return np.zeros(0, dtype=np.int64)
+    seen: set[int] = set()
+    for qi in rng.permutation(len(q.fabric)):
+        f = int(q.fabric[qi])
+        if f not in seen:
+            seen.add(f)
+            chosen.append(int(qi))
+        if len(chosen) == count:
+            break
+    return np.asarray(chosen, dtype=np.int64)
+
+
+def _nearest_fabrics(
+    dist: NDArray[np.float64], gallery_fabric: NDArray[np.int64], own: int, modality: Modality
+) -> GlanceGallery:
+    """Rank a query's gallery fabrics by their nearest item (one row of distances)."""
+    fabrics = np.unique(gallery_fabric)
+    best_row = np.empty(len(fabrics), dtype=np.int64)
+    best = np.empty(len(fabrics))
+    for i, f in enumerate(fabrics):
+        rows = np.flatnonzero(gallery_fabric == f)
+        j = int(rows[np.argmin(dist[rows])])
+        best_row[i], best[i] = j, dist[j]
+    order = np.argsort(best, kind="stable")
+    ranked = fabrics[order]
+    hit = np.flatnonzero(ranked == own)
+    return GlanceGallery(
+        modality=modality,
+        rows=tuple(int(r) for r in best_row[order][:GLANCE_SHOWN]),
+        fabrics=tuple(int(f) for f in ranked[:GLANCE_SHOWN]),
+        true_rank=int(hit[0]) + 1 if hit.size else 0,
+        n_fabrics=len(fabrics),
+    )
+
+
+def _feels_like(
+    query_emb: NDArray[np.float64],
+    own: int,
+    reference: QuerySet,
+    labels: Mapping[int, Sequence[float]],
+    n_cols: int,
+    k: int,
+) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    """The mean label of the ``k`` training fabrics whose touch is nearest (by their nearest
+    query), and those fabrics; the query's own fabric is never one of them."""
+    d = pairwise_distances(query_emb[None], reference.emb)[0]
+    fabrics = np.asarray(reference.fabric, dtype=np.int64)
+    nearest: list[int] = []
+    for j in np.argsort(d, kind="stable"):
+        f = int(fabrics[j])
+        if f != own and f not in nearest and f in labels:
+            nearest.append(f)
+            if len(nearest) == k:
+                break
+    if not nearest:
+        return tuple([math.nan] * n_cols), ()
+    y = _labels_of(np.asarray(nearest, dtype=np.int64), labels, n_cols)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a column no neighbour knows: NaN
+        mean = np.nanmean(y, axis=0)
+    return tuple(float(v) for v in mean), tuple(nearest)
+
+
 def _labels_of(
     fabric: NDArray[np.int64], labels: Mapping[int, Sequence[float]], n_cols: int
 ) -> NDArray[np.float64]:
@@ -439,11 +514,20 @@ def evaluate_embeddings(
     ref_queries: dict[Modality, QuerySet] = {}  # built once per modality, when c is fitted
     calibration: dict[Pair, CalibrationResult] = {}
     examples: dict[Pair, tuple[PickExample, ...]] = {}
+    glance_q = np.zeros(0, dtype=np.int64)
+    if Modality.TOUCH in mods and any(m in mods for m in _LOOKS):
+        count = min(GLANCE_QUERIES, config.examples)
+        glance_q = _glance_queries(queries[Modality.TOUCH], count, config.seed)
+    glance_seen: dict[Modality, list[GlanceGallery]] = {}
 
     def score(pd: PairDistances) -> None:
         pair, dist, qs, excl = pd.pair, pd.dist, pd.queries, pd.exclude
         gf = np.asarray(pd.gallery_fabric, dtype=np.int64)  # already int64: no copy
         q, g = pair.query, pair.gallery
+        if q is Modality.TOUCH and g in _LOOKS and len(glance_q):
+            glance_seen[g] = [
+                _nearest_fabrics(np.asarray(dist[qi]), gf, int(qs.fabric[qi]), g) for qi in glance_q
+            ]
         with notes.catching(pair):
             scored = score_distances(dist, qs.fabric, gf, protocol, exclude=excl)
         out = {f"{pair}_{k}": v for k, v in scored.metrics.items()}
@@ -522,6 +606,36 @@ def evaluate_embeddings(
     full_info = dict(info or {})
     full_info.setdefault("items", {m.value: len(embedded[m].embeddings) for m in mods})
     full_info.setdefault("fabrics", [int(f) for f in all_fabrics])
+    glance: list[GlanceExample] = []
+    if len(glance_q):
+        tq = queries[Modality.TOUCH]
+        n_cols = len(next(iter(labels.values()), [])) if labels else 0
+        columns = tuple(label_names or [str(j) for j in range(n_cols)])
+        ref_touch = None
+        if labels and reference is not None and Modality.TOUCH in reference:
+            ref_touch = _queries(reference[Modality.TOUCH], presses, config.seed, pool)
+        for i, qi in enumerate(glance_q):
+            f = int(tq.fabric[qi])
+            predicted: tuple[float, ...] = ()
+            truth: tuple[float, ...] = ()
+            neighbours: tuple[int, ...] = ()
+            if labels and ref_touch is not None and len(ref_touch.fabric):
+                predicted, neighbours = _feels_like(
+                    tq.emb[qi], f, ref_touch, labels, n_cols, config.probe_k
+                )
+                truth = tuple(float(v) for v in _labels_of(np.array([f]), labels, n_cols)[0])
+            glance.append(
+                GlanceExample(
+                    query_rows=tuple(int(r) for r in tq.members[qi]),
+                    fabric=f,
+                    galleries=tuple(glance_seen[m][i] for m in _LOOKS if m in glance_seen),
+                    label_names=columns if predicted else (),
+                    predicted=predicted,
+                    truth=truth,
+                    neighbours=neighbours,
+                )
+            )
+
     return EvalResult(
         metrics=metrics,
         config=config,
@@ -534,4 +648,5 @@ def evaluate_embeddings(
         notes=tuple(notes.items),
         info=full_info,
         data_config=data_config,
+        glance=tuple(glance),
     )

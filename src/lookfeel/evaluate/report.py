@@ -17,15 +17,18 @@ from lookfeel.config import DataConfig
 from lookfeel.data import ImageError, ImageLoader
 from lookfeel.modality import Modality, Pair
 from lookfeel.plots import (
+    GlanceLook,
+    GlanceRow,
     PickRow,
     confusion_figure,
+    glance_figure,
     pick_examples_figure,
     presses_figure,
     reliability_figure,
     save_figure,
 )
 
-from .result import CalibrationResult, EvalResult, PickExample, PressCurve
+from .result import CalibrationResult, EvalResult, GlanceExample, PickExample, PressCurve
 
 __all__ = ["ReportFiles", "write_metrics", "write_report"]
 
@@ -388,6 +391,56 @@ def _example_rows(result: EvalResult, examples: tuple[PickExample, ...]) -> list
     return rows
 
 
+def _value(v: float) -> str:
+    return "?" if math.isnan(v) else f"{v:.3g}"
+
+
+def _glance_rows(result: EvalResult, examples: tuple[GlanceExample, ...]) -> list[GlanceRow]:
+    loader = ImageLoader(result.data_config or DataConfig(image_size=128))
+    rows = []
+    for ex in examples:
+        presses = len(ex.query_rows)
+        label = f"query: touch F{ex.fabric}"
+        if presses > 1:
+            label += f"\n(1st of {presses} presses)"
+        looks = [
+            GlanceLook(
+                name=g.modality.value,
+                images=[_image(loader, result, g.modality, r) for r in g.rows],
+                labels=[f"{i + 1}. F{f}" for i, f in enumerate(g.fabrics)],
+                true=[f == ex.fabric for f in g.fabrics],
+                note=(
+                    f"nearest {g.modality.value} of {g.n_fabrics} fabrics; "
+                    + (
+                        f"the true one ranks {g.true_rank}"
+                        if g.true_rank
+                        else "the true one has none"
+                    )
+                ),
+            )
+            for g in ex.galleries
+        ]
+        feel = [
+            (name, _value(p), _value(t))
+            for name, p, t in zip(ex.label_names, ex.predicted, ex.truth, strict=True)
+        ]
+        rows.append(
+            GlanceRow(
+                query_image=_image(loader, result, Modality.TOUCH, ex.query_rows[0]),
+                query_label=label,
+                looks=looks,
+                feel=feel,
+                feel_title=(
+                    f"Feels like (mean of the {len(ex.neighbours)}\ntraining fabrics "
+                    "nearest in touch)"
+                    if feel
+                    else ""
+                ),
+            )
+        )
+    return rows
+
+
 def _cluster_name(c: int | None) -> str:
     return "?" if c is None or c < 0 else str(c)
 
@@ -421,8 +474,9 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
 
     Figures: accuracy against presses (``presses.png``); per figure pair a reliability
     diagram, fabric- and cluster-level confusion matrices ordered by cluster (Figure 7) and
-    pick examples (Figure 6; images read with the run's preprocessing, skipped with a note
-    when the files cannot be read).
+    pick examples (Figure 6); touch queries at a glance (``glance.png``: nearest drapes and
+    photos, what each feels like against the truth). Images are read with the run's
+    preprocessing; a figure whose files cannot be read is skipped with a note.
 
     Returns:
         `ReportFiles` with every path written.
@@ -513,6 +567,34 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
             )
         cal_figures[pair] = paths
 
+    glance_lines: list[str] = []
+    if result.glance:
+        try:
+            glance = _glance_rows(result, result.glance)
+        except (ImageError, OSError) as e:
+            notes.append(f"glance figure not drawn: {e}")
+        else:
+            n = result.glance[0].galleries[0].n_fabrics
+            png = save(
+                glance_figure(
+                    glance,
+                    title="Feel to look at a glance (green: the query's own fabric)\n"
+                    f"each touch query beside the nearest drapes and photos of {n} test fabrics",
+                ),
+                "glance.png",
+            )
+            glance_lines = [
+                "## At a glance",
+                "",
+                "Touch queries drawn at random from the test fabrics (not picked by score); "
+                "beside each, the test fabrics whose look is nearest, and what the query "
+                "feels like (the mean label of the training fabrics nearest in touch) against "
+                "the truth.",
+                "",
+                f"![at a glance]({png})",
+                "",
+            ]
+
     example_lines: list[str] = []
     for pair, examples in result.examples.items():
         if not examples:
@@ -535,6 +617,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
 
     metrics_path = write_metrics(result, out / "metrics.json")
     lines = _provenance(result)
+    lines += glance_lines
     lines += _section_pick(result)
     lines += _section_control(result)
     lines += _section_presses(result, presses_png)

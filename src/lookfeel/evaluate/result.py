@@ -14,7 +14,14 @@ from lookfeel.embedding import EmbeddedItems
 from lookfeel.metrics import Confusion, ReliabilityCurve
 from lookfeel.modality import Modality, Pair
 
-__all__ = ["CalibrationResult", "EvalResult", "PickExample", "PressCurve"]
+__all__ = [
+    "CalibrationResult",
+    "EvalResult",
+    "GlanceExample",
+    "GlanceGallery",
+    "PickExample",
+    "PressCurve",
+]
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,52 @@ class PickExample:
 
 
 @dataclass(frozen=True)
+class GlanceGallery:
+    """The gallery fabrics nearest to one glance query, in one modality.
+
+    Attributes:
+        modality: the gallery's modality (depth or colour).
+        rows: per fabric shown, nearest first, the row of its item nearest to the query in the
+            modality's `EmbeddedItems`.
+        fabrics: the fabric of each row.
+        true_rank: where the query's own fabric ranks among all ``n_fabrics`` (1 = nearest;
+            0 when it has no item in this modality).
+        n_fabrics: the gallery's fabrics, all ranked.
+    """
+
+    modality: Modality
+    rows: tuple[int, ...]
+    fabrics: tuple[int, ...]
+    true_rank: int
+    n_fabrics: int
+
+
+@dataclass(frozen=True)
+class GlanceExample:
+    """One touch query at a glance: the drapes and photos nearest to it, and what it
+    predicts the fabric feels like beside what it is.
+
+    Attributes:
+        query_rows: the query's rows in the touch `EmbeddedItems` (its pooled presses).
+        fabric: the query's fabric.
+        galleries: the nearest fabrics in each look modality (depth, colour) there is.
+        label_names: the label columns.
+        predicted: per label, the mean label of the training (reference) fabrics whose touch
+            is nearest to the query (NaN where none is known).
+        truth: per label, the query fabric's own label (NaN where unknown).
+        neighbours: the training fabrics ``predicted`` averages, nearest first.
+    """
+
+    query_rows: tuple[int, ...]
+    fabric: int
+    galleries: tuple[GlanceGallery, ...]
+    label_names: tuple[str, ...] = ()
+    predicted: tuple[float, ...] = ()
+    truth: tuple[float, ...] = ()
+    neighbours: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class PressCurve:
     """Touch-query accuracy against the number of pooled presses, for one gallery modality."""
 
@@ -104,6 +157,8 @@ class EvalResult:
         notes: what was skipped or approximated, and why.
         info: provenance (split, checkpoint, step, data root, ...).
         data_config: how images were preprocessed, to show example images (None: unknown).
+        glance: touch queries at a glance (`GlanceExample`), when touch and a look modality
+            were scored.
     """
 
     metrics: dict[str, float]
@@ -117,6 +172,7 @@ class EvalResult:
     notes: tuple[str, ...] = ()
     info: dict[str, Any] = field(default_factory=dict)
     data_config: DataConfig | None = None
+    glance: tuple[GlanceExample, ...] = ()
 
     @property
     def figure_pairs(self) -> tuple[Pair, ...]:
