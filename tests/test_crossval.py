@@ -75,7 +75,12 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     assert len(seen) == 2
     props = summary["properties"]["depth"]
     assert set(props["model"]) == set(scan(data).label_columns)
-    assert (tmp_path / "cv" / "cv.md").read_text().startswith("Fabric-disjoint cross-validation")
+    report = (tmp_path / "cv" / "cv.md").read_text()
+    assert report.startswith("Fabric-disjoint cross-validation")
+    # The labelled fabrics also give matching in label space, fitted on each run's training.
+    low, high = pair["model_labels_top1"]["ci95"]
+    assert 0.0 <= low <= pair["model_labels_top1"]["mean"] <= high <= 1.0
+    assert "Matching in label space" in report and "| depth_to_depth |" in report
 
     # A rerun keeps every finished run (nothing is retrained) and gives the same summary.
     before = {p: p.stat().st_mtime_ns for p in (tmp_path / "cv").rglob("last.pt")}

@@ -18,7 +18,11 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
   with every press replaced by a moment of its video with no contact
   (`lookfeel.data.touch_control.UntouchedControl`; ``model_untouched_top1``,
   ``raw_pixels_untouched_top1`` ...). The sensor's own light and drift identify a recording
-  session; a model that reads the contact falls to chance there.
+  session; a model that reads the contact falls to chance there;
+- when the fabrics have labels, the same queries matched in **label space**
+  (``model_labels_top1``, `lookfeel.metrics.label_space`): each modality's embeddings mapped
+  onto the labels by a ridge fitted on the run's training fabrics only, a query matched to the
+  gallery item whose predicted labels are nearest.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
 that resamples the held-out fabrics (all their queries together). Physical properties are
@@ -67,6 +71,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
+from lookfeel.metrics.label_space import fit_label_space
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 from lookfeel.train.validate import default_pairs
@@ -79,6 +84,7 @@ REPORT = "cv.md"
 _KS = (1, 3)
 _METHODS = (
     "model",
+    "model_labels",
     "raw_pixels",
     "model_swapped",
     "raw_pixels_swapped",
@@ -179,7 +185,8 @@ def _score(
     With ``control`` (made with the same data config) and depth among the pairs, also the
     background-swapped scores (``*_swapped``), or ``background_control_skipped`` saying why
     not. Press videos are also scored untouched (``*_untouched``), with ``untouched`` if given
-    (made with the same data config, it keeps its images for the next call)."""
+    (made with the same data config, it keeps its images for the next call). With labels and
+    training fabrics, also matched in label space (``model_labels``)."""
     cfg = lm.config
     held = catalog.subset(held_ids)
     seen = catalog.subset(seen_ids) if seen_ids else None
@@ -206,8 +213,12 @@ def _score(
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
     model = _pick(emb, fab, pairs)
+    others: dict[str, dict[Pair, Any]] = {}  # every other method's scores, by method
+    projected = _label_space(catalog, train, emb)
+    if projected:
+        both = [p for p in pairs if p.query in projected and p.gallery in projected]
+        others["model_labels"] = _pick(projected, fab, both)
     raw = _pick(pix, fab, [p for p in pairs if p.same])  # raw pixels: images of one kind
-    swapped: dict[str, dict[Pair, Any]] = {}
     depth_pairs = [p for p in pairs if Modality.DEPTH in (p.query, p.gallery)]
     if control is not None and depth_pairs:
         items = held.items(Modality.DEPTH)
@@ -218,8 +229,8 @@ def _score(
         else:
             emb_sw = emb | {Modality.DEPTH: embed_items(lm.model, items, sw, flip=tta)}
             pix_sw = pix | {Modality.DEPTH: raw_pixels(items, sw)}
-            swapped["model_swapped"] = _pick(emb_sw, fab, depth_pairs)
-            swapped["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
+            others["model_swapped"] = _pick(emb_sw, fab, depth_pairs)
+            others["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
     if UntouchedControl.applies(touch_items):
@@ -227,8 +238,8 @@ def _score(
         still = (untouched or UntouchedControl(cfg.data)).loader(touch_items)
         emb_un = emb | {Modality.TOUCH: embed_items(lm.model, touch_items, still, flip=tta)}
         pix_un = pix | {Modality.TOUCH: raw_pixels(touch_items, still)}
-        swapped["model_untouched"] = _pick(emb_un, fab, touch_pairs)
-        swapped["raw_pixels_untouched"] = _pick(pix_un, fab, [p for p in touch_pairs if p.same])
+        others["model_untouched"] = _pick(emb_un, fab, touch_pairs)
+        others["raw_pixels_untouched"] = _pick(pix_un, fab, [p for p in touch_pairs if p.same])
     for pair in pairs:
         entry: dict[str, Any] = {
             "query_fabric": fab[pair.query].tolist(),
@@ -237,12 +248,33 @@ def _score(
         }
         if pair in raw:
             entry["raw_pixels"] = raw[pair].pick.per_query.tolist()
-        for method, scores in swapped.items():
+        for method, scores in others.items():
             if pair in scores:
                 entry[method] = scores[pair].pick.per_query.tolist()
         out["pairs"][pair] = entry
     out["properties"] = props
     out["classes"] = _classes(lm, catalog, held, train, loader, emb, pix, fab)
+    return out
+
+
+def _label_space(
+    catalog: Catalog,
+    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    emb: dict[Modality, np.ndarray],
+) -> dict[Modality, np.ndarray]:
+    """Each modality's held-out embeddings mapped onto the labels by a map fitted on its
+    training items (`fit_label_space`); empty without labels or training fabrics."""
+    columns = list(catalog.label_columns)
+    if not columns or not train:
+        return {}
+    labels = catalog.label_matrix(columns)
+    out = {}
+    for m, (train_f, train_e, _) in train.items():
+        try:
+            space = fit_label_space(train_e, train_f, labels, columns)
+        except ValueError:  # no column enough training fabrics have
+            continue
+        out[m] = space.project(emb[m])
     return out
 
 
@@ -510,6 +542,28 @@ def _control_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _label_space_lines(summary: dict[str, Any]) -> list[str]:
+    """The table of matching in label space beside matching in the embedding."""
+    rows = [(p, e) for p, e in summary["pairs"].items() if "model_labels_top1" in e]
+    if not rows:
+        return []
+    lines = [
+        "",
+        "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
+        "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
+        "run's training fabrics only, and a query matched to the gallery item whose predicted "
+        "labels are nearest.",
+        "",
+        "| pair | model top-1 | label space top-1 | model top-3 | label space top-3 | chance |",
+        "|---|---|---|---|---|---|",
+    ]
+    for pair, e in rows:
+        keys = ("model_top1", "model_labels_top1", "model_top3", "model_labels_top3")
+        cells = [_fmt(e[k]) for k in keys]
+        lines.append(f"| {pair} | {' | '.join(cells)} | {e['chance_top1']:.3f} |")
+    return lines
+
+
 def _untouched_lines(summary: dict[str, Any]) -> list[str]:
     """The untouched control's table (model and raw pixels, pressed and with no contact)."""
     rows = [(p, e) for p, e in summary["pairs"].items() if "model_untouched_top1" in e]
@@ -560,6 +614,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {pair} | {_fmt(e['model_top1'])} | {_fmt(e['model_top3'])} | {raw[0]} | {raw[1]} "
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
+    lines += _label_space_lines(summary)
     lines += _control_lines(summary)
     lines += _untouched_lines(summary)
     for m, per in summary["properties"].items():

@@ -20,12 +20,13 @@ from scipy.stats import spearmanr
 from sklearn.linear_model import RidgeCV
 from sklearn.neighbors import KNeighborsRegressor
 
-__all__ = ["property_probe"]
+__all__ = ["fit_ridge", "per_fabric_means", "property_probe"]
 
 
-def _per_fabric(
+def per_fabric_means(
     emb: NDArray[np.float64], labels: NDArray[np.float64], fabric: NDArray[np.generic]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.generic]]:
+    """Each fabric's mean embedding (N_f, D) and labels (N_f, L; NaN kept), and the fabrics."""
     uniq, inv = np.unique(fabric, return_inverse=True)
     counts = np.bincount(inv, minlength=len(uniq)).astype(np.float64)
     e = np.zeros((len(uniq), emb.shape[1]))
@@ -41,10 +42,11 @@ def _per_fabric(
     return e, lab, uniq
 
 
-def _ridge(
-    xtr: NDArray[np.float64], ytr: NDArray[np.float64], xte: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Ridge regression with its penalty chosen by leave-one-out (efficient, RidgeCV).
+def fit_ridge(
+    xtr: NDArray[np.float64], ytr: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], float]:
+    """Ridge regression of ``ytr`` (N,) on ``xtr`` (N, D), its penalty chosen by leave-one-out
+    (efficient, RidgeCV); returns ``(coef, intercept)`` on the raw features.
 
     Features are centred and divided by one common scale (the root mean column variance), not
     per column: a column nearly constant in training (a saturated pixel, a dead unit) would
@@ -57,7 +59,16 @@ def _ridge(
     d = xtr.shape[1]
     ridge = RidgeCV(alphas=np.logspace(-3, 3, 25) * max(1, d))
     ridge.fit((xtr - mu) / scale, ytr)
-    return np.asarray(ridge.predict((xte - mu) / scale), dtype=np.float64)
+    coef = np.asarray(ridge.coef_, dtype=np.float64).reshape(-1) / scale
+    return coef, float(ridge.intercept_) - float(mu @ coef)
+
+
+def _ridge(
+    xtr: NDArray[np.float64], ytr: NDArray[np.float64], xte: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """`fit_ridge` on the training rows, applied to ``xte``."""
+    coef, intercept = fit_ridge(xtr, ytr)
+    return np.asarray(xte @ coef + intercept, dtype=np.float64)
 
 
 def property_probe(
@@ -118,8 +129,8 @@ def property_probe(
         shared = np.intersect1d(ftr, fte)
         if len(shared):
             raise ValueError(f"fabric(s) {shared[:5].tolist()} are in both train and test")
-        xtr, ytr, _ = _per_fabric(xtr, ytr, ftr)
-        xte, yte, _ = _per_fabric(xte, yte, fte)
+        xtr, ytr, _ = per_fabric_means(xtr, ytr, ftr)
+        xte, yte, _ = per_fabric_means(xte, yte, fte)
     out: dict[str, dict[str, float]] = {}
     for j, name in enumerate(col_names):
         tr = ~np.isnan(ytr[:, j])
