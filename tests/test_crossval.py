@@ -81,6 +81,7 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     low, high = pair["model_labels_top1"]["ci95"]
     assert 0.0 <= low <= pair["model_labels_top1"]["mean"] <= high <= 1.0
     assert "Matching in label space" in report and "| depth_to_depth |" in report
+    assert any("label space" in line and "trained in" in line for line in logs)
 
     # A rerun keeps every finished run (nothing is retrained) and gives the same summary.
     before = {p: p.stat().st_mtime_ns for p in (tmp_path / "cv").rglob("last.pt")}

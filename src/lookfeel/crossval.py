@@ -734,14 +734,18 @@ def cross_validate(
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             atomic_write_text(result_path, json.dumps(res) + "\n")
-            top1 = np.nanmean(np.asarray(res["pairs"][pairs[0]]["model"])[:, 0])
-            swapped = res["pairs"][pairs[0]].get("model_swapped")
-            extra = (
-                ""
-                if swapped is None
-                else f", background swapped {np.nanmean(np.asarray(swapped)[:, 0]):.3f}"
+            first = res["pairs"][pairs[0]]
+            top1 = np.nanmean(np.asarray(first["model"])[:, 0])
+            extra = "".join(
+                f", {name} {np.nanmean(np.asarray(first[method])[:, 0]):.3f}"
+                for method, name in (
+                    ("model_labels", "label space"),
+                    ("model_swapped", "background swapped"),
+                )
+                if method in first
             )
-            log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f}{extra} ({seconds:.0f} s)")
+            took = "" if math.isnan(seconds) else f" (trained in {seconds:.0f} s)"
+            log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f}{extra}{took}")
             results.append(res)
     summary = _summarise(results, pairs, n_boot, control is not None) | {
         "folds": fold_list,
