@@ -278,10 +278,10 @@ _LOOKS = (Modality.DEPTH, Modality.COLOR)
 
 def _glance_queries(q: QuerySet, count: int, seed: int) -> NDArray[np.int64]:
     """``count`` touch queries of distinct fabrics, drawn with ``seed`` (not chosen by score)."""
-    rng = np.random.default_rng([seed, 7])
-    chosen: list[int] = []
     if count <= 0:
         return np.zeros(0, dtype=np.int64)
+    rng = np.random.default_rng([seed, 7])
+    chosen: list[int] = []
     seen: set[int] = set()
     for qi in rng.permutation(len(q.fabric)):
         f = int(q.fabric[qi])
@@ -611,8 +611,8 @@ def evaluate_embeddings(
         tq = queries[Modality.TOUCH]
         n_cols = len(next(iter(labels.values()), [])) if labels else 0
         columns = tuple(label_names or [str(j) for j in range(n_cols)])
-        ref_touch = None
-        if labels and reference is not None and Modality.TOUCH in reference:
+        ref_touch = ref_queries.get(Modality.TOUCH)  # pooled for fitting c, when it was
+        if ref_touch is None and labels and reference is not None and Modality.TOUCH in reference:
             ref_touch = _queries(reference[Modality.TOUCH], presses, config.seed, pool)
         for i, qi in enumerate(glance_q):
             f = int(tq.fabric[qi])

@@ -569,20 +569,17 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
 
     glance_lines: list[str] = []
     if result.glance:
+        n = max((g.n_fabrics for ex in result.glance for g in ex.galleries), default=0)
         try:
-            glance = _glance_rows(result, result.glance)
-        except (ImageError, OSError) as e:
+            figure = glance_figure(
+                _glance_rows(result, result.glance),
+                title="Feel to look at a glance (green: the query's own fabric)\n"
+                f"each touch query beside the nearest drapes and photos of {n} test fabrics",
+            )
+        except (ImageError, OSError, ValueError) as e:
             notes.append(f"glance figure not drawn: {e}")
         else:
-            n = result.glance[0].galleries[0].n_fabrics
-            png = save(
-                glance_figure(
-                    glance,
-                    title="Feel to look at a glance (green: the query's own fabric)\n"
-                    f"each touch query beside the nearest drapes and photos of {n} test fabrics",
-                ),
-                "glance.png",
-            )
+            png = save(figure, "glance.png")
             glance_lines = [
                 "## At a glance",
                 "",
