@@ -244,6 +244,48 @@ def test_glance_ranks_the_true_look_and_reads_the_feel_from_the_nearest_training
     assert not evaluate_embeddings(only_touch, FAST).glance
 
 
+def _mixed(labels: np.ndarray, first_id: int, seed: int) -> dict[Modality, EmbeddedItems]:
+    """Depth and touch items whose embeddings are two different linear mixes of their fabric's
+    labels: the embeddings do not meet, the labels do."""
+    rng = np.random.default_rng(seed)
+    mixes = {D: np.random.default_rng(10).standard_normal((3, 8)), T: np.eye(3, 8)[::-1]}
+    emb, fab = {}, {}
+    for m, per in ((D, 4), (T, 6)):
+        f = np.repeat(np.arange(len(labels)), per)
+        emb[m] = labels[f] @ mixes[m] + 0.05 * rng.standard_normal((len(f), 8))
+        fab[m] = f + first_id
+    return embedded_from_arrays(emb, fab)
+
+
+def test_label_space_connects_modalities_whose_embeddings_do_not_meet():
+    rng = np.random.default_rng(5)
+    test_labels, train_labels = rng.standard_normal((12, 3)), rng.standard_normal((40, 3))
+    labels = {1 + i: list(v) for i, v in enumerate(test_labels)}
+    labels |= {101 + i: list(v) for i, v in enumerate(train_labels)}
+    embedded, reference = _mixed(test_labels, 1, 0), _mixed(train_labels, 101, 1)
+    cfg = dataclasses.replace(FAST, presses=2)
+    plain = evaluate_embeddings(embedded, cfg, labels=labels, reference=reference)
+    mapped = evaluate_embeddings(
+        embedded, dataclasses.replace(cfg, space="labels"), labels=labels, reference=reference
+    )
+    assert plain.metrics["touch_to_depth_top1"] < 0.5
+    assert mapped.metrics["touch_to_depth_top1"] > 0.9  # pooled touch queries mapped too
+    assert mapped.metrics["depth_to_touch_top1"] > 0.9
+    assert mapped.embedded[D].embeddings.shape == (48, 3)
+    assert any("label space" in n for n in mapped.notes)
+    with pytest.raises(ConfigError, match="eval.space: labels needs the fabrics' labels"):
+        evaluate_embeddings(embedded, dataclasses.replace(cfg, space="labels"))
+    with pytest.raises(ConfigError, match="reference .* of touch"):
+        evaluate_embeddings(
+            embedded,
+            dataclasses.replace(cfg, space="labels"),
+            labels=labels,
+            reference={D: reference[D]},
+        )
+    with pytest.raises(ConfigError, match="eval.space"):
+        EvalConfig(space="pixels")  # type: ignore[arg-type]
+
+
 def test_without_reference_or_labels_the_probes_are_skipped_with_a_note():
     embedded, _ = _world()
     r = evaluate_embeddings(embedded, FAST, labels={1: [1.0]})
@@ -465,3 +507,19 @@ def test_cli_errors(
     assert "paper's 18 test fabrics" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["evaluate", "--checkpoint", str(ckpt), "--embeddings", "e.npz", "--out", out])
+
+
+def test_evaluate_checkpoint_in_label_space(run: tuple[Path, Path, Path], tmp_path: Path):
+    data, _, ckpt = run
+    out = tmp_path / "labels"
+    sets = ["--set", "n_boot=20", "--set", "max_presses=2", "--set", "space=labels"]
+    assert evaluate_cli(ckpt, data, out, "--split", "val", *sets) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert "touch_to_depth_top1" in metrics and "depth_to_depth_top1_swapped" in metrics
+    assert "label space" in (out / "report.md").read_text()
+    # Without labels there is nothing to map onto: one line naming the key.
+    bare = tmp_path / "bare"
+    write_tiny_dataset(bare, fabrics=8, drapes=3, fold_presses=4, flat_presses=0)
+    (bare / "labels.csv").write_text("fabric_id\n" + "".join(f"{i}\n" for i in range(1, 9)))
+    with pytest.raises(ConfigError, match="eval.space: labels needs"):
+        evaluate_checkpoint(ckpt, bare, "val", dataclasses.replace(FAST, space="labels"))

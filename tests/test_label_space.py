@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
-from lookfeel.metrics.label_space import fit_label_space, normal_scores
+from lookfeel.metrics.label_space import fit_label_space, fit_label_spaces, normal_scores
 
 
 def test_normal_scores_rank_ties_and_nan():
@@ -67,3 +67,23 @@ def test_columns_too_few_fabrics_know_are_left_out():
         fit_label_space(emb, f, {i: [np.nan] for i in range(6)}, ["x"])
     with pytest.raises(ValueError, match="do not match"):
         fit_label_space(emb[:5], f, labels, ["known", "rare", "constant"])
+
+
+def test_several_modalities_share_the_columns_all_of_them_map():
+    rng = np.random.default_rng(2)
+    f = np.repeat(np.arange(8), 2)
+    labels = {i: [float(i), float(i % 3), np.nan] for i in range(8)}
+    only_first = {i: [float(i), np.nan, np.nan] for i in range(8)}
+    spaces = fit_label_spaces(
+        {"a": (rng.standard_normal((16, 4)), f), "b": (rng.standard_normal((16, 5)), f)},
+        labels,
+        ["x", "y", "z"],
+    )
+    assert spaces["a"].columns == spaces["b"].columns == ("x", "y")
+    assert spaces["b"].project(rng.standard_normal((3, 5))).shape == (3, 2)
+    mixed = fit_label_spaces(
+        {"a": (rng.standard_normal((16, 4)), f), "none": (rng.standard_normal((16, 4)), f + 50)},
+        only_first,
+        ["x", "y", "z"],
+    )
+    assert set(mixed) == {"a"} and mixed["a"].columns == ("x",)  # no labels for fabrics 50+

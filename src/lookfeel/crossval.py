@@ -71,7 +71,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
-from lookfeel.metrics.label_space import fit_label_space
+from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 from lookfeel.train.validate import default_pairs
@@ -263,19 +263,17 @@ def _label_space(
     emb: dict[Modality, np.ndarray],
 ) -> dict[Modality, np.ndarray]:
     """Each modality's held-out embeddings mapped onto the labels by a map fitted on its
-    training items (`fit_label_space`); empty without labels or training fabrics."""
+    training items (`fit_label_spaces`: the columns every modality maps); empty without labels
+    or training fabrics."""
     columns = list(catalog.label_columns)
     if not columns or not train:
         return {}
-    labels = catalog.label_matrix(columns)
-    out = {}
-    for m, (train_f, train_e, _) in train.items():
-        try:
-            space = fit_label_space(train_e, train_f, labels, columns)
-        except ValueError:  # no column enough training fabrics have
-            continue
-        out[m] = space.project(emb[m])
-    return out
+    spaces = fit_label_spaces(
+        {m: (train_e, train_f) for m, (train_f, train_e, _) in train.items()},
+        catalog.label_matrix(columns),
+        columns,
+    )
+    return {m: space.project(emb[m]) for m, space in spaces.items()}
 
 
 def _classes(

@@ -8,10 +8,12 @@ from typing import Literal
 from lookfeel.config._core import ConfigError, check_choices, parse_pairs
 from lookfeel.modality import Modality, Pair
 
-__all__ = ["EvalConfig", "ProbeKind"]
+__all__ = ["EvalConfig", "ProbeKind", "Space"]
 
 ProbeKind = Literal["knn", "ridge"]
 """Physical-property probes: k nearest neighbours or ridge regression."""
+Space = Literal["embedding", "labels"]
+"""Where queries meet galleries: the model's embedding, or its map onto the labels."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,11 @@ class EvalConfig:
     examples: int = 4
     """Queries shown in the pick-examples figure (half picked right, half wrong, when both
     occur)."""
+    space: Space = "embedding"
+    """``labels``: score every pair in label space (`lookfeel.metrics.label_space`): each
+    modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the
+    reference (training) fabrics, a query matched to the gallery items whose predicted labels
+    are nearest. Needs labels and reference fabrics (a checkpoint's split has them)."""
     background_control: bool = True
     """Evaluating a checkpoint whose model has a depth branch: score every pair with depth
     again with each test depth image's background replaced by another fabric's, the cloth

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lookfeel.config import DataConfig, EvalConfig
+from lookfeel.config import ConfigError, DataConfig, EvalConfig
 from lookfeel.embedding import EmbeddedItems
 from lookfeel.metrics import (
     PAPER_C,
@@ -39,11 +39,18 @@ from lookfeel.metrics import (
     reliability_curve,
     score_distances,
 )
+from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 
 from .result import CalibrationResult, EvalResult, GlanceExample, GlanceGallery, PickExample
 
-__all__ = ["PressPooler", "evaluate_embeddings", "max_pool_presses", "scoring_protocol"]
+__all__ = [
+    "PressPooler",
+    "evaluate_embeddings",
+    "max_pool_presses",
+    "project_to_labels",
+    "scoring_protocol",
+]
 
 PressPooler = Callable[[EmbeddedItems, NDArray[np.int64]], NDArray[np.float64]]
 """Embeds multi-press touch queries: (touch items, (M, P) rows of each group) -> (M, D)."""
@@ -344,6 +351,54 @@ def _feels_like(
     return tuple(float(v) for v in mean), tuple(nearest)
 
 
+def project_to_labels(
+    embedded: Mapping[Modality, EmbeddedItems],
+    reference: Mapping[Modality, EmbeddedItems],
+    labels: Mapping[int, Sequence[float]],
+    label_names: Sequence[str],
+    pool: PressPooler,
+) -> tuple[dict[Modality, EmbeddedItems], dict[Modality, EmbeddedItems], PressPooler]:
+    """``eval.space: labels``: the test and reference items mapped onto the labels
+    (`lookfeel.metrics.label_space.fit_label_spaces`, fitted on the reference items), and a
+    press pooler that pools as ``pool`` does, then maps.
+
+    Raises:
+        ConfigError: a modality without reference items, or no label column every modality
+            can be mapped onto.
+    """
+    missing = [m.value for m in embedded if m not in reference or not len(reference[m].items)]
+    if missing:
+        raise ConfigError(
+            f"eval.space: labels needs reference (training) items of {', '.join(missing)} to "
+            "fit the map on"
+        )
+    spaces = fit_label_spaces(
+        {m: (reference[m].embeddings, reference[m].fabric_ids) for m in embedded},
+        labels,
+        list(label_names),
+    )
+    if set(spaces) != set(embedded):
+        raise ConfigError(
+            "eval.space: labels needs a label column that enough reference fabrics of every "
+            f"modality have (labels: {', '.join(label_names) or 'none'})"
+        )
+    source: dict[int, EmbeddedItems] = {}
+
+    def mapped(e: EmbeddedItems) -> EmbeddedItems:
+        out = replace(e, embeddings=spaces[e.modality].project(e.embeddings).astype(np.float32))
+        source[id(out)] = e
+        return out
+
+    test = {m: mapped(e) for m, e in embedded.items()}
+    ref = {m: mapped(reference[m]) for m in embedded}
+
+    def pooled(e: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
+        original = source.get(id(e), e)
+        return spaces[e.modality].project(pool(original, members))
+
+    return test, ref, pooled
+
+
 def _labels_of(
     fabric: NDArray[np.int64], labels: Mapping[int, Sequence[float]], n_cols: int
 ) -> NDArray[np.float64]:
@@ -482,6 +537,20 @@ def evaluate_embeddings(
                 f"{m.value}: {len(e.embeddings)} embeddings but {len(e.fabric_ids)} fabric ids"
             )
     notes = _Notes()
+    if config.space == "labels":
+        if labels is None or reference is None:
+            raise ConfigError(
+                "eval.space: labels needs the fabrics' labels and reference (training) fabrics"
+            )
+        n_cols = len(next(iter(labels.values()), []))
+        names = list(label_names) if label_names is not None else [str(j) for j in range(n_cols)]
+        embedded, reference, pool = project_to_labels(
+            {m: embedded[m] for m in mods}, reference, labels, names, pool
+        )
+        notes.add(
+            "scored in label space: each modality mapped onto the labels' normal scores by a "
+            "ridge fitted on the reference (training) fabrics"
+        )
     all_fabrics = np.unique(np.concatenate([embedded[m].fabric_ids for m in mods]))
     known = dict(clusters or {})
     cluster_map: dict[Hashable, Hashable] | None = None

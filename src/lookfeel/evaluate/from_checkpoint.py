@@ -44,6 +44,7 @@ from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics import ScoringProtocol, score_pairs
+from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.models import Embedder
 
@@ -340,7 +341,7 @@ def evaluate_checkpoint(
     result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
     if not result.config.background_control or Modality.DEPTH not in emb.embedded:
         return result
-    extra, notes = _background_control(loaded, emb, result, loader, batch_size, device)
+    extra, notes = _background_control(loaded, emb, result, loader, batch_size, device, catalog)
     return replace(result, metrics={**result.metrics, **extra}, notes=result.notes + tuple(notes))
 
 
@@ -351,8 +352,10 @@ def _background_control(
     loader: ImageLoader,
     batch_size: int,
     device: str,
+    catalog: Catalog,
 ) -> tuple[dict[str, float], list[str]]:
-    """The background control's metrics (module doc) and notes on what was skipped."""
+    """The background control's metrics (module doc) and notes on what was skipped; in label
+    space (``eval.space: labels``) the swapped embeddings are mapped as the others were."""
     cfg = result.config
     pairs = [p for p in result.pairs if Modality.DEPTH in (p.query, p.gallery)]
     pooled = [p for p in pairs if p.query is Modality.TOUCH and (cfg.presses or 1) > 1]
@@ -371,6 +374,14 @@ def _background_control(
     fab = {m: np.asarray(e.fabric_ids, dtype=np.int64) for m, e in emb.embedded.items()}
     vecs = {m: np.asarray(e.embeddings) for m, e in emb.embedded.items()}
     vecs_sw = vecs | {Modality.DEPTH: embed_items(loaded.model, items, swapped, batch_size, device)}
+    if cfg.space == "labels" and emb.reference is not None:
+        _, labels, names, _ = _clusters_and_labels(catalog)
+        spaces = fit_label_spaces(
+            {m: (emb.reference[m].embeddings, emb.reference[m].fabric_ids) for m in vecs},
+            labels or {},
+            names,
+        )
+        vecs_sw = {m: spaces[m].project(v) for m, v in vecs_sw.items()}
     protocol = ScoringProtocol(
         n=cfg.n,
         ks=cfg.ks,

@@ -466,6 +466,14 @@ def _provenance(result: EvalResult) -> list[str]:
         ]
     )
     rows.append(["touch query", f"{cfg.presses} press(es), pooled by element-wise max"])
+    if cfg.space == "labels":
+        rows.append(
+            [
+                "space",
+                "label space: each modality mapped onto the labels' normal scores by a ridge "
+                "fitted on the reference (training) fabrics (`lookfeel.metrics.label_space`)",
+            ]
+        )
     return ["# lookfeel evaluation", "", *_table(["", ""], rows)]
 
 

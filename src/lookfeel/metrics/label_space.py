@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,7 +25,7 @@ from scipy.stats import rankdata
 
 from lookfeel.metrics.properties import fit_ridge, per_fabric_means
 
-__all__ = ["LabelSpace", "fit_label_space", "normal_scores"]
+__all__ = ["LabelSpace", "fit_label_space", "fit_label_spaces", "normal_scores"]
 
 MIN_FABRICS = 3
 """A label column is mapped only when at least this many training fabrics have it."""
@@ -60,6 +61,11 @@ class LabelSpace:
         """(N, D) embeddings -> (N, L) predicted normal scores of the labels."""
         x = np.asarray(embeddings, dtype=np.float64)
         return np.asarray(x @ self.coef + self.intercept, dtype=np.float64)
+
+    def restrict(self, columns: Sequence[str]) -> LabelSpace:
+        """The map onto ``columns`` only (each must be one of this map's), in that order."""
+        idx = [self.columns.index(c) for c in columns]
+        return LabelSpace(tuple(columns), self.coef[:, idx], self.intercept[idx])
 
 
 def fit_label_space(
@@ -105,3 +111,31 @@ def fit_label_space(
             f"no label column has {MIN_FABRICS} or more training fabrics with varying values"
         )
     return LabelSpace(tuple(kept), np.stack(coefs, axis=1), np.asarray(intercepts))
+
+
+def fit_label_spaces(
+    training: Mapping[Any, tuple[ArrayLike, ArrayLike]],
+    labels: Mapping[int, Sequence[float]],
+    columns: Sequence[str],
+) -> dict[Any, LabelSpace]:
+    """`fit_label_space` for several modalities, kept to the columns all of them map, so that
+    any two can be compared.
+
+    Args:
+        training: per modality, its training items' ``(embeddings, fabric_ids)``.
+        labels, columns: as `fit_label_space`.
+
+    Returns:
+        Per modality its map, every one onto the same columns (a modality with no column to
+        map is left out); empty when they share none.
+    """
+    spaces = {}
+    for key, (emb, fab) in training.items():
+        try:
+            spaces[key] = fit_label_space(emb, fab, labels, columns)
+        except ValueError:  # no column enough of its training fabrics have: left out
+            continue
+    common = [c for c in columns if all(c in s.columns for s in spaces.values())]
+    if not common:
+        return {}
+    return {key: s.restrict(common) for key, s in spaces.items()}
