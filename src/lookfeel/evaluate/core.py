@@ -300,26 +300,30 @@ def _glance_queries(q: QuerySet, count: int, seed: int) -> NDArray[np.int64]:
     return np.asarray(chosen, dtype=np.int64)
 
 
+def _rank_fabrics(
+    dist: NDArray[np.float64], fabric: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Fabrics ordered by their item nearest to a query (one row of distances to ``fabric``'s
+    items), and that item's row for each."""
+    fabrics, inverse = np.unique(fabric, return_inverse=True)
+    order = np.lexsort((dist, inverse))  # by fabric, nearest first within each
+    first = order[np.searchsorted(inverse[order], np.arange(len(fabrics)))]
+    ranked = np.argsort(dist[first], kind="stable")
+    return fabrics[ranked].astype(np.int64), first[ranked].astype(np.int64)
+
+
 def _nearest_fabrics(
     dist: NDArray[np.float64], gallery_fabric: NDArray[np.int64], own: int, modality: Modality
 ) -> GlanceGallery:
     """Rank a query's gallery fabrics by their nearest item (one row of distances)."""
-    fabrics = np.unique(gallery_fabric)
-    best_row = np.empty(len(fabrics), dtype=np.int64)
-    best = np.empty(len(fabrics))
-    for i, f in enumerate(fabrics):
-        rows = np.flatnonzero(gallery_fabric == f)
-        j = int(rows[np.argmin(dist[rows])])
-        best_row[i], best[i] = j, dist[j]
-    order = np.argsort(best, kind="stable")
-    ranked = fabrics[order]
+    ranked, rows = _rank_fabrics(dist, gallery_fabric)
     hit = np.flatnonzero(ranked == own)
     return GlanceGallery(
         modality=modality,
-        rows=tuple(int(r) for r in best_row[order][:GLANCE_SHOWN]),
+        rows=tuple(int(r) for r in rows[:GLANCE_SHOWN]),
         fabrics=tuple(int(f) for f in ranked[:GLANCE_SHOWN]),
         true_rank=int(hit[0]) + 1 if hit.size else 0,
-        n_fabrics=len(fabrics),
+        n_fabrics=len(ranked),
     )
 
 
@@ -334,14 +338,8 @@ def _feels_like(
     """The mean label of the ``k`` training fabrics whose touch is nearest (by their nearest
     query), and those fabrics; the query's own fabric is never one of them."""
     d = pairwise_distances(query_emb[None], reference.emb)[0]
-    fabrics = np.asarray(reference.fabric, dtype=np.int64)
-    nearest: list[int] = []
-    for j in np.argsort(d, kind="stable"):
-        f = int(fabrics[j])
-        if f != own and f not in nearest and f in labels:
-            nearest.append(f)
-            if len(nearest) == k:
-                break
+    ranked, _ = _rank_fabrics(d, np.asarray(reference.fabric, dtype=np.int64))
+    nearest = [int(f) for f in ranked if f != own and int(f) in labels][:k]
     if not nearest:
         return tuple([math.nan] * n_cols), ()
     y = _labels_of(np.asarray(nearest, dtype=np.int64), labels, n_cols)

@@ -365,8 +365,9 @@ def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> ND
     return loader.array(loader.frame_path(item), m)
 
 
-def _example_rows(result: EvalResult, examples: tuple[PickExample, ...]) -> list[PickRow]:
-    loader = ImageLoader(result.data_config or DataConfig(image_size=128))
+def _example_rows(
+    result: EvalResult, examples: tuple[PickExample, ...], loader: ImageLoader
+) -> list[PickRow]:
     rows = []
     for ex in examples:
         mq, mg = ex.pair.query, ex.pair.gallery
@@ -395,8 +396,9 @@ def _value(v: float) -> str:
     return "?" if math.isnan(v) else f"{v:.3g}"
 
 
-def _glance_rows(result: EvalResult, examples: tuple[GlanceExample, ...]) -> list[GlanceRow]:
-    loader = ImageLoader(result.data_config or DataConfig(image_size=128))
+def _glance_rows(
+    result: EvalResult, examples: tuple[GlanceExample, ...], loader: ImageLoader
+) -> list[GlanceRow]:
     rows = []
     for ex in examples:
         presses = len(ex.query_rows)
@@ -575,12 +577,14 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
             )
         cal_figures[pair] = paths
 
+    # One loader for every figure's images: a query drawn in two figures is decoded once.
+    loader = ImageLoader(result.data_config or DataConfig(image_size=128))
     glance_lines: list[str] = []
     if result.glance:
         n = max((g.n_fabrics for ex in result.glance for g in ex.galleries), default=0)
         try:
             figure = glance_figure(
-                _glance_rows(result, result.glance),
+                _glance_rows(result, result.glance, loader),
                 title="Feel to look at a glance (green: the query's own fabric)\n"
                 f"each touch query beside the nearest drapes and photos of {n} test fabrics",
             )
@@ -605,7 +609,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
         if not examples:
             continue
         try:
-            rows = _example_rows(result, examples)
+            rows = _example_rows(result, examples, loader)
         except (ImageError, OSError) as e:
             notes.append(f"pick examples of {pair} not drawn: {e}")
             continue
