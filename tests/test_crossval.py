@@ -185,18 +185,21 @@ def test_background_control_in_cv_and_evaluate(
     config = load_config(RunConfig, TINY, [*OVERRIDES, "train.steps=2", "train.split_seed=1"])
     summary = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=print)
     pair = summary["pairs"]["depth_to_depth"]
-    for key in ("model_swapped_top1", "model_swapped_top3", "raw_pixels_swapped_top1"):
+    swapped_keys = ("model_swapped_top1", "model_swapped_top3", "raw_pixels_swapped_top1")
+    for key in (*swapped_keys, "model_labels_swapped_top1"):
         low, high = pair[key]["ci95"]
         assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
     assert summary["background_control"] == {"on": True, "seed": 0, "skipped": None}
     assert pair["raw_pixels_top1"]["mean"] > pair["raw_pixels_swapped_top1"]["mean"] + 0.2
     md = (tmp_path / "cv" / "cv.md").read_text()
     assert "Background control" in md and "raw pixels top-1, background swapped" in md
+    assert "label space top-1, background swapped" in md
     # Off: no control keys, and the summary says so.
     off = cross_validate(
         config, data, tmp_path / "cv", folds=[0], n_boot=20, background_control=False
     )
     assert "model_swapped_top1" not in off["pairs"]["depth_to_depth"]
+    assert "model_labels_swapped_top1" not in off["pairs"]["depth_to_depth"]
     assert off["background_control"]["on"] is False
 
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"

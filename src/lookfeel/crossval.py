@@ -71,7 +71,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
-from lookfeel.metrics.label_space import fit_label_spaces
+from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 from lookfeel.train.validate import default_pairs
@@ -85,6 +85,7 @@ _KS = (1, 3)
 _METHODS = (
     "model",
     "model_labels",
+    "model_labels_swapped",
     "raw_pixels",
     "model_swapped",
     "raw_pixels_swapped",
@@ -214,10 +215,12 @@ def _score(
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
     model = _pick(emb, fab, pairs)
     others: dict[str, dict[Pair, Any]] = {}  # every other method's scores, by method
-    projected = _label_space(catalog, train, emb)
-    if projected:
-        both = [p for p in pairs if p.query in projected and p.gallery in projected]
-        others["model_labels"] = _pick(projected, fab, both)
+    spaces = _label_spaces(catalog, train)
+    mapped = [p for p in pairs if p.query in spaces and p.gallery in spaces]
+    if mapped:
+        others["model_labels"] = _pick(
+            {m: s.project(emb[m]) for m, s in spaces.items()}, fab, mapped
+        )
     raw = _pick(pix, fab, [p for p in pairs if p.same])  # raw pixels: images of one kind
     depth_pairs = [p for p in pairs if Modality.DEPTH in (p.query, p.gallery)]
     if control is not None and depth_pairs:
@@ -230,6 +233,10 @@ def _score(
             emb_sw = emb | {Modality.DEPTH: embed_items(lm.model, items, sw, flip=tta)}
             pix_sw = pix | {Modality.DEPTH: raw_pixels(items, sw)}
             others["model_swapped"] = _pick(emb_sw, fab, depth_pairs)
+            if mapped:  # label space, its depth maps read on the swapped backgrounds
+                lab_sw = {m: s.project(emb_sw[m]) for m, s in spaces.items()}
+                swap_mapped = [p for p in mapped if p in depth_pairs]
+                others["model_labels_swapped"] = _pick(lab_sw, fab, swap_mapped)
             others["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
@@ -257,23 +264,19 @@ def _score(
     return out
 
 
-def _label_space(
-    catalog: Catalog,
-    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]],
-    emb: dict[Modality, np.ndarray],
-) -> dict[Modality, np.ndarray]:
-    """Each modality's held-out embeddings mapped onto the labels by a map fitted on its
-    training items (`fit_label_spaces`: the columns every modality maps); empty without labels
-    or training fabrics."""
+def _label_spaces(
+    catalog: Catalog, train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]]
+) -> dict[Modality, LabelSpace]:
+    """Each modality's map onto the labels, fitted on its training items (`fit_label_spaces`:
+    the columns every modality maps); empty without labels or training fabrics."""
     columns = list(catalog.label_columns)
     if not columns or not train:
         return {}
-    spaces = fit_label_spaces(
+    return fit_label_spaces(
         {m: (train_e, train_f) for m, (train_f, train_e, _) in train.items()},
         catalog.label_matrix(columns),
         columns,
     )
-    return {m: space.project(emb[m]) for m, space in spaces.items()}
 
 
 def _classes(
@@ -550,14 +553,22 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
         "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
         "run's training fabrics only, and a query matched to the gallery item whose predicted "
-        "labels are nearest.",
+        "labels are nearest; for pairs with depth also with every depth image's background "
+        "swapped (as in the background control below).",
         "",
-        "| pair | model top-1 | label space top-1 | model top-3 | label space top-3 | chance |",
-        "|---|---|---|---|---|---|",
+        "| pair | model top-1 | label space top-1 | label space top-1, background swapped "
+        "| model top-3 | label space top-3 | chance |",
+        "|---|---|---|---|---|---|---|",
     ]
     for pair, e in rows:
-        keys = ("model_top1", "model_labels_top1", "model_top3", "model_labels_top3")
-        cells = [_fmt(e[k]) for k in keys]
+        keys = (
+            "model_top1",
+            "model_labels_top1",
+            "model_labels_swapped_top1",
+            "model_top3",
+            "model_labels_top3",
+        )
+        cells = [_fmt(e[k]) if k in e else "-" for k in keys]
         lines.append(f"| {pair} | {' | '.join(cells)} | {e['chance_top1']:.3f} |")
     return lines
 
