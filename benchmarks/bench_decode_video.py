@@ -38,7 +38,7 @@ from lookfeel.data import ImageLoader
 from lookfeel.data.catalog import Item
 from lookfeel.data.video import VIDEO_SUFFIXES, VideoError, read_press
 from lookfeel.modality import Modality
-from lookfeel.synth.world import die_with_parent
+from lookfeel.processes import die_with_parent
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_VIDEOS = HERE.parent.parent / "shared" / "data" / "physiclear" / "videos"

@@ -4,7 +4,10 @@ end from image files (decode, preprocess, embed).
 ``decoded`` embeds preprocessed touch images already on the device (an `ImageStore`: GPU
 memory on CUDA); ``host`` embeds them from the loader's memory cache (copied over through
 pinned buffers); ``from_files`` starts from PNG files on disk with a fresh loader
-(`embed_catalog`: parallel decoding, then embedding). Medians over repeats.
+(`embed_catalog`: decoding in ``data.workers`` worker processes, each batch embedded as soon
+as it is decoded). ``decode_images_per_s`` times the decoding alone, in 1 and ``workers``
+threads and processes: threads stop scaling at the GIL, processes scale with the cores.
+Medians over repeats.
 
     PYTHONPATH=src python -m benchmarks.bench_embed --device cuda \\
         --out benchmarks/results/embed_h100.json
@@ -21,6 +24,7 @@ import sys
 import tempfile
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +103,16 @@ def run(
             t0 = time.perf_counter()
             embed_catalog(model, catalog, ImageLoader(config), batch_size=batch, device=dev)
             files.append(len(items) / (time.perf_counter() - t0))
+        decode: dict[str, dict[str, float]] = {}
+        for mode in ("threads", "processes"):
+            for w in sorted({1, config.workers}):
+                rates = []
+                for _ in range(repeats):
+                    fresh = ImageLoader(replace(config, workers=w, decode=mode))
+                    t0 = time.perf_counter()
+                    fresh.preload(items)
+                    rates.append(len(items) / (time.perf_counter() - t0))
+                decode.setdefault(mode, {})[str(w)] = round(statistics.median(rates), 1)
     result: dict[str, object] = {
         "model": "alexnet touch branch, 227 px",
         "device": dev.type,
@@ -108,6 +122,8 @@ def run(
         "decoded_images_per_s": round(statistics.median(decoded), 1),
         "host_images_per_s": round(statistics.median(host), 1),
         "from_files_images_per_s": round(statistics.median(files), 1),
+        "decode_images_per_s": decode,
+        "decode_workers": config.workers,
         "repeats": {
             "decoded": [round(x, 1) for x in decoded],
             "from_files": [round(x, 1) for x in files],

@@ -40,7 +40,7 @@ from lookfeel.data.video import (
     reference_frame,
 )
 from lookfeel.metrics.scoring import ScoringProtocol, score_pairs
-from lookfeel.synth.world import die_with_parent
+from lookfeel.processes import die_with_parent
 
 GAINS = (2, 4, 8, 16, 32, 64)
 MEANS = (3, 5, 9, 17)

@@ -123,3 +123,25 @@ def test_disk_cache_is_keyed_by_settings(tiny_dataset: Path, tmp_path: Path):
     assert torch.equal(a, b) and c.shape == (1, 20, 20)
     assert len(list(cache.rglob("*.npy"))) == 2
     assert not list(cache.rglob("*.tmp"))
+
+
+@pytest.mark.parametrize(
+    ("size", "modality", "image_size"),
+    [
+        ((960, 720), Modality.TOUCH, 32),  # GelSight: centre-cropped, then resized
+        ((320, 240), Modality.TOUCH, 24),  # a Mini's frame: resized whole
+        ((40, 30), Modality.COLOR, 16),
+        ((16, 16), Modality.COLOR, 16),  # already the network's size: kept as it is
+    ],
+)
+def test_preprocessing_a_pillow_image_gives_the_bytes_of_its_array(
+    tmp_path: Path, size: tuple[int, int], modality: Modality, image_size: int
+):
+    rng = np.random.default_rng(sum(size))
+    path = tmp_path / "F1_x.png"
+    Image.fromarray(rng.integers(0, 256, (size[1], size[0], 3), dtype=np.uint8)).save(path)
+    config = DataConfig(image_size=image_size, color_crop="center")
+    from_array = preprocess_rgb(decode_rgb(path), modality, config)
+    from_image = preprocess_rgb(images_module.open_rgb(path), modality, config)
+    assert from_array.shape == (image_size, image_size, 3) and from_array.flags.writeable
+    np.testing.assert_array_equal(from_image, from_array)

@@ -499,3 +499,19 @@ def test_a_library_of_press_videos_decodes_each_once_and_matches_like_embed(
     uploaded = load_query_bytes(query.read_bytes(), "up.mov", Modality.TOUCH, loaded.config.data)
     assert torch.equal(uploaded, load_query_image(query, Modality.TOUCH, loaded.config.data))
     assert uploaded.shape == (13, 3, 32, 32)
+
+
+def test_press_videos_decode_in_worker_processes_as_in_threads(recordings: Path):
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader
+
+    items = [it for it in scan(recordings).items(Modality.TOUCH) if "foam" not in it.path.name]
+    held = {}
+    for decode in ("threads", "processes"):
+        data = DataConfig(image_size=32, video_views=4, video_embed="views", decode=decode)
+        loader = ImageLoader(data)
+        assert loader.preload(items, views=True) == len(items)  # training views
+        assert loader.preload(items) == 0  # what `embed` uses came from the same decode
+        held[decode] = [(loader.views(it), loader.embed_array(it)) for it in items]
+    for (tv, te), (pv, pe) in zip(held["threads"], held["processes"], strict=True):
+        assert tv.shape[0] > 1 and np.array_equal(tv, pv) and np.array_equal(te, pe)

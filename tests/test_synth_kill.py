@@ -83,3 +83,43 @@ def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: 
     catalog = check_dataset(out)
     messages = [str(p) for p in catalog.errors]
     assert any("synthetic world was not finished" in m for m in messages), messages
+
+
+_SLOW_DECODER = """
+import sys, time
+from pathlib import Path
+from lookfeel.config import DataConfig
+from lookfeel.data import ImageLoader, scan
+from lookfeel.data.images import ImageLoader as L
+from lookfeel.modality import Modality
+
+real = L._preprocess_file
+L._preprocess_file = lambda self, p, m: (time.sleep(0.2), real(self, p, m))[1]
+items = scan(Path(sys.argv[1])).items(Modality.COLOR)
+ImageLoader(DataConfig(image_size=16, workers=2, decode="processes")).preload(items)
+"""
+
+
+def test_sigkill_of_a_decoding_process_kills_its_decode_workers(tmp_path: Path):
+    from ._tiny import write_tiny_dataset
+
+    root = write_tiny_dataset(tmp_path / "d", fabrics=10, drapes=20, fold_presses=0)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_DECODER, str(root)], env=env)
+    try:
+        deadline = time.monotonic() + 60
+        workers: set[int] = set()
+        while time.monotonic() < deadline and proc.poll() is None and len(workers) < 2:
+            workers = {w for w in _children(proc.pid) if _alive(w)}
+            time.sleep(0.05)
+        assert proc.poll() is None, "decoding finished before it could be killed"
+        assert len(workers) >= 2, f"expected 2 decode workers, found {workers}"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and any(_alive(w) for w in workers):
+            time.sleep(0.05)
+        assert not any(_alive(w) for w in workers), "decode workers outlived their parent"
+    finally:
+        if proc.poll() is None:
+            proc.kill()

@@ -49,6 +49,7 @@ def embed_items(
     *,
     flip: bool = False,
     store: ImageStore | None = None,
+    ready: Iterable[int] | None = None,
 ) -> np.ndarray:
     """Embed items of one modality in batches, in eval mode.
 
@@ -66,6 +67,9 @@ def embed_items(
             mean of the two embeddings.
         store: images already on the device (`ImageStore` holding ``items``): no copies.
             Ignored for items embedded from several views.
+        ready: how many of ``items``, from the first, the loader holds, as decoding goes on
+            (`ImageLoader.preload_stream`): each batch is embedded as soon as its images are
+            decoded, while the rest decode. ``None``: the loader decodes on demand.
 
     Returns:
         (N, D) float32 embeddings, in the order of ``items``.
@@ -78,9 +82,13 @@ def embed_items(
     if store is not None and any(loader.pools_views(it) for it in items):
         store = None  # the store holds one image per item
     rows = store.rows(modality, items) if store is not None else None
+    stream = iter(ready) if ready is not None else None
+    have = 0 if stream is not None else len(items)
     out = []
     with eval_mode(model), autocast(dev):
         for start in range(0, len(items), batch_size):
+            while stream is not None and have < min(start + batch_size, len(items)):
+                have = next(stream, len(items))  # exhausted: every item is held
             if store is not None and rows is not None:
                 x = store.batch(modality, rows[start : start + batch_size])
             else:
@@ -90,6 +98,8 @@ def embed_items(
             if flip:
                 e = 0.5 * (e + model({modality.value: x.flip(-1)})[modality.value].float())
             out.append(e.to("cpu", non_blocking=True))
+    for _ in stream or ():  # let the decoding finish (and its workers end) now
+        pass
     if dev.type == "cuda":
         torch.cuda.synchronize(dev)  # the non-blocking copies back have landed
     return torch.cat(out).numpy()
@@ -185,8 +195,12 @@ def embed_catalog(
         items = catalog.items(m, kinds)
         if not items:
             continue
-        loader.preload(items)
-        emb = embed_items(model, items, loader, batch_size, device)
+        ready = None
+        if torch.device(device).type == "cuda":  # the GPU embeds while the cores decode
+            ready = loader.preload_stream(items)
+        else:  # the same cores would do both: decoding first is 5% faster on 2 cores
+            loader.preload(items)
+        emb = embed_items(model, items, loader, batch_size, device, ready=ready)
         fids = np.array([it.fabric_id for it in items], dtype=np.int64)
         out[m] = EmbeddedItems(m, emb, fids, tuple(items))
     return out

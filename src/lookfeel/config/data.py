@@ -139,7 +139,13 @@ class DataConfig:
     cache_dir: str | None = None
     """Optional on-disk cache of preprocessed images, keyed by file content and settings."""
     workers: int = 2
-    """Threads used to decode and preprocess images."""
+    """Images decoded and preprocessed at once (threads or processes: ``decode``)."""
+    decode: Literal["auto", "threads", "processes"] = "auto"
+    """How ``workers`` decode: ``threads`` in this process (Pillow and numpy release the GIL
+    for about two thirds of the work, so threads stop scaling after two or three);
+    ``processes``, worker processes (forked on Linux, spawned elsewhere at a few seconds'
+    start); ``auto``, processes on Linux when at least 256 files wait, threads otherwise.
+    The decoded images are the same either way (`lookfeel.data.decode_pool`)."""
 
     def __post_init__(self) -> None:
         check_choices(self, "data")

@@ -25,13 +25,14 @@ and, with ``cache_dir``, on disk keyed by the file's content and the preprocessi
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
 import os
 import threading
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +50,7 @@ from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_
 from lookfeel.data.holes import fill_holes
 from lookfeel.data.video import deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality
+from lookfeel.processes import can_fork
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",
@@ -60,6 +62,7 @@ __all__ = [
     "depth_to_unit",
     "file_kind",
     "fill_holes",
+    "open_rgb",
     "preprocess_depth",
     "preprocess_rgb",
     "read_image_file",
@@ -67,6 +70,9 @@ __all__ = [
 ]
 
 ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated file must fail, never decode half-grey
+PROCESS_DECODE_MIN = 256
+"""With ``data.decode: auto``, fewer files than this are decoded in threads: a pool of worker
+processes is not worth starting for them."""
 GELSIGHT_SIZE = (960, 720)
 """Frame size of the authors' fingertip GelSight; their code crops its central 720x720."""
 
@@ -162,13 +168,19 @@ def decode_rgb(
         ImageError: not a regular file, undecodable or truncated, too many pixels, or 16-bit
             (not an 8-bit RGB image).
     """
+    return np.asarray(open_rgb(path, data, max_pixels))
+
+
+def open_rgb(
+    path: str | os.PathLike[str], data: bytes | None = None, max_pixels: int | None = None
+) -> Image.Image:
+    """`decode_rgb` as a Pillow image in mode RGB (`preprocess_rgb` then crops and resizes it
+    without a copy through numpy)."""
     path = Path(path)
     im = _open(path, data, max_pixels)
     if im.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         raise ImageError(path, f"image is mode {im.mode} (16-bit or float); expected 8-bit RGB")
-    if im.mode != "RGB":
-        im = im.convert("RGB")
-    return np.asarray(im)
+    return im if im.mode == "RGB" else im.convert("RGB")
 
 
 def depth_to_unit(
@@ -228,9 +240,15 @@ def _center_square(a: np.ndarray) -> np.ndarray:
     return a[top : top + s, left : left + s]
 
 
-def preprocess_rgb(rgb: np.ndarray, modality: Modality, config: DataConfig) -> np.ndarray:
-    """8-bit RGB -> (S, S, 3) uint8: crop as configured for the modality, then resize."""
-    h, w = rgb.shape[:2]
+def preprocess_rgb(
+    rgb: np.ndarray | Image.Image, modality: Modality, config: DataConfig
+) -> np.ndarray:
+    """8-bit RGB -> (S, S, 3) uint8: crop as configured for the modality, then resize.
+
+    ``rgb`` is an (H, W, 3) uint8 array or an RGB Pillow image (`open_rgb`); both give the
+    same bytes."""
+    im = rgb if isinstance(rgb, Image.Image) else None
+    w, h = im.size if im is not None else (rgb.shape[1], rgb.shape[0])  # type: ignore[union-attr]
     if modality is Modality.TOUCH:
         crop = config.touch_crop == "center" or (
             config.touch_crop == "auto" and (w, h) == GELSIGHT_SIZE
@@ -238,13 +256,18 @@ def preprocess_rgb(rgb: np.ndarray, modality: Modality, config: DataConfig) -> n
     else:
         crop = config.color_crop == "center"
     if crop:
-        rgb = _center_square(rgb)
+        side = min(h, w)
+        top, left = (h - side) // 2, (w - side) // 2
+        if im is not None:
+            im = im.crop((left, top, left + side, top + side))
+        else:
+            rgb = _center_square(rgb)  # type: ignore[arg-type]
+        w = h = side
     s = config.image_size
-    if rgb.shape[:2] != (s, s):
-        rgb = np.asarray(
-            Image.fromarray(np.ascontiguousarray(rgb)).resize((s, s), Image.Resampling.BILINEAR)
-        )
-    return np.array(rgb)  # writable, contiguous
+    if (h, w) != (s, s):
+        im = im if im is not None else Image.fromarray(np.ascontiguousarray(rgb))
+        im = im.resize((s, s), Image.Resampling.BILINEAR)
+    return np.array(im if im is not None else rgb)  # writable, contiguous
 
 
 @dataclass(frozen=True)
@@ -338,6 +361,8 @@ class ImageLoader:
         self.config = config
         self.settings = PreprocessSettings.of(config)
         cd = cache_dir if cache_dir is not None else config.cache_dir
+        self.cache_root = cd
+        """The disk cache's folder as given (``cache_dir`` or ``config.cache_dir``)."""
         self.cache_dir = None if cd is None else Path(cd) / self.settings.digest()
         self._memory: dict[Path, np.ndarray] = {}
         self._views: dict[Path, np.ndarray] = {}
@@ -378,7 +403,7 @@ class ImageLoader:
                 return _preprocess_depth_file(path, decode_depth(path, data), self.config)
             if modality is Modality.TOUCH and is_video(path):
                 return preprocess_rgb(self._video_image(path, data), modality, self.config)
-            return preprocess_rgb(decode_rgb(path, data), modality, self.config)
+            return preprocess_rgb(open_rgb(path, data), modality, self.config)
 
         return self._cached(data, modality.value, build)
 
@@ -510,53 +535,155 @@ class ImageLoader:
         """`embed_array` as a tensor: `load`'s (C, S, S), or (V, 3, S, S) views in [0, 1]."""
         return to_tensor(self.embed_array(item))
 
+    def _held(self, item: Item, views: bool) -> bool:
+        """Whether what `preload` decodes for ``item`` is in memory already."""
+        p = self.frame_path(item)
+        if views and self.has_views(item):
+            return p in self._views
+        if self.pools_views(item):
+            return p in self._embedded
+        return p in self._memory
+
+    def decode_one(self, item: Item, *, views: bool = False) -> None:
+        """Decode and preprocess what `preload` needs of ``item`` into memory: its image, or
+        its `embed_array` views where it `pools_views`, or with ``views`` its training
+        `views`.
+
+        Raises:
+            ImageError: the file cannot be used (and the like: one line naming the file).
+        """
+        if views and self.has_views(item):
+            self.views(item)
+        elif self.pools_views(item):
+            self.embed_array(item)
+        else:
+            self.array(self.frame_path(item), item.modality)
+
+    def take(self, path: Path) -> dict[str, np.ndarray]:
+        """Remove and return everything held in memory for ``path``, by store (a decoding
+        worker's result; `adopt` puts it into another loader)."""
+        with self._lock:
+            out = {}
+            for key, kept in (
+                ("image", self._memory),
+                ("views", self._views),
+                ("embedded", self._embedded),
+            ):
+                a = kept.pop(path, None)
+                if a is not None:
+                    out[key] = a
+            return out
+
+    def adopt(self, path: Path, entries: dict[str, np.ndarray]) -> None:
+        """Keep what another loader with the same settings decoded for ``path`` (`take`)."""
+        with self._lock:
+            for key, kept in (
+                ("image", self._memory),
+                ("views", self._views),
+                ("embedded", self._embedded),
+            ):
+                if key in entries:
+                    kept.setdefault(path, entries[key])
+
+    def _uses_processes(self, files: int, workers: int) -> bool:
+        """Whether `preload` decodes ``files`` files in worker processes (``data.decode``)."""
+        if workers <= 1 or type(self) is not ImageLoader:  # a subclass serves its own arrays
+            return False
+        if self.config.decode == "processes":
+            return True
+        return self.config.decode == "auto" and files >= PROCESS_DECODE_MIN and can_fork()
+
     def preload(
         self, items: Iterable[Item], workers: int | None = None, *, views: bool = False
     ) -> int:
-        """Decode and preprocess items in parallel threads (Pillow and numpy release the GIL).
+        """Decode and preprocess items in parallel, ``data.workers`` at a time, in threads or
+        worker processes (``data.decode``; `lookfeel.data.decode_pool`).
 
         Args:
             items: what to decode: each item's image, or its `embed_array` views where it
                 `pools_views`.
-            workers: threads (default ``config.workers``).
+            workers: threads or processes (default ``config.workers``).
             views: decode the training `views` of each item (its image among them).
 
         Returns:
-            The number of files decoded now (those already cached are skipped).
+            The number of files decoded now (those already held are skipped).
 
         Raises:
             ImageError: for the first file that cannot be used, naming it.
         """
+        items = list(items)
+        todo = self._todo(items, views)
+        for _ in self._decode(items, todo, workers, views):
+            pass
+        return len(todo)
+
+    def preload_stream(
+        self, items: Iterable[Item], workers: int | None = None, *, views: bool = False
+    ) -> Iterator[int]:
+        """`preload`, yielding as it goes how many of ``items``, from the first, are ready:
+        a consumer (`lookfeel.embedding.embed_items`) embeds those while the rest decode.
+        Yields at least once; the last value is ``len(items)``."""
+        items = list(items)
+        yield from self._decode(items, self._todo(items, views), workers, views)
+
+    def _todo(self, items: Sequence[Item], views: bool) -> dict[Path, Item]:
+        """The files among ``items`` still to decode, each with one of its items, in order."""
         todo: dict[Path, Item] = {}
         for it in items:
-            p = self.frame_path(it)
-            if views and self.has_views(it):
-                have: dict[Path, np.ndarray] = self._views
-            elif self.pools_views(it):
-                have = self._embedded
-            else:
-                have = self._memory
-            if p not in have:
-                todo[p] = it
+            if not self._held(it, views):
+                todo.setdefault(self.frame_path(it), it)
+        return todo
 
-        def one(p: Path) -> None:
-            it = todo[p]
-            if views and self.has_views(it):
-                self.views(it)
-            elif self.pools_views(it):
-                self.embed_array(it)
-            else:
-                self.array(p, it.modality)
-
+    def _decode(
+        self, items: Sequence[Item], todo: dict[Path, Item], workers: int | None, views: bool
+    ) -> Iterator[int]:
         n = workers or self.config.workers
+        ready = _Ready(self, items, views)
         paths: Sequence[Path] = list(todo)
-        if n <= 1 or len(paths) < 8:
-            for p in paths:
-                one(p)
+        if not paths:
+            yield len(items)
+            return
+        if self._uses_processes(len(paths), n):
+            from lookfeel.data.decode_pool import decode_in_processes
+
+            new_loader = functools.partial(ImageLoader, self.config, self.cache_root)
+            for chunk in decode_in_processes(new_loader, list(todo.items()), n, views=views):
+                for path, entries in zip(chunk.paths, chunk.entries, strict=True):
+                    if entries is None:  # failed in a worker: raise its own error here
+                        self.decode_one(todo[path], views=views)
+                    else:
+                        self.adopt(path, entries)
+                yield ready.advance()
+        elif n <= 1 or len(paths) < 8:
+            for i, p in enumerate(paths):
+                self.decode_one(todo[p], views=views)
+                if i % 64 == 63:
+                    yield ready.advance()
         else:
             with ThreadPoolExecutor(n) as pool:
-                list(pool.map(one, paths))
-        return len(paths)
+                one = functools.partial(_decode_one, self, todo, views)
+                for i, _ in enumerate(pool.map(one, paths)):
+                    if i % 64 == 63:
+                        yield ready.advance()
+        yield ready.advance()
+
+
+def _decode_one(loader: ImageLoader, todo: dict[Path, Item], views: bool, path: Path) -> None:
+    loader.decode_one(todo[path], views=views)
+
+
+class _Ready:
+    """How many of ``items``, from the first, a loader holds (advanced as decoding goes)."""
+
+    def __init__(self, loader: ImageLoader, items: Sequence[Item], views: bool) -> None:
+        self.loader, self.items, self.views, self.count = loader, items, views, 0
+
+    def advance(self) -> int:
+        while self.count < len(self.items) and self.loader._held(
+            self.items[self.count], self.views
+        ):
+            self.count += 1
+        return self.count
 
 
 class ArrayLoader(ImageLoader):
@@ -569,6 +696,11 @@ class ArrayLoader(ImageLoader):
         super().__init__(config, cache_dir=None)
         self._arrays = arrays
         self._modality = modality
+
+    def _held(self, item: Item, views: bool) -> bool:
+        if item.modality is self._modality and self.frame_path(item) in self._arrays:
+            return True
+        return super()._held(item, views)
 
     def array(self, path: Path, modality: Modality) -> np.ndarray:
         if modality is self._modality and path in self._arrays:

@@ -18,11 +18,12 @@ import numpy as np
 import torch
 
 from lookfeel.config import DataConfig
-from lookfeel.data import decode_depth, decode_rgb
+from lookfeel.data import decode_depth
 from lookfeel.data.images import (
     DEFAULT_MAX_PIXELS,
     ImageError,
     ImageLoader,
+    open_rgb,
     preprocess_depth,
     preprocess_rgb,
     read_image_file,
@@ -52,7 +53,7 @@ def _preprocess(
     if modality is Modality.DEPTH:
         a = preprocess_depth(decode_depth(name, data, max_pixels), config)  # (S, S) float32
         return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
-    rgb = preprocess_rgb(decode_rgb(name, data, max_pixels), modality, config)  # (S, S, 3)
+    rgb = preprocess_rgb(open_rgb(name, data, max_pixels), modality, config)  # (S, S, 3)
     return torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
 
 

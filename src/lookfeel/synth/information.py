@@ -486,7 +486,7 @@ def extract_features(
         results = [fn(items) for _, items in jobs]
     else:
         ctx = get_context("spawn")
-        from lookfeel.synth.world import die_with_parent
+        from lookfeel.processes import die_with_parent
 
         with ProcessPoolExecutor(
             min(n_workers, len(jobs)),

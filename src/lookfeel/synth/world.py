@@ -25,9 +25,6 @@ import io
 import json
 import math
 import os
-import signal
-import sys
-import threading
 import time
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -41,6 +38,7 @@ from PIL import Image
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.modality import Modality, PressKind
+from lookfeel.processes import die_with_parent
 from lookfeel.synth.color import render_color
 from lookfeel.synth.config import SynthConfig, SynthSummary
 from lookfeel.synth.depth import render_depth
@@ -58,7 +56,7 @@ from lookfeel.synth.fabric import (
 from lookfeel.synth.gelsight import render_press, sensor
 from lookfeel.synth.scene import color_camera, depth_camera
 
-__all__ = ["GENERATOR_VERSION", "MANIFEST", "die_with_parent", "generate", "render_fabric"]
+__all__ = ["GENERATOR_VERSION", "MANIFEST", "generate", "render_fabric"]
 
 MANIFEST = "synth.json"
 _GENERATOR = "lookfeel.synth"
@@ -178,33 +176,6 @@ def render_fabric(
                 counts["frames"] += 1
             counts["presses"] += 1
     return counts
-
-
-def die_with_parent(parent: int) -> None:
-    """Worker initializer: end this process when ``parent`` (the `generate` caller) ends.
-
-    On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``); a
-    daemon thread also checks every second that the parent is still this process's parent
-    (it covers other systems and a parent that died before the ``prctl``).
-    """
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-
-    def watch() -> None:
-        while True:
-            if os.getppid() != parent:
-                os._exit(1)
-            time.sleep(1.0)
-
-    if os.getppid() != parent:
-        os._exit(1)
-    threading.Thread(target=watch, name="lookfeel-parent-watch", daemon=True).start()
 
 
 def _run_task(task: _Task) -> dict[str, int]:
