@@ -43,6 +43,18 @@ def _alive(pid: int) -> bool:
     return state[state.rindex(")") + 2] != "Z"
 
 
+def _kill_and_wait_for(proc: subprocess.Popen[bytes], workers: set[int], what: str) -> None:
+    """SIGKILL ``proc``; fail unless every one of ``workers`` ends within 10 s."""
+    assert proc.poll() is None, f"{what} finished before it could be killed"
+    assert len(workers) >= 2, f"expected 2 worker processes of {what}, found {workers}"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=10)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers), f"workers outlived the killed {what}"
+
+
 def _images(root: Path) -> int:
     return sum(1 for p in root.rglob("*") if p.suffix in (".png", ".jpg"))
 
@@ -65,14 +77,7 @@ def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: 
             if len(workers) >= 2 and out.is_dir() and _images(out) > 0:
                 break
             time.sleep(0.05)
-        assert proc.poll() is None, "synth finished before it could be killed; raise --fabrics"
-        assert len(workers) >= 2, f"expected 2 worker processes, found {workers}"
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and any(_alive(w) for w in workers):
-            time.sleep(0.05)
-        assert not any(_alive(w) for w in workers), "workers outlived the killed synth"
+        _kill_and_wait_for(proc, workers, "synth (raise --fabrics if it finished)")
         n = _images(out)
         time.sleep(1.5)
         assert _images(out) == n, "files kept appearing after synth was killed"
@@ -112,14 +117,7 @@ def test_sigkill_of_a_decoding_process_kills_its_decode_workers(tmp_path: Path):
         while time.monotonic() < deadline and proc.poll() is None and len(workers) < 2:
             workers = {w for w in _children(proc.pid) if _alive(w)}
             time.sleep(0.05)
-        assert proc.poll() is None, "decoding finished before it could be killed"
-        assert len(workers) >= 2, f"expected 2 decode workers, found {workers}"
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and any(_alive(w) for w in workers):
-            time.sleep(0.05)
-        assert not any(_alive(w) for w in workers), "decode workers outlived their parent"
+        _kill_and_wait_for(proc, workers, "decoding process")
     finally:
         if proc.poll() is None:
             proc.kill()
