@@ -511,93 +511,80 @@ def _pm(scores: dict[str, float], name: str) -> str:
     return f"{scores[name]:.2f}" + ("" if math.isnan(std) else f" ± {std:.2f}")
 
 
-def _control_lines(summary: dict[str, Any]) -> list[str]:
-    """The background control's table (model and raw pixels, as they are and swapped)."""
-    status = summary.get("background_control") or {}
-    rows = [(p, e) for p, e in summary["pairs"].items() if "model_swapped_top1" in e]
-    if status.get("skipped"):
-        return ["", f"Background control: skipped ({status['skipped']})."]
+def _pair_table(
+    summary: dict[str, Any],
+    intro: str,
+    columns: tuple[tuple[str, str], ...],
+    chance: bool = True,
+) -> list[str]:
+    """A table of every pair scored with ``columns[1]``'s key: one cell per (header, key)
+    column (``-`` where a pair lacks it), then chance; nothing when no pair has it."""
+    rows = [(p, e) for p, e in summary["pairs"].items() if columns[1][1] in e]
     if not rows:
         return []
-    lines = [
-        "",
-        "Background control: the same queries with every depth image's background replaced "
-        "by another fabric's (the cloth kept). A model that reads the cloth, not the room, "
-        "scores the same.",
-        "",
-        "| pair | model top-1 | model top-1, background swapped | raw pixels top-1 "
-        "| raw pixels top-1, background swapped |",
-        "|---|---|---|---|---|",
-    ]
+    headers = [h for h, _ in columns] + (["chance"] if chance else [])
+    lines = ["", intro, "", f"| pair | {' | '.join(headers)} |", "|---" * (len(headers) + 1) + "|"]
     for pair, e in rows:
-        cells = [
-            _fmt(e[k]) if k in e else "-"
-            for k in (
-                "model_top1",
-                "model_swapped_top1",
-                "raw_pixels_top1",
-                "raw_pixels_swapped_top1",
-            )
-        ]
+        cells = [_fmt(e[k]) if k in e else "-" for _, k in columns]
+        if chance:
+            cells.append(f"{e['chance_top1']:.3f}")
         lines.append(f"| {pair} | {' | '.join(cells)} |")
     return lines
 
 
+def _control_lines(summary: dict[str, Any]) -> list[str]:
+    """The background control's table (model and raw pixels, as they are and swapped)."""
+    status = summary.get("background_control") or {}
+    if status.get("skipped"):
+        return ["", f"Background control: skipped ({status['skipped']})."]
+    return _pair_table(
+        summary,
+        "Background control: the same queries with every depth image's background replaced "
+        "by another fabric's (the cloth kept). A model that reads the cloth, not the room, "
+        "scores the same.",
+        (
+            ("model top-1", "model_top1"),
+            ("model top-1, background swapped", "model_swapped_top1"),
+            ("raw pixels top-1", "raw_pixels_top1"),
+            ("raw pixels top-1, background swapped", "raw_pixels_swapped_top1"),
+        ),
+        chance=False,
+    )
+
+
 def _label_space_lines(summary: dict[str, Any]) -> list[str]:
     """The table of matching in label space beside matching in the embedding."""
-    rows = [(p, e) for p, e in summary["pairs"].items() if "model_labels_top1" in e]
-    if not rows:
-        return []
-    lines = [
-        "",
+    return _pair_table(
+        summary,
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
         "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
         "run's training fabrics only, and a query matched to the gallery item whose predicted "
         "labels are nearest; for pairs with depth also with every depth image's background "
         "swapped (as in the background control below).",
-        "",
-        "| pair | model top-1 | label space top-1 | label space top-1, background swapped "
-        "| model top-3 | label space top-3 | chance |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for pair, e in rows:
-        keys = (
-            "model_top1",
-            "model_labels_top1",
-            "model_labels_swapped_top1",
-            "model_top3",
-            "model_labels_top3",
-        )
-        cells = [_fmt(e[k]) if k in e else "-" for k in keys]
-        lines.append(f"| {pair} | {' | '.join(cells)} | {e['chance_top1']:.3f} |")
-    return lines
+        (
+            ("model top-1", "model_top1"),
+            ("label space top-1", "model_labels_top1"),
+            ("label space top-1, background swapped", "model_labels_swapped_top1"),
+            ("model top-3", "model_top3"),
+            ("label space top-3", "model_labels_top3"),
+        ),
+    )
 
 
 def _untouched_lines(summary: dict[str, Any]) -> list[str]:
     """The untouched control's table (model and raw pixels, pressed and with no contact)."""
-    rows = [(p, e) for p, e in summary["pairs"].items() if "model_untouched_top1" in e]
-    if not rows:
-        return []
-    lines = [
-        "",
+    return _pair_table(
+        summary,
         "Untouched control: the same queries with every press replaced by a moment of its video "
         "with no contact, preprocessed alike (`lookfeel.data.touch_control`). A model that reads "
         "the contact, not the sensor's own light or the session, falls to chance.",
-        "",
-        "| pair | model top-1 | model top-1, untouched | raw pixels top-1 "
-        "| raw pixels top-1, untouched | chance |",
-        "|---|---|---|---|---|---|",
-    ]
-    for pair, e in rows:
-        keys = (
-            "model_top1",
-            "model_untouched_top1",
-            "raw_pixels_top1",
-            "raw_pixels_untouched_top1",
-        )
-        cells = [_fmt(e[k]) if k in e else "-" for k in keys]
-        lines.append(f"| {pair} | {' | '.join(cells)} | {e['chance_top1']:.3f} |")
-    return lines
+        (
+            ("model top-1", "model_top1"),
+            ("model top-1, untouched", "model_untouched_top1"),
+            ("raw pixels top-1", "raw_pixels_top1"),
+            ("raw pixels top-1, untouched", "raw_pixels_untouched_top1"),
+        ),
+    )
 
 
 def format_cv_summary(summary: dict[str, Any]) -> str:
