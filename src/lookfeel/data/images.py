@@ -639,11 +639,10 @@ class ImageLoader:
     ) -> Iterator[int]:
         n = workers or self.config.workers
         ready = _Ready(self, items, views)
-        paths: Sequence[Path] = list(todo)
-        if not paths:
+        if not todo:
             yield len(items)
             return
-        if self._uses_processes(len(paths), n):
+        if self._uses_processes(len(todo), n):
             from lookfeel.data.decode_pool import decode_in_processes
 
             new_loader = functools.partial(ImageLoader, self.config, self.cache_root)
@@ -654,22 +653,18 @@ class ImageLoader:
                     else:
                         self.adopt(path, entries)
                 yield ready.advance()
-        elif n <= 1 or len(paths) < 8:
-            for i, p in enumerate(paths):
-                self.decode_one(todo[p], views=views)
+        elif n <= 1 or len(todo) < 8:
+            for i, it in enumerate(todo.values()):
+                self.decode_one(it, views=views)
                 if i % 64 == 63:
                     yield ready.advance()
         else:
             with ThreadPoolExecutor(n) as pool:
-                one = functools.partial(_decode_one, self, todo, views)
-                for i, _ in enumerate(pool.map(one, paths)):
+                one = functools.partial(self.decode_one, views=views)
+                for i, _ in enumerate(pool.map(one, todo.values())):
                     if i % 64 == 63:
                         yield ready.advance()
         yield ready.advance()
-
-
-def _decode_one(loader: ImageLoader, todo: dict[Path, Item], views: bool, path: Path) -> None:
-    loader.decode_one(todo[path], views=views)
 
 
 class _Ready:
