@@ -28,7 +28,6 @@ from lookfeel.losses import (
     tuple_label,
 )
 from lookfeel.losses.combined import _DISTANCES, _PAIR_LOSSES
-from lookfeel.modality import member_slot
 from lookfeel.models import head_key
 
 torch.set_num_threads(2)
@@ -357,35 +356,6 @@ def test_create_loss_returns_named_terms_and_their_sum(kind: str) -> None:
     assert terms["loss"].item() == pytest.approx(total.item())
     terms["loss"].backward()
     assert all(v.grad is not None and torch.isfinite(v.grad).all() for v in out.values())
-
-
-def test_ensemble_loss_trains_each_member_on_its_own_outputs() -> None:
-    loss_fn = create_loss(LossConfig(kind="infonce"), class_sizes=(3,))
-    g = torch.Generator().manual_seed(0)
-    fabric = {"depth": torch.tensor([0, 1, 2, 0]), "touch": torch.tensor([0, 1, 2, 0])}
-    classes = {"touch": torch.tensor([[0], [2], [-1], [0]])}
-    members = [
-        {
-            "depth": torch.randn(4, 5, generator=g, requires_grad=True),
-            "touch": torch.randn(4, 5, generator=g, requires_grad=True),
-            "touch/classes": torch.randn(4, 3, generator=g, requires_grad=True),
-        }
-        for _ in range(2)
-    ]
-    out = {"depth": torch.zeros(4, 10), "touch": torch.zeros(4, 10)}  # combined: not trained
-    out["touch/classes"] = torch.zeros(4, 3)
-    for k, m in enumerate(members):
-        out |= {member_slot("depth", k): m["depth"], member_slot("touch", k): m["touch"]}
-        out[head_key(member_slot("touch", k), "classes")] = m["touch/classes"]
-    terms = loss_fn(out, fabric=fabric, classes=classes)
-    alone = [loss_fn(m, fabric=fabric, classes=classes) for m in members]
-    assert list(terms) == ["depth_touch_loss", "class_loss", "loss"]
-    for name, value in terms.items():
-        assert value.item() == pytest.approx((alone[0][name] + alone[1][name]).item() / 2)
-    # Member 0's gradient is its own loss's alone: member 1's outputs do not reach it.
-    (grad,) = torch.autograd.grad(terms["loss"], members[0]["touch"], retain_graph=True)
-    (own,) = torch.autograd.grad(alone[0]["loss"] / 2, members[0]["touch"])
-    torch.testing.assert_close(grad, own)
 
 
 def test_combined_loss_errors_and_weights() -> None:

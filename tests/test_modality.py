@@ -8,11 +8,9 @@ from lookfeel.modality import (
     Modality,
     Pair,
     PressKind,
-    member_slot,
     parse_modalities,
     slot_modality,
     slot_names,
-    split_member,
 )
 
 
@@ -35,14 +33,6 @@ def test_slot_names_number_repeated_modalities():
     views = [Modality.DEPTH, Modality.TOUCH, Modality.DEPTH]
     assert slot_names(views) == ["depth", "touch", "depth.1"]
     assert [slot_modality(s) for s in slot_names(views)] == views
-
-
-def test_member_keys_name_their_slot_and_member():
-    assert member_slot("depth.1", 2) == "depth.1#2"
-    assert slot_modality(member_slot("depth.1", 2)) is Modality.DEPTH
-    assert split_member(member_slot("depth.1", 2) + "/classes") == ("depth.1/classes", 2)
-    assert split_member("touch#0") == ("touch", 0)
-    assert split_member("touch/classes") == ("touch/classes", None)
 
 
 def test_pair_parses_formats_and_round_trips():

@@ -18,7 +18,6 @@ from lookfeel.models import (
     BACKBONES,
     AlexNet,
     Backbone,
-    BranchEnsemble,
     Embedder,
     PretrainedError,
     create_backbone,
@@ -437,52 +436,6 @@ def test_model_state_dict_round_trips() -> None:
         for p in twin.parameters():
             p.add_(1.0)
     assert not torch.allclose(twin(x)["touch"], model(x)["touch"])
-
-
-def test_ensemble_embeds_as_its_members_side_by_side_and_averages_their_heads() -> None:
-    cfg = dataclasses.replace(COMPACT, embed_dim=8, members=3, class_heads=("h",))
-    cfg = dataclasses.replace(cfg, classes={"h": ("0", "1", "2")}, num_properties=2)
-    torch.manual_seed(0)
-    model = create_model(cfg, [Modality.DEPTH, Modality.TOUCH]).eval()
-    branch = model.branch("touch")
-    assert isinstance(branch, BranchEnsemble) and model.embed_dim == 24
-    members = branch.member_branches()
-    first = dict(members[0].named_parameters())
-    assert any(not torch.equal(first[k], v) for k, v in members[1].named_parameters())
-    x = _batch(p=2, b=3)["touch"]
-    own = [m(x) for m in members]  # each member's unit embedding
-    for e in own:
-        torch.testing.assert_close(e.norm(dim=-1), torch.ones(3))
-    out = model({"touch": x}, heads=True)
-    e = out["touch"]
-    torch.testing.assert_close(e, torch.cat(own, dim=-1) / 3**0.5)
-    # Squared distances (and dot products) of ensemble embeddings are the members' averaged.
-    d2 = ((e[0] - e[1]) ** 2).sum()
-    torch.testing.assert_close(d2, sum(((m[0] - m[1]) ** 2).sum() for m in own) / 3)
-    for k, m in enumerate(members):
-        torch.testing.assert_close(out[f"touch#{k}"], own[k])
-        torch.testing.assert_close(out[f"touch#{k}/classes"], m.heads(own[k])["classes"])
-    mean = torch.stack([m.heads(o)["property"] for m, o in zip(members, own, strict=True)]).mean(0)
-    torch.testing.assert_close(out[head_key("touch", "property")], mean)
-    torch.testing.assert_close(branch.heads(e)["property"], mean)  # from a stored embedding
-    assert torch.equal(model({"touch": x})["touch"], e)  # no member keys without heads
-    again = create_model(cfg, model.modalities, load_weights=False).eval()
-    again.load_state_dict(model.state_dict())
-    torch.testing.assert_close(again({"touch": x})["touch"], e)
-
-
-def test_ensemble_members_share_one_frozen_trunk() -> None:
-    cfg = dataclasses.replace(COMPACT, freeze="to_block4", embed_dim=8, members=2)
-    with pytest.warns(UserWarning, match="freezes randomly initialised"):
-        model = create_model(cfg, [Modality.DEPTH])
-    a, b = model.branch("depth").member_branches()
-    torch.testing.assert_close(a.backbone.features.state_dict(), b.backbone.features.state_dict())
-    assert not torch.equal(a.backbone.fc[1].weight, b.backbone.fc[1].weight)  # heads differ
-    x = {"depth": _batch()["depth"]}
-    model.eval()
-    torch.testing.assert_close(model(model.trunk(x), from_trunk=True), model(x))
-    with pytest.raises(ConfigError, match="model.members: must be >= 1"):
-        dataclasses.replace(COMPACT, members=0)
 
 
 # ------------------------------------------------------------------------------------------

@@ -159,22 +159,6 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
 
 
-def test_an_ensemble_trains_every_member_and_embeds_as_one(data: Path, tmp_path: Path):
-    over = ("model.members=2", "loss.kind=infonce", "train.val_every=0")
-    early = train(_config(*over, "train.steps=3"), data, tmp_path / "early")
-    result = train(_config(*over, "train.steps=6"), data, tmp_path / "ens")
-    a = torch.load(early.last_checkpoint, weights_only=True)["model"]
-    b = torch.load(result.last_checkpoint, weights_only=True)["model"]
-    for k in (0, 1):  # every member keeps learning (a member without gradients stands still)
-        key = f"branches.touch.members.{k}.backbone.fc.1.weight"
-        assert not torch.equal(a[key], b[key])
-    trained = load_model(result.last_checkpoint)
-    emb = embed_catalog(trained.model, scan(data), ImageLoader(trained.config.data))
-    touch = emb[Modality.TOUCH].embeddings
-    assert touch.shape[1] == 2 * 16  # two members of embed_dim 16, side by side
-    assert abs(float((touch**2).sum(1).mean()) - 1.0) < 1e-4  # unit length
-
-
 def test_run_errors_are_clear(data: Path, tmp_path: Path):
     train(_config("train.steps=2", "train.val_every=0"), data, tmp_path / "run")
     with pytest.raises(ConfigError, match="already holds a run .* pass --resume"):

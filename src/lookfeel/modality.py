@@ -12,17 +12,7 @@ from collections.abc import Iterable
 from enum import Enum
 from typing import Any
 
-__all__ = [
-    "MEMBER_SEP",
-    "Modality",
-    "Pair",
-    "PressKind",
-    "member_slot",
-    "parse_modalities",
-    "slot_modality",
-    "slot_names",
-    "split_member",
-]
+__all__ = ["Modality", "Pair", "PressKind", "parse_modalities", "slot_modality", "slot_names"]
 
 
 class Modality(str, Enum):
@@ -173,25 +163,4 @@ def slot_names(views: tuple[Modality, ...] | list[Modality]) -> list[str]:
 
 def slot_modality(name: str) -> Modality:
     """The modality of a slot name from `slot_names` (``"depth.1"`` -> ``Modality.DEPTH``)."""
-    return Modality(name.split(".", 1)[0].split(MEMBER_SEP, 1)[0])
-
-
-MEMBER_SEP = "#"
-"""Separates a slot from an ensemble member's index in `member_slot` keys."""
-
-
-def member_slot(slot: str, k: int) -> str:
-    """Key of ensemble member ``k``'s own output for ``slot`` in a model's training output:
-    ``member_slot("touch", 1) == "touch#1"`` (its heads: ``"touch#1/classes"``). See
-    `lookfeel.models.BranchEnsemble`."""
-    return f"{slot}{MEMBER_SEP}{k}"
-
-
-def split_member(key: str) -> tuple[str, int | None]:
-    """Inverse of `member_slot` for any output key: ``"touch#1/classes"`` ->
-    ``("touch/classes", 1)``; a key of no member -> ``(key, None)``."""
-    head, sep, rest = key.partition(MEMBER_SEP)
-    if not sep:
-        return key, None
-    index, slash, tail = rest.partition("/")
-    return head + slash + tail, int(index)
+    return Modality(name.split(".", 1)[0])

@@ -75,12 +75,6 @@ class ModelConfig:
     (AlexNet fc7: 4096, as the paper)."""
     normalize: bool = False
     """L2-normalise each embedding (CLIP style). The paper does not."""
-    members: int = 1
-    """Independently initialised networks per branch, trained side by side, each on its own
-    loss, and used as one (a deep ensemble, `lookfeel.models.BranchEnsemble`): the embedding
-    is the members' L2-normalised embeddings side by side (distances averaged over members),
-    the heads' outputs are averaged. Training and embedding cost N times one network. 1: a
-    single network."""
     press_pool: Literal["max", "mean"] = "max"
     """How the embeddings of a touch input's presses become one: ``max`` (element-wise maximum,
     the paper's Multi-input Net) or ``mean``."""
@@ -135,8 +129,6 @@ class ModelConfig:
                 )
         if self.embed_dim is not None and self.embed_dim < 1:
             raise ConfigError(f"model.embed_dim: must be >= 1 or null, got {self.embed_dim}")
-        if self.members < 1:
-            raise ConfigError(f"model.members: must be >= 1, got {self.members}")
         if self.num_clusters < 2:
             raise ConfigError(f"model.num_clusters: must be >= 2, got {self.num_clusters}")
         if self.num_properties < 0:

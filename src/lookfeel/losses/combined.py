@@ -24,7 +24,6 @@ from lookfeel.losses.distance import (
 from lookfeel.losses.infonce import MultiPositiveInfoNCE
 from lookfeel.losses.property import masked_mse
 from lookfeel.losses.triplet import BatchHardTripletLoss
-from lookfeel.modality import split_member
 
 __all__ = ["CombinedLoss", "create_loss"]
 
@@ -89,33 +88,11 @@ class CombinedLoss(nn.Module):
 
         Returns:
             ``{"<a>_<b>_loss": ..., "cluster_loss": ..., "property_loss": ..., "loss": total}``,
-            with only the terms that apply; every value is a scalar. For an ensemble's
-            outputs (member keys, `lookfeel.modality.member_slot`) each term is computed per
-            member on its own outputs and averaged over members.
+            with only the terms that apply; every value is a scalar.
 
         Raises:
             ValueError: targets given for a head the outputs lack, or nothing to optimise.
         """
-        groups = _by_member(outputs)
-        if len(groups) == 1:
-            terms = self._terms(groups[0], y, fabric, cluster, properties, classes)
-        else:  # an ensemble: every member on its own loss, averaged
-            each = [self._terms(g, y, fabric, cluster, properties, classes) for g in groups]
-            terms = {k: sum((t[k] for t in each[1:]), each[0][k]) / len(each) for k in each[0]}
-        values = list(terms.values())
-        terms["loss"] = sum(values[1:], values[0])
-        return terms
-
-    def _terms(
-        self,
-        outputs: Mapping[str, Tensor],
-        y: Tensor | None,
-        fabric: Mapping[str, Tensor] | None,
-        cluster: Mapping[str, Tensor] | None,
-        properties: Mapping[str, Tensor] | None,
-        classes: Mapping[str, Tensor] | None,
-    ) -> dict[str, Tensor]:
-        """Every weighted term of one network's outputs (without the total)."""
         terms: dict[str, Tensor] = {}
         if self.pair_weight > 0:
             pair_terms = self.pair_loss(embeddings_of(outputs), y=y, fabric=fabric)
@@ -141,21 +118,9 @@ class CombinedLoss(nn.Module):
             terms["class_loss"] = self.class_weight * sum(parts[1:], parts[0])
         if not terms:
             raise ValueError("no loss term applies: every weight is 0 or its targets are missing")
+        values = list(terms.values())
+        terms["loss"] = sum(values[1:], values[0])
         return terms
-
-
-def _by_member(outputs: Mapping[str, Tensor]) -> list[dict[str, Tensor]]:
-    """The outputs of each network: one dict for a plain model; for an ensemble
-    (`lookfeel.models.BranchEnsemble`), each member's own outputs under plain slot keys (the
-    combined embedding and averaged heads are left out: no loss reads them)."""
-    members: dict[int, dict[str, Tensor]] = {}
-    for key, value in outputs.items():
-        plain, k = split_member(key)
-        if k is not None:
-            members.setdefault(k, {})[plain] = value
-    if not members:
-        return [dict(outputs)]
-    return [members[k] for k in sorted(members)]
 
 
 _DISTANCES: dict[str, tuple[Callable[[Tensor, Tensor], Tensor], Callable[[Tensor, Tensor], Tensor]]]

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import math
-
-import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
 from lookfeel.modality import Modality
 from lookfeel.models.backbone import Backbone
 
-__all__ = ["CLASSES", "CLUSTER", "PROPERTY", "Branch", "BranchEnsemble"]
+__all__ = ["CLASSES", "CLUSTER", "PROPERTY", "Branch"]
 
 CLUSTER = "cluster"
 """Name of the cluster-classifier head's output (the paper's Auxiliary Net)."""
@@ -136,89 +133,3 @@ class Branch(nn.Module):
         if self.class_head is not None:
             out[CLASSES] = self.class_head(e)
         return out
-
-
-class BranchEnsemble(Branch):
-    """N independently initialised branches of one modality, used as one (``model.members``).
-
-    Each member is a whole `Branch` (backbone, projection, heads) with L2-normalised
-    embeddings. The ensemble's embedding is the members' embeddings side by side, divided by
-    sqrt(N): a unit vector whose Euclidean distances and dot products are the members' averaged
-    (the cosine of two ensemble embeddings is the mean of the members' cosines). Its heads
-    average the members' head outputs (class logits, cluster logits, property predictions),
-    each member reading its own part of the embedding.
-
-    Training optimises every member on its own loss (deep ensembles, Lakshminarayanan et al.
-    2017): `Embedder.forward` with ``heads=True`` also returns each member's embedding and heads
-    under `lookfeel.modality.member_slot` keys,
-    and `lookfeel.losses.CombinedLoss` averages the loss over members, so no member sees
-    another's output. Members share a frozen trunk (the first member's), so a trunk cache
-    serves all of them; with nothing frozen the trunk is only the input normalisation.
-    """
-
-    def __init__(self, members: list[Branch]) -> None:
-        """Assemble members of one modality and embedding size (at least two).
-
-        Raises:
-            ValueError: fewer than two members, or members that differ in modality or size.
-        """
-        nn.Module.__init__(self)
-        if len(members) < 2:
-            raise ValueError(f"an ensemble needs at least two members, got {len(members)}")
-        first = members[0]
-        if any(m.modality is not first.modality or m.embed_dim != first.embed_dim for m in members):
-            raise ValueError("ensemble members must share one modality and embedding size")
-        if not all(m.normalize for m in members):
-            raise ValueError("ensemble members must L2-normalise their embeddings")
-        self.members = nn.ModuleList(members)
-        self.modality = first.modality
-        self.pressed = first.pressed
-        self.embed_dim = first.embed_dim * len(members)
-        self.normalize = True
-        self.press_pool = first.press_pool
-        self.class_sizes = first.class_sizes
-        self.project = nn.Identity()
-        self.cluster_head = first.cluster_head
-        self.property_head = first.property_head
-        self.class_head = first.class_head
-        self.backbone = first.backbone
-
-    def member_branches(self) -> list[Branch]:
-        """The members, in order."""
-        return [m for m in self.members if isinstance(m, Branch)]
-
-    def trunk(self, x: Tensor) -> Tensor:
-        """The first member's frozen trunk (every member's, see `share_trunk`)."""
-        return self.member_branches()[0].trunk(x)
-
-    def members_forward(self, x: Tensor, from_trunk: bool = False) -> list[Tensor]:
-        """Each member's (B, D) unit embedding of the same inputs (as `Branch.forward`)."""
-        return [m(x, from_trunk=from_trunk) for m in self.member_branches()]
-
-    def combine(self, parts: list[Tensor]) -> Tensor:
-        """The ensemble embedding of the members' unit embeddings (B, N * D)."""
-        return torch.cat(parts, dim=-1) / math.sqrt(len(parts))
-
-    def forward(self, x: Tensor, from_trunk: bool = False) -> Tensor:
-        """The members' embeddings side by side, over sqrt(N): (B, N * D), unit norm."""
-        return self.combine(self.members_forward(x, from_trunk))
-
-    def split(self, e: Tensor) -> list[Tensor]:
-        """Each member's unit embedding from an ensemble embedding (inverse of `combine`)."""
-        n = len(self.members)
-        return [part * math.sqrt(n) for part in e.split(self.embed_dim // n, dim=-1)]
-
-    def heads(self, e: Tensor) -> dict[str, Tensor]:
-        """The members' heads, each on its own part of ``e``, averaged."""
-        parts = self.split(e)
-        outs = [m.heads(p) for m, p in zip(self.member_branches(), parts, strict=True)]
-        return {k: torch.stack([o[k] for o in outs]).mean(0) for k in outs[0]}
-
-    def share_trunk(self) -> None:
-        """Copy the first member's frozen trunk weights into the others (so that the one trunk
-        `trunk` runs is every member's)."""
-        first = self.member_branches()[0].backbone
-        cut = first._cut
-        for m in self.member_branches()[1:]:
-            for src, dst in zip(first._stages[:cut], m.backbone._stages[:cut], strict=True):
-                dst.load_state_dict(src.state_dict())

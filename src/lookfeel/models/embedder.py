@@ -15,8 +15,8 @@ import torch
 from torch import Tensor, nn
 
 from lookfeel.config.model import ModelConfig
-from lookfeel.modality import Modality, member_slot, slot_modality
-from lookfeel.models.branch import Branch, BranchEnsemble
+from lookfeel.modality import Modality, slot_modality
+from lookfeel.models.branch import Branch
 from lookfeel.models.pretrained import apply_state_dict, read_state_dict
 from lookfeel.models.registry import create_backbone
 
@@ -150,10 +150,7 @@ class Embedder(nn.Module):
             from_trunk: inputs are (cached) trunk features; only the trainable part runs.
             heads: also return the auxiliary heads' outputs, under ``head_key(slot, "cluster")``
                 ((B, K) logits) and ``head_key(slot, "property")`` ((B, Q)), for the heads the
-                model has. Training passes ``True``; evaluation needs only the embeddings. An
-                ensemble branch (``model.members``) also returns each member's own embedding
-                and heads under `lookfeel.modality.member_slot` keys (``"touch#0"``,
-                ``"touch#0/classes"``), which the loss trains one by one.
+                model has. Training passes ``True``; evaluation needs only the embeddings.
 
         Returns:
             slot -> (B, D) embedding, in the order of ``inputs`` (plus head outputs if asked).
@@ -161,33 +158,14 @@ class Embedder(nn.Module):
         if not from_trunk:
             for slot, x in inputs.items():
                 self._check(slot, x)
-
-        def embed(b: Branch, x: Tensor) -> Tensor:
-            if heads and isinstance(b, BranchEnsemble):  # keep the members' own embeddings
-                return torch.stack(b.members_forward(x, from_trunk=from_trunk), dim=1)
-            return b(x, from_trunk=from_trunk)
-
-        emb = self._per_branch(inputs, embed)
+        emb = self._per_branch(inputs, lambda b, x: b(x, from_trunk=from_trunk))
         if not heads:
             return emb
-        out: dict[str, Tensor] = {}
-        members: dict[str, Tensor] = {}
+        out = dict(emb)
         for slot, e in emb.items():
-            branch = self.branch(slot)
-            if isinstance(branch, BranchEnsemble):  # (B, N, D): each member's, for training
-                parts = list(e.unbind(1))
-                pairs = zip(branch.member_branches(), parts, strict=True)
-                for k, (member, part) in enumerate(pairs):
-                    key = member_slot(slot, k)
-                    members[key] = part
-                    for name, value in member.heads(part).items():
-                        members[head_key(key, name)] = value
-                e = branch.combine(parts)
-            out[slot] = e
-        for slot, e in list(out.items()):
             for name, value in self.branch(slot).heads(e).items():
                 out[head_key(slot, name)] = value
-        return out | members
+        return out
 
 
 def create_model(
@@ -199,8 +177,7 @@ def create_model(
     """Build the joint model: one branch per modality (paper section 4.1, Figure 4).
 
     Cross-modal Net: the default config. Auxiliary Net: ``config.cluster_head``. Multi-input
-    Net: touch inputs with P > 1 presses. SNN: a single modality fed two slots of it. With
-    ``config.members`` > 1 every branch is a `BranchEnsemble` of that many members.
+    Net: touch inputs with P > 1 presses. SNN: a single modality fed two slots of it.
 
     Args:
         config: the model configuration.
@@ -234,38 +211,24 @@ def create_model(
         )
     branches: dict[Modality, Branch] = {}
     for m in mods:
-        members = [_branch(config, m, freeze, state) for _ in range(config.members)]
-        if len(members) == 1:
-            branches[m] = members[0]
-        else:
-            ensemble = BranchEnsemble(members)
-            ensemble.share_trunk()
-            branches[m] = ensemble
+        backbone = create_backbone(
+            config.backbone,
+            in_channels=_CHANNELS[m],
+            stem=config.depth_stem,
+            freeze=freeze,
+            dropout=config.dropout,
+            width=config.width,
+        )
+        if state is not None:
+            apply_state_dict(backbone, state, source=str(config.pretrained))
+        branches[m] = Branch(
+            m,
+            backbone,
+            embed_dim=config.embed_dim,
+            normalize=config.normalize,
+            press_pool=config.press_pool,
+            num_clusters=config.num_clusters if config.cluster_head else 0,
+            num_properties=config.num_properties,
+            class_sizes=config.class_sizes,
+        )
     return Embedder(branches, config)
-
-
-def _branch(
-    config: ModelConfig, m: Modality, freeze: str, state: dict[str, Tensor] | None
-) -> Branch:
-    """One freshly initialised branch of modality ``m`` (an ensemble member when
-    ``config.members`` > 1: members always L2-normalise, so that they share one scale)."""
-    backbone = create_backbone(
-        config.backbone,
-        in_channels=_CHANNELS[m],
-        stem=config.depth_stem,
-        freeze=freeze,
-        dropout=config.dropout,
-        width=config.width,
-    )
-    if state is not None:
-        apply_state_dict(backbone, state, source=str(config.pretrained))
-    return Branch(
-        m,
-        backbone,
-        embed_dim=config.embed_dim,
-        normalize=config.normalize or config.members > 1,
-        press_pool=config.press_pool,
-        num_clusters=config.num_clusters if config.cluster_head else 0,
-        num_properties=config.num_properties,
-        class_sizes=config.class_sizes,
-    )

@@ -298,8 +298,7 @@ class TrainRun:
     from_trunk: bool
     """The inputs are cached trunk features."""
     heads: bool
-    """The model has auxiliary heads (cluster, property, classes) or ensemble members to train
-    (the forward pass returns their outputs)."""
+    """The model has auxiliary heads (cluster, property, classes) to train."""
     cluster: bool
     properties: bool
     classes: bool = False
@@ -713,10 +712,7 @@ def _train(
         dist=dist,
         from_trunk=cached,
         heads=bool(
-            config.model.cluster_head
-            or config.model.num_properties
-            or config.model.class_heads
-            or config.model.members > 1  # each member's own outputs, for its own loss
+            config.model.cluster_head or config.model.num_properties or config.model.class_heads
         ),
         cluster=bool(config.model.cluster_head),
         properties=bool(config.model.num_properties),
