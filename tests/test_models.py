@@ -18,6 +18,7 @@ from lookfeel.models import (
     BACKBONES,
     AlexNet,
     Backbone,
+    BranchEnsemble,
     Embedder,
     PretrainedError,
     create_backbone,
@@ -436,6 +437,41 @@ def test_model_state_dict_round_trips() -> None:
         for p in twin.parameters():
             p.add_(1.0)
     assert not torch.allclose(twin(x)["touch"], model(x)["touch"])
+
+
+def test_ensemble_embeds_as_its_members_side_by_side_and_averages_their_heads() -> None:
+    cfg = dataclasses.replace(COMPACT, embed_dim=8, members=3)
+    cfg = dataclasses.replace(cfg, class_heads=("h",), classes={"h": ("0", "1", "2")})
+    cfg = dataclasses.replace(cfg, num_properties=2)
+    torch.manual_seed(0)
+    model = create_model(cfg, [Modality.DEPTH, Modality.TOUCH]).eval()
+    branch = model.branch("touch")
+    assert isinstance(branch, BranchEnsemble) and model.embed_dim == 24
+    members = branch.member_branches()
+    first = dict(members[0].named_parameters())
+    assert any(not torch.equal(first[k], v) for k, v in members[1].named_parameters())
+    x = _batch(p=2, b=3)["touch"]
+    own = [m(x) for m in members]  # each member's own embedding (not normalised here)
+    out = model({"touch": x}, heads=True)
+    e = out["touch"]
+    torch.testing.assert_close(e, torch.cat(own, dim=-1) / 3**0.5)
+    # Squared distances (and dot products) of ensemble embeddings are the members' averaged.
+    d2 = ((e[0] - e[1]) ** 2).sum()
+    torch.testing.assert_close(d2, sum(((m[0] - m[1]) ** 2).sum() for m in own) / 3)
+    for name in ("property", "classes"):  # heads: the members' own, on their own parts, averaged
+        mean = torch.stack([m.heads(o)[name] for m, o in zip(members, own, strict=True)]).mean(0)
+        torch.testing.assert_close(out[head_key("touch", name)], mean)
+        torch.testing.assert_close(branch.heads(e)[name], mean)  # from a stored embedding
+    again = create_model(cfg, model.modalities, load_weights=False).eval()
+    again.load_state_dict(model.state_dict())
+    torch.testing.assert_close(again({"touch": x})["touch"], e)
+    with pytest.raises(NotImplementedError, match="no one trunk"):
+        model.trunk({"touch": x})
+    with pytest.raises(ConfigError, match="model.members: must be >= 1"):
+        dataclasses.replace(COMPACT, members=0)
+    plain = create_model(COMPACT, [Modality.DEPTH]).branch("depth")
+    with pytest.raises(ValueError, match="share one modality, embedding size and normalisation"):
+        BranchEnsemble([plain, branch.member_branches()[0]])
 
 
 # ------------------------------------------------------------------------------------------

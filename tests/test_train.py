@@ -19,7 +19,8 @@ from lookfeel.data import DatasetError, ImageLoader, scan
 from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
 from lookfeel.modality import Modality
-from lookfeel.train import train
+from lookfeel.models import BranchEnsemble
+from lookfeel.train import member_config, train
 
 from ._tiny import write_tiny_dataset
 
@@ -157,6 +158,63 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
         return [{k: v for k, v in json.loads(x).items() if k not in timing} for x in lines]
 
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
+
+
+ENSEMBLE = ("model.members=2", "train.steps=4")
+
+
+def test_an_ensemble_trains_its_members_as_separate_runs_and_embeds_as_one(
+    data: Path, tmp_path: Path
+):
+    cfg = _config(*ENSEMBLE)
+    result = train(cfg, data, tmp_path / "ens")
+    single = train(member_config(cfg, 0), data, tmp_path / "single")
+    # Member 0 is the plain run of the same seed; member 1 has its own seed, so other weights.
+    assert _states_equal(tmp_path / "ens/members/0/checkpoints/last.pt", single.last_checkpoint)
+    assert member_config(cfg, 1).train.seed != cfg.train.seed
+    assert member_config(cfg, 1).model.members == 1
+    assert not _states_equal(
+        tmp_path / "ens/members/0/checkpoints/last.pt",
+        tmp_path / "ens/members/1/checkpoints/last.pt",
+    )
+    trained = load_model(result.last_checkpoint)
+    assert trained.config.model.members == 2 and trained.step == 4
+    assert set(result.validation) >= {"depth_to_depth_top1", "touch_to_depth_top1"}
+    branch = trained.model.branch("touch")
+    assert isinstance(branch, BranchEnsemble)
+    for k, member in enumerate(branch.member_branches()):  # each member holds its run's weights
+        own = torch.load(tmp_path / f"ens/members/{k}/checkpoints/last.pt", weights_only=True)
+        for name, value in member.state_dict().items():
+            assert torch.equal(value, own["model"][f"branches.touch.{name}"])
+    emb = embed_catalog(trained.model, scan(data), ImageLoader(trained.config.data))
+    parts = embed_catalog(
+        load_model(single.last_checkpoint).model, scan(data), ImageLoader(trained.config.data)
+    )
+    touch = emb[Modality.TOUCH].embeddings
+    assert touch.shape[1] == 2 * 16  # two members of embed_dim 16, side by side
+    first = parts[Modality.TOUCH].embeddings  # member 0's own, scaled by 1/sqrt(2)
+    assert torch.allclose(
+        torch.from_numpy(touch[:, :16]), torch.from_numpy(first) / 2**0.5, atol=1e-5
+    )
+
+
+def test_an_ensemble_resumes_keeping_finished_members(data: Path, tmp_path: Path):
+    cfg = _config(*ENSEMBLE)
+    unbroken = train(cfg, data, tmp_path / "unbroken")
+    broken = tmp_path / "broken"
+    train(member_config(cfg, 0), data, broken / "members/0")  # finished before the kill
+    half = member_config(_config(*ENSEMBLE, "train.steps=2"), 1)
+    train(half, data, broken / "members/1")  # killed half way
+    done = (broken / "members/0/checkpoints/last.pt").stat().st_mtime_ns
+    with pytest.raises(ConfigError, match="already holds a run; pass --resume"):
+        train(cfg, data, broken)
+    resumed = train(cfg, data, broken, resume=True)
+    assert (broken / "members/0/checkpoints/last.pt").stat().st_mtime_ns == done  # kept
+    assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
+    with pytest.raises(ConfigError, match="no run in .* to resume from"):
+        train(cfg, data, tmp_path / "new", resume=True)
+    with pytest.raises(ConfigError, match="model.members: must be >= 1"):
+        _config("model.members=0")
 
 
 def test_run_errors_are_clear(data: Path, tmp_path: Path):

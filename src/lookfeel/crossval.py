@@ -73,7 +73,7 @@ from lookfeel.metrics import (
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
-from lookfeel.train import train
+from lookfeel.train import run_started, train
 from lookfeel.train.validate import default_pairs
 
 __all__ = ["cross_validate", "format_cv_summary", "score_checkpoint"]
@@ -723,9 +723,10 @@ def cross_validate(
                 seconds = float(saved["train_seconds"]) if saved else math.nan
             else:
                 started = time.perf_counter()
-                verb = "resuming" if last.exists() else "training in"
+                started_before = run_started(run_dir)
+                verb = "resuming" if started_before else "training in"
                 log(f"seed {seed} fold {fold}: {verb} {run_dir}")
-                train(cfg, data, run_dir, resume=last.exists())
+                train(cfg, data, run_dir, resume=started_before)
                 seconds = time.perf_counter() - started
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}

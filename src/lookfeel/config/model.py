@@ -75,6 +75,14 @@ class ModelConfig:
     (AlexNet fc7: 4096, as the paper)."""
     normalize: bool = False
     """L2-normalise each embedding (CLIP style). The paper does not."""
+    members: int = 1
+    """Networks per branch, trained as separate runs and used as one (a deep ensemble,
+    `lookfeel.models.BranchEnsemble`). ``lookfeel train`` trains member ``k`` in
+    ``RUN/members/k`` with its own seed (member 0 with ``train.seed``), so its own batches,
+    views and initial weights, then writes one checkpoint holding all of them: the embedding
+    is the members' embeddings side by side over sqrt(N) (squared distances average the
+    members'), the heads average the members'. Training and embedding cost N times one
+    network. 1: a single network."""
     press_pool: Literal["max", "mean"] = "max"
     """How the embeddings of a touch input's presses become one: ``max`` (element-wise maximum,
     the paper's Multi-input Net) or ``mean``."""
@@ -129,6 +137,8 @@ class ModelConfig:
                 )
         if self.embed_dim is not None and self.embed_dim < 1:
             raise ConfigError(f"model.embed_dim: must be >= 1 or null, got {self.embed_dim}")
+        if self.members < 1:
+            raise ConfigError(f"model.members: must be >= 1, got {self.members}")
         if self.num_clusters < 2:
             raise ConfigError(f"model.num_clusters: must be >= 2, got {self.num_clusters}")
         if self.num_properties < 0:

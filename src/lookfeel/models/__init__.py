@@ -10,7 +10,7 @@ Example:
 
 from lookfeel.models.alexnet import AlexNet
 from lookfeel.models.backbone import Backbone
-from lookfeel.models.branch import CLASSES, CLUSTER, PROPERTY, Branch
+from lookfeel.models.branch import CLASSES, CLUSTER, PROPERTY, Branch, BranchEnsemble
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.embedder import Embedder, create_model, head_key
 from lookfeel.models.modes import (
@@ -37,6 +37,7 @@ __all__ = [
     "AlexNet",
     "Backbone",
     "Branch",
+    "BranchEnsemble",
     "CompactCNN",
     "Embedder",
     "PretrainedError",

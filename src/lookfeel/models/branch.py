@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
+import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
 from lookfeel.modality import Modality
 from lookfeel.models.backbone import Backbone
 
-__all__ = ["CLASSES", "CLUSTER", "PROPERTY", "Branch"]
+__all__ = ["CLASSES", "CLUSTER", "PROPERTY", "Branch", "BranchEnsemble"]
 
 CLUSTER = "cluster"
 """Name of the cluster-classifier head's output (the paper's Auxiliary Net)."""
@@ -133,3 +136,82 @@ class Branch(nn.Module):
         if self.class_head is not None:
             out[CLASSES] = self.class_head(e)
         return out
+
+
+class BranchEnsemble(Branch):
+    """N separately trained branches of one modality, used as one (``model.members``).
+
+    Each member is a whole `Branch` (backbone, projection, heads). The ensemble's embedding is
+    the members' embeddings side by side, divided by sqrt(N), so its squared Euclidean
+    distances and dot products are the members' averaged (and with L2-normalised members it is
+    a unit vector). Its heads average the members' head outputs (class logits, cluster logits,
+    property predictions), each member reading its own part of the embedding, exactly as it
+    did in training. To everything that embeds (``embed``, ``evaluate``, ``cv``, ``predict``,
+    the index, export) it is a `Branch`.
+
+    The members are trained one by one as ordinary runs (`lookfeel.train.train` with
+    ``model.members`` > 1: deep ensembles, Lakshminarayanan et al. 2017), each with its own
+    seed, and then assembled; the ensemble itself is never trained, so it has no one trunk.
+    """
+
+    def __init__(self, members: list[Branch]) -> None:
+        """Assemble members of one modality, embedding size and normalisation (at least two).
+
+        Raises:
+            ValueError: fewer than two members, or members that differ in modality, size or
+                normalisation.
+        """
+        nn.Module.__init__(self)
+        if len(members) < 2:
+            raise ValueError(f"an ensemble needs at least two members, got {len(members)}")
+        first = members[0]
+        if any(
+            m.modality is not first.modality
+            or m.embed_dim != first.embed_dim
+            or m.normalize != first.normalize
+            for m in members
+        ):
+            raise ValueError(
+                "ensemble members must share one modality, embedding size and normalisation"
+            )
+        self.members = nn.ModuleList(members)
+        self.modality = first.modality
+        self.pressed = first.pressed
+        self.embed_dim = first.embed_dim * len(members)
+        self.normalize = first.normalize
+        self.press_pool = first.press_pool
+        self.class_sizes = first.class_sizes
+
+    def member_branches(self) -> list[Branch]:
+        """The members, in order."""
+        return [m for m in self.members if isinstance(m, Branch)]
+
+    def trunk(self, x: Tensor) -> Tensor:
+        """Not available: the members are trained separately, each with its own trunk."""
+        raise NotImplementedError(
+            "an ensemble (model.members > 1) has no one trunk: its members are trained as "
+            "separate runs"
+        )
+
+    def forward(self, x: Tensor, from_trunk: bool = False) -> Tensor:
+        """The members' embeddings side by side, over sqrt(N): (B, N * D).
+
+        Raises:
+            NotImplementedError: ``from_trunk`` (see `trunk`).
+        """
+        if from_trunk:
+            self.trunk(x)
+        parts = [m(x) for m in self.member_branches()]
+        return torch.cat(parts, dim=-1) / math.sqrt(len(parts))
+
+    def split(self, e: Tensor) -> list[Tensor]:
+        """Each member's own embedding from an ensemble embedding (the inverse of `forward`'s
+        concatenation)."""
+        n = len(self.members)
+        return [part * math.sqrt(n) for part in e.split(self.embed_dim // n, dim=-1)]
+
+    def heads(self, e: Tensor) -> dict[str, Tensor]:
+        """The members' heads, each on its own part of ``e``, averaged."""
+        parts = self.split(e)
+        outs = [m.heads(p) for m, p in zip(self.member_branches(), parts, strict=True)]
+        return {k: torch.stack([o[k] for o in outs]).mean(0) for k in outs[0]}

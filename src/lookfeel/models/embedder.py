@@ -16,7 +16,7 @@ from torch import Tensor, nn
 
 from lookfeel.config.model import ModelConfig
 from lookfeel.modality import Modality, slot_modality
-from lookfeel.models.branch import Branch
+from lookfeel.models.branch import Branch, BranchEnsemble
 from lookfeel.models.pretrained import apply_state_dict, read_state_dict
 from lookfeel.models.registry import create_backbone
 
@@ -177,7 +177,8 @@ def create_model(
     """Build the joint model: one branch per modality (paper section 4.1, Figure 4).
 
     Cross-modal Net: the default config. Auxiliary Net: ``config.cluster_head``. Multi-input
-    Net: touch inputs with P > 1 presses. SNN: a single modality fed two slots of it.
+    Net: touch inputs with P > 1 presses. SNN: a single modality fed two slots of it. With
+    ``config.members`` > 1 every branch is a `BranchEnsemble` of that many fresh members.
 
     Args:
         config: the model configuration.
@@ -211,24 +212,32 @@ def create_model(
         )
     branches: dict[Modality, Branch] = {}
     for m in mods:
-        backbone = create_backbone(
-            config.backbone,
-            in_channels=_CHANNELS[m],
-            stem=config.depth_stem,
-            freeze=freeze,
-            dropout=config.dropout,
-            width=config.width,
-        )
-        if state is not None:
-            apply_state_dict(backbone, state, source=str(config.pretrained))
-        branches[m] = Branch(
-            m,
-            backbone,
-            embed_dim=config.embed_dim,
-            normalize=config.normalize,
-            press_pool=config.press_pool,
-            num_clusters=config.num_clusters if config.cluster_head else 0,
-            num_properties=config.num_properties,
-            class_sizes=config.class_sizes,
-        )
+        members = [_branch(config, m, freeze, state) for _ in range(config.members)]
+        branches[m] = members[0] if len(members) == 1 else BranchEnsemble(members)
     return Embedder(branches, config)
+
+
+def _branch(
+    config: ModelConfig, m: Modality, freeze: str, state: dict[str, Tensor] | None
+) -> Branch:
+    """One freshly initialised branch of modality ``m`` (with ``state``'s pretrained weights)."""
+    backbone = create_backbone(
+        config.backbone,
+        in_channels=_CHANNELS[m],
+        stem=config.depth_stem,
+        freeze=freeze,
+        dropout=config.dropout,
+        width=config.width,
+    )
+    if state is not None:
+        apply_state_dict(backbone, state, source=str(config.pretrained))
+    return Branch(
+        m,
+        backbone,
+        embed_dim=config.embed_dim,
+        normalize=config.normalize,
+        press_pool=config.press_pool,
+        num_clusters=config.num_clusters if config.cluster_head else 0,
+        num_properties=config.num_properties,
+        class_sizes=config.class_sizes,
+    )

@@ -44,7 +44,7 @@ from lookfeel.metrics import (
 from lookfeel.modality import Modality, Pair
 from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
-from lookfeel.train import train
+from lookfeel.train import run_started, train
 
 __all__ = ["BUDGETS", "EXPERIMENTS", "Experiment", "ReproduceResult", "reproduce"]
 
@@ -176,8 +176,7 @@ def _run_one(
     if done.exists():
         return dict(json.loads(done.read_text()))
     started = time.perf_counter()
-    resume = (run_dir / "checkpoints" / "last.pt").exists()
-    result = train(config, data, run_dir, resume=resume)
+    result = train(config, data, run_dir, resume=run_started(run_dir))
     loaded = load_model(
         result.last_checkpoint
     )  # the last step, as the paper: no test-set selection

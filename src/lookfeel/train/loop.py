@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 import warnings
 from collections.abc import Callable, Mapping
@@ -51,7 +52,7 @@ from lookfeel.data import (
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.losses import create_loss
 from lookfeel.modality import Modality, slot_modality
-from lookfeel.models import Embedder, autocast, create_model, to_channels_last
+from lookfeel.models import BranchEnsemble, Embedder, autocast, create_model, to_channels_last
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
@@ -550,7 +551,8 @@ def train(
         data: a dataset folder in the lookfeel layout.
         out: the run directory; must not hold a run unless ``resume``.
         resume: continue the run in ``out`` from ``checkpoints/last.pt`` (its saved config is
-            used; only ``train.steps`` may grow). The result equals an unbroken run's.
+            used; only ``train.steps`` may grow). The result equals an unbroken run's. An
+            ensemble (``model.members`` > 1) keeps its finished members and resumes the others.
         on_step: called after every step with (steps done, that step's loss terms).
 
     Raises:
@@ -558,6 +560,8 @@ def train(
         ConfigError: a config key is wrong, or ``resume`` with a different config.
     """
     run_dir = Path(out)
+    if config.model.members > 1:
+        return _train_members(config, Path(data), run_dir, resume, on_step)
     last = run_dir / "checkpoints" / "last.pt"
     state: dict[str, Any] | None = None
     if resume:
@@ -579,6 +583,105 @@ def train(
         raise
     dist.close(sync=True)
     return result
+
+
+def run_started(out: str | Path) -> bool:
+    """Whether ``out`` holds a run to resume: a checkpoint, or an ensemble's member's."""
+    run_dir = Path(out)
+    last = Path("checkpoints") / "last.pt"
+    return (run_dir / last).exists() or any(run_dir.glob(f"{MEMBERS}/*/{last}"))
+
+
+MEMBERS = "members"
+"""Folder of an ensemble run (``model.members`` > 1) that holds one ordinary run per member."""
+
+
+def member_config(config: RunConfig, k: int) -> RunConfig:
+    """The run config of ensemble member ``k``: one network (``model.members: 1``), and its own
+    seed (member 0 keeps ``train.seed``; member k > 0 a seed drawn from (seed, k), so members
+    of runs with neighbouring seeds never coincide)."""
+    t = config.train
+    seed = t.seed if k == 0 else int(np.random.SeedSequence([t.seed, k]).generate_state(1)[0] >> 1)
+    return replace(config, model=replace(config.model, members=1), train=replace(t, seed=seed))
+
+
+def _train_members(
+    config: RunConfig,
+    data: Path,
+    run_dir: Path,
+    resume: bool,
+    on_step: StepCallback | None,
+) -> TrainResult:
+    """Train an ensemble: each member as an ordinary run in ``run_dir/members/k``, one after
+    the other (a finished member is kept on resume), then one checkpoint holding them all."""
+    n = config.model.members
+    if run_started(run_dir) and not resume:
+        raise ConfigError(
+            f"{run_dir} already holds a run; pass --resume to continue it, or choose another --out"
+        )
+    if resume and not run_started(run_dir):
+        raise ConfigError(f"--resume: no run in {run_dir} to resume from")
+    paths = []
+    for k in range(n):
+        cfg = member_config(config, k)
+        member_dir = run_dir / MEMBERS / str(k)
+        last = member_dir / "checkpoints" / "last.pt"
+        started = last.exists()
+        if not (started and int(read_checkpoint(last)["step"]) >= cfg.train.steps):
+            train(cfg, data, member_dir, resume=started, on_step=on_step)
+        paths.append(last)
+    states = [read_checkpoint(p) for p in paths]
+    first = from_dict(RunConfig, states[0]["config"])  # as trained: its classes resolved
+    merged = replace(
+        first,
+        model=replace(first.model, members=n),
+        train=replace(first.train, seed=config.train.seed),
+    )
+    modalities = [Modality(m) for m in states[0]["modalities"]]
+    model = create_model(merged.model, modalities, load_weights=False)
+    for k, state in enumerate(states):
+        part = create_model(first.model, modalities, load_weights=False)
+        part.load_state_dict(state["model"])
+        for m in modalities:
+            ensemble = model.branch(m.value)
+            assert isinstance(ensemble, BranchEnsemble)
+            ensemble.member_branches()[k].load_state_dict(part.branch(m.value).state_dict())
+    validation: dict[str, Any] = {}
+    if merged.train.split != "none":  # the ensemble on the members' validation fabrics
+        loader = ImageLoader(merged.data)
+        catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader)
+        _, val_cat, _ = select_split(_with_clusters(catalog, merged), merged)
+        if val_cat is not None:
+            items = {m: val_cat.items(m, merged.data.touch_kinds) for m in modalities}
+            device = torch.device("cpu")
+            validation = validate(
+                model,
+                items,
+                loader,
+                None,
+                merged.train.feature_batch,
+                device,
+                merged.train.val_pairs,
+            )
+            validation.pop("primary_pair", None)
+    last = run_dir / "checkpoints" / "last.pt"
+    if int(os.environ.get("RANK", "0")) == 0:  # under torchrun: one process writes
+        run_dir.mkdir(parents=True, exist_ok=True)
+        save_config(merged, run_dir / "config.yaml")
+        atomic_write_text(run_dir / "split.json", json.dumps(states[0]["split"], indent=1) + "\n")
+        keep = ("step", "modalities", "label_columns", "label_stats", "split")
+        save_checkpoint(
+            last,
+            {k: states[0][k] for k in keep if k in states[0]}
+            | {"config": to_dict(merged), "model": model.state_dict()},
+        )
+    return TrainResult(
+        run_dir=run_dir,
+        steps=config.train.steps,
+        last_checkpoint=last,
+        best_checkpoint=None,
+        validation=validation,
+    )
 
 
 def _train(
