@@ -5,10 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from lookfeel.config import ConfigError
 from lookfeel.data.background_swap import register_items
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
+    _post,
     register_depth,
 )
 
@@ -103,6 +105,29 @@ def test_registered_image_ignores_a_moved_camera():
     back = ~ra.cloth & ~rb.cloth
     assert np.median(raw[back]) >= 2.0 and reg[back].max() == 0.0
     assert reg.mean() < 0.5 * raw.mean()
+
+
+def test_drape_moved_to_a_fixed_place_undoes_a_camera_that_moved_sideways():
+    """Another session's camera, 40 mm to the side: the drape lies elsewhere in the image
+    (a session cue); ``data.depth_post_at`` puts its top at one place in every image."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.register import registered_input
+
+    moved = dataclasses.replace(BASE, eye=(40.0, -700.0, 560.0), target=(40.0, 300.0, 80.0))
+    a, b = BASE.render()["depth"], moved.render()["depth"]
+    plain = DataConfig(depth_input="registered", depth_focal_px=BASE.f)
+    at = dataclasses.replace(plain, depth_post_at=(0.5, 0.1))
+    ua = (register_depth(a, BASE.intrinsics).post_uv or (0.0, 0.0))[0]
+    ub = (register_depth(b, BASE.intrinsics).post_uv or (0.0, 0.0))[0]
+    assert abs(ua - ub) >= 2.0  # the drape moved in the image
+    for d in (a, b):  # the drape's top (as registration finds it) lies at the place asked
+        u, v = _post(registered_input(d, at) > 0) or (0.0, 0.0)
+        assert abs(u - 0.5 * 63) <= 1.0 and abs(v - 0.1 * 63) <= 1.0
+    before = np.abs(registered_input(a, plain) - registered_input(b, plain)).mean()
+    after = np.abs(registered_input(a, at) - registered_input(b, at)).mean()
+    assert after < 0.5 * before
+    with pytest.raises(ConfigError, match="depth_post_at: must be"):
+        dataclasses.replace(plain, depth_post_at=(0.5, 1.5))
 
 
 def test_deterministic_and_errors():

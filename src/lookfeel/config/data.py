@@ -84,6 +84,13 @@ class DataConfig:
     """Registered input: cloth lower than this above the fitted floor is dropped (0). The cloth
     lying on the floor is where a floor fitted a few mm off changes the mask most (issue #12's
     background control); 0: every cloth pixel is kept."""
+    depth_post_at: tuple[float, float] | None = None
+    """Registered input: move the drape so that its top (where the post holds it,
+    `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the
+    image's width and height (GelFabric's posts sit near (0.52, 0.06)). The camera moved a
+    little between capture sessions, so where the drape lies in the image identifies the
+    session (docs/results/real-depth.md, "The drape's position"); ``None`` leaves the drape
+    where the camera saw it."""
     color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
     touch_crop: Literal["auto", "center", "none"] = "auto"
@@ -196,6 +203,12 @@ class DataConfig:
             raise ConfigError(f"data.video_gain: must be > 0, got {self.video_gain}")
         if self.workers < 1:
             raise ConfigError(f"data.workers: must be >= 1, got {self.workers}")
+        if self.depth_post_at is not None and not (
+            len(self.depth_post_at) == 2 and all(0.0 <= f <= 1.0 for f in self.depth_post_at)
+        ):
+            raise ConfigError(
+                f"data.depth_post_at: must be [x, y] fractions in [0, 1], got {self.depth_post_at}"
+            )
         if not self.depth_min_height_mm >= 0:
             raise ConfigError(
                 f"data.depth_min_height_mm: must be >= 0, got {self.depth_min_height_mm}"

@@ -286,7 +286,7 @@ class PreprocessSettings:
     video_gain: float
     depth_registration: tuple[float | str | None, ...] | None = None
     """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
-    0]); ``None`` for raw depth."""
+    0][, "post", x, y when the drape is moved]); ``None`` for raw depth."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -304,6 +304,7 @@ class PreprocessSettings:
             config.video_gain,
             (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
             + ((config.depth_min_height_mm,) if config.depth_min_height_mm else ())
+            + (("post", *config.depth_post_at) if config.depth_post_at is not None else ())
             if registered
             else None,
         )

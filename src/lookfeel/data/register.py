@@ -430,4 +430,9 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
         height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
+    if config.depth_post_at is not None and reg.post_uv is not None:
+        h, w = height.shape
+        fx, fy = config.depth_post_at
+        dx, dy = fx * (w - 1) - reg.post_uv[0], fy * (h - 1) - reg.post_uv[1]
+        height = ndimage.shift(height, (dy, dx), order=1, mode="constant", cval=0.0)
     return height.astype(np.float32, copy=False)

@@ -1,0 +1,204 @@
+"""Where the drape lies in the image: a capture-session cue that the background swap keeps.
+
+Registered depth (``data.depth_input: registered``) masks the room and measures the cloth's
+height above the fitted floor, but keeps the camera's pixel grid: the drape stays where the
+camera saw it. Every GelFabric fabric was captured in one session and the camera moved a little
+between sessions, so where the drape (hanging from a fixed post) lies in the image is a session
+cue. The background control (`lookfeel.data.background_swap`) keeps each cloth pixel where it
+is, so it cannot see this cue.
+
+Two measurements:
+
+1. **Position alone** (`run`, no model): register every depth image (`register_depth`) and
+   identify its fabric, pick 1 of 10 exact among all fabrics, from two numbers only: the
+   image position of the drape's top, where the post holds it (``post_uv``), z-scored; beside
+   the same from the drape's centroid and chance. 95% interval resampling fabrics.
+2. **Moved drapes** (``--cv CV``, a ``lookfeel cv`` folder of a registered-depth recipe such as
+   ``configs/real_depth.yaml``): each run's held-out images are scored as they are and with the
+   registered drape translated (bilinear, at the registration's resolution, before the resize
+   to the network's input) by the offset between its post and another image's post: an image
+   of another fabric (drawn as the background control draws its partner, seed 0), or another
+   image of its own fabric. The second is the post estimate's own jitter within one session,
+   a move of the same kind that carries no session change. A run that moves every drape to one
+   place (``data.depth_post_at``) moves these too. Model and raw pixels of the same inputs,
+   top-1 pick 1 of 10 exact.
+
+    python -m benchmarks.bench_depth_position [--data ../shared/data/gelfabric] [--cv CV]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "gelfabric"
+
+
+def _register(path: Path, margin_mm: float = 15.0) -> tuple[np.ndarray, tuple[float, float]]:
+    """(registered drape heights in mm at the file's resolution, post (u, v) in pixels)."""
+    from lookfeel.data.images import decode_depth
+    from lookfeel.data.register import drape_mask, register_depth
+
+    reg = register_depth(decode_depth(path), None, margin_mm=margin_mm)
+    height = np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0)).astype(np.float32)
+    return height, reg.post_uv if reg.post_uv is not None else (np.nan, np.nan)
+
+
+def _pick(
+    features: np.ndarray, fabric: np.ndarray, zscore: bool = False
+) -> tuple[float, list[float]]:
+    """Top-1 pick 1 of 10 exact (Euclidean, on z-scored features if asked: as `lookfeel cv`,
+    embeddings and raw pixels are not) and its 95% interval."""
+    from lookfeel.metrics import EXACT_PICK, bootstrap_ci, score_pairs
+    from lookfeel.modality import Modality, Pair
+
+    x = features
+    if zscore:
+        x = np.nan_to_num((x - np.nanmean(x, 0)) / (np.nanstd(x, 0) + 1e-9))
+    pair = Pair.parse("depth_to_depth")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = score_pairs({Modality.DEPTH: x}, {Modality.DEPTH: fabric}, EXACT_PICK, [pair])
+    top1 = s[pair].pick.per_query[:, 0]
+    lo, hi = bootstrap_ci(top1, fabric)
+    return float(top1.mean()), [float(lo), float(hi)]
+
+
+def run(data: Path | None) -> dict[str, object]:
+    """Measurement 1: the fabric from the drape's position alone."""
+    from lookfeel.data.layout import scan
+    from lookfeel.modality import Modality
+
+    root = Path(data) if data is not None else DEFAULT_DATA
+    if not root.is_dir():
+        return {"skipped": f"real GelFabric depth not found at {root}", "met": None}
+    items = scan(root, require=[Modality.DEPTH], strict=True).items(Modality.DEPTH)
+    started = time.perf_counter()
+    with ThreadPoolExecutor(2) as pool:
+        regs = list(pool.map(lambda it: _register(it.path), items))
+    fabric = np.array([it.fabric_id for it in items])
+    post = np.array([p for _, p in regs], dtype=np.float64)
+    centroid = np.array(
+        [np.argwhere(h > 0).mean(0)[::-1] if (h > 0).any() else (np.nan, np.nan) for h, _ in regs]
+    )
+    rows = {}
+    for name, feats in (("post_uv", post), ("drape_centroid", centroid)):
+        top1, ci = _pick(feats, fabric, zscore=True)
+        within = np.nanmean([np.nanstd(feats[fabric == f], 0).mean() for f in set(fabric)])
+        rows[name] = {
+            "top1": top1,
+            "ci95": ci,
+            "within_fabric_std_px": float(within),
+            "overall_std_px": float(np.nanstd(feats, 0).mean()),
+        }
+    return {
+        "data": str(root),
+        "images": len(items),
+        "fabrics": len(set(fabric.tolist())),
+        "image_px": list(regs[0][0].shape),
+        "chance_top1": 0.1,
+        "position_alone": rows,
+        "seconds": round(time.perf_counter() - started, 1),
+    }
+
+
+def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
+    """Measurement 2: every seed-and-fold run in ``cv``, its held-out drapes moved."""
+    from lookfeel.checkpoint import load_model
+    from lookfeel.data.background_swap import pair_other_fabric
+    from lookfeel.data.images import ArrayLoader, _resize_float
+    from lookfeel.data.layout import scan
+    from lookfeel.embedding import embed_items
+    from lookfeel.modality import Modality
+
+    catalog = scan(data, require=[Modality.DEPTH], strict=True)
+    out = []
+    registered: dict[Path, tuple[np.ndarray, tuple[float, float]]] = {}
+    for run_dir in sorted(cv.glob("seed*-fold*")):
+        lm = load_model(run_dir / "checkpoints" / "last.pt")
+        dc = lm.config.data
+        if dc.depth_input != "registered":
+            raise SystemExit(f"{run_dir}: not a registered-depth run (data.depth_input)")
+        items = catalog.subset(lm.split["val"]).items(Modality.DEPTH)
+        todo = [it.path for it in items if it.path not in registered]
+        margins = [dc.depth_margin_mm] * len(todo)
+        with ThreadPoolExecutor(2) as pool:
+            registered |= dict(zip(todo, pool.map(_register, todo, margins), strict=True))
+        regs = [registered[it.path] for it in items]
+        fabric = np.array([it.fabric_id for it in items])
+
+        def to_input(h: np.ndarray, post: tuple[float, float], dc=dc) -> np.ndarray:
+            """The network's input of registered heights ``h`` whose drape top is ``post``
+            (as `registered_input`: moved to ``data.depth_post_at`` when the run asks)."""
+            if dc.depth_post_at is not None and not np.isnan(post).any():
+                rows, cols = h.shape
+                dx = dc.depth_post_at[0] * (cols - 1) - post[0]
+                dy = dc.depth_post_at[1] * (rows - 1) - post[1]
+                h = ndimage.shift(h, (dy, dx), order=1, cval=0.0)
+            unit = np.clip(h / np.float32(dc.depth_range_mm), 0.0, 1.0).astype(np.float32)
+            return _resize_float(unit, dc.image_size)
+
+        def moved(partner: np.ndarray, regs=regs) -> list[np.ndarray]:
+            arrays = []
+            for i, j in enumerate(partner):
+                (h, own), other = regs[i], regs[int(j)][1]
+                d = np.nan_to_num(np.subtract(other, own))
+                shifted = ndimage.shift(h, (d[1], d[0]), order=1, cval=0.0)
+                arrays.append(to_input(shifted, other))
+            return arrays
+
+        rng = np.random.default_rng(0)
+        same = np.array(
+            [
+                rng.choice(np.flatnonzero((fabric == f) & (np.arange(len(fabric)) != i)))
+                for i, f in enumerate(fabric)
+            ]
+        )
+        variants = {
+            "as_is": [to_input(h, post) for h, post in regs],
+            "moved_to_other_fabric_post": moved(pair_other_fabric(fabric, 0)),
+            "moved_to_own_fabric_post": moved(same),
+        }
+        row: dict[str, object] = {"run": run_dir.name, "queries": len(items)}
+        for name, arrays in variants.items():
+            loader = ArrayLoader(
+                dc, dict(zip((it.path for it in items), arrays, strict=True)), Modality.DEPTH
+            )
+            emb = embed_items(lm.model, items, loader)
+            pixels = np.stack([a.reshape(-1) for a in arrays])
+            row[name] = {"model": _pick(emb, fabric)[0], "raw_pixels": _pick(pixels, fabric)[0]}
+        out.append(row)
+        print(json.dumps(row), flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--cv", type=Path, default=None, help="a lookfeel cv folder (registered)")
+    ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
+    args = ap.parse_args(argv)
+    if not args.data.exists():
+        print(f"{args.data}: no such dataset", file=sys.stderr)
+        return 1
+    result = run(args.data)
+    print(json.dumps(result["position_alone"], indent=1), flush=True)
+    if args.cv is not None:
+        result["moved_drapes"] = moved_drapes(args.cv, args.data)
+    if args.out is not None:
+        from lookfeel.atomic import atomic_write_text
+
+        atomic_write_text(args.out, json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
