@@ -286,7 +286,7 @@ def test_recordings_train_predict_and_embed_as_the_readme_says(
         )
     assert code == 0
     with np.load(npz) as e:
-        assert e["embeddings_touch"].shape == (18, 8)
+        assert e["embeddings_touch"].shape == (18, 3 * 8)  # the recipe's three networks
         ids = e["fabric_id_touch"]
         assert len(set(ids.tolist())) == 6
         assert not any("foam_3" in str(p) for p in e["path_touch"])
@@ -473,7 +473,7 @@ def test_a_library_of_press_videos_decodes_each_once_and_matches_like_embed(
         build_library(run / "checkpoints" / "last.pt", recordings, tmp_path / "lib", shard_size=5)
     assert len(decoded) == 19 and len(set(decoded)) == 19  # every video, views and all, once
     table = Library.open(tmp_path / "lib").table(Modality.TOUCH)
-    assert table.embeddings.shape == (18, 8)
+    assert table.embeddings.shape == (18, 3 * 8)
 
     # The rows are what `embed` computes: each press from its views (data.video_embed).
     from lookfeel.checkpoint import load_model

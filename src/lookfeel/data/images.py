@@ -48,7 +48,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import fill_holes
-from lookfeel.data.video import deep_frames, is_video, read_press, view_frames
+from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality
 from lookfeel.processes import can_fork
 
@@ -368,6 +368,7 @@ class ImageLoader:
         self._memory: dict[Path, np.ndarray] = {}
         self._views: dict[Path, np.ndarray] = {}
         self._embedded: dict[Path, np.ndarray] = {}
+        self._bad_videos: dict[Path, VideoError] = {}
         self._lock = threading.Lock()
 
     def __len__(self) -> int:
@@ -460,7 +461,20 @@ class ImageLoader:
     def _read_press_views(self, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         """A press video's training views and, with ``video_embed: views``, its embedding
         views (`view_frames`, a superset of the training ones): one decode for both, each
-        cached in memory and on disk under its own key."""
+        cached in memory and on disk under its own key. A video that cannot serve (no press,
+        too short, undecodable) is remembered: asking again raises the same error without
+        decoding it again (an ensemble's members share one loader)."""
+        known = self._bad_videos.get(path)
+        if known is not None:
+            raise known
+        try:
+            return self._decode_press_views(path)
+        except VideoError as e:
+            with self._lock:
+                self._bad_videos[path] = e
+            raise
+
+    def _decode_press_views(self, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         c = self.config
         data = read_image_file(path)
         pools = c.video_embed == "views"

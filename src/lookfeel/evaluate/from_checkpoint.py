@@ -46,7 +46,7 @@ from lookfeel.errors import LookfeelError
 from lookfeel.metrics import ScoringProtocol, score_pairs
 from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
-from lookfeel.models import Embedder
+from lookfeel.models import BranchEnsemble, Embedder
 
 from .core import PressPooler, evaluate_embeddings
 from .embeddings_file import EmbeddingSet, load_embeddings
@@ -74,12 +74,17 @@ def pools_final_embedding(model: Embedder) -> bool:
     """Whether the model's multi-press touch embedding is the max of its per-press embeddings.
 
     True for the paper's nets (max over fc7, nothing after it); False when a projection or an
-    L2 normalisation follows the pooling, or the pooling is a mean.
+    L2 normalisation follows the pooling, or the pooling is a mean. An ensemble pools its
+    final embedding when every member does (side by side, the maxima are the members').
     """
     if Modality.TOUCH not in model.modalities:
         return True
     b = model.branch(Modality.TOUCH.value)
-    return b.press_pool == "max" and isinstance(b.project, nn.Identity) and not b.normalize
+    parts = b.member_branches() if isinstance(b, BranchEnsemble) else [b]
+    return all(
+        p.press_pool == "max" and isinstance(p.project, nn.Identity) and not p.normalize
+        for p in parts
+    )
 
 
 def _item_key(path: str | Path) -> tuple[str, str]:

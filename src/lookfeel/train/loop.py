@@ -543,6 +543,7 @@ def train(
     *,
     resume: bool = False,
     on_step: StepCallback | None = None,
+    loader: ImageLoader | None = None,
 ) -> TrainResult:
     """Train a model on the dataset at ``data``, writing the run to ``out``.
 
@@ -554,14 +555,18 @@ def train(
             used; only ``train.steps`` may grow). The result equals an unbroken run's. An
             ensemble (``model.members`` > 1) keeps its finished members and resumes the others.
         on_step: called after every step with (steps done, that step's loss terms).
+        loader: an `ImageLoader` of ``config.data`` whose decoded images to reuse (an
+            ensemble's members share one); default: a new one.
 
     Raises:
         DatasetError: the data cannot serve this run (every problem listed).
         ConfigError: a config key is wrong, or ``resume`` with a different config.
     """
     run_dir = Path(out)
+    if loader is not None and loader.config != config.data:
+        raise ValueError("train: the loader given must be of this run's data config")
     if config.model.members > 1:
-        return _train_members(config, Path(data), run_dir, resume, on_step)
+        return _train_members(config, Path(data), run_dir, resume, on_step, loader)
     last = run_dir / "checkpoints" / "last.pt"
     state: dict[str, Any] | None = None
     if resume:
@@ -577,7 +582,7 @@ def train(
     t = config.train
     dist = Distributed.from_env(t.device)
     try:
-        result = _train(config, Path(data), run_dir, state, dist, on_step)
+        result = _train(config, Path(data), run_dir, state, dist, on_step, loader)
     except BaseException:
         dist.close()  # no barrier: the other processes may be gone
         raise
@@ -611,6 +616,7 @@ def _train_members(
     run_dir: Path,
     resume: bool,
     on_step: StepCallback | None,
+    loader: ImageLoader | None,
 ) -> TrainResult:
     """Train an ensemble: each member as an ordinary run in ``run_dir/members/k``, one after
     the other (a finished member is kept on resume), then one checkpoint holding them all."""
@@ -621,6 +627,7 @@ def _train_members(
         )
     if resume and not run_started(run_dir):
         raise ConfigError(f"--resume: no run in {run_dir} to resume from")
+    loader = loader if loader is not None else ImageLoader(config.data)  # decoded once for all
     paths = []
     for k in range(n):
         cfg = member_config(config, k)
@@ -628,7 +635,7 @@ def _train_members(
         last = member_dir / "checkpoints" / "last.pt"
         started = last.exists()
         if not (started and int(read_checkpoint(last)["step"]) >= cfg.train.steps):
-            train(cfg, data, member_dir, resume=started, on_step=on_step)
+            train(cfg, data, member_dir, resume=started, on_step=on_step, loader=loader)
         paths.append(last)
     states = [read_checkpoint(p) for p in paths]
     first = from_dict(RunConfig, states[0]["config"])  # as trained: its classes resolved
@@ -648,7 +655,6 @@ def _train_members(
             ensemble.member_branches()[k].load_state_dict(part.branch(m.value).state_dict())
     validation: dict[str, Any] = {}
     if merged.train.split != "none":  # the ensemble on the members' validation fabrics
-        loader = ImageLoader(merged.data)
         catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader)
         _, val_cat, _ = select_split(_with_clusters(catalog, merged), merged)
         if val_cat is not None:
@@ -691,6 +697,7 @@ def _train(
     state: dict[str, Any] | None,
     dist: Distributed,
     on_step: StepCallback | None,
+    loader: ImageLoader | None = None,
 ) -> TrainResult:
     t = config.train
     last = run_dir / "checkpoints" / "last.pt"
@@ -704,7 +711,7 @@ def _train(
     device = dist.device
     modalities = t.modalities
 
-    loader = ImageLoader(config.data)
+    loader = loader if loader is not None else ImageLoader(config.data)
     cached = t.cache_trunk and config.model.resolved_freeze != "none"
     # A live run trains on the press videos' views: decode them once, while finding the presses.
     catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
