@@ -194,7 +194,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.cv is not None:
         result["moved_drapes"] = moved_drapes(args.cv, args.data)
     if args.out is not None:
+        from benchmarks.__main__ import machine
         from lookfeel.atomic import atomic_write_text
+
+        result["machine"] = machine()
+        result["command"] = " ".join(
+            ["python -m benchmarks.bench_depth_position", *(argv or sys.argv[1:])]
+        )
 
         atomic_write_text(args.out, json.dumps(result, indent=1) + "\n")
     return 0
