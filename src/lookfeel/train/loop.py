@@ -554,7 +554,8 @@ def train(
         resume: continue the run in ``out`` from ``checkpoints/last.pt`` (its saved config is
             used; only ``train.steps`` may grow). The result equals an unbroken run's. An
             ensemble (``model.members`` > 1) keeps its finished members and resumes the others.
-        on_step: called after every step with (steps done, that step's loss terms).
+        on_step: called after every step with (steps done, that step's loss terms); an
+            ensemble calls it through each member's run in turn.
         loader: an `ImageLoader` of ``config.data`` whose decoded images to reuse (an
             ensemble's members share one); default: a new one.
 
