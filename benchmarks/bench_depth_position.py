@@ -39,17 +39,23 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from lookfeel.config import DataConfig
+
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "gelfabric"
 
 
-def _register(path: Path, margin_mm: float = 15.0) -> tuple[np.ndarray, tuple[float, float]]:
-    """(registered drape heights in mm at the file's resolution, post (u, v) in pixels)."""
+def _register(
+    path: Path, config: DataConfig | None = None
+) -> tuple[np.ndarray, tuple[float, float]]:
+    """(registered heights in mm as ``config`` keeps them, where the camera saw them, at the
+    file's resolution; the drape's top (u, v) in pixels, NaN without one). Default: the
+    registered recipe's settings."""
     from lookfeel.data.images import decode_depth
-    from lookfeel.data.register import drape_mask, register_depth
+    from lookfeel.data.register import registered_heights
 
-    reg = register_depth(decode_depth(path), None, margin_mm=margin_mm)
-    height = np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0)).astype(np.float32)
-    return height, reg.post_uv if reg.post_uv is not None else (np.nan, np.nan)
+    cfg = config if config is not None else DataConfig(depth_input="registered")
+    height, post = registered_heights(decode_depth(path), cfg)
+    return height, post if post is not None else (np.nan, np.nan)
 
 
 def _pick(
@@ -114,8 +120,9 @@ def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
     """Measurement 2: every seed-and-fold run in ``cv``, its held-out drapes moved."""
     from lookfeel.checkpoint import load_model
     from lookfeel.data.background_swap import pair_other_fabric
-    from lookfeel.data.images import ArrayLoader, _resize_float
+    from lookfeel.data.images import ArrayLoader, registered_to_unit
     from lookfeel.data.layout import scan
+    from lookfeel.data.register import move_drape
     from lookfeel.embedding import embed_items
     from lookfeel.modality import Modality
 
@@ -129,22 +136,17 @@ def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
             raise SystemExit(f"{run_dir}: not a registered-depth run (data.depth_input)")
         items = catalog.subset(lm.split["val"]).items(Modality.DEPTH)
         todo = [it.path for it in items if it.path not in registered]
-        margins = [dc.depth_margin_mm] * len(todo)
+        configs = [dc] * len(todo)
         with ThreadPoolExecutor(2) as pool:
-            registered |= dict(zip(todo, pool.map(_register, todo, margins), strict=True))
+            registered |= dict(zip(todo, pool.map(_register, todo, configs), strict=True))
         regs = [registered[it.path] for it in items]
         fabric = np.array([it.fabric_id for it in items])
 
         def to_input(h: np.ndarray, post: tuple[float, float], dc=dc) -> np.ndarray:
-            """The network's input of registered heights ``h`` whose drape top is ``post``
-            (as `registered_input`: moved to ``data.depth_post_at`` when the run asks)."""
-            if dc.depth_post_at is not None and not np.isnan(post).any():
-                rows, cols = h.shape
-                dx = dc.depth_post_at[0] * (cols - 1) - post[0]
-                dy = dc.depth_post_at[1] * (rows - 1) - post[1]
-                h = ndimage.shift(h, (dy, dx), order=1, cval=0.0)
-            unit = np.clip(h / np.float32(dc.depth_range_mm), 0.0, 1.0).astype(np.float32)
-            return _resize_float(unit, dc.image_size)
+            """The network's input of registered heights ``h`` whose drape top is ``post``,
+            as `registered_input` and `preprocess_depth` make it."""
+            known = None if np.isnan(post).any() else post
+            return registered_to_unit(move_drape(h, known, dc.depth_post_at), dc)
 
         def moved(partner: np.ndarray, regs=regs) -> list[np.ndarray]:
             arrays = []

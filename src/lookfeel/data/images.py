@@ -66,6 +66,7 @@ __all__ = [
     "preprocess_depth",
     "preprocess_rgb",
     "read_image_file",
+    "registered_to_unit",
     "stack_views",
 ]
 
@@ -198,6 +199,13 @@ def _resize_float(a: np.ndarray, size: int) -> np.ndarray:
     return np.array(im, dtype=np.float32)
 
 
+def registered_to_unit(height_mm: np.ndarray, config: DataConfig) -> np.ndarray:
+    """Registered heights (mm) -> the network's (S, S) float32 input:
+    ``clip(height / depth_range_mm, 0, 1)``, resized."""
+    unit = height_mm / np.float32(config.depth_range_mm)
+    return _resize_float(np.clip(unit, 0.0, 1.0).astype(np.float32), config.image_size)
+
+
 def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
     """Millimetres -> (S, S) float32 in [0, 1]: fill holes, map the range, resize.
 
@@ -211,8 +219,7 @@ def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
     if config.depth_input == "registered":
         from lookfeel.data.register import registered_input  # register imports this module
 
-        unit = registered_input(depth_mm, config) / np.float32(config.depth_range_mm)
-        return _resize_float(np.clip(unit, 0.0, 1.0).astype(np.float32), config.image_size)
+        return registered_to_unit(registered_input(depth_mm, config), config)
     d = fill_holes(depth_mm) if config.depth_holes == "nearest" else depth_mm
     return _resize_float(
         depth_to_unit(d, config.depth_min_mm, config.depth_range_mm), config.image_size

@@ -53,7 +53,9 @@ __all__ = [
     "Registration",
     "RegistrationError",
     "drape_mask",
+    "move_drape",
     "register_depth",
+    "registered_heights",
     "registered_input",
     "registered_intrinsics",
 ]
@@ -410,8 +412,11 @@ def registered_intrinsics(shape: tuple[int, ...], config: DataConfig) -> Intrins
     return Intrinsics(config.depth_focal_px, (w - 1) / 2.0, (h - 1) / 2.0)
 
 
-def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
-    """The registered training input of one depth image: (H, W) mm above the fitted floor.
+def registered_heights(
+    depth_mm: NDArray[np.generic], config: DataConfig
+) -> tuple[F32, tuple[float, float] | None]:
+    """The cloth's heights as ``config`` keeps them, where the camera saw them, and the
+    drape's top (`Registration.post_uv`): `registered_input` before the drape is moved.
 
     Registers with ``config``'s ``depth_margin_mm`` and ``depth_focal_px`` (principal point
     at the image centre; ``None``: GelFabric's crop, scaled) and keeps the cloth as
@@ -430,9 +435,32 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
         height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
-    if config.depth_post_at is not None and reg.post_uv is not None:
-        h, w = height.shape
-        fx, fy = config.depth_post_at
-        dx, dy = fx * (w - 1) - reg.post_uv[0], fy * (h - 1) - reg.post_uv[1]
-        height = ndimage.shift(height, (dy, dx), order=1, mode="constant", cval=0.0)
-    return height.astype(np.float32, copy=False)
+    return height.astype(np.float32, copy=False), reg.post_uv
+
+
+def move_drape(
+    height: F32, post_uv: tuple[float, float] | None, post_at: tuple[float, float] | None
+) -> F32:
+    """``height`` translated (bilinear, 0 beyond its edges) so that the drape's top
+    ``post_uv`` lies at ``post_at`` (fractions of the width and height,
+    ``data.depth_post_at``); unchanged when either is None."""
+    if post_at is None or post_uv is None:
+        return height
+    h, w = height.shape
+    dx, dy = post_at[0] * (w - 1) - post_uv[0], post_at[1] * (h - 1) - post_uv[1]
+    return ndimage.shift(height, (dy, dx), order=1, mode="constant", cval=0.0).astype(
+        np.float32, copy=False
+    )
+
+
+def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
+    """The registered training input of one depth image: (H, W) mm above the fitted floor.
+
+    `registered_heights`, then with ``depth_post_at`` the drape moved so that its top lies
+    at that fraction of the image (`move_drape`).
+
+    Raises:
+        RegistrationError: no room could be fitted (the message says what is missing).
+    """
+    height, post = registered_heights(depth_mm, config)
+    return move_drape(height, post, config.depth_post_at)

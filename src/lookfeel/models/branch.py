@@ -200,7 +200,7 @@ class BranchEnsemble(Branch):
             NotImplementedError: ``from_trunk`` (see `trunk`).
         """
         if from_trunk:
-            self.trunk(x)
+            raise NotImplementedError("an ensemble has no one trunk: embed its inputs whole")
         parts = [m(x) for m in self.member_branches()]
         return torch.cat(parts, dim=-1) / math.sqrt(len(parts))
 
