@@ -270,3 +270,35 @@ def test_lowest_cloth_is_dropped_above_a_minimum_height():
         digest
         != PreprocessSettings.of(dataclasses.replace(config, depth_min_height_mm=40.0)).digest()
     )
+
+
+def test_heights_from_the_drape_top_ignore_where_the_floor_was_fitted():
+    """``data.depth_top_mm``: a floor fitted 8 mm off (noise within a session, an offset
+    between sessions) shifts every height above the floor, and nothing measured from the
+    drape's top; that top lands at the height asked, and the drape's shape is kept."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.register import heights_from_top, registered_heights
+
+    d = BASE.render()["depth"]
+    plain = DataConfig(depth_input="registered", depth_focal_px=BASE.f)
+    h, _ = registered_heights(d, plain)
+    cloth = h > 0
+    off = np.where(cloth, h - 8.0, 0.0).astype(np.float32)  # the same cloth, floor 8 mm higher
+    assert np.abs(off - h)[cloth].min() == pytest.approx(8.0, abs=1e-3)
+    a, b = heights_from_top(h, 250.0), heights_from_top(off, 250.0)
+    assert np.abs(a - b).max() < 1e-3
+    assert ((a > 0) == cloth).all() and a[cloth].min() >= 1.0
+    rows = np.flatnonzero(cloth.any(axis=1))
+    band = a[rows[0] : rows[0] + 2][cloth[rows[0] : rows[0] + 2]]
+    assert np.median(band) == pytest.approx(250.0, abs=1e-3)
+    keep = cloth & (a > 1.0)  # above the 1 mm floor: differences are the registered ones
+    diff = (a - h)[keep]
+    assert diff.max() - diff.min() < 1e-3
+    top = dataclasses.replace(plain, depth_top_mm=250.0)
+    assert np.array_equal(registered_heights(d, top)[0], a)
+    from lookfeel.data.images import PreprocessSettings
+
+    assert PreprocessSettings.of(top).digest() != PreprocessSettings.of(plain).digest()
+    assert np.array_equal(heights_from_top(np.zeros_like(h), 250.0), np.zeros_like(h))
+    with pytest.raises(ConfigError, match="depth_top_mm: must be > 0"):
+        dataclasses.replace(plain, depth_top_mm=0.0)

@@ -84,6 +84,15 @@ class DataConfig:
     """Registered input: cloth lower than this above the fitted floor is dropped (0). The cloth
     lying on the floor is where a floor fitted a few mm off changes the mask most (issue #12's
     background control); 0: every cloth pixel is kept."""
+    depth_top_mm: float | None = None
+    """Registered input: measure the cloth's heights down from the drape's top, which is set
+    to this height (mm): ``height - top + depth_top_mm``, where ``top`` is the median height
+    of the drape's top rows (where the post holds it), at least 1 mm on the cloth. The fitted
+    floor's *distance* then plays no part, only its orientation (which way is up): that
+    distance is the noisiest part of the fit (about 8 mm within one GelFabric session) and
+    differs between sessions, so it tells sessions apart (docs/results/real-depth.md, "Heights
+    from the drape's top"). GelFabric's drape tops lie about 256 mm above the floor. ``None``:
+    heights above the fitted floor."""
     depth_post_at: tuple[float, float] | None = None
     """Registered input: move the drape so that its top (where the post holds it,
     `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the
@@ -209,6 +218,8 @@ class DataConfig:
             raise ConfigError(
                 f"data.depth_post_at: must be [x, y] fractions in [0, 1], got {self.depth_post_at}"
             )
+        if self.depth_top_mm is not None and not self.depth_top_mm > 0:
+            raise ConfigError(f"data.depth_top_mm: must be > 0, got {self.depth_top_mm}")
         if not self.depth_min_height_mm >= 0:
             raise ConfigError(
                 f"data.depth_min_height_mm: must be >= 0, got {self.depth_min_height_mm}"

@@ -293,11 +293,20 @@ class PreprocessSettings:
     video_gain: float
     depth_registration: tuple[float | str | None, ...] | None = None
     """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
-    0][, "post", x, y when the drape is moved]); ``None`` for raw depth."""
+    0][, "post", x, y when the drape is moved][, "top", mm when heights are measured from
+    the drape's top]); ``None`` for raw depth."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
-        registered = config.depth_input == "registered"
+        registration: tuple[float | str | None, ...] | None = None
+        if config.depth_input == "registered":
+            registration = (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
+            if config.depth_min_height_mm:
+                registration += (config.depth_min_height_mm,)
+            if config.depth_post_at is not None:
+                registration += ("post", *config.depth_post_at)
+            if config.depth_top_mm is not None:
+                registration += ("top", config.depth_top_mm)
         return cls(
             config.image_size,
             config.depth_min_mm,
@@ -309,11 +318,7 @@ class PreprocessSettings:
             config.video_frames,
             config.video_reference,
             config.video_gain,
-            (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
-            + ((config.depth_min_height_mm,) if config.depth_min_height_mm else ())
-            + (("post", *config.depth_post_at) if config.depth_post_at is not None else ())
-            if registered
-            else None,
+            registration,
         )
 
     def digest(self) -> str:

@@ -53,6 +53,7 @@ __all__ = [
     "Registration",
     "RegistrationError",
     "drape_mask",
+    "heights_from_top",
     "move_drape",
     "register_depth",
     "registered_heights",
@@ -421,7 +422,8 @@ def registered_heights(
     Registers with ``config``'s ``depth_margin_mm`` and ``depth_focal_px`` (principal point
     at the image centre; ``None``: GelFabric's crop, scaled) and keeps the cloth as
     ``depth_cloth`` says (``drape``: `drape_mask`; ``all``: every cloth pixel), without the
-    cloth lower than ``depth_min_height_mm`` above the floor; 0 elsewhere.
+    cloth lower than ``depth_min_height_mm`` above the floor, and with ``depth_top_mm``
+    measured from the drape's top (`heights_from_top`); 0 elsewhere.
 
     Raises:
         RegistrationError: no room could be fitted (the message says what is missing).
@@ -435,7 +437,28 @@ def registered_heights(
         height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
+    if config.depth_top_mm is not None:
+        height = heights_from_top(height, config.depth_top_mm)
     return height.astype(np.float32, copy=False), reg.post_uv
+
+
+def heights_from_top(height: F32, top_mm: float) -> F32:
+    """Registered heights re-measured from the drape's top, which is set to ``top_mm``.
+
+    ``top`` is the median height of the cloth in its top rows (4 rows at 224 px, scaled with
+    the image; where the post holds the drape); every cloth pixel becomes ``height - top +
+    top_mm``, at least 1 mm so that it stays cloth (0 is no cloth). A shift of the fitted
+    floor then changes nothing: only the floor's orientation is used (``data.depth_top_mm``).
+    Unchanged when there is no cloth.
+    """
+    cloth = height > 0
+    rows = np.flatnonzero(cloth.any(axis=1))
+    if len(rows) == 0:
+        return height
+    band = max(2, round(4 * height.shape[0] / GELFABRIC_SIZE))
+    top = float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
+    out = np.where(cloth, np.maximum(height - np.float32(top - top_mm), np.float32(1.0)), 0.0)
+    return out.astype(np.float32, copy=False)
 
 
 def move_drape(
