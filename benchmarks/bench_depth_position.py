@@ -10,9 +10,11 @@ is, so it cannot see this cue.
 Two measurements:
 
 1. **Position alone** (`run`, no model): register every depth image (`register_depth`) and
-   identify its fabric, pick 1 of 10 exact among all fabrics, from two numbers only: the
-   image position of the drape's top, where the post holds it (``post_uv``), z-scored; beside
-   the same from the drape's centroid and chance. 95% interval resampling fabrics.
+   identify its fabric, pick 1 of 10 exact among all fabrics, from two numbers only (by their
+   distance in pixels): the image position of the drape's top, where the post holds it
+   (``post_uv``); beside the same from the drape's centroid and chance. 95% interval
+   resampling fabrics. The library's `position_leakage` does this (``lookfeel data leakage
+   --position``).
 2. **Moved drapes** (``--cv CV``, a ``lookfeel cv`` folder of a registered-depth recipe such as
    ``configs/real_depth.yaml``): each run's held-out images are scored as they are and with the
    registered drape translated (bilinear, at the registration's resolution, before the resize
@@ -58,17 +60,13 @@ def _register(
     return height, post if post is not None else (np.nan, np.nan)
 
 
-def _pick(
-    features: np.ndarray, fabric: np.ndarray, zscore: bool = False
-) -> tuple[float, list[float]]:
-    """Top-1 pick 1 of 10 exact (Euclidean, on z-scored features if asked: as `lookfeel cv`,
-    embeddings and raw pixels are not) and its 95% interval."""
+def _pick(features: np.ndarray, fabric: np.ndarray) -> tuple[float, list[float]]:
+    """Top-1 pick 1 of 10 exact (Euclidean, as `lookfeel cv` scores embeddings and raw
+    pixels) and its 95% interval."""
     from lookfeel.metrics import EXACT_PICK, bootstrap_ci, score_pairs
     from lookfeel.modality import Modality, Pair
 
     x = features
-    if zscore:
-        x = np.nan_to_num((x - np.nanmean(x, 0)) / (np.nanstd(x, 0) + 1e-9))
     pair = Pair.parse("depth_to_depth")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -79,38 +77,35 @@ def _pick(
 
 
 def run(data: Path | None) -> dict[str, object]:
-    """Measurement 1: the fabric from the drape's position alone."""
+    """Measurement 1: the fabric from the drape's position alone
+    (`lookfeel.data.leakage.position_leakage`, as ``lookfeel data leakage --position``)."""
     from lookfeel.data.layout import scan
+    from lookfeel.data.leakage import position_leakage
     from lookfeel.modality import Modality
 
     root = Path(data) if data is not None else DEFAULT_DATA
     if not root.is_dir():
         return {"skipped": f"real GelFabric depth not found at {root}", "met": None}
-    items = scan(root, require=[Modality.DEPTH], strict=True).items(Modality.DEPTH)
+    catalog = scan(root, require=[Modality.DEPTH], strict=True)
     started = time.perf_counter()
-    with ThreadPoolExecutor(2) as pool:
-        regs = list(pool.map(lambda it: _register(it.path), items))
-    fabric = np.array([it.fabric_id for it in items])
-    post = np.array([p for _, p in regs], dtype=np.float64)
-    centroid = np.array(
-        [np.argwhere(h > 0).mean(0)[::-1] if (h > 0).any() else (np.nan, np.nan) for h, _ in regs]
-    )
-    rows = {}
-    for name, feats in (("post_uv", post), ("drape_centroid", centroid)):
-        top1, ci = _pick(feats, fabric, zscore=True)
-        within = np.nanmean([np.nanstd(feats[fabric == f], 0).mean() for f in set(fabric)])
-        rows[name] = {
-            "top1": top1,
-            "ci95": ci,
-            "within_fabric_std_px": float(within),
-            "overall_std_px": float(np.nanstd(feats, 0).mean()),
+    got = position_leakage(catalog)
+    if isinstance(got, str):
+        return {"skipped": got, "met": None}
+    rows = {
+        name: {
+            "top1": s.top1,
+            "ci95": list(s.ci95),
+            "within_fabric_std_px": s.within_fabric_px,
+            "overall_std_px": s.overall_px,
         }
+        for name, s in (("post_uv", got.post_uv), ("drape_centroid", got.drape_centroid))
+    }
     return {
         "data": str(root),
-        "images": len(items),
-        "fabrics": len(set(fabric.tolist())),
-        "image_px": list(regs[0][0].shape),
-        "chance_top1": 0.1,
+        "images": got.n_items,
+        "fabrics": got.n_fabrics,
+        "image_px": list(got.image_px),
+        "chance_top1": got.chance,
         "position_alone": rows,
         "seconds": round(time.perf_counter() - started, 1),
     }

@@ -189,3 +189,62 @@ def test_cli_data_check_warns_of_a_leak(leaky: Path, clean: Path, capsys):
     assert "identifies the fabric" in out
     assert main(["data", "check", str(clean)]) == 0
     assert "identifies the fabric" not in capsys.readouterr().out
+
+
+def _write_posts(root: Path, moved: bool, fabrics: int = 10, drapes: int = 4) -> Path:
+    """Rendered drapes in one room and camera (no background leak), each fabric's post at its
+    own place (``moved``: the session's offset, 27 mm apart, plus 3 mm of jitter) or every
+    post at one place (4 mm of jitter). The post is about as high for all (290-300 mm); the
+    drape's spread varies per drape."""
+    from ._scene import Scene
+
+    rng = np.random.default_rng(3)
+    places = rng.permutation(np.linspace(-120.0, 120.0, fabrics))
+    for f in range(1, fabrics + 1):
+        for k in range(drapes):
+            jitter = rng.normal(0.0, 3.0 if moved else 4.0, 2)
+            ox, oy = (places[f - 1] if moved else 0.0) + jitter[0], jitter[1]
+            scene = Scene(
+                size=40,
+                f=90.0 * 40 / 64,
+                peak_mm=float(rng.uniform(290.0, 300.0)),
+                spread_mm=float(rng.uniform(80.0, 110.0)),
+                cloth_offset=(float(ox), float(oy)),
+                seed=100 * f + k,
+            )
+            path = root / "depth" / f"F{f:04d}_Depth_New_{k:06d}.png"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            Image.fromarray(scene.render()["depth"]).save(path)
+    lines = [LABELS_HEADER] + [f"{f},{f % 3},1,1,1,0,train\n" for f in range(1, fabrics + 1)]
+    (root / "labels.csv").write_text("".join(lines))
+    return root
+
+
+def test_position_of_the_drape_is_flagged_when_posts_moved_with_the_session(tmp_path, capsys):
+    """The room is the same for every fabric (no background leak), but each session put the
+    drape somewhere else in the image: `position_leakage` finds it; one place for all: not."""
+    from lookfeel.cli import main
+    from lookfeel.data.leakage import position_leakage
+
+    moved = scan(_write_posts(tmp_path / "moved", moved=True))
+    still = scan(_write_posts(tmp_path / "still", moved=False))
+    got = position_leakage(moved, n_boot=200)
+    assert not isinstance(got, str)
+    assert got.n_items == 40 and got.n_fabrics == 10 and got.image_px == (40, 40)
+    assert got.post_uv.top1 > 0.9 and got.post_uv.ci95[0] > 2 * got.chance and got.leak
+    assert got.post_uv.within_fabric_px < 0.5 * got.post_uv.overall_px
+    clean = position_leakage(still, n_boot=200)
+    assert not isinstance(clean, str)
+    assert clean.post_uv.top1 < 0.25 and not clean.leak
+    report = leakage_report(moved, n_boot=100, position=True)
+    assert report.position is not None and report.position.leak
+    assert not report.leaks  # the background does not leak: only the position does
+    (problem,) = leakage_problems(report)
+    assert "where the drape lies" in problem.message and problem.severity == "warning"
+    assert "LEAK: where the drape lies" in format_leakage(report)
+    assert leakage_report(still, n_boot=100, position=True).position is not None
+    assert main(["data", "leakage", str(moved.root), "--position", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["leak"] is True and d["position"]["post_uv"]["top1"] > 0.8
+    assert d["modalities"]["depth"]["leak"] is False
+    assert "two fabrics" in position_leakage(moved.subset([1])).__str__()

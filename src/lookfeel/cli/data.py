@@ -60,7 +60,11 @@ def add_parser(subparsers: Subparsers) -> None:
             "least --static-fraction of them (cloth moves by centimetres between drapes, the "
             "room by millimetres), or the white pixels of a --mask image. A background whose "
             "interval lies above 2x chance is reported as a LEAK: a model can learn the capture "
-            "session instead of the material. Exit 0 either way; nothing under ROOT is modified."
+            "session instead of the material. With --position, depth images are also "
+            "registered (the room fitted, the drape found) and scored by where the drape lies "
+            "in the image: a camera that moved between sessions puts each session's drapes at "
+            "their own place, a cue that masking the room does not remove. Exit 0 either way; "
+            "nothing under ROOT is modified."
         ),
     )
     leakage.add_argument("root", type=Path, help="dataset folder")
@@ -88,6 +92,19 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     leakage.add_argument(
         "--pool", type=int, default=None, help="mean-pooling factor (default: to <= 64 px)"
+    )
+    leakage.add_argument(
+        "--position",
+        action="store_true",
+        help="also register every depth image and score where the drape lies (its top and "
+        "centroid); about 0.1 s per 224 px image per thread",
+    )
+    leakage.add_argument(
+        "--focal-px",
+        type=float,
+        default=None,
+        help="with --position: the depth camera's focal length in pixels "
+        "(data.depth_focal_px; default GelFabric's Kinect crop)",
     )
     leakage.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
     leakage.add_argument("--workers", type=int, default=2, help="decoding threads (default 2)")
@@ -152,6 +169,7 @@ def run_check(args: argparse.Namespace) -> int:
 
 def run_leakage(args: argparse.Namespace) -> int:
     """Print how well each modality's background alone identifies the fabric (or its JSON)."""
+    from lookfeel.config import DataConfig
     from lookfeel.data import scan
     from lookfeel.data.leakage import format_leakage, leakage_report, parse_mask_options
     from lookfeel.modality import Modality
@@ -167,6 +185,8 @@ def run_leakage(args: argparse.Namespace) -> int:
         pool=args.pool,
         seed=args.seed,
         workers=args.workers,
+        position=args.position,
+        position_config=DataConfig(depth_input="registered", depth_focal_px=args.focal_px),
     )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_leakage(report))
     return 0

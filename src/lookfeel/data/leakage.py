@@ -20,6 +20,13 @@ instead of the material. `leakage_report` measures this, per image modality, for
 3. **Verdict.** A background *leaks* when its interval's lower bound is above ``factor`` (2)
    times chance: the room alone then tells fabrics apart far better than guessing.
    `leakage_problems` turns each leak into a warning for ``lookfeel data check``.
+4. **Position** (depth, opt-in: ``position=True``, ``lookfeel data leakage --position``).
+   Masking the room is not enough when the camera moved between sessions: the cloth then lies
+   at a session's own place in the image. `position_leakage` registers every depth image
+   (`lookfeel.data.register`, as ``data.depth_input: registered`` does) and scores the same
+   pick 1 of 10 from two numbers per image, by their distance in pixels: the image position of
+   the drape's top, where the post holds it (`Registration.post_uv`), or the drape's centroid.
+   ``data.depth_post_at`` removes the cue from a model's input.
 """
 
 from __future__ import annotations
@@ -37,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Catalog, Item
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
 from lookfeel.data.problems import Problem
@@ -51,11 +59,14 @@ __all__ = [
     "LeakageReport",
     "MaskError",
     "ModalityLeakage",
+    "PositionLeakage",
+    "PositionScore",
     "format_leakage",
     "leakage_problems",
     "leakage_report",
     "load_pooled",
     "parse_mask_options",
+    "position_leakage",
     "read_mask",
     "static_mask",
 ]
@@ -114,12 +125,55 @@ class ModalityLeakage:
 
 
 @dataclass(frozen=True)
+class PositionScore:
+    """How well one position (two numbers per image, in pixels) identifies the fabric.
+
+    Attributes:
+        top1, ci95: pick 1 of 10 top-1 of the z-scored position and its 95% interval.
+        within_fabric_px: its spread (std, mean of the two axes) among one fabric's images,
+            averaged over fabrics; overall_px: the same over all images.
+    """
+
+    top1: float
+    ci95: tuple[float, float]
+    within_fabric_px: float
+    overall_px: float
+
+
+@dataclass(frozen=True)
+class PositionLeakage:
+    """Where the drape lies in registered depth images (module doc, point 4).
+
+    Attributes:
+        n_items, n_fabrics: depth images registered, and their fabrics.
+        image_px: (H, W) of the images (the positions' pixels).
+        post_uv: the drape's top, where the post holds it.
+        drape_centroid: the drape's centroid.
+        chance: top-1 of random guessing.
+        leak: whether either interval lies above ``factor`` x chance.
+    """
+
+    n_items: int
+    n_fabrics: int
+    image_px: tuple[int, int]
+    post_uv: PositionScore
+    drape_centroid: PositionScore
+    chance: float
+    leak: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = _json_num(asdict(self))
+        return out
+
+
+@dataclass(frozen=True)
 class LeakageReport:
     """`leakage_report`'s answer: one `ModalityLeakage` per modality scored.
 
     Attributes:
         root: the dataset.
         modalities: per modality, its scores.
+        position: where the drape lies in registered depth (`position_leakage`), when asked.
         skipped: modalities not scored, and why (too few fabrics or images).
         tolerance, static_fraction, factor: the settings used (tolerance per modality).
         seconds: how long the check took.
@@ -132,6 +186,7 @@ class LeakageReport:
     static_fraction: float = 0.95
     factor: float = 2.0
     seconds: float = 0.0
+    position: PositionLeakage | None = None
 
     @property
     def leaks(self) -> tuple[ModalityLeakage, ...]:
@@ -141,8 +196,9 @@ class LeakageReport:
     def to_dict(self) -> dict[str, Any]:
         return {
             "root": str(self.root),
-            "leak": bool(self.leaks),
+            "leak": bool(self.leaks) or bool(self.position and self.position.leak),
             "modalities": {m.modality.value: m.to_dict() for m in self.modalities},
+            "position": None if self.position is None else self.position.to_dict(),
             "skipped": dict(self.skipped),
             "tolerance": dict(self.tolerance),
             "static_fraction": self.static_fraction,
@@ -156,6 +212,8 @@ def _json_num(v: Any) -> Any:
         return None if math.isnan(v) else round(v, 4)
     if isinstance(v, tuple | list):
         return [_json_num(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _json_num(x) for k, x in v.items()}
     return v
 
 
@@ -301,13 +359,18 @@ def parse_mask_options(values: Sequence[str]) -> dict[Modality, Path]:
 
 
 def _top1(
-    x: NDArray[np.float32], fabric: NDArray[np.int64], seed: int, n_boot: int
+    x: NDArray[np.float32],
+    fabric: NDArray[np.int64],
+    seed: int,
+    n_boot: int,
+    zscore: bool = True,
 ) -> tuple[float, tuple[float, float], float]:
-    """Exact pick 1 of 10 top-1 of raw features (z-scored per column), its interval, chance."""
+    """Exact pick 1 of 10 top-1 of raw features (z-scored per column unless ``zscore`` is
+    False: features in one unit, such as pixels), its interval, chance."""
     x = x.astype(np.float64)
     sd = x.std(axis=0)
     keep = sd > 1e-9
-    z = (x[:, keep] - x[:, keep].mean(axis=0)) / sd[keep]
+    z = (x[:, keep] - x[:, keep].mean(axis=0)) / (sd[keep] if zscore else 1.0)
     if z.shape[1] == 0:  # nothing varies: every image is the same, nothing to tell apart
         z = np.zeros((len(x), 1))
     dist = pairwise_distances(z, z)
@@ -376,6 +439,78 @@ def _score_modality(
     )
 
 
+def _position_score(
+    pos: NDArray[np.float64], fabric: NDArray[np.int64], seed: int, n_boot: int
+) -> tuple[PositionScore, float]:
+    ok = ~np.isnan(pos).any(axis=1)  # an image without cloth has no position
+    top1, ci, chance = _top1(pos[ok].astype(np.float32), fabric[ok], seed, n_boot, zscore=False)
+    within = [pos[ok & (fabric == f)].std(axis=0).mean() for f in np.unique(fabric[ok])]
+    score = PositionScore(top1, ci, float(np.mean(within)), float(pos[ok].std(axis=0).mean()))
+    return score, chance
+
+
+def position_leakage(
+    catalog: Catalog,
+    config: DataConfig | None = None,
+    *,
+    factor: float = 2.0,
+    n_boot: int = 1000,
+    seed: int = 0,
+    workers: int = 2,
+) -> PositionLeakage | str:
+    """Where the drape lies in each registered depth image, scored as a fabric cue (point 4).
+
+    Args:
+        catalog: the dataset; its depth items are registered.
+        config: the registration settings (``depth_margin_mm``, ``depth_focal_px``,
+            ``depth_cloth``, ``depth_min_height_mm``); default `DataConfig`'s.
+        factor, n_boot, seed: as `leakage_report`.
+        workers: registration threads (about 0.1 s per 224 px image each).
+
+    Returns:
+        A `PositionLeakage`, or why it cannot be scored (no depth, too few fabrics).
+
+    Raises:
+        RegistrationError: a file whose room cannot be fitted (named).
+    """
+    from lookfeel.data.images import decode_depth
+    from lookfeel.data.register import RegistrationError, registered_heights
+
+    items = catalog.items(Modality.DEPTH)
+    fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
+    if (
+        len(np.unique(fabric)) < 2
+        or np.bincount(np.unique(fabric, return_inverse=True)[1]).max() < 2
+    ):
+        return "needs depth images of two fabrics, one of them with two or more images"
+    cfg = config if config is not None else DataConfig(depth_input="registered")
+
+    def one(it: Item) -> tuple[tuple[int, int], list[float]]:
+        try:
+            height, post = registered_heights(decode_depth(it.path), cfg)
+        except RegistrationError as e:
+            raise RegistrationError(f"{it.path}: cannot register depth: {e}") from None
+        cloth = np.argwhere(height > 0)
+        centroid = cloth.mean(axis=0)[::-1].tolist() if len(cloth) else [math.nan] * 2
+        return height.shape, [*(post if post is not None else (math.nan, math.nan)), *centroid]
+
+    with ThreadPoolExecutor(max(1, workers)) as ex:
+        rows = list(ex.map(one, items))
+    pos = np.array([r[1] for r in rows], dtype=np.float64)
+    top, chance = _position_score(pos[:, :2], fabric, seed, n_boot)
+    centroid, _ = _position_score(pos[:, 2:], fabric, seed, n_boot)
+    leak = any(not math.isnan(s.ci95[0]) and s.ci95[0] > factor * chance for s in (top, centroid))
+    return PositionLeakage(
+        n_items=len(items),
+        n_fabrics=len(np.unique(fabric)),
+        image_px=rows[0][0],
+        post_uv=top,
+        drape_centroid=centroid,
+        chance=chance,
+        leak=leak,
+    )
+
+
 def leakage_report(
     catalog: Catalog,
     *,
@@ -388,6 +523,8 @@ def leakage_report(
     n_boot: int = 1000,
     seed: int = 0,
     workers: int = 2,
+    position: bool = False,
+    position_config: DataConfig | None = None,
 ) -> LeakageReport:
     """Score each modality's background against its whole image and chance (module doc).
 
@@ -403,6 +540,8 @@ def leakage_report(
         factor: a background leaks when its interval's lower bound exceeds factor x chance.
         n_boot, seed: the bootstrap over fabrics.
         workers: decoding threads.
+        position: also register the depth images and score where the drape lies
+            (`position_leakage`, with ``position_config``'s registration settings).
 
     Returns:
         A `LeakageReport`; modalities that cannot be scored are in ``skipped`` with why.
@@ -439,6 +578,15 @@ def leakage_report(
             skipped[m.value] = res
         else:
             done.append(res)
+    pos = None
+    if position:
+        got = position_leakage(
+            catalog, position_config, factor=factor, n_boot=n_boot, seed=seed, workers=workers
+        )
+        if isinstance(got, str):
+            skipped["position"] = got
+        else:
+            pos = got
     return LeakageReport(
         root=catalog.root,
         modalities=tuple(done),
@@ -447,6 +595,7 @@ def leakage_report(
         static_fraction=static_fraction,
         factor=factor,
         seconds=time.perf_counter() - start,
+        position=pos,
     )
 
 
@@ -496,14 +645,56 @@ def format_leakage(report: LeakageReport) -> str:
             f"  chance            {m.chance:.3f}",
             f"  {_verdict(m, report.factor)}",
         ]
+    if report.position is not None:
+        lines += _position_lines(report.position, report.factor)
     for name, why in report.skipped.items():
         lines += ["", f"{name}: not scored: {why}"]
     return "\n".join(lines)
 
 
+def _position_lines(p: PositionLeakage, factor: float) -> list[str]:
+    h, w = p.image_px
+    lines = [
+        "",
+        f"depth, where the drape lies: {p.n_items} images of {p.n_fabrics} fabrics registered "
+        f"({w}x{h} px); two numbers per image, spread within a fabric / over all in px",
+    ]
+    for name, s in (("drape's top", p.post_uv), ("drape's centroid", p.drape_centroid)):
+        lines.append(
+            f"  {name:<18}{s.top1:.3f} {_ci(s.ci95)}   spread {s.within_fabric_px:.1f} / "
+            f"{s.overall_px:.1f}"
+        )
+    lines.append(f"  chance            {p.chance:.3f}")
+    if p.leak:
+        lines.append(
+            f"  LEAK: where the drape lies identifies the fabric (interval above {factor:g}x "
+            "chance): the camera or post moved between sessions; a model of registered depth "
+            "can read the session from it (data.depth_post_at moves every drape to one place)"
+        )
+    else:
+        lines.append(f"  no leak found: position top-1 is not far above chance ({factor:g}x)")
+    return lines
+
+
 def leakage_problems(report: LeakageReport) -> list[Problem]:
-    """One warning per leaking modality, for ``lookfeel data check``."""
-    return [
+    """One warning per leak found (background per modality; the drape's position), for
+    ``lookfeel data check``."""
+    pos = report.position
+    moved = (
+        []
+        if pos is None or not pos.leak
+        else [
+            Problem(
+                report.root / Modality.DEPTH.value,
+                f"where the drape lies in registered depth identifies the fabric at pick-1-of-10 "
+                f"top-1 {max(pos.post_uv.top1, pos.drape_centroid.top1):.2f} vs chance "
+                f"{pos.chance:.2f}: the camera moved between sessions (see `lookfeel data leakage "
+                "--position`; data.depth_post_at removes it)",
+                "warning",
+            )
+        ]
+    )
+    return moved + [
         Problem(
             report.root / m.modality.value,
             f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
