@@ -51,6 +51,8 @@ def test_real_depth_is_leak_free_and_the_leaky_recipe_is_kept():
     free = load_config(RunConfig, root / "real_depth.yaml")
     leaky = load_config(RunConfig, root / "real_depth_leaky.yaml")
     assert free.data.depth_input == "registered" and free.data.depth_cloth == "drape"
+    # The session's other cues: where the drape lies, and the fitted floor's distance.
+    assert free.data.depth_post_at is not None and free.data.depth_top_mm is not None
     assert leaky.data.depth_input == "raw" and not leaky.data.augment
     # The same recipe otherwise: the comparison changes only the input.
     assert free.model == leaky.model and free.loss == leaky.loss and free.train == leaky.train
