@@ -247,4 +247,4 @@ def test_position_of_the_drape_is_flagged_when_posts_moved_with_the_session(tmp_
     d = json.loads(capsys.readouterr().out)
     assert d["leak"] is True and d["position"]["post_uv"]["top1"] > 0.8
     assert d["modalities"]["depth"]["leak"] is False
-    assert "two fabrics" in position_leakage(moved.subset([1])).__str__()
+    assert "two fabrics" in str(position_leakage(moved.subset([1])))

@@ -129,7 +129,8 @@ class PositionScore:
     """How well one position (two numbers per image, in pixels) identifies the fabric.
 
     Attributes:
-        top1, ci95: pick 1 of 10 top-1 of the z-scored position and its 95% interval.
+        top1, ci95: pick 1 of 10 top-1 by the positions' distance in pixels, and its 95%
+            interval.
         within_fabric_px: its spread (std, mean of the two axes) among one fabric's images,
             averaged over fabrics; overall_px: the same over all images.
     """
