@@ -1,0 +1,203 @@
+"""What the background control changes on registered depth, one part at a time.
+
+`lookfeel cv`'s background control (`lookfeel.data.background_swap.BackgroundControl`) gives
+each held-out depth image another fabric's background, keeps the cloth, and registers the
+composite again. On registered depth the network never sees the room, so the swap reaches it
+only through that second registration: the cloth's heights (measured from the partner's
+fitted floor), its mask, and the estimate of the drape's top. For each run of a ``lookfeel
+cv`` folder of a registered-depth recipe this scores the run's held-out queries (pick 1 of 10
+exact, top-1; model and raw pixels of the same inputs) with one part of the swap applied at a
+time, the rest as the image was:
+
+- ``as_is``; ``swapped``: the control as ``cv`` computes it (partner drawn with seed 0);
+- ``swap_mask``: the image's own heights on the composite's cloth mask;
+- ``swap_top``: the image's own heights and mask, moved by the composite's drape top;
+- ``swap_level``: own mask, heights changed by the plane (in image coordinates) fitted to
+  the composite's change of height; ``swap_shift``: that plane's mean only; ``swap_tilt``:
+  that plane with its mean removed;
+- ``partner_room``: own cloth, its heights measured from the partner's floor *as fitted on the
+  partner's own image* (no refit on a composite).
+
+Every variant then goes through the run's own settings (``depth_min_height_mm``,
+``depth_top_mm``, ``depth_post_at``, the map to [0, 1] and the resize).
+
+    python -m benchmarks.bench_depth_swap --data ../shared/data/gelfabric --cv CV \
+        [--runs seed0-fold0,...] [--out JSON]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.bench_depth_position import DEFAULT_DATA, _pick
+from lookfeel.data.catalog import Catalog
+
+
+def _plane(h0: np.ndarray, h1: np.ndarray) -> np.ndarray:
+    """The plane a u + b v + c fitted to h1 - h0 where both have cloth (0 without any)."""
+    both = (h0 > 0) & (h1 > 0)
+    if both.sum() < 3:
+        return np.zeros_like(h0)
+    v, u = np.nonzero(both)
+    a = np.c_[u, v, np.ones_like(u)].astype(np.float64)
+    c, *_ = np.linalg.lstsq(a, (h1 - h0)[both], rcond=None)
+    vv, uu = np.mgrid[: h0.shape[0], : h0.shape[1]]
+    return (c[0] * uu + c[1] * vv + c[2]).astype(np.float32)
+
+
+def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
+    """Every variant of the module doc for one trained run."""
+    from lookfeel.checkpoint import load_model
+    from lookfeel.crossval import CONTROL_SEED
+    from lookfeel.data.background_swap import register_items, swap_backgrounds
+    from lookfeel.data.images import ArrayLoader, registered_to_unit
+    from lookfeel.data.register import (
+        Intrinsics,
+        drape_mask,
+        heights_from_top,
+        move_drape,
+        register_depth,
+        registered_heights,
+        registered_intrinsics,
+    )
+    from lookfeel.embedding import embed_items
+    from lookfeel.modality import Modality
+
+    lm = load_model(run_dir / "checkpoints" / "last.pt")
+    dc = lm.config.data
+    if dc.depth_input != "registered":
+        raise SystemExit(f"{run_dir}: not a registered-depth run (data.depth_input)")
+    items = catalog.subset(lm.split["val"]).items(Modality.DEPTH)
+    fabric = np.array([it.fabric_id for it in items])
+    depth0 = register_items(items[:1]).depth[0]
+    k = registered_intrinsics(depth0.shape, dc)
+    batch = register_items(items, k, margin_mm=dc.depth_margin_mm)
+    cloth = (
+        np.stack([drape_mask(c) for c in batch.cloth]) if dc.depth_cloth == "drape" else batch.cloth
+    )
+    sw = swap_backgrounds(batch.depth, cloth, fabric, seed=CONTROL_SEED, rooms=batch.room)
+    with ThreadPoolExecutor(2) as pool:
+        own = list(pool.map(lambda d: registered_heights(d, dc), batch.depth))
+        comp = list(pool.map(lambda d: registered_heights(d, dc), sw.images))
+        regs = list(
+            pool.map(lambda d: register_depth(d, k, margin_mm=dc.depth_margin_mm), batch.depth)
+        )
+
+    def finish(h: np.ndarray, post: tuple[float, float] | None) -> np.ndarray:
+        return registered_to_unit(move_drape(h.astype(np.float32), post, dc.depth_post_at), dc)
+
+    # Heights above the image's own fitted floor, kept as the run keeps them but not yet
+    # measured from the drape's top: the cloth whose floor the partner's replaces.
+    plain = dataclasses.replace(dc, depth_top_mm=None)
+    with ThreadPoolExecutor(2) as pool:
+        own_floor = [h for h, _ in pool.map(lambda d: registered_heights(d, plain), batch.depth)]
+    h_px, w_px = depth0.shape
+    intr = k if k is not None else Intrinsics.gelfabric(w_px, h_px)
+    vg, ug = np.mgrid[0:h_px, 0:w_px].astype(np.float64)
+
+    def floor_heights(i: int, j: int) -> np.ndarray:
+        """Image i's cloth as the run keeps it, its heights above image j's floor as fitted
+        on image j."""
+        floor = regs[j].plane("floor") or regs[i].plane("floor")
+        if floor is None:  # neither image has a floor: the run's own heights
+            return own_floor[i]
+        z = batch.depth[i].astype(np.float64)
+        pts = np.stack([(ug - intr.cx) / intr.f * z, (vg - intr.cy) / intr.f * z, z], -1)
+        height = floor.distance - pts @ np.asarray(floor.normal)
+        return np.where(own_floor[i] > 0, np.maximum(height, 0.1), 0.0).astype(np.float32)
+
+    def top(h: np.ndarray) -> np.ndarray:
+        return heights_from_top(h, dc.depth_top_mm) if dc.depth_top_mm is not None else h
+
+    variants: dict[str, list[np.ndarray]] = {name: [] for name in _VARIANTS}
+    for i, ((h0, p0), (h1, p1)) in enumerate(zip(own, comp, strict=True)):
+        cl = h0 > 0
+        plane = _plane(h0, h1)
+        mean = float(plane[cl].mean()) if cl.any() else 0.0
+
+        def level(add: np.ndarray | float, h0: np.ndarray = h0, cl: np.ndarray = cl) -> np.ndarray:
+            return np.where(cl, np.maximum(h0 + add, 0.1), 0.0)
+
+        back = np.where(h1 > 0, np.where(cl, h0, np.maximum(h1 - plane, 0.1)), 0.0)
+        variants["as_is"].append(finish(h0, p0))
+        variants["swapped"].append(finish(h1, p1))
+        variants["swap_mask"].append(finish(back, p1))
+        variants["swap_top"].append(finish(h0, p1))
+        variants["swap_level"].append(finish(level(plane), p0))
+        variants["swap_shift"].append(finish(level(mean), p0))
+        variants["swap_tilt"].append(finish(level(plane - mean), p0))
+        variants["partner_room"].append(finish(top(floor_heights(i, int(sw.partner[i]))), p0))
+    row: dict[str, Any] = {"run": run_dir.name, "queries": len(items)}
+    for name, arrays in variants.items():
+        loader = ArrayLoader(
+            dc, dict(zip((it.path for it in items), arrays, strict=True)), Modality.DEPTH
+        )
+        emb = embed_items(lm.model, items, loader)
+        pixels = np.stack([a.reshape(-1) for a in arrays])
+        row[name] = {"model": _pick(emb, fabric)[0], "raw_pixels": _pick(pixels, fabric)[0]}
+    return row
+
+
+_VARIANTS = (
+    "as_is",
+    "swapped",
+    "swap_mask",
+    "swap_top",
+    "swap_level",
+    "swap_shift",
+    "swap_tilt",
+    "partner_room",
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--cv", type=Path, required=True, help="a lookfeel cv folder (registered)")
+    ap.add_argument("--runs", default=None, help="comma-separated run names (default: all)")
+    ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
+    args = ap.parse_args(argv)
+    if not args.data.exists():
+        print(f"{args.data}: no such dataset", file=sys.stderr)
+        return 1
+    from lookfeel.data.layout import scan
+    from lookfeel.modality import Modality
+
+    catalog = scan(args.data, require=[Modality.DEPTH], strict=True)
+    names = (
+        args.runs.split(",") if args.runs else [p.name for p in sorted(args.cv.glob("seed*-fold*"))]
+    )
+    started = time.perf_counter()
+    rows = []
+    for name in names:
+        rows.append(one_run(args.cv / name, catalog))
+        print(json.dumps(rows[-1]), flush=True)
+    mean = {
+        v: {who: float(np.mean([r[v][who] for r in rows])) for who in ("model", "raw_pixels")}
+        for v in _VARIANTS
+    }
+    result = {"runs": rows, "mean": mean, "seconds": round(time.perf_counter() - started, 1)}
+    print(json.dumps(mean, indent=1))
+    if args.out is not None:
+        from benchmarks.__main__ import machine
+        from lookfeel.atomic import atomic_write_text
+
+        result["machine"] = machine()
+        result["command"] = " ".join(
+            ["python -m benchmarks.bench_depth_swap", *(argv or sys.argv[1:])]
+        )
+        atomic_write_text(args.out, json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
