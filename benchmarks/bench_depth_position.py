@@ -37,6 +37,7 @@ import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -115,10 +116,9 @@ def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
     """Measurement 2: every seed-and-fold run in ``cv``, its held-out drapes moved."""
     from lookfeel.checkpoint import load_model
     from lookfeel.data.background_swap import pair_other_fabric
-    from lookfeel.data.images import ArrayLoader, registered_to_unit
+    from lookfeel.data.images import registered_to_unit
     from lookfeel.data.layout import scan
     from lookfeel.data.register import move_drape
-    from lookfeel.embedding import embed_items
     from lookfeel.modality import Modality
 
     catalog = scan(data, require=[Modality.DEPTH], strict=True)
@@ -164,14 +164,8 @@ def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
             "moved_to_other_fabric_post": moved(pair_other_fabric(fabric, 0)),
             "moved_to_own_fabric_post": moved(same),
         }
-        row: dict[str, object] = {"run": run_dir.name, "queries": len(items)}
-        for name, arrays in variants.items():
-            loader = ArrayLoader(
-                dc, dict(zip((it.path for it in items), arrays, strict=True)), Modality.DEPTH
-            )
-            emb = embed_items(lm.model, items, loader)
-            pixels = np.stack([a.reshape(-1) for a in arrays])
-            row[name] = {"model": _pick(emb, fabric)[0], "raw_pixels": _pick(pixels, fabric)[0]}
+        row = {"run": run_dir.name, "queries": len(items)}
+        row |= score_variants(lm, items, fabric, variants)
         out.append(row)
         print(json.dumps(row), flush=True)
     return out
@@ -191,16 +185,40 @@ def main(argv: list[str] | None = None) -> int:
     if args.cv is not None:
         result["moved_drapes"] = moved_drapes(args.cv, args.data)
     if args.out is not None:
-        from benchmarks.__main__ import machine
-        from lookfeel.atomic import atomic_write_text
-
-        result["machine"] = machine()
-        result["command"] = " ".join(
-            ["python -m benchmarks.bench_depth_position", *(argv or sys.argv[1:])]
-        )
-
-        atomic_write_text(args.out, json.dumps(result, indent=1) + "\n")
+        write_result(result, args.out, "bench_depth_position", argv)
     return 0
+
+
+def score_variants(
+    lm: Any, items: list[Any], fabric: np.ndarray, variants: dict[str, list[np.ndarray]]
+) -> dict[str, object]:
+    """Per variant (one network input per item), the run's model and raw pixels of the same
+    inputs: top-1 pick 1 of 10 exact."""
+    from lookfeel.data.images import ArrayLoader
+    from lookfeel.embedding import embed_items
+    from lookfeel.modality import Modality
+
+    scores: dict[str, object] = {}
+    for name, arrays in variants.items():
+        loader = ArrayLoader(
+            lm.config.data,
+            dict(zip((it.path for it in items), arrays, strict=True)),
+            Modality.DEPTH,
+        )
+        emb = embed_items(lm.model, items, loader)
+        pixels = np.stack([a.reshape(-1) for a in arrays])
+        scores[name] = {"model": _pick(emb, fabric)[0], "raw_pixels": _pick(pixels, fabric)[0]}
+    return scores
+
+
+def write_result(result: dict[str, object], out: Path, module: str, argv: list[str] | None) -> None:
+    """Write ``result`` to ``out`` (atomically) with the machine and the command line."""
+    from benchmarks.__main__ import machine
+    from lookfeel.atomic import atomic_write_text
+
+    result["machine"] = machine()
+    result["command"] = " ".join([f"python -m benchmarks.{module}", *(argv or sys.argv[1:])])
+    atomic_write_text(out, json.dumps(result, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.bench_depth_position import DEFAULT_DATA, _pick
+from benchmarks.bench_depth_position import DEFAULT_DATA, score_variants, write_result
 from lookfeel.data.catalog import Catalog
 
 
@@ -59,7 +59,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
     from lookfeel.checkpoint import load_model
     from lookfeel.crossval import CONTROL_SEED
     from lookfeel.data.background_swap import register_items, swap_backgrounds
-    from lookfeel.data.images import ArrayLoader, registered_to_unit
+    from lookfeel.data.images import registered_to_unit
     from lookfeel.data.register import (
         Intrinsics,
         drape_mask,
@@ -69,7 +69,6 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         registered_heights,
         registered_intrinsics,
     )
-    from lookfeel.embedding import embed_items
     from lookfeel.modality import Modality
 
     lm = load_model(run_dir / "checkpoints" / "last.pt")
@@ -137,14 +136,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         variants["swap_tilt"].append(finish(level(plane - mean), p0))
         variants["partner_room"].append(finish(top(floor_heights(i, int(sw.partner[i]))), p0))
     row: dict[str, Any] = {"run": run_dir.name, "queries": len(items)}
-    for name, arrays in variants.items():
-        loader = ArrayLoader(
-            dc, dict(zip((it.path for it in items), arrays, strict=True)), Modality.DEPTH
-        )
-        emb = embed_items(lm.model, items, loader)
-        pixels = np.stack([a.reshape(-1) for a in arrays])
-        row[name] = {"model": _pick(emb, fabric)[0], "raw_pixels": _pick(pixels, fabric)[0]}
-    return row
+    return row | score_variants(lm, items, fabric, variants)
 
 
 _VARIANTS = (
@@ -188,14 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"runs": rows, "mean": mean, "seconds": round(time.perf_counter() - started, 1)}
     print(json.dumps(mean, indent=1))
     if args.out is not None:
-        from benchmarks.__main__ import machine
-        from lookfeel.atomic import atomic_write_text
-
-        result["machine"] = machine()
-        result["command"] = " ".join(
-            ["python -m benchmarks.bench_depth_swap", *(argv or sys.argv[1:])]
-        )
-        atomic_write_text(args.out, json.dumps(result, indent=1) + "\n")
+        write_result(result, args.out, "bench_depth_swap", argv)
     return 0
 
 
