@@ -248,3 +248,20 @@ def test_position_of_the_drape_is_flagged_when_posts_moved_with_the_session(tmp_
     assert d["leak"] is True and d["position"]["post_uv"]["top1"] > 0.8
     assert d["modalities"]["depth"]["leak"] is False
     assert "two fabrics" in str(position_leakage(moved.subset([1])))
+
+
+def test_position_names_the_depth_file_it_cannot_register(tmp_path, capsys):
+    from lookfeel.cli import main
+    from lookfeel.data.leakage import position_leakage
+    from lookfeel.data.register import RegistrationError
+
+    root = _write_posts(tmp_path / "posts", moved=True, fabrics=10, drapes=2)
+    bad = root / "depth" / "F0003_Depth_New_000001.png"
+    Image.fromarray(np.zeros((40, 40), np.uint16)).save(bad)  # no reading anywhere
+    with pytest.raises(RegistrationError) as e:
+        position_leakage(scan(root), n_boot=50)
+    msg = str(e.value)
+    assert msg.startswith(f"{bad}: cannot register depth") and "\n" not in msg
+    assert main(["data", "leakage", str(root), "--position"]) != 0
+    err = capsys.readouterr().err
+    assert str(bad) in err and "Traceback" not in err
