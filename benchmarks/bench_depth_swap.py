@@ -58,12 +58,15 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
     """Every variant of the module doc for one trained run."""
     from lookfeel.checkpoint import load_model
     from lookfeel.crossval import CONTROL_SEED
-    from lookfeel.data.background_swap import register_items, swap_backgrounds
-    from lookfeel.data.images import registered_to_unit
+    from lookfeel.data.background_swap import swap_backgrounds
+    from lookfeel.data.holes import fill_holes
+    from lookfeel.data.images import decode_depth, registered_to_unit
     from lookfeel.data.register import (
         Intrinsics,
+        camera_points,
         drape_mask,
         heights_from_top,
+        kept_heights,
         move_drape,
         register_depth,
         registered_heights,
@@ -77,41 +80,39 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         raise SystemExit(f"{run_dir}: not a registered-depth run (data.depth_input)")
     items = catalog.subset(lm.split["val"]).items(Modality.DEPTH)
     fabric = np.array([it.fabric_id for it in items])
-    depth0 = register_items(items[:1]).depth[0]
-    k = registered_intrinsics(depth0.shape, dc)
-    batch = register_items(items, k, margin_mm=dc.depth_margin_mm)
-    cloth = (
-        np.stack([drape_mask(c) for c in batch.cloth]) if dc.depth_cloth == "drape" else batch.cloth
-    )
-    sw = swap_backgrounds(batch.depth, cloth, fabric, seed=CONTROL_SEED, rooms=batch.room)
     with ThreadPoolExecutor(2) as pool:
-        own = list(pool.map(lambda d: registered_heights(d, dc), batch.depth))
+        depths = list(pool.map(lambda it: decode_depth(it.path), items))
+    h_px, w_px = depths[0].shape
+    k = registered_intrinsics((h_px, w_px), dc)
+    # Each image registered once, as `registered_heights` and the background control do.
+    with ThreadPoolExecutor(2) as pool:
+        regs = list(pool.map(lambda d: register_depth(d, k, margin_mm=dc.depth_margin_mm), depths))
+    cloth = np.stack([drape_mask(r.cloth) if dc.depth_cloth == "drape" else r.cloth for r in regs])
+    filled = np.stack([fill_holes(d).astype(np.float32) for d in depths])
+    rooms = np.stack([r.room for r in regs])
+    sw = swap_backgrounds(filled, cloth, fabric, seed=CONTROL_SEED, rooms=rooms)
+    own = [(kept_heights(r, dc), r.post_uv) for r in regs]
+    # Heights above the image's own fitted floor, kept as the run keeps them but not yet
+    # measured from the drape's top: the cloth whose floor the partner's replaces.
+    plain = dataclasses.replace(dc, depth_top_mm=None)
+    own_floor = [kept_heights(r, plain) for r in regs]
+    with ThreadPoolExecutor(2) as pool:
         comp = list(pool.map(lambda d: registered_heights(d, dc), sw.images))
-        regs = list(
-            pool.map(lambda d: register_depth(d, k, margin_mm=dc.depth_margin_mm), batch.depth)
-        )
 
     def finish(h: np.ndarray, post: tuple[float, float] | None) -> np.ndarray:
         return registered_to_unit(move_drape(h.astype(np.float32), post, dc.depth_post_at), dc)
 
-    # Heights above the image's own fitted floor, kept as the run keeps them but not yet
-    # measured from the drape's top: the cloth whose floor the partner's replaces.
-    plain = dataclasses.replace(dc, depth_top_mm=None)
-    with ThreadPoolExecutor(2) as pool:
-        own_floor = [h for h, _ in pool.map(lambda d: registered_heights(d, plain), batch.depth)]
-    h_px, w_px = depth0.shape
     intr = k if k is not None else Intrinsics.gelfabric(w_px, h_px)
-    vg, ug = np.mgrid[0:h_px, 0:w_px].astype(np.float64)
 
     def floor_heights(i: int, j: int) -> np.ndarray:
         """Image i's cloth as the run keeps it, its heights above image j's floor as fitted
-        on image j."""
+        on image j (image i's own floor when image j has none)."""
         floor = regs[j].plane("floor") or regs[i].plane("floor")
         if floor is None:  # neither image has a floor: the run's own heights
             return own_floor[i]
-        z = batch.depth[i].astype(np.float64)
-        pts = np.stack([(ug - intr.cx) / intr.f * z, (vg - intr.cy) / intr.f * z, z], -1)
-        height = floor.distance - pts @ np.asarray(floor.normal)
+        height = floor.distance - camera_points(filled[i].astype(np.float64), intr) @ np.asarray(
+            floor.normal
+        )
         return np.where(own_floor[i] > 0, np.maximum(height, 0.1), 0.0).astype(np.float32)
 
     def top(h: np.ndarray) -> np.ndarray:

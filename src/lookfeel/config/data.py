@@ -90,9 +90,9 @@ class DataConfig:
     of the drape's top rows (where the post holds it), at least 1 mm on the cloth. The fitted
     floor's *distance* then plays no part, only its orientation (which way is up): that
     distance is the noisiest part of the fit (about 8 mm within one GelFabric session) and
-    differs between sessions, so it tells sessions apart (docs/results/real-depth.md, "Heights
-    from the drape's top"). GelFabric's drape tops lie about 256 mm above the floor. ``None``:
-    heights above the fitted floor."""
+    differs between sessions, so it tells sessions apart (docs/results/real-depth.md, "What the
+    background swap still changes, and heights from the drape's top"). GelFabric's drape tops
+    lie about 256 mm above the floor. ``None``: heights above the fitted floor."""
     depth_post_at: tuple[float, float] | None = None
     """Registered input: move the drape so that its top (where the post holds it,
     `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the

@@ -384,6 +384,14 @@ def _top1(
     return float(res.mean[0]), (float(lo), float(hi)), float(res.chance[0])
 
 
+def _too_few(fabric: NDArray[np.int64]) -> str | None:
+    """Why images of these fabrics cannot be scored by pick 1 of 10, or None."""
+    ids, counts = np.unique(fabric, return_counts=True)
+    if len(ids) < 2 or not (counts >= 2).any():
+        return "needs two fabrics, one of them with two or more images"
+    return None
+
+
 def _score_modality(
     catalog: Catalog,
     modality: Modality,
@@ -398,9 +406,10 @@ def _score_modality(
 ) -> ModalityLeakage | str:
     items = catalog.items(modality)
     fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
-    ids, counts = np.unique(fabric, return_counts=True)
-    if (counts >= 2).sum() < 1 or len(ids) < 2:
-        return "needs two fabrics, one of them with two or more images"
+    too_few = _too_few(fabric)
+    if too_few:
+        return too_few
+    ids = np.unique(fabric)
     try:
         stack, shape, k = load_pooled(items, pool, workers)
     except ImageError as e:
@@ -479,11 +488,9 @@ def position_leakage(
 
     items = catalog.items(Modality.DEPTH)
     fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
-    if (
-        len(np.unique(fabric)) < 2
-        or np.bincount(np.unique(fabric, return_inverse=True)[1]).max() < 2
-    ):
-        return "needs depth images of two fabrics, one of them with two or more images"
+    too_few = _too_few(fabric)
+    if too_few:
+        return too_few
     cfg = config if config is not None else DataConfig(depth_input="registered")
 
     def one(it: Item) -> tuple[tuple[int, int], list[float]]:

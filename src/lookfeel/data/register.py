@@ -52,8 +52,10 @@ __all__ = [
     "Plane",
     "Registration",
     "RegistrationError",
+    "camera_points",
     "drape_mask",
     "heights_from_top",
+    "kept_heights",
     "move_drape",
     "register_depth",
     "registered_heights",
@@ -372,7 +374,7 @@ def register_depth(
         sizes = np.bincount(lab.ravel())
         cloth &= sizes[lab] >= blob
     # Metric geometry: each pixel's 3-D point, its distance in front of each plane.
-    pts = np.stack([(ug - k.cx) / k.f * z_full, (vg - k.cy) / k.f * z_full, z_full], axis=-1)
+    pts = camera_points(z_full, k)
     gaps = np.stack([dist - pts @ np.asarray(n) for n, dist in metric])  # (P, H, W)
     clearance = np.where(cloth, gaps.min(axis=0), 0.0)
     floor = [i for i, lab_ in enumerate(labels) if lab_ == "floor"]
@@ -404,6 +406,14 @@ def drape_mask(cloth: NDArray[np.bool_]) -> NDArray[np.bool_]:
     return np.asarray(lab == int(np.argmax(sizes)))
 
 
+def camera_points(z_mm: F64, k: Intrinsics) -> F64:
+    """(H, W, 3) each pixel's point in the camera frame (mm; x right, y down, z forward)
+    from its depth ``z_mm`` (H, W)."""
+    h, w = z_mm.shape
+    vg, ug = np.mgrid[0:h, 0:w].astype(np.float64)
+    return np.stack([(ug - k.cx) / k.f * z_mm, (vg - k.cy) / k.f * z_mm, z_mm], axis=-1)
+
+
 def registered_intrinsics(shape: tuple[int, ...], config: DataConfig) -> Intrinsics | None:
     """The camera of ``config.depth_focal_px`` for an image of ``shape`` (principal point at
     its centre); ``None`` (GelFabric's, scaled) when it is not set."""
@@ -432,6 +442,12 @@ def registered_heights(
     reg = register_depth(
         d, registered_intrinsics(d.shape, config), margin_mm=config.depth_margin_mm
     )
+    return kept_heights(reg, config), reg.post_uv
+
+
+def kept_heights(reg: Registration, config: DataConfig) -> F32:
+    """`registered_heights` of an image already registered (``reg``, registered with
+    ``config``'s margin and camera): the cloth kept and measured as ``config`` says."""
     height = reg.height
     if config.depth_cloth == "drape":
         height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
@@ -439,7 +455,7 @@ def registered_heights(
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
     if config.depth_top_mm is not None:
         height = heights_from_top(height, config.depth_top_mm)
-    return height.astype(np.float32, copy=False), reg.post_uv
+    return height.astype(np.float32, copy=False)
 
 
 def heights_from_top(height: F32, top_mm: float) -> F32:
@@ -477,7 +493,8 @@ def move_drape(
 
 
 def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
-    """The registered training input of one depth image: (H, W) mm above the fitted floor.
+    """The registered training input of one depth image: (H, W) mm, the cloth's height
+    above the fitted floor (with ``depth_top_mm``, below the drape's top set to it).
 
     `registered_heights`, then with ``depth_post_at`` the drape moved so that its top lies
     at that fraction of the image (`move_drape`).
