@@ -12,6 +12,7 @@ from lookfeel.data.register import (
     RegistrationError,
     _post,
     register_depth,
+    register_in_room,
 )
 
 from ._scene import Scene
@@ -138,6 +139,32 @@ def test_deterministic_and_errors():
         register_depth(np.zeros((16, 16), np.uint16))
     with pytest.raises(RegistrationError, match="2-D"):
         register_depth(np.ones((2, 16, 16), np.uint16))
+
+
+def test_registered_in_its_own_room_is_the_registration_and_in_another_is_measured_from_it():
+    """`register_in_room`: with the image's own fitted planes it is `register_depth`; with the
+    planes fitted in another session whose camera stood 5 mm higher, the cloth stays cloth
+    (but for what lies within the margin and 5 mm of the floor) and every height is measured
+    from that session's floor, 5 mm further from this camera."""
+    d = BASE.render()["depth"]
+    own = register_depth(d, BASE.intrinsics)
+    again = register_in_room(d, own.planes, BASE.intrinsics)
+    for field in ("room", "cloth", "height", "clearance"):
+        assert np.array_equal(getattr(own, field), getattr(again, field)), field
+    assert again.post_uv == own.post_uv and again.residual_mm == own.residual_mm
+    higher = dataclasses.replace(BASE, eye=(0.0, -700.0, 565.0), target=(0.0, 300.0, 85.0))
+    higher = higher.render()["depth"]
+    other = register_depth(higher, BASE.intrinsics)
+    moved = register_in_room(d, other.planes, BASE.intrinsics)
+    changed = moved.cloth != own.cloth  # only cloth lying within the margin + 5 mm of the floor
+    assert changed.mean() < 0.05
+    assert (np.maximum(moved.height, own.height)[changed] < 15.0 + 5.0 + 3.0).all()
+    both = moved.cloth & own.cloth
+    assert np.median((moved.height - own.height)[both]) == pytest.approx(5.0, abs=1.0)
+    with pytest.raises(RegistrationError, match="no room plane"):
+        register_in_room(d, (), BASE.intrinsics)
+    with pytest.raises(RegistrationError, match="2-D"):
+        register_in_room(d[None], own.planes)
 
 
 def test_gelfabric_intrinsics_scale_with_the_image():

@@ -58,6 +58,7 @@ __all__ = [
     "kept_heights",
     "move_drape",
     "register_depth",
+    "register_in_room",
     "registered_heights",
     "registered_input",
     "registered_intrinsics",
@@ -361,6 +362,64 @@ def register_depth(
         )
         for (c, frac), (n, dist), lab in zip(found, metric, labels, strict=True)
     )
+    return _in_room(z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step)
+
+
+def register_in_room(
+    depth_mm: NDArray[np.generic],
+    planes: tuple[Plane, ...],
+    intrinsics: Intrinsics | None = None,
+    *,
+    margin_mm: float = 15.0,
+    inlier_mm: float = 8.0,
+    min_blob: int | None = None,
+    open_px: int | None = None,
+    stride: int | None = None,
+) -> Registration:
+    """Steps 2 and 3 of the module doc for a room already fitted: the cloth of ``depth_mm``
+    and its heights relative to ``planes``, with no fit of its own.
+
+    `register_depth` calls it with the planes it fitted on the same image. Given the planes
+    fitted on *another* image of the same camera (`Registration.planes`), it registers this
+    image as if it had been taken in that image's room: the room control of ``lookfeel cv``
+    (`lookfeel.data.background_swap.BackgroundControl.room_loader`).
+
+    Args:
+        depth_mm: (H, W) depth in millimetres, 0 where the sensor had no reading.
+        planes: the room (at least one plane), in this image's pixel grid.
+        intrinsics, margin_mm, inlier_mm, min_blob, open_px, stride: as `register_depth`.
+            ``intrinsics`` only sets the cloth's 3-D points; the planes' normals and distances
+            are used as given.
+
+    Raises:
+        RegistrationError: the image is not 2-D or ``planes`` is empty.
+    """
+    d = np.asarray(depth_mm)
+    if d.ndim != 2:
+        raise RegistrationError(f"depth image must be 2-D (H, W); got shape {d.shape}")
+    if not planes:
+        raise RegistrationError("no room plane to register against")
+    h, w = d.shape
+    k = intrinsics or Intrinsics.gelfabric(w, h)
+    step = max(1, round(max(h, w) / 64)) if stride is None else stride
+    z_full = fill_holes(d).astype(np.float64)
+    return _in_room(z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step)
+
+
+def _in_room(
+    z_full: F64,
+    planes: tuple[Plane, ...],
+    k: Intrinsics,
+    margin_mm: float,
+    inlier_mm: float,
+    min_blob: int | None,
+    open_px: int | None,
+    step: int,
+) -> Registration:
+    """`register_in_room` of a depth image whose holes are filled (``z_full``, mm)."""
+    h, w = z_full.shape
+    vg, ug = np.mgrid[0:h, 0:w].astype(np.float64)
+    sub = (slice(None, None, step), slice(None, None, step))
     room = np.min([p.depth(ug, vg) for p in planes], axis=0)
     in_front = room - z_full
     cloth = np.isfinite(room) & (in_front > margin_mm)
@@ -375,9 +434,9 @@ def register_depth(
         cloth &= sizes[lab] >= blob
     # Metric geometry: each pixel's 3-D point, its distance in front of each plane.
     pts = camera_points(z_full, k)
-    gaps = np.stack([dist - pts @ np.asarray(n) for n, dist in metric])  # (P, H, W)
+    gaps = np.stack([p.distance - pts @ np.asarray(p.normal) for p in planes])  # (P, H, W)
     clearance = np.where(cloth, gaps.min(axis=0), 0.0)
-    floor = [i for i, lab_ in enumerate(labels) if lab_ == "floor"]
+    floor = [i for i, p in enumerate(planes) if p.label == "floor"]
     height = np.where(cloth, gaps[floor[0]], 0.0) if floor else clearance
     resid = -in_front[sub].ravel()
     inl = np.abs(resid) < inlier_mm
