@@ -214,3 +214,35 @@ def test_background_control_in_cv_and_evaluate(
     assert not any(k.endswith("_swapped") for k in plain.metrics)
 
     capsys.readouterr()
+
+
+@pytest.mark.filterwarnings("ignore:pick 10")
+def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path, tmp_path: Path):
+    """Registered depth gets the room control beside the swap: its keys (model, label space,
+    raw pixels) in cv.json and cv.md, in metrics.json and report.md; raw depth does not."""
+    from lookfeel.evaluate import evaluate_checkpoint, write_report
+
+    registered = ["data.depth_input=registered", "data.depth_focal_px=45.0"]
+    config = load_config(
+        RunConfig, TINY, [*OVERRIDES, "train.steps=2", "train.split_seed=1", *registered]
+    )
+    summary = cross_validate(config, leaky_depth, tmp_path / "cv", folds=[0], n_boot=20)
+    pair = summary["pairs"]["depth_to_depth"]
+    for key in ("model_room_top1", "model_labels_room_top1", "raw_pixels_room_top1"):
+        low, high = pair[key]["ci95"]
+        assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
+    md = (tmp_path / "cv" / "cv.md").read_text()
+    assert "model top-1, in another fabric's room" in md
+    assert "label space top-1, in another fabric's room" in md
+    ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
+    result = evaluate_checkpoint(ckpt, leaky_depth, "val", EvalConfig(n_boot=20))
+    m = result.metrics
+    for key in ("depth_to_depth_top1_room", "depth_to_depth_raw_pixels_top1_room"):
+        assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
+    report = (write_report(result, tmp_path / "eval").report).read_text()
+    assert "model, in another fabric's room" in report
+    raw = load_config(RunConfig, TINY, [*OVERRIDES, "train.steps=2", "train.split_seed=1"])
+    raw_summary = cross_validate(raw, leaky_depth, tmp_path / "raw", folds=[0], n_boot=20)
+    assert "model_room_top1" not in raw_summary["pairs"]["depth_to_depth"]
+    raw_md = (tmp_path / "raw" / "cv.md").read_text()
+    assert "another fabric's room" not in raw_md and "background swapped" in raw_md

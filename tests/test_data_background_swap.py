@@ -119,3 +119,63 @@ def test_background_control_exposes_the_planted_room_leak_and_not_registered_dep
     # GelFabric.
     assert np.abs(reg - swapped_reg).mean() < 0.2 * np.abs(raw - swapped_raw).mean()
     assert _top1(reg, fab) < 0.4 and _top1(swapped_reg, fab) < 0.4
+
+
+def _two_sessions(root, size: int = 48):
+    """Fabric 1's drapes taken with the camera 5 mm lower than fabric 2's (two sessions of
+    one room); each fabric's drapes differ in where the cloth lies."""
+    import dataclasses
+
+    from PIL import Image
+
+    from ._scene import Scene
+
+    (root / "depth").mkdir(parents=True)
+    base = Scene(size=size, f=90.0 * size / 64, spread_mm=90.0, panel_x=330.0)
+    for fabric, lift in ((1, 0.0), (2, 5.0)):
+        for k in range(2):
+            scene = dataclasses.replace(
+                base,
+                eye=(0.0, -700.0, 560.0 + lift),
+                target=(0.0, 300.0, 80.0 + lift),
+                cloth_offset=(30.0 * k - 15.0, 0.0),
+                seed=10 * fabric + k,
+            )
+            name = f"F{fabric:04d}_Depth_New_{k:06d}.png"
+            Image.fromarray(scene.render()["depth"]).save(root / "depth" / name)
+    (root / "labels.csv").write_text("fabric_id,thickness_mm\n1,0.5\n2,1.0\n")
+    return root, base.f
+
+
+def test_room_control_measures_the_cloth_from_the_partners_floor(tmp_path):
+    """Registered depth: each image registered in its partner's fitted room (the other
+    session's, 5 mm further from this camera's floor) keeps its cloth and is 5 mm higher, or
+    lower; heights measured from the drape's top do not move; raw depth has no room control."""
+    import dataclasses
+
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader, scan
+    from lookfeel.data.background_swap import BackgroundControl
+    from lookfeel.modality import Modality
+
+    root, focal = _two_sessions(tmp_path / "data")
+    items = scan(root).items(Modality.DEPTH)
+    config = DataConfig(image_size=48, depth_input="registered", depth_focal_px=focal)
+    for top, expected in ((None, 5.0), (250.0, 0.0)):
+        cfg = dataclasses.replace(config, depth_top_mm=top)
+        control = BackgroundControl(cfg, seed=0)
+        assert control.has_room_control
+        rooms = control.room_arrays(items)
+        assert control.room_arrays(items) is rooms  # kept, not redone
+        loader = ImageLoader(cfg)
+        for it in items:
+            own, moved = loader.array(it.path, Modality.DEPTH), rooms[it.path]
+            both = (own > 0.05) & (moved > 0.05)  # cloth in both, off its rim
+            assert both.sum() > 0.9 * (own > 0.05).sum()
+            sign = 1.0 if it.fabric_id == 1 else -1.0  # fabric 2's floor is 5 mm nearer
+            shift_mm = float(np.median((moved - own)[both])) * cfg.depth_range_mm
+            assert shift_mm == pytest.approx(sign * expected, abs=1.0), (it.path.name, top)
+    raw = BackgroundControl(DataConfig(image_size=48), seed=0)
+    assert not raw.has_room_control
+    with pytest.raises(LookfeelError, match="not registered"):
+        raw.room_arrays(items)

@@ -13,7 +13,10 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
   cloth kept (`lookfeel.data.background_swap.BackgroundControl`), for the model and for raw pixels
   (``model_swapped_top1``, ``raw_pixels_swapped_top1`` ...). A model that reads the cloth, not
   the room, scores the same; one that reads the capture session drops. When the rooms cannot
-  be fitted the control is skipped and the summary says why (``background_control``);
+  be fitted the control is skipped and the summary says why (``background_control``). For
+  registered depth also the **room control**: every depth image registered against the room
+  fitted on its partner's own image, with no refit of a composite (``model_room_top1``,
+  ``raw_pixels_room_top1`` ...): another session's registration of the same cloth;
 - for touch recorded as press videos, the **untouched control** (always on): the same queries
   with every press replaced by a moment of its video with no contact
   (`lookfeel.data.touch_control.UntouchedControl`; ``model_untouched_top1``,
@@ -89,6 +92,9 @@ _METHODS = (
     "raw_pixels",
     "model_swapped",
     "raw_pixels_swapped",
+    "model_room",
+    "model_labels_room",
+    "raw_pixels_room",
     "model_untouched",
     "raw_pixels_untouched",
 )
@@ -184,10 +190,11 @@ def _score(
     property probes fitted on ``seen_ids``' items (none when it is empty). ``loader`` must
     preprocess as the model's config says; it keeps its decoded images for the next call.
     With ``control`` (made with the same data config) and depth among the pairs, also the
-    background-swapped scores (``*_swapped``), or ``background_control_skipped`` saying why
-    not. Press videos are also scored untouched (``*_untouched``), with ``untouched`` if given
-    (made with the same data config, it keeps its images for the next call). With labels and
-    training fabrics, also matched in label space (``model_labels``)."""
+    background-swapped scores (``*_swapped``) and, for registered depth, the room control's
+    (``*_room``), or ``background_control_skipped`` saying why not. Press videos are also
+    scored untouched (``*_untouched``), with ``untouched`` if given (made with the same data
+    config, it keeps its images for the next call). With labels and training fabrics, also
+    matched in label space (``model_labels``)."""
     cfg = lm.config
     held = catalog.subset(held_ids)
     seen = catalog.subset(seen_ids) if seen_ids else None
@@ -238,6 +245,16 @@ def _score(
                 swap_mapped = [p for p in mapped if p in depth_pairs]
                 others["model_labels_swapped"] = _pick(lab_sw, fab, swap_mapped)
             others["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
+            if control.has_room_control:  # registered in the partner's room, not refitted
+                rm = control.room_loader(items)
+                emb_rm = emb | {Modality.DEPTH: embed_items(lm.model, items, rm, flip=tta)}
+                pix_rm = pix | {Modality.DEPTH: raw_pixels(items, rm)}
+                others["model_room"] = _pick(emb_rm, fab, depth_pairs)
+                if mapped:
+                    lab_rm = {m: s.project(emb_rm[m]) for m, s in spaces.items()}
+                    room_mapped = [p for p in mapped if p in depth_pairs]
+                    others["model_labels_room"] = _pick(lab_rm, fab, room_mapped)
+                others["raw_pixels_room"] = _pick(pix_rm, fab, [p for p in depth_pairs if p.same])
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
     if UntouchedControl.applies(touch_items):
@@ -532,42 +549,66 @@ def _pair_table(
     return lines
 
 
+def _has(summary: dict[str, Any], key: str) -> bool:
+    """Whether any pair of the summary has ``key``."""
+    return any(key in e for e in summary["pairs"].values())
+
+
 def _control_lines(summary: dict[str, Any]) -> list[str]:
-    """The background control's table (model and raw pixels, as they are and swapped)."""
+    """The background control's table (model and raw pixels, as they are, swapped and, for
+    registered depth, in another fabric's room)."""
     status = summary.get("background_control") or {}
     if status.get("skipped"):
         return ["", f"Background control: skipped ({status['skipped']})."]
-    return _pair_table(
-        summary,
+    room = _has(summary, "model_room_top1")
+    intro = (
         "Background control: the same queries with every depth image's background replaced "
         "by another fabric's (the cloth kept). A model that reads the cloth, not the room, "
-        "scores the same.",
-        (
-            ("model top-1", "model_top1"),
-            ("model top-1, background swapped", "model_swapped_top1"),
-            ("raw pixels top-1", "raw_pixels_top1"),
-            ("raw pixels top-1, background swapped", "raw_pixels_swapped_top1"),
-        ),
-        chance=False,
+        "scores the same."
     )
+    if room:
+        intro += (
+            " Room control (registered depth): each depth image registered, as it was taken, "
+            "against the room fitted on that other fabric's own image, nothing refitted: "
+            "another session's registration of the same cloth (where the rooms differ by "
+            "more than the margin, room becomes cloth or cloth is lost)."
+        )
+    columns = [
+        ("model top-1", "model_top1"),
+        ("model top-1, background swapped", "model_swapped_top1"),
+        ("model top-1, in another fabric's room", "model_room_top1"),
+        ("raw pixels top-1", "raw_pixels_top1"),
+        ("raw pixels top-1, background swapped", "raw_pixels_swapped_top1"),
+        ("raw pixels top-1, in another fabric's room", "raw_pixels_room_top1"),
+    ]
+    if not room:
+        columns = [c for c in columns if not c[1].endswith("_room_top1")]
+    return _pair_table(summary, intro, tuple(columns), chance=False)
 
 
 def _label_space_lines(summary: dict[str, Any]) -> list[str]:
     """The table of matching in label space beside matching in the embedding."""
+    columns = [
+        ("model top-1", "model_top1"),
+        ("label space top-1", "model_labels_top1"),
+        ("label space top-1, background swapped", "model_labels_swapped_top1"),
+        ("label space top-1, in another fabric's room", "model_labels_room_top1"),
+        ("model top-3", "model_top3"),
+        ("label space top-3", "model_labels_top3"),
+    ]
+    room = _has(summary, "model_labels_room_top1")
+    also = " (and registered in another fabric's room)" if room else ""
+    if not room:
+        columns = [c for c in columns if c[1] != "model_labels_room_top1"]
     return _pair_table(
         summary,
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
         "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
         "run's training fabrics only, and a query matched to the gallery item whose predicted "
         "labels are nearest; for pairs with depth also with every depth image's background "
-        "swapped (as in the background control below).",
-        (
-            ("model top-1", "model_top1"),
-            ("label space top-1", "model_labels_top1"),
-            ("label space top-1, background swapped", "model_labels_swapped_top1"),
-            ("model top-3", "model_top3"),
-            ("label space top-3", "model_labels_top3"),
-        ),
+        f"swapped{also}, as in the "
+        "background control below.",
+        tuple(columns),
     )
 
 
@@ -706,6 +747,8 @@ def cross_validate(
             key = {"config": _result_config(cfg), "tta": tta, "pairs": pairs}
             if control is not None:
                 key["background_control"] = CONTROL_SEED
+                if control.has_room_control:
+                    key["room_control"] = True
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
             if saved is not None and saved.get("key") == key:
                 log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
@@ -738,6 +781,7 @@ def cross_validate(
                 for method, name in (
                     ("model_labels", "label space"),
                     ("model_swapped", "background swapped"),
+                    ("model_room", "in another's room"),
                 )
                 if method in first
             )

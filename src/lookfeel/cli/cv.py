@@ -7,9 +7,11 @@ raw-pixel nearest neighbour and chance, and predict the physical labels of held-
 their embeddings. For a depth model the background control is on by default: the same queries
 are scored again with every depth image's background (room, wall, floor) replaced by another
 fabric's and the cloth kept, for the model and for raw pixels, side by side; a model that
-reads the cloth scores the same, one that reads the capture session drops
-(--no-background-control turns it off). Writes OUT/cv.json, OUT/cv.md and a run per fold and
-seed (OUT/seed{S}-fold{F}); a rerun keeps finished runs and resumes an interrupted one.
+reads the cloth scores the same, one that reads the capture session drops. Registered depth
+also gets the room control: each image registered against the room fitted on that other
+fabric's own image, nothing refitted (--no-background-control turns both off). Writes
+OUT/cv.json, OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps
+finished runs and resumes an interrupted one.
 """
 
 from __future__ import annotations
@@ -53,8 +55,9 @@ def add_parser(subparsers: Subparsers) -> None:
         dest="background_control",
         action="store_false",
         help="skip the background control (on by default for depth: held-out depth images "
-        "scored again with another fabric's background, cloth kept; registers each held-out "
-        "image, about 0.2 s each, once per fold)",
+        "scored again with another fabric's background, cloth kept, and registered depth also "
+        "in another fabric's fitted room; registers each held-out image, about 0.2 s each, "
+        "once per fold)",
     )
 
 

@@ -9,7 +9,8 @@ held-out items, c and probes fitted on its training items; train; novel (a seen 
 fabrics); paper (the paper's 18 test fabrics); all. For a checkpoint with a depth branch the
 background control is on by default: every pair with depth is scored again with each test
 depth image's background replaced by another fabric's (cloth kept), beside raw pixels, and
-both numbers are printed and reported side by side (--no-background-control turns it off).
+both numbers are printed and reported side by side; registered depth is also scored with each
+image registered in that other fabric's fitted room (--no-background-control turns both off).
 """
 
 from __future__ import annotations
@@ -53,8 +54,9 @@ def add_parser(subparsers: Subparsers) -> None:
         dest="background_control",
         action="store_false",
         help="skip the background control (on by default for a depth model: test depth "
-        "images scored again with another fabric's background, cloth kept; registers each "
-        "test depth image, about 0.2 s each)",
+        "images scored again with another fabric's background, cloth kept, and registered "
+        "depth also in another fabric's fitted room; registers each test depth image, about "
+        "0.2 s each)",
     )
     add_forward(ev)
 
@@ -100,6 +102,8 @@ def run(args: argparse.Namespace) -> int:
         chance = m.get(f"{pair}_top{k}_chance", float("nan"))
         swapped = m.get(f"{pair}_top{k}_swapped")
         control = "" if swapped is None else f"  background swapped {swapped:.3f}"
+        room = m.get(f"{pair}_top{k}_room")
+        control += "" if room is None else f", in another fabric's room {room:.3f}"
         print(f"  {pair:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}{control}")
     print(f"Wrote {files.metrics}, {files.report} and {len(files.figures)} figures")
     return 0

@@ -14,6 +14,18 @@ is swapped). `swap_backgrounds` builds the swapped batch from cloth masks (from
 So no pixel of the output comes from ``i``'s background or from any cloth but ``i``'s.
 `register_items` decodes and registers depth files into the masks and rooms this needs.
 
+Registered depth (``data.depth_input: registered``) never shows the room to the network; the
+swap reaches it only through registering the composite image again, which fits a room to an
+image no camera saw (this cloth on its own floor, in front of the partner's walls). So for
+registered runs there is a second control, the **room control**: image ``i`` is registered, as
+it was taken, against the room fitted on its partner ``j``'s own image (`register_in_room` with
+``j``'s planes; the same partner as the swap), with no fit on a composite. What registration
+takes from the room (the floor's tilt, which pixels are cloth, where the drape's top is) then
+comes from another session's fit. It is not a capture either: where the two sessions' rooms
+differ by more than the margin, room pixels become cloth or cloth is lost, as a registration
+error of that size would do. A model that reads the drape's shape alone loses only what those
+pixels change; raw pixels of the same images show how much that is.
+
 `BackgroundControl` applies this to a run's depth items as ``lookfeel cv`` and ``lookfeel
 evaluate`` score them: each file is decoded and registered (`lookfeel.data.register`; cloth
 as the run's ``data.depth_cloth`` says), the backgrounds are swapped in millimetres, and each
@@ -42,12 +54,17 @@ from lookfeel.data.images import (
     decode_depth,
     fill_holes,
     preprocess_depth,
+    registered_to_unit,
 )
 from lookfeel.data.register import (
     Intrinsics,
+    Plane,
     RegistrationError,
     drape_mask,
+    kept_heights,
+    move_drape,
     register_depth,
+    register_in_room,
     registered_intrinsics,
 )
 from lookfeel.errors import LookfeelError
@@ -170,22 +187,30 @@ class BackgroundControl:
             registration settings).
         seed: seeds the pairing of each image with another fabric's (`pair_other_fabric`).
 
-    Registrations and swapped arrays are kept, so scoring the same items again (another
+    Registrations and control arrays are kept, so scoring the same items again (another
     training seed of the same fold) costs nothing.
 
     Example:
         >>> control = BackgroundControl(lm.config.data)
         >>> swapped = control.loader(items)  # embed_items(model, items, swapped)
+        >>> in_other_rooms = control.room_loader(items)  # registered runs only
     """
 
     def __init__(self, config: DataConfig, seed: int = 0) -> None:
         self.config = config
         self.seed = seed
-        self._scenes: dict[Path, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._scenes: dict[Path, tuple[np.ndarray, np.ndarray, np.ndarray, tuple[Plane, ...]]] = {}
         self._swapped: dict[tuple[Path, ...], dict[Path, np.ndarray]] = {}
+        self._rooms: dict[tuple[Path, ...], dict[Path, np.ndarray]] = {}
 
-    def _scene(self, item: Item) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(depth mm with holes filled, cloth mask, fitted room mm) of one depth file."""
+    @property
+    def has_room_control(self) -> bool:
+        """Whether `room_loader` applies: the run registers its depth."""
+        return self.config.depth_input == "registered"
+
+    def _scene(self, item: Item) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[Plane, ...]]:
+        """(depth mm with holes filled, cloth mask, fitted room mm, room planes) of one depth
+        file."""
         got = self._scenes.get(item.path)
         if got is None:
             d = decode_depth(item.path)
@@ -198,9 +223,29 @@ class BackgroundControl:
             except RegistrationError as e:
                 raise RegistrationError(f"{item.path}: background control: {e}") from None
             cloth = drape_mask(reg.cloth) if self.config.depth_cloth == "drape" else reg.cloth
-            got = (fill_holes(d).astype(np.float32), cloth, reg.room)
+            got = (fill_holes(d).astype(np.float32), cloth, reg.room, reg.planes)
             self._scenes[item.path] = got
         return got
+
+    def _scenes_of(
+        self, items: Sequence[Item]
+    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[Plane, ...]]]:
+        """`_scene` of every item (in threads), all of one size.
+
+        Raises:
+            LookfeelError: images of different sizes, or a file whose room cannot be fitted
+                (named).
+        """
+        with ThreadPoolExecutor(max(1, self.config.workers)) as pool:
+            scenes = list(pool.map(self._scene, items))
+        first = scenes[0][0].shape if scenes else None
+        for it, s in zip(items, scenes, strict=True):
+            if s[0].shape != first:
+                raise LookfeelError(
+                    f"{it.path}: background control needs depth images of one size; this one "
+                    f"is {s[0].shape}, the first {first}"
+                )
+        return scenes
 
     def arrays(self, items: Sequence[Item]) -> dict[Path, np.ndarray]:
         """Each depth item's swapped image, preprocessed (file -> (S, S) float32).
@@ -213,16 +258,7 @@ class BackgroundControl:
         if key in self._swapped:
             return self._swapped[key]
         workers = max(1, self.config.workers)
-        with ThreadPoolExecutor(workers) as pool:
-            scenes = list(pool.map(self._scene, items))
-        shapes = {s[0].shape for s in scenes}
-        if len(shapes) > 1:
-            first = scenes[0][0].shape
-            odd = next(it.path for it, s in zip(items, scenes, strict=True) if s[0].shape != first)
-            raise LookfeelError(
-                f"{odd}: background control needs depth images of one size; this one is "
-                f"{scenes[[it.path for it in items].index(odd)][0].shape}, the first {first}"
-            )
+        scenes = self._scenes_of(items)
         fab = np.array([it.fabric_id for it in items], dtype=np.int64)
         out = swap_backgrounds(
             np.stack([s[0] for s in scenes]),
@@ -249,6 +285,48 @@ class BackgroundControl:
     def loader(self, items: Sequence[Item]) -> ImageLoader:
         """A loader serving ``items``' swapped images in place of their files (module doc)."""
         return ArrayLoader(self.config, self.arrays(items), Modality.DEPTH)
+
+    def room_arrays(self, items: Sequence[Item]) -> dict[Path, np.ndarray]:
+        """The room control (module doc): each depth item registered in the room fitted on its
+        partner's own image (the partner `arrays` swaps in), then kept, moved and mapped as
+        the run's config says (file -> (S, S) float32).
+
+        Raises:
+            LookfeelError: the run does not register its depth, fewer than two fabrics, images
+                of different sizes, or a file whose room cannot be fitted (named).
+        """
+        if not self.has_room_control:
+            raise LookfeelError(
+                "room control: the run's depth is not registered (data.depth_input: "
+                f"{self.config.depth_input}); use the background swap"
+            )
+        key = tuple(it.path for it in items)
+        if key in self._rooms:
+            return self._rooms[key]
+        scenes = self._scenes_of(items)
+        fab = np.array([it.fabric_id for it in items], dtype=np.int64)
+        partner = pair_other_fabric(fab, self.seed)
+        cfg = self.config
+
+        def prep(i: int) -> np.ndarray:
+            depth = scenes[i][0]
+            reg = register_in_room(
+                depth,
+                scenes[int(partner[i])][3],
+                registered_intrinsics(depth.shape, cfg),
+                margin_mm=cfg.depth_margin_mm,
+            )
+            height = move_drape(kept_heights(reg, cfg), reg.post_uv, cfg.depth_post_at)
+            return registered_to_unit(height, cfg)
+
+        with ThreadPoolExecutor(max(1, cfg.workers)) as pool:
+            arrays = dict(zip(key, pool.map(prep, range(len(items))), strict=True))
+        self._rooms[key] = arrays
+        return arrays
+
+    def room_loader(self, items: Sequence[Item]) -> ImageLoader:
+        """A loader serving `room_arrays` in place of ``items``' files."""
+        return ArrayLoader(self.config, self.room_arrays(items), Modality.DEPTH)
 
 
 @dataclass(frozen=True)

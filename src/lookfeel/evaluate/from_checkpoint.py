@@ -17,8 +17,10 @@ replaced by another fabric's, the cloth kept (`lookfeel.data.background_swap`), 
 are embedded again and every pair with depth is scored again by the exact pick, beside the
 raw-pixel nearest neighbour on the same images (depth to depth). Keys:
 ``{pair}_top{k}_swapped`` (+ ``_ci_low``/``_ci_high``), ``depth_to_depth_raw_pixels_top{k}``
-and ``depth_to_depth_raw_pixels_top{k}_swapped``. Touch queries are single presses there
-(pairs whose main keys pool several presses are skipped, with a note).
+and ``depth_to_depth_raw_pixels_top{k}_swapped``. For registered depth also the **room
+control** (`BackgroundControl.room_loader`: each test depth image registered in the room fitted
+on its partner's own image, no refit of a composite), keys ``..._room``. Touch queries are
+single presses there (pairs whose main keys pool several presses are skipped, with a note).
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
 from lookfeel.errors import LookfeelError
-from lookfeel.metrics import ScoringProtocol, score_pairs
+from lookfeel.metrics import PairScore, ScoringProtocol, score_pairs
 from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.models import BranchEnsemble, Embedder
@@ -371,14 +373,17 @@ def _background_control(
     pairs = [p for p in pairs if p not in pooled]
     depth = emb.embedded[Modality.DEPTH]
     control = BackgroundControl(loaded.config.data, cfg.seed)
+    items = list(depth.items)
+    variants: dict[str, ImageLoader] = {}
     try:
-        swapped = control.loader(depth.items)
+        variants["_swapped"] = control.loader(items)
+        if control.has_room_control:
+            variants["_room"] = control.room_loader(items)
     except LookfeelError as e:
         return {}, [*notes, f"background control skipped: {e}"]
-    items = list(depth.items)
     fab = {m: np.asarray(e.fabric_ids, dtype=np.int64) for m, e in emb.embedded.items()}
     vecs = {m: np.asarray(e.embeddings) for m, e in emb.embedded.items()}
-    vecs_sw = vecs | {Modality.DEPTH: embed_items(loaded.model, items, swapped, batch_size, device)}
+    spaces = None
     if cfg.space == "labels" and emb.reference is not None:
         _, labels, names, _ = _clusters_and_labels(catalog)
         spaces = fit_label_spaces(
@@ -386,7 +391,6 @@ def _background_control(
             labels or {},
             names,
         )
-        vecs_sw = {m: spaces[m].project(v) for m, v in vecs_sw.items()}
     protocol = ScoringProtocol(
         n=cfg.n,
         ks=cfg.ks,
@@ -396,23 +400,29 @@ def _background_control(
         alpha=cfg.alpha,
         seed=cfg.seed,
     )
-    out: dict[str, float] = {}
-    for pair, score in score_pairs(vecs_sw, fab, protocol, pairs).items():
+
+    def keep(score: PairScore, key: str) -> None:
         for k in cfg.ks:
             for suffix in ("", "_ci_low", "_ci_high"):
-                key = f"top{k}{suffix}"
-                if key in score.metrics:
-                    out[f"{pair}_top{k}_swapped{suffix}"] = score.metrics[key]
+                if f"top{k}{suffix}" in score.metrics:
+                    out[key.format(k=k, suffix=suffix)] = score.metrics[f"top{k}{suffix}"]
+
+    out: dict[str, float] = {}
     d2d = Pair(Modality.DEPTH, Modality.DEPTH)
     if d2d in pairs:
-        for name, ld in (("", loader), ("_swapped", swapped)):
+        pix = {Modality.DEPTH: raw_pixels(items, loader)}
+        score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
+        keep(score, f"{d2d}_raw_pixels_top{{k}}{{suffix}}")
+    for name, ld in variants.items():
+        vecs_v = vecs | {Modality.DEPTH: embed_items(loaded.model, items, ld, batch_size, device)}
+        if spaces is not None:
+            vecs_v = {m: spaces[m].project(v) for m, v in vecs_v.items()}
+        for pair, score in score_pairs(vecs_v, fab, protocol, pairs).items():
+            keep(score, f"{pair}_top{{k}}{name}{{suffix}}")
+        if d2d in pairs:
             pix = {Modality.DEPTH: raw_pixels(items, ld)}
             score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
-            for k in cfg.ks:
-                for suffix in ("", "_ci_low", "_ci_high"):
-                    if f"top{k}{suffix}" in score.metrics:
-                        value = score.metrics[f"top{k}{suffix}"]
-                        out[f"{d2d}_raw_pixels_top{k}{name}{suffix}"] = value
+            keep(score, f"{d2d}_raw_pixels_top{{k}}{name}{{suffix}}")
     return out, notes
 
 

@@ -189,11 +189,13 @@ def _section_pick(result: EvalResult) -> list[str]:
 
 
 def _section_control(result: EvalResult) -> list[str]:
-    """The background control beside the scores as they are (when it ran)."""
+    """The background control beside the scores as they are (when it ran), and the room
+    control (registered depth) when it ran too."""
     m, ks = result.metrics, result.config.ks
     pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_swapped" in m]
     if not pairs:
         return []
+    room = any(f"{p}_top{ks[0]}_room" in m for p in pairs)
     lines = [
         "## Background control",
         "",
@@ -202,30 +204,36 @@ def _section_control(result: EvalResult) -> list[str]:
         "capture session, scores the same; raw pixels show how much the room alone carries.",
         "",
     ]
+    if room:
+        lines[-1:-1] = [
+            "",
+            "Registered depth also gets the room control: each test depth image registered, "
+            "as it was taken, in the room fitted on that other fabric's own image (no room "
+            "refitted on a composite image).",
+        ]
+    names = ["_swapped", "_room"] if room else ["_swapped"]
     rows = []
     for pair in pairs:
         for k in ks:
+            model = [
+                f"{_f(m.get(f'{pair}_top{k}{n}'))} ({_ci(m, f'{pair}_top{k}{n}')})" for n in names
+            ]
+            raw = [_f(m.get(f"{pair}_raw_pixels_top{k}{n}")) for n in names]
             rows.append(
                 [
                     _pretty(pair),
                     f"top-{k}",
                     f"{_f(m.get(f'{pair}_top{k}'))} ({_ci(m, f'{pair}_top{k}')})",
-                    f"{_f(m.get(f'{pair}_top{k}_swapped'))} ({_ci(m, f'{pair}_top{k}_swapped')})",
+                    *model,
                     _f(m.get(f"{pair}_raw_pixels_top{k}")),
-                    _f(m.get(f"{pair}_raw_pixels_top{k}_swapped")),
+                    *raw,
                 ]
             )
-    return lines + _table(
-        [
-            "pair",
-            "metric",
-            "model (95% interval)",
-            "model, background swapped",
-            "raw pixels",
-            "raw pixels, background swapped",
-        ],
-        rows,
-    )
+    headers = ["pair", "metric", "model (95% interval)", "model, background swapped"]
+    headers += ["model, in another fabric's room"] if room else []
+    headers += ["raw pixels", "raw pixels, background swapped"]
+    headers += ["raw pixels, in another fabric's room"] if room else []
+    return lines + _table(headers, rows)
 
 
 def _curve_n_effective(result: EvalResult, curve: PressCurve) -> int:
