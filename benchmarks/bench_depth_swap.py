@@ -16,7 +16,10 @@ time, the rest as the image was:
   the composite's change of height; ``swap_shift``: that plane's mean only; ``swap_tilt``:
   that plane with its mean removed;
 - ``partner_room``: own cloth, its heights measured from the partner's floor *as fitted on the
-  partner's own image* (no refit on a composite).
+  partner's own image* (no refit on a composite);
+- ``room``: ``cv``'s room control: the image registered in the partner's fitted room (its
+  cloth mask, heights and drape top all taken relative to the partner's planes,
+  `register_in_room`); ``room_own_top``: the same, moved by the image's own drape top.
 
 Every variant then goes through the run's own settings (``depth_min_height_mm``,
 ``depth_top_mm``, ``depth_post_at``, the map to [0, 1] and the resize).
@@ -69,6 +72,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         kept_heights,
         move_drape,
         register_depth,
+        register_in_room,
         registered_heights,
         registered_intrinsics,
     )
@@ -136,6 +140,11 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         variants["swap_shift"].append(finish(level(mean), p0))
         variants["swap_tilt"].append(finish(level(plane - mean), p0))
         variants["partner_room"].append(finish(top(floor_heights(i, int(sw.partner[i]))), p0))
+        in_room = register_in_room(
+            filled[i], regs[int(sw.partner[i])].planes, k, margin_mm=dc.depth_margin_mm
+        )
+        variants["room"].append(finish(kept_heights(in_room, dc), in_room.post_uv))
+        variants["room_own_top"].append(finish(kept_heights(in_room, dc), p0))
     row: dict[str, Any] = {"run": run_dir.name, "queries": len(items)}
     return row | score_variants(lm, items, fabric, variants)
 
@@ -149,6 +158,8 @@ _VARIANTS = (
     "swap_shift",
     "swap_tilt",
     "partner_room",
+    "room",
+    "room_own_top",
 )
 
 
