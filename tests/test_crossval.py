@@ -166,6 +166,14 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     modalities = ("depth", "color", "touch")
     pairs = {f"{a}_to_{b}" for a in modalities for b in modalities}
     assert set(summary["pairs"]) == pairs
+    for pair, entry in summary["pairs"].items():  # cross-modal pairs: also through the map
+        a, b = pair.split("_to_")
+        assert ("model_mapped_top1" in entry) == (a != b), pair
+        if a != b:
+            low, high = entry["model_mapped_top1"]["ci95"]
+            assert 0.0 <= low <= entry["model_mapped_top1"]["mean"] <= high <= 1.0
+    assert "model_mapped_swapped_top1" in summary["pairs"]["touch_to_depth"]
+    assert "Matching through a cross-modal map" in (tmp_path / "cv" / "cv.md").read_text()
     run = tmp_path / "cv" / "seed0-fold0"
     logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     terms = {k for row in logged for k in row if k.endswith("_loss")}

@@ -25,7 +25,10 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
 - when the fabrics have labels, the same queries matched in **label space**
   (``model_labels_top1``, `lookfeel.metrics.label_space`): each modality's embeddings mapped
   onto the labels by a ridge fitted on the run's training fabrics only, a query matched to the
-  gallery item whose predicted labels are nearest.
+  gallery item whose predicted labels are nearest;
+- for pairs of two modalities, the same queries matched through a **cross-modal map**
+  (``model_mapped_top1``, `lookfeel.metrics.cross_map`; no labels needed): each modality's
+  embeddings carried into the other's by linear maps fitted on the run's training fabrics.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
 that resamples the held-out fabrics (all their queries together). Physical properties are
@@ -71,9 +74,11 @@ from lookfeel.metrics import (
     bootstrap_ci,
     mean_and_spread,
     property_probe,
+    score_distances,
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
+from lookfeel.metrics.cross_map import CrossMap, fit_cross_map
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import run_started, train
@@ -89,6 +94,9 @@ _METHODS = (
     "model",
     "model_labels",
     "model_labels_swapped",
+    "model_mapped",
+    "model_mapped_swapped",
+    "model_mapped_room",
     "raw_pixels",
     "model_swapped",
     "raw_pixels_swapped",
@@ -143,6 +151,39 @@ def _pick(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
         return score_pairs(emb, fab, EXACT_PICK, pairs)
+
+
+def _cross_maps(
+    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]], pairs: Sequence[Pair]
+) -> dict[Pair, CrossMap]:
+    """The cross-modal map of every pair of two modalities with training items
+    (`lookfeel.metrics.cross_map`); ``train``: per modality (fabric ids, embeddings, pixels)."""
+    maps = {}
+    for p in pairs:
+        if p.same or p.query not in train or p.gallery not in train:
+            continue
+        (fq, eq, _), (fg, eg, _) = train[p.query], train[p.gallery]
+        try:
+            maps[p] = fit_cross_map(eq, fq, eg, fg)
+        except ValueError:  # too few fabrics in common: not scored this way
+            continue
+    return maps
+
+
+def _mapped(
+    maps: dict[Pair, CrossMap],
+    emb: dict[Modality, np.ndarray],
+    fab: dict[Modality, np.ndarray],
+    pairs: Sequence[Pair],
+) -> dict[Pair, PairScore]:
+    """Exact pick 1 of 10 of each pair in ``pairs`` through its cross-modal map."""
+    out = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
+        for p in pairs:
+            dist = maps[p].distances(emb[p.query], emb[p.gallery])
+            out[p] = score_distances(dist, fab[p.query], fab[p.gallery], EXACT_PICK)
+    return out
 
 
 def _labels(catalog: Catalog, fabric_ids: np.ndarray) -> np.ndarray:
@@ -228,6 +269,9 @@ def _score(
         others["model_labels"] = _pick(
             {m: s.project(emb[m]) for m, s in spaces.items()}, fab, mapped
         )
+    maps = _cross_maps(train, pairs)
+    if maps:
+        others["model_mapped"] = _mapped(maps, emb, fab, list(maps))
     raw = _pick(pix, fab, [p for p in pairs if p.same])  # raw pixels: images of one kind
     depth_pairs = [p for p in pairs if Modality.DEPTH in (p.query, p.gallery)]
     if control is not None and depth_pairs:
@@ -245,6 +289,9 @@ def _score(
                 swap_mapped = [p for p in mapped if p in depth_pairs]
                 others["model_labels_swapped"] = _pick(lab_sw, fab, swap_mapped)
             others["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
+            if maps:
+                mapped_depth = [p for p in maps if p in depth_pairs]
+                others["model_mapped_swapped"] = _mapped(maps, emb_sw, fab, mapped_depth)
             if control.has_room_control:  # registered in the partner's room, not refitted
                 rm = control.room_loader(items)
                 emb_rm = emb | {Modality.DEPTH: embed_items(lm.model, items, rm, flip=tta)}
@@ -255,6 +302,9 @@ def _score(
                     room_mapped = [p for p in mapped if p in depth_pairs]
                     others["model_labels_room"] = _pick(lab_rm, fab, room_mapped)
                 others["raw_pixels_room"] = _pick(pix_rm, fab, [p for p in depth_pairs if p.same])
+                if maps:
+                    mapped_depth = [p for p in maps if p in depth_pairs]
+                    others["model_mapped_room"] = _mapped(maps, emb_rm, fab, mapped_depth)
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
     if UntouchedControl.applies(touch_items):
@@ -612,6 +662,27 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
     )
 
 
+def _mapped_lines(summary: dict[str, Any]) -> list[str]:
+    """The table of matching through the cross-modal maps beside the other readings."""
+    columns = [
+        ("model top-1", "model_top1"),
+        ("cross-modal map top-1", "model_mapped_top1"),
+        ("cross-modal map top-1, background swapped", "model_mapped_swapped_top1"),
+        ("cross-modal map top-1, in another fabric's room", "model_mapped_room_top1"),
+        ("label space top-1", "model_labels_top1"),
+        ("cross-modal map top-3", "model_mapped_top3"),
+    ]
+    columns = [c for c in columns if c[1] == "model_top1" or _has(summary, c[1])]
+    return _pair_table(
+        summary,
+        "Matching through a cross-modal map (`lookfeel.metrics.cross_map`; no labels used): "
+        "the same queries, the query modality's embeddings carried into the gallery "
+        "modality's and back by linear maps fitted on the run's training fabrics only, a query "
+        "matched to the gallery item nearest by both routes.",
+        tuple(columns),
+    )
+
+
 def _untouched_lines(summary: dict[str, Any]) -> list[str]:
     """The untouched control's table (model and raw pixels, pressed and with no contact)."""
     return _pair_table(
@@ -652,6 +723,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
     lines += _label_space_lines(summary)
+    lines += _mapped_lines(summary)
     lines += _control_lines(summary)
     lines += _untouched_lines(summary)
     for m, per in summary["properties"].items():
@@ -780,6 +852,7 @@ def cross_validate(
                 f", {name} {np.nanmean(np.asarray(first[method])[:, 0]):.3f}"
                 for method, name in (
                     ("model_labels", "label space"),
+                    ("model_mapped", "cross-modal map"),
                     ("model_swapped", "background swapped"),
                     ("model_room", "in another's room"),
                 )
