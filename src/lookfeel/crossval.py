@@ -281,30 +281,22 @@ def _score(
         except LookfeelError as e:
             out["background_control_skipped"] = str(e)
         else:
-            emb_sw = emb | {Modality.DEPTH: embed_items(lm.model, items, sw, flip=tta)}
-            pix_sw = pix | {Modality.DEPTH: raw_pixels(items, sw)}
-            others["model_swapped"] = _pick(emb_sw, fab, depth_pairs)
-            if mapped:  # label space, its depth maps read on the swapped backgrounds
-                lab_sw = {m: s.project(emb_sw[m]) for m, s in spaces.items()}
-                swap_mapped = [p for p in mapped if p in depth_pairs]
-                others["model_labels_swapped"] = _pick(lab_sw, fab, swap_mapped)
-            others["raw_pixels_swapped"] = _pick(pix_sw, fab, [p for p in depth_pairs if p.same])
-            if maps:
-                mapped_depth = [p for p in maps if p in depth_pairs]
-                others["model_mapped_swapped"] = _mapped(maps, emb_sw, fab, mapped_depth)
+            variants = {"swapped": sw}
             if control.has_room_control:  # registered in the partner's room, not refitted
-                rm = control.room_loader(items)
-                emb_rm = emb | {Modality.DEPTH: embed_items(lm.model, items, rm, flip=tta)}
-                pix_rm = pix | {Modality.DEPTH: raw_pixels(items, rm)}
-                others["model_room"] = _pick(emb_rm, fab, depth_pairs)
-                if mapped:
-                    lab_rm = {m: s.project(emb_rm[m]) for m, s in spaces.items()}
-                    room_mapped = [p for p in mapped if p in depth_pairs]
-                    others["model_labels_room"] = _pick(lab_rm, fab, room_mapped)
-                others["raw_pixels_room"] = _pick(pix_rm, fab, [p for p in depth_pairs if p.same])
+                variants["room"] = control.room_loader(items)
+            for name, ld in variants.items():
+                emb_v = emb | {Modality.DEPTH: embed_items(lm.model, items, ld, flip=tta)}
+                pix_v = pix | {Modality.DEPTH: raw_pixels(items, ld)}
+                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs)
+                if mapped:  # label space, its depth maps read on the altered images
+                    lab_v = {m: s.project(emb_v[m]) for m, s in spaces.items()}
+                    lab_pairs = [p for p in mapped if p in depth_pairs]
+                    others[f"model_labels_{name}"] = _pick(lab_v, fab, lab_pairs)
                 if maps:
-                    mapped_depth = [p for p in maps if p in depth_pairs]
-                    others["model_mapped_room"] = _mapped(maps, emb_rm, fab, mapped_depth)
+                    map_pairs = [p for p in maps if p in depth_pairs]
+                    others[f"model_mapped_{name}"] = _mapped(maps, emb_v, fab, map_pairs)
+                raw_pairs = [p for p in depth_pairs if p.same]
+                others[f"raw_pixels_{name}"] = _pick(pix_v, fab, raw_pairs)
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
     touch_items = held.items(Modality.TOUCH, cfg.data.touch_kinds) if touch_pairs else []
     if UntouchedControl.applies(touch_items):
