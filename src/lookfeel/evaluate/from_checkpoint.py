@@ -408,18 +408,15 @@ def _background_control(
                     out[key.format(k=k, suffix=suffix)] = score.metrics[f"top{k}{suffix}"]
 
     out: dict[str, float] = {}
-    d2d = Pair(Modality.DEPTH, Modality.DEPTH)
-    if d2d in pairs:
-        pix = {Modality.DEPTH: raw_pixels(items, loader)}
-        score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
-        keep(score, f"{d2d}_raw_pixels_top{{k}}{{suffix}}")
     for name, ld in variants.items():
         vecs_v = vecs | {Modality.DEPTH: embed_items(loaded.model, items, ld, batch_size, device)}
         if spaces is not None:
             vecs_v = {m: spaces[m].project(v) for m, v in vecs_v.items()}
         for pair, score in score_pairs(vecs_v, fab, protocol, pairs).items():
             keep(score, f"{pair}_top{{k}}{name}{{suffix}}")
-        if d2d in pairs:
+    d2d = Pair(Modality.DEPTH, Modality.DEPTH)
+    if d2d in pairs:  # raw pixels of the same images, as they are and altered
+        for name, ld in {"": loader, **variants}.items():
             pix = {Modality.DEPTH: raw_pixels(items, ld)}
             score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
             keep(score, f"{d2d}_raw_pixels_top{{k}}{name}{{suffix}}")
