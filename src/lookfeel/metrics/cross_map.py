@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from sklearn.linear_model import RidgeCV
 
 from lookfeel.metrics.distances import pairwise_distances
+from lookfeel.metrics.properties import fit_ridge_multi
 
 __all__ = ["MIN_FABRICS", "CrossMap", "LinearMap", "fit_cross_map", "fit_linear_map"]
 
@@ -49,20 +49,11 @@ class LinearMap:
 
 def fit_linear_map(x: ArrayLike, y: ArrayLike) -> LinearMap:
     """Multi-output ridge regression of ``y`` (N, D_out) on ``x`` (N, D_in), one penalty for
-    all outputs chosen by efficient leave-one-out.
-
-    As `lookfeel.metrics.properties.fit_ridge`, the features are centred and divided by one
-    common scale (not per column) and the penalty grid grows with the dimension.
-    """
-    xa = np.asarray(x, dtype=np.float64)
-    ya = np.asarray(y, dtype=np.float64)
-    mu = xa.mean(axis=0)
-    scale = float(np.sqrt(((xa - mu) ** 2).mean()))
-    scale = scale if scale > 0 else 1.0
-    ridge = RidgeCV(alphas=np.logspace(-3, 3, 25) * max(1, xa.shape[1]))
-    ridge.fit((xa - mu) / scale, ya)
-    coef = np.asarray(ridge.coef_, dtype=np.float64).reshape(ya.shape[1], -1).T / scale
-    intercept = np.asarray(ridge.intercept_, dtype=np.float64).reshape(-1) - mu @ coef
+    all outputs chosen by efficient leave-one-out
+    (`lookfeel.metrics.properties.fit_ridge_multi`)."""
+    coef, intercept = fit_ridge_multi(
+        np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    )
     return LinearMap(coef, intercept)
 
 

@@ -42,25 +42,36 @@ def per_fabric_means(
     return e, lab, uniq
 
 
-def fit_ridge(
+def fit_ridge_multi(
     xtr: NDArray[np.float64], ytr: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], float]:
-    """Ridge regression of ``ytr`` (N,) on ``xtr`` (N, D), its penalty chosen by leave-one-out
-    (efficient, RidgeCV); returns ``(coef, intercept)`` on the raw features.
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Ridge regression of ``ytr`` (N, K) on ``xtr`` (N, D), one penalty for all K outputs
+    chosen by leave-one-out (efficient, RidgeCV); returns ``(coef (D, K), intercept (K,))`` on
+    the raw features.
 
     Features are centred and divided by one common scale (the root mean column variance), not
     per column: a column nearly constant in training (a saturated pixel, a dead unit) would
     otherwise be blown up and dominate any test row where it moves. The penalty grid grows with
     the dimension, since the Gram matrix of D unit-variance columns does.
     """
+    y = np.asarray(ytr, dtype=np.float64).reshape(len(ytr), -1)
     mu = xtr.mean(axis=0)
     scale = float(np.sqrt(((xtr - mu) ** 2).mean()))
     scale = scale if scale > 0 else 1.0
     d = xtr.shape[1]
     ridge = RidgeCV(alphas=np.logspace(-3, 3, 25) * max(1, d))
-    ridge.fit((xtr - mu) / scale, ytr)
-    coef = np.asarray(ridge.coef_, dtype=np.float64).reshape(-1) / scale
-    return coef, float(ridge.intercept_) - float(mu @ coef)
+    ridge.fit((xtr - mu) / scale, y)
+    coef = np.asarray(ridge.coef_, dtype=np.float64).reshape(y.shape[1], d).T / scale
+    intercept = np.asarray(ridge.intercept_, dtype=np.float64).reshape(-1) - mu @ coef
+    return coef, intercept
+
+
+def fit_ridge(
+    xtr: NDArray[np.float64], ytr: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], float]:
+    """`fit_ridge_multi` of one output ``ytr`` (N,); returns ``(coef (D,), intercept)``."""
+    coef, intercept = fit_ridge_multi(xtr, ytr.reshape(-1, 1))
+    return coef[:, 0], float(intercept[0])
 
 
 def _ridge(
