@@ -577,10 +577,12 @@ def _pair_table(
     chance: bool = True,
 ) -> list[str]:
     """A table of every pair scored with ``columns[1]``'s key: one cell per (header, key)
-    column (``-`` where a pair lacks it), then chance; nothing when no pair has it."""
+    column (``-`` where a pair lacks it; a column no such pair has is left out), then chance;
+    nothing when no pair has it."""
     rows = [(p, e) for p, e in summary["pairs"].items() if columns[1][1] in e]
     if not rows:
         return []
+    columns = tuple(c for c in columns if any(c[1] in e for _, e in rows))
     headers = [h for h, _ in columns] + (["chance"] if chance else [])
     lines = ["", intro, "", f"| pair | {' | '.join(headers)} |", "|---" * (len(headers) + 1) + "|"]
     for pair, e in rows:
@@ -615,33 +617,29 @@ def _control_lines(summary: dict[str, Any]) -> list[str]:
             "another session's registration of the same cloth (where the rooms differ by "
             "more than the margin, room becomes cloth or cloth is lost)."
         )
-    columns = [
+    columns = (
         ("model top-1", "model_top1"),
         ("model top-1, background swapped", "model_swapped_top1"),
         ("model top-1, in another fabric's room", "model_room_top1"),
         ("raw pixels top-1", "raw_pixels_top1"),
         ("raw pixels top-1, background swapped", "raw_pixels_swapped_top1"),
         ("raw pixels top-1, in another fabric's room", "raw_pixels_room_top1"),
-    ]
-    if not room:
-        columns = [c for c in columns if not c[1].endswith("_room_top1")]
-    return _pair_table(summary, intro, tuple(columns), chance=False)
+    )
+    return _pair_table(summary, intro, columns, chance=False)
 
 
 def _label_space_lines(summary: dict[str, Any]) -> list[str]:
     """The table of matching in label space beside matching in the embedding."""
-    columns = [
+    columns = (
         ("model top-1", "model_top1"),
         ("label space top-1", "model_labels_top1"),
         ("label space top-1, background swapped", "model_labels_swapped_top1"),
         ("label space top-1, in another fabric's room", "model_labels_room_top1"),
         ("model top-3", "model_top3"),
         ("label space top-3", "model_labels_top3"),
-    ]
+    )
     room = _has(summary, "model_labels_room_top1")
     also = " (and registered in another fabric's room)" if room else ""
-    if not room:
-        columns = [c for c in columns if c[1] != "model_labels_room_top1"]
     return _pair_table(
         summary,
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
@@ -650,28 +648,27 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
         "labels are nearest; for pairs with depth also with every depth image's background "
         f"swapped{also}, as in the "
         "background control below.",
-        tuple(columns),
+        columns,
     )
 
 
 def _mapped_lines(summary: dict[str, Any]) -> list[str]:
     """The table of matching through the cross-modal maps beside the other readings."""
-    columns = [
+    columns = (
         ("model top-1", "model_top1"),
         ("cross-modal map top-1", "model_mapped_top1"),
         ("cross-modal map top-1, background swapped", "model_mapped_swapped_top1"),
         ("cross-modal map top-1, in another fabric's room", "model_mapped_room_top1"),
         ("label space top-1", "model_labels_top1"),
         ("cross-modal map top-3", "model_mapped_top3"),
-    ]
-    columns = [c for c in columns if c[1] == "model_top1" or _has(summary, c[1])]
+    )
     return _pair_table(
         summary,
         "Matching through a cross-modal map (`lookfeel.metrics.cross_map`; no labels used): "
         "the same queries, the query modality's embeddings carried into the gallery "
         "modality's and back by linear maps fitted on the run's training fabrics only, a query "
         "matched to the gallery item nearest by both routes.",
-        tuple(columns),
+        columns,
     )
 
 
