@@ -286,6 +286,30 @@ def test_label_space_connects_modalities_whose_embeddings_do_not_meet():
         EvalConfig(space="pixels")  # type: ignore[arg-type]
 
 
+def test_a_cross_modal_map_connects_them_without_labels(tmp_path: Path):
+    rng = np.random.default_rng(5)
+    test_labels, train_labels = rng.standard_normal((12, 3)), rng.standard_normal((40, 3))
+    embedded, reference = _mixed(test_labels, 1, 0), _mixed(train_labels, 101, 1)
+    cfg = dataclasses.replace(FAST, presses=2)
+    r = evaluate_embeddings(embedded, cfg, reference=reference)  # no labels given
+    m = r.metrics
+    assert m["touch_to_depth_top1"] < 0.5  # the embeddings do not meet ...
+    assert m["touch_to_depth_top1_mapped"] > 0.9  # ... the map, fitted on other fabrics, does
+    assert m["depth_to_touch_top1_mapped"] > 0.9
+    lo, hi = m["touch_to_depth_top1_mapped_ci_low"], m["touch_to_depth_top1_mapped_ci_high"]
+    assert lo <= m["touch_to_depth_top1_mapped"] <= hi
+    assert set(r.cross_maps) == {p for p in r.pairs if not p.same}
+    assert not any(k.startswith(("depth_to_depth", "touch_to_touch")) and "mapped" in k for k in m)
+    text = write_report(r, tmp_path / "eval").report.read_text()
+    assert "Through a cross-modal map" in text
+    assert f"{m['touch_to_depth_top1_mapped']:.3f}" in text
+    off = evaluate_embeddings(
+        embedded, dataclasses.replace(cfg, cross_map=False), reference=reference
+    )
+    assert not any("mapped" in k for k in off.metrics) and not off.cross_maps
+    assert not any("mapped" in k for k in evaluate_embeddings(embedded, cfg).metrics)
+
+
 def test_without_reference_or_labels_the_probes_are_skipped_with_a_note():
     embedded, _ = _world()
     r = evaluate_embeddings(embedded, FAST, labels={1: [1.0]})
@@ -517,6 +541,7 @@ def test_evaluate_checkpoint_in_label_space(run: tuple[Path, Path, Path], tmp_pa
     metrics = json.loads((out / "metrics.json").read_text())
     assert "touch_to_depth_top1" in metrics and "depth_to_depth_top1_swapped" in metrics
     assert "label space" in (out / "report.md").read_text()
+    assert not any("mapped" in k for k in metrics)  # label space is a map of its own
     # Without labels there is nothing to map onto: one line naming the key.
     bare = tmp_path / "bare"
     write_tiny_dataset(bare, fabrics=8, drapes=3, fold_presses=4, flat_presses=0)

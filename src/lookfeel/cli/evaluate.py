@@ -11,6 +11,8 @@ background control is on by default: every pair with depth is scored again with 
 depth image's background replaced by another fabric's (cloth kept), beside raw pixels, and
 both numbers are printed and reported side by side; registered depth is also scored with each
 image registered in that other fabric's fitted room (--no-background-control turns both off).
+With training (reference) fabrics, every pair of two modalities is also matched through a
+cross-modal map fitted on them (keys *_mapped; --set cross_map=false turns it off).
 """
 
 from __future__ import annotations
@@ -104,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
         control = "" if swapped is None else f"  background swapped {swapped:.3f}"
         room = m.get(f"{pair}_top{k}_room")
         control += "" if room is None else f", in another fabric's room {room:.3f}"
+        mapped = m.get(f"{pair}_top{k}_mapped")
+        control += "" if mapped is None else f"  through the cross-modal map {mapped:.3f}"
         print(f"  {pair:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}{control}")
     print(f"Wrote {files.metrics}, {files.report} and {len(files.figures)} figures")
     return 0

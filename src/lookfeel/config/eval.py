@@ -78,6 +78,11 @@ class EvalConfig:
     modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the
     reference (training) fabrics, a query matched to the gallery items whose predicted labels
     are nearest. Needs labels and reference fabrics (a checkpoint's split has them)."""
+    cross_map: bool = True
+    """With reference (training) fabrics, also score every pair of two modalities through a
+    cross-modal map (`lookfeel.metrics.cross_map`: linear maps between the two embedding
+    spaces, fitted on the reference fabrics' mean embeddings, no labels used), keys
+    ``{pair}_top{k}_mapped``. Not in label space (``space: labels``)."""
     background_control: bool = True
     """Evaluating a checkpoint whose model has a depth branch: score every pair with depth
     again with each test depth image's background replaced by another fabric's, the cloth

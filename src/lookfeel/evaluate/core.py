@@ -39,6 +39,7 @@ from lookfeel.metrics import (
     reliability_curve,
     score_distances,
 )
+from lookfeel.metrics.cross_map import CrossMap, fit_cross_map
 from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 
@@ -169,6 +170,66 @@ def _fit_c(
     except ValueError as e:
         notes.add(f"c for {pair} not fitted ({e}); the paper's c is used")
         return None
+
+
+def exact_protocol(config: EvalConfig) -> ScoringProtocol:
+    """The exact pick k of n with intervals, nothing else: what the controls and the
+    cross-modal map are scored by."""
+    return ScoringProtocol(
+        n=config.n,
+        ks=config.ks,
+        gallery=False,
+        sampled=False,
+        n_boot=config.n_boot,
+        alpha=config.alpha,
+        seed=config.seed,
+    )
+
+
+def keep_pick(
+    out: dict[str, float], score: Mapping[str, float], ks: Sequence[int], key: str
+) -> None:
+    """Copy ``top{k}`` (and its interval) of ``score`` into ``out`` under ``key`` (a format
+    string with ``{k}`` and ``{suffix}``)."""
+    for k in ks:
+        for suffix in ("", "_ci_low", "_ci_high"):
+            if f"top{k}{suffix}" in score:
+                out[key.format(k=k, suffix=suffix)] = score[f"top{k}{suffix}"]
+
+
+def _mapped(
+    pairs: Sequence[Pair],
+    queries: Mapping[Modality, QuerySet],
+    gallery: Mapping[Modality, NDArray[np.float64]],
+    gallery_fabric: Mapping[Modality, NDArray[np.int64]],
+    reference_queries: Callable[[Modality], QuerySet],
+    reference: Mapping[Modality, EmbeddedItems],
+    config: EvalConfig,
+    notes: _Notes,
+) -> tuple[dict[str, float], dict[Pair, CrossMap]]:
+    """Every pair of two modalities scored through its cross-modal map (`EvalConfig.cross_map`),
+    the map fitted on the reference fabrics' queries (pooled as the test queries are) and
+    gallery items; keys ``{pair}_top{k}_mapped``."""
+    out: dict[str, float] = {}
+    maps: dict[Pair, CrossMap] = {}
+    protocol = exact_protocol(config)
+    for pair in pairs:
+        q, g = pair.query, pair.gallery
+        if pair.same or q not in reference or g not in reference:
+            continue
+        rq = reference_queries(q)
+        try:
+            maps[pair] = fit_cross_map(
+                rq.emb, rq.fabric, reference[g].embeddings, reference[g].fabric_ids
+            )
+        except ValueError as e:
+            notes.add(f"{pair}: no cross-modal map ({e})")
+            continue
+        dist = maps[pair].distances(queries[q].emb, gallery[g])
+        with notes.catching(f"{pair} through the cross-modal map"):
+            scored = score_distances(dist, queries[q].fabric, gallery_fabric[g], protocol)
+        keep_pick(out, scored.metrics, config.ks, f"{pair}_top{{k}}_mapped{{suffix}}")
+    return out, maps
 
 
 def _calibrate(
@@ -587,6 +648,14 @@ def evaluate_embeddings(
         glance_q = _glance_queries(queries[Modality.TOUCH], count, config.seed)
     glance_seen: dict[Modality, list[GlanceGallery]] = {}
 
+    def reference_queries(m: Modality) -> QuerySet:
+        """The reference fabrics' queries of modality ``m``, pooled as the test queries are."""
+        assert reference is not None
+        if m not in ref_queries:
+            p = presses if m is Modality.TOUCH else 1
+            ref_queries[m] = _queries(reference[m], p, config.seed, pool)
+        return ref_queries[m]
+
     def score(pd: PairDistances) -> None:
         pair, dist, qs, excl = pd.pair, pd.dist, pd.queries, pd.exclude
         gf = np.asarray(pd.gallery_fabric, dtype=np.int64)  # already int64: no copy
@@ -602,10 +671,7 @@ def evaluate_embeddings(
         if c_used is None:
             fitted = None
             if reference is not None and config.fit_c and q in reference and g in reference:
-                if q not in ref_queries:
-                    p = presses if q is Modality.TOUCH else 1
-                    ref_queries[q] = _queries(reference[q], p, config.seed, pool)
-                fitted = _fit_c(ref_queries[q], reference[g], q, g, notes)
+                fitted = _fit_c(reference_queries(q), reference[g], q, g, notes)
             c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
         figure = pair in figure_pairs
         cal = _calibrate(pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure)
@@ -628,6 +694,12 @@ def evaluate_embeddings(
     for pair in pairs:
         metrics.update(per_pair[pair])
     calibration = {pair: calibration[pair] for pair in pairs}
+    maps: dict[Pair, CrossMap] = {}
+    if config.cross_map and config.space == "embedding" and reference is not None:
+        extra, maps = _mapped(
+            pairs, queries, gallery, gallery_fabric, reference_queries, reference, config, notes
+        )
+        metrics.update(extra)
 
     if Modality.TOUCH in mods:
         # The press curve: exact top-k with intervals of touch queries pooling P presses.
@@ -678,9 +750,9 @@ def evaluate_embeddings(
         tq = queries[Modality.TOUCH]
         n_cols = len(next(iter(labels.values()), [])) if labels else 0
         columns = tuple(label_names or [str(j) for j in range(n_cols)])
-        ref_touch = ref_queries.get(Modality.TOUCH)  # pooled for fitting c, when it was
-        if ref_touch is None and labels and reference is not None and Modality.TOUCH in reference:
-            ref_touch = _queries(reference[Modality.TOUCH], presses, config.seed, pool)
+        ref_touch = None
+        if labels and reference is not None and Modality.TOUCH in reference:
+            ref_touch = reference_queries(Modality.TOUCH)
         for i, qi in enumerate(glance_q):
             f = int(tq.fabric[qi])
             predicted: tuple[float, ...] = ()
@@ -716,4 +788,5 @@ def evaluate_embeddings(
         info=full_info,
         data_config=data_config,
         glance=tuple(glance),
+        cross_maps=maps,
     )

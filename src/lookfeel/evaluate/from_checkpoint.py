@@ -21,6 +21,9 @@ and ``depth_to_depth_raw_pixels_top{k}_swapped``. For registered depth also the 
 control** (`BackgroundControl.room_loader`: each test depth image registered in the room fitted
 on its partner's own image, no refit of a composite), keys ``..._room``. Touch queries are
 single presses there (pairs whose main keys pool several presses are skipped, with a note).
+Pairs scored through a cross-modal map (``{pair}_top{k}_mapped``, `EvalConfig.cross_map`) are
+scored through the same map under each control too (``{pair}_top{k}_mapped_swapped``,
+``..._mapped_room``).
 """
 
 from __future__ import annotations
@@ -45,12 +48,12 @@ from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
 from lookfeel.errors import LookfeelError
-from lookfeel.metrics import PairScore, ScoringProtocol, score_pairs
+from lookfeel.metrics import score_distances, score_pairs
 from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.models import BranchEnsemble, Embedder
 
-from .core import PressPooler, evaluate_embeddings
+from .core import PressPooler, evaluate_embeddings, exact_protocol, keep_pick
 from .embeddings_file import EmbeddingSet, load_embeddings
 from .result import EvalResult
 
@@ -391,35 +394,25 @@ def _background_control(
             labels or {},
             names,
         )
-    protocol = ScoringProtocol(
-        n=cfg.n,
-        ks=cfg.ks,
-        gallery=False,
-        sampled=False,
-        n_boot=cfg.n_boot,
-        alpha=cfg.alpha,
-        seed=cfg.seed,
-    )
-
-    def keep(score: PairScore, key: str) -> None:
-        for k in cfg.ks:
-            for suffix in ("", "_ci_low", "_ci_high"):
-                if f"top{k}{suffix}" in score.metrics:
-                    out[key.format(k=k, suffix=suffix)] = score.metrics[f"top{k}{suffix}"]
-
+    protocol = exact_protocol(cfg)
     out: dict[str, float] = {}
     for name, ld in variants.items():
         vecs_v = vecs | {Modality.DEPTH: embed_items(loaded.model, items, ld, batch_size, device)}
         if spaces is not None:
             vecs_v = {m: spaces[m].project(v) for m, v in vecs_v.items()}
         for pair, score in score_pairs(vecs_v, fab, protocol, pairs).items():
-            keep(score, f"{pair}_top{{k}}{name}{{suffix}}")
+            keep_pick(out, score.metrics, cfg.ks, f"{pair}_top{{k}}{name}{{suffix}}")
+        for pair, cmap in result.cross_maps.items():
+            if pair in pairs:  # pairs with depth, touch queries single presses
+                dist = cmap.distances(vecs_v[pair.query], vecs_v[pair.gallery])
+                scored = score_distances(dist, fab[pair.query], fab[pair.gallery], protocol)
+                keep_pick(out, scored.metrics, cfg.ks, f"{pair}_top{{k}}_mapped{name}{{suffix}}")
     d2d = Pair(Modality.DEPTH, Modality.DEPTH)
     if d2d in pairs:  # raw pixels of the same images, as they are and altered
         for name, ld in {"": loader, **variants}.items():
             pix = {Modality.DEPTH: raw_pixels(items, ld)}
             score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
-            keep(score, f"{d2d}_raw_pixels_top{{k}}{name}{{suffix}}")
+            keep_pick(out, score.metrics, cfg.ks, f"{d2d}_raw_pixels_top{{k}}{name}{{suffix}}")
     return out, notes
 
 

@@ -236,6 +236,46 @@ def _section_control(result: EvalResult) -> list[str]:
     return lines + _table(headers, rows)
 
 
+def _section_mapped(result: EvalResult) -> list[str]:
+    """Matching through the cross-modal map beside the embedding's own distances (when it ran),
+    and under the background controls when they ran."""
+    m, ks = result.metrics, result.config.ks
+    pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_mapped" in m]
+    if not pairs:
+        return []
+    lines = [
+        "## Through a cross-modal map",
+        "",
+        "The same queries matched through linear maps between the two modalities' embedding "
+        "spaces, fitted on the reference (training) fabrics' mean embeddings, both ways "
+        "(`lookfeel.metrics.cross_map`; no labels used, nothing fitted on the test fabrics). "
+        "`lookfeel index build` matches a pair this way when it does better in calibration.",
+        "",
+    ]
+    controls = [
+        (n, title)
+        for n, title in (("_swapped", "background swapped"), ("_room", "in another's room"))
+        if any(f"{p}_top{ks[0]}_mapped{n}" in m for p in pairs)
+    ]
+    rows = []
+    for pair in pairs:
+        for k in ks:
+            key = f"{pair}_top{k}"
+            rows.append(
+                [
+                    _pretty(pair),
+                    f"top-{k}",
+                    f"{_f(m.get(key))} ({_ci(m, key)})",
+                    f"{_f(m.get(f'{key}_mapped'))} ({_ci(m, f'{key}_mapped')})",
+                    *[_f(m.get(f"{key}_mapped{n}")) for n, _ in controls],
+                    _f(m.get(f"{key}_chance")),
+                ]
+            )
+    headers = ["pair", "metric", "embedding (95% interval)", "cross-modal map (95% interval)"]
+    headers += [f"map, {title}" for _, title in controls]
+    return lines + _table([*headers, "chance"], rows)
+
+
 def _curve_n_effective(result: EvalResult, curve: PressCurve) -> int:
     """Candidates per pick at the curve's first press count (the config's n when unknown)."""
     key = f"{Pair(Modality.TOUCH, curve.gallery)}_presses{curve.presses[0]}_n_effective"
@@ -637,6 +677,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     lines += glance_lines
     lines += _section_pick(result)
     lines += _section_control(result)
+    lines += _section_mapped(result)
     lines += _section_presses(result, presses_png)
     lines += _section_calibration(result, cal_figures)
     lines += _section_properties(result)

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from lookfeel.config import DataConfig, EvalConfig
 from lookfeel.embedding import EmbeddedItems
 from lookfeel.metrics import Confusion, ReliabilityCurve
+from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
@@ -159,6 +160,8 @@ class EvalResult:
         data_config: how images were preprocessed, to show example images (None: unknown).
         glance: touch queries at a glance (`GlanceExample`), when touch and a look modality
             were scored.
+        cross_maps: the cross-modal map of every pair scored through one (``*_mapped`` keys),
+            fitted on the reference fabrics (`EvalConfig.cross_map`).
     """
 
     metrics: dict[str, float]
@@ -173,6 +176,7 @@ class EvalResult:
     info: dict[str, Any] = field(default_factory=dict)
     data_config: DataConfig | None = None
     glance: tuple[GlanceExample, ...] = ()
+    cross_maps: dict[Pair, CrossMap] = field(default_factory=dict)
 
     @property
     def figure_pairs(self) -> tuple[Pair, ...]:
