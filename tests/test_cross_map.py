@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
-from lookfeel.metrics.cross_map import fit_cross_map, fit_linear_map
+from lookfeel.metrics.cross_map import CrossMap, fit_cross_map, fit_cross_maps, fit_linear_map
+from lookfeel.modality import Modality, Pair
 
 
 def _items(latent: np.ndarray, mix: np.ndarray, rng: np.random.Generator, per: int = 3):
@@ -63,3 +64,34 @@ def test_fitted_on_fabric_means_of_the_fabrics_both_modalities_have():
         fit_cross_map(ea[fa < 2], fa[fa < 2], eb[fb < 2], fb[fb < 2])
     with pytest.raises(ValueError, match="do not match"):
         fit_cross_map(ea, fa[:-1], eb, fb)
+
+
+def test_arrays_round_trip_exactly_and_a_damaged_map_is_refused():
+    rng = np.random.default_rng(3)
+    latent = rng.standard_normal((12, 2))
+    ea, fa = _items(latent, rng.standard_normal((2, 4)), rng)
+    eb, fb = _items(latent, rng.standard_normal((2, 6)), rng)
+    cross = fit_cross_map(ea, fa, eb, fb)
+    back = CrossMap.from_arrays(cross.to_arrays())
+    np.testing.assert_array_equal(back.distances(ea, eb), cross.distances(ea, eb))
+    np.testing.assert_array_equal(cross.against(eb)(ea), cross.distances(ea, eb))
+    arrays = cross.to_arrays()
+    with pytest.raises(ValueError, match="do not fit together"):
+        CrossMap.from_arrays(arrays | {"backward_coef": arrays["backward_coef"][:, :3]})
+    with pytest.raises(ValueError, match="do not fit together"):
+        CrossMap.from_arrays(arrays | {"scales": np.array([1.0, 0.0])})
+    with pytest.raises(KeyError):
+        CrossMap.from_arrays({k: v for k, v in arrays.items() if k != "scales"})
+
+
+def test_maps_of_every_pair_of_two_modalities_with_enough_fabrics():
+    rng = np.random.default_rng(4)
+    latent = rng.standard_normal((12, 2))
+    d, t, c = Modality.DEPTH, Modality.TOUCH, Modality.COLOR
+    items = {
+        d: _items(latent, rng.standard_normal((2, 4)), rng),
+        t: _items(latent, rng.standard_normal((2, 4)), rng),
+        c: _items(latent[:2], rng.standard_normal((2, 4)), rng),  # 2 fabrics: too few
+    }
+    maps = fit_cross_maps(items, Pair.every([d, t, c]))
+    assert set(maps) == {Pair(t, d), Pair(d, t)}

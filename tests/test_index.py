@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,9 +26,16 @@ from lookfeel.index import (
     calibrate_pair,
     choose_backend,
 )
-from lookfeel.index.calibrate import fit_unknown_logit, threshold_for, unknown_probability
+from lookfeel.index import build as build_module
+from lookfeel.index.calibrate import (
+    calibrate,
+    fit_unknown_logit,
+    threshold_for,
+    unknown_probability,
+)
 from lookfeel.metrics import pairwise_distances
-from lookfeel.modality import Modality
+from lookfeel.metrics.cross_map import fit_cross_maps
+from lookfeel.modality import Modality, Pair
 
 from ._library import tiny_library
 
@@ -125,6 +133,43 @@ def test_calibration_on_separated_fabrics():
     assert one is None
 
 
+def test_calibration_matches_through_a_map_only_when_it_does_better():
+    """Touch and depth embed the same fabrics in different spaces: through a map fitted on
+    other fabrics they match, by their own distances they do not, so the map is chosen. Where
+    they share one space, a useless map (fitted on shuffled fabrics) is not."""
+    rng = np.random.default_rng(7)
+    d, t = Modality.DEPTH, Modality.TOUCH
+    mixes = {d: rng.standard_normal((3, 8)), t: rng.standard_normal((3, 8))}
+
+    def items(latent: np.ndarray, first: int) -> dict[Modality, tuple[np.ndarray, np.ndarray]]:
+        f = np.repeat(np.arange(len(latent)), 4)
+        noise = {m: 0.05 * rng.standard_normal((len(f), 8)) for m in mixes}
+        return {m: (latent[f] @ mixes[m] + noise[m], f + first) for m in mixes}
+
+    train, library = (
+        items(rng.standard_normal((30, 3)), 100),
+        items(rng.standard_normal((12, 3)), 1),
+    )
+    good = fit_cross_maps(train, [Pair(t, d), Pair(d, t)])
+    cal = calibrate(library, folds=3, maps=good)
+    pc = cal.pairs["touch_to_depth"]
+    assert pc.mapped and pc.top1 > 0.9 and pc.top1_unmapped < 0.5
+    assert cal.pairs["depth_to_touch"].mapped and cal.default_gallery[t] in (t, d)
+    assert not cal.pairs["depth_to_depth"].mapped
+    assert math.isnan(cal.pairs["depth_to_depth"].top1_unmapped)  # no map tried
+    mixes[t] = mixes[d]  # one space: their own distances match
+    train, library = (
+        items(rng.standard_normal((30, 3)), 100),
+        items(rng.standard_normal((12, 3)), 1),
+    )
+    shuffled = {m: (e, rng.permutation(f)) for m, (e, f) in train.items()}
+    useless = fit_cross_maps(shuffled, [Pair(t, d)])
+    pu = calibrate(library, folds=3, maps=useless).pairs["touch_to_depth"]
+    assert not pu.mapped and pu.top1 == pu.top1_unmapped > 0.9
+    restored = type(pc).from_dict(json.loads(json.dumps(pc.to_dict())))
+    assert restored == pc
+
+
 # ---- building and opening ------------------------------------------------------------------
 
 
@@ -200,6 +245,52 @@ def test_killed_build_resumes_and_equals_an_unbroken_one(run, library: Path, tmp
     changed = build_library(ckpt, data, out, shard_size=8)
     assert changed.shards_embedded == 1 and changed.items[Modality.DEPTH] == 17
     assert len(Library.open(out).table(Modality.DEPTH)) == 17
+
+
+def test_a_library_matches_through_maps_fitted_on_the_models_training_fabrics(
+    run, library: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    data, ckpt = run
+    assert any("no cross-modal maps" in n for n in Library.open(library).calibration.notes)
+    monkeypatch.setattr(build_module, "MIN_MAP_FABRICS", 3)  # the tiny run trained on 4
+    out = tmp_path / "mapped"
+    build_library(ckpt, data, out, shard_size=64)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["version"] == 2 and (out / "cross_maps.npz").is_file()
+    cross = {p for p in Pair.every(list(Modality)) if not p.same}
+    assert set(manifest["cross_maps"]["pairs"]) == {str(p) for p in cross}
+    lib = Library.open(out)
+    train_ids = load_model(ckpt).split["train"]
+    fitted_on = {
+        m: (
+            t.embeddings[np.isin(t.fabric_ids, train_ids)],
+            t.fabric_ids[np.isin(t.fabric_ids, train_ids)],
+        )
+        for m, t in lib.tables.items()
+    }
+    want = fit_cross_maps(fitted_on, cross)
+    assert set(lib.cross_maps) == cross
+    for p, cmap in lib.cross_maps.items():
+        np.testing.assert_allclose(cmap.forward.coef, want[p].forward.coef, rtol=1e-6, atol=1e-9)
+        assert not math.isnan(lib.calibration.pairs[str(p)].top1_unmapped)  # both were tried
+    # A pair matched through its map ranks fabrics by the map's distance to their items.
+    t2d = Pair(Modality.TOUCH, Modality.DEPTH)
+    lib.calibration.pairs[str(t2d)] = replace(lib.calibration.pairs[str(t2d)], mapped=True)
+    r = Matcher(lib).match_item("touch:0", gallery=Modality.DEPTH, top=6)
+    depth = lib.table(Modality.DEPTH)
+    d = lib.cross_maps[t2d].distances(lib.table(Modality.TOUCH).embeddings[:1], depth.embeddings)
+    for f in r.fabrics:
+        assert f.distance == pytest.approx(d[0][depth.fabric_ids == f.fabric_id].min())
+    assert "cross-modal map" in r.message and len(r.fabrics) == 6
+    # Damaged maps: one line naming the file.
+    (out / "cross_maps.npz").write_bytes(b"not a zip")
+    with pytest.raises(LibraryError, match="cross_maps.npz: cross-modal maps missing or damaged"):
+        Library.open(out)
+    # --no-cross-map: no maps, no file, nothing mapped.
+    build_library(ckpt, data, out, shard_size=64, cross_map=False)
+    plain = Library.open(out)
+    assert not plain.cross_maps and not (out / "cross_maps.npz").exists()
+    assert not any(p.mapped for p in plain.calibration.pairs.values())
 
 
 def test_faiss_library_matches_like_the_exact_one(run, library: Path, tmp_path: Path):

@@ -78,7 +78,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
-from lookfeel.metrics.cross_map import CrossMap, fit_cross_map
+from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import run_started, train
@@ -158,16 +158,7 @@ def _cross_maps(
 ) -> dict[Pair, CrossMap]:
     """The cross-modal map of every pair of two modalities with training items
     (`lookfeel.metrics.cross_map`); ``train``: per modality (fabric ids, embeddings, pixels)."""
-    maps = {}
-    for p in pairs:
-        if p.same or p.query not in train or p.gallery not in train:
-            continue
-        (fq, eq, _), (fg, eg, _) = train[p.query], train[p.gallery]
-        try:
-            maps[p] = fit_cross_map(eq, fq, eg, fg)
-        except ValueError:  # too few fabrics in common: not scored this way
-            continue
-    return maps
+    return fit_cross_maps({m: (e, f) for m, (f, e, _) in train.items()}, pairs)
 
 
 def _mapped(

@@ -5,9 +5,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, add_forward, add_json
+
+if TYPE_CHECKING:
+    from lookfeel.index import PairCalibration
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -23,7 +28,9 @@ def add_parser(subparsers: Subparsers) -> None:
             "Embed every item of every modality of DATA with the model of CHECKPOINT into the "
             "library folder OUT (shards, manifest; written atomically). A killed build continues "
             "when run again with the same arguments. Calibrates c of P ∝ exp(-c D²) and an "
-            "'unknown' threshold on held-out fabrics (leave fabrics out)."
+            "'unknown' threshold on held-out fabrics (leave fabrics out). With 10 or more of "
+            "the model's training fabrics in DATA, fits a cross-modal map between every two "
+            "modalities on them, and matches a pair through it when calibration finds it better."
         ),
     )
     ib.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
@@ -55,6 +62,13 @@ def add_parser(subparsers: Subparsers) -> None:
         default=1000,
         help="held-out queries per modality pair (1000)",
     )
+    ib.add_argument(
+        "--no-cross-map",
+        dest="cross_map",
+        action="store_false",
+        help="never match through a cross-modal map (by default one is fitted on the model's "
+        "training fabrics the library holds, and a pair uses it when calibration finds it better)",
+    )
     ib.add_argument("--quiet", action="store_true", help="no line per shard")
     ib.set_defaults(func=run_build)
 
@@ -84,6 +98,7 @@ def run_build(args: argparse.Namespace) -> int:
         folds=args.folds,
         seed=args.seed,
         calibration_queries=args.calibration_queries,
+        cross_map=args.cross_map,
         progress=not args.quiet,
     )
     items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())
@@ -94,9 +109,20 @@ def run_build(args: argparse.Namespace) -> int:
     for key, p in result.calibration.pairs.items():
         print(
             f"  {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  unknown below P {p.threshold:.3g}: "
-            f"false accept {p.false_accept:.3f}, true accept {p.true_accept:.3f}"
+            f"false accept {p.false_accept:.3f}, true accept {p.true_accept:.3f}{_how(p)}"
         )
+    for note in result.calibration.notes:
+        print(f"  note: {note}")
     return 0
+
+
+def _how(p: PairCalibration) -> str:
+    """How a pair is matched, when a cross-modal map was tried for it."""
+    if math.isnan(p.top1_unmapped):
+        return ""
+    if p.mapped:
+        return f"; through the cross-modal map (embedding alone {p.top1_unmapped:.3f})"
+    return "; embedding distances (the cross-modal map did no better)"
 
 
 def run_info(args: argparse.Namespace) -> int:
@@ -122,7 +148,7 @@ def run_info(args: argparse.Namespace) -> int:
     for key, p in cal.pairs.items():
         print(
             f"    {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  threshold {p.threshold:.3g}  "
-            f"false accept {p.false_accept:.3f}  true accept {p.true_accept:.3f}"
+            f"false accept {p.false_accept:.3f}  true accept {p.true_accept:.3f}{_how(p)}"
         )
     for note in cal.notes:
         print(f"    note: {note}")

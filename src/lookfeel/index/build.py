@@ -5,6 +5,11 @@ A shard already on disk with the right key is kept, so a killed build, run again
 arguments, embeds only what is missing, and rebuilding after adding a few files re-embeds only
 the shards whose files changed. Memory is bounded by one shard's preprocessed images (a fresh
 `ImageLoader` per shard) plus the embeddings.
+
+When the library holds `MIN_MAP_FABRICS` or more of the model's own training fabrics (its
+checkpoint's split), a cross-modal map is fitted on them for every pair of two modalities
+(`lookfeel.metrics.cross_map`), and calibration keeps, per pair, whichever of the map and the
+embedding's own distances matches held-out queries better.
 """
 
 from __future__ import annotations
@@ -30,18 +35,24 @@ from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import embed_items
 from lookfeel.index.calibrate import Calibration, calibrate
 from lookfeel.index.library import (
+    CROSS_MAPS,
     LIBRARY_FORMAT,
     LIBRARY_VERSION,
     MANIFEST,
     LibraryError,
     file_sha256,
     read_shard,
+    write_cross_maps,
     write_shard,
 )
 from lookfeel.index.search import FaissSearch, choose_backend
-from lookfeel.modality import Modality, PressKind
+from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
+from lookfeel.modality import Modality, Pair, PressKind
 
-__all__ = ["BuildResult", "build_library"]
+__all__ = ["MIN_MAP_FABRICS", "BuildResult", "build_library"]
+
+MIN_MAP_FABRICS = 10
+"""Training fabrics (of the checkpoint's split) a library must hold to fit cross-modal maps."""
 
 
 @dataclass(frozen=True)
@@ -128,6 +139,27 @@ def _check_out(out: Path) -> None:
         )
 
 
+def _training_maps(
+    tables: dict[Modality, tuple[np.ndarray, np.ndarray]], train_ids: Sequence[int]
+) -> tuple[dict[Pair, CrossMap], str | None]:
+    """Cross-modal maps fitted on the library's items of the model's training fabrics, and a
+    note when there are too few of them to fit any."""
+    if len(tables) < 2:
+        return {}, None
+    train = np.asarray(list(train_ids), dtype=np.int64)
+    items = {m: (e[np.isin(f, train)], f[np.isin(f, train)]) for m, (e, f) in tables.items()}
+    common = {m: set(np.unique(f).tolist()) for m, (_, f) in items.items()}
+    pairs = [p for p in Pair.every(list(tables)) if not p.same]
+    pairs = [p for p in pairs if len(common[p.query] & common[p.gallery]) >= MIN_MAP_FABRICS]
+    maps = fit_cross_maps(items, pairs)
+    if maps:
+        return maps, None
+    return {}, (
+        f"no cross-modal maps: the library holds fewer than {MIN_MAP_FABRICS} of the model's "
+        "training fabrics in two modalities to fit them on"
+    )
+
+
 def _write_manifest(out: Path, manifest: dict[str, Any]) -> None:
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
@@ -145,6 +177,7 @@ def build_library(
     folds: int = 5,
     seed: int = 0,
     calibration_queries: int = 1000,
+    cross_map: bool = True,
     device: torch.device | str = "cpu",
     on_shard: Callable[[str, int], None] | None = None,
     progress: bool = False,
@@ -164,6 +197,8 @@ def build_library(
         target_false_accept: false-accept rate the "unknown" threshold is chosen for.
         folds, seed, calibration_queries: leave-fabrics-out calibration settings
             (`lookfeel.index.calibrate`).
+        cross_map: fit cross-modal maps on the model's training fabrics the library holds and
+            match a pair through its map when calibration finds that better (module doc).
         device: where to embed.
         on_shard: called as ``on_shard(file, rows)`` after each shard is written.
         progress: print a line per shard.
@@ -276,13 +311,25 @@ def build_library(
         )
         for m, ps in parts.items()
     }
+    maps, map_note = (
+        _training_maps(tables, loaded.split.get("train", [])) if cross_map else ({}, None)
+    )
+    if maps:
+        write_cross_maps(out / CROSS_MAPS, maps)
+        manifest["cross_maps"] = {"file": CROSS_MAPS, "pairs": [str(p) for p in maps]}
+    else:
+        (out / CROSS_MAPS).unlink(missing_ok=True)
+        manifest.pop("cross_maps", None)
     calibration = calibrate(
         tables,
         target_false_accept=target_false_accept,
         folds=folds,
         seed=seed,
         max_queries=calibration_queries,
+        maps=maps,
     )
+    if map_note:
+        calibration.notes.append(map_note)
     resolved = choose_backend(backend, max(len(e) for e, _ in tables.values()))
     for m, (emb, _) in tables.items():
         index_file = out / f"index-{m.value}.faiss"

@@ -30,14 +30,19 @@ accepted, ``accepted_top1`` their accuracy: what that false-accept rate costs.
 
 Touch queries are single presses here; a pooled multi-press query (the Multi-input Net) is
 usually matched more confidently, so the threshold is conservative for it.
+
+**Through a cross-modal map.** Given a pair's map (`lookfeel.metrics.cross_map`, fitted on the
+model's training fabrics), the pair is calibrated twice, with the embedding's own distances
+and with the map's, and keeps the one whose held-out top-1 is higher (``mapped``; the other's
+top-1 in ``top1_unmapped``). c and the threshold are then those of the map's distances.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -51,6 +56,7 @@ from lookfeel.metrics import (
     match_probabilities,
     pairwise_distances,
 )
+from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
@@ -94,6 +100,9 @@ class PairCalibration:
         n_present: known-fabric queries (those with another item of their fabric).
         n_absent: absent-fabric queries (0: too few fabrics; no threshold, never "unknown").
         fabrics: fabrics in the gallery.
+        mapped: matched through the pair's cross-modal map (module docstring).
+        top1_unmapped: when a map was tried, the held-out top-1 of the embedding's own
+            distances (NaN otherwise); ``top1`` is then the map's when ``mapped``.
     """
 
     query: Modality
@@ -112,6 +121,8 @@ class PairCalibration:
     n_present: int
     n_absent: int
     fabrics: int
+    mapped: bool = False
+    top1_unmapped: float = math.nan
 
     @property
     def key(self) -> str:
@@ -260,6 +271,8 @@ def calibrate_pair(
     folds: int = 5,
     seed: int = 0,
     max_queries: int = 1000,
+    distances: Callable[[NDArray[np.floating], NDArray[np.floating]], NDArray[np.float64]]
+    | None = None,
 ) -> PairCalibration | None:
     """Calibrate one (query, gallery) modality pair of a library (see the module docstring).
 
@@ -273,6 +286,8 @@ def calibrate_pair(
         folds: groups the gallery's fabrics are dealt into for leave-fabrics-out.
         seed: draws the queries and the folds.
         max_queries: at most this many queries (a (Q, G) distance matrix is held in memory).
+        distances: (queries, gallery) -> (Q, G) distances; default Euclidean (the paper's D),
+            `CrossMap.distances` for matching through a map.
 
     Returns:
         The calibration, or None when no query has another item of its fabric in the gallery.
@@ -283,7 +298,7 @@ def calibrate_pair(
     gf = np.asarray(gallery_fabric).reshape(-1)
     sel = np.sort(rng.choice(len(qf_all), size=min(len(qf_all), max_queries), replace=False))
     qf = qf_all[sel]
-    dist = pairwise_distances(np.asarray(query_emb)[sel], gallery_emb)  # (Q, G)
+    dist = (distances or pairwise_distances)(np.asarray(query_emb)[sel], gallery_emb)  # (Q, G)
     fabrics, gidx = np.unique(gf, return_inverse=True)
     nf = len(fabrics)
     onehot = sparse.csr_matrix((np.ones(len(gf)), (np.arange(len(gf)), gidx)), shape=(len(gf), nf))
@@ -356,12 +371,14 @@ def calibrate(
     folds: int = 5,
     seed: int = 0,
     max_queries: int = 1000,
+    maps: Mapping[Pair, CrossMap] | None = None,
 ) -> Calibration:
     """Calibrate every (query, gallery) pair of a library's modalities.
 
     Args:
         embeddings: modality -> ((N, D) embeddings, (N,) fabric ids).
         target_false_accept, folds, seed, max_queries: see `calibrate_pair`.
+        maps: cross-modal maps of pairs to try matching through (module docstring).
 
     Raises:
         ValueError: ``target_false_accept`` outside [0, 1).
@@ -372,18 +389,19 @@ def calibrate(
     notes: list[str] = []
     for q, (qe, qf) in embeddings.items():
         for g, (ge, gf) in embeddings.items():
-            pc = calibrate_pair(
-                qe,
-                qf,
-                ge,
-                gf,
-                q,
-                g,
+            settings: dict[str, Any] = dict(
                 target_false_accept=target_false_accept,
                 folds=folds,
                 seed=seed,
                 max_queries=max_queries,
             )
+            pc = calibrate_pair(qe, qf, ge, gf, q, g, **settings)
+            cmap = (maps or {}).get(pair_key(q, g))
+            if pc is not None and cmap is not None:
+                pm = calibrate_pair(qe, qf, ge, gf, q, g, distances=cmap.distances, **settings)
+                assert pm is not None  # the same queries and gallery as pc's
+                better = pm.top1 > pc.top1
+                pc = replace(pm if better else pc, mapped=better, top1_unmapped=pc.top1)
             if pc is None:
                 notes.append(
                     f"{pair_key(q, g)}: not calibrated (no query has another item of its "

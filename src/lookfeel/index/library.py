@@ -7,6 +7,8 @@
     LIB/shards/depth-00000.npz   one chunk of one modality: embeddings (N, D) float32, fabric ids,
                                  paths, the frame embedded, press kind and id, and its key
     LIB/index-depth.faiss        a faiss index per modality (faiss backend only)
+    LIB/cross_maps.npz           the cross-modal maps between modalities, fitted on the model's
+                                 training fabrics the library holds (when it holds enough)
 
 Every file is written atomically. A shard's key is a digest of the checkpoint, the
 preprocessing and the chunk's files (path, size, modification time), so a build that is killed
@@ -39,9 +41,11 @@ from lookfeel.config import RunConfig, from_dict
 from lookfeel.errors import LookfeelError
 from lookfeel.index.calibrate import Calibration
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
-from lookfeel.modality import Modality
+from lookfeel.metrics.cross_map import CrossMap
+from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "CROSS_MAPS",
     "LIBRARY_FORMAT",
     "LIBRARY_VERSION",
     "MANIFEST",
@@ -51,13 +55,17 @@ __all__ = [
     "LibraryItem",
     "ModalityTable",
     "file_sha256",
+    "read_cross_maps",
     "read_shard",
+    "write_cross_maps",
     "write_shard",
 ]
 
 LIBRARY_FORMAT = "lookfeel-library"
-LIBRARY_VERSION = 1
+LIBRARY_VERSION = 2
+"""2: pairs may be matched through a cross-modal map (``cross_maps.npz``); 1 is still read."""
 MANIFEST = "manifest.json"
+CROSS_MAPS = "cross_maps.npz"
 
 
 class LibraryError(LookfeelError):
@@ -116,6 +124,42 @@ def read_shard(path: Path, key: str | None = None) -> dict[str, NDArray[Any]] | 
     if any(len(v) != n for v in out.values()):
         return None
     return out
+
+
+def write_cross_maps(path: Path, maps: dict[Pair, CrossMap]) -> None:
+    """Write the maps atomically: one ``.npz`` of plain arrays, ``{pair}.{array}``."""
+    arrays = {f"{p}.{k}": v for p, m in maps.items() for k, v in m.to_arrays().items()}
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)  # type: ignore[arg-type]
+    atomic_write(path, lambda f: f.write(buf.getvalue()))
+
+
+def read_cross_maps(path: Path, pairs: Sequence[str], width: int) -> dict[Pair, CrossMap]:
+    """Read the maps of ``pairs`` that `write_cross_maps` wrote.
+
+    Raises:
+        LibraryError: naming the file, when it is missing or damaged or a map is not
+            ``width`` wide.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        maps = {}
+        for key in pairs:
+            pair = Pair.parse(key)
+            prefix = f"{key}."
+            cmap = CrossMap.from_arrays(
+                {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
+            )
+            if cmap.forward.coef.shape != (width, width):
+                raise ValueError(f"{key} is {cmap.forward.coef.shape}, not ({width}, {width})")
+            maps[pair] = cmap
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
+        raise LibraryError(
+            f"{path}: cross-modal maps missing or damaged ({e}); rebuild with "
+            "`lookfeel index build` (unchanged shards are reused)"
+        ) from None
+    return maps
 
 
 # ---- records -----------------------------------------------------------------------------------
@@ -220,6 +264,8 @@ class Library:
         fabrics: fabric id -> labels and cluster.
         label_columns: label names, in the dataset's order.
         calibration: c and the unknown threshold per (query, gallery) pair.
+        cross_maps: the maps between modalities (`lookfeel.metrics.cross_map`); a pair whose
+            calibration says ``mapped`` is matched through its map.
         config: the run config of the model (its DataConfig preprocesses queries).
         backend: ``numpy`` or ``faiss``.
         checkpoint: the checkpoint file queries are embedded with.
@@ -232,6 +278,7 @@ class Library:
         tables: dict[Modality, ModalityTable],
         searches: dict[Modality, Search],
         checkpoint: Path,
+        cross_maps: dict[Pair, CrossMap] | None = None,
     ) -> None:
         self.root = root
         self.manifest = manifest
@@ -248,6 +295,7 @@ class Library:
             for f in manifest["fabrics"]
         }
         self.calibration = Calibration.from_dict(manifest["calibration"])
+        self.cross_maps = dict(cross_maps or {})
 
     @property
     def modalities(self) -> tuple[Modality, ...]:
@@ -310,6 +358,7 @@ class Library:
             "items": {m.value: len(t) for m, t in self.tables.items()},
             "label_columns": list(self.label_columns),
             "calibration": self.calibration.to_dict(),
+            "cross_maps": self.manifest.get("cross_maps"),
         }
 
     def load_model(self, device: torch.device | str = "cpu") -> LoadedModel:
@@ -405,7 +454,11 @@ class Library:
             else:
                 searches[m] = ExactSearch(tables[m].embeddings)
         ck = Path(checkpoint) if checkpoint is not None else Path(manifest["checkpoint"]["path"])
-        return cls(root, manifest, tables, searches, ck)
+        maps = {}
+        if manifest.get("cross_maps"):
+            entry = manifest["cross_maps"]
+            maps = read_cross_maps(root / entry["file"], entry["pairs"], width)
+        return cls(root, manifest, tables, searches, ck, maps)
 
 
 def _check_shard(path: Path, arrays: dict[str, NDArray[Any]], width: int) -> None:

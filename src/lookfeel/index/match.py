@@ -12,6 +12,11 @@ best probability is below the calibrated threshold the answer is "no known fabri
 chance level 1/F beside it, and a note when the pair's threshold accepted no known fabric at all
 in calibration (its ranking is then still worth reading).
 
+A pair that calibration found better matched through its cross-modal map (``mapped``, see
+`lookfeel.index.calibrate`) is matched that way: D is then the map's distance (both routes,
+`lookfeel.metrics.cross_map.CrossMap.distances`), computed exactly over every gallery item, and
+so are the distances to each fabric's nearest items of that modality.
+
 A query whose embedding is identical (distance below `IDENTICAL_DISTANCE`) to a library item of
 its own modality is that item: it is reported as known, its fabric named, whatever the
 threshold says (a user matching a file of the library expects its fabric, not "unknown").
@@ -21,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,7 +40,8 @@ from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import load_query_image, query_batch
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
-from lookfeel.modality import Modality
+from lookfeel.metrics.cross_map import CrossMap
+from lookfeel.modality import Modality, Pair
 
 __all__ = [
     "FabricMatch",
@@ -63,7 +69,8 @@ class ItemRef:
     path: str
     """The file it was embedded from."""
     distance: float
-    """Its embedding distance D to the query."""
+    """Its distance D to the query (through the pair's cross-modal map when the library
+    matches that pair through one)."""
 
 
 @dataclass(frozen=True)
@@ -139,6 +146,7 @@ class Matcher:
         self.library = library
         self.device = torch.device(device)
         self.model = library.load_model(device).model
+        self._against: dict[Pair, Callable[[NDArray[np.floating]], NDArray[np.float64]]] = {}
 
     @property
     def data_config(self) -> DataConfig:
@@ -275,15 +283,19 @@ class Matcher:
         left_out = -1  # the gallery row of a library item used as the query
         if exclude is not None and exclude.startswith(f"{g.value}:"):
             left_out = int(exclude.partition(":")[2])
-        if isinstance(search, ExactSearch):  # every row, unsorted: no sort is needed
-            d = search.distances(np.asarray(e)[None, :])[0]
-            fi = table.fabric_index
-            if left_out >= 0:
-                d[left_out] = np.inf  # probability exp(-inf) = 0, never the nearest
-        else:
-            d, idx = search.search(np.asarray(e)[None, :], min(len(search), FAISS_CANDIDATES))
+        cmap = self._map(modality, g)
+        q = np.asarray(e)[None, :]
+        exact = self._mapped(modality, g) if cmap is not None else None
+        if exact is None and isinstance(search, ExactSearch):
+            exact = search.distances
+        if exact is None:  # faiss: the nearest rows
+            d, idx = search.search(q, min(len(search), FAISS_CANDIDATES))
             keep = idx[0] != left_out
             d, fi = d[0][keep], table.fabric_index[idx[0][keep]]
+        else:  # every row, unsorted: no sort is needed
+            d, fi = exact(q)[0], table.fabric_index
+            if left_out >= 0:
+                d[left_out] = np.inf  # probability exp(-inf) = 0, never the nearest
         p_items = match_probabilities(d[None, :], cal.c)[0]
         logits = -cal.c * np.square(d)
         top_logit = logits.max()
@@ -301,7 +313,14 @@ class Matcher:
         known = best >= cal.threshold
         fabrics = [
             self._fabric(
-                r + 1, int(table.fabrics[j]), float(pf[j]), float(dmin[j]), e, exclude, n_items
+                modality,
+                r + 1,
+                int(table.fabrics[j]),
+                float(pf[j]),
+                float(dmin[j]),
+                e,
+                exclude,
+                n_items,
             )
             for r, j in enumerate(order[:top])
         ]
@@ -332,6 +351,8 @@ class Matcher:
                     f" (at that rate this pair accepted no known fabric in calibration, true "
                     f"accept {cal.true_accept:.3f}: read the ranking, not the verdict)"
                 )
+        if cmap is not None:
+            message += f" (matched through the {modality.value}-{g.value} cross-modal map)"
         return MatchResult(
             query_modality=modality,
             gallery_modality=g,
@@ -348,6 +369,23 @@ class Matcher:
             backend=search.name,
             timing_ms={"search": 1e3 * (t1 - t0)},
         )
+
+    def _map(self, query: Modality, gallery: Modality) -> CrossMap | None:
+        """The pair's cross-modal map when calibration chose to match through it."""
+        key = Pair(query, gallery)
+        cal = self.library.calibration.pairs.get(key)
+        return self.library.cross_maps.get(key) if cal is not None and cal.mapped else None
+
+    def _mapped(
+        self, query: Modality, gallery: Modality
+    ) -> Callable[[NDArray[np.floating]], NDArray[np.float64]]:
+        """Distances through the pair's map to every gallery item (its reverse map of the
+        gallery computed on first use and kept)."""
+        key = Pair(query, gallery)
+        if key not in self._against:
+            cmap = self.library.cross_maps[key]
+            self._against[key] = cmap.against(self.library.table(gallery).embeddings)
+        return self._against[key]
 
     def _identical(
         self, e: NDArray[np.floating], modality: Modality, exclude: str | None
@@ -367,6 +405,7 @@ class Matcher:
 
     def _fabric(
         self,
+        modality: Modality,
         rank: int,
         fabric_id: int,
         probability: float,
@@ -384,7 +423,12 @@ class Matcher:
                 rows = rows[[f"{m.value}:{r}" != exclude for r in rows]]
             if not len(rows):
                 continue
-            dist = np.linalg.norm(table.embeddings[rows].astype(np.float64) - q, axis=1)
+            gallery = table.embeddings[rows].astype(np.float64)
+            cmap = self._map(modality, m)
+            if cmap is not None:
+                dist = cmap.distances(q[None, :], gallery)[0]
+            else:
+                dist = np.linalg.norm(gallery - q, axis=1)
             best = np.argsort(dist, kind="stable")[:n_items]
             nearest[m.value] = [
                 ItemRef(f"{m.value}:{rows[i]}", m, table.item(int(rows[i])).image, float(dist[i]))

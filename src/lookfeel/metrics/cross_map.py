@@ -15,11 +15,13 @@ its mean over pairs of training fabrics (``s_F``, ``s_B``), so that neither rout
 the other by scale alone. Nothing is fitted on the fabrics being scored.
 
 Used by `lookfeel cv` (the ``model_mapped`` rows) beside matching in the embedding itself and
-in label space.
+in label space, by `lookfeel evaluate` (the ``*_mapped`` keys) and by a fabric library
+(`lookfeel.index`), which matches a pair through its map when that does better in calibration.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,10 +29,21 @@ from numpy.typing import ArrayLike, NDArray
 
 from lookfeel.metrics.distances import pairwise_distances
 from lookfeel.metrics.properties import fit_ridge_multi
+from lookfeel.modality import Modality, Pair
 
-__all__ = ["MIN_FABRICS", "CrossMap", "LinearMap", "fit_cross_map", "fit_linear_map"]
+__all__ = [
+    "MIN_FABRICS",
+    "CrossMap",
+    "LinearMap",
+    "fit_cross_map",
+    "fit_cross_maps",
+    "fit_linear_map",
+]
 
 F64 = NDArray[np.float64]
+
+_ARRAYS = ("forward_coef", "forward_intercept", "backward_coef", "backward_intercept", "scales")
+"""What `CrossMap.to_arrays` writes."""
 
 MIN_FABRICS = 3
 """A map is fitted only when both modalities have at least this many training fabrics."""
@@ -73,14 +86,63 @@ class CrossMap:
     scale_forward: float
     scale_backward: float
 
+    def to_arrays(self) -> dict[str, F64]:
+        """Plain arrays (for an ``.npz``); `from_arrays` reads them back exactly."""
+        return {
+            "forward_coef": self.forward.coef,
+            "forward_intercept": self.forward.intercept,
+            "backward_coef": self.backward.coef,
+            "backward_intercept": self.backward.intercept,
+            "scales": np.array([self.scale_forward, self.scale_backward]),
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, ArrayLike]) -> CrossMap:
+        """The map `to_arrays` wrote.
+
+        Raises:
+            KeyError: an array is missing; ValueError: their shapes do not fit together.
+        """
+        a = {k: np.asarray(arrays[k], dtype=np.float64) for k in _ARRAYS}
+        fc, bc = a["forward_coef"], a["backward_coef"]
+        if (
+            fc.ndim != 2
+            or bc.shape != fc.shape[::-1]
+            or a["forward_intercept"].shape != (fc.shape[1],)
+            or a["backward_intercept"].shape != (fc.shape[0],)
+            or a["scales"].shape != (2,)
+            or not all(np.isfinite(v).all() for v in a.values())
+            or not (a["scales"] > 0).all()
+        ):
+            raise ValueError(
+                "cross-modal map arrays do not fit together: "
+                + ", ".join(f"{k} {v.shape}" for k, v in a.items())
+            )
+        return cls(
+            LinearMap(fc, a["forward_intercept"]),
+            LinearMap(bc, a["backward_intercept"]),
+            float(a["scales"][0]),
+            float(a["scales"][1]),
+        )
+
     def distances(self, query: ArrayLike, gallery: ArrayLike) -> F64:
         """(Q, G) distances between query and gallery embeddings by both routes (module
         doc); non-negative, as the pick metrics need."""
-        q = np.asarray(query, dtype=np.float64)
+        return self.against(gallery)(query)
+
+    def against(self, gallery: ArrayLike) -> Callable[[ArrayLike], F64]:
+        """``distances`` to a fixed gallery, its reverse map computed once (a library answers
+        many queries against the same items)."""
         g = np.asarray(gallery, dtype=np.float64)
-        there = pairwise_distances(self.forward(q), g) / self.scale_forward
-        back = pairwise_distances(q, self.backward(g)) / self.scale_backward
-        return np.asarray(there + back, dtype=np.float64)
+        g_back = self.backward(g)
+
+        def distances(query: ArrayLike) -> F64:
+            q = np.asarray(query, dtype=np.float64)
+            there = pairwise_distances(self.forward(q), g) / self.scale_forward
+            back = pairwise_distances(q, g_back) / self.scale_backward
+            return np.asarray(there + back, dtype=np.float64)
+
+        return distances
 
 
 def _fabric_means(x: F64, fabric: NDArray[np.int64], ids: NDArray[np.int64]) -> F64:
@@ -133,3 +195,25 @@ def fit_cross_map(
         _mean_distance(forward(mq), mg),
         _mean_distance(mq, backward(mg)),
     )
+
+
+def fit_cross_maps(
+    items: Mapping[Modality, tuple[ArrayLike, ArrayLike]], pairs: Iterable[Pair]
+) -> dict[Pair, CrossMap]:
+    """The cross-modal map of every pair of two modalities in ``pairs`` that ``items`` holds
+    with `MIN_FABRICS` or more fabrics in common (the others are left out).
+
+    Args:
+        items: modality -> ((N, D) embeddings, (N,) fabric ids) of the fabrics to fit on.
+        pairs: the pairs wanted; same-modality pairs are skipped.
+    """
+    maps = {}
+    for p in pairs:
+        if p.same or p.query not in items or p.gallery not in items:
+            continue
+        (eq, fq), (eg, fg) = items[p.query], items[p.gallery]
+        try:
+            maps[p] = fit_cross_map(eq, fq, eg, fg)
+        except ValueError:  # too few fabrics in common
+            continue
+    return maps
