@@ -150,12 +150,15 @@ def test_calibration_matches_through_a_map_only_when_it_does_better():
         items(rng.standard_normal((30, 3)), 100),
         items(rng.standard_normal((12, 3)), 1),
     )
-    good = fit_cross_maps(train, [Pair(t, d), Pair(d, t)])
-    cal = calibrate(library, folds=3, maps=good)
+    both = [Pair(t, d), Pair(d, t)]
+    cal = calibrate(library, folds=3, map_pairs=both, map_items=train)
     pc = cal.pairs["touch_to_depth"]
     assert pc.mapped and pc.top1 > 0.9 and pc.top1_unmapped < 0.5
     assert cal.pairs["depth_to_touch"].mapped and cal.default_gallery[t] in (t, d)
     assert not cal.pairs["depth_to_depth"].mapped
+    # Fitted on the library's own fabrics, each fold is measured through a map without it.
+    own = calibrate(library, folds=3, map_pairs=both, map_items=library).pairs["touch_to_depth"]
+    assert own.mapped and own.top1 > 0.9
     assert math.isnan(cal.pairs["depth_to_depth"].top1_unmapped)  # no map tried
     mixes[t] = mixes[d]  # one space: their own distances match
     train, library = (
@@ -163,11 +166,25 @@ def test_calibration_matches_through_a_map_only_when_it_does_better():
         items(rng.standard_normal((12, 3)), 1),
     )
     shuffled = {m: (e, rng.permutation(f)) for m, (e, f) in train.items()}
-    useless = fit_cross_maps(shuffled, [Pair(t, d)])
-    pu = calibrate(library, folds=3, maps=useless).pairs["touch_to_depth"]
+    pu = calibrate(library, folds=3, map_pairs=both, map_items=shuffled).pairs["touch_to_depth"]
     assert not pu.mapped and pu.top1 == pu.top1_unmapped > 0.9
     restored = type(pc).from_dict(json.loads(json.dumps(pc.to_dict())))
     assert restored == pc
+
+
+def test_each_folds_queries_are_measured_by_a_distance_without_the_folds_fabrics():
+    rng = np.random.default_rng(3)
+    emb, fab = rng.normal(size=(24, 4)), np.repeat(np.arange(1, 7), 4)
+    left_out: list[set[int]] = []
+
+    def without(fabrics: np.ndarray):
+        left_out.append(set(fabrics.tolist()))
+        return pairwise_distances
+
+    d = Modality.DEPTH
+    pc = calibrate_pair(emb, fab, emb, fab, d, d, folds=3, distances_without=without)
+    assert pc == calibrate_pair(emb, fab, emb, fab, d, d, folds=3)  # same distances, same result
+    assert sorted(len(f) for f in left_out) == [2, 2, 2] and set().union(*left_out) == set(fab)
 
 
 # ---- building and opening ------------------------------------------------------------------
@@ -247,12 +264,12 @@ def test_killed_build_resumes_and_equals_an_unbroken_one(run, library: Path, tmp
     assert len(Library.open(out).table(Modality.DEPTH)) == 17
 
 
-def test_a_library_matches_through_maps_fitted_on_the_models_training_fabrics(
+def test_a_library_matches_through_maps_fitted_on_its_own_fabrics(
     run, library: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ):
     data, ckpt = run
     assert any("no cross-modal maps" in n for n in Library.open(library).calibration.notes)
-    monkeypatch.setattr(build_module, "MIN_MAP_FABRICS", 3)  # the tiny run trained on 4
+    monkeypatch.setattr(build_module, "MIN_MAP_FABRICS", 3)  # the tiny library has 6 fabrics
     out = tmp_path / "mapped"
     build_library(ckpt, data, out, shard_size=64)
     manifest = json.loads((out / "manifest.json").read_text())
@@ -260,14 +277,7 @@ def test_a_library_matches_through_maps_fitted_on_the_models_training_fabrics(
     cross = {p for p in Pair.every(list(Modality)) if not p.same}
     assert set(manifest["cross_maps"]["pairs"]) == {str(p) for p in cross}
     lib = Library.open(out)
-    train_ids = load_model(ckpt).split["train"]
-    fitted_on = {
-        m: (
-            t.embeddings[np.isin(t.fabric_ids, train_ids)],
-            t.fabric_ids[np.isin(t.fabric_ids, train_ids)],
-        )
-        for m, t in lib.tables.items()
-    }
+    fitted_on = {m: (t.embeddings, t.fabric_ids) for m, t in lib.tables.items()}
     want = fit_cross_maps(fitted_on, cross)
     assert set(lib.cross_maps) == cross
     for p, cmap in lib.cross_maps.items():

@@ -28,9 +28,10 @@ def add_parser(subparsers: Subparsers) -> None:
             "Embed every item of every modality of DATA with the model of CHECKPOINT into the "
             "library folder OUT (shards, manifest; written atomically). A killed build continues "
             "when run again with the same arguments. Calibrates c of P ∝ exp(-c D²) and an "
-            "'unknown' threshold on held-out fabrics (leave fabrics out). With 10 or more of "
-            "the model's training fabrics in DATA, fits a cross-modal map between every two "
-            "modalities on them, and matches a pair through it when calibration finds it better."
+            "'unknown' threshold on held-out fabrics (leave fabrics out). When 10 or more "
+            "fabrics have two modalities, fits a cross-modal map between them on the library's "
+            "fabrics, and matches the pair through it when calibration (the map refitted "
+            "without each fold's fabrics) finds it better."
         ),
     )
     ib.add_argument("--checkpoint", type=Path, required=True, help="trained checkpoint (.pt)")
@@ -66,8 +67,8 @@ def add_parser(subparsers: Subparsers) -> None:
         "--no-cross-map",
         dest="cross_map",
         action="store_false",
-        help="never match through a cross-modal map (by default one is fitted on the model's "
-        "training fabrics the library holds, and a pair uses it when calibration finds it better)",
+        help="never match through a cross-modal map (by default one is fitted on the library's "
+        "fabrics, and a pair uses it when calibration finds it better)",
     )
     ib.add_argument("--quiet", action="store_true", help="no line per shard")
     ib.set_defaults(func=run_build)

@@ -249,7 +249,8 @@ def _section_mapped(result: EvalResult) -> list[str]:
         "The same queries matched through linear maps between the two modalities' embedding "
         "spaces, fitted on the reference (training) fabrics' mean embeddings, both ways "
         "(`lookfeel.metrics.cross_map`; no labels used, nothing fitted on the test fabrics). "
-        "`lookfeel index build` matches a pair this way when it does better in calibration.",
+        "A library (`lookfeel index build`) fits such maps on its own fabrics and matches a pair "
+        "through its map when that does better in calibration.",
         "",
     ]
     controls = [

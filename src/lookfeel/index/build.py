@@ -6,10 +6,11 @@ arguments, embeds only what is missing, and rebuilding after adding a few files 
 the shards whose files changed. Memory is bounded by one shard's preprocessed images (a fresh
 `ImageLoader` per shard) plus the embeddings.
 
-When the library holds `MIN_MAP_FABRICS` or more of the model's own training fabrics (its
-checkpoint's split), a cross-modal map is fitted on them for every pair of two modalities
-(`lookfeel.metrics.cross_map`), and calibration keeps, per pair, whichever of the map and the
-embedding's own distances matches held-out queries better.
+When `MIN_MAP_FABRICS` or more of the library's fabrics have two modalities, a cross-modal map
+between them is fitted on the library's own fabrics (`lookfeel.metrics.cross_map`: the fabrics
+pair the two embedding spaces, no labels needed), and calibration keeps, per pair, whichever
+of the map and the embedding's own distances matches held-out queries better (the map refitted
+without each fold's fabrics, `lookfeel.index.calibrate`).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ from lookfeel.modality import Modality, Pair, PressKind
 __all__ = ["MIN_MAP_FABRICS", "BuildResult", "build_library"]
 
 MIN_MAP_FABRICS = 10
-"""Training fabrics (of the checkpoint's split) a library must hold to fit cross-modal maps."""
+"""Fabrics with both modalities a library must hold to fit a cross-modal map between them."""
 
 
 @dataclass(frozen=True)
@@ -139,24 +140,22 @@ def _check_out(out: Path) -> None:
         )
 
 
-def _training_maps(
-    tables: dict[Modality, tuple[np.ndarray, np.ndarray]], train_ids: Sequence[int]
+def _library_maps(
+    tables: dict[Modality, tuple[np.ndarray, np.ndarray]],
 ) -> tuple[dict[Pair, CrossMap], str | None]:
-    """Cross-modal maps fitted on the library's items of the model's training fabrics, and a
-    note when there are too few of them to fit any."""
+    """Cross-modal maps fitted on the library's own fabrics, and a note when too few fabrics
+    have two modalities to fit any."""
     if len(tables) < 2:
         return {}, None
-    train = np.asarray(list(train_ids), dtype=np.int64)
-    items = {m: (e[np.isin(f, train)], f[np.isin(f, train)]) for m, (e, f) in tables.items()}
-    common = {m: set(np.unique(f).tolist()) for m, (_, f) in items.items()}
+    common = {m: set(np.unique(f).tolist()) for m, (_, f) in tables.items()}
     pairs = [p for p in Pair.every(list(tables)) if not p.same]
     pairs = [p for p in pairs if len(common[p.query] & common[p.gallery]) >= MIN_MAP_FABRICS]
-    maps = fit_cross_maps(items, pairs)
+    maps = fit_cross_maps(tables, pairs)
     if maps:
         return maps, None
     return {}, (
-        f"no cross-modal maps: the library holds fewer than {MIN_MAP_FABRICS} of the model's "
-        "training fabrics in two modalities to fit them on"
+        f"no cross-modal maps: fewer than {MIN_MAP_FABRICS} of the library's fabrics have "
+        "two modalities to fit them on"
     )
 
 
@@ -311,9 +310,7 @@ def build_library(
         )
         for m, ps in parts.items()
     }
-    maps, map_note = (
-        _training_maps(tables, loaded.split.get("train", [])) if cross_map else ({}, None)
-    )
+    maps, map_note = _library_maps(tables) if cross_map else ({}, None)
     if maps:
         write_cross_maps(out / CROSS_MAPS, maps)
         manifest["cross_maps"] = {"file": CROSS_MAPS, "pairs": [str(p) for p in maps]}
@@ -326,7 +323,8 @@ def build_library(
         folds=folds,
         seed=seed,
         max_queries=calibration_queries,
-        maps=maps,
+        map_pairs=list(maps),
+        map_items=tables,
     )
     if map_note:
         calibration.notes.append(map_note)

@@ -31,17 +31,20 @@ accepted, ``accepted_top1`` their accuracy: what that false-accept rate costs.
 Touch queries are single presses here; a pooled multi-press query (the Multi-input Net) is
 usually matched more confidently, so the threshold is conservative for it.
 
-**Through a cross-modal map.** Given a pair's map (`lookfeel.metrics.cross_map`, fitted on the
-model's training fabrics), the pair is calibrated twice, with the embedding's own distances
-and with the map's, and keeps the one whose held-out top-1 is higher (``mapped``; the other's
-top-1 in ``top1_unmapped``). c and the threshold are then those of the map's distances.
+**Through a cross-modal map.** A pair that can be matched through a cross-modal map
+(`lookfeel.metrics.cross_map`, fitted on the library's own items, `lookfeel.index.build`) is
+calibrated twice, with the embedding's own distances and with the map's, and keeps the one
+whose held-out top-1 is higher (``mapped``; the other's top-1 in ``top1_unmapped``). The map's
+queries are held out as the fabrics are: each fold's queries are measured through a map
+refitted without that fold's fabrics, so neither top-1 nor c nor the threshold rests on a map
+that saw the query's fabric.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -56,11 +59,12 @@ from lookfeel.metrics import (
     match_probabilities,
     pairwise_distances,
 )
-from lookfeel.metrics.cross_map import CrossMap
+from lookfeel.metrics.cross_map import fit_cross_map
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
     "Calibration",
+    "Distances",
     "PairCalibration",
     "calibrate",
     "calibrate_pair",
@@ -70,6 +74,10 @@ __all__ = [
     "threshold_for",
     "unknown_probability",
 ]
+
+
+Distances = Callable[[NDArray[np.floating], NDArray[np.floating]], NDArray[np.float64]]
+"""(Q, D) queries, (G, D) gallery -> (Q, G) distances."""
 
 
 def pair_key(query: Modality, gallery: Modality) -> Pair:
@@ -271,8 +279,7 @@ def calibrate_pair(
     folds: int = 5,
     seed: int = 0,
     max_queries: int = 1000,
-    distances: Callable[[NDArray[np.floating], NDArray[np.floating]], NDArray[np.float64]]
-    | None = None,
+    distances_without: Callable[[NDArray[np.integer]], Distances] | None = None,
 ) -> PairCalibration | None:
     """Calibrate one (query, gallery) modality pair of a library (see the module docstring).
 
@@ -286,8 +293,10 @@ def calibrate_pair(
         folds: groups the gallery's fabrics are dealt into for leave-fabrics-out.
         seed: draws the queries and the folds.
         max_queries: at most this many queries (a (Q, G) distance matrix is held in memory).
-        distances: (queries, gallery) -> (Q, G) distances; default Euclidean (the paper's D),
-            `CrossMap.distances` for matching through a map.
+        distances_without: fabric ids -> a (queries, gallery) -> (Q, G) distance that never
+            saw those fabrics: each fold's queries are measured by the one without the fold's
+            fabrics (for a cross-modal map, one refitted without them). Default: Euclidean
+            (the paper's D), which is fitted on nothing.
 
     Returns:
         The calibration, or None when no query has another item of its fabric in the gallery.
@@ -298,9 +307,23 @@ def calibrate_pair(
     gf = np.asarray(gallery_fabric).reshape(-1)
     sel = np.sort(rng.choice(len(qf_all), size=min(len(qf_all), max_queries), replace=False))
     qf = qf_all[sel]
-    dist = (distances or pairwise_distances)(np.asarray(query_emb)[sel], gallery_emb)  # (Q, G)
     fabrics, gidx = np.unique(gf, return_inverse=True)
     nf = len(fabrics)
+    q_fold = np.full(len(qf), -1)  # each query's fold of fabrics (-1: its fabric has none)
+    fold_of = np.zeros(nf, dtype=np.int64)
+    if nf >= 2 and folds >= 2:
+        fold_of[rng.permutation(nf)] = np.arange(nf) % min(folds, nf)
+        q_col = np.minimum(np.searchsorted(fabrics, qf), nf - 1)
+        q_fold = np.where(fabrics[q_col] == qf, fold_of[q_col], -1)
+    qe = np.asarray(query_emb)[sel]
+    if distances_without is None:
+        dist = pairwise_distances(qe, gallery_emb)  # (Q, G)
+    else:  # each fold's queries by a distance that never saw the fold's fabrics
+        dist = np.empty((len(qf), len(gf)))
+        for k in np.unique(q_fold):
+            rows = q_fold == k
+            left_out = fabrics[fold_of == k] if k >= 0 else fabrics[:0]
+            dist[rows] = distances_without(left_out)(qe[rows], gallery_emb)
     onehot = sparse.csr_matrix((np.ones(len(gf)), (np.arange(len(gf)), gidx)), shape=(len(gf), nf))
     self_mask = np.zeros(dist.shape, dtype=bool)
     if same:
@@ -330,10 +353,6 @@ def calibrate_pair(
     open_best = best
     absent_open = np.zeros(0)
     if nf >= 2 and folds >= 2:
-        fold_of = np.empty(nf, dtype=np.int64)
-        fold_of[rng.permutation(nf)] = np.arange(nf) % min(folds, nf)
-        q_col = np.minimum(np.searchsorted(fabrics, qf), nf - 1)
-        q_fold = np.where(fabrics[q_col] == qf, fold_of[q_col], -1)
         removed = fold_of[gidx][None, :] == q_fold[:, None]  # (Q, G)
         usable = ~removed.all(axis=1)
         da, ma = dist[usable], removed[usable]
@@ -364,6 +383,22 @@ def calibrate_pair(
     )
 
 
+def _refit(
+    items: Mapping[Modality, tuple[NDArray[np.floating], NDArray[np.integer]]],
+    query: Modality,
+    gallery: Modality,
+) -> Callable[[NDArray[np.integer]], Distances]:
+    """Fabric ids -> the distances of the pair's cross-modal map fitted on ``items`` without
+    those fabrics."""
+    (eq, fq), (eg, fg) = items[query], items[gallery]
+
+    def without(left_out: NDArray[np.integer]) -> Distances:
+        kq, kg = ~np.isin(fq, left_out), ~np.isin(fg, left_out)
+        return fit_cross_map(eq[kq], fq[kq], eg[kg], fg[kg]).distances
+
+    return without
+
+
 def calibrate(
     embeddings: Mapping[Modality, tuple[NDArray[np.floating], NDArray[np.integer]]],
     *,
@@ -371,14 +406,17 @@ def calibrate(
     folds: int = 5,
     seed: int = 0,
     max_queries: int = 1000,
-    maps: Mapping[Pair, CrossMap] | None = None,
+    map_pairs: Sequence[Pair] = (),
+    map_items: Mapping[Modality, tuple[NDArray[np.floating], NDArray[np.integer]]] | None = None,
 ) -> Calibration:
     """Calibrate every (query, gallery) pair of a library's modalities.
 
     Args:
         embeddings: modality -> ((N, D) embeddings, (N,) fabric ids).
         target_false_accept, folds, seed, max_queries: see `calibrate_pair`.
-        maps: cross-modal maps of pairs to try matching through (module docstring).
+        map_pairs: pairs to try matching through a cross-modal map (module docstring).
+        map_items: modality -> the items the maps are fitted on (a library's own); each
+            fold's queries are measured through a map refitted without the fold's fabrics.
 
     Raises:
         ValueError: ``target_false_accept`` outside [0, 1).
@@ -396,12 +434,17 @@ def calibrate(
                 max_queries=max_queries,
             )
             pc = calibrate_pair(qe, qf, ge, gf, q, g, **settings)
-            cmap = (maps or {}).get(pair_key(q, g))
-            if pc is not None and cmap is not None:
-                pm = calibrate_pair(qe, qf, ge, gf, q, g, distances=cmap.distances, **settings)
-                assert pm is not None  # the same queries and gallery as pc's
-                better = pm.top1 > pc.top1
-                pc = replace(pm if better else pc, mapped=better, top1_unmapped=pc.top1)
+            if pc is not None and map_items and pair_key(q, g) in map_pairs:
+                try:
+                    pm = calibrate_pair(
+                        qe, qf, ge, gf, q, g, distances_without=_refit(map_items, q, g), **settings
+                    )
+                except ValueError as e:  # a fold left too few fabrics to fit a map on
+                    notes.append(f"{pair_key(q, g)}: not tried through a cross-modal map ({e})")
+                else:
+                    assert pm is not None  # the same queries and gallery as pc's
+                    better = pm.top1 > pc.top1
+                    pc = replace(pm if better else pc, mapped=better, top1_unmapped=pc.top1)
             if pc is None:
                 notes.append(
                     f"{pair_key(q, g)}: not calibrated (no query has another item of its "

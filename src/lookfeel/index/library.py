@@ -7,8 +7,8 @@
     LIB/shards/depth-00000.npz   one chunk of one modality: embeddings (N, D) float32, fabric ids,
                                  paths, the frame embedded, press kind and id, and its key
     LIB/index-depth.faiss        a faiss index per modality (faiss backend only)
-    LIB/cross_maps.npz           the cross-modal maps between modalities, fitted on the model's
-                                 training fabrics the library holds (when it holds enough)
+    LIB/cross_maps.npz           the cross-modal maps between modalities, fitted on the
+                                 library's fabrics (when enough have two modalities)
 
 Every file is written atomically. A shard's key is a digest of the checkpoint, the
 preprocessing and the chunk's files (path, size, modification time), so a build that is killed
