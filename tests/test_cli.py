@@ -2,6 +2,7 @@
 
 import argparse
 import json
+import os
 import re
 import subprocess
 import sys
@@ -112,3 +113,20 @@ def test_building_the_parser_loads_no_torch():
     code = "import sys, lookfeel.cli; lookfeel.cli.build_parser(); print('torch' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "False"
+
+
+def test_output_into_a_closed_pipe_ends_quietly(tiny_dataset: Path):
+    """`lookfeel data info ROOT | head -1`: no traceback when the reader is gone."""
+    read, write = os.pipe()
+    os.close(read)  # every write now fails with EPIPE
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "lookfeel", "data", "info", str(tiny_dataset)],
+            stdout=write,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+        )
+    finally:
+        os.close(write)
+    assert done.returncode == 141 and done.stderr == ""

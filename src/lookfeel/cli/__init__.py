@@ -31,6 +31,7 @@ and `main` prints ``lookfeel: <message>`` and returns 1.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -111,7 +112,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         status: int = args.func(args)
+        sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
     except LookfeelError as e:
         print(f"lookfeel: {e}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # `lookfeel ... | head`: the reader has what it wanted
+        # Point stdout at /dev/null so that Python's own flush at exit does not fail again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a shell reports a command killed by it
     return status
