@@ -485,8 +485,8 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     assert seen["synth_progress"] is True
     assert seen["overrides"] == ["train.progress=true", "train.steps=2"]  # the user's win
     steps = [ln for ln in lines if ln.startswith("[")]
-    assert [s[:4] for s in steps] == ["[2/4", "[3/4"], lines
-    assert " min] Generating a synthetic world of 36 fabrics" in steps[0]
+    assert [s[:4] for s in steps] == ["[2/5", "[3/5"], lines
+    assert " min] Generating a synthetic world of 118 fabrics" in steps[0]
 
 
 # ---- match on an image of the library ----------------------------------------------------------

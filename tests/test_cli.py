@@ -50,6 +50,12 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     out = capsys.readouterr().out
     assert "Generating a synthetic world of 10 fabrics" in out
     assert "touch->depth top-1" in out and "Report:" in out and "Evaluation:" in out
+    assert "[4/5" in out and "Training the cross-modal recipe" in out
+    assert "Look and feel connected" in out and "on 2 held-out fabrics" in out
+    assert re.search(r"^  touch -> depth .* through the map, .* in the embedding", out, re.M)
+    assert (tmp_path / "demo" / "cross" / "checkpoints" / "last.pt").is_file()
+    metrics = json.loads((tmp_path / "demo" / "evaluate" / "metrics.json").read_text())
+    assert "touch_to_depth_top1_mapped_ci_low" in metrics
     assert (tmp_path / "demo" / "evaluate" / "figures" / "glance.png").is_file()
     assert "At a glance:" in out
     report = (tmp_path / "demo" / "reproduce" / "report.md").read_text()

@@ -299,6 +299,9 @@ def test_a_cross_modal_map_connects_them_without_labels(tmp_path: Path):
     lo, hi = m["touch_to_depth_top1_mapped_ci_low"], m["touch_to_depth_top1_mapped_ci_high"]
     assert lo <= m["touch_to_depth_top1_mapped"] <= hi
     assert set(r.cross_maps) == {p for p in r.pairs if not p.same}
+    # The glance shows the drapes the map finds: the query's own first.
+    shown = [g for ex in r.glance for g in ex.galleries]
+    assert shown and all(g.mapped and g.true_rank == 1 for g in shown)
     assert not any(k.startswith(("depth_to_depth", "touch_to_touch")) and "mapped" in k for k in m)
     text = write_report(r, tmp_path / "eval").report.read_text()
     assert "Through a cross-modal map" in text
@@ -307,6 +310,7 @@ def test_a_cross_modal_map_connects_them_without_labels(tmp_path: Path):
         embedded, dataclasses.replace(cfg, cross_map=False), reference=reference
     )
     assert not any("mapped" in k for k in off.metrics) and not off.cross_maps
+    assert not any(g.mapped for ex in off.glance for g in ex.galleries)
     assert not any("mapped" in k for k in evaluate_embeddings(embedded, cfg).metrics)
 
 

@@ -206,12 +206,14 @@ def _mapped(
     reference: Mapping[Modality, EmbeddedItems],
     config: EvalConfig,
     notes: _Notes,
-) -> tuple[dict[str, float], dict[Pair, CrossMap]]:
+) -> tuple[dict[str, float], dict[Pair, CrossMap], dict[Pair, NDArray[np.float64]]]:
     """Every pair of two modalities scored through its cross-modal map (`EvalConfig.cross_map`),
     the map fitted on the reference fabrics' queries (pooled as the test queries are) and
-    gallery items; keys ``{pair}_top{k}_mapped``."""
+    gallery items; keys ``{pair}_top{k}_mapped``. Returns them, the maps and each pair's
+    (queries, gallery) distances through its map."""
     out: dict[str, float] = {}
     maps: dict[Pair, CrossMap] = {}
+    dists: dict[Pair, NDArray[np.float64]] = {}
     protocol = exact_protocol(config)
     for pair in pairs:
         q, g = pair.query, pair.gallery
@@ -225,11 +227,11 @@ def _mapped(
         except ValueError as e:
             notes.add(f"{pair}: no cross-modal map ({e})")
             continue
-        dist = maps[pair].distances(queries[q].emb, gallery[g])
+        dist = dists[pair] = maps[pair].distances(queries[q].emb, gallery[g])
         with notes.catching(f"{pair} through the cross-modal map"):
             scored = score_distances(dist, queries[q].fabric, gallery_fabric[g], protocol)
         keep_pick(out, scored.metrics, config.ks, f"{pair}_top{{k}}_mapped{{suffix}}")
-    return out, maps
+    return out, maps, dists
 
 
 def _calibrate(
@@ -696,10 +698,22 @@ def evaluate_embeddings(
     calibration = {pair: calibration[pair] for pair in pairs}
     maps: dict[Pair, CrossMap] = {}
     if config.cross_map and config.space == "embedding" and reference is not None:
-        extra, maps = _mapped(
+        extra, maps, mapped_dist = _mapped(
             pairs, queries, gallery, gallery_fabric, reference_queries, reference, config, notes
         )
         metrics.update(extra)
+        for pair, dist in mapped_dist.items():  # the glance shows what the map finds
+            if pair.query is Modality.TOUCH and pair.gallery in glance_seen:
+                own = queries[Modality.TOUCH].fabric
+                glance_seen[pair.gallery] = [
+                    replace(
+                        _nearest_fabrics(
+                            dist[qi], gallery_fabric[pair.gallery], int(own[qi]), pair.gallery
+                        ),
+                        mapped=True,
+                    )
+                    for qi in glance_q
+                ]
 
     if Modality.TOUCH in mods:
         # The press curve: exact top-k with intervals of touch queries pooling P presses.

@@ -461,7 +461,8 @@ def _glance_rows(
                 labels=[f"{i + 1}. F{f}" for i, f in enumerate(g.fabrics)],
                 true=[f == ex.fabric for f in g.fabrics],
                 note=(
-                    f"nearest {g.modality.value} of {g.n_fabrics} fabrics; "
+                    f"nearest {g.modality.value} of {g.n_fabrics} fabrics"
+                    + (" (through the cross-modal map); " if g.mapped else "; ")
                     + (
                         f"the true one ranks {g.true_rank}"
                         if g.true_rank
@@ -645,7 +646,8 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
                 "## At a glance",
                 "",
                 "Touch queries drawn at random from the test fabrics (not picked by score); "
-                "beside each, the test fabrics whose look is nearest, and what the query "
+                "beside each, the test fabrics whose look is nearest (through the cross-modal "
+                "map where one was fitted: see its section), and what the query "
                 "feels like (the mean label of the training fabrics nearest in touch) against "
                 "the truth.",
                 "",

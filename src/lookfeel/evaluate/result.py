@@ -92,6 +92,8 @@ class GlanceGallery:
         true_rank: where the query's own fabric ranks among all ``n_fabrics`` (1 = nearest;
             0 when it has no item in this modality).
         n_fabrics: the gallery's fabrics, all ranked.
+        mapped: ranked through the cross-modal map (`EvalResult.cross_maps`), not by the
+            embedding's own distances.
     """
 
     modality: Modality
@@ -99,6 +101,7 @@ class GlanceGallery:
     fabrics: tuple[int, ...]
     true_rank: int
     n_fabrics: int
+    mapped: bool = False
 
 
 @dataclass(frozen=True)
