@@ -26,6 +26,18 @@ from lookfeel.atomic import atomic_write_text
 HERE = Path(__file__).resolve().parent
 
 
+def _cpu_model() -> str | None:
+    """The CPU's model name (Linux), e.g. ``AMD EPYC``: float results of training differ
+    between CPU families, and so may the numbers a benchmark records."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.partition(":")[2].strip()
+    except OSError:
+        pass
+    return None
+
+
 def machine() -> dict[str, object]:
     """What the numbers were measured on."""
     return {
@@ -34,6 +46,7 @@ def machine() -> dict[str, object]:
         "cpus": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
         "processor": platform.processor() or platform.machine(),
+        "cpu_model": _cpu_model(),
     }
 
 

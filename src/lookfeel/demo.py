@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -82,6 +82,8 @@ class DemoResult:
     seconds: float
     cross: EvalResult | None = None
     """That evaluation's result (its metrics: `print_demo_result` prints the pairs)."""
+    step_seconds: dict[int, float] = field(default_factory=dict)
+    """Wall seconds of each numbered step that ran (1: the real data's summary ... 5)."""
 
 
 def _complete_world(path: Path, config: SynthConfig) -> bool:
@@ -123,8 +125,11 @@ def run_demo(
     """
     started = time.perf_counter()
 
+    marks: list[tuple[int, float]] = []
+
     def step(k: int, text: str) -> None:
-        log(f"[{k}/5, {(time.perf_counter() - started) / 60:.1f} min] {text}")
+        marks.append((k, time.perf_counter()))
+        log(f"[{k}/5, {(marks[-1][1] - started) / 60:.1f} min] {text}")
 
     if real_data is not None and real_data.is_dir():
         step(1, f"Real GelFabric data at {real_data}:")
@@ -162,7 +167,10 @@ def run_demo(
         trained.last_checkpoint, world, split="val", config=EvalConfig(n_boot=500)
     )
     report = write_report(evaluated, out / "evaluate").report
-    return DemoResult(world, result, report, time.perf_counter() - started, evaluated)
+    ended = time.perf_counter()
+    ends = [t for _, t in marks[1:]] + [ended]
+    seconds = {k: round(end - t, 2) for (k, t), end in zip(marks, ends, strict=True)}
+    return DemoResult(world, result, report, ended - started, evaluated, seconds)
 
 
 def print_demo_result(result: DemoResult, log: Callable[[str], None] = print) -> None:
