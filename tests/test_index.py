@@ -155,6 +155,8 @@ def test_calibration_matches_through_a_map_only_when_it_does_better():
     pc = cal.pairs["touch_to_depth"]
     assert pc.mapped and pc.top1 > 0.9 and pc.top1_unmapped < 0.5
     assert cal.pairs["depth_to_touch"].mapped and cal.default_gallery[t] in (t, d)
+    no_folds = calibrate(library, folds=0, map_pairs=both, map_items=train)  # nothing held out
+    assert not any(p.mapped for p in no_folds.pairs.values())
     assert not cal.pairs["depth_to_depth"].mapped
     # Fitted on the library's own fabrics, each fold is measured through a map without it.
     own = calibrate(library, folds=3, map_pairs=both, map_items=library).pairs["touch_to_depth"]

@@ -416,7 +416,8 @@ def calibrate(
         target_false_accept, folds, seed, max_queries: see `calibrate_pair`.
         map_pairs: pairs to try matching through a cross-modal map (module docstring).
         map_items: modality -> the items the maps are fitted on (a library's own); each
-            fold's queries are measured through a map refitted without the fold's fabrics.
+            fold's queries are measured through a map refitted without the fold's fabrics (so
+            with ``folds`` below 2, no fabric is held out and no map is tried).
 
     Raises:
         ValueError: ``target_false_accept`` outside [0, 1).
@@ -434,7 +435,7 @@ def calibrate(
                 max_queries=max_queries,
             )
             pc = calibrate_pair(qe, qf, ge, gf, q, g, **settings)
-            if pc is not None and map_items and pair_key(q, g) in map_pairs:
+            if pc is not None and map_items and folds >= 2 and pair_key(q, g) in map_pairs:
                 try:
                     pm = calibrate_pair(
                         qe, qf, ge, gf, q, g, distances_without=_refit(map_items, q, g), **settings
