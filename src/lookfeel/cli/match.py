@@ -6,7 +6,9 @@ fabric's nearest items in every modality, predicted physical properties, and 'no
 below the calibrated threshold. Several touch images are the presses of one query (pooled);
 depth and colour images are matched one by one. A query identical to an item of the library is
 reported as that item's fabric; otherwise, below the calibrated threshold, the answer is 'no
-known fabric', shown beside the chance level 1/F (F: the library's fabrics).
+known fabric', shown beside the chance level 1/F (F: the library's fabrics). Across two senses
+the library matches through its cross-modal map where calibration found that better (`lookfeel
+index info` says which pairs).
 """
 
 from __future__ import annotations
