@@ -558,6 +558,10 @@ def evaluate_embeddings(
       query's), ``confidence``, ``ece``, ``nll``, with chance; confusion matrices (Figure 7)
       for the figure pairs.
 
+    With ``reference`` (and `EvalConfig.cross_map`), every pair of two modalities is also
+    matched through a cross-modal map fitted on the reference fabrics (``{pair}_top{k}_mapped``
+    with its interval; `EvalResult.cross_maps`), and the glance ranks the looks through it.
+
     Touch queries pool ``config.presses`` presses of one fabric (element-wise max, the
     Multi-input Net); the curve over P = 1 .. ``config.max_presses`` is in the
     ``touch_to_{gallery}_presses{P}_*`` keys. Physical-property probes (k-NN, ridge) are fitted
