@@ -196,8 +196,8 @@ def build_library(
         target_false_accept: false-accept rate the "unknown" threshold is chosen for.
         folds, seed, calibration_queries: leave-fabrics-out calibration settings
             (`lookfeel.index.calibrate`).
-        cross_map: fit cross-modal maps on the model's training fabrics the library holds and
-            match a pair through its map when calibration finds that better (module doc).
+        cross_map: fit cross-modal maps on the library's own fabrics and match a pair through
+            its map when calibration finds that better (module doc).
         device: where to embed.
         on_shard: called as ``on_shard(file, rows)`` after each shard is written.
         progress: print a line per shard.

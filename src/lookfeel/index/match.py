@@ -283,9 +283,9 @@ class Matcher:
         left_out = -1  # the gallery row of a library item used as the query
         if exclude is not None and exclude.startswith(f"{g.value}:"):
             left_out = int(exclude.partition(":")[2])
-        cmap = self._map(modality, g)
         q = np.asarray(e)[None, :]
-        exact = self._mapped(modality, g) if cmap is not None else None
+        through_map = self._mapped(modality, g)
+        exact = through_map
         if exact is None and isinstance(search, ExactSearch):
             exact = search.distances
         if exact is None:  # faiss: the nearest rows
@@ -351,7 +351,7 @@ class Matcher:
                     f" (at that rate this pair accepted no known fabric in calibration, true "
                     f"accept {cal.true_accept:.3f}: read the ranking, not the verdict)"
                 )
-        if cmap is not None:
+        if through_map is not None:
             message += f" (matched through the {modality.value}-{g.value} cross-modal map)"
         return MatchResult(
             query_modality=modality,
@@ -378,12 +378,15 @@ class Matcher:
 
     def _mapped(
         self, query: Modality, gallery: Modality
-    ) -> Callable[[NDArray[np.floating]], NDArray[np.float64]]:
+    ) -> Callable[[NDArray[np.floating]], NDArray[np.float64]] | None:
         """Distances through the pair's map to every gallery item (its reverse map of the
-        gallery computed on first use and kept)."""
+        gallery computed on first use and kept); None when the pair is not matched through a
+        map."""
         key = Pair(query, gallery)
         if key not in self._against:
-            cmap = self.library.cross_maps[key]
+            cmap = self._map(query, gallery)
+            if cmap is None:
+                return None
             self._against[key] = cmap.against(self.library.table(gallery).embeddings)
         return self._against[key]
 
