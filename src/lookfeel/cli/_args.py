@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -88,9 +89,36 @@ def add_data_out(parser: argparse.ArgumentParser, out_help: str) -> None:
 
 def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:
     """``--config`` (a run config YAML), ``--data``, ``--out`` and ``--set`` of a training run."""
-    parser.add_argument("--config", type=Path, required=True, help="run config YAML (configs/...)")
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="run config YAML (configs/...); default: the shipped recipe for what --data holds "
+        "(two or more senses: synth_cross.yaml on them; touch alone: physiclear.yaml; depth "
+        "alone: real_depth.yaml)",
+    )
     add_data_out(parser, out_help)
     add_set(parser, "override a config key, e.g. --set train.steps=100 (repeatable)")
+
+
+def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
+    """The config file and overrides of a training run: ``--config`` as given, or (without it)
+    the shipped recipe for what ``--data`` holds (`lookfeel.config.recipes`), said on stderr.
+
+    Raises:
+        ConfigError: no recipe fits the folder's senses.
+        DatasetError: ``--data`` is not a folder.
+    """
+    if args.config is not None:
+        return args.config, list(args.set)
+    from lookfeel.config.recipes import default_recipe
+    from lookfeel.data.layout import scan
+
+    catalog = scan(args.data, check_headers=False)
+    held = {m for fabric in catalog.fabrics for m, items in fabric.items.items() if items}
+    recipe = default_recipe(held, args.data)
+    print(f"No --config: configs/{recipe.name} ({recipe.reason})", file=sys.stderr)
+    return recipe.path, [*recipe.overrides, *args.set]
 
 
 def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:

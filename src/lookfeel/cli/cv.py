@@ -1,7 +1,8 @@
 """``lookfeel cv``: cross-validate a run config over fabric-disjoint folds, beside raw pixels and
 chance.
 
-Train a config on every fold of cluster-stratified, fabric-disjoint folds (and every seed),
+Train a config (without --config, the shipped recipe for what the folder holds, as `lookfeel
+train` chooses it) on every fold of cluster-stratified, fabric-disjoint folds (and every seed),
 score each run's last checkpoint by pick 1 of 10 among the fabrics its fold held out, beside the
 raw-pixel nearest neighbour and chance, and predict the physical labels of held-out fabrics from
 their embeddings. For a depth model the background control is on by default: the same queries
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_command, add_run_config
+from lookfeel.cli._args import Subparsers, add_command, add_run_config, run_config_source
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -79,12 +80,12 @@ def run(args: argparse.Namespace) -> int:
     from lookfeel.config import RunConfig, load_config
     from lookfeel.crossval import cross_validate, format_cv_summary
 
-    overrides = list(args.set)
+    path, overrides = run_config_source(args)
     if args.folds is not None:
         overrides.append(f"train.folds={args.folds}")
     if args.fold_size is not None:
         overrides.append(f"train.fold_size={args.fold_size}")
-    config = load_config(RunConfig, args.config, overrides)
+    config = load_config(RunConfig, path, overrides)
     summary = cross_validate(
         config,
         args.data,

@@ -1,6 +1,9 @@
 """``lookfeel train``: train a run config on a dataset, in one process or many (torchrun).
 
-Train a run config (see configs/) on a dataset folder. Writes RUN/config.yaml, RUN/split.json,
+Train a run config (see configs/) on a dataset folder; without --config, the shipped recipe
+for what the folder holds (a synthetic world or other data with two or more senses:
+configs/synth_cross.yaml, which connects them; touch alone: configs/physiclear.yaml; depth
+alone: configs/real_depth.yaml). Writes RUN/config.yaml, RUN/split.json,
 RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on many processes under `torchrun
 --nproc_per_node N -m lookfeel train ...`.
 """
@@ -10,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_command, add_run_config
+from lookfeel.cli._args import Subparsers, add_command, add_run_config, run_config_source
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -32,10 +35,14 @@ def run(args: argparse.Namespace) -> int:
     from lookfeel.config import RunConfig, load_config
     from lookfeel.train import train
 
-    overrides = list(args.set)
+    saved = args.out / "config.yaml"
+    if args.config is None and args.resume and saved.is_file():
+        path, overrides = saved, list(args.set)  # a resumed run keeps its own recipe
+    else:
+        path, overrides = run_config_source(args)
     if args.pretrained is not None:
         overrides.append(f"model.pretrained={args.pretrained}")
-    config = load_config(RunConfig, args.config, overrides)
+    config = load_config(RunConfig, path, overrides)
     result = train(config, args.data, args.out, resume=args.resume)
     print(f"Trained {result.steps} steps; run in {result.run_dir}")
     print(f"  last checkpoint: {result.last_checkpoint}")

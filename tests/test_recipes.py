@@ -1,0 +1,77 @@
+"""The shipped recipe `lookfeel train` and `lookfeel cv` use when no --config is named."""
+
+import argparse
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from lookfeel.cli import main
+from lookfeel.cli._args import run_config_source
+from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.config.recipes import default_recipe
+from lookfeel.modality import Modality
+
+D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
+
+
+@pytest.mark.parametrize(
+    ("held", "name", "views"),
+    [
+        ({D, C, T}, "synth_cross.yaml", ["depth", "color", "touch"]),
+        ({T, D}, "synth_cross.yaml", ["depth", "touch"]),
+        ({C, T}, "synth_cross.yaml", ["color", "touch"]),
+        ({T}, "physiclear.yaml", ["touch", "touch"]),
+        ({D}, "real_depth.yaml", ["depth", "depth"]),
+    ],
+)
+def test_the_recipe_follows_the_senses_the_folder_holds(held, name, views):
+    recipe = default_recipe(held, Path("data"))
+    assert recipe.name == name
+    assert recipe.path.is_file()
+    config = load_config(RunConfig, recipe.path, recipe.overrides)
+    assert list(config.train.views) == views
+
+
+@pytest.mark.parametrize(("held", "words"), [({C}, "colour photos alone"), (set(), "no depth")])
+def test_no_recipe_is_guessed_for_colour_alone_or_nothing(held, words):
+    with pytest.raises(ConfigError, match=words):
+        default_recipe(held, Path("data"))
+
+
+def _args(data: Path, config: Path | None = None, sets: tuple[str, ...] = ()) -> argparse.Namespace:
+    return argparse.Namespace(data=data, config=config, set=list(sets))
+
+
+def test_a_named_config_is_used_as_given(tiny_dataset: Path, capsys):
+    path, overrides = run_config_source(_args(tiny_dataset, Path("my.yaml"), ("a.b=1",)))
+    assert (path, overrides) == (Path("my.yaml"), ["a.b=1"])
+    assert capsys.readouterr().err == ""
+
+
+def test_without_config_the_folder_picks_and_the_user_overrides_win(tiny_dataset: Path, capsys):
+    path, overrides = run_config_source(_args(tiny_dataset, sets=("train.views=[depth,touch]",)))
+    assert path.name == "synth_cross.yaml"
+    assert "No --config: configs/synth_cross.yaml" in capsys.readouterr().err
+    config = load_config(RunConfig, path, overrides)
+    assert list(config.train.views) == ["depth", "touch"]  # the user's --set comes last
+
+    shutil.rmtree(tiny_dataset / "color")
+    shutil.rmtree(tiny_dataset / "depth")
+    path, _ = run_config_source(_args(tiny_dataset))
+    assert path.name == "physiclear.yaml"
+
+
+def test_train_without_config_trains_the_cross_modal_recipe(tiny_dataset: Path, tmp_path: Path):
+    out = tmp_path / "run"
+    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
+    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
+    assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["train"]["views"] == ["depth", "color", "touch"]
+    assert saved["data"]["touch_frame"] == -1  # synth_cross.yaml's own choice
+    assert saved["model"]["width"] == 8
+    # Resuming without --config continues the run with its own saved recipe.
+    assert main([*argv, "--resume", "--set", "train.steps=3"]) == 0
+    assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
