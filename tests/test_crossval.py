@@ -254,3 +254,37 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
     assert "model_room_top1" not in raw_summary["pairs"]["depth_to_depth"]
     raw_md = (tmp_path / "raw" / "cv.md").read_text()
     assert "another fabric's room" not in raw_md and "background swapped" in raw_md
+
+
+def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_path: Path):
+    """With ``presses`` 3 every touch query is one group of 3 presses of a fabric (the
+    Multi-input Net's protocol), in the model, raw pixels, label space and through the map;
+    cv's numbers through the map equal `lookfeel evaluate`'s on the same run."""
+    from lookfeel.evaluate import evaluate_checkpoint
+
+    path = Path(__file__).resolve().parents[1] / "configs" / "synth_cross.yaml"
+    overrides = ["train.folds=2", "train.fold_size=3", "train.steps=4", "train.val_every=0"]
+    config = load_config(RunConfig, path, [*overrides, "data.image_size=32"])
+    single = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20)
+    pooled = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, presses=3)
+    assert (single["presses"], pooled["presses"]) == (1, 3)
+    run = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text())
+    assert run["key"]["presses"] == 3
+    held = run["test_fabrics"]
+    for pair in ("touch_to_depth", "touch_to_touch"):
+        entry = run["pairs"][pair]
+        assert sorted(entry["query_fabric"]) == sorted(held)  # 3 fold presses: one query each
+        methods = [k for k in entry if k not in ("query_fabric", "chance")]
+        assert {"model", "model_labels"} <= set(methods)
+        assert all(len(entry[k]) == len(held) for k in methods), pair
+    assert "raw_pixels" in run["pairs"]["touch_to_touch"]
+    assert len(run["pairs"]["depth_to_touch"]["query_fabric"]) == 3 * len(held)  # drapes
+    assert "pools 3 presses" in (tmp_path / "cv" / "cv.md").read_text()
+
+    ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
+    m = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20, presses=3)).metrics
+    for pair in ("touch_to_depth", "touch_to_color"):
+        cv_mapped = float(np.mean(np.asarray(run["pairs"][pair]["model_mapped"])[:, 0]))
+        assert cv_mapped == pytest.approx(m[f"{pair}_top1_mapped"], abs=1e-9), pair
+    with pytest.raises(ConfigError, match="presses"):
+        cross_validate(config, data, tmp_path / "cv2", folds=[0], presses=0)

@@ -5,7 +5,10 @@ The folds are ``train.folds`` cluster-stratified folds of ``train.fold_size`` fa
 five test sets chosen as the paper chose its 18). Each run trains on the other fabrics, is scored
 by its *last* checkpoint (no choice is made on the held-out fabrics), and reports, per pair:
 
-- pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3;
+- pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3; a touch query
+  pools ``presses`` presses of one fabric when that is above 1 (the Multi-input Net: default
+  the config's ``data.presses``; each fabric's presses in seeded disjoint groups, embedded by
+  the model's own press pooling, as `lookfeel evaluate` does), else is one press;
 - the same for raw pixels (nearest neighbour on the preprocessed images; same-modality pairs);
 - chance;
 - for a model with a depth branch, the **background control** (on by default): the same
@@ -66,11 +69,13 @@ from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.touch_control import UntouchedControl
-from lookfeel.embedding import embed_items, raw_pixels
+from lookfeel.embedding import EmbeddedItems, embed_items, press_pooler, raw_pixels
 from lookfeel.errors import LookfeelError
+from lookfeel.evaluate.core import press_queries
 from lookfeel.metrics import (
     EXACT_PICK,
     PairScore,
+    QuerySet,
     bootstrap_ci,
     mean_and_spread,
     property_probe,
@@ -145,20 +150,39 @@ def _modalities(pairs: Sequence[Pair]) -> list[Modality]:
 
 
 def _pick(
-    emb: dict[Modality, np.ndarray], fab: dict[Modality, np.ndarray], pairs: Sequence[Pair]
+    emb: dict[Modality, np.ndarray],
+    fab: dict[Modality, np.ndarray],
+    pairs: Sequence[Pair],
+    queries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
-    """Exact pick 1 of 10, top-1 and top-3 per query, of each pair (`EXACT_PICK`)."""
+    """Exact pick 1 of 10, top-1 and top-3 per query, of each pair (`EXACT_PICK`); ``queries``:
+    pooled queries of a modality (multi-press touch), else every item is a query."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
-        return score_pairs(emb, fab, EXACT_PICK, pairs)
+        return score_pairs(emb, fab, EXACT_PICK, pairs, queries=queries)
+
+
+def _pooled(q: QuerySet, emb: np.ndarray) -> QuerySet:
+    """The same groups as ``q`` over other per-item vectors (raw pixels, label space): each
+    group's mean."""
+    return QuerySet(np.asarray(emb, np.float64)[q.members].mean(axis=1), q.fabric, q.members)
 
 
 def _cross_maps(
-    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]], pairs: Sequence[Pair]
+    train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    pairs: Sequence[Pair],
+    train_queries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, CrossMap]:
     """The cross-modal map of every pair of two modalities with training items
-    (`lookfeel.metrics.cross_map`); ``train``: per modality (fabric ids, embeddings, pixels)."""
-    return fit_cross_maps({m: (e, f) for m, (f, e, _) in train.items()}, pairs)
+    (`lookfeel.metrics.cross_map`); ``train``: per modality (fabric ids, embeddings, pixels).
+    A modality in ``train_queries`` (pooled touch) is fitted from those where it is the query,
+    as its held-out queries are pooled."""
+    items = {m: (e, f) for m, (f, e, _) in train.items()}
+    pooled = {m: (q.emb, q.fabric) for m, q in (train_queries or {}).items()}
+    as_query = [p for p in pairs if p.query in pooled]
+    maps = fit_cross_maps(items, [p for p in pairs if p not in as_query])
+    maps |= fit_cross_maps(items | pooled, [p for p in as_query if p.gallery not in pooled])
+    return {p: maps[p] for p in pairs if p in maps}
 
 
 def _mapped(
@@ -166,14 +190,19 @@ def _mapped(
     emb: dict[Modality, np.ndarray],
     fab: dict[Modality, np.ndarray],
     pairs: Sequence[Pair],
+    queries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
-    """Exact pick 1 of 10 of each pair in ``pairs`` through its cross-modal map."""
+    """Exact pick 1 of 10 of each pair in ``pairs`` through its cross-modal map (``queries``
+    as `_pick`'s)."""
     out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
         for p in pairs:
-            dist = maps[p].distances(emb[p.query], emb[p.gallery])
-            out[p] = score_distances(dist, fab[p.query], fab[p.gallery], EXACT_PICK)
+            q = (queries or {}).get(p.query)
+            if q is None:
+                q = QuerySet.single(emb[p.query], fab[p.query])
+            dist = maps[p].distances(q.emb, emb[p.gallery])
+            out[p] = score_distances(dist, q.fabric, fab[p.gallery], EXACT_PICK)
     return out
 
 
@@ -217,8 +246,10 @@ def _score(
     loader: ImageLoader,
     control: BackgroundControl | None = None,
     untouched: UntouchedControl | None = None,
+    presses: int = 1,
 ) -> dict[str, Any]:
-    """Per-query pick 1 of 10 of the model and of raw pixels on ``held_ids``' items, and
+    """Per-query pick 1 of 10 of the model and of raw pixels on ``held_ids``' items (touch
+    queries pooling ``presses`` presses when above 1: the module doc), and
     property probes fitted on ``seen_ids``' items (none when it is empty). ``loader`` must
     preprocess as the model's config says; it keeps its decoded images for the next call.
     With ``control`` (made with the same data config) and depth among the pairs, also the
@@ -235,6 +266,10 @@ def _score(
     fab: dict[Modality, np.ndarray] = {}
     props: dict[str, Any] = {}
     train: dict[Modality, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    queries: dict[Modality, QuerySet] = {}  # pooled touch queries (presses > 1)
+    train_queries: dict[Modality, QuerySet] = {}
+    touch = Modality.TOUCH
+    pool = press_pooler(lm.model, loader, flip=tta) if presses > 1 else None
     for m in _modalities(pairs):
         items: list[Item] = held.items(m, cfg.data.touch_kinds)
         train_items: list[Item] = seen.items(m, cfg.data.touch_kinds) if seen else []
@@ -242,28 +277,45 @@ def _score(
         emb[m] = embed_items(lm.model, items, loader, flip=tta)
         pix[m] = raw_pixels(items, loader)
         fab[m] = np.array([it.fabric_id for it in items], dtype=np.int64)
+        if m is touch and pool is not None:
+            held_touch = EmbeddedItems(m, emb[m], fab[m], tuple(items))
+            queries[m] = press_queries(held_touch, presses, 0, pool)
         if train_items:
             train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
             train_e = embed_items(lm.model, train_items, loader, flip=tta)
             train_pix = raw_pixels(train_items, loader)
             train[m] = (train_f, train_e, train_pix)  # the class probes fit on them too
+            if m is touch and pool is not None:
+                seen_touch = EmbeddedItems(m, train_e, train_f, tuple(train_items))
+                train_queries[m] = press_queries(seen_touch, presses, 0, pool)
             props[m.value] = {
                 "model": _probe(catalog, train_e, train_f, emb[m], fab[m]),
                 "raw_pixels": _probe(catalog, train_pix, train_f, pix[m], fab[m]),
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
-    model = _pick(emb, fab, pairs)
+    model = _pick(emb, fab, pairs, queries)
     others: dict[str, dict[Pair, Any]] = {}  # every other method's scores, by method
     spaces = _label_spaces(catalog, train)
     mapped = [p for p in pairs if p.query in spaces and p.gallery in spaces]
+
+    def in_labels(e: dict[Modality, np.ndarray], wanted: list[Pair]) -> dict[Pair, PairScore]:
+        """``wanted`` matched in label space: each modality's embeddings (and pooled queries)
+        projected onto the labels."""
+        lab = {m: s.project(e[m]) for m, s in spaces.items()}
+        lab_q = {
+            m: QuerySet(spaces[m].project(q.emb), q.fabric, q.members)
+            for m, q in queries.items()
+            if m in spaces
+        }
+        return _pick(lab, fab, wanted, lab_q)
+
     if mapped:
-        others["model_labels"] = _pick(
-            {m: s.project(emb[m]) for m, s in spaces.items()}, fab, mapped
-        )
-    maps = _cross_maps(train, pairs)
+        others["model_labels"] = in_labels(emb, mapped)
+    maps = _cross_maps(train, pairs, train_queries)
     if maps:
-        others["model_mapped"] = _mapped(maps, emb, fab, list(maps))
-    raw = _pick(pix, fab, [p for p in pairs if p.same])  # raw pixels: images of one kind
+        others["model_mapped"] = _mapped(maps, emb, fab, list(maps), queries)
+    raw_q = {m: _pooled(q, pix[m]) for m, q in queries.items()}
+    raw = _pick(pix, fab, [p for p in pairs if p.same], raw_q)  # raw pixels: images of one kind
     depth_pairs = [p for p in pairs if Modality.DEPTH in (p.query, p.gallery)]
     if control is not None and depth_pairs:
         items = held.items(Modality.DEPTH)
@@ -278,14 +330,13 @@ def _score(
             for name, ld in variants.items():
                 emb_v = emb | {Modality.DEPTH: embed_items(lm.model, items, ld, flip=tta)}
                 pix_v = pix | {Modality.DEPTH: raw_pixels(items, ld)}
-                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs)
+                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs, queries)
                 if mapped:  # label space, its depth maps read on the altered images
-                    lab_v = {m: s.project(emb_v[m]) for m, s in spaces.items()}
                     lab_pairs = [p for p in mapped if p in depth_pairs]
-                    others[f"model_labels_{name}"] = _pick(lab_v, fab, lab_pairs)
+                    others[f"model_labels_{name}"] = in_labels(emb_v, lab_pairs)
                 if maps:
                     map_pairs = [p for p in maps if p in depth_pairs]
-                    others[f"model_mapped_{name}"] = _mapped(maps, emb_v, fab, map_pairs)
+                    others[f"model_mapped_{name}"] = _mapped(maps, emb_v, fab, map_pairs, queries)
                 raw_pairs = [p for p in depth_pairs if p.same]
                 others[f"raw_pixels_{name}"] = _pick(pix_v, fab, raw_pairs)
     touch_pairs = [p for p in pairs if Modality.TOUCH in (p.query, p.gallery)]
@@ -293,13 +344,25 @@ def _score(
     if UntouchedControl.applies(touch_items):
         # The sensor's own light: every press replaced by a moment of its video with no contact.
         still = (untouched or UntouchedControl(cfg.data)).loader(touch_items)
-        emb_un = emb | {Modality.TOUCH: embed_items(lm.model, touch_items, still, flip=tta)}
-        pix_un = pix | {Modality.TOUCH: raw_pixels(touch_items, still)}
-        others["model_untouched"] = _pick(emb_un, fab, touch_pairs)
-        others["raw_pixels_untouched"] = _pick(pix_un, fab, [p for p in touch_pairs if p.same])
+        emb_un = emb | {touch: embed_items(lm.model, touch_items, still, flip=tta)}
+        pix_un = pix | {touch: raw_pixels(touch_items, still)}
+        q_un: dict[Modality, QuerySet] = {}
+        raw_un: dict[Modality, QuerySet] = {}
+        if touch in queries:  # the same groups of presses, each of its still moments
+            members = queries[touch].members
+            still_touch = EmbeddedItems(touch, emb_un[touch], fab[touch], tuple(touch_items))
+            pooled = press_pooler(lm.model, still, flip=tta)(still_touch, members)
+            q_un[touch] = QuerySet(pooled, queries[touch].fabric, members)
+            raw_un[touch] = _pooled(queries[touch], pix_un[touch])
+        others["model_untouched"] = _pick(emb_un, fab, touch_pairs, q_un)
+        others["raw_pixels_untouched"] = _pick(
+            pix_un, fab, [p for p in touch_pairs if p.same], raw_un
+        )
     for pair in pairs:
         entry: dict[str, Any] = {
-            "query_fabric": fab[pair.query].tolist(),
+            "query_fabric": (
+                queries[pair.query].fabric if pair.query in queries else fab[pair.query]
+            ).tolist(),
             "model": model[pair].pick.per_query.tolist(),
             "chance": [float(c) for c in model[pair].pick.chance],
         }
@@ -401,6 +464,7 @@ def score_checkpoint(
     tta: bool = False,
     n_boot: int = 1000,
     background_control: bool = True,
+    presses: int | None = None,
 ) -> dict[str, Any]:
     """Score a trained model on every fabric of another dataset, beside raw pixels and chance.
 
@@ -414,6 +478,7 @@ def score_checkpoint(
         tta: test-time pooling over each image and its mirror.
         n_boot: bootstrap resamples for the intervals.
         background_control: for depth pairs, also score with backgrounds swapped.
+        presses: presses pooled into a touch query; default the run's ``data.presses``.
 
     Returns:
         ``{"pairs": {pair: {"model_top1": {"mean", "ci95", ...}, "raw_pixels_top1": ...,
@@ -425,13 +490,15 @@ def score_checkpoint(
     loader = ImageLoader(lm.config.data)
     catalog = drop_unpressed(scan(data, require=_modalities(wanted), strict=True), loader)
     control = BackgroundControl(lm.config.data, CONTROL_SEED) if background_control else None
-    res = _score(lm, catalog, catalog.ids, [], wanted, tta, loader, control)
+    presses = lm.config.data.presses if presses is None else presses
+    res = _score(lm, catalog, catalog.ids, [], wanted, tta, loader, control, None, presses)
     summary = _summarise([res], wanted, n_boot, control is not None)
     return {
         "checkpoint": str(checkpoint),
         "data": str(data),
         "step": lm.step,
         "tta": tta,
+        "presses": presses,
         "background_control": summary["background_control"],
         "pairs": summary["pairs"],
     }
@@ -445,11 +512,14 @@ def _evaluate_run(
     loader: ImageLoader,
     control: BackgroundControl | None,
     untouched: UntouchedControl,
+    presses: int,
 ) -> dict:
     """Score a finished run's last checkpoint on its held-out fabrics."""
     lm = load_model(run_dir / "checkpoints" / "last.pt")
     split = lm.split
-    return _score(lm, catalog, split["val"], split["train"], pairs, tta, loader, control, untouched)
+    return _score(
+        lm, catalog, split["val"], split["train"], pairs, tta, loader, control, untouched, presses
+    )
 
 
 def _control_status(results: list[dict], asked: bool) -> dict[str, Any]:
@@ -687,7 +757,13 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         f"Fabric-disjoint cross-validation: {summary['runs']} runs "
         f"(folds {summary['folds']}, seeds {summary['seeds']}, {per_fold}). "
         "Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
-        "[95% interval, resampling held-out fabrics].",
+        "[95% interval, resampling held-out fabrics]."
+        + (
+            f" A touch query pools {summary['presses']} presses of one fabric (the Multi-input "
+            "Net's protocol); touch as the gallery is single presses."
+            if summary.get("presses", 1) > 1
+            else ""
+        ),
         "",
         "| pair | model top-1 | model top-3 | raw pixels top-1 | raw pixels top-3 | chance |",
         "|---|---|---|---|---|---|",
@@ -751,6 +827,7 @@ def cross_validate(
     tta: bool = False,
     n_boot: int = 1000,
     background_control: bool = True,
+    presses: int | None = None,
     log: Callable[[str], None] = print,
 ) -> dict[str, Any]:
     """Train and score ``config`` on every requested fold and seed; write ``cv.json`` and ``cv.md``.
@@ -768,6 +845,8 @@ def cross_validate(
         background_control: for a config with depth pairs, also score every run with the
             depth images' backgrounds swapped (module doc); about 0.2 s per held-out depth
             image once per fold (registration), shared by the seeds.
+        presses: presses of one fabric pooled into a touch query (the Multi-input Net's
+            protocol); default the config's ``data.presses``.
         log: where progress lines go.
 
     Returns:
@@ -782,6 +861,9 @@ def cross_validate(
             raise ConfigError(f"fold {f}: the config has train.folds={t.folds} (0..{t.folds - 1})")
     if not seeds:
         raise ConfigError("seeds: at least one training seed is needed")
+    presses = config.data.presses if presses is None else presses
+    if presses < 1:
+        raise ConfigError(f"presses: a touch query pools at least 1 press, got {presses}")
     pairs = _pairs(config)
     loader = ImageLoader(config.data)  # runs differ only in train keys: one decode for all
     catalog = drop_unpressed(scan(data, require=config.train.modalities, strict=True), loader)
@@ -797,6 +879,8 @@ def cross_validate(
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
             key = {"config": _result_config(cfg), "tta": tta, "pairs": pairs}
+            if presses > 1:
+                key["presses"] = presses
             if control is not None:
                 key["background_control"] = CONTROL_SEED
                 if control.has_room_control:
@@ -823,7 +907,7 @@ def cross_validate(
                 log(f"seed {seed} fold {fold}: {verb} {run_dir}")
                 train(cfg, data, run_dir, resume=started_before)
                 seconds = time.perf_counter() - started
-            res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched)
+            res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched, presses)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             atomic_write_text(result_path, json.dumps(res) + "\n")
             first = res["pairs"][pairs[0]]
@@ -846,6 +930,7 @@ def cross_validate(
         "seeds": list(seeds),
         "fold_size": t.fold_size,
         "tta": tta,
+        "presses": presses,
         "train_seconds": mean_and_spread([r["train_seconds"] for r in results]),
         "config": to_dict(config),
     }

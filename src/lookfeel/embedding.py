@@ -3,18 +3,26 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
+from numpy.typing import NDArray
 
 from lookfeel.data import Catalog, ImageLoader, ImageStore, Item
 from lookfeel.data.images import stack_views
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder, add_press_axis, autocast, eval_mode, to_channels_last
 
-__all__ = ["EmbeddedItems", "embed_catalog", "embed_items", "raw_pixels"]
+__all__ = [
+    "EmbeddedItems",
+    "PressPooler",
+    "embed_catalog",
+    "embed_items",
+    "press_pooler",
+    "raw_pixels",
+]
 
 
 @dataclass(frozen=True)
@@ -103,6 +111,45 @@ def embed_items(
     if dev.type == "cuda":
         torch.cuda.synchronize(dev)  # the non-blocking copies back have landed
     return torch.cat(out).numpy()
+
+
+PressPooler = Callable[["EmbeddedItems", NDArray[np.int64]], NDArray[np.float64]]
+"""Embeds multi-press touch queries: (touch items, (M, P) rows of each group) -> (M, D)."""
+
+
+def press_pooler(
+    model: Embedder,
+    loader: ImageLoader,
+    batch_size: int = 64,
+    device: torch.device | str = "cpu",
+    *,
+    flip: bool = False,
+) -> PressPooler:
+    """Multi-press touch queries embedded by the model itself, its own press pooling (the
+    Multi-input Net's): each group's presses go through the touch branch together.
+
+    ``loader`` reads the items' images (a control's loader gives the control's images);
+    ``flip`` averages each group's embedding with its mirror image's, as `embed_items`."""
+
+    @torch.inference_mode()
+    def pool(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
+        p = members.shape[1]
+        step = max(1, batch_size // p)
+        out = []
+        with eval_mode(model):
+            for start in range(0, len(members), step):
+                rows = members[start : start + step]
+                x = stack_views([loader.load_embedded(touch.items[j]) for row in rows for j in row])
+                x = x.unflatten(0, (len(rows), p)).to(device)  # (B, P [, V], 3, S, S)
+                e = model({Modality.TOUCH.value: x})[Modality.TOUCH.value].double()
+                if flip:
+                    e = 0.5 * (e + model({Modality.TOUCH.value: x.flip(-1)})[Modality.TOUCH.value])
+                out.append(e.cpu())
+        if not out:
+            return np.zeros((0, model.embed_dim))
+        return np.asarray(torch.cat(out).numpy(), dtype=np.float64)
+
+    return pool
 
 
 class _Stager:

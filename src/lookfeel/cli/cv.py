@@ -50,6 +50,13 @@ def add_parser(subparsers: Subparsers) -> None:
         action="store_true",
         help="test-time pooling: average each image's embedding with its mirror image's",
     )
+    cv.add_argument(
+        "--presses",
+        type=int,
+        default=None,
+        help="presses of one fabric pooled into each touch query, as the Multi-input Net "
+        "(default: the config's data.presses)",
+    )
     cv.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples (default 1000)")
     cv.add_argument(
         "--no-background-control",
@@ -95,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         tta=args.tta,
         n_boot=args.n_boot,
         background_control=args.background_control,
+        presses=args.presses,
     )
     print(format_cv_summary(summary), end="")
     print(f"Wrote {args.out / 'cv.json'} and {args.out / 'cv.md'}")

@@ -19,7 +19,8 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
 - ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``.
 """
 
-from lookfeel.evaluate.core import PressPooler, evaluate_embeddings, max_pool_presses
+from lookfeel.embedding import PressPooler
+from lookfeel.evaluate.core import evaluate_embeddings, max_pool_presses
 from lookfeel.evaluate.embeddings_file import (
     EmbeddingFileError,
     EmbeddingSet,

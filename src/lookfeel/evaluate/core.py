@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lookfeel.config import ConfigError, DataConfig, EvalConfig
-from lookfeel.embedding import EmbeddedItems
+from lookfeel.embedding import EmbeddedItems, PressPooler
 from lookfeel.metrics import (
     PAPER_C,
     PairDistances,
@@ -49,12 +49,10 @@ __all__ = [
     "PressPooler",
     "evaluate_embeddings",
     "max_pool_presses",
+    "press_queries",
     "project_to_labels",
     "scoring_protocol",
 ]
-
-PressPooler = Callable[[EmbeddedItems, NDArray[np.int64]], NDArray[np.float64]]
-"""Embeds multi-press touch queries: (touch items, (M, P) rows of each group) -> (M, D)."""
 
 UNCLUSTERED = -1
 """Cluster shown for fabrics whose cluster is unknown."""
@@ -95,7 +93,11 @@ def scoring_protocol(config: EvalConfig) -> ScoringProtocol:
     )
 
 
-def _queries(e: EmbeddedItems, presses: int, seed: int, pool: PressPooler) -> QuerySet:
+def press_queries(
+    e: EmbeddedItems, presses: int, seed: int, pool: PressPooler = max_pool_presses
+) -> QuerySet:
+    """One modality's queries: every item alone (``presses`` 1), or each fabric's presses in
+    seeded disjoint groups of ``presses`` (`group_queries`), each group embedded by ``pool``."""
     emb = np.asarray(e.embeddings, dtype=np.float64)
     fab = np.asarray(e.fabric_ids, dtype=np.int64)
     if presses == 1:
@@ -628,7 +630,7 @@ def evaluate_embeddings(
         notes.add("no clusters known: confusion matrices in fabric-id order, no cluster matrix")
 
     queries = {
-        m: _queries(embedded[m], presses if m is Modality.TOUCH else 1, config.seed, pool)
+        m: press_queries(embedded[m], presses if m is Modality.TOUCH else 1, config.seed, pool)
         for m in mods
     }
     if Modality.TOUCH in mods and len(queries[Modality.TOUCH].fabric) == 0:
@@ -638,7 +640,7 @@ def evaluate_embeddings(
         )
         presses = 1
         config = replace(config, presses=1)
-        queries[Modality.TOUCH] = _queries(embedded[Modality.TOUCH], 1, config.seed, pool)
+        queries[Modality.TOUCH] = press_queries(embedded[Modality.TOUCH], 1, config.seed, pool)
     pairs = Pair.every(mods)
     figure_pairs = _figure_pairs(config, pairs)
     protocol = scoring_protocol(config)
@@ -659,7 +661,7 @@ def evaluate_embeddings(
         assert reference is not None
         if m not in ref_queries:
             p = presses if m is Modality.TOUCH else 1
-            ref_queries[m] = _queries(reference[m], p, config.seed, pool)
+            ref_queries[m] = press_queries(reference[m], p, config.seed, pool)
         return ref_queries[m]
 
     def score(pd: PairDistances) -> None:
@@ -725,7 +727,11 @@ def evaluate_embeddings(
         touch = embedded[Modality.TOUCH]
         to_every = [Pair(Modality.TOUCH, g) for g in mods]
         for p in range(1, config.max_presses + 1):
-            qs = queries[Modality.TOUCH] if p == presses else _queries(touch, p, config.seed, pool)
+            qs = (
+                queries[Modality.TOUCH]
+                if p == presses
+                else press_queries(touch, p, config.seed, pool)
+            )
             if len(qs.fabric) == 0:
                 notes.add(f"no fabric has {p} touch presses: the press curve stops before {p}")
                 break

@@ -35,8 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
-from numpy.typing import NDArray
 from torch import nn
 
 from lookfeel.checkpoint import LoadedModel, load_model
@@ -44,16 +42,22 @@ from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
 from lookfeel.data.background_swap import BackgroundControl
-from lookfeel.data.images import stack_views
 from lookfeel.data.recordings import drop_unpressed
-from lookfeel.embedding import EmbeddedItems, embed_catalog, embed_items, raw_pixels
+from lookfeel.embedding import (
+    EmbeddedItems,
+    PressPooler,
+    embed_catalog,
+    embed_items,
+    press_pooler,
+    raw_pixels,
+)
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics import score_distances, score_pairs
 from lookfeel.metrics.label_space import fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.models import BranchEnsemble, Embedder
 
-from .core import PressPooler, evaluate_embeddings, exact_protocol, keep_pick
+from .core import evaluate_embeddings, exact_protocol, keep_pick
 from .embeddings_file import EmbeddingSet, load_embeddings
 from .result import EvalResult
 
@@ -246,27 +250,6 @@ def embed_checkpoint(
     return emb
 
 
-def _model_pooler(
-    model: Embedder, loader: ImageLoader, batch_size: int, device: str
-) -> PressPooler:
-    """Multi-press touch queries embedded by the model itself (its own pooling)."""
-
-    @torch.inference_mode()
-    def pool(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
-        p = members.shape[1]
-        out = []
-        for start in range(0, len(members), max(1, batch_size // p)):
-            rows = members[start : start + max(1, batch_size // p)]
-            x = stack_views([loader.load_embedded(touch.items[j]) for row in rows for j in row])
-            x = x.unflatten(0, (len(rows), p)).to(device)  # (B, P [, V], 3, S, S)
-            out.append(model({Modality.TOUCH.value: x})[Modality.TOUCH.value].double().cpu())
-        if not out:
-            return np.zeros((0, model.embed_dim))
-        return torch.cat(out).numpy()
-
-    return pool
-
-
 def _clusters_and_labels(
     catalog: Catalog,
 ) -> tuple[dict[int, int | None], dict[int, list[float]] | None, list[str], list[str]]:
@@ -347,7 +330,7 @@ def evaluate_checkpoint(
     catalog = _scan(data_root)
     emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
     exact = bool(emb.meta["pool_exact"])
-    pool = None if exact else _model_pooler(loaded.model, loader, batch_size, device)
+    pool = None if exact else press_pooler(loaded.model, loader, batch_size, device)
     result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
     if not result.config.background_control or Modality.DEPTH not in emb.embedded:
         return result
