@@ -288,3 +288,5 @@ def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_pa
         assert cv_mapped == pytest.approx(m[f"{pair}_top1_mapped"], abs=1e-9), pair
     with pytest.raises(ConfigError, match="presses"):
         cross_validate(config, data, tmp_path / "cv2", folds=[0], presses=0)
+    with pytest.raises(ConfigError, match="no held-out fabric has 4 touch presses"):
+        cross_validate(config, data, tmp_path / "cv", folds=[0], presses=4)

@@ -280,6 +280,12 @@ def _score(
         if m is touch and pool is not None:
             held_touch = EmbeddedItems(m, emb[m], fab[m], tuple(items))
             queries[m] = press_queries(held_touch, presses, 0, pool)
+            if not len(queries[m].fabric):
+                kinds = ", ".join(k.value for k in cfg.data.touch_kinds)
+                raise ConfigError(
+                    f"presses: no held-out fabric has {presses} touch presses ({kinds}) to "
+                    "pool into a query; use fewer"
+                )
         if train_items:
             train_f = np.array([it.fabric_id for it in train_items], dtype=np.int64)
             train_e = embed_items(lm.model, train_items, loader, flip=tta)
