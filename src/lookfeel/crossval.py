@@ -163,8 +163,7 @@ def _pick(
 
 
 def _pooled(q: QuerySet, emb: np.ndarray) -> QuerySet:
-    """The same groups as ``q`` over other per-item vectors (raw pixels, label space): each
-    group's mean."""
+    """The same groups as ``q`` over other per-item vectors (raw pixels): each group's mean."""
     return QuerySet(np.asarray(emb, np.float64)[q.members].mean(axis=1), q.fabric, q.members)
 
 
