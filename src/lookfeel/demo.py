@@ -25,10 +25,10 @@ import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 
 from lookfeel.config import EvalConfig, RunConfig, load_config
+from lookfeel.config.recipes import recipe_path
 from lookfeel.data import scan
 from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import EvalResult, evaluate_checkpoint, write_report
@@ -67,8 +67,7 @@ def demo_world(fabrics: int, seed: int) -> SynthConfig:
 
 def cross_config(overrides: Sequence[str] = ()) -> RunConfig:
     """``configs/synth_cross.yaml`` with `CROSS_OVERRIDES`, then ``overrides``."""
-    path = Path(str(resources.files("lookfeel") / "configs" / "synth_cross.yaml"))
-    return load_config(RunConfig, path, [*CROSS_OVERRIDES, *overrides])
+    return load_config(RunConfig, recipe_path("synth_cross.yaml"), [*CROSS_OVERRIDES, *overrides])
 
 
 @dataclass(frozen=True)

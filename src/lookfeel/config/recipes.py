@@ -23,8 +23,6 @@ from lookfeel.modality import Modality
 
 __all__ = ["Recipe", "default_recipe", "recipe_path"]
 
-_ORDER = (Modality.DEPTH, Modality.COLOR, Modality.TOUCH)
-
 
 @dataclass(frozen=True)
 class Recipe:
@@ -44,7 +42,7 @@ class Recipe:
 
 
 def recipe_path(name: str) -> Path:
-    """The shipped config ``configs/<name>`` in the installed package."""
+    """The shipped config (or folder of them) ``configs/<name>`` in the installed package."""
     return Path(str(resources.files("lookfeel") / "configs" / name))
 
 
@@ -54,7 +52,7 @@ def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) 
     Raises:
         ConfigError: the folder holds no images, or only colour photos.
     """
-    held = [m for m in _ORDER if m in modalities]
+    held = [m for m in Modality if m in modalities]  # depth, colour, touch
     words = ", ".join(m.value for m in held)
     if len(held) >= 2:
         views = "[" + ",".join(m.value for m in held) + "]"

@@ -22,7 +22,6 @@ import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ import numpy as np
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import (
@@ -97,7 +97,7 @@ BUDGETS: dict[str, tuple[str, ...]] = {
 
 def config_dir() -> Path:
     """The shipped ``configs/paper`` folder."""
-    return Path(str(resources.files("lookfeel") / "configs" / "paper"))
+    return recipe_path("paper")
 
 
 # ---------------------------------------------------------------------------------------------
