@@ -75,3 +75,17 @@ def test_train_without_config_trains_the_cross_modal_recipe(tiny_dataset: Path, 
     # Resuming without --config continues the run with its own saved recipe.
     assert main([*argv, "--resume", "--set", "train.steps=3"]) == 0
     assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
+
+
+def test_an_auto_property_head_is_sized_by_the_labels_and_resumes(tiny_dataset: Path, tmp_path):
+    out = tmp_path / "run"
+    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
+    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
+    sets = [*small, "model.num_properties=auto"]
+    assert main([*argv, *(x for s in sets for x in ("--set", s))]) == 0
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["model"]["num_properties"] == 4  # thickness, density, stiffness, stretchiness
+    # The user's own config still says auto: a resume accepts it as the number it became.
+    resume = [*argv, "--resume", "--set", "model.num_properties=auto", "--set", "train.steps=3"]
+    assert main(resume) == 0
+    assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3

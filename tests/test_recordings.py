@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from lookfeel.config import LossConfig, ModelConfig, RunConfig
+from lookfeel.config import LossConfig, ModelConfig, RunConfig, from_dict
 from lookfeel.config._core import ConfigError
 from lookfeel.data import scan
 from lookfeel.data.datasets import class_matrix
@@ -19,7 +19,7 @@ from lookfeel.losses import create_loss
 from lookfeel.metrics.classes import UNKNOWN, accuracy, knn_classes, macro_f1, majority_class
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import CLASSES, create_model
-from lookfeel.train.loop import resolve_classes
+from lookfeel.train.loop import resolve_classes, resolve_properties
 
 QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
 """The first bytes of a QuickTime file: enough for the scan, which never decodes."""
@@ -140,6 +140,26 @@ def test_classes_are_resolved_from_the_labels_in_their_own_order(tmp_path: Path)
         resolve_classes(catalog, _config(class_heads=("stiffness",)))
     with pytest.raises(ConfigError, match="no classes for hardness"):
         _ = _config(class_heads=("hardness",)).model.class_sizes
+
+
+def test_auto_property_head_follows_the_numeric_label_columns(tmp_path: Path):
+    catalog = scan(_recordings(tmp_path / "rec", {"sponge": 1, "steel_spoon": 1}))
+    cfg = resolve_properties(catalog, _config(num_properties="auto"))
+    assert cfg.model.num_properties == 2  # hardness, roughness; words are not regressed
+    assert cfg.model.property_outputs == 2
+    unlabelled = _recordings(tmp_path / "bare", {"sponge": 1}, labels="object\nsponge\n")
+    bare = resolve_properties(scan(unlabelled), _config(num_properties="auto"))
+    assert bare.model.num_properties == 0
+    with pytest.raises(ConfigError, match=r"num_properties=4, but labels.csv has 2 .*auto"):
+        resolve_properties(catalog, _config(num_properties=4))
+    with pytest.raises(ConfigError, match="auto is not resolved yet"):
+        create_model(_config(num_properties="auto").model, [Modality.TOUCH])
+    with pytest.raises(ConfigError, match="num_properties: must be >= 0 or auto"):
+        _config(num_properties=-1)
+    loaded = from_dict(RunConfig, {"model": {"num_properties": "auto"}})
+    assert loaded.model.num_properties == "auto"
+    with pytest.raises(ConfigError, match="model.num_properties"):
+        from_dict(RunConfig, {"model": {"num_properties": "many"}})
 
 
 def test_class_heads_and_their_loss_mask_unknown_labels():

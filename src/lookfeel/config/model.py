@@ -90,9 +90,12 @@ class ModelConfig:
     """Add a linear cluster classifier on each branch's embedding (the paper's Auxiliary Net)."""
     num_clusters: int = 8
     """Classes of the cluster head (paper: 8 k-means clusters of the physical labels)."""
-    num_properties: int = 0
-    """Outputs of a linear property-regression head on each branch's embedding (e.g. 4 for
-    thickness, density, stiffness, stretchiness); 0 disables it."""
+    num_properties: int | Literal["auto"] = 0
+    """Outputs of a linear property-regression head on each branch's embedding, one per numeric
+    column of labels.csv (4 for GelFabric: thickness, density, stiffness, stretchiness); 0
+    disables it. ``auto``: as many as the dataset's labels.csv has numeric columns (none, so no
+    head, for a dataset without labels); `lookfeel train` fills in the number and saves it with
+    the run."""
     class_heads: tuple[str, ...] = ()
     """Label columns to classify with a linear head on each branch's embedding: ranks
     (``hardness``: 0, 1, 2) or words (``material``). Trained with cross-entropy
@@ -141,8 +144,12 @@ class ModelConfig:
             raise ConfigError(f"model.members: must be >= 1, got {self.members}")
         if self.num_clusters < 2:
             raise ConfigError(f"model.num_clusters: must be >= 2, got {self.num_clusters}")
-        if self.num_properties < 0:
-            raise ConfigError(f"model.num_properties: must be >= 0, got {self.num_properties}")
+        if self.num_properties != "auto" and (
+            not isinstance(self.num_properties, int) or self.num_properties < 0
+        ):
+            raise ConfigError(
+                f"model.num_properties: must be >= 0 or auto, got {self.num_properties}"
+            )
         if len(set(self.class_heads)) != len(self.class_heads):
             raise ConfigError(f"model.class_heads: a column is named twice: {self.class_heads}")
         for col in self.classes:
@@ -153,6 +160,20 @@ class ModelConfig:
                 raise ConfigError(
                     f"model.classes.{col}: needs two or more distinct classes, got {list(names)}"
                 )
+
+    @property
+    def property_outputs(self) -> int:
+        """``num_properties`` as a number (the head must be resolved).
+
+        Raises:
+            ConfigError: it is still ``auto``.
+        """
+        if self.num_properties == "auto":
+            raise ConfigError(
+                "model.num_properties: auto is not resolved yet; `lookfeel train` fills it in "
+                "from the dataset's labels.csv"
+            )
+        return self.num_properties
 
     @property
     def class_sizes(self) -> tuple[int, ...]:

@@ -238,6 +238,6 @@ def _branch(
         normalize=config.normalize,
         press_pool=config.press_pool,
         num_clusters=config.num_clusters if config.cluster_head else 0,
-        num_properties=config.num_properties,
+        num_properties=config.property_outputs,
         class_sizes=config.class_sizes,
     )

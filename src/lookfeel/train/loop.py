@@ -166,6 +166,25 @@ def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
     return replace(config, model=replace(model, classes=classes))
 
 
+def resolve_properties(catalog: Catalog, config: RunConfig) -> RunConfig:
+    """The config with ``model.num_properties: auto`` replaced by the number of numeric label
+    columns (0, so no property head, for a dataset without labels).
+
+    Raises:
+        ConfigError: a number was given that is not the number of numeric label columns.
+    """
+    model, columns = config.model, catalog.label_columns
+    if model.num_properties == "auto":
+        return replace(config, model=replace(model, num_properties=len(columns)))
+    if model.num_properties and model.num_properties != len(columns):
+        raise ConfigError(
+            f"model.num_properties={model.num_properties}, but labels.csv has "
+            f"{len(columns)} label columns ({', '.join(columns) or 'none'}); "
+            "set model.num_properties=auto to follow the labels"
+        )
+    return config
+
+
 def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
     """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3)."""
     if not config.model.cluster_head or all(f.cluster is not None for f in catalog.fabrics):
@@ -428,11 +447,14 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
     """The saved config, with a longer ``train.steps`` allowed; any other change is an error.
     The class heads' classes the run resolved from its labels (`resolve_classes`) count as
-    given when the config names none."""
+    given when the config names none, and so does the property head's size when it says
+    ``auto`` (`resolve_properties`)."""
     old = from_dict(RunConfig, saved)
     a, b = _flatten(to_dict(old)), _flatten(to_dict(given))
     if not given.model.classes:
         b |= {k: v for k, v in a.items() if k.startswith("model.classes.")}
+    if given.model.num_properties == "auto":
+        b["model.num_properties"] = a.get("model.num_properties")
     changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k != "train.steps")
     if changed:
         raise ConfigError(
@@ -717,12 +739,7 @@ def _train(
     # A live run trains on the press videos' views: decode them once, while finding the presses.
     catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
     catalog = _with_clusters(catalog, config)
-    config = resolve_classes(catalog, config)
-    if config.model.num_properties and config.model.num_properties != len(catalog.label_columns):
-        raise ConfigError(
-            f"model.num_properties={config.model.num_properties}, but labels.csv has "
-            f"{len(catalog.label_columns)} label columns ({', '.join(catalog.label_columns)})"
-        )
+    config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
     ds = TupleDataset(
         train_cat,
