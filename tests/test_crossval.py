@@ -157,6 +157,22 @@ def test_rescoring_keeps_the_runs_and_refuses_another_config(data: Path, tmp_pat
         cross_validate(other, data, tmp_path / "cv", folds=[0], n_boot=20)
 
 
+def test_an_auto_property_head_is_the_same_run_when_scored_again(data: Path, tmp_path: Path):
+    auto = load_config(RunConfig, TINY, [*OVERRIDES, "model.num_properties=auto"])
+    cross_validate(auto, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
+    logs: list[str] = []
+    cross_validate(auto, data, tmp_path / "cv", folds=[0], tta=True, n_boot=20, log=logs.append)
+    assert logs[0] == "seed 0 fold 0: trained before, scoring again"
+    saved = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text())
+    assert saved["key"]["config"]["model"]["num_properties"] == "auto"
+    assert set(saved["properties"]["depth"]["model"]) == {
+        "thickness_mm",
+        "density",
+        "stiffness",
+        "stretchiness",
+    }
+
+
 def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path, tmp_path: Path):
     """The shipped cross-modal config runs as docs/synth.md says, on a small synthetic world."""
     path = Path(__file__).resolve().parents[1] / "configs" / "synth_cross.yaml"

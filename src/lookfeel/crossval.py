@@ -132,11 +132,13 @@ def _result_config(config: RunConfig) -> dict[str, Any]:
 
 
 def _same_run(trained: RunConfig, asked: RunConfig) -> bool:
-    """Whether a trained run's config is ``asked`` (training fills in ``model.classes`` from the
-    labels when the config leaves them empty: that is no difference)."""
+    """Whether a trained run's config is ``asked`` (training fills in ``model.classes`` and an
+    ``auto`` ``model.num_properties`` from the labels: that is no difference)."""
     done, want = _result_config(trained), _result_config(asked)
     if not want["model"].get("classes"):
         done["model"]["classes"] = want["model"].get("classes")
+    if want["model"].get("num_properties") == "auto":
+        done["model"]["num_properties"] = "auto"
     return done == want
 
 
