@@ -89,3 +89,14 @@ def test_an_auto_property_head_is_sized_by_the_labels_and_resumes(tiny_dataset: 
     resume = [*argv, "--resume", "--set", "model.num_properties=auto", "--set", "train.steps=3"]
     assert main(resume) == 0
     assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
+
+
+def test_the_cross_modal_recipe_trains_on_data_without_labels(tiny_dataset: Path, tmp_path):
+    (tiny_dataset / "labels.csv").unlink()  # a user's own recordings, not measured
+    out = tmp_path / "run"
+    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
+    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
+    assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["train"]["views"] == ["depth", "color", "touch"]
+    assert saved["model"]["num_properties"] == 0  # no labels, so no property head
