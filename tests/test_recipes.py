@@ -63,40 +63,42 @@ def test_without_config_the_folder_picks_and_the_user_overrides_win(tiny_dataset
     assert path.name == "physiclear.yaml"
 
 
+def _train_quickly(data: Path, out: Path, *sets: str) -> tuple[list[str], dict]:
+    """``lookfeel train`` with no --config, two steps; (its argv, the run's saved config)."""
+    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8", *sets]
+    argv = ["train", "--data", str(data), "--out", str(out)]
+    assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
+    return argv, yaml.safe_load((out / "config.yaml").read_text())
+
+
 def test_train_without_config_trains_the_cross_modal_recipe(tiny_dataset: Path, tmp_path: Path):
     out = tmp_path / "run"
-    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
-    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
-    assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
-    saved = yaml.safe_load((out / "config.yaml").read_text())
+    argv, saved = _train_quickly(tiny_dataset, out)
     assert saved["train"]["views"] == ["depth", "color", "touch"]
     assert saved["data"]["touch_frame"] == -1  # synth_cross.yaml's own choice
     assert saved["model"]["width"] == 8
+    assert saved["model"]["num_properties"] == 4  # auto: thickness, density, stiffness, stretch
     # Resuming without --config continues the run with its own saved recipe.
     assert main([*argv, "--resume", "--set", "train.steps=3"]) == 0
     assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
 
 
-def test_an_auto_property_head_is_sized_by_the_labels_and_resumes(tiny_dataset: Path, tmp_path):
+def test_a_resume_takes_an_auto_property_head_as_the_size_it_became(
+    tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
     out = tmp_path / "run"
-    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
-    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
-    sets = [*small, "model.num_properties=auto"]
-    assert main([*argv, *(x for s in sets for x in ("--set", s))]) == 0
-    saved = yaml.safe_load((out / "config.yaml").read_text())
-    assert saved["model"]["num_properties"] == 4  # thickness, density, stiffness, stretchiness
+    argv, _ = _train_quickly(tiny_dataset, out)
     # The user's own config still says auto: a resume accepts it as the number it became.
     resume = [*argv, "--resume", "--set", "model.num_properties=auto", "--set", "train.steps=3"]
     assert main(resume) == 0
     assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
+    # Another number is another run.
+    assert main([*argv, "--resume", "--set", "model.num_properties=3"]) != 0
+    assert "model.num_properties (4 -> 3)" in capsys.readouterr().err
 
 
 def test_the_cross_modal_recipe_trains_on_data_without_labels(tiny_dataset: Path, tmp_path):
     (tiny_dataset / "labels.csv").unlink()  # a user's own recordings, not measured
-    out = tmp_path / "run"
-    small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8"]
-    argv = ["train", "--data", str(tiny_dataset), "--out", str(out)]
-    assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
-    saved = yaml.safe_load((out / "config.yaml").read_text())
+    _, saved = _train_quickly(tiny_dataset, tmp_path / "run")
     assert saved["train"]["views"] == ["depth", "color", "touch"]
     assert saved["model"]["num_properties"] == 0  # no labels, so no property head
