@@ -87,6 +87,7 @@ from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import run_started, train
+from lookfeel.train.loop import as_trained
 from lookfeel.train.validate import default_pairs
 
 __all__ = ["cross_validate", "format_cv_summary", "score_checkpoint"]
@@ -132,14 +133,9 @@ def _result_config(config: RunConfig) -> dict[str, Any]:
 
 
 def _same_run(trained: RunConfig, asked: RunConfig) -> bool:
-    """Whether a trained run's config is ``asked`` (training fills in ``model.classes`` and an
-    ``auto`` ``model.num_properties`` from the labels: that is no difference)."""
-    done, want = _result_config(trained), _result_config(asked)
-    if not want["model"].get("classes"):
-        done["model"]["classes"] = want["model"].get("classes")
-    if want["model"].get("num_properties") == "auto":
-        done["model"]["num_properties"] = "auto"
-    return done == want
+    """Whether a trained run's config is ``asked`` (what training resolves from the labels,
+    `as_trained`, is no difference)."""
+    return _result_config(trained) == _result_config(as_trained(asked, trained))
 
 
 def _pairs(config: RunConfig) -> list[Pair]:

@@ -185,6 +185,19 @@ def resolve_properties(catalog: Catalog, config: RunConfig) -> RunConfig:
     return config
 
 
+def as_trained(asked: RunConfig, trained: RunConfig) -> RunConfig:
+    """``asked`` with what training resolves from the labels taken from ``trained``: the class
+    heads' classes when ``asked`` names none (for the same heads), the property head's size when
+    it says ``auto``. Equal to ``trained`` exactly when the run is the one asked for (resume and
+    `lookfeel cv` compare them so)."""
+    model, done = asked.model, trained.model
+    if not model.classes and model.class_heads == done.class_heads:
+        model = replace(model, classes=done.classes)
+    if model.num_properties == "auto":
+        model = replace(model, num_properties=done.num_properties)
+    return replace(asked, model=model)
+
+
 def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
     """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3)."""
     if not config.model.cluster_head or all(f.cluster is not None for f in catalog.fabrics):
@@ -446,15 +459,10 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
     """The saved config, with a longer ``train.steps`` allowed; any other change is an error.
-    The class heads' classes the run resolved from its labels (`resolve_classes`) count as
-    given when the config names none, and so does the property head's size when it says
-    ``auto`` (`resolve_properties`)."""
+    What the run resolved from its labels counts as given where the config leaves it to the
+    labels (`as_trained`)."""
     old = from_dict(RunConfig, saved)
-    a, b = _flatten(to_dict(old)), _flatten(to_dict(given))
-    if not given.model.classes:
-        b |= {k: v for k, v in a.items() if k.startswith("model.classes.")}
-    if given.model.num_properties == "auto":
-        b["model.num_properties"] = a.get("model.num_properties")
+    a, b = _flatten(to_dict(old)), _flatten(to_dict(as_trained(given, old)))
     changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k != "train.steps")
     if changed:
         raise ConfigError(
