@@ -48,6 +48,7 @@ def test_defaults_then_yaml_then_overrides(tmp_path: Path):
         ({"augment": {"color": {"gamma": [1]}}}, "augment.color.gamma: expected 2 values"),
         ({"depth_holes": "zero"}, "data.depth_holes: 'zero' is not one of nearest, clip"),
         ({"same_fraction": 1.5}, "same_fraction: must be in"),
+        ({"touch_zoom": 0}, r"data.touch_zoom: must be in \(0, 1\], got 0"),
     ],
 )
 def test_strict_errors_name_the_key(data, message):

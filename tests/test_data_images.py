@@ -62,6 +62,27 @@ def test_gelsight_frames_are_centre_cropped_only_at_960x720():
     )  # colour: no crop by default
 
 
+def test_touch_zoom_reads_the_central_part_of_the_field_at_the_network_size():
+    mini = np.zeros((240, 320, 3), np.uint8)
+    mini[60:180, 80:240] = 255  # the central half of the field in each direction
+    zoomed = preprocess_rgb(mini, Modality.TOUCH, DataConfig(image_size=24, touch_zoom=0.5))
+    whole = preprocess_rgb(mini, Modality.TOUCH, DataConfig(image_size=24))
+    assert zoomed.shape == whole.shape == (24, 24, 3)
+    assert zoomed.min() == 255  # all of it is the central half
+    assert whole[0].max() == 0 and whole[12, 12].min() == 255
+    # Pillow images and arrays give the same bytes; the zoom is part of the cache key.
+    pil = preprocess_rgb(
+        Image.fromarray(mini), Modality.TOUCH, DataConfig(image_size=24, touch_zoom=0.5)
+    )
+    assert np.array_equal(pil, zoomed)
+    digest = images_module.PreprocessSettings.of
+    assert digest(DataConfig(touch_zoom=0.5)).digest() != digest(DataConfig()).digest()
+    assert digest(DataConfig(touch_zoom=1.0)).digest() == digest(DataConfig()).digest()
+    # Only touch is zoomed.
+    colour = preprocess_rgb(mini, Modality.COLOR, DataConfig(image_size=24, touch_zoom=0.5))
+    assert np.array_equal(colour, preprocess_rgb(mini, Modality.COLOR, DataConfig(image_size=24)))
+
+
 def test_decode_errors_name_the_file(tmp_path: Path):
     good = tmp_path / "F1_a.png"
     Image.fromarray(np.full((32, 32), 1000, np.uint16)).save(good)

@@ -270,6 +270,14 @@ def preprocess_rgb(
         else:
             rgb = _center_square(rgb)  # type: ignore[arg-type]
         w = h = side
+    if modality is Modality.TOUCH and config.touch_zoom < 1.0:
+        zw, zh = max(1, round(w * config.touch_zoom)), max(1, round(h * config.touch_zoom))
+        left, top = (w - zw) // 2, (h - zh) // 2
+        if im is not None:
+            im = im.crop((left, top, left + zw, top + zh))
+        else:
+            rgb = rgb[top : top + zh, left : left + zw]  # type: ignore[index]
+        w, h = zw, zh
     s = config.image_size
     if (h, w) != (s, s):
         im = im if im is not None else Image.fromarray(np.ascontiguousarray(rgb))
@@ -292,6 +300,8 @@ class PreprocessSettings:
     video_reference: str
     video_gain: float
     depth_registration: tuple[float | str | None, ...] | None = None
+    touch_zoom: float | None = None
+    """``data.touch_zoom`` when below 1 (``None``: the whole field, keys as before)."""
     """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
     0][, "post", x, y when the drape is moved][, "top", mm when heights are measured from
     the drape's top]); ``None`` for raw depth."""
@@ -319,6 +329,7 @@ class PreprocessSettings:
             config.video_reference,
             config.video_gain,
             registration,
+            config.touch_zoom if config.touch_zoom < 1.0 else None,
         )
 
     def digest(self) -> str:
