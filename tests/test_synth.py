@@ -331,6 +331,33 @@ def test_a_stiff_fold_stands_as_a_ridge_under_the_sensor_a_limp_one_is_pressed_f
     assert fold_gap_mm(stiff, 0.0) == pytest.approx(stiff.bending_length_mm)
 
 
+def test_an_uneven_spun_yarn_feels_coarser_than_an_even_filament_at_network_size() -> None:
+    # The same cloth but for its fibre: flax's slub yarns against silk's even filament. Markers
+    # removed so that the measure reads the cloth; frames shrunk to the recipe's 64 px.
+    s = sensor(320, 240)
+    s = dataclasses.replace(
+        s, markers=np.zeros_like(s.markers), marker_centres=s.marker_centres[:0]
+    )
+    bg = no_contact_frame(s)
+
+    def small(a: np.ndarray) -> np.ndarray:
+        return np.asarray(Image.fromarray(a).resize((64, 48), Image.Resampling.BILINEAR))
+
+    cloth = make_fabric(3, 1.5, 1.5, 3.0, 0.0, seed=0, material="cotton", weave="plain")
+    linen, silk = (dataclasses.replace(cloth, material=m) for m in ("linen", "silk"))
+    assert linen.yarn_irregularity > 5 * silk.yarn_irregularity
+    ratio = []
+    for i in range(6):  # the same poses and forces for both
+        frames = [
+            render_press(f, PressKind.FLAT, s, np.random.default_rng([9, i]), 3)[-1]
+            for f in (linen, silk)
+        ]
+        ratio.append(
+            touch_texture(small(frames[0]), small(bg)) / touch_texture(small(frames[1]), small(bg))
+        )
+    assert np.median(ratio) > 1.08
+
+
 def _cloth_photo(fabric: Fabric) -> tuple[np.ndarray, np.ndarray]:
     """Luminance of one colour photo of ``fabric`` on a fixed drape and light, and where the
     cloth is (the pixels that change when the cloth's colour does)."""

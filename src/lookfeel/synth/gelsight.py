@@ -9,8 +9,10 @@ was fitted to a published no-contact frame of such a sensor (a co-author's calib
 A press, step by step:
 
 1. The fabric's surface height under the sensor, in mm above the table: the weave (or knit, or
-   pile) relief of one layer, roughened by the fibres' hairiness, with the cloth's gentle
-   waviness. For a fold (the paper's "flat fold"), the cloth folded back over itself: two
+   pile) relief of one layer, its yarns swollen and raised at their thick places (streaks a few
+   mm long whose strength is the fibre's `Fabric.yarn_irregularity`), its valleys filled by
+   hairs in proportion to the hairiness, roughened by the fibres' hairiness, with the cloth's
+   gentle waviness. For a fold (the paper's "flat fold"), the cloth folded back over itself: two
    layers on one side of the edge, parting near it where the loop at the edge holds them
    open by ``gap``; the edge a half circle of radius ``t + gap / 2``; the table beyond. Left
    alone, the loop stands open to about the bending length ``c = (B / w)^(1/3)``, the
@@ -197,12 +199,50 @@ def _weave(fabric: Fabric, x: F32, y: F32, rng: np.random.Generator, pitch: floa
         n = ndimage.gaussian_filter(rng.standard_normal(x.shape).astype(np.float32), sigma)
         h = n / (n.std() + 1e-9)
     h = np.asarray(h, np.float32)
+    # Spun yarns have thick and thin places along their length (flax's slubs most, filament
+    # hardly): a thick place swells its yarn's relief and raises it by about half the extra
+    # diameter (the relief is about a third of a yarn's diameter), streaked along the warp and
+    # the weft in the cloth's own coordinates.
+    irr = fabric.yarn_irregularity
+    if irr > 0.0:
+        swell = irr * _slub_field(x, y, rng)
+        h = h * np.exp(swell) + 1.4 * swell
+    # Hairs lying across the valleys between yarns fill them under the gel: a hairy fabric's
+    # weave shows less contrast (wool, fleece) than a smooth filament's (silk).
+    h = h * (1.0 - 0.7 * fabric.fuzz)
     # Yarns are not perfectly regular; fibres stick out.
     rows, cols = x.shape
     oy, ox = int(rng.integers(0, rows)), int(rng.integers(0, cols))
     fuzz = _fuzz_bank(rows, cols)[oy : oy + rows, ox : ox + cols]
     # Hairy fibres (wool, fleece) roughen the surface more than smooth filaments (silk).
     return (a * (h + (0.1 + 0.6 * fabric.fuzz) * fuzz)).astype(np.float32)
+
+
+_SLUB_STEP_MM = 0.1
+_SLUB_SIZE = 1024
+
+
+def _slub_field(xr_mm: F32, yr_mm: F32, rng: np.random.Generator) -> F32:
+    """Unit noise in the cloth's coordinates (mm), streaked along both yarn directions:
+    thick places a few mm long and a yarn or two wide, cut at a random place of one periodic
+    bank."""
+    bank = _slub_bank()
+    oy, ox = (float(v) for v in rng.uniform(0, _SLUB_SIZE, 2))
+    coords = np.stack([yr_mm / _SLUB_STEP_MM + oy, xr_mm / _SLUB_STEP_MM + ox])
+    return ndimage.map_coordinates(bank, coords, order=1, mode="grid-wrap").astype(np.float32)
+
+
+@lru_cache(maxsize=1)
+def _slub_bank() -> F32:
+    n = _SLUB_SIZE
+    noise = np.random.default_rng(8765).standard_normal((2, n, n)).astype(np.float32)
+    along, across = 2.5 / _SLUB_STEP_MM, 0.4 / _SLUB_STEP_MM  # mm -> bank cells
+    warp = ndimage.gaussian_filter(noise[0], (along, across), mode="wrap")
+    weft = ndimage.gaussian_filter(noise[1], (across, along), mode="wrap")
+    bank = warp / (warp.std() + 1e-9) + weft / (weft.std() + 1e-9)
+    bank /= bank.std() + 1e-9
+    bank.setflags(write=False)
+    return bank
 
 
 @lru_cache(maxsize=4)

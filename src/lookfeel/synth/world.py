@@ -60,9 +60,11 @@ __all__ = ["GENERATOR_VERSION", "MANIFEST", "generate", "render_fabric"]
 
 MANIFEST = "synth.json"
 _GENERATOR = "lookfeel.synth"
-GENERATOR_VERSION = 2
+GENERATOR_VERSION = 3
 """Bumped whenever the same config renders different images (a world made by an earlier
-version is not reused): 2 = touch carries the fold's mechanics and look the material (#17)."""
+version is not reused): 2 = touch carries the fold's mechanics and look the material (#17);
+3 = a pressed surface shows its yarns' evenness and hairiness, which follow the material
+(depth and colour render as in version 2)."""
 _PRESS_BASE = {PressKind.FLAT: 1000, PressKind.FOLD: 2000}
 _KIND_CODE = {PressKind.FLAT: 1, PressKind.FOLD: 2}
 
