@@ -300,11 +300,11 @@ class PreprocessSettings:
     video_reference: str
     video_gain: float
     depth_registration: tuple[float | str | None, ...] | None = None
-    touch_zoom: float | None = None
-    """``data.touch_zoom`` when below 1 (``None``: the whole field, keys as before)."""
     """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
     0][, "post", x, y when the drape is moved][, "top", mm when heights are measured from
     the drape's top]); ``None`` for raw depth."""
+    touch_zoom: float | None = None
+    """``data.touch_zoom`` when below 1 (``None``: the whole field, keys as before)."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:

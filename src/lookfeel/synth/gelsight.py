@@ -234,6 +234,7 @@ def _slub_field(xr_mm: F32, yr_mm: F32, rng: np.random.Generator) -> F32:
 
 @lru_cache(maxsize=1)
 def _slub_bank() -> F32:
+    """The periodic bank `_slub_field` cuts from: warp streaks plus weft streaks, unit spread."""
     n = _SLUB_SIZE
     noise = np.random.default_rng(8765).standard_normal((2, n, n)).astype(np.float32)
     along, across = 2.5 / _SLUB_STEP_MM, 0.4 / _SLUB_STEP_MM  # mm -> bank cells
@@ -247,7 +248,8 @@ def _slub_bank() -> F32:
 
 @lru_cache(maxsize=4)
 def _fuzz_bank(h: int, w: int) -> F32:
-    """Smooth unit noise (fibres, yarn irregularity) for presses to cut windows from."""
+    """Smooth unit noise (fibres sticking out, finer than a yarn) for presses to cut windows
+    from."""
     n = ndimage.gaussian_filter(
         np.random.default_rng(4321).standard_normal((2 * h, 2 * w)).astype(np.float32), 1.0
     )
