@@ -203,10 +203,8 @@ def _weave(fabric: Fabric, x: F32, y: F32, rng: np.random.Generator, pitch: floa
     # hardly): a thick place swells its yarn's relief and raises it by about half the extra
     # diameter (the relief is about a third of a yarn's diameter), streaked along the warp and
     # the weft in the cloth's own coordinates.
-    irr = fabric.yarn_irregularity
-    if irr > 0.0:
-        swell = irr * _slub_field(x, y, rng)
-        h = h * np.exp(swell) + 1.4 * swell
+    swell = fabric.yarn_irregularity * _slub_field(x, y, rng)
+    h = h * np.exp(swell) + 1.4 * swell
     # Hairs lying across the valleys between yarns fill them under the gel: a hairy fabric's
     # weave shows less contrast (wool, fleece) than a smooth filament's (silk).
     h = h * (1.0 - 0.7 * fabric.fuzz)
