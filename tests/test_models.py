@@ -496,6 +496,8 @@ def test_model_config_defaults_and_validation() -> None:
         ({"depth_stem": "mean"}, "model.depth_stem"),
         ({"press_pool": "sum"}, "model.press_pool"),
         ({"dropout": 1.0}, "model.dropout"),
+        ({"branch_dropout": {"sound": 0.1}}, "model.branch_dropout: 'sound' is not a modality"),
+        ({"branch_dropout": {"touch": 1.0}}, r"model.branch_dropout.touch: must be in \[0, 1\)"),
         ({"width": 8}, "model.width: alexnet"),
         ({"backbone": "resnet18", "width": 32, "pretrained": "r.pth"}, "model.width"),
         ({"embed_dim": 0}, "model.embed_dim"),
@@ -505,6 +507,21 @@ def test_model_config_defaults_and_validation() -> None:
     ]:
         with pytest.raises(ConfigError, match=key):
             from_dict(ModelConfig, bad)
+
+
+def test_branch_dropout_overrides_dropout_for_the_named_branches_only() -> None:
+    from lookfeel.models.dropout import FastDropout
+
+    cfg = load_config(
+        ModelConfig,
+        overrides=["backbone=compact", "width=4", "dropout=0.1", "branch_dropout.touch=0.3"],
+    )
+    model = create_model(cfg, list(Modality))
+    rates = {
+        m: sorted({d.p for d in model.branch(m).modules() if isinstance(d, FastDropout)})
+        for m in ("depth", "color", "touch")
+    }
+    assert rates == {"depth": [0.1], "color": [0.1], "touch": [0.3]}
 
 
 def test_fast_dropout_matches_dropout_statistics():

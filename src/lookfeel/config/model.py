@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
+from lookfeel.modality import Modality
 
 __all__ = ["BACKBONE_DEFAULT_FREEZE", "BACKBONE_FREEZE_POINTS", "BackboneName", "ModelConfig"]
 
@@ -31,6 +32,7 @@ BACKBONE_DEFAULT_FREEZE: dict[str, str] = {
 of AlexNet before fc7 will be fixed")."""
 
 _PRETRAINABLE = ("alexnet", "resnet18")
+_MODALITY_NAMES = tuple(m.value for m in Modality)
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,9 @@ class ModelConfig:
     dropout: float = 0.5
     """Dropout probability before the fully connected layers (AlexNet fc6/fc7, compact fc);
     ``resnet18`` has none. torchvision's AlexNet: 0.5."""
+    branch_dropout: dict[str, float] = field(default_factory=dict)
+    """Per-modality overrides of ``dropout``, e.g. ``{depth: 0.3, touch: 0.3}``: the named
+    branches use their own probability, the others ``dropout``."""
     width: int | None = None
     """Channels of the first stage of ``compact`` (default 32) or ``resnet18`` (default 64;
     pretrained weights need 64); doubled at each later stage. Not used by ``alexnet``."""
@@ -104,6 +109,10 @@ class ModelConfig:
     """Each class head's class names, in output order. `lookfeel train` fills it in from the
     dataset's labels (and saves it with the run); leave it unset."""
 
+    def dropout_of(self, modality: str) -> float:
+        """The dropout probability of ``modality``'s branch (``branch_dropout`` or ``dropout``)."""
+        return self.branch_dropout.get(str(modality), self.dropout)
+
     @property
     def resolved_freeze(self) -> str:
         """``freeze``, or the backbone's default freeze point when it is ``None``."""
@@ -129,6 +138,14 @@ class ModelConfig:
             raise ConfigError("model.init_from: empty path; use null to start from scratch")
         if not 0.0 <= self.dropout < 1.0:
             raise ConfigError(f"model.dropout: must be in [0, 1), got {self.dropout}")
+        for name, p in self.branch_dropout.items():
+            if name not in _MODALITY_NAMES:
+                raise ConfigError(
+                    f"model.branch_dropout: {name!r} is not a modality; one of "
+                    + ", ".join(_MODALITY_NAMES)
+                )
+            if not 0.0 <= p < 1.0:
+                raise ConfigError(f"model.branch_dropout.{name}: must be in [0, 1), got {p}")
         if self.width is not None:
             if self.backbone == "alexnet":
                 raise ConfigError("model.width: alexnet has a fixed width; leave width unset")
