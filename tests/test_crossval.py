@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from lookfeel.cli import main
 from lookfeel.config import ConfigError, EvalConfig, RunConfig, load_config
@@ -191,6 +192,9 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     assert "model_mapped_swapped_top1" in summary["pairs"]["touch_to_depth"]
     assert "Matching through a cross-modal map" in (tmp_path / "cv" / "cv.md").read_text()
     run = tmp_path / "cv" / "seed0-fold0"
+    saved = yaml.safe_load((run / "config.yaml").read_text())
+    assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
+    assert saved["model"]["dropout"] == 0.0  # colour's branch
     logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     terms = {k for row in logged for k in row if k.endswith("_loss")}
     assert {"depth_color_loss", "depth_touch_loss", "color_touch_loss", "property_loss"} <= terms
