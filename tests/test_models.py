@@ -496,7 +496,10 @@ def test_model_config_defaults_and_validation() -> None:
         ({"depth_stem": "mean"}, "model.depth_stem"),
         ({"press_pool": "sum"}, "model.press_pool"),
         ({"dropout": 1.0}, "model.dropout"),
-        ({"branch_dropout": {"sound": 0.1}}, "model.branch_dropout: 'sound' is not a modality"),
+        (
+            {"branch_dropout": {"sound": 0.1}},
+            "branch_dropout.sound: 'sound' is not one of depth, color, touch",
+        ),
         ({"branch_dropout": {"touch": 1.0}}, r"model.branch_dropout.touch: must be in \[0, 1\)"),
         ({"width": 8}, "model.width: alexnet"),
         ({"backbone": "resnet18", "width": 32, "pretrained": "r.pth"}, "model.width"),

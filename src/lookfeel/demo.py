@@ -59,9 +59,10 @@ CROSS_OVERRIDES = (
 )
 """``configs/synth_cross.yaml`` as the demo trains it: half the width and 150 of its 1,000
 steps (about 40 s on 2 cores), without the recipe's dropout on depth and touch, on the world's
-100 training fabrics, its 18 test fabrics held out (the paper's split). Chosen on folds of a
-world of seed 0 against 150 and 100 steps at full width and 250 at this width, and with the
-dropout (which pays off over 1,000 steps, not 150) (README, "What `make demo` shows")."""
+100 training fabrics, its 18 test fabrics held out (the paper's split). Chosen on a world of
+seed 0: against 150 and 100 steps at full width and 250 at this width, and against the
+recipe's dropout, which pays off over 1,000 steps but lowered every pair with touch over 150
+(README, "What `make demo` shows")."""
 
 
 def demo_world(fabrics: int, seed: int) -> SynthConfig:

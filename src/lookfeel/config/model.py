@@ -32,7 +32,6 @@ BACKBONE_DEFAULT_FREEZE: dict[str, str] = {
 of AlexNet before fc7 will be fixed")."""
 
 _PRETRAINABLE = ("alexnet", "resnet18")
-_MODALITY_NAMES = tuple(m.value for m in Modality)
 
 
 @dataclass(frozen=True)
@@ -69,7 +68,7 @@ class ModelConfig:
     dropout: float = 0.5
     """Dropout probability before the fully connected layers (AlexNet fc6/fc7, compact fc);
     ``resnet18`` has none. torchvision's AlexNet: 0.5."""
-    branch_dropout: dict[str, float] = field(default_factory=dict)
+    branch_dropout: dict[Modality, float] = field(default_factory=dict)
     """Per-modality overrides of ``dropout``, e.g. ``{depth: 0.3, touch: 0.3}``: the named
     branches use their own probability, the others ``dropout``."""
     width: int | None = None
@@ -109,9 +108,9 @@ class ModelConfig:
     """Each class head's class names, in output order. `lookfeel train` fills it in from the
     dataset's labels (and saves it with the run); leave it unset."""
 
-    def dropout_of(self, modality: str) -> float:
+    def dropout_of(self, modality: Modality | str) -> float:
         """The dropout probability of ``modality``'s branch (``branch_dropout`` or ``dropout``)."""
-        return self.branch_dropout.get(str(modality), self.dropout)
+        return self.branch_dropout.get(Modality(modality), self.dropout)
 
     @property
     def resolved_freeze(self) -> str:
@@ -139,13 +138,8 @@ class ModelConfig:
         if not 0.0 <= self.dropout < 1.0:
             raise ConfigError(f"model.dropout: must be in [0, 1), got {self.dropout}")
         for name, p in self.branch_dropout.items():
-            if name not in _MODALITY_NAMES:
-                raise ConfigError(
-                    f"model.branch_dropout: {name!r} is not a modality; one of "
-                    + ", ".join(_MODALITY_NAMES)
-                )
             if not 0.0 <= p < 1.0:
-                raise ConfigError(f"model.branch_dropout.{name}: must be in [0, 1), got {p}")
+                raise ConfigError(f"model.branch_dropout.{name.value}: must be in [0, 1), got {p}")
         if self.width is not None:
             if self.backbone == "alexnet":
                 raise ConfigError("model.width: alexnet has a fixed width; leave width unset")

@@ -226,7 +226,7 @@ def _branch(
         in_channels=_CHANNELS[m],
         stem=config.depth_stem,
         freeze=freeze,
-        dropout=config.dropout_of(m.value),
+        dropout=config.dropout_of(m),
         width=config.width,
     )
     if state is not None:
