@@ -117,6 +117,42 @@ def test_loader_shapes_and_touch_frame_choice(tiny_dataset: Path, tiny_config: D
     assert loader.frame_path(press) == press.frames[-2]
 
 
+def test_touch_frames_stack_a_press_s_frames_as_channels_in_order(
+    tiny_dataset: Path, tmp_path: Path
+):
+    catalog = scan(tiny_dataset)
+    press = catalog.items(Modality.TOUCH)[0]
+    one = ImageLoader(DataConfig(image_size=16))
+    first = one.array(press.frames[0], Modality.TOUCH)
+    last = one.array(press.frames[-1], Modality.TOUCH)
+    assert not np.array_equal(first, last)
+    config = DataConfig(image_size=16, touch_frames=(0, -1))
+    stacked = ImageLoader(config, cache_dir=tmp_path / "cache")
+    assert stacked.frame_path(press) == press.frames[-1]  # the key: the last listed
+    a = stacked.array(stacked.frame_path(press), Modality.TOUCH)
+    assert a.shape == (16, 16, 6)
+    assert np.array_equal(a[..., :3], first) and np.array_equal(a[..., 3:], last)
+    assert stacked.load(press).shape == (6, 16, 16)
+    # A frame file given as such (a query) is read with the frames beside it of its press.
+    assert np.array_equal(ImageLoader(config).embed_file(press.frames[-1], Modality.TOUCH), a)
+    # Cached on disk under both frames' contents: a second loader reads the same array.
+    again = ImageLoader(config, cache_dir=tmp_path / "cache")
+    assert np.array_equal(again.array(again.frame_path(press), Modality.TOUCH), a)
+    assert len(list((tmp_path / "cache").rglob("*.npy"))) == 1
+
+
+def test_touch_frames_refuse_a_file_whose_press_is_unknown_and_a_video(tmp_path: Path):
+    lone = tmp_path / "press.png"
+    Image.fromarray(np.full((24, 32, 3), 90, np.uint8)).save(lone)
+    loader = ImageLoader(DataConfig(image_size=16, touch_frames=(0, -1)))
+    with pytest.raises(ImageError, match=r"press\.png: data\.touch_frames reads frames \[0, -1\]"):
+        loader.embed_file(lone, Modality.TOUCH)
+    video = tmp_path / "F0001_fold_01_1.mov"
+    video.write_bytes(b"\x00\x00\x00\x14ftypqt  ")
+    with pytest.raises(ImageError, match=r"F0001_fold_01_1\.mov: .*this press is a video"):
+        loader.embed_file(video, Modality.TOUCH)
+
+
 def test_loader_decodes_each_file_once_and_returns_copies(
     tiny_dataset: Path, tiny_config: DataConfig, monkeypatch: pytest.MonkeyPatch
 ):

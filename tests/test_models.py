@@ -225,6 +225,33 @@ def test_load_pretrained_alexnet_from_torchvision_file(alexnet_file: Path) -> No
     assert cos > 0.99
 
 
+def test_stacked_touch_frames_inflate_the_pretrained_first_layer(alexnet_file: Path) -> None:
+    state = torch.load(alexnet_file, weights_only=True, mmap=True)
+    rgb = create_backbone("alexnet").eval()
+    load_pretrained(rgb, alexnet_file)
+    stacked = create_backbone("alexnet", in_channels=6).eval()
+    load_pretrained(stacked, alexnet_file)
+    torch.testing.assert_close(
+        stacked.features[0].weight, state["features.0.weight"].repeat(1, 2, 1, 1) / 2
+    )
+    # Two copies of one image give what the image gives the pretrained network.
+    x = _images(2, 3, ALEX_PX)
+    torch.testing.assert_close(stacked(torch.cat([x, x], dim=1)), rgb(x), rtol=1e-4, atol=1e-5)
+    with pytest.raises(ValueError, match="in_channels must be 1 or a multiple of 3, got 4"):
+        create_backbone("compact", in_channels=4)
+
+
+def test_a_model_reading_stacked_touch_frames_takes_their_channels() -> None:
+    model = create_model(
+        ModelConfig(backbone="compact", width=4), [Modality.DEPTH, Modality.TOUCH], touch_channels=6
+    ).eval()
+    assert model.branch("touch").in_channels == 6 and model.branch("depth").in_channels == 1
+    out = model({"touch": _images(2, 6, SMALL_PX).unsqueeze(1)})
+    assert out["touch"].shape == (2, model.embed_dim)
+    with pytest.raises(ValueError, match=r"touch input must be \(B, P, 6, H, W\)"):
+        model({"touch": _images(2, 3, SMALL_PX).unsqueeze(1)})
+
+
 def test_replicated_depth_channel_is_the_rgb_network_on_a_grey_image() -> None:
     rgb = create_backbone("compact", width=4).eval()
     depth = create_backbone("compact", in_channels=1, stem="replicate", width=4).eval()

@@ -248,6 +248,30 @@ def test_cli_train_then_load_and_embed(data: Path, tmp_path: Path, capsys):
     assert "missing.pth" in capsys.readouterr().err
 
 
+def test_a_run_on_stacked_touch_frames_embeds_and_answers_queries_alike(data: Path, tmp_path: Path):
+    from lookfeel.data import ImageError
+    from lookfeel.index.query import load_query_bytes, load_query_image
+
+    cfg = _config("train.steps=2", "train.val_every=0", "data.touch_frames=[0,-1]")
+    result = train(cfg, data, tmp_path / "run")
+    loaded = load_model(result.last_checkpoint)
+    assert loaded.config.data.touch_frames == (0, -1)
+    assert loaded.model.branch("touch").in_channels == 6
+    catalog = scan(data)
+    loader = ImageLoader(loaded.config.data)
+    touch = embed_catalog(loaded.model, catalog, loader)[Modality.TOUCH]
+    press = touch.items[0]
+    assert len(touch.embeddings) == len(catalog.items(Modality.TOUCH, cfg.data.touch_kinds))
+    # A query names one frame file of a press; its other frames are read beside it.
+    query = load_query_image(press.frames[-1], Modality.TOUCH, loaded.config.data)
+    assert torch.equal(query, loader.load(press))
+    with torch.inference_mode():
+        again = loaded.model({"touch": query[None, None]})["touch"][0]
+    torch.testing.assert_close(again, torch.from_numpy(touch.embeddings[0]), atol=1e-5, rtol=0)
+    with pytest.raises(ImageError, match=r"up.png: this model reads frames \[0, -1\]"):
+        load_query_bytes(press.frames[-1].read_bytes(), "up.png", Modality.TOUCH, cfg.data)
+
+
 def test_two_processes_agree_with_one(data: Path, tmp_path: Path):
     """torchrun --nproc_per_node 2 on the same global batch gives one process's weights.
 

@@ -120,7 +120,9 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
     except ConfigError as e:
         raise CheckpointError(f"{path}: its config does not load: {e}") from None
     modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]
-    model = create_model(config.model, modalities, load_weights=False)
+    model = create_model(
+        config.model, modalities, load_weights=False, touch_channels=config.data.touch_channels
+    )
     try:
         model.load_state_dict(state["model"])
     except RuntimeError as e:

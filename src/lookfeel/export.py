@@ -52,9 +52,6 @@ class ExportError(LookfeelError):
     """A checkpoint cannot be exported as asked; the message says which branch and why."""
 
 
-_CHANNELS = {Modality.DEPTH: 1, Modality.COLOR: 3, Modality.TOUCH: 3}
-
-
 class _BranchGraph(nn.Module):
     """One branch as a plain ``x -> embedding`` module (what the exporter traces)."""
 
@@ -142,7 +139,7 @@ def export_onnx(
     for m in wanted:
         shape: list[int | str]
         module = _BranchGraph(model.branch(m.value)).eval()  # eval: the exporter restores modes
-        c = _CHANNELS[m]
+        c = module.branch.in_channels
         if m is Modality.TOUCH and loaded.config.data.video_embed == "views":
             name, shape = "views", ["batch", "presses", "views", c, size, size]
             example = torch.rand(2, 2, 3, c, size, size, generator=gen)

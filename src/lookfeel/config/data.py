@@ -47,6 +47,10 @@ class AugmentConfig:
     of 500). 0: none is masked."""
 
 
+MAX_TOUCH_FRAMES = 8
+"""The most frames of a press `DataConfig.touch_frames` stacks."""
+
+
 def _default_augment() -> dict[Modality, AugmentConfig]:
     return {}
 
@@ -113,7 +117,16 @@ class DataConfig:
     weave of most woven cloth (0.2-0.6 mm a period)."""
     touch_frame: int = -2
     """Which frame of a press is "the" image: an index into its ordered frames; negative
-    counts from the end (authors' code: -2, the second-to-last). Clamped for short presses."""
+    counts from the end (authors' code: -2, the second-to-last). Clamped for short presses.
+    Unused when ``touch_frames`` is set."""
+    touch_frames: tuple[int, ...] = ()
+    """Several frames of a press read together, stacked as channels in this order (3 per
+    frame), e.g. ``[0, -1]``: the first frame, at the lightest force, and the last, at peak
+    force, so the network sees how the contact changes as the force rises (a fold's
+    flattening follows its stiffness and thickness). Indices as ``touch_frame``'s; empty
+    (the default): the one frame ``touch_frame``. For presses stored as frame images (a
+    video press has its own options, ``video_*``); the last index listed is the frame shown
+    wherever one image of the press is displayed."""
     video_frame: float | None = None
     """Which frame of a press video (a touch item recorded as .mov/.mp4/.avi) is "the" image:
     ``None`` the deepest contact; a number in [0, 1] that position across the contact span
@@ -223,6 +236,17 @@ class DataConfig:
             raise ConfigError(
                 f"data.depth_post_at: must be [x, y] fractions in [0, 1], got {self.depth_post_at}"
             )
+        if len(self.touch_frames) > MAX_TOUCH_FRAMES:
+            raise ConfigError(
+                f"data.touch_frames: at most {MAX_TOUCH_FRAMES} frames, got "
+                f"{len(self.touch_frames)}"
+            )
+        touch_aug = [a for m, a in self.augment.items() if Modality(m) is Modality.TOUCH]
+        if len(self.touch_frames) > 1 and any(a.permute_channels for a in touch_aug):
+            raise ConfigError(
+                "data.augment.touch.permute_channels: would mix the frames that "
+                "data.touch_frames stacks as channels; set one"
+            )
         if not 0.0 < self.touch_zoom <= 1.0:
             raise ConfigError(f"data.touch_zoom: must be in (0, 1], got {self.touch_zoom}")
         if self.depth_top_mm is not None and not self.depth_top_mm > 0:
@@ -239,3 +263,14 @@ class DataConfig:
             for name in ("noise_std", "level_shift", "level_tilt", "level_floor"):
                 if not 0.0 <= getattr(aug, name) < 1.0:
                     raise ConfigError(f"{key}.{name}: must be in [0, 1), got {getattr(aug, name)}")
+
+    @property
+    def touch_frame_indices(self) -> tuple[int, ...]:
+        """The frames of a press the network reads, in channel order: ``touch_frames``, or
+        ``(touch_frame,)``."""
+        return self.touch_frames or (self.touch_frame,)
+
+    @property
+    def touch_channels(self) -> int:
+        """Channels of a touch input: 3 per frame read (`touch_frame_indices`)."""
+        return 3 * len(self.touch_frame_indices)

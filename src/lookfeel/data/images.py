@@ -48,6 +48,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import fill_holes
+from lookfeel.data.layout import press_frame_files
 from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality
 from lookfeel.processes import can_fork
@@ -305,6 +306,9 @@ class PreprocessSettings:
     the drape's top]); ``None`` for raw depth."""
     touch_zoom: float | None = None
     """``data.touch_zoom`` when below 1 (``None``: the whole field, keys as before)."""
+    touch_frames: tuple[int, ...] | None = None
+    """``data.touch_frames`` when it stacks several frames (``None``: one frame, keys as
+    before)."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -330,6 +334,7 @@ class PreprocessSettings:
             config.video_gain,
             registration,
             config.touch_zoom if config.touch_zoom < 1.0 else None,
+            config.touch_frames if len(config.touch_frame_indices) > 1 else None,
         )
 
     def digest(self) -> str:
@@ -392,16 +397,77 @@ class ImageLoader:
         self._views: dict[Path, np.ndarray] = {}
         self._embedded: dict[Path, np.ndarray] = {}
         self._bad_videos: dict[Path, VideoError] = {}
+        self._stacks: dict[Path, tuple[Path, ...]] = {}
+        """Press frames stacked as one input (``data.touch_frames``), by `frame_path`."""
         self._lock = threading.Lock()
 
     def __len__(self) -> int:
         return len(self._memory)
 
     def frame_path(self, item: Item) -> Path:
-        """The file an item is read from (for touch, the configured frame of the press)."""
-        if item.modality is Modality.TOUCH:
-            return item.frame(self.config.touch_frame)
-        return item.path
+        """The file an item is read from and keyed by: for touch, the configured frame of
+        the press (with ``data.touch_frames``, the last listed; the others are read with it).
+        """
+        if item.modality is not Modality.TOUCH:
+            return item.path
+        indices = self.config.touch_frame_indices
+        path = item.frame(indices[-1])
+        if len(indices) > 1 and path not in self._stacks:
+            self._stacks[path] = tuple(item.frame(i) for i in indices)
+        return path
+
+    def source_files(self, item: Item) -> tuple[Path, ...]:
+        """Every file ``item``'s input is read from: `frame_path`'s, or with
+        ``data.touch_frames`` the press's stacked frames (what a cache of its embedding
+        depends on)."""
+        path = self.frame_path(item)
+        if item.modality is Modality.TOUCH and self.stacks_frames and not is_video(path):
+            return self._stack_files(path)
+        return (path,)
+
+    @property
+    def stacks_frames(self) -> bool:
+        """Whether a touch input is several frames of a press stacked as channels."""
+        return len(self.config.touch_frame_indices) > 1
+
+    def _stack_files(self, path: Path) -> tuple[Path, ...]:
+        """The frame files stacked for the press keyed by ``path``: those `frame_path` noted,
+        or, for a file given as such (a query), the frames beside it of the same press."""
+        known = self._stacks.get(path)
+        if known is not None:
+            return known
+        frames = press_frame_files(path)
+        if not frames or path not in frames:
+            raise ImageError(
+                path,
+                f"data.touch_frames reads frames {list(self.config.touch_frame_indices)} of "
+                "each press, and this file's name does not say its press: expected "
+                "F<id>_<kind>_<frame>_<press>.<ext> beside the press's other frames",
+            )
+        press = Item(Modality.TOUCH, 0, frames)
+        return tuple(press.frame(i) for i in self.config.touch_frame_indices)
+
+    def _preprocess_stack(self, path: Path) -> np.ndarray:
+        """(S, S, 3F) uint8: the press's frames (``data.touch_frames``) preprocessed and
+        stacked as channels, cached under all their contents."""
+        if is_video(path):
+            raise ImageError(
+                path,
+                "data.touch_frames stacks frame images of a press; this press is a video "
+                "(its frames are chosen by data.video_frame, video_frames and video_views)",
+            )
+        files = self._stack_files(path)
+        blobs = [read_image_file(p) for p in files]
+
+        def build() -> np.ndarray:
+            parts = [
+                preprocess_rgb(open_rgb(p, b), Modality.TOUCH, self.config)
+                for p, b in zip(files, blobs, strict=True)
+            ]
+            return np.concatenate(parts, axis=-1)
+
+        key = b"".join(hashlib.sha1(b).digest() for b in blobs)
+        return self._cached(key, "touch", build)
 
     def _cached(self, data: bytes, suffix: str, build: Callable[[], np.ndarray]) -> np.ndarray:
         """``build()``, or its copy in the disk cache under the file's content hash and
@@ -421,6 +487,8 @@ class ImageLoader:
         return a
 
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
+        if modality is Modality.TOUCH and self.stacks_frames:
+            return self._preprocess_stack(path)
         data = read_image_file(path)
 
         def build() -> np.ndarray:
@@ -449,7 +517,8 @@ class ImageLoader:
         return np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
 
     def array(self, path: Path, modality: Modality) -> np.ndarray:
-        """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else."""
+        """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else
+        ((S, S, 3F) for F touch frames stacked: ``data.touch_frames``)."""
         a = self._memory.get(path)
         if a is None:
             a = self._preprocess_file(path, modality)
@@ -458,7 +527,8 @@ class ImageLoader:
         return a
 
     def load(self, item: Item) -> torch.Tensor:
-        """One item as a tensor: (1, S, S) for depth, (3, S, S) for colour and touch, in [0, 1]."""
+        """One item as a tensor: (1, S, S) for depth, (3, S, S) for colour and touch ((3F, S, S)
+        for F touch frames stacked: ``data.touch_frames``), in [0, 1]."""
         return to_tensor(self.array(self.frame_path(item), item.modality))
 
     def has_views(self, item: Item) -> bool:

@@ -39,6 +39,7 @@ __all__ = [
     "IMAGE_SUFFIXES",
     "VIDEO_SUFFIXES",
     "parse_touch_name",
+    "press_frame_files",
     "scan",
     "sniff_video",
 ]
@@ -111,6 +112,28 @@ def parse_touch_name(name: str) -> TouchName | None:
     if frame is None:
         return None
     return TouchName(MAX_FABRIC_ID + 1 if fabric is None else fabric, kind, frame, m["press"])
+
+
+def press_frame_files(path: Path) -> tuple[Path, ...] | None:
+    """Every frame of the press that touch frame ``path`` belongs to, in frame order: the
+    image files beside it whose names give the same fabric, kind and press
+    (``F<id>_<kind>_<frame>_<press>.<ext>``); ``None`` when ``path``'s name does not parse.
+    For a press given as one of its files (a query) rather than found by `scan`."""
+    own = parse_touch_name(path.name)
+    if own is None:
+        return None
+    frames = []
+    for p in path.parent.iterdir():
+        if p.suffix.lower() not in IMAGE_SUFFIXES:
+            continue
+        tn = parse_touch_name(p.name)
+        if tn is not None and (tn.fabric_id, tn.kind, tn.press) == (
+            own.fabric_id,
+            own.kind,
+            own.press,
+        ):
+            frames.append((tn.frame, p.name, p))
+    return tuple(p for _, _, p in sorted(frames))
 
 
 def _folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:

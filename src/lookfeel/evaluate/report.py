@@ -411,7 +411,7 @@ def _section_properties(result: EvalResult) -> list[str]:
 
 def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> NDArray[np.generic]:
     item = result.embedded[m].items[row]
-    return loader.array(loader.frame_path(item), m)
+    return loader.array(loader.frame_path(item), m)[..., -3:]  # stacked touch frames: the last
 
 
 def _example_rows(

@@ -114,7 +114,10 @@ def _plan(
             blob = {
                 **base,
                 "modality": m.value,
-                "items": [[it.fabric_id, *_file_stamp(loader.frame_path(it))] for it in chunk],
+                "items": [
+                    [it.fabric_id, *(v for f in loader.source_files(it) for v in _file_stamp(f))]
+                    for it in chunk
+                ],
             }
             key = hashlib.sha1(json.dumps(blob, sort_keys=True).encode()).hexdigest()
             shards.append(_Shard(m, i, chunk, key))

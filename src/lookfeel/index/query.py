@@ -3,7 +3,9 @@
 A query is one or more image files of one modality. Depth is a 16-bit PNG in millimetres,
 colour an 8-bit RGB photo, touch a press's video (.mov, .mp4, .avi: its frame of deepest
 contact is found as in training) or one GelSight frame per press (the frame you would use for
-training: by default the second-to-last of a press). Preprocessing is the run's `DataConfig`
+training: by default the second-to-last of a press; for a model that reads several frames of
+a press together, ``data.touch_frames``, any one of them, the others read from beside it).
+Preprocessing is the run's `DataConfig`
 through `lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training
 uses. No image is cached, so a path reused for different content is always read afresh.
 """
@@ -77,6 +79,10 @@ def load_query_image(
             large, or the wrong kind (e.g. an 8-bit PNG given as depth).
     """
     path = Path(path)
+    if modality is Modality.TOUCH and len(config.touch_frame_indices) > 1:
+        # Several frames of the press stacked (``data.touch_frames``): read with the file's
+        # sibling frames, as in training.
+        return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
     if modality is Modality.TOUCH and path.suffix.lower() in VIDEO_SUFFIXES:
         # A press recorded as a video: its frame(s) chosen and preprocessed as in training
         # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
@@ -97,6 +103,13 @@ def load_query_bytes(
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
     """
+    if modality is Modality.TOUCH and len(config.touch_frame_indices) > 1:
+        raise ImageError(
+            Path(name),
+            f"this model reads frames {list(config.touch_frame_indices)} of each press "
+            "together (data.touch_frames), and an upload is one image: match the press's "
+            "frame files with `lookfeel match` instead",
+        )
     if modality is Modality.TOUCH and sniff_video(data[:16]):
         return _video_bytes(data, name, config)
     return _preprocess(Path(name), data, modality, config, max_pixels)

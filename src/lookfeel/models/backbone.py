@@ -32,7 +32,8 @@ class Backbone(nn.Module):
         name: registry name (``alexnet``, ``compact``, ``resnet18``).
         freeze_points: freeze point name -> number of stages in the trunk.
         embed_dim: size D of the embedding `forward` returns.
-        in_channels: channels of the input images (1 for depth, 3 for colour and touch).
+        in_channels: channels of the input images (1 for depth, 3 for colour and touch, 3 per
+            frame for touch frames stacked).
         min_size: smallest input side in pixels the layers accept.
     """
 
@@ -51,7 +52,8 @@ class Backbone(nn.Module):
         """Set up the input path, then build the layers (`_build`).
 
         Args:
-            in_channels: 1 (depth) or 3 (colour, touch).
+            in_channels: 1 (depth), 3 (colour, touch) or 3 per frame of a press read
+                together (``data.touch_frames``).
             stem: for one-channel input, ``replicate`` copies it into three channels before a
                 three-channel first layer; ``sum`` makes the first layer one-channel.
             freeze: a freeze point; ``None`` is the subclass's default.
@@ -59,19 +61,21 @@ class Backbone(nn.Module):
             width: the subclass's width parameter; ``None`` is its default.
         """
         super().__init__()
-        if in_channels not in (1, 3):
-            raise ValueError(f"in_channels must be 1 or 3, got {in_channels}")
+        if in_channels < 1 or (in_channels != 1 and in_channels % 3):
+            raise ValueError(f"in_channels must be 1 or a multiple of 3, got {in_channels}")
         if stem not in ("replicate", "sum"):
             raise ValueError(f"stem must be 'replicate' or 'sum', got {stem!r}")
         self.in_channels = in_channels
         self.stem = stem
         self._replicate = in_channels == 1 and stem == "replicate"
-        self.stem_channels = 3 if in_channels == 3 or self._replicate else 1
+        self.stem_channels = 3 if self._replicate else in_channels
         """Input channels of the first layer (1 only for a ``sum`` stem)."""
         mean: tuple[float, ...] = IMAGENET_MEAN
         std: tuple[float, ...] = IMAGENET_STD
         if self.stem_channels == 1:  # one grey channel: the mean of the RGB statistics
             mean, std = (sum(IMAGENET_MEAN) / 3,), (sum(IMAGENET_STD) / 3,)
+        else:  # RGB, or several RGB frames stacked: the RGB statistics for each
+            mean, std = mean * (self.stem_channels // 3), std * (self.stem_channels // 3)
         # Not persistent: the state dict keeps exactly torchvision's keys.
         self.mean: Tensor
         self.std: Tensor

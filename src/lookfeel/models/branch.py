@@ -24,7 +24,8 @@ CLASSES = "classes"
 class Branch(nn.Module):
     """Embeds one modality's inputs: the network G_W of paper section 4.1.
 
-    Touch inputs carry a press axis, (B, P, 3, H, W): every press goes through the same
+    Touch inputs carry a press axis, (B, P, C, H, W) (C = 3, or 3 per frame with
+    ``data.touch_frames``): every press goes through the same
     backbone and the P embeddings are pooled element-wise (max: the paper's Multi-input Net,
     Figure 4c; P = 1 is the plain net). Pooling happens on the backbone's embedding (fc7), then
     the optional projection and L2 normalisation follow.
@@ -61,6 +62,8 @@ class Branch(nn.Module):
         self.modality = Modality(modality)
         self.pressed = self.modality is Modality.TOUCH
         self.backbone = backbone
+        self.in_channels = backbone.in_channels
+        """Channels of one input image (or press)."""
         self.project: nn.Module = (
             nn.Linear(backbone.embed_dim, embed_dim) if embed_dim is not None else nn.Identity()
         )
@@ -177,6 +180,7 @@ class BranchEnsemble(Branch):
         self.members = nn.ModuleList(members)
         self.modality = first.modality
         self.pressed = first.pressed
+        self.in_channels = first.in_channels
         self.embed_dim = first.embed_dim * len(members)
         self.normalize = first.normalize
         self.press_pool = first.press_pool

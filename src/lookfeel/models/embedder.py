@@ -91,8 +91,8 @@ class Embedder(nn.Module):
         return [p for p in self.parameters() if p.requires_grad]
 
     def _check(self, slot: str, x: Tensor, views: bool = True) -> None:
-        m = self.branch(slot).modality
-        c = _CHANNELS[m]
+        b = self.branch(slot)
+        m, c = b.modality, b.in_channels
         if m is Modality.TOUCH:
             if x.dim() not in ((5, 6) if views else (5,)) or x.shape[-3] != c:
                 raise ValueError(
@@ -173,6 +173,7 @@ def create_model(
     modalities: Sequence[Modality | str],
     *,
     load_weights: bool = True,
+    touch_channels: int = 3,
 ) -> Embedder:
     """Build the joint model: one branch per modality (paper section 4.1, Figure 4).
 
@@ -186,6 +187,8 @@ def create_model(
             modality share its branch).
         load_weights: read ``config.pretrained`` into every branch. Pass ``False`` when a
             checkpoint's state dict will be loaded next (the weights file need not exist then).
+        touch_channels: channels of a touch input: 3, or 3 per frame of a press read
+            together (`DataConfig.touch_channels`).
 
     Returns:
         The `Embedder`.
@@ -212,18 +215,23 @@ def create_model(
         )
     branches: dict[Modality, Branch] = {}
     for m in mods:
-        members = [_branch(config, m, freeze, state) for _ in range(config.members)]
+        channels = touch_channels if m is Modality.TOUCH else _CHANNELS[m]
+        members = [_branch(config, m, channels, freeze, state) for _ in range(config.members)]
         branches[m] = members[0] if len(members) == 1 else BranchEnsemble(members)
     return Embedder(branches, config)
 
 
 def _branch(
-    config: ModelConfig, m: Modality, freeze: str, state: dict[str, Tensor] | None
+    config: ModelConfig,
+    m: Modality,
+    channels: int,
+    freeze: str,
+    state: dict[str, Tensor] | None,
 ) -> Branch:
     """One freshly initialised branch of modality ``m`` (with ``state``'s pretrained weights)."""
     backbone = create_backbone(
         config.backbone,
-        in_channels=_CHANNELS[m],
+        in_channels=channels,
         stem=config.depth_stem,
         freeze=freeze,
         dropout=config.dropout_of(m),

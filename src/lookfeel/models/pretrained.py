@@ -69,6 +69,9 @@ def apply_state_dict(model: Backbone, state: Mapping[str, Tensor], source: str =
     """Copy ``state`` into ``model`` after checking that keys and shapes match exactly.
 
     A one-channel ``sum`` stem takes the sum over the RGB axis of a three-channel first filter.
+    A first layer reading F frames stacked (3F channels, ``data.touch_frames``) takes the RGB
+    filter once per frame, divided by F (inflated as I3D inflates 2D filters over time), so
+    F copies of one image give what that image gave the pretrained network.
     A missing BatchNorm ``num_batches_tracked`` (old torchvision files) is allowed.
 
     Args:
@@ -96,6 +99,9 @@ def apply_state_dict(model: Backbone, state: Mapping[str, Tensor], source: str =
         have = state[key]
         if have.dim() == 4 and want.dim() == 4 and have.shape[1] == 3 and want.shape[1] == 1:
             have = have.sum(dim=1, keepdim=True)  # RGB filters -> one grey filter
+        elif have.dim() == 4 and want.dim() == 4 and have.shape[1] == 3 and want.shape[1] > 3:
+            frames = want.shape[1] // 3  # RGB filters -> one per stacked frame
+            have = have.repeat(1, frames, 1, 1) / frames
         if have.shape != want.shape:
             wrong.append(f"{key} (file {tuple(have.shape)}, model {tuple(want.shape)})")
         adapted[key] = have

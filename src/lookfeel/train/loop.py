@@ -676,9 +676,10 @@ def _train_members(
         train=replace(first.train, seed=config.train.seed),
     )
     modalities = [Modality(m) for m in states[0]["modalities"]]
-    model = create_model(merged.model, modalities, load_weights=False)
+    channels = first.data.touch_channels
+    model = create_model(merged.model, modalities, load_weights=False, touch_channels=channels)
     for k, state in enumerate(states):
-        part = create_model(first.model, modalities, load_weights=False)
+        part = create_model(first.model, modalities, load_weights=False, touch_channels=channels)
         part.load_state_dict(state["model"])
         for m in modalities:
             ensemble = model.branch(m.value)
@@ -763,7 +764,7 @@ def _train(
     loader.preload([*ds.items(), *(it for v in val_items.values() for it in v)])
 
     torch.manual_seed(t.seed)
-    model = create_model(config.model, modalities)
+    model = create_model(config.model, modalities, touch_channels=config.data.touch_channels)
     if state is None and config.model.init_from is not None:
         fresh = init_from_checkpoint(model, config.model.init_from)
         if fresh:
