@@ -147,6 +147,8 @@ def test_touch_frames_refuse_a_file_whose_press_is_unknown_and_a_video(tmp_path:
     loader = ImageLoader(DataConfig(image_size=16, touch_frames=(0, -1)))
     with pytest.raises(ImageError, match=r"press\.png: data\.touch_frames reads frames \[0, -1\]"):
         loader.embed_file(lone, Modality.TOUCH)
+    with pytest.raises(ImageError, match=r"F0001_fold_01_7\.png: file not found"):
+        loader.embed_file(tmp_path / "F0001_fold_01_7.png", Modality.TOUCH)
     video = tmp_path / "F0001_fold_01_1.mov"
     video.write_bytes(b"\x00\x00\x00\x14ftypqt  ")
     with pytest.raises(ImageError, match=r"F0001_fold_01_1\.mov: .*this press is a video"):

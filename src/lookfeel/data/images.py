@@ -436,6 +436,8 @@ class ImageLoader:
         known = self._stacks.get(path)
         if known is not None:
             return known
+        if not path.is_file():
+            read_image_file(path)  # raises its usual line: not found, a folder, not a file
         frames = press_frame_files(path)
         if not frames or path not in frames:
             raise ImageError(
