@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lookfeel.data.catalog import Catalog, Fabric, Item
-from lookfeel.data.images import file_kind
+from lookfeel.data.files import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.data.video import VIDEO_SUFFIXES
