@@ -271,6 +271,11 @@ class DataConfig:
         return self.touch_frames or (self.touch_frame,)
 
     @property
+    def stacks_touch_frames(self) -> bool:
+        """Whether a touch input is several frames of a press stacked as channels."""
+        return len(self.touch_frame_indices) > 1
+
+    @property
     def touch_channels(self) -> int:
         """Channels of a touch input: 3 per frame read (`touch_frame_indices`)."""
         return 3 * len(self.touch_frame_indices)

@@ -334,7 +334,7 @@ class PreprocessSettings:
             config.video_gain,
             registration,
             config.touch_zoom if config.touch_zoom < 1.0 else None,
-            config.touch_frames if len(config.touch_frame_indices) > 1 else None,
+            config.touch_frames if config.stacks_touch_frames else None,
         )
 
     def digest(self) -> str:
@@ -412,7 +412,7 @@ class ImageLoader:
             return item.path
         indices = self.config.touch_frame_indices
         path = item.frame(indices[-1])
-        if len(indices) > 1 and path not in self._stacks:
+        if self.config.stacks_touch_frames and path not in self._stacks:
             self._stacks[path] = tuple(item.frame(i) for i in indices)
         return path
 
@@ -421,14 +421,8 @@ class ImageLoader:
         ``data.touch_frames`` the press's stacked frames (what a cache of its embedding
         depends on)."""
         path = self.frame_path(item)
-        if item.modality is Modality.TOUCH and self.stacks_frames and not is_video(path):
-            return self._stack_files(path)
-        return (path,)
-
-    @property
-    def stacks_frames(self) -> bool:
-        """Whether a touch input is several frames of a press stacked as channels."""
-        return len(self.config.touch_frame_indices) > 1
+        stacked = item.modality is Modality.TOUCH and self.config.stacks_touch_frames
+        return self._stack_files(path) if stacked and not is_video(path) else (path,)
 
     def _stack_files(self, path: Path) -> tuple[Path, ...]:
         """The frame files stacked for the press keyed by ``path``: those `frame_path` noted,
@@ -489,7 +483,7 @@ class ImageLoader:
         return a
 
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
-        if modality is Modality.TOUCH and self.stacks_frames:
+        if modality is Modality.TOUCH and self.config.stacks_touch_frames:
             return self._preprocess_stack(path)
         data = read_image_file(path)
 

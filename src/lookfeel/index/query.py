@@ -79,7 +79,7 @@ def load_query_image(
             large, or the wrong kind (e.g. an 8-bit PNG given as depth).
     """
     path = Path(path)
-    if modality is Modality.TOUCH and len(config.touch_frame_indices) > 1:
+    if modality is Modality.TOUCH and config.stacks_touch_frames:
         # Several frames of the press stacked (``data.touch_frames``): read with the file's
         # sibling frames, as in training.
         return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
@@ -103,7 +103,7 @@ def load_query_bytes(
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
     """
-    if modality is Modality.TOUCH and len(config.touch_frame_indices) > 1:
+    if modality is Modality.TOUCH and config.stacks_touch_frames:
         raise ImageError(
             Path(name),
             f"this model reads frames {list(config.touch_frame_indices)} of each press "
