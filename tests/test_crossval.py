@@ -196,12 +196,12 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     saved = yaml.safe_load((run / "config.yaml").read_text())
     assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
     assert saved["model"]["dropout"] == 0.0  # colour's branch
-    assert saved["data"]["touch_frames"] == [0, -1]  # a press's first and last frames
+    assert saved["data"]["touch_frames"] == [0, 1, 2]  # a press's three frames, stacked
     assert (
         torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"][
             "branches.touch.backbone.features.0.0.weight"
         ].shape[1]
-        == 6
+        == 9
     )
     logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     terms = {k for row in logged for k in row if k.endswith("_loss")}
