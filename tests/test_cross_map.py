@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
-from lookfeel.metrics.cross_map import CrossMap, fit_cross_map, fit_cross_maps, fit_linear_map
+from lookfeel.metrics.cross_map import (
+    CrossMap,
+    LinearMap,
+    fit_cross_map,
+    fit_cross_maps,
+    fit_linear_map,
+)
 from lookfeel.modality import Modality, Pair
 
 
@@ -82,6 +88,53 @@ def test_arrays_round_trip_exactly_and_a_damaged_map_is_refused():
         CrossMap.from_arrays(arrays | {"scales": np.array([1.0, 0.0])})
     with pytest.raises(KeyError):
         CrossMap.from_arrays({k: v for k, v in arrays.items() if k != "scales"})
+
+
+def test_hub_correction_lowers_each_gallery_item_by_its_crowding_among_training_fabrics():
+    """d'(q, g) = d(q, g) - r(g) + c, r(g) the mean distance of g's 10 nearest training
+    fabrics (query modality, fabric means), c the largest r among the training fabrics; 0
+    neighbours is the plain two-route distance. An item's distance does not depend on what
+    else the gallery holds."""
+    rng = np.random.default_rng(5)
+    latent = rng.standard_normal((30, 2))
+    ea, fa = _items(latent, rng.standard_normal((2, 4)), rng)
+    eb, fb = _items(latent, rng.standard_normal((2, 6)), rng)
+    plain = fit_cross_map(ea, fa, eb, fb, hub_neighbours=0)
+    hubbed = fit_cross_map(ea, fa, eb, fb)
+    assert plain.hubs is None and hubbed.hubs is not None and hubbed.hubs.shape == (30, 4)
+    np.testing.assert_allclose(hubbed.hubs, np.stack([ea[fa == i].mean(0) for i in range(30)]))
+    q, g = rng.standard_normal((7, 4)), rng.standard_normal((9, 6))
+    base = plain.distances(q, g)
+    r = np.sort(plain.distances(hubbed.hubs, g), axis=0)[:10].mean(axis=0)
+    mg = np.stack([eb[fb == i].mean(0) for i in range(30)])
+    c = np.sort(plain.distances(hubbed.hubs, mg), axis=0)[:10].mean(axis=0).max()
+    assert hubbed.hub_offset == pytest.approx(c)
+    np.testing.assert_allclose(hubbed.distances(q, g), np.maximum(base - r + c, 0), atol=1e-12)
+    assert (hubbed.distances(q, g) >= 0).all()
+    np.testing.assert_allclose(hubbed.distances(q, g[:4]), hubbed.distances(q, g)[:, :4])
+    back = CrossMap.from_arrays(hubbed.to_arrays())  # the hubs travel with the map
+    np.testing.assert_array_equal(back.distances(q, g), hubbed.distances(q, g))
+    assert back.hub_neighbours == 10
+    with pytest.raises(ValueError, match="hubs"):
+        CrossMap.from_arrays(hubbed.to_arrays() | {"hubs": hubbed.hubs[:, :3]})
+    with pytest.raises(ValueError, match=">= 0"):
+        fit_cross_map(ea, fa, eb, fb, hub_neighbours=-1)
+
+
+def test_a_gallery_item_near_every_query_is_no_longer_picked_for_all_of_them():
+    """A hub: one gallery drape sits where the map sends every press of the training
+    fabrics, a little closer to each query than its own drape is. Without the correction it
+    is every query's first pick; with it, each query finds its own."""
+    centre = np.zeros(2)
+    own = np.array([[3.0, 0.0], [-3.0, 0.0], [0.0, 3.0], [0.0, -3.0]])
+    queries = 0.48 * own  # a little nearer the hub (the centre) than their own drape
+    gallery = np.vstack([own, centre])
+    identity = LinearMap(np.eye(2), np.zeros(2))
+    hubs = np.vstack([0.1 * own, 0.1 * own[::-1]])  # training fabrics crowd the centre
+    plain = CrossMap(identity, identity, 1.0, 1.0)
+    hubbed = CrossMap(identity, identity, 1.0, 1.0, hubs, 4, 10.0)
+    assert (plain.distances(queries, gallery).argmin(axis=1) == 4).all()
+    assert (hubbed.distances(queries, gallery).argmin(axis=1) == np.arange(4)).all()
 
 
 def test_maps_of_every_pair_of_two_modalities_with_enough_fabrics():

@@ -83,7 +83,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
-from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
+from lookfeel.metrics.cross_map import HUB_NEIGHBOURS, CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import run_started, train
@@ -731,7 +731,8 @@ def _mapped_lines(summary: dict[str, Any]) -> list[str]:
         "Matching through a cross-modal map (`lookfeel.metrics.cross_map`; no labels used): "
         "the same queries, the query modality's embeddings carried into the gallery "
         "modality's and back by linear maps fitted on the run's training fabrics only, a query "
-        "matched to the gallery item nearest by both routes.",
+        "matched to the gallery item nearest by both routes, each gallery item's distance "
+        "lowered by its crowding among the training fabrics (the hub correction).",
         columns,
     )
 
@@ -882,6 +883,9 @@ def cross_validate(
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
             key = {"config": _result_config(cfg), "tta": tta, "pairs": pairs}
+            # How the maps score (session 22 added the hub correction): a result scored
+            # otherwise is scored again from its checkpoint, never silently kept.
+            key["cross_map_hubs"] = HUB_NEIGHBOURS
             if presses > 1:
                 key["presses"] = presses
             if control is not None:

@@ -13,8 +13,9 @@ chance level 1/F beside it, and a note when the pair's threshold accepted no kno
 in calibration (its ranking is then still worth reading).
 
 A pair that calibration found better matched through its cross-modal map (``mapped``, see
-`lookfeel.index.calibrate`) is matched that way: D is then the map's distance (both routes,
-`lookfeel.metrics.cross_map.CrossMap.distances`), computed exactly over every gallery item, and
+`lookfeel.index.calibrate`) is matched that way: D is then the map's distance (both routes and
+the hub correction, `lookfeel.metrics.cross_map.CrossMap.distances`; a library built before
+session 22 has no hubs and is matched without it), computed exactly over every gallery item, and
 so are the distances to each fabric's nearest items of that modality.
 
 A query whose embedding is identical (distance below `IDENTICAL_DISTANCE`) to a library item of
