@@ -247,8 +247,10 @@ def _section_mapped(result: EvalResult) -> list[str]:
         "## Through a cross-modal map",
         "",
         "The same queries matched through linear maps between the two modalities' embedding "
-        "spaces, fitted on the reference (training) fabrics' mean embeddings, both ways "
-        "(`lookfeel.metrics.cross_map`; no labels used, nothing fitted on the test fabrics). "
+        "spaces, fitted on the reference (training) fabrics' mean embeddings, both ways, each "
+        "gallery item's distance lowered by its crowding among the reference fabrics (the hub "
+        "correction; `lookfeel.metrics.cross_map`; no labels used, nothing fitted on the test "
+        "fabrics). "
         "A library (`lookfeel index build`) fits such maps on its own fabrics and matches a pair "
         "through its map when that does better in calibration.",
         "",
