@@ -189,16 +189,12 @@ class CrossMap:
         many queries against the same items)."""
         g = np.asarray(gallery, dtype=np.float64)
         g_back = self.backward(g)
-
-        def routes(q: F64) -> F64:
-            there = pairwise_distances(self.forward(q), g) / self.scale_forward
-            back = pairwise_distances(q, g_back) / self.scale_backward
-            return np.asarray(there + back, dtype=np.float64)
-
-        shift = None if self.hubs is None else self.hub_offset - self.crowding(g)
+        shift = None
+        if self.hubs is not None:
+            shift = self.hub_offset - self._crowding(self._routes(self.hubs, g, g_back))
 
         def distances(query: ArrayLike) -> F64:
-            d = routes(np.asarray(query, dtype=np.float64))
+            d = self._routes(np.asarray(query, dtype=np.float64), g, g_back)
             return d if shift is None else np.maximum(d + shift, 0.0)
 
         return distances
@@ -209,12 +205,19 @@ class CrossMap:
         if self.hubs is None:
             raise ValueError("this cross-modal map has no hubs")
         g = np.asarray(gallery, dtype=np.float64)
-        if not len(g):
+        return self._crowding(self._routes(self.hubs, g, self.backward(g)))
+
+    def _routes(self, q: F64, g: F64, g_back: F64) -> F64:
+        """(Q, G) two-route distances, each route in its unit; ``g_back`` is ``backward(g)``."""
+        there = pairwise_distances(self.forward(q), g) / self.scale_forward
+        back = pairwise_distances(q, g_back) / self.scale_backward
+        return np.asarray(there + back, dtype=np.float64)
+
+    def _crowding(self, to_hubs: F64) -> F64:
+        """(G,) the mean of each column's ``hub_neighbours`` smallest (K, G) distances."""
+        if to_hubs.shape[1] == 0:
             return np.zeros(0)
-        there = pairwise_distances(self.forward(self.hubs), g) / self.scale_forward
-        back = pairwise_distances(self.hubs, self.backward(g)) / self.scale_backward
-        to_hubs = there + back  # (K, G)
-        k = min(self.hub_neighbours, len(self.hubs))
+        k = min(self.hub_neighbours, len(to_hubs))
         return np.asarray(np.partition(to_hubs, k - 1, axis=0)[:k].mean(axis=0), np.float64)
 
 
