@@ -112,6 +112,9 @@ def test_hub_correction_lowers_each_gallery_item_by_its_crowding_among_training_
     np.testing.assert_allclose(hubbed.distances(q, g), np.maximum(base - r + c, 0), atol=1e-12)
     assert (hubbed.distances(q, g) >= 0).all()
     np.testing.assert_allclose(hubbed.distances(q, g[:4]), hubbed.distances(q, g)[:, :4])
+    old = CrossMap.from_arrays(plain.to_arrays())  # a map saved without hubs: none applied
+    assert old.hubs is None and "hubs" not in plain.to_arrays()
+    np.testing.assert_array_equal(old.distances(q, g), base)
     back = CrossMap.from_arrays(hubbed.to_arrays())  # the hubs travel with the map
     np.testing.assert_array_equal(back.distances(q, g), hubbed.distances(q, g))
     assert back.hub_neighbours == 10
