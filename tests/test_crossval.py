@@ -307,13 +307,18 @@ def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_pa
         assert all(len(entry[k]) == len(held) for k in methods), pair
     assert "raw_pixels" in run["pairs"]["touch_to_touch"]
     assert len(run["pairs"]["depth_to_touch"]["query_fabric"]) == 3 * len(held)  # drapes
-    assert "pools 3 presses" in (tmp_path / "cv" / "cv.md").read_text()
+    assert (
+        "pools 3 presses of one fabric, as a query and as the candidates"
+        in (tmp_path / "cv" / "cv.md").read_text()
+    )
 
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
     m = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20, presses=3)).metrics
-    for pair in ("touch_to_depth", "touch_to_color"):
-        cv_mapped = float(np.mean(np.asarray(run["pairs"][pair]["model_mapped"])[:, 0]))
-        assert cv_mapped == pytest.approx(m[f"{pair}_top1_mapped"], abs=1e-9), pair
+    # Both ways: a touch query pools 3 presses, and so does each touch candidate of a drape.
+    for pair in ("touch_to_depth", "touch_to_color", "depth_to_touch", "color_to_touch"):
+        for key, method in (("top1", "model"), ("top1_mapped", "model_mapped")):
+            cv_top1 = float(np.mean(np.asarray(run["pairs"][pair][method])[:, 0]))
+            assert cv_top1 == pytest.approx(m[f"{pair}_{key}"], abs=1e-9), (pair, key)
     with pytest.raises(ConfigError, match="presses"):
         cross_validate(config, data, tmp_path / "cv2", folds=[0], presses=0)
     with pytest.raises(ConfigError, match="no held-out fabric has 4 touch presses"):

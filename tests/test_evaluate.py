@@ -28,8 +28,9 @@ from lookfeel.evaluate import (
     save_embeddings,
     write_report,
 )
-from lookfeel.metrics import PAPER_C
-from lookfeel.modality import Modality
+from lookfeel.evaluate.core import press_queries
+from lookfeel.metrics import PAPER_C, ScoringProtocol, score_pairs
+from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 
 from ._library import evaluate_cli
@@ -113,6 +114,19 @@ def test_pooling_presses_helps_noisy_touch_and_sets_the_main_keys():
     assert r3.metrics["touch_to_depth_n_queries"] == 16 * 5
     # A pooled touch query never counts its own presses as candidates.
     assert r3.metrics["touch_to_touch_n_queries"] == 16 * 5
+    # Depth picks among the same pooled presses (the Multi-input Net's touch candidates), not
+    # among single presses: exactly the pick over the groups' pooled embeddings.
+    groups = press_queries(embedded[T], 3, r3.config.seed)
+    assert len(groups.fabric) == 16 * 5
+    emb = {k: e.embeddings for k, e in embedded.items()}
+    fab = {k: e.fabric_ids for k, e in embedded.items()}
+    exact = ScoringProtocol(ks=(1,), gallery=False, sampled=False, n_boot=0)
+    pair = Pair(D, T)
+    pooled = score_pairs(emb, fab, exact, [pair], galleries={T: groups})[pair].metrics["top1"]
+    single = score_pairs(emb, fab, exact, [pair])[pair].metrics["top1"]
+    assert r3.metrics["depth_to_touch_n_queries"] == 16 * 3
+    assert r3.metrics["depth_to_touch_top1"] == pytest.approx(pooled, abs=1e-12)
+    assert m["depth_to_touch_top1"] == pytest.approx(single, abs=1e-12) and pooled != single
 
 
 def test_every_key_is_there_with_chance_and_interval():

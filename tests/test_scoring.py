@@ -98,6 +98,39 @@ def test_reverse_pair_uses_the_transpose_and_pooled_queries_their_own_matrix():
     assert got[Pair(T, D)].exclude is None
 
 
+def test_pooled_gallery_is_what_other_senses_pick_among_and_keeps_the_transpose():
+    rng = np.random.default_rng(6)
+    fab = {D: np.repeat(np.arange(4), 2), T: np.repeat(np.arange(4), 4)}
+    emb = {m: rng.standard_normal((len(f), 6)) for m, f in fab.items()}
+    members = np.arange(16).reshape(8, 2)
+    pooled = QuerySet(emb[T][members].max(axis=1), fab[T][members[:, 0]], members)
+    pairs = [Pair(T, D), Pair(D, T), Pair(T, T)]
+    got = {
+        pd.pair: pd
+        for pd in pair_distances(emb, fab, pairs, queries={T: pooled}, galleries={T: pooled})
+    }
+    # Depth picks among the 8 pooled sets (their fabrics), on the transpose of touch to depth.
+    d2t = got[Pair(D, T)]
+    assert d2t.dist.shape == (8, 8)
+    np.testing.assert_array_equal(d2t.gallery_fabric, fab[T][members[:, 0]])
+    np.testing.assert_allclose(d2t.dist, pairwise_distances(emb[D], pooled.emb))
+    assert np.shares_memory(d2t.dist, got[Pair(T, D)].dist)
+    # Touch to touch still picks among single presses, leaving out the query's own two.
+    t2t = got[Pair(T, T)]
+    assert t2t.dist.shape == (8, 16) and t2t.exclude.sum() == 16
+    # A pooled gallery without pooled queries: its own matrix, not a transpose.
+    got = {pd.pair: pd for pd in pair_distances(emb, fab, pairs[:2], galleries={T: pooled})}
+    np.testing.assert_allclose(got[Pair(T, D)].dist, pairwise_distances(emb[T], emb[D]))
+    np.testing.assert_allclose(got[Pair(D, T)].dist, pairwise_distances(emb[D], pooled.emb))
+    # Scored: the per-query pick equals the pick on the pooled matrix itself (pick 1 of 3).
+    protocol = ScoringProtocol(n=3, ks=(1,), gallery=False, sampled=False, n_boot=0)
+    s = score_pairs(emb, fab, protocol, [Pair(D, T)], galleries={T: pooled})[Pair(D, T)]
+    direct = pick_k_of_n_exact(
+        pairwise_distances(emb[D], pooled.emb), fab[D], pooled.fabric, n=3, ks=(1,)
+    )
+    np.testing.assert_array_equal(s.pick.per_query, direct.per_query)
+
+
 def test_missing_modality_and_bad_pair_name_the_problem():
     emb = {D: np.zeros((4, 2))}
     fab = {D: np.arange(4)}

@@ -5,10 +5,12 @@ The folds are ``train.folds`` cluster-stratified folds of ``train.fold_size`` fa
 five test sets chosen as the paper chose its 18). Each run trains on the other fabrics, is scored
 by its *last* checkpoint (no choice is made on the held-out fabrics), and reports, per pair:
 
-- pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3; a touch query
-  pools ``presses`` presses of one fabric when that is above 1 (the Multi-input Net: default
-  the config's ``data.presses``; each fabric's presses in seeded disjoint groups, embedded by
-  the model's own press pooling, as `lookfeel evaluate` does), else is one press;
+- pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3; touch pools
+  ``presses`` presses of one fabric when that is above 1 (the Multi-input Net: default the
+  config's ``data.presses``; each fabric's presses in seeded disjoint groups, embedded by the
+  model's own press pooling, as `lookfeel evaluate` does), as a query and as the candidates
+  of another sense's queries (the paper's Multi-input Net takes three presses wherever it
+  embeds touch); touch to touch picks among single presses;
 - the same for raw pixels (nearest neighbour on the preprocessed images; same-modality pairs);
 - chance;
 - for a model with a depth branch, the **background control** (on by default): the same
@@ -152,12 +154,14 @@ def _pick(
     fab: dict[Modality, np.ndarray],
     pairs: Sequence[Pair],
     queries: dict[Modality, QuerySet] | None = None,
+    galleries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
     """Exact pick 1 of 10, top-1 and top-3 per query, of each pair (`EXACT_PICK`); ``queries``:
-    pooled queries of a modality (multi-press touch), else every item is a query."""
+    pooled queries of a modality (multi-press touch), else every item is a query;
+    ``galleries``: the same pooled sets as another modality's candidates."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
-        return score_pairs(emb, fab, EXACT_PICK, pairs, queries=queries)
+        return score_pairs(emb, fab, EXACT_PICK, pairs, queries=queries, galleries=galleries)
 
 
 def _pooled(q: QuerySet, emb: np.ndarray) -> QuerySet:
@@ -172,13 +176,11 @@ def _cross_maps(
 ) -> dict[Pair, CrossMap]:
     """The cross-modal map of every pair of two modalities with training items
     (`lookfeel.metrics.cross_map`); ``train``: per modality (fabric ids, embeddings, pixels).
-    A modality in ``train_queries`` (pooled touch) is fitted from those where it is the query,
-    as its held-out queries are pooled."""
+    A modality in ``train_queries`` (pooled touch) is fitted from those, on either side of a
+    pair, as its held-out queries and candidates are pooled."""
     items = {m: (e, f) for m, (f, e, _) in train.items()}
     pooled = {m: (q.emb, q.fabric) for m, q in (train_queries or {}).items()}
-    as_query = [p for p in pairs if p.query in pooled]
-    maps = fit_cross_maps(items, [p for p in pairs if p not in as_query])
-    maps |= fit_cross_maps(items | pooled, [p for p in as_query if p.gallery not in pooled])
+    maps = fit_cross_maps(items | pooled, pairs)
     return {p: maps[p] for p in pairs if p in maps}
 
 
@@ -189,17 +191,17 @@ def _mapped(
     pairs: Sequence[Pair],
     queries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
-    """Exact pick 1 of 10 of each pair in ``pairs`` through its cross-modal map (``queries``
-    as `_pick`'s)."""
+    """Exact pick 1 of 10 of each pair in ``pairs`` through its cross-modal map (``queries``:
+    pooled sets of a modality, as `_pick`'s queries and galleries: the map joins two
+    modalities, so a pooled modality is pooled on either side)."""
     out = {}
+    sets = {m: QuerySet.single(emb[m], fab[m]) for m in emb} | (queries or {})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
         for p in pairs:
-            q = (queries or {}).get(p.query)
-            if q is None:
-                q = QuerySet.single(emb[p.query], fab[p.query])
-            dist = maps[p].distances(q.emb, emb[p.gallery])
-            out[p] = score_distances(dist, q.fabric, fab[p.gallery], EXACT_PICK)
+            q, g = sets[p.query], sets[p.gallery]
+            dist = maps[p].distances(q.emb, g.emb)
+            out[p] = score_distances(dist, q.fabric, g.fabric, EXACT_PICK)
     return out
 
 
@@ -296,7 +298,7 @@ def _score(
                 "raw_pixels": _probe(catalog, train_pix, train_f, pix[m], fab[m]),
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
-    model = _pick(emb, fab, pairs, queries)
+    model = _pick(emb, fab, pairs, queries, queries)  # pooled touch on both sides
     others: dict[str, dict[Pair, Any]] = {}  # every other method's scores, by method
     spaces = _label_spaces(catalog, train)
     mapped = [p for p in pairs if p.query in spaces and p.gallery in spaces]
@@ -310,7 +312,7 @@ def _score(
             for m, q in queries.items()
             if m in spaces
         }
-        return _pick(lab, fab, wanted, lab_q)
+        return _pick(lab, fab, wanted, lab_q, lab_q)
 
     if mapped:
         others["model_labels"] = in_labels(emb, mapped)
@@ -333,7 +335,7 @@ def _score(
             for name, ld in variants.items():
                 emb_v = emb | {Modality.DEPTH: embed_items(lm.model, items, ld, flip=tta)}
                 pix_v = pix | {Modality.DEPTH: raw_pixels(items, ld)}
-                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs, queries)
+                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs, queries, queries)
                 if mapped:  # label space, its depth maps read on the altered images
                     lab_pairs = [p for p in mapped if p in depth_pairs]
                     others[f"model_labels_{name}"] = in_labels(emb_v, lab_pairs)
@@ -357,7 +359,7 @@ def _score(
             pooled = press_pooler(lm.model, still, flip=tta)(still_touch, members)
             q_un[touch] = QuerySet(pooled, queries[touch].fabric, members)
             raw_un[touch] = _pooled(queries[touch], pix_un[touch])
-        others["model_untouched"] = _pick(emb_un, fab, touch_pairs, q_un)
+        others["model_untouched"] = _pick(emb_un, fab, touch_pairs, q_un, q_un)
         others["raw_pixels_untouched"] = _pick(
             pix_un, fab, [p for p in touch_pairs if p.same], raw_un
         )
@@ -763,8 +765,9 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         "Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
         "[95% interval, resampling held-out fabrics]."
         + (
-            f" A touch query pools {summary['presses']} presses of one fabric (the Multi-input "
-            "Net's protocol); touch as the gallery is single presses."
+            f" Touch pools {summary['presses']} presses of one fabric, as a query and as the "
+            "candidates of another sense's queries (the Multi-input Net's protocol); touch to "
+            "touch picks among single presses."
             if summary.get("presses", 1) > 1
             else ""
         ),
@@ -888,6 +891,7 @@ def cross_validate(
             key["cross_map_hubs"] = HUB_NEIGHBOURS
             if presses > 1:
                 key["presses"] = presses
+                key["pooled_gallery"] = True  # session 23: touch candidates pooled too
             if control is not None:
                 key["background_control"] = CONTROL_SEED
                 if control.has_room_control:

@@ -51,7 +51,9 @@ class EvalConfig:
     presses: int | None = None
     """Presses per touch query in the main ``touch_to_*`` keys, max-pooled like the
     Multi-input Net (paper: 3). ``None``: the checkpoint's ``data.presses`` (1 for bare
-    embeddings). Touch as the gallery is always single presses."""
+    embeddings). Above 1, the touch candidates of another modality's queries are pooled the
+    same way (the Multi-input Net embeds touch from its presses wherever touch is); touch to
+    touch picks among single presses."""
     max_presses: int = 5
     """Touch queries of P = 1 .. max_presses pooled presses are scored for the
     accuracy-against-presses curve (``touch_to_{gallery}_presses{P}_*`` keys)."""

@@ -148,7 +148,7 @@ def _curve_keys(config: EvalConfig) -> list[str]:
 
 def _fit_c(
     rq: QuerySet,
-    gallery: EmbeddedItems,
+    gallery: QuerySet,
     q: Modality,
     g: Modality,
     notes: _Notes,
@@ -157,12 +157,12 @@ def _fit_c(
 
     Args:
         rq: the reference fabrics' queries of modality ``q``.
-        gallery: the reference fabrics' items of modality ``g``.
+        gallery: the reference fabrics' candidates of modality ``g`` (items, or pooled sets).
     """
-    gf = np.asarray(gallery.fabric_ids)
+    gf = np.asarray(gallery.fabric)
     if len(rq.fabric) == 0 or len(np.unique(gf)) < 2:
         return None
-    dist = pairwise_distances(rq.emb, gallery.embeddings)
+    dist = pairwise_distances(rq.emb, gallery.emb)
     pair = Pair(q, g)
     try:
         with notes.catching(f"fitting c for {pair}"):
@@ -205,14 +205,17 @@ def _mapped(
     gallery: Mapping[Modality, NDArray[np.float64]],
     gallery_fabric: Mapping[Modality, NDArray[np.int64]],
     reference_queries: Callable[[Modality], QuerySet],
+    reference_gallery: Callable[[Modality], QuerySet],
     reference: Mapping[Modality, EmbeddedItems],
+    galleries: Mapping[Modality, QuerySet],
     config: EvalConfig,
     notes: _Notes,
 ) -> tuple[dict[str, float], dict[Pair, CrossMap], dict[Pair, NDArray[np.float64]]]:
     """Every pair of two modalities scored through its cross-modal map (`EvalConfig.cross_map`),
-    the map fitted on the reference fabrics' queries (pooled as the test queries are) and
-    gallery items; keys ``{pair}_top{k}_mapped``. Returns them, the maps and each pair's
-    (queries, gallery) distances through its map."""
+    the map fitted on the reference fabrics' queries and candidates (pooled as the test ones
+    are); keys ``{pair}_top{k}_mapped``. ``galleries``: the test candidates of a modality
+    when they are pooled. Returns the keys, the maps and each pair's (queries, gallery)
+    distances through its map."""
     out: dict[str, float] = {}
     maps: dict[Pair, CrossMap] = {}
     dists: dict[Pair, NDArray[np.float64]] = {}
@@ -221,17 +224,20 @@ def _mapped(
         q, g = pair.query, pair.gallery
         if pair.same or q not in reference or g not in reference:
             continue
-        rq = reference_queries(q)
+        rq, rg = reference_queries(q), reference_gallery(g)
         try:
-            maps[pair] = fit_cross_map(
-                rq.emb, rq.fabric, reference[g].embeddings, reference[g].fabric_ids
-            )
+            maps[pair] = fit_cross_map(rq.emb, rq.fabric, rg.emb, rg.fabric)
         except ValueError as e:
             notes.add(f"{pair}: no cross-modal map ({e})")
             continue
-        dist = dists[pair] = maps[pair].distances(queries[q].emb, gallery[g])
+        g_emb, g_fab = (
+            (galleries[g].emb, galleries[g].fabric)
+            if g in galleries
+            else (gallery[g], gallery_fabric[g])
+        )
+        dist = dists[pair] = maps[pair].distances(queries[q].emb, g_emb)
         with notes.catching(f"{pair} through the cross-modal map"):
-            scored = score_distances(dist, queries[q].fabric, gallery_fabric[g], protocol)
+            scored = score_distances(dist, queries[q].fabric, g_fab, protocol)
         keep_pick(out, scored.metrics, config.ks, f"{pair}_top{{k}}_mapped{{suffix}}")
     return out, maps, dists
 
@@ -289,10 +295,13 @@ def _draw_examples(
     gallery_fabric: NDArray[np.int64],
     same: bool,
     config: EvalConfig,
+    gallery_rows: NDArray[np.int64] | None = None,
 ) -> tuple[PickExample, ...]:
     """Draw pick trials as the paper's protocol does; keep half right, half wrong when both occur.
 
     Distinct query fabrics are preferred, so the figure shows different fabrics.
+    ``gallery_rows``: the item row that shows each gallery entry (a pooled set's first press);
+    default the entry itself.
     """
     if config.examples == 0 or len(q.fabric) == 0:
         return ()
@@ -318,7 +327,9 @@ def _draw_examples(
         ex = PickExample(
             pair=pair,
             query_rows=tuple(int(r) for r in q.members[qi]),
-            candidates=tuple(int(c) for c in cands[order]),
+            candidates=tuple(
+                int(c if gallery_rows is None else gallery_rows[c]) for c in cands[order]
+            ),
             distances=tuple(float(x) for x in d[order]),
             true_position=int(np.flatnonzero(order == 0)[0]),
         )
@@ -565,7 +576,9 @@ def evaluate_embeddings(
     with its interval; `EvalResult.cross_maps`), and the glance ranks the looks through it.
 
     Touch queries pool ``config.presses`` presses of one fabric (element-wise max, the
-    Multi-input Net); the curve over P = 1 .. ``config.max_presses`` is in the
+    Multi-input Net), and so do the touch candidates of another modality's queries (the net
+    embeds touch from its presses wherever touch is; touch to touch picks among single
+    presses); the curve over P = 1 .. ``config.max_presses`` is in the
     ``touch_to_{gallery}_presses{P}_*`` keys. Physical-property probes (k-NN, ridge) are fitted
     on ``reference`` and scored on the test fabrics when ``labels`` are given:
     ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}``.
@@ -641,6 +654,9 @@ def evaluate_embeddings(
         presses = 1
         config = replace(config, presses=1)
         queries[Modality.TOUCH] = press_queries(embedded[Modality.TOUCH], 1, config.seed, pool)
+    # The Multi-input Net embeds touch from its presses wherever touch is: pooled touch is also
+    # what another sense's queries pick among (touch to touch picks among single presses).
+    galleries = {m: q for m, q in queries.items() if q.pooled}
     pairs = Pair.every(mods)
     figure_pairs = _figure_pairs(config, pairs)
     protocol = scoring_protocol(config)
@@ -664,6 +680,14 @@ def evaluate_embeddings(
             ref_queries[m] = press_queries(reference[m], p, config.seed, pool)
         return ref_queries[m]
 
+    def reference_gallery(m: Modality) -> QuerySet:
+        """The reference fabrics' candidates of modality ``m`` for another modality's queries,
+        pooled as the test candidates are."""
+        assert reference is not None
+        if m in galleries:
+            return reference_queries(m)
+        return QuerySet.single(reference[m].embeddings, reference[m].fabric_ids)
+
     def score(pd: PairDistances) -> None:
         pair, dist, qs, excl = pd.pair, pd.dist, pd.queries, pd.exclude
         gf = np.asarray(pd.gallery_fabric, dtype=np.int64)  # already int64: no copy
@@ -679,7 +703,12 @@ def evaluate_embeddings(
         if c_used is None:
             fitted = None
             if reference is not None and config.fit_c and q in reference and g in reference:
-                fitted = _fit_c(reference_queries(q), reference[g], q, g, notes)
+                rg = (
+                    reference_gallery(g)
+                    if not pair.same
+                    else QuerySet.single(reference[g].embeddings, reference[g].fabric_ids)
+                )
+                fitted = _fit_c(reference_queries(q), rg, q, g, notes)
             c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
         figure = pair in figure_pairs
         cal = _calibrate(pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure)
@@ -694,9 +723,10 @@ def evaluate_embeddings(
         out[f"{pair}_nll_chance"] = math.log(max(cal.n_fabrics, 1))
         per_pair[pair] = out
         if figure:
-            examples[pair] = _draw_examples(pair, dist, qs, gf, pair.same, config)
+            rows = None if pair.same or g not in galleries else galleries[g].members[:, 0]
+            examples[pair] = _draw_examples(pair, dist, qs, gf, pair.same, config, rows)
 
-    for pd in pair_distances(gallery, gallery_fabric, pairs, queries=queries):
+    for pd in pair_distances(gallery, gallery_fabric, pairs, queries=queries, galleries=galleries):
         score(pd)
     metrics: dict[str, float] = {}
     for pair in pairs:
@@ -705,7 +735,16 @@ def evaluate_embeddings(
     maps: dict[Pair, CrossMap] = {}
     if config.cross_map and config.space == "embedding" and reference is not None:
         extra, maps, mapped_dist = _mapped(
-            pairs, queries, gallery, gallery_fabric, reference_queries, reference, config, notes
+            pairs,
+            queries,
+            gallery,
+            gallery_fabric,
+            reference_queries,
+            reference_gallery,
+            reference,
+            galleries,
+            config,
+            notes,
         )
         metrics.update(extra)
         for pair, dist in mapped_dist.items():  # the glance shows what the map finds

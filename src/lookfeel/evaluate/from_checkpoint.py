@@ -20,7 +20,7 @@ raw-pixel nearest neighbour on the same images (depth to depth). Keys:
 and ``depth_to_depth_raw_pixels_top{k}_swapped``. For registered depth also the **room
 control** (`BackgroundControl.room_loader`: each test depth image registered in the room fitted
 on its partner's own image, no refit of a composite), keys ``..._room``. Touch queries are
-single presses there (pairs whose main keys pool several presses are skipped, with a note).
+single presses there (pairs whose touch pools several presses are skipped, with a note).
 Pairs scored through a cross-modal map (``{pair}_top{k}_mapped``, `EvalConfig.cross_map`) are
 scored through the same map under each control too (``{pair}_top{k}_mapped_swapped``,
 ``..._mapped_room``).
@@ -351,10 +351,10 @@ def _background_control(
     space (``eval.space: labels``) the swapped embeddings are mapped as the others were."""
     cfg = result.config
     pairs = [p for p in result.pairs if Modality.DEPTH in (p.query, p.gallery)]
-    pooled = [p for p in pairs if p.query is Modality.TOUCH and (cfg.presses or 1) > 1]
+    touch = Modality.TOUCH
+    pooled = [p for p in pairs if touch in (p.query, p.gallery) and (cfg.presses or 1) > 1]
     notes = [
-        f"background control of {p} skipped: its touch queries pool {cfg.presses} presses"
-        for p in pooled
+        f"background control of {p} skipped: its touch pools {cfg.presses} presses" for p in pooled
     ]
     pairs = [p for p in pairs if p not in pooled]
     depth = emb.embedded[Modality.DEPTH]
@@ -386,7 +386,7 @@ def _background_control(
         for pair, score in score_pairs(vecs_v, fab, protocol, pairs).items():
             keep_pick(out, score.metrics, cfg.ks, f"{pair}_top{{k}}{name}{{suffix}}")
         for pair, cmap in result.cross_maps.items():
-            if pair in pairs:  # pairs with depth, touch queries single presses
+            if pair in pairs:  # pairs with depth, touch single presses
                 dist = cmap.distances(vecs_v[pair.query], vecs_v[pair.gallery])
                 scored = score_distances(dist, fab[pair.query], fab[pair.gallery], protocol)
                 keep_pick(out, scored.metrics, cfg.ks, f"{pair}_top{{k}}_mapped{name}{{suffix}}")

@@ -520,6 +520,14 @@ def _provenance(result: EvalResult) -> list[str]:
         ]
     )
     rows.append(["touch query", f"{cfg.presses} press(es), pooled by element-wise max"])
+    if (cfg.presses or 1) > 1:
+        rows.append(
+            [
+                "touch candidates",
+                f"{cfg.presses} presses pooled for another sense's queries (as the Multi-input "
+                "Net embeds touch); single presses for touch to touch",
+            ]
+        )
     if cfg.space == "labels":
         rows.append(
             [

@@ -291,12 +291,13 @@ def pair_distances(
     pairs: Sequence[Pair | str] | None = None,
     *,
     queries: Mapping[Modality, QuerySet] | None = None,
+    galleries: Mapping[Modality, QuerySet] | None = None,
 ) -> Iterator[PairDistances]:
     """The distance matrix of each wanted pair, one matrix in memory at a time.
 
     A pair of two modalities is followed by its reverse when that is wanted too, scored on the
-    transpose of the same matrix (unless either side pools its queries). Same-modality pairs
-    exclude each query's own item(s).
+    transpose of the same matrix (when each modality is the same set on both sides). Same-modality
+    pairs exclude each query's own item(s).
 
     Args:
         embeddings: (N_m, D) gallery embeddings per modality (every item).
@@ -305,6 +306,9 @@ def pair_distances(
             beside its reverse.
         queries: the queries of a modality when they are not its items one by one (pooled
             multi-press touch queries).
+        galleries: the gallery of a modality, when another modality queries it, as pooled
+            sets instead of its items one by one (the Multi-input Net's touch candidates are
+            three presses each, as its touch queries are). Same-modality pairs keep the items.
 
     Yields:
         `PairDistances`, in the order computed.
@@ -320,26 +324,36 @@ def pair_distances(
                 raise ValueError(f"{p}: no {m.value} embeddings (have {', '.join(emb)})")
     qs = {m: QuerySet.single(emb[m], fab[m]) for m in emb}
     qs.update(queries or {})
+    pooled = dict(galleries or {})
+
+    def gallery(p: Pair) -> tuple[NDArray[np.float64], NDArray[np.generic]]:
+        if not p.same and p.gallery in pooled:
+            return pooled[p.gallery].emb, pooled[p.gallery].fabric
+        return emb[p.gallery], fab[p.gallery]
 
     def one(p: Pair, dist: NDArray[np.float64]) -> PairDistances:
-        q, g = qs[p.query], fab[p.gallery]
+        q, g = qs[p.query], gallery(p)[1]
         return PairDistances(p, dist, q, g, q.exclusion(len(g)) if p.same else None)
+
+    def symmetric(m: Modality) -> bool:
+        """``m`` is the same set as a query and as another modality's gallery."""
+        return pooled[m] is qs[m] if m in pooled else not qs[m].pooled
 
     done: set[Pair] = set()
     for p in wanted:
         if p in done:
             continue
-        dist = pairwise_distances(qs[p.query].emb, emb[p.gallery])
+        dist = pairwise_distances(qs[p.query].emb, gallery(p)[0])
         yield one(p, dist)
         done.add(p)
         back = p.reverse()
         if p.same or back not in wanted or back in done:
             continue
-        if qs[p.query].pooled or qs[p.gallery].pooled:
-            del dist
-            dist = pairwise_distances(qs[back.query].emb, emb[back.gallery])
-        else:
+        if symmetric(p.query) and symmetric(p.gallery):
             dist = dist.T
+        else:
+            del dist
+            dist = pairwise_distances(qs[back.query].emb, gallery(back)[0])
         yield one(back, dist)
         done.add(back)
 
@@ -351,6 +365,7 @@ def score_pairs(
     pairs: Sequence[Pair | str] | None = None,
     *,
     queries: Mapping[Modality, QuerySet] | None = None,
+    galleries: Mapping[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
     """Score ordered pairs of modalities by one protocol: the one entry point from embeddings.
 
@@ -364,6 +379,8 @@ def score_pairs(
         protocol: what to compute (default: everything, the paper's pick 1 of 10).
         pairs: the pairs to score; default every ordered pair, same-modality pairs included.
         queries: pooled queries of a modality (see `pair_distances`).
+        galleries: pooled galleries of a modality for the other modalities' queries (see
+            `pair_distances`).
 
     Returns:
         pair -> `PairScore`, in the order of ``pairs`` (default: each pair beside its reverse).
@@ -372,7 +389,7 @@ def score_pairs(
         pd.pair: score_distances(
             pd.dist, pd.queries.fabric, pd.gallery_fabric, protocol, exclude=pd.exclude
         )
-        for pd in pair_distances(embeddings, fabrics, pairs, queries=queries)
+        for pd in pair_distances(embeddings, fabrics, pairs, queries=queries, galleries=galleries)
     }
     if pairs is None:
         return scores
