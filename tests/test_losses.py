@@ -374,6 +374,44 @@ def test_combined_loss_errors_and_weights() -> None:
     assert "depth_depth1_loss" in snn
 
 
+def test_pair_weights_scale_or_leave_out_one_pair_of_slots() -> None:
+    g = torch.Generator().manual_seed(7)
+    out = {
+        s: torch.randn(6, 4, generator=g, requires_grad=True) for s in ("depth", "color", "touch")
+    }
+    fabric = {s: torch.tensor([0, 1, 2, 0, 1, 2]) for s in out}
+    plain = create_loss(LossConfig(kind="infonce", learn_temperature=False))(out, fabric=fabric)
+    assert list(plain)[:3] == ["depth_color_loss", "depth_touch_loss", "color_touch_loss"]
+    cfg = load_config(
+        LossConfig,
+        overrides=[
+            "kind=infonce",
+            "learn_temperature=false",
+            "pair_weights={touch_color: 0, depth_touch: 0.5}",
+        ],
+    )
+    terms = create_loss(cfg)(out, fabric=fabric)
+    assert "color_touch_loss" not in terms  # either order names the pair
+    assert terms["depth_touch_loss"].item() == pytest.approx(0.5 * plain["depth_touch_loss"].item())
+    assert terms["depth_color_loss"].item() == pytest.approx(plain["depth_color_loss"].item())
+    assert terms["loss"].item() == pytest.approx(
+        plain["depth_color_loss"].item() + 0.5 * plain["depth_touch_loss"].item()
+    )
+    terms["loss"].backward()  # the colour-touch term sends nothing back: touch learns from depth
+    g_touch = out["touch"].grad
+    assert g_touch is not None and torch.isfinite(g_touch).all() and g_touch.abs().sum() > 0
+    with pytest.raises(
+        ConfigError, match=r"loss.pair_weights.color_wind: no such pair .*depth_color"
+    ):
+        create_loss(load_config(LossConfig, overrides=["pair_weights={color_wind: 0}"]))(
+            {"depth": out["depth"], "color": out["color"]}, y=torch.zeros(6)
+        )
+    with pytest.raises(ConfigError, match="loss.pair_weights.colortouch: name a pair"):
+        load_config(LossConfig, overrides=["pair_weights={colortouch: 1}"])
+    with pytest.raises(ConfigError, match=r"loss.pair_weights.color_touch: must be a finite"):
+        load_config(LossConfig, overrides=["pair_weights={color_touch: -1}"])
+
+
 def test_create_loss_refuses_an_unknown_kind_or_distance() -> None:
     # A LossConfig checks its Literal choices, so force a bad one past that check: create_loss
     # must say so rather than fall through to some objective.

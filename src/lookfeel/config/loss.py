@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
@@ -49,6 +49,11 @@ class LossConfig:
     """Margin of the batch-hard triplet loss, in units of ``distance``."""
     pair_weight: float = 1.0
     """Weight of the objective's terms between slots."""
+    pair_weights: dict[str, float] = field(default_factory=dict)
+    """A weight for one slot pair's term, on top of ``pair_weight``, keyed ``<a>_<b>`` by the two
+    slots (``color_touch``: either order); 0 leaves the term out. Pairs not named weigh 1. For
+    objectives with a term per slot pair (``infonce``, ``triplet``, or ``contrastive`` with
+    ``contrastive_pairs``); a name that matches no term of the run fails when training starts."""
     cluster_weight: float = 1.0
     """Weight of the cluster cross-entropy summed over slots (paper's Auxiliary Net: 1, the three
     cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
@@ -76,6 +81,7 @@ class LossConfig:
                 f"({self.max_logit_scale}); raise the temperature or the clamp"
             )
         for key, weight in (
+            *((f"pair_weights.{k}", w) for k, w in self.pair_weights.items()),
             ("pair_weight", self.pair_weight),
             ("cluster_weight", self.cluster_weight),
             ("property_weight", self.property_weight),
@@ -83,3 +89,8 @@ class LossConfig:
         ):
             if not (math.isfinite(weight) and weight >= 0):
                 raise ConfigError(f"loss.{key}: must be a finite number >= 0, got {weight}")
+        for key in self.pair_weights:
+            if len(key.split("_")) != 2 or not all(key.split("_")):
+                raise ConfigError(
+                    f"loss.pair_weights.{key}: name a pair of slots as <a>_<b>, e.g. color_touch"
+                )

@@ -6,13 +6,14 @@ back-propagates ``"loss"`` (open_clip's task layer).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import get_args
 
 from torch import Tensor, nn
 
+from lookfeel.config._core import ConfigError
 from lookfeel.config.loss import Distance, LossConfig, LossKind
-from lookfeel.losses._naming import embeddings_of, head_output
+from lookfeel.losses._naming import embeddings_of, head_output, term_name
 from lookfeel.losses.cluster import masked_cross_entropy
 from lookfeel.losses.contrastive import ContrastiveD3Loss
 from lookfeel.losses.distance import (
@@ -42,6 +43,7 @@ class CombinedLoss(nn.Module):
         property_weight: float = 1.0,
         class_weight: float = 1.0,
         class_sizes: tuple[int, ...] = (),
+        pair_weights: Mapping[str, float] | None = None,
     ) -> None:
         """Assemble the loss.
 
@@ -49,6 +51,8 @@ class CombinedLoss(nn.Module):
             pair_loss: maps ``(embeddings, y=, fabric=)`` to named terms (`ContrastiveD3Loss`,
                 `MultiPositiveInfoNCE`, `BatchHardTripletLoss`).
             pair_weight: weight of its terms (0 leaves them out).
+            pair_weights: ``"<a>_<b>"`` -> a further weight of that slot pair's term (either
+                order; 0 leaves it out); every pair named must be one of the terms.
             cluster_weight: weight of the cluster cross-entropy, summed over slots.
             property_weight: weight of the property regression, summed over slots.
             class_weight: weight of the class heads' cross-entropy, summed over heads and slots.
@@ -61,6 +65,21 @@ class CombinedLoss(nn.Module):
         self.property_weight = property_weight
         self.class_weight = class_weight
         self.class_sizes = tuple(class_sizes)
+        self.pair_weights = dict(pair_weights or {})
+
+    def _pair_factor(self, names: Sequence[str]) -> dict[str, float]:
+        """Each term's factor from `pair_weights` (1 where none is named)."""
+        factor = dict.fromkeys(names, 1.0)
+        for key, w in self.pair_weights.items():
+            a, _, b = key.partition("_")
+            hits = [n for n in (term_name(a, b), term_name(b, a)) if n in factor]
+            if not hits:
+                have = ", ".join(n.removesuffix("_loss") for n in names) or "none"
+                raise ConfigError(
+                    f"loss.pair_weights.{key}: no such pair among this run's terms ({have})"
+                )
+            factor[hits[0]] = w
+        return factor
 
     def forward(
         self,
@@ -96,8 +115,10 @@ class CombinedLoss(nn.Module):
         terms: dict[str, Tensor] = {}
         if self.pair_weight > 0:
             pair_terms = self.pair_loss(embeddings_of(outputs), y=y, fabric=fabric)
+            factor = self._pair_factor(list(pair_terms))
             for name, value in pair_terms.items():
-                terms[name] = self.pair_weight * value
+                if factor[name] > 0:
+                    terms[name] = self.pair_weight * factor[name] * value
         if cluster is not None and self.cluster_weight > 0:
             parts = [
                 masked_cross_entropy(head_output(outputs, slot, "cluster"), target)
@@ -184,4 +205,5 @@ def create_loss(config: LossConfig, class_sizes: tuple[int, ...] = ()) -> Combin
         property_weight=config.property_weight,
         class_weight=config.class_weight,
         class_sizes=class_sizes,
+        pair_weights=config.pair_weights,
     )
