@@ -400,14 +400,16 @@ def test_pair_weights_scale_or_leave_out_one_pair_of_slots() -> None:
     terms["loss"].backward()  # the colour-touch term sends nothing back: touch learns from depth
     g_touch = out["touch"].grad
     assert g_touch is not None and torch.isfinite(g_touch).all() and g_touch.abs().sum() > 0
-    with pytest.raises(
-        ConfigError, match=r"loss.pair_weights.color_wind: no such pair .*depth_color"
-    ):
-        create_loss(load_config(LossConfig, overrides=["pair_weights={color_wind: 0}"]))(
-            {"depth": out["depth"], "color": out["color"]}, y=torch.zeros(6)
-        )
-    with pytest.raises(ConfigError, match="loss.pair_weights.colortouch: name a pair"):
-        load_config(LossConfig, overrides=["pair_weights={colortouch: 1}"])
+    # A pair the run does not train is ignored; leaving out every pair it trains is refused.
+    depth_color = {"depth": out["depth"], "color": out["color"]}
+    two = create_loss(cfg)(depth_color, fabric=fabric)
+    assert two["loss"].item() == pytest.approx(plain["depth_color_loss"].item())
+    only = load_config(LossConfig, overrides=["kind=infonce", "pair_weights={color_depth: 0}"])
+    with pytest.raises(ConfigError, match=r"leaves out every pair this run trains \(depth_color\)"):
+        create_loss(only)(depth_color, fabric=fabric)
+    for bad in ("colortouch", "color_wind", "color_touch_depth"):
+        with pytest.raises(ConfigError, match=f"loss.pair_weights.{bad}: name a pair"):
+            load_config(LossConfig, overrides=[f"pair_weights={{{bad}: 1}}"])
     with pytest.raises(ConfigError, match=r"loss.pair_weights.color_touch: must be a finite"):
         load_config(LossConfig, overrides=["pair_weights={color_touch: -1}"])
 

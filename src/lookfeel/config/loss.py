@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
+from lookfeel.modality import Modality
 
 __all__ = ["Distance", "LossConfig", "LossKind"]
 
@@ -50,10 +51,11 @@ class LossConfig:
     pair_weight: float = 1.0
     """Weight of the objective's terms between slots."""
     pair_weights: dict[str, float] = field(default_factory=dict)
-    """A weight for one slot pair's term, on top of ``pair_weight``, keyed ``<a>_<b>`` by the two
-    slots (``color_touch``: either order); 0 leaves the term out. Pairs not named weigh 1. For
-    objectives with a term per slot pair (``infonce``, ``triplet``, or ``contrastive`` with
-    ``contrastive_pairs``); a name that matches no term of the run fails when training starts."""
+    """A weight for one pair of slots' term, on top of ``pair_weight``, keyed ``<a>_<b>`` by
+    the two modalities (``color_touch``, either order; a second slot of one modality is
+    ``depth1``); 0 leaves the term out. Pairs not named weigh 1, and a pair whose slots a run
+    does not train is ignored. For objectives with a term per slot pair (``infonce``,
+    ``triplet``, or ``contrastive`` with ``contrastive_pairs``)."""
     cluster_weight: float = 1.0
     """Weight of the cluster cross-entropy summed over slots (paper's Auxiliary Net: 1, the three
     cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
@@ -89,8 +91,11 @@ class LossConfig:
         ):
             if not (math.isfinite(weight) and weight >= 0):
                 raise ConfigError(f"loss.{key}: must be a finite number >= 0, got {weight}")
+        senses = {m.value for m in Modality}
         for key in self.pair_weights:
-            if len(key.split("_")) != 2 or not all(key.split("_")):
+            sides = key.split("_")
+            if len(sides) != 2 or not all(s.rstrip("0123456789") in senses for s in sides):
                 raise ConfigError(
-                    f"loss.pair_weights.{key}: name a pair of slots as <a>_<b>, e.g. color_touch"
+                    f"loss.pair_weights.{key}: name a pair of modalities as <a>_<b>, each one "
+                    f"of {', '.join(sorted(senses))}, e.g. color_touch"
                 )

@@ -52,7 +52,8 @@ class CombinedLoss(nn.Module):
                 `MultiPositiveInfoNCE`, `BatchHardTripletLoss`).
             pair_weight: weight of its terms (0 leaves them out).
             pair_weights: ``"<a>_<b>"`` -> a further weight of that slot pair's term (either
-                order; 0 leaves it out); every pair named must be one of the terms.
+                order; 0 leaves it out); a pair with no term here is ignored, but leaving
+                out every term is an error.
             cluster_weight: weight of the cluster cross-entropy, summed over slots.
             property_weight: weight of the property regression, summed over slots.
             class_weight: weight of the class heads' cross-entropy, summed over heads and slots.
@@ -72,13 +73,15 @@ class CombinedLoss(nn.Module):
         factor = dict.fromkeys(names, 1.0)
         for key, w in self.pair_weights.items():
             a, _, b = key.partition("_")
-            hits = [n for n in (term_name(a, b), term_name(b, a)) if n in factor]
-            if not hits:
-                have = ", ".join(n.removesuffix("_loss") for n in names) or "none"
-                raise ConfigError(
-                    f"loss.pair_weights.{key}: no such pair among this run's terms ({have})"
-                )
-            factor[hits[0]] = w
+            for n in (term_name(a, b), term_name(b, a)):
+                if n in factor:
+                    factor[n] = w
+        if names and not any(factor.values()):
+            pairs = ", ".join(n.removesuffix("_loss") for n in names)
+            raise ConfigError(
+                f"loss.pair_weights leaves out every pair this run trains ({pairs}); nothing "
+                'would tie its senses together: give one a weight, or --set "loss.pair_weights={}"'
+            )
         return factor
 
     def forward(
