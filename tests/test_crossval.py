@@ -197,6 +197,7 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
     assert saved["model"]["dropout"] == 0.0  # colour's branch
     assert saved["data"]["touch_frames"] == [0, 1, 2]  # a press's three frames, stacked
+    assert saved["loss"]["pair_weights"] == {"color_touch": 0.0}  # colour meets touch via depth
     assert (
         torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"][
             "branches.touch.backbone.features.0.0.weight"
@@ -205,7 +206,8 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
     )
     logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     terms = {k for row in logged for k in row if k.endswith("_loss")}
-    assert {"depth_color_loss", "depth_touch_loss", "color_touch_loss", "property_loss"} <= terms
+    assert {"depth_color_loss", "depth_touch_loss", "property_loss"} <= terms
+    assert "color_touch_loss" not in terms  # colour and touch meet through depth
 
 
 @pytest.mark.filterwarnings("ignore:pick 10")

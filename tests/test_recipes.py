@@ -32,6 +32,8 @@ def test_the_recipe_follows_the_senses_the_folder_holds(held, name, views):
     assert recipe.path.is_file()
     config = load_config(RunConfig, recipe.path, recipe.overrides)
     assert list(config.train.views) == views
+    if held == {C, T}:  # no depth to bridge colour and touch: their own term is trained
+        assert config.loss.pair_weights == {}
 
 
 @pytest.mark.parametrize(("held", "words"), [({C}, "colour photos alone"), (set(), "no depth")])

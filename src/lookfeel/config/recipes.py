@@ -5,7 +5,8 @@ recipe for the data they are given:
 
 - depth, colour and/or touch of the same fabrics (two or more senses: a ``lookfeel synth`` world,
   or a user's visuo-tactile recordings): ``configs/synth_cross.yaml``, the recipe that connects
-  the senses, on the senses the folder holds;
+  the senses, on the senses the folder holds (colour and touch without depth: with the
+  colour-touch term the recipe otherwise leaves to depth's bridge, ``loss.pair_weights={}``);
 - touch alone (GelSight presses or videos, as ``physiclear``): ``configs/physiclear.yaml``;
 - depth alone (Kinect drapes, as GelFabric's): ``configs/real_depth.yaml``, the leak-free recipe.
 
@@ -56,10 +57,12 @@ def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) 
     words = ", ".join(m.value for m in held)
     if len(held) >= 2:
         views = "[" + ",".join(m.value for m in held) + "]"
+        # Without depth nothing bridges colour and touch but their own term: keep it.
+        bridge = () if Modality.DEPTH in held else ("loss.pair_weights={}",)
         return Recipe(
             "synth_cross.yaml",
             recipe_path("synth_cross.yaml"),
-            (f"train.views={views}",),
+            (f"train.views={views}", *bridge),
             f"{root} holds {words}: the cross-modal recipe on those senses",
         )
     if held == [Modality.TOUCH]:
