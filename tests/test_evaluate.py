@@ -566,3 +566,24 @@ def test_evaluate_checkpoint_in_label_space(run: tuple[Path, Path, Path], tmp_pa
     (bare / "labels.csv").write_text("fabric_id\n" + "".join(f"{i}\n" for i in range(1, 9)))
     with pytest.raises(ConfigError, match="eval.space: labels needs"):
         evaluate_checkpoint(ckpt, bare, "val", dataclasses.replace(FAST, space="labels"))
+
+
+def test_figures_show_depth_whole_and_touch_as_its_last_frame(tmp_path: Path):
+    """A figure's depth image is the whole (H, W) map, not its last three columns; a touch
+    press read as stacked frames shows its last frame's three colours."""
+    from types import SimpleNamespace
+
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageLoader, scan
+    from lookfeel.evaluate.report import _image
+
+    data = write_tiny_dataset(tmp_path / "data", fabrics=3, drapes=1, fold_presses=1)
+    catalog = scan(data)
+    items = {m: catalog.items(m) for m in (D, T)}
+    result = SimpleNamespace(embedded={m: SimpleNamespace(items=v) for m, v in items.items()})
+    loader = ImageLoader(DataConfig(image_size=32))
+    assert _image(loader, result, D, 0).shape == (32, 32)  # type: ignore[arg-type]
+    assert _image(loader, result, T, 0).shape == (32, 32, 3)  # type: ignore[arg-type]
+    stacked = ImageLoader(DataConfig(image_size=32, touch_frames=(0, -1)))
+    last = _image(stacked, result, T, 0)  # type: ignore[arg-type]
+    assert last.shape == (32, 32, 3)

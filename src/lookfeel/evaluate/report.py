@@ -413,7 +413,9 @@ def _section_properties(result: EvalResult) -> list[str]:
 
 def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> NDArray[np.generic]:
     item = result.embedded[m].items[row]
-    return loader.array(loader.frame_path(item), m)[..., -3:]  # stacked touch frames: the last
+    img = loader.array(loader.frame_path(item), m)
+    # Stacked touch frames (H, W, 3k): the last frame's colours; depth (H, W) as it is.
+    return img[..., -3:] if img.ndim == 3 else img
 
 
 def _example_rows(
