@@ -154,14 +154,13 @@ def _pick(
     fab: dict[Modality, np.ndarray],
     pairs: Sequence[Pair],
     queries: dict[Modality, QuerySet] | None = None,
-    galleries: dict[Modality, QuerySet] | None = None,
 ) -> dict[Pair, PairScore]:
     """Exact pick 1 of 10, top-1 and top-3 per query, of each pair (`EXACT_PICK`); ``queries``:
-    pooled queries of a modality (multi-press touch), else every item is a query;
-    ``galleries``: the same pooled sets as another modality's candidates."""
+    pooled sets of a modality (multi-press touch), its queries and another modality's
+    candidates alike; else every item is a query and a candidate."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
-        return score_pairs(emb, fab, EXACT_PICK, pairs, queries=queries, galleries=galleries)
+        return score_pairs(emb, fab, EXACT_PICK, pairs, queries=queries, galleries=queries)
 
 
 def _pooled(q: QuerySet, emb: np.ndarray) -> QuerySet:
@@ -298,7 +297,7 @@ def _score(
                 "raw_pixels": _probe(catalog, train_pix, train_f, pix[m], fab[m]),
             }
     out: dict[str, Any] = {"step": lm.step, "test_fabrics": list(held_ids), "pairs": {}}
-    model = _pick(emb, fab, pairs, queries, queries)  # pooled touch on both sides
+    model = _pick(emb, fab, pairs, queries)
     others: dict[str, dict[Pair, Any]] = {}  # every other method's scores, by method
     spaces = _label_spaces(catalog, train)
     mapped = [p for p in pairs if p.query in spaces and p.gallery in spaces]
@@ -312,7 +311,7 @@ def _score(
             for m, q in queries.items()
             if m in spaces
         }
-        return _pick(lab, fab, wanted, lab_q, lab_q)
+        return _pick(lab, fab, wanted, lab_q)
 
     if mapped:
         others["model_labels"] = in_labels(emb, mapped)
@@ -335,7 +334,7 @@ def _score(
             for name, ld in variants.items():
                 emb_v = emb | {Modality.DEPTH: embed_items(lm.model, items, ld, flip=tta)}
                 pix_v = pix | {Modality.DEPTH: raw_pixels(items, ld)}
-                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs, queries, queries)
+                others[f"model_{name}"] = _pick(emb_v, fab, depth_pairs, queries)
                 if mapped:  # label space, its depth maps read on the altered images
                     lab_pairs = [p for p in mapped if p in depth_pairs]
                     others[f"model_labels_{name}"] = in_labels(emb_v, lab_pairs)
@@ -359,7 +358,7 @@ def _score(
             pooled = press_pooler(lm.model, still, flip=tta)(still_touch, members)
             q_un[touch] = QuerySet(pooled, queries[touch].fabric, members)
             raw_un[touch] = _pooled(queries[touch], pix_un[touch])
-        others["model_untouched"] = _pick(emb_un, fab, touch_pairs, q_un, q_un)
+        others["model_untouched"] = _pick(emb_un, fab, touch_pairs, q_un)
         others["raw_pixels_untouched"] = _pick(
             pix_un, fab, [p for p in touch_pairs if p.same], raw_un
         )

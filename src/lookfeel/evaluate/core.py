@@ -202,20 +202,17 @@ def keep_pick(
 def _mapped(
     pairs: Sequence[Pair],
     queries: Mapping[Modality, QuerySet],
-    gallery: Mapping[Modality, NDArray[np.float64]],
-    gallery_fabric: Mapping[Modality, NDArray[np.int64]],
+    candidates: Callable[[Modality], QuerySet],
     reference_queries: Callable[[Modality], QuerySet],
     reference_gallery: Callable[[Modality], QuerySet],
     reference: Mapping[Modality, EmbeddedItems],
-    galleries: Mapping[Modality, QuerySet],
     config: EvalConfig,
     notes: _Notes,
 ) -> tuple[dict[str, float], dict[Pair, CrossMap], dict[Pair, NDArray[np.float64]]]:
     """Every pair of two modalities scored through its cross-modal map (`EvalConfig.cross_map`),
     the map fitted on the reference fabrics' queries and candidates (pooled as the test ones
-    are); keys ``{pair}_top{k}_mapped``. ``galleries``: the test candidates of a modality
-    when they are pooled. Returns the keys, the maps and each pair's (queries, gallery)
-    distances through its map."""
+    are, ``candidates``); keys ``{pair}_top{k}_mapped``. Returns the keys, the maps and each
+    pair's (queries, gallery) distances through its map."""
     out: dict[str, float] = {}
     maps: dict[Pair, CrossMap] = {}
     dists: dict[Pair, NDArray[np.float64]] = {}
@@ -230,14 +227,10 @@ def _mapped(
         except ValueError as e:
             notes.add(f"{pair}: no cross-modal map ({e})")
             continue
-        g_emb, g_fab = (
-            (galleries[g].emb, galleries[g].fabric)
-            if g in galleries
-            else (gallery[g], gallery_fabric[g])
-        )
-        dist = dists[pair] = maps[pair].distances(queries[q].emb, g_emb)
+        cand = candidates(g)
+        dist = dists[pair] = maps[pair].distances(queries[q].emb, cand.emb)
         with notes.catching(f"{pair} through the cross-modal map"):
-            scored = score_distances(dist, queries[q].fabric, g_fab, protocol)
+            scored = score_distances(dist, queries[q].fabric, cand.fabric, protocol)
         keep_pick(out, scored.metrics, config.ks, f"{pair}_top{{k}}_mapped{{suffix}}")
     return out, maps, dists
 
@@ -680,11 +673,11 @@ def evaluate_embeddings(
             ref_queries[m] = press_queries(reference[m], p, config.seed, pool)
         return ref_queries[m]
 
-    def reference_gallery(m: Modality) -> QuerySet:
-        """The reference fabrics' candidates of modality ``m`` for another modality's queries,
-        pooled as the test candidates are."""
+    def reference_gallery(m: Modality, same: bool = False) -> QuerySet:
+        """The reference fabrics' candidates of modality ``m``, pooled as the test candidates
+        are (for another modality's queries; ``same``: a same-modality pair's, single items)."""
         assert reference is not None
-        if m in galleries:
+        if m in galleries and not same:
             return reference_queries(m)
         return QuerySet.single(reference[m].embeddings, reference[m].fabric_ids)
 
@@ -703,11 +696,7 @@ def evaluate_embeddings(
         if c_used is None:
             fitted = None
             if reference is not None and config.fit_c and q in reference and g in reference:
-                rg = (
-                    reference_gallery(g)
-                    if not pair.same
-                    else QuerySet.single(reference[g].embeddings, reference[g].fabric_ids)
-                )
+                rg = reference_gallery(g, pair.same)
                 fitted = _fit_c(reference_queries(q), rg, q, g, notes)
             c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
         figure = pair in figure_pairs
@@ -737,12 +726,12 @@ def evaluate_embeddings(
         extra, maps, mapped_dist = _mapped(
             pairs,
             queries,
-            gallery,
-            gallery_fabric,
+            lambda m: (
+                galleries[m] if m in galleries else QuerySet.single(gallery[m], gallery_fabric[m])
+            ),
             reference_queries,
             reference_gallery,
             reference,
-            galleries,
             config,
             notes,
         )
