@@ -279,8 +279,11 @@ def format_latent_table(result: Mapping[str, Any]) -> str:
         columns += [(f"{m} pixels", result["pixels"], m) for m in result["pixels"]["mean"]]
     names = list(next(iter(result["mean"].values()))) if result["mean"] else []
     n = len(result["runs"])
+    source = "the embeddings" + (
+        " (and, as 'pixels', the images' statistics)" if "pixels" in result else ""
+    )
     lines = [
-        f"Latents read from the embeddings of {n} run(s) (ridge on training fabrics' means, "
+        f"Latents read from {source} of {n} run(s) (ridge on the training fabrics' means, "
         f"scored on the held-out fabrics; R², accuracy for classes; mean ± std over runs)",
         "",
         "| latent | " + " | ".join(c for c, _, _ in columns) + " |",
