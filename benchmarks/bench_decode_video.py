@@ -27,9 +27,11 @@ import resource
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -41,6 +43,7 @@ from lookfeel.modality import Modality
 from lookfeel.processes import die_with_parent
 
 HERE = Path(__file__).resolve().parent
+T = TypeVar("T")
 DEFAULT_VIDEOS = HERE.parent.parent / "shared" / "data" / "physiclear" / "videos"
 TARGET_S = 60.0
 REPEATS = 3
@@ -64,15 +67,37 @@ def _cpu() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def _pool_run(paths: list[str], workers: int) -> tuple[float, float, list]:
-    cpu, start = _cpu(), time.perf_counter()
+def map_videos(
+    fn: Callable[[str], T], paths: list[str], workers: int, chunksize: int = 0
+) -> list[T]:
+    """``fn`` of every path, in order, in ``workers`` fresh processes that die with this one
+    (``chunksize`` 0: about 8 chunks a worker)."""
     with ProcessPoolExecutor(
         workers,
         mp_context=get_context(_START),
         initializer=die_with_parent,
         initargs=(os.getpid(),),
     ) as pool:
-        found = list(pool.map(_press, paths, chunksize=max(1, len(paths) // (8 * workers))))
+        return list(pool.map(fn, paths, chunksize=chunksize or max(1, len(paths) // (8 * workers))))
+
+
+def video_main(name: str, run: Callable[..., dict[str, object]], argv: list[str] | None) -> int:
+    """The command line of a benchmark over the real press videos: ``run(None, videos,
+    workers)`` with ``--videos``, ``--workers`` and ``--out``."""
+    parser = argparse.ArgumentParser(prog=f"python -m benchmarks.bench_{name}")
+    parser.add_argument("--videos", type=Path, default=None, help=f"default {DEFAULT_VIDEOS}")
+    parser.add_argument("--workers", type=int, default=WORKERS)
+    parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    args = parser.parse_args(argv)
+    from benchmarks.__main__ import write_standalone
+
+    started = time.time()
+    return write_standalone(name, started, run(None, args.videos, args.workers), args.out)
+
+
+def _pool_run(paths: list[str], workers: int) -> tuple[float, float, list]:
+    cpu, start = _cpu(), time.perf_counter()
+    found = map_videos(_press, paths, workers)
     return time.perf_counter() - start, _cpu() - cpu, found
 
 

@@ -24,18 +24,14 @@ training folds' majority class.
 
 from __future__ import annotations
 
-import argparse
 import csv
-import os
 import re
 import time
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_decode_video import _START, DEFAULT_VIDEOS, videos_folder
+from benchmarks.bench_decode_video import DEFAULT_VIDEOS, map_videos, video_main, videos_folder
 from lookfeel.data.video import (
     VIDEO_SUFFIXES,
     VideoError,
@@ -43,7 +39,6 @@ from lookfeel.data.video import (
     read_video,
     reference_frame,
 )
-from lookfeel.processes import die_with_parent
 
 LABELS = ("hardness", "roughness", "bumpiness")
 POINTS = 16
@@ -156,13 +151,7 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
     labels = _labels(folder)
     paths = sorted(str(p) for p in folder.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
     start = time.perf_counter()
-    with ProcessPoolExecutor(
-        workers,
-        mp_context=get_context(_START),
-        initializer=die_with_parent,
-        initargs=(os.getpid(),),
-    ) as pool:
-        found = [(p, f) for p, f in pool.map(features, paths, chunksize=8) if f is not None]
+    found = [(p, f) for p, f in map_videos(features, paths, workers, chunksize=8) if f is not None]
     seconds = time.perf_counter() - start
     rows = [(re.sub(r"_\d+$", "", Path(p).stem), f) for p, f in found]
     rows = [(o, f) for o, f in rows if o in labels]
@@ -193,15 +182,7 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_touch_cues")
-    parser.add_argument("--videos", type=Path, default=None, help=f"default {DEFAULT_VIDEOS}")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
-    args = parser.parse_args(argv)
-    from benchmarks.__main__ import write_standalone
-
-    started = time.time()
-    return write_standalone("touch_cues", started, run(None, args.videos, args.workers), args.out)
+    return video_main("touch_cues", run, argv)
 
 
 if __name__ == "__main__":

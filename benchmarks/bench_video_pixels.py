@@ -18,18 +18,14 @@ chose the defaults of ``DataConfig.video_*``:
 
 from __future__ import annotations
 
-import argparse
-import os
 import re
 import time
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-from benchmarks.bench_decode_video import _START, DEFAULT_VIDEOS, videos_folder
+from benchmarks.bench_decode_video import DEFAULT_VIDEOS, map_videos, video_main, videos_folder
 from lookfeel.data.video import (
     VIDEO_SUFFIXES,
     VideoError,
@@ -40,7 +36,6 @@ from lookfeel.data.video import (
     reference_frame,
 )
 from lookfeel.metrics.scoring import ScoringProtocol, score_pairs
-from lookfeel.processes import die_with_parent
 
 GAINS = (2, 4, 8, 16, 32, 64)
 MEANS = (3, 5, 9, 17)
@@ -97,13 +92,7 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
         return {"skipped": f"real press videos not found at {DEFAULT_VIDEOS}", "met": None}
     paths = sorted(str(p) for p in folder.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
     start = time.perf_counter()
-    with ProcessPoolExecutor(
-        workers,
-        mp_context=get_context(_START),
-        initializer=die_with_parent,
-        initargs=(os.getpid(),),
-    ) as pool:
-        found = [(p, f) for p, f in pool.map(features, paths, chunksize=8) if f is not None]
+    found = [(p, f) for p, f in map_videos(features, paths, workers, chunksize=8) if f is not None]
     seconds = time.perf_counter() - start
     names = [re.sub(r"_\d+$", "", Path(p).stem) for p, _ in found]
     objects = np.unique(names, return_inverse=True)[1]
@@ -120,15 +109,7 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_video_pixels")
-    parser.add_argument("--videos", type=Path, default=None, help=f"default {DEFAULT_VIDEOS}")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
-    args = parser.parse_args(argv)
-    from benchmarks.__main__ import write_standalone
-
-    started = time.time()
-    return write_standalone("video_pixels", started, run(None, args.videos, args.workers), args.out)
+    return video_main("video_pixels", run, argv)
 
 
 if __name__ == "__main__":
