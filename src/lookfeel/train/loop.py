@@ -235,6 +235,7 @@ class _Batches:
         self.ds, self.store, self.table, self.model, self.device = ds, store, table, model, device
         self.seed = config.train.seed
         self.batch = config.train.batch_size
+        self.channels_last = config.train.channels_last
         local = self.batch // world
         self.lo, self.hi = rank * local, (rank + 1) * local
         self.augmenters = {m: a for m, a in ds.augmenters.items() if a.active}
@@ -302,7 +303,7 @@ class _Batches:
             if self.table is not None:  # cached run, live augmentation: trunk without grad
                 with torch.no_grad(), autocast(self.device):
                     x = self.model.trunk({m.value: x})[m.value].float()
-            elif self.device.type == "cuda":
+            elif self.channels_last:
                 x = to_channels_last(x)
             inputs[slot] = x
         targets = self.ds.batch_targets(b.fabrics[lo:hi])
@@ -552,6 +553,17 @@ def _adam(
         return cls(params, lr=lr, weight_decay=weight_decay)
 
 
+def _state_like_params(optimizer: torch.optim.Optimizer) -> None:
+    """Lay each parameter's optimizer state out in memory as the parameter is (channels-last
+    for the convolutions). A fused update walks both tensors' storage in one order, so a state
+    saved in another layout (a checkpoint written before training went channels-last on every
+    device) would silently update the wrong weights."""
+    for p, s in optimizer.state.items():
+        for k, v in s.items():
+            if isinstance(v, torch.Tensor) and v.shape == p.shape and v.stride() != p.stride():
+                s[k] = torch.empty_like(p, dtype=v.dtype).copy_(v)
+
+
 def _lr_lambda(config: RunConfig) -> Callable[[int], float]:
     t = config.train
 
@@ -776,6 +788,7 @@ def _train(
     model = model.to(device)
     if device.type == "cuda":
         torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest
+    if t.channels_last:  # on every device (`TrainConfig.channels_last`)
         model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     loss_fn = create_loss(config.loss, config.model.class_sizes).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
@@ -813,6 +826,7 @@ def _train(
     if state is not None:
         model.load_state_dict(state["model"])
         optimizer.load_state_dict(state["optimizer"])
+        _state_like_params(optimizer)
         scheduler.load_state_dict(state["scheduler"])
         loss_fn.load_state_dict(state["loss"])
         start_step = int(state["step"])
