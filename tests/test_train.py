@@ -20,7 +20,7 @@ from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
 from lookfeel.modality import Modality
 from lookfeel.models import BranchEnsemble
-from lookfeel.train import member_config, train
+from lookfeel.train import TrainResult, member_config, train
 
 from ._tiny import write_tiny_dataset
 
@@ -109,6 +109,20 @@ class _Kill(Exception):
     pass
 
 
+def _unbroken_and_killed(cfg: RunConfig, data: Path, tmp_path: Path) -> TrainResult:
+    """Train ``cfg`` whole in ``tmp_path/unbroken`` (returned), and again in ``tmp_path/broken``
+    killed during step 13 (its last checkpoint: step 10)."""
+    unbroken = train(cfg, data, tmp_path / "unbroken")
+
+    def kill(step: int, _: object) -> None:
+        if step == 13:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        train(cfg, data, tmp_path / "broken", on_step=kill)
+    return unbroken
+
+
 @pytest.mark.parametrize(
     "overrides",
     [
@@ -137,14 +151,7 @@ class _Kill(Exception):
 )
 def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrides):
     cfg = _config(*overrides)
-    unbroken = train(cfg, data, tmp_path / "unbroken")
-
-    def kill(step: int, _: object) -> None:
-        if step == 13:
-            raise _Kill
-
-    with pytest.raises(_Kill):
-        train(cfg, data, tmp_path / "broken", on_step=kill)
+    unbroken = _unbroken_and_killed(cfg, data, tmp_path)
     assert torch.load(tmp_path / "broken/checkpoints/last.pt", weights_only=True)["step"] == 10
     resumed = train(cfg, data, tmp_path / "broken", resume=True)
     assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
@@ -168,15 +175,7 @@ def test_a_run_saved_in_nchw_layout_resumes_channels_last(data: Path, tmp_path: 
     out alike (`_state_like_params`): a fused update over two layouts would move the wrong
     weights (about 0.1 off in a step). The resumed run ends where the unbroken NCHW run does,
     up to the two layouts' rounding."""
-    nchw = _config("train.channels_last=false")
-    unbroken = train(nchw, data, tmp_path / "unbroken")
-
-    def kill(step: int, _: object) -> None:
-        if step == 13:
-            raise _Kill
-
-    with pytest.raises(_Kill):
-        train(nchw, data, tmp_path / "broken", on_step=kill)
+    unbroken = _unbroken_and_killed(_config("train.channels_last=false"), data, tmp_path)
     last = tmp_path / "broken/checkpoints/last.pt"
     state = torch.load(last, weights_only=True)
     conv = next(v for v in state["optimizer"]["state"].values() if v["exp_avg"].dim() == 4)
