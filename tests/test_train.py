@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -105,6 +106,21 @@ def _tensors(state: object, prefix: str = "") -> dict[str, torch.Tensor]:
     return {}
 
 
+def _embedding_change(a: Path, b: Path, data: Path) -> float:
+    """The largest relative change, over modalities, between two trained models' embeddings of
+    ``data`` (|e_a - e_b| / |e_a| over all its items): rounding alone moves a few steps of
+    Adam by 1e-6 to 1e-3 of it (more with one thread than two), another model by about 1."""
+    ma, mb = load_model(a), load_model(b)
+    ea = embed_catalog(ma.model, scan(data), ImageLoader(ma.config.data))
+    eb = embed_catalog(mb.model, scan(data), ImageLoader(mb.config.data))
+    return max(
+        float(
+            np.linalg.norm(ea[m].embeddings - eb[m].embeddings) / np.linalg.norm(ea[m].embeddings)
+        )
+        for m in ea
+    )
+
+
 class _Kill(Exception):
     pass
 
@@ -194,7 +210,7 @@ def test_a_run_saved_in_nchw_layout_resumes_channels_last(data: Path, tmp_path: 
     after = torch.load(resumed.last_checkpoint, weights_only=True)
     conv = next(v for v in after["optimizer"]["state"].values() if v["exp_avg"].dim() == 4)
     assert conv["exp_avg"].is_contiguous(memory_format=torch.channels_last)
-    assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint, atol=1e-4)
+    assert _embedding_change(unbroken.last_checkpoint, resumed.last_checkpoint, data) < 0.01
     assert not _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)  # another layout
 
 
@@ -209,7 +225,7 @@ def test_channels_last_is_a_layout_not_another_model(data: Path, tmp_path: Path)
     conv = next(v for v in weights.values() if v.dim() == 4 and v.shape[1] > 1)
     assert conv.is_contiguous(memory_format=torch.channels_last) and not conv.is_contiguous()
     assert _states_equal(a.last_checkpoint, b.last_checkpoint)
-    assert _states_equal(a.last_checkpoint, c.last_checkpoint, atol=1e-4)
+    assert 0 < _embedding_change(a.last_checkpoint, c.last_checkpoint, data) < 0.01
 
 
 ENSEMBLE = ("model.members=2", "train.steps=4")
