@@ -39,12 +39,17 @@ FABRICS = 36
 STEPS = {"demo": 60, "full": 30}
 WARMUP = 5
 REPEATS = 3
-SPLIT = ["train.split=paper", "train.progress=false"]
+OVERRIDES = ["train.split=paper", "train.progress=false"]
 
 
 def _config(recipe: str, channels_last: bool) -> RunConfig:
     steps = STEPS[recipe]
-    over = [*SPLIT, f"train.steps={steps}", "train.val_every=0", f"train.checkpoint_every={steps}"]
+    over = [
+        *OVERRIDES,
+        f"train.steps={steps}",
+        "train.val_every=0",
+        f"train.checkpoint_every={steps}",
+    ]
     over.append(f"train.channels_last={str(channels_last).lower()}")
     if recipe == "demo":
         return cross_config(over)

@@ -102,8 +102,8 @@ class TrainConfig:
     layout, which cuDNN's and oneDNN's fastest convolutions and pools read, on every device.
     On 2 cores of an Intel Xeon it trains the compact recipes 1.27-1.38 times as fast
     (`python -m benchmarks --only train_layout`); ``false`` keeps the NCHW layout (a CPU where
-    that is faster). The two layouts round differently, so a run's numbers differ between them
-    in the last digits; each is reproducible."""
+    that is faster). The two layouts round differently, and over a full run that moves its
+    scores as another seed would (docs/synth.md, "Speed"); each layout is reproducible."""
 
     def __post_init__(self) -> None:
         check_choices(self, "train")
