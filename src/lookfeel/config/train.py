@@ -100,7 +100,7 @@ class TrainConfig:
     channels_last: bool = True
     """Train with the images and the convolutions' weights in channels-last (NHWC) memory
     layout, which cuDNN's and oneDNN's fastest convolutions and pools read, on every device.
-    On 2 cores of an Intel Xeon it trains the compact recipes 1.27-1.38 times as fast
+    On 2 cores of an Intel Xeon it trains the compact recipes 1.25-1.38 times as fast
     (`python -m benchmarks --only train_layout`); ``false`` keeps the NCHW layout (a CPU where
     that is faster). The two layouts round differently, and over a full run that moves its
     scores as another seed would (docs/synth.md, "Speed"); each layout is reproducible."""
