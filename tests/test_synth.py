@@ -12,16 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from scipy import stats
+from scipy import ndimage, stats
 
 from lookfeel.data import check_dataset, parse_touch_name
-from lookfeel.modality import Modality, PressKind
+from lookfeel.modality import REPRINTS, Modality, PressKind, reprint_path
 from lookfeel.synth import MANIFEST, SIZE_PRESETS, SynthConfig, generate
 from lookfeel.synth import world as world_module
 from lookfeel.synth.color import render_color
 from lookfeel.synth.depth import render_depth
 from lookfeel.synth.drape import drape_surface, sample_drape
-from lookfeel.synth.fabric import MATERIALS, Fabric, make_fabric, sample_fabrics
+from lookfeel.synth.fabric import MATERIALS, Fabric, make_fabric, reprinted, sample_fabrics
 from lookfeel.synth.gelsight import fold_gap_mm, no_contact_frame, render_press, sensor
 from lookfeel.synth.measure import (
     drape_extent,
@@ -137,6 +137,40 @@ def test_same_seed_gives_byte_identical_files_whatever_the_workers(
     other = tmp_path / "other"
     generate(dataclasses.replace(TINY, seed=1, fabrics=1), other, progress=False)
     assert (other / "color/F0001_1.jpg").read_bytes() != a["color/F0001_1.jpg"]
+
+
+def test_each_photo_has_its_reprints_and_is_the_same_without_them(
+    tiny_world: Path, tmp_path: Path
+) -> None:
+    photos = sorted((tiny_world / "color").iterdir())
+    renders = sorted((tiny_world / REPRINTS).iterdir())
+    assert [p.name for p in renders] == [f"{p.stem}_r1.jpg" for p in photos]
+    assert all(reprint_path(p, 1).is_file() for p in photos)
+    assert renders[0].read_bytes() != photos[0].read_bytes()
+    plain = tmp_path / "plain"
+    generate(dataclasses.replace(TINY, reprints=0, fabrics=2), plain, progress=False)
+    assert not (plain / REPRINTS).exists()
+    for p in (plain / "color").iterdir():
+        assert p.read_bytes() == (tiny_world / "color" / p.name).read_bytes()
+
+
+def test_a_reprint_is_the_same_drape_and_light_under_another_print() -> None:
+    fabric = make_fabric(2, 1.5, 1.5, 3.0, 0.0, seed=0)
+    surf = drape_surface(fabric, sample_drape(fabric, np.random.default_rng(3))).densify(4)
+    cam = color_camera(128)
+    other = reprinted(fabric, np.random.default_rng(7))
+    assert (other.thickness_mm, other.material, other.sheen) == (
+        fabric.thickness_mm,
+        fabric.material,
+        fabric.sheen,
+    )
+    assert other.base_rgb != fabric.base_rgb
+    a, b = (render_color(f, surf, cam, np.random.default_rng(4)) for f in (fabric, other))
+    changed = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(-1) > 0
+    # Only the cloth changes: the room, its light and the camera's noise are the photo's.
+    assert 0.1 < changed.mean() < 0.9
+    room = ~ndimage.binary_dilation(changed, iterations=2)
+    assert np.array_equal(a[room], b[room])
 
 
 # ---- label-conditioned mode --------------------------------------------------------------------

@@ -10,9 +10,30 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from enum import Enum
+from pathlib import Path
 from typing import Any
 
-__all__ = ["Modality", "Pair", "PressKind", "parse_modalities", "slot_modality", "slot_names"]
+__all__ = [
+    "REPRINTS",
+    "Modality",
+    "Pair",
+    "PressKind",
+    "parse_modalities",
+    "reprint_path",
+    "slot_modality",
+    "slot_names",
+]
+
+REPRINTS = "reprints"
+"""The folder of a dataset (beside ``color/``) that holds re-printed renders of its colour
+photos: the same drape, light and camera under other prints and colours, written by ``lookfeel
+synth`` (``--reprints``) and read in place of the photos in training (``data.color_reprints``)."""
+
+
+def reprint_path(photo: Path, k: int) -> Path:
+    """Re-printed render ``k`` (1, 2, ...) of the colour photo ``photo``:
+    ``ROOT/color/F0001_1.jpg`` -> ``ROOT/reprints/F0001_1_r1.jpg``."""
+    return photo.parent.parent / REPRINTS / f"{photo.stem}_r{k}{photo.suffix}"
 
 
 class Modality(str, Enum):

@@ -27,6 +27,14 @@ def add_parser(subparsers: Subparsers) -> None:
     syn.add_argument("--presses-flat", type=int, default=10, help="flat presses (default 10)")
     syn.add_argument("--presses-fold", type=int, default=15, help="fold presses (default 15)")
     syn.add_argument("--frames", type=int, default=3, help="frames per press (default 3)")
+    syn.add_argument(
+        "--reprints",
+        type=int,
+        default=1,
+        help="re-printed renders of each colour photo, in reprints/ (default 1; 0: none): the "
+        "same drape under another print and colours, which training reads in place of the "
+        "photo so that a net cannot name a fabric by its print (data.color_reprints)",
+    )
     add_choice(
         syn,
         "--size",
@@ -77,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
             image_format=args.format,
             modalities=args.modalities,
             contact_sheet=not args.no_contact_sheet,
+            reprints=args.reprints,
         )
         summary = generate(
             config, args.out, labels=args.labels, progress=not args.quiet, beside=args.beside
@@ -88,8 +97,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     print(
         f"Wrote {summary.fabrics} fabrics to {summary.out} in {summary.seconds:.1f} s: "
-        f"{summary.depth_images} depth, {summary.color_images} colour images, "
-        f"{summary.touch_presses} touch presses ({summary.touch_frames} frames)."
+        f"{summary.depth_images} depth, {summary.color_images} colour images"
+        + (f" ({summary.reprints} re-printed renders of them)" if summary.reprints else "")
+        + f", {summary.touch_presses} touch presses ({summary.touch_frames} frames)."
     )
     if summary.contact_sheet is not None:
         print(f"Contact sheet: {summary.contact_sheet}")

@@ -162,6 +162,15 @@ class DataConfig:
     """Least contact depth of a training view, as a fraction of the deepest frame's (0-1); 0
     keeps every frame of the N. Screened on PhysiCLeAR folds 0-1 (12 views, 300 steps, width
     16): touch to touch 0.724 with 0, 0.693 with 0.6, 0.650 with the deepest frame alone."""
+    color_reprints: int = 0
+    """Train on re-printed renders of each colour photo instead of the photo: each training
+    draw of a photo takes one of its first N renders in the dataset's ``reprints/`` folder
+    (the same drape under another print and colours, `lookfeel.modality.reprint_path`; a
+    synthetic world has them, ``lookfeel synth --reprints``), so that the net cannot name a
+    fabric by its print and learns the drape and the material's look. Evaluation and
+    embedding read the photos themselves. A dataset without ``reprints/`` trains on its photos
+    (with a warning); a photo with fewer than N renders there is an error naming the file.
+    0: the photos."""
     touch_kinds: tuple[PressKind, ...] = (PressKind.FOLD,)
     """Press kinds used for training and evaluation (the paper's 'Flat' model uses flat)."""
     presses: int = 1
@@ -209,6 +218,8 @@ class DataConfig:
                 f"data.video_frame: a single frame's position ({self.video_frame}) and "
                 f"data.video_frames = {self.video_frames} exclude each other; set one"
             )
+        if not 0 <= self.color_reprints <= 99:
+            raise ConfigError(f"data.color_reprints: must be in 0..99, got {self.color_reprints}")
         if self.video_views < 1:
             raise ConfigError(f"data.video_views: must be >= 1, got {self.video_views}")
         if self.video_views > 1 and (self.video_frames > 1 or self.video_frame is not None):

@@ -50,7 +50,7 @@ from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_
 from lookfeel.data.holes import fill_holes
 from lookfeel.data.layout import press_frame_files
 from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, reprint_path
 from lookfeel.processes import can_fork
 
 __all__ = [
@@ -528,23 +528,66 @@ class ImageLoader:
         return to_tensor(self.array(self.frame_path(item), item.modality))
 
     def has_views(self, item: Item) -> bool:
-        """Whether ``item`` has several training views (a press video with ``video_views`` > 1)."""
+        """Whether ``item`` has several training views: a press video with ``video_views`` >
+        1, or a colour photo with re-printed renders in its dataset's ``reprints/`` folder and
+        ``color_reprints`` > 0 (`uses_reprints`)."""
+        if item.modality is Modality.COLOR:
+            return self.uses_reprints(item.path)
         return (
             item.modality is Modality.TOUCH
             and self.config.video_views > 1
             and is_video(self.frame_path(item))
         )
 
+    def uses_reprints(self, photo: Path) -> bool:
+        """Whether training reads re-printed renders of the colour photo ``photo`` in its place:
+        ``data.color_reprints`` > 0 and its dataset has a ``reprints/`` folder."""
+        return self.config.color_reprints > 0 and reprint_path(photo, 1).parent.is_dir()
+
+    def skips_first_view(self, modality: Modality) -> bool:
+        """Whether a training draw of ``modality`` leaves out each item's first view (its
+        image): a re-printed photo is trained on through its renders alone."""
+        return modality is Modality.COLOR and self.config.color_reprints > 0
+
     def views(self, item: Item) -> np.ndarray:
         """(V, S, S, 3) uint8 training views of one item: its image first (``load``'s), then
-        for a press video with ``video_views`` > 1 its other deep frames (`deep_frames`);
-        (1, ...) for every other item. Cached in memory and on disk like images."""
+        for a press video with ``video_views`` > 1 its other deep frames (`deep_frames`), for
+        a colour photo with ``color_reprints`` N its N re-printed renders (`reprint_path`);
+        (1, ...) for every other item. Cached in memory and on disk like images.
+
+        Raises:
+            ImageError: a photo has fewer than N renders (naming the missing file), or one
+                cannot be read.
+        """
         path = self.frame_path(item)
         if not self.has_views(item):
             return self.array(path, item.modality)[None]
         v = self._views.get(path)
         if v is None:
-            v = self._read_press_views(path)[0]
+            if item.modality is Modality.COLOR:
+                v = self._read_reprints(path)
+            else:
+                v = self._read_press_views(path)[0]
+        return v
+
+    def _read_reprints(self, photo: Path) -> np.ndarray:
+        n = self.config.color_reprints
+        files = [reprint_path(photo, k) for k in range(1, n + 1)]
+        for f in files:
+            if not f.is_file():
+                raise ImageError(
+                    f,
+                    f"missing: data.color_reprints = {n} reads {n} re-printed render"
+                    f"{'s' if n > 1 else ''} of {photo.name} (make the world with `lookfeel "
+                    f"synth --reprints {n}`, or train with --set data.color_reprints=0)",
+                )
+        # Read through `_preprocess_file`, not `array`: the renders are not kept twice.
+        v = np.stack(
+            [self.array(photo, Modality.COLOR)]
+            + [self._preprocess_file(f, Modality.COLOR) for f in files]
+        )
+        with self._lock:
+            self._views[photo] = v
         return v
 
     def _read_press_views(self, path: Path) -> tuple[np.ndarray, np.ndarray | None]:

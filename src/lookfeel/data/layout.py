@@ -32,7 +32,7 @@ from lookfeel.data.files import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.data.video import VIDEO_SUFFIXES
-from lookfeel.modality import Modality, PressKind
+from lookfeel.modality import REPRINTS, Modality, PressKind
 
 __all__ = [
     "FOLDER_ALIASES",
@@ -324,6 +324,8 @@ def scan(
         if entry.is_file() and entry.name == "labels.csv":
             labels_path = entry
             continue
+        if entry.is_dir() and entry.name == REPRINTS:
+            continue  # training views of the colour photos (`reprint_path`), not items
         fm = _folder_modality(entry.name) if entry.is_dir() else None
         if fm is None:
             skipped.append(

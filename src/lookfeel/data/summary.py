@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from lookfeel.data.catalog import Catalog
-from lookfeel.modality import Modality
+from lookfeel.modality import REPRINTS, Modality
 
 __all__ = ["format_summary"]
 
@@ -59,6 +59,9 @@ def format_summary(catalog: Catalog) -> str:
             if s["touch_videos"]:
                 parts.append(f"{s['touch_videos']} videos")
             line += "; " + ", ".join(parts or ["0 frames"])
+        if m is Modality.COLOR and (catalog.root / REPRINTS).is_dir():
+            n = sum(1 for p in (catalog.root / REPRINTS).iterdir() if not p.name.startswith("."))
+            line += f"; {n} re-printed renders in {REPRINTS}/ (training views)"
         rows.append((m.value, line))
     cols = s["label_columns"]
     assert isinstance(cols, list)

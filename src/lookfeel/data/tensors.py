@@ -38,7 +38,8 @@ class ImageStore:
         device: where batches are needed. On CUDA the store is put on the GPU when it fits
             (see ``on_device``), else pinned in host memory.
         views: also hold each item's other training views (`ImageLoader.views`: the deep
-            frames of a press video with ``data.video_views`` > 1), drawn by `draw_views`.
+            frames of a press video with ``data.video_views`` > 1, a colour photo's re-printed
+            renders with ``data.color_reprints``), drawn by `draw_views`.
 
     Example:
         >>> store = ImageStore(loader, catalog.items(Modality.TOUCH), device)
@@ -60,6 +61,7 @@ class ImageStore:
         loader.preload([it for its in per.values() for it in its], views=views)
         self._rows: dict[Modality, dict[Item, int]] = {}
         self._views: dict[Modality, Tensor] = {}
+        self._skip_first: set[Modality] = set()
         host: dict[Modality, Tensor] = {}
         for m, its in per.items():
             unique = list(its)
@@ -74,6 +76,8 @@ class ImageStore:
                 at = np.ones(int(counts.sum()), dtype=np.int64)
                 at[starts] = counts
                 self._views[m] = torch.from_numpy(at)
+                if loader.skips_first_view(m):
+                    self._skip_first.add(m)
             stacked = np.concatenate(arrays)
             if stacked.dtype == np.uint8:  # (N, S, S, 3) -> (N, 3, S, S)
                 t = torch.from_numpy(stacked).permute(0, 3, 1, 2).contiguous()
@@ -118,13 +122,15 @@ class ImageStore:
 
     def draw_views(self, modality: Modality, rows: Tensor, rng: np.random.Generator) -> Tensor:
         """Rows of one training view of each image, drawn uniformly from ``rng`` (`rows`' own
-        row is its image, the first view); ``rows`` unchanged when no image has several."""
+        row is its image, the first view; a re-printed photo's draw leaves its image out:
+        `ImageLoader.skips_first_view`); ``rows`` unchanged when no image has several."""
         views = self._views.get(modality)
         u = rng.random(len(rows))  # drawn in every case, so that one stream serves any data
         if views is None:
             return rows
-        n = views[rows.cpu()]
-        pick = torch.from_numpy(np.floor(u * n.numpy()).astype(np.int64))
+        n = views[rows.cpu()].numpy()
+        first = np.where(n > 1, int(modality in self._skip_first), 0)
+        pick = torch.from_numpy((first + np.floor(u * (n - first))).astype(np.int64))
         return rows + pick.to(rows.device)
 
     def batch(self, modality: Modality, rows: Sequence[int] | Tensor) -> Tensor:

@@ -60,6 +60,13 @@ class SynthConfig:
     (where real depth images exist). Strings are accepted and converted."""
     contact_sheet: bool = True
     """Write ``contact_sheet.png`` (a few fabrics across all modalities) beside the data."""
+    reprints: int = 1
+    """Re-printed renders of every colour photo, written to ``reprints/`` (``F0001_1_r1.jpg``
+    beside ``color/F0001_1.jpg``): the same drape, light and camera under a print and colours
+    drawn afresh for each. Training reads them in place of the photos
+    (``data.color_reprints``), so that a network cannot name a fabric by its print and learns
+    the drape and the material's look instead (domain randomisation). The photos themselves
+    are the same with or without them. 0 writes none."""
 
     def __post_init__(self) -> None:
         def need(name: str, ok: bool, what: str) -> None:
@@ -76,6 +83,7 @@ class SynthConfig:
             ("color_size", 16, 4096),
             ("jpeg_quality", 50, 100),
             ("workers", 0, 256),
+            ("reprints", 0, 99),
         ):
             v = getattr(self, name)
             need(name, isinstance(v, int) and not isinstance(v, bool), "must be an integer")
@@ -136,6 +144,7 @@ class SynthConfig:
             "workers": self.workers,
             "modalities": None if self.modalities is None else [m.value for m in self.modalities],
             "contact_sheet": self.contact_sheet,
+            "reprints": self.reprints,
         }
 
 
@@ -159,3 +168,5 @@ class SynthSummary:
     seconds: float
     files: tuple[str, ...] = field(default=(), repr=False)
     """Every file written, relative to ``out``."""
+    reprints: int = 0
+    """Re-printed renders of the colour photos written (`SynthConfig.reprints`)."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 import colorsys
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +34,7 @@ __all__ = [
     "kmeans",
     "make_fabric",
     "read_label_file",
+    "reprinted",
     "sample_fabrics",
 ]
 
@@ -395,6 +396,21 @@ def make_fabric(
         fuzz=fuzz,
         side_mm=float(srng.uniform(900.0, 1100.0)),
         appearance_seed=int(arng.integers(0, 2**31 - 1)),
+    )
+
+
+def reprinted(fabric: Fabric, rng: np.random.Generator) -> Fabric:
+    """``fabric`` with its colour and print drawn afresh from ``rng`` (as `make_fabric` draws
+    them), everything else kept: the same cloth dyed and printed otherwise."""
+    base, kind, extra, scale, angle = _appearance(rng)
+    return replace(
+        fabric,
+        base_rgb=base,
+        print_kind=kind,
+        print_rgb=extra,
+        print_scale_mm=scale,
+        print_angle=angle,
+        appearance_seed=int(rng.integers(0, 2**31 - 1)),
     )
 
 

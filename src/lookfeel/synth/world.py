@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from lookfeel.atomic import atomic_write_text
-from lookfeel.modality import Modality, PressKind
+from lookfeel.modality import REPRINTS, Modality, PressKind
 from lookfeel.processes import die_with_parent
 from lookfeel.synth.color import render_color
 from lookfeel.synth.config import SynthConfig, SynthSummary
@@ -51,6 +51,7 @@ from lookfeel.synth.fabric import (
     human_labels,
     kmeans,
     read_label_file,
+    reprinted,
     sample_fabrics,
 )
 from lookfeel.synth.gelsight import render_press, sensor
@@ -81,6 +82,10 @@ def _color_name(fid: int, k: int, ext: str) -> str:
     return f"color/F{fid:04d}_{k + 1}.{ext}"
 
 
+def _reprint_name(fid: int, k: int, r: int, ext: str) -> str:
+    return f"{REPRINTS}/F{fid:04d}_{k + 1}_r{r}.{ext}"
+
+
 def _touch_name(fid: int, kind: PressKind, frame: int, press: int, ext: str) -> str:
     return f"touch/F{fid:04d}_{kind.value}_{frame + 1:02d}_{_PRESS_BASE[kind] + press + 1}.{ext}"
 
@@ -98,6 +103,11 @@ def _fabric_files(fid: int, cfg: SynthConfig, mods: Sequence[Modality]) -> list[
         files += [_depth_name(fid, k) for k in range(cfg.drapes)]
     if Modality.COLOR in mods:
         files += [_color_name(fid, k, ext) for k in range(cfg.drapes)]
+        files += [
+            _reprint_name(fid, k, r, ext)
+            for k in range(cfg.drapes)
+            for r in range(1, cfg.reprints + 1)
+        ]
     if Modality.TOUCH in mods:
         files += [
             _touch_name(fid, kind, f, p, ext)
@@ -152,7 +162,7 @@ def render_fabric(
     Each drape, and each press, has its own random stream keyed by ``(seed, id, item)``.
     """
     fid, seed, ext = fabric.fabric_id, cfg.seed, cfg.image_format
-    counts = {"depth": 0, "color": 0, "presses": 0, "frames": 0}
+    counts = {"depth": 0, "color": 0, "reprints": 0, "presses": 0, "frames": 0}
     if Modality.DEPTH in modalities or Modality.COLOR in modalities:
         k_dense = _densify_factor(cfg)
         dcam, ccam = depth_camera(cfg.depth_size), color_camera(cfg.color_size)
@@ -167,6 +177,12 @@ def render_fabric(
                 c = render_color(fabric, surf, ccam, np.random.default_rng([seed, 22, fid, k]))
                 _write(out, _color_name(fid, k, ext), _encode(c, ext, cfg.jpeg_quality))
                 counts["color"] += 1
+                # The same drape, light and camera (the photo's own stream) under other prints.
+                for r in range(1, cfg.reprints + 1):
+                    other = reprinted(fabric, np.random.default_rng([seed, 23, fid, k, r]))
+                    c = render_color(other, surf, ccam, np.random.default_rng([seed, 22, fid, k]))
+                    _write(out, _reprint_name(fid, k, r, ext), _encode(c, ext, cfg.jpeg_quality))
+                    counts["reprints"] += 1
     if Modality.TOUCH in modalities:
         s = sensor(*cfg.touch_size)
         for kind, p in _presses(cfg):
@@ -223,7 +239,7 @@ def _prepare_out(out: Path, planned: Iterable[str]) -> None:
             if not isinstance(rel, str) or rel in keep or ".." in Path(rel).parts:
                 continue
             (out / rel).unlink(missing_ok=True)
-        for sub in ("depth", "color", "touch"):
+        for sub in ("depth", "color", REPRINTS, "touch"):
             folder = out / sub
             if folder.is_dir():
                 for tmp in folder.glob(".F*.tmp"):
@@ -320,6 +336,8 @@ def generate(
     for sub, m in (("depth", Modality.DEPTH), ("color", Modality.COLOR), ("touch", Modality.TOUCH)):
         if m in mods:
             (out / sub).mkdir(exist_ok=True)
+    if Modality.COLOR in mods and config.reprints:
+        (out / REPRINTS).mkdir(exist_ok=True)
 
     manifest: dict[str, object] = {
         "generator": _GENERATOR,
@@ -339,7 +357,7 @@ def generate(
     atomic_write_text(labels_path, text)
 
     tasks = [_Task(f, config, mods, out) for f in fabrics]
-    totals = {"depth": 0, "color": 0, "presses": 0, "frames": 0}
+    totals = {"depth": 0, "color": 0, "reprints": 0, "presses": 0, "frames": 0}
     bar = _progress(len(tasks), progress)
     n_workers = _workers(config, len(tasks))
     try:
@@ -373,6 +391,7 @@ def generate(
         fabrics=len(fabrics),
         depth_images=totals["depth"],
         color_images=totals["color"],
+        reprints=totals["reprints"],
         touch_presses=totals["presses"],
         touch_frames=totals["frames"],
         labels_path=labels_path,

@@ -51,7 +51,7 @@ from lookfeel.data import (
 )
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.losses import create_loss
-from lookfeel.modality import Modality, slot_modality
+from lookfeel.modality import REPRINTS, Modality, slot_modality
 from lookfeel.models import BranchEnsemble, Embedder, autocast, create_model, to_channels_last
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.features import FeatureTable
@@ -210,6 +210,29 @@ def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
         stacklevel=3,
     )
     return catalog.with_clusters(kmeans_clusters(catalog, k=k, seed=0))
+
+
+def _say_reprints(
+    catalog: Catalog, loader: ImageLoader, config: RunConfig, cached: bool, data: Path
+) -> None:
+    """Warn when ``data.color_reprints`` asks for re-printed photos that this run cannot read."""
+    n = config.data.color_reprints
+    photos = catalog.items(Modality.COLOR) if Modality.COLOR in config.train.modalities else []
+    if not n or not photos:
+        return
+    if cached:
+        warnings.warn(
+            f"data.color_reprints={n} is not used with a frozen trunk (train.cache_trunk): "
+            "training reads the photos themselves",
+            stacklevel=3,
+        )
+    elif not loader.uses_reprints(photos[0].path):
+        warnings.warn(
+            f"data.color_reprints={n}: {data} has no {REPRINTS}/ folder of re-printed photos "
+            "(a synthetic world's: `lookfeel synth --reprints`); training on the photos "
+            "themselves",
+            stacklevel=3,
+        )
 
 
 class _Batches:
@@ -759,6 +782,7 @@ def _train(
     cached = t.cache_trunk and config.model.resolved_freeze != "none"
     # A live run trains on the press videos' views: decode them once, while finding the presses.
     catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
+    _say_reprints(catalog, loader, config, cached, data)
     catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
