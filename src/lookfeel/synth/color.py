@@ -32,7 +32,7 @@ from lookfeel.synth.scene import (
     splat,
 )
 
-__all__ = ["print_texture", "render_color"]
+__all__ = ["print_texture", "render_color", "render_colors"]
 
 F32 = NDArray[np.float32]
 _TEX = 384  # texels across the cloth (~2.7 mm each)
@@ -129,6 +129,16 @@ def render_color(
     fabric: Fabric, surface: Surface, camera: Camera, rng: np.random.Generator
 ) -> NDArray[np.uint8]:
     """One colour photo of ``fabric`` draped as ``surface``, (H, W, 3) uint8 sRGB."""
+    return render_colors([fabric], surface, camera, rng)[0]
+
+
+def render_colors(
+    fabrics: list[Fabric], surface: Surface, camera: Camera, rng: np.random.Generator
+) -> list[NDArray[np.uint8]]:
+    """Photos of one cloth in several prints (`fabric.reprinted`: the same optics, other colours
+    and prints) on one drape: each image is what `render_color` gives for its fabric from a
+    generator in ``rng``'s state, but the drape's geometry and light are computed once."""
+    fabric = fabrics[0]
     h, w = camera.height, camera.width
     pts = camera.to_camera(surface.xyz.reshape(-1, 3))
     zbuf, pix, keep = splat(camera, pts)
@@ -157,12 +167,10 @@ def render_color(
 
     # Albedo: cloth from its print, room from its planes.
     uv = surface.uv.reshape(-1, 2)[np.maximum(owner, 0)]
-    tex = print_texture(fabric)
-    scale = (tex.shape[0] - 1) / fabric.side_mm
-    tu = np.clip(np.rint((uv[:, 0] + fabric.side_mm / 2) * scale), 0, tex.shape[1] - 1)
-    tv = np.clip(np.rint((uv[:, 1] + fabric.side_mm / 2) * scale), 0, tex.shape[0] - 1)
-    alb = tex[tv.astype(np.int64), tu.astype(np.int64)].reshape(h, w, 3)
-    albedo = np.where(is_cloth[..., None], alb, _ROOM_ALBEDO[plane]).astype(np.float32)
+    scale = (_TEX - 1) / fabric.side_mm
+    tu = np.clip(np.rint((uv[:, 0] + fabric.side_mm / 2) * scale), 0, _TEX - 1).astype(np.int64)
+    tv = np.clip(np.rint((uv[:, 1] + fabric.side_mm / 2) * scale), 0, _TEX - 1).astype(np.int64)
+    room_albedo = _ROOM_ALBEDO[plane]
 
     # Light for this capture: a key light from the front, above, left or right of the camera.
     az = rng.uniform(-1.0, 1.0)
@@ -181,7 +189,6 @@ def render_color(
     # flattens towards an even glow.
     tau = fabric.translucency
     shade = np.where(is_cloth, (1.0 - tau) * shade + tau * (0.35 + 0.4 * ambient), shade)
-    img = albedo * shade[..., None]
     # Specular lobe (Blinn-Phong) as strong and sharp as the material makes it, white.
     view = np.array([0.0, 0.0, -1.0], np.float32)
     half = key + view
@@ -192,15 +199,23 @@ def render_color(
     # Asperity scattering: fibre ends light up at grazing angles, in the fibres' own colour.
     rim = (1.0 - np.abs(normal[..., 2])) ** 2
     on = is_cloth[..., None]
-    img = img + on * (fabric.sheen * 0.5 * spec * lambert)[..., None]
-    img = img + on * (fabric.fuzz * 0.35 * rim * (ambient + lambert))[..., None] * (
-        0.4 * albedo + 0.12
-    )
-
-    # Camera: exposure and white balance per capture, then sRGB and noise.
-    temp = rng.uniform(-0.12, 0.12)
-    wb = np.array([1.0 + temp, 1.0, 1.0 - temp], np.float32) * rng.uniform(0.75, 1.3) * 1.6
-    img = np.clip(img * wb, 0.0, 1.0)
-    srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.power(img, 1 / 2.4) - 0.055)
-    srgb = srgb * 255.0 + rng.standard_normal(srgb.shape, dtype=np.float32) * 1.5
-    return np.clip(np.rint(srgb), 0, 255).astype(np.uint8)
+    camera_state = rng.bit_generator.state  # every print sees the same exposure and noise
+    photos = []
+    for f in fabrics:
+        tex = print_texture(f)
+        alb = tex[tv, tu].reshape(h, w, 3)
+        albedo = np.where(is_cloth[..., None], alb, room_albedo).astype(np.float32)
+        img = albedo * shade[..., None]
+        img = img + on * (fabric.sheen * 0.5 * spec * lambert)[..., None]
+        img = img + on * (fabric.fuzz * 0.35 * rim * (ambient + lambert))[..., None] * (
+            0.4 * albedo + 0.12
+        )
+        # Camera: exposure and white balance per capture, then sRGB and noise.
+        rng.bit_generator.state = camera_state
+        temp = rng.uniform(-0.12, 0.12)
+        wb = np.array([1.0 + temp, 1.0, 1.0 - temp], np.float32) * rng.uniform(0.75, 1.3) * 1.6
+        img = np.clip(img * wb, 0.0, 1.0)
+        srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.power(img, 1 / 2.4) - 0.055)
+        srgb = srgb * 255.0 + rng.standard_normal(srgb.shape, dtype=np.float32) * 1.5
+        photos.append(np.clip(np.rint(srgb), 0, 255).astype(np.uint8))
+    return photos

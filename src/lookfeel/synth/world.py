@@ -39,7 +39,7 @@ from PIL import Image
 from lookfeel.atomic import atomic_write_text
 from lookfeel.modality import REPRINTS, Modality, PressKind
 from lookfeel.processes import die_with_parent
-from lookfeel.synth.color import render_color
+from lookfeel.synth.color import render_colors
 from lookfeel.synth.config import SynthConfig, SynthSummary
 from lookfeel.synth.depth import render_depth
 from lookfeel.synth.drape import drape_surface, sample_drape
@@ -174,13 +174,17 @@ def render_fabric(
                 _write(out, _depth_name(fid, k), _encode(d, "png", 0))
                 counts["depth"] += 1
             if Modality.COLOR in modalities:
-                c = render_color(fabric, surf, ccam, np.random.default_rng([seed, 22, fid, k]))
-                _write(out, _color_name(fid, k, ext), _encode(c, ext, cfg.jpeg_quality))
+                # The photo, then the same drape, light and camera under other prints.
+                prints = [fabric] + [
+                    reprinted(fabric, np.random.default_rng([seed, 23, fid, k, r]))
+                    for r in range(1, cfg.reprints + 1)
+                ]
+                photos = render_colors(
+                    prints, surf, ccam, np.random.default_rng([seed, 22, fid, k])
+                )
+                _write(out, _color_name(fid, k, ext), _encode(photos[0], ext, cfg.jpeg_quality))
                 counts["color"] += 1
-                # The same drape, light and camera (the photo's own stream) under other prints.
-                for r in range(1, cfg.reprints + 1):
-                    other = reprinted(fabric, np.random.default_rng([seed, 23, fid, k, r]))
-                    c = render_color(other, surf, ccam, np.random.default_rng([seed, 22, fid, k]))
+                for r, c in enumerate(photos[1:], start=1):
                     _write(out, _reprint_name(fid, k, r, ext), _encode(c, ext, cfg.jpeg_quality))
                     counts["reprints"] += 1
     if Modality.TOUCH in modalities:
