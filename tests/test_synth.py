@@ -144,14 +144,27 @@ def test_each_photo_has_its_reprints_and_is_the_same_without_them(
 ) -> None:
     photos = sorted((tiny_world / "color").iterdir())
     renders = sorted((tiny_world / REPRINTS).iterdir())
-    assert [p.name for p in renders] == [f"{p.stem}_r1.jpg" for p in photos]
-    assert all(reprint_path(p, 1).is_file() for p in photos)
-    assert renders[0].read_bytes() != photos[0].read_bytes()
+    n = TINY.reprints
+    assert n == 4  # what configs/synth_cross.yaml reads
+    assert [p.name for p in renders] == sorted(
+        f"{p.stem}_r{k}.jpg" for p in photos for k in range(1, n + 1)
+    )
+    assert all(reprint_path(p, k).is_file() for p in photos for k in range(1, n + 1))
+    views = [reprint_path(photos[0], k).read_bytes() for k in range(1, n + 1)]
+    assert len({photos[0].read_bytes(), *views}) == n + 1  # every render another print
     plain = tmp_path / "plain"
     generate(dataclasses.replace(TINY, reprints=0, fabrics=2), plain, progress=False)
     assert not (plain / REPRINTS).exists()
     for p in (plain / "color").iterdir():
         assert p.read_bytes() == (tiny_world / "color" / p.name).read_bytes()
+    # A world with fewer renders writes the same first ones.
+    one = tmp_path / "one"
+    generate(dataclasses.replace(TINY, reprints=1, fabrics=2), one, progress=False)
+    assert sorted(p.name for p in (one / REPRINTS).iterdir()) == sorted(
+        f"{p.name[: -len('.jpg')]}_r1.jpg" for p in (one / "color").iterdir()
+    )
+    for p in (one / REPRINTS).iterdir():
+        assert p.read_bytes() == (tiny_world / REPRINTS / p.name).read_bytes()
 
 
 def test_a_reprint_is_the_same_drape_and_light_under_another_print() -> None:

@@ -30,8 +30,8 @@ def add_parser(subparsers: Subparsers) -> None:
     syn.add_argument(
         "--reprints",
         type=int,
-        default=1,
-        help="re-printed renders of each colour photo, in reprints/ (default 1; 0: none): the "
+        default=4,
+        help="re-printed renders of each colour photo, in reprints/ (default 4; 0: none): the "
         "same drape under another print and colours, which training reads in place of the "
         "photo so that a net cannot name a fabric by its print (data.color_reprints)",
     )
