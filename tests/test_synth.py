@@ -14,6 +14,8 @@ import pytest
 from PIL import Image
 from scipy import ndimage, stats
 
+from lookfeel.config import RunConfig, load_config
+from lookfeel.config.recipes import recipe_path
 from lookfeel.data import check_dataset, parse_touch_name
 from lookfeel.modality import REPRINTS, Modality, PressKind, reprint_path
 from lookfeel.synth import MANIFEST, SIZE_PRESETS, SynthConfig, generate
@@ -145,7 +147,8 @@ def test_each_photo_has_its_reprints_and_is_the_same_without_them(
     photos = sorted((tiny_world / "color").iterdir())
     renders = sorted((tiny_world / REPRINTS).iterdir())
     n = TINY.reprints
-    assert n == 4  # what configs/synth_cross.yaml reads
+    recipe = load_config(RunConfig, recipe_path("synth_cross.yaml"))
+    assert n == recipe.data.color_reprints == 4  # a default world serves the recipe
     assert [p.name for p in renders] == sorted(
         f"{p.stem}_r{k}.jpg" for p in photos for k in range(1, n + 1)
     )
@@ -161,7 +164,7 @@ def test_each_photo_has_its_reprints_and_is_the_same_without_them(
     one = tmp_path / "one"
     generate(dataclasses.replace(TINY, reprints=1, fabrics=2), one, progress=False)
     assert sorted(p.name for p in (one / REPRINTS).iterdir()) == sorted(
-        f"{p.name[: -len('.jpg')]}_r1.jpg" for p in (one / "color").iterdir()
+        reprint_path(p, 1).name for p in (one / "color").iterdir()
     )
     for p in (one / REPRINTS).iterdir():
         assert p.read_bytes() == (tiny_world / REPRINTS / p.name).read_bytes()
