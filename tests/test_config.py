@@ -49,6 +49,7 @@ def test_defaults_then_yaml_then_overrides(tmp_path: Path):
         ({"depth_holes": "zero"}, "data.depth_holes: 'zero' is not one of nearest, clip"),
         ({"same_fraction": 1.5}, "same_fraction: must be in"),
         ({"touch_zoom": 0}, r"data.touch_zoom: must be in \(0, 1\], got 0"),
+        ({"color_size": 4}, "data.color_size: must be >= 8 or null, got 4"),
         ({"touch_frames": [0, "last"]}, r"touch_frames\[1\]: expected an integer, got .last."),
         ({"touch_frames": list(range(9))}, "data.touch_frames: at most 8 frames, got 9"),
         (

@@ -83,6 +83,25 @@ def test_touch_zoom_reads_the_central_part_of_the_field_at_the_network_size():
     assert np.array_equal(colour, preprocess_rgb(mini, Modality.COLOR, DataConfig(image_size=24)))
 
 
+def test_color_size_sets_the_photo_alone_and_keys_the_cache():
+    photo = np.zeros((256, 256, 3), np.uint8)
+    photo[:, 128:] = 255
+    cfg = DataConfig(image_size=24, color_size=40)
+    assert cfg.size_of(Modality.COLOR) == 40 and cfg.size_of(Modality.TOUCH) == 24
+    colour = preprocess_rgb(photo, Modality.COLOR, cfg)
+    assert colour.shape == (40, 40, 3)
+    assert colour[:, :19].max() == 0 and colour[:, 21:].min() == 255  # resized, not cropped
+    assert preprocess_rgb(photo, Modality.TOUCH, cfg).shape == (24, 24, 3)
+    assert preprocess_depth(np.full((32, 32), 1000.0, np.float32), cfg).shape == (24, 24)
+    digest = images_module.PreprocessSettings.of
+    assert digest(cfg).digest() != digest(DataConfig(image_size=24)).digest()
+    # Unset, it is left out of the key: caches written before the setting existed still hit.
+    unset = digest(DataConfig(image_size=24))
+    assert unset.color_size is None and "color_size" not in {
+        k for k, v in unset.__dict__.items() if v is not None
+    }
+
+
 def test_decode_errors_name_the_file(tmp_path: Path):
     good = tmp_path / "F1_a.png"
     Image.fromarray(np.full((32, 32), 1000, np.uint16)).save(good)

@@ -107,3 +107,18 @@ def test_views_graph_equals_lookfeel_embedding_of_a_press_video(exported, tmp_pa
     meta = json.loads((tmp_path / "onnx" / "export.json").read_text())
     assert meta["branches"]["touch"]["input"] == "views"
     assert meta["data"]["video_embed"] == "views" and meta["data"]["video_views"] == 4
+
+
+def test_colour_branch_takes_data_color_size(exported, tmp_path: Path):
+    ckpt, _ = exported
+    state = read_checkpoint(ckpt)
+    state["config"]["data"].update(color_size=40)
+    sized = save_checkpoint(tmp_path / "sized.pt", state)
+    branches = {b.modality: b for b in export_onnx(sized, tmp_path / "onnx", check=False)}
+    assert branches[Modality.COLOR].input_shape == ["batch", 3, 40, 40]
+    assert branches[Modality.DEPTH].input_shape == ["batch", 1, 32, 32]
+    session = ort.InferenceSession(str(branches[Modality.COLOR].path))
+    x = torch.rand(3, 3, 40, 40, generator=torch.Generator().manual_seed(3))
+    with torch.inference_mode():
+        want = load_model(sized).model({"color": x})["color"].numpy()
+    np.testing.assert_allclose(session.run(None, {"image": x.numpy()})[0], want, atol=1e-4)

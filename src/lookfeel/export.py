@@ -11,12 +11,13 @@
   an image); its graph takes input ``views`` (B, P, V, 3, S, S) and averages a press's V views
   inside, as `lookfeel.models.Branch` does, so it equals lookfeel's own embedding.
 
-B (and P, V) are dynamic, S is the run's ``data.image_size``. ``DIR/export.json`` records the
-shapes, the embedding size and the run's data settings: preprocess inputs exactly as
-`lookfeel.data.images.preprocess_depth` / `preprocess_rgb` do (ImageNet normalisation is inside
-the graph). Each file is checked against PyTorch under onnxruntime on random inputs of two
-batch sizes (and two press and view counts) before it is written; the largest difference is
-recorded, and one above ``atol`` (1e-4) is an error.
+B (and P, V) are dynamic, S is the run's ``data.image_size`` (colour's ``data.color_size``
+when set). ``DIR/export.json`` records the shapes, the embedding size and the run's data
+settings: preprocess inputs exactly as `lookfeel.data.images.preprocess_depth` /
+`preprocess_rgb` do (ImageNet normalisation is inside the graph). Each file is checked
+against PyTorch under onnxruntime on random inputs of two batch sizes (and two press and view
+counts) before it is written; the largest difference is recorded, and one above ``atol``
+(1e-4) is an error.
 
 The export uses PyTorch's TorchScript-based exporter (``dynamo=False``): the newer exporter
 needs the ``onnxscript`` package, which lookfeel does not depend on.
@@ -126,7 +127,6 @@ def export_onnx(
     """
     loaded = load_model(checkpoint)
     model = loaded.model.eval()
-    size = loaded.config.data.image_size
     wanted = list(modalities) if modalities else list(model.modalities)
     for m in wanted:
         if m not in model.modalities:
@@ -140,6 +140,7 @@ def export_onnx(
         shape: list[int | str]
         module = _BranchGraph(model.branch(m.value)).eval()  # eval: the exporter restores modes
         c = module.branch.in_channels
+        size = loaded.config.data.size_of(m)
         if m is Modality.TOUCH and loaded.config.data.video_embed == "views":
             name, shape = "views", ["batch", "presses", "views", c, size, size]
             example = torch.rand(2, 2, 3, c, size, size, generator=gen)

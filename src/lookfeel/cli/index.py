@@ -138,9 +138,10 @@ def run_info(args: argparse.Namespace) -> int:
     model = summary["model"]
     print(f"Library {library.root}")
     print(f"  checkpoint  {library.checkpoint} (step {model['step']})")
-    print(
-        f"  model       {model['backbone']} at {model['image_size']} px, D = {model['embed_dim']}"
-    )
+    sizes = f"{model['image_size']} px"
+    if model.get("color_size"):
+        sizes += f" (colour {model['color_size']} px)"
+    print(f"  model       {model['backbone']} at {sizes}, D = {model['embed_dim']}")
     print(f"  data        {summary['data_root']}")
     items = ", ".join(f"{n} {m}" for m, n in summary["items"].items())
     print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")

@@ -61,6 +61,10 @@ class DataConfig:
 
     image_size: int = 227
     """Side of the square network input in pixels (AlexNet: 227)."""
+    color_size: int | None = None
+    """Side of the colour photo's network input in pixels; ``None``: ``image_size``. A photo
+    shows the material's look (fuzz, sheen) in detail that 64 px blurs, where depth and touch
+    lose nothing at 64 px (`configs/synth_cross.yaml`, docs/synth.md)."""
     depth_min_mm: float = 800.0
     """Depth mapped to 0; the authors' code maps ``clip((d - 800) / 500, 0, 1)``."""
     depth_range_mm: float = 500.0
@@ -194,6 +198,8 @@ class DataConfig:
         check_choices(self, "data")
         if self.image_size < 8:
             raise ConfigError(f"data.image_size: must be >= 8, got {self.image_size}")
+        if self.color_size is not None and self.color_size < 8:
+            raise ConfigError(f"data.color_size: must be >= 8 or null, got {self.color_size}")
         if self.depth_range_mm <= 0:
             raise ConfigError(f"data.depth_range_mm: must be > 0, got {self.depth_range_mm}")
         if self.depth_margin_mm <= 0:
@@ -285,6 +291,13 @@ class DataConfig:
     def stacks_touch_frames(self) -> bool:
         """Whether a touch input is several frames of a press stacked as channels."""
         return len(self.touch_frame_indices) > 1
+
+    def size_of(self, modality: Modality) -> int:
+        """Side in pixels of ``modality``'s network input: ``color_size`` for colour when
+        set, else ``image_size``."""
+        if modality is Modality.COLOR and self.color_size is not None:
+            return self.color_size
+        return self.image_size
 
     @property
     def touch_channels(self) -> int:

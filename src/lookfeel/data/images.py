@@ -251,7 +251,8 @@ def _center_square(a: np.ndarray) -> np.ndarray:
 def preprocess_rgb(
     rgb: np.ndarray | Image.Image, modality: Modality, config: DataConfig
 ) -> np.ndarray:
-    """8-bit RGB -> (S, S, 3) uint8: crop as configured for the modality, then resize.
+    """8-bit RGB -> (S, S, 3) uint8, S = ``config.size_of(modality)``: crop as configured for
+    the modality, then resize.
 
     ``rgb`` is an (H, W, 3) uint8 array or an RGB Pillow image (`open_rgb`); both give the
     same bytes."""
@@ -279,7 +280,7 @@ def preprocess_rgb(
         else:
             rgb = rgb[top : top + zh, left : left + zw]  # type: ignore[index]
         w, h = zw, zh
-    s = config.image_size
+    s = config.size_of(modality)
     if (h, w) != (s, s):
         im = im if im is not None else Image.fromarray(np.ascontiguousarray(rgb))
         im = im.resize((s, s), Image.Resampling.BILINEAR)
@@ -309,6 +310,8 @@ class PreprocessSettings:
     touch_frames: tuple[int, ...] | None = None
     """``data.touch_frames`` when it stacks several frames (``None``: one frame, keys as
     before)."""
+    color_size: int | None = None
+    """``data.color_size`` when set (``None``: colour at ``image_size``, keys as before)."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -335,6 +338,7 @@ class PreprocessSettings:
             registration,
             config.touch_zoom if config.touch_zoom < 1.0 else None,
             config.touch_frames if config.stacks_touch_frames else None,
+            config.color_size,
         )
 
     def digest(self) -> str:

@@ -350,6 +350,7 @@ class Library:
                 "backbone": self.config.model.backbone,
                 "embed_dim": self.embed_dim,
                 "image_size": self.config.data.image_size,
+                "color_size": self.config.data.color_size,
                 "step": self.manifest["checkpoint"].get("step"),
             },
             "data_root": self.manifest["data_root"],

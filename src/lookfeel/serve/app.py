@@ -242,6 +242,8 @@ class LibraryInfo(BaseModel):
     label_columns: list[str]
     backbone: str
     image_size: int
+    color_size: int | None = None
+    """Colour's input side when it differs from ``image_size`` (``data.color_size``)."""
     embed_dim: int
     backend: str
     limits: dict[str, int]
@@ -464,6 +466,7 @@ def create_app(
             label_columns=list(lib.label_columns),
             backbone=lib.config.model.backbone,
             image_size=lib.config.data.image_size,
+            color_size=lib.config.data.color_size,
             embed_dim=lib.embed_dim,
             backend=lib.backend,
             limits={

@@ -29,7 +29,8 @@ async function loadLibrary() {
   info = await r.json();
   const items = Object.entries(info.items).map(([m, n]) => `${n} ${m}`).join(", ");
   $("#library").textContent =
-    `${info.fabrics} fabrics (${items}); model ${info.backbone} at ${info.image_size} px, ` +
+    `${info.fabrics} fabrics (${items}); model ${info.backbone} at ${info.image_size} px` +
+    (info.color_size ? ` (colour ${info.color_size} px)` : "") + ", " +
     `D = ${info.embed_dim}; search ${info.backend}.`;
   for (const opt of $("#modality").options) opt.disabled = !info.modalities.includes(opt.value);
   const fabrics = await (await fetch("/api/fabrics?per_modality=1")).json();
