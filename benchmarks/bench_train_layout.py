@@ -6,9 +6,8 @@ convolutions and pools read. This times both layouts on one small synthetic worl
 demo's kind (36 fabrics, generated in seconds), for two recipes:
 
 - ``demo``: `configs/synth_cross.yaml` as `make demo` trains it (`lookfeel.demo.cross_config`:
-  width 16, one frame a press);
-- ``full``: `configs/synth_cross.yaml` itself (width 32, three frames a press, dropout on
-  depth and touch).
+  width 16, every sense at 64 px);
+- ``full``: `configs/synth_cross.yaml` itself (width 32, the photo at 96 px).
 
 Each run trains ``STEPS`` steps from scratch; its rate is taken over the steps after the first
 ``WARMUP`` (set-up, decoding and the first allocations excluded). The layouts alternate,

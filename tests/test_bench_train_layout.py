@@ -16,12 +16,8 @@ from lookfeel.synth import generate
 
 def test_the_configs_are_the_two_recipes_in_the_layout_asked() -> None:
     demo, full = bench._config("demo", False), bench._config("full", True)
-    assert (demo.model.width, demo.data.touch_frames, demo.train.channels_last) == (16, (), False)
-    assert (full.model.width, full.data.touch_frames, full.train.channels_last) == (
-        32,
-        (0, 1, 2),
-        True,
-    )
+    assert (demo.model.width, demo.data.color_size, demo.train.channels_last) == (16, None, False)
+    assert (full.model.width, full.data.color_size, full.train.channels_last) == (32, 96, True)
     assert demo.train.steps == bench.STEPS["demo"] and full.train.steps == bench.STEPS["full"]
 
 

@@ -55,12 +55,13 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     assert "Look and feel connected" in out and "on 2 held-out fabrics" in out
     assert re.search(r"^  touch -> depth .* through the map, .* in the embedding", out, re.M)
     assert (tmp_path / "demo" / "cross" / "checkpoints" / "last.pt").is_file()
-    # The short run goes without the full recipe's dropout on depth and touch and reads one
-    # frame a press, with the photo at the size of the other senses (CROSS_OVERRIDES).
+    # The short run keeps the full recipe's dropout on depth and touch and its three frames a
+    # press, at half its width, with the photo at the size of the other senses (CROSS_OVERRIDES).
     saved = yaml.safe_load((tmp_path / "demo" / "cross" / "config.yaml").read_text())
-    assert (saved["model"]["branch_dropout"], saved["train"]["steps"]) == ({}, 2)
+    assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
+    assert (saved["model"]["width"], saved["train"]["steps"]) == (16, 2)
     assert (saved["data"]["image_size"], saved["data"]["color_size"]) == (24, None)
-    assert (saved["data"]["touch_frames"], saved["data"]["touch_frame"]) == ([], -1)
+    assert (saved["data"]["touch_frames"], saved["data"]["touch_frame"]) == ([0, 1, 2], -1)
     metrics = json.loads((tmp_path / "demo" / "evaluate" / "metrics.json").read_text())
     assert "touch_to_depth_top1_mapped_ci_low" in metrics
     assert (tmp_path / "demo" / "evaluate" / "figures" / "glance.png").is_file()
