@@ -26,12 +26,13 @@ import statistics
 import tempfile
 import time
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 
 from lookfeel.config import RunConfig, load_config
 from lookfeel.config.recipes import recipe_path
 from lookfeel.demo import cross_config, demo_world
-from lookfeel.synth import generate
+from lookfeel.synth import SynthConfig, generate
 from lookfeel.train import train
 
 FABRICS = 36
@@ -70,11 +71,18 @@ def _timed_run(cfg: RunConfig, world: Path, out: Path) -> tuple[float, float]:
     return rate, float(last.get("loss", float("nan")))
 
 
+def world_config(fabrics: int = FABRICS) -> SynthConfig:
+    """A world of the demo's kind with as many re-printed renders of each photo as either
+    recipe reads (`data.color_reprints`: the demo one, the full recipe four)."""
+    reprints = max(_config(r, True).data.color_reprints for r in STEPS)
+    return replace(demo_world(fabrics, seed=0), reprints=reprints)
+
+
 def run(data: Path | None) -> dict[str, object]:
     del data  # a synthetic world of its own
     with tempfile.TemporaryDirectory() as tmp:
         world = Path(tmp) / "world"
-        generate(demo_world(FABRICS, seed=0), world, progress=False)
+        generate(world_config(), world, progress=False)
         recipes: dict[str, dict[str, object]] = {}
         for recipe in STEPS:
             rates: dict[str, list[float]] = {"channels_last": [], "nchw": []}

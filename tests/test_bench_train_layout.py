@@ -10,7 +10,6 @@ import pytest
 import torch
 from benchmarks import bench_train_layout as bench
 
-from lookfeel.demo import demo_world
 from lookfeel.synth import generate
 
 
@@ -21,13 +20,20 @@ def test_the_configs_are_the_two_recipes_in_the_layout_asked() -> None:
     assert demo.train.steps == bench.STEPS["demo"] and full.train.steps == bench.STEPS["full"]
 
 
+def test_the_world_holds_the_renders_both_recipes_read() -> None:
+    cfg = bench.world_config(6)
+    assert cfg.reprints == bench._config("full", True).data.color_reprints == 4
+    assert bench._config("demo", True).data.color_reprints == 1 <= cfg.reprints
+
+
 def test_a_timed_run_trains_in_its_layout(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     world = tmp_path / "world"
-    generate(replace(demo_world(6, seed=0), workers=1), world, progress=False)
+    generate(replace(bench.world_config(6), workers=1), world, progress=False)
     monkeypatch.setattr(bench, "STEPS", {"demo": bench.WARMUP + 3, "full": bench.WARMUP + 3})
-    for channels_last in (True, False):
-        out = tmp_path / f"run-{channels_last}"
-        rate, loss = bench._timed_run(bench._config("demo", channels_last), world, out)
+    runs = [("demo", True), ("demo", False), ("full", True)]
+    for recipe, channels_last in runs:
+        out = tmp_path / f"run-{recipe}-{channels_last}"
+        rate, loss = bench._timed_run(bench._config(recipe, channels_last), world, out)
         assert rate > 0 and math.isfinite(loss)
         weights = torch.load(out / "checkpoints" / "last.pt", weights_only=True)["model"]
         conv = next(v for v in weights.values() if v.dim() == 4 and v.shape[1] > 1)
