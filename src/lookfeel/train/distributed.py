@@ -7,6 +7,7 @@ uses DistributedDataParallel over gloo (CPU) or NCCL (GPU). Rank 0 writes every 
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -15,6 +16,9 @@ import torch.distributed as torch_dist
 from torch import nn
 
 __all__ = ["Distributed"]
+
+_SETTLE_S = 0.1
+"""Seconds a process waits after the final barrier before it destroys the process group."""
 
 
 @dataclass
@@ -85,4 +89,9 @@ class Distributed:
         if self.owns_group and torch_dist.is_initialized():
             if sync:
                 torch_dist.barrier()
+                # Tearing the group down the moment the barrier returns sometimes aborted a
+                # process as it exited ("terminate called without an active exception"): 4 of
+                # 30 two-process CPU runs of the tiny recipe here. With this pause first, none
+                # of 36; the cause inside gloo was not pinned down (session 30).
+                time.sleep(_SETTLE_S)
             torch_dist.destroy_process_group()
