@@ -17,6 +17,7 @@ def test_the_configs_are_the_two_recipes_in_the_layout_asked() -> None:
     demo, full = bench._config("demo", False), bench._config("full", True)
     assert (demo.model.width, demo.data.color_size, demo.train.channels_last) == (16, None, False)
     assert (full.model.width, full.data.color_size, full.train.channels_last) == (32, 96, True)
+    assert demo.data.touch_frames == full.data.touch_frames == (0, 1, 2)
     assert demo.train.steps == bench.STEPS["demo"] and full.train.steps == bench.STEPS["full"]
 
 

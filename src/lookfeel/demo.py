@@ -53,7 +53,8 @@ DEMO_BUDGETS = tuple(b for b in BUDGETS if b != "paper")
 
 DEMO_REPRINTS = 1
 """Re-printed renders of each photo in the demo's world, and what its short run reads (the
-full recipe reads four): its world and numbers are those measured before session 28."""
+full recipe reads four): its world is the one of before session 28. Four lifted colour ↔ depth
+and left colour ↔ touch in the 500-step run on a demo-sized world (session 30, docs/synth.md)."""
 
 CROSS_OVERRIDES = (
     "model.width=16",
