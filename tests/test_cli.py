@@ -6,13 +6,14 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
 import yaml
 
 import lookfeel.cli
-from lookfeel.cli import build_parser, main
+from lookfeel.cli import build_parser, main, run
 
 
 def test_data_info_text_and_json(tiny_dataset: Path, capsys):
@@ -144,3 +145,49 @@ def test_output_into_a_closed_pipe_ends_quietly(tiny_dataset: Path):
     finally:
         os.close(write)
     assert done.returncode == 141 and done.stderr == ""
+
+
+def test_the_console_script_shows_each_warning_once_as_one_line(monkeypatch, capsys):
+    """`lookfeel ...` (`run`): a warning is ``lookfeel: warning: <message>``, without the
+    library's file and source line, and one that several runs raise alike shows once."""
+
+    def warns_twice(argv=None) -> int:
+        for _ in range(3):  # as each of a recipe's three networks does
+            warnings.warn("2 of 9 touch videos hold no press: a.mov (too short)", stacklevel=1)
+        warnings.warn("another thing", RuntimeWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setattr(lookfeel.cli, "main", warns_twice)
+    shown_before = warnings.showwarning
+    assert run(["data", "info", "x"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "lookfeel: warning: 2 of 9 touch videos hold no press: a.mov (too short)",
+        "lookfeel: warning: another thing",
+    ]
+    assert warnings.showwarning is shown_before  # put back for whoever calls next
+
+
+def test_python_m_lookfeel_shows_a_training_warning_as_one_line(tiny_dataset: Path, tmp_path: Path):
+    """`python -m lookfeel train ...` asking for re-printed photos a dataset lacks: the run
+    goes on, and says so in one line, not in Python's warning with a library source line."""
+    config = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+    command = [
+        sys.executable, "-m", "lookfeel", "train", "--config", str(config),
+        "--data", str(tiny_dataset), "--out", str(tmp_path / "run"),
+        "--set", "train.steps=1", "--set", "data.color_reprints=1",
+    ]  # fmt: skip
+    done = subprocess.run(
+        command,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    warned = [line for line in done.stderr.splitlines() if "reprints" in line]
+    assert warned == [
+        f"lookfeel: warning: data.color_reprints=1: {tiny_dataset} has no reprints/ folder of "
+        "re-printed photos (a synthetic world's: `lookfeel synth --reprints`); training on the "
+        "photos themselves"
+    ]
+    assert "UserWarning" not in done.stderr

@@ -1,5 +1,5 @@
 """``python -m lookfeel`` is the ``lookfeel`` command."""
 
-from lookfeel.cli import main
+from lookfeel.cli import run
 
-raise SystemExit(main())
+raise SystemExit(run())

@@ -25,7 +25,8 @@ is the command's purpose, then its ``--help`` description. ``_args`` holds what 
 share, and `Choices` reads an option's values (splits, budgets, ...) from the module that defines
 them. A handler imports the library when it runs, so that ``lookfeel --help`` and each command
 load only what they use. An error a user can cause is a `LookfeelError`: handlers let it through,
-and `main` prints ``lookfeel: <message>`` and returns 1.
+and `main` prints ``lookfeel: <message>`` and returns 1. The console script (`run`) shows each
+warning as one line too, ``lookfeel: warning: <message>``, once.
 """
 
 from __future__ import annotations
@@ -33,7 +34,9 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import TextIO
 
 from lookfeel import __version__
 from lookfeel.cli import (
@@ -53,7 +56,7 @@ from lookfeel.cli import (
 )
 from lookfeel.errors import LookfeelError
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "run"]
 
 _COMMANDS = (
     data,
@@ -122,3 +125,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, as a shell reports a command killed by it
     return status
+
+
+def _one_line_warnings() -> None:
+    """Show every warning as ``lookfeel: warning: <message>`` on stderr, each message once.
+
+    Python's own display adds the library's file, line and source line, which mean nothing to
+    someone running the command, and repeats a warning that several runs raise alike (each of
+    a recipe's three networks, each fold of a cross-validation)."""
+    shown: set[str] = set()
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        text = str(message)
+        if text in shown:
+            return
+        shown.add(text)
+        print(f"lookfeel: warning: {text}", file=sys.stderr if file is None else file, flush=True)
+
+    warnings.showwarning = show
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """The ``lookfeel`` console script and ``python -m lookfeel``: `main` with warnings shown
+    as one line each (`main` alone leaves them to Python and to whoever calls it)."""
+    with warnings.catch_warnings():
+        _one_line_warnings()
+        return main(argv)
