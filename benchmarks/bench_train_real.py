@@ -22,11 +22,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks.bench_decode_video import DEFAULT_VIDEOS
 from lookfeel.config import RunConfig, load_config
 from lookfeel.config.recipes import recipe_path
 
-HERE = Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared" / "data"
+SHARED = DEFAULT_VIDEOS.parent.parent
+"""``../shared/data``, beside the repository, where the real datasets lie."""
 RUNS = int(os.environ.get("TRAIN_REAL_BENCH_RUNS", "3"))
 
 RECIPES = {
@@ -59,8 +60,7 @@ def _recipe(name: str, root: Path) -> dict[str, object]:
     config = recipe_path(file)
     if not root.is_dir():
         return {"skipped": f"no data at {root}", "target_s": target, "target_from": source}
-    run = load_config(RunConfig, config).train
-    members = load_config(RunConfig, config).model.members
+    loaded = load_config(RunConfig, config)
     seconds = []
     with tempfile.TemporaryDirectory(prefix=f"bench_train_{name}_") as tmp:
         for i in range(RUNS):
@@ -69,9 +69,9 @@ def _recipe(name: str, root: Path) -> dict[str, object]:
     return {
         "config": f"configs/{file}",
         "data": str(root),
-        "steps": run.steps,
-        "batch_size": run.batch_size,
-        "networks": members,
+        "steps": loaded.train.steps,
+        "batch_size": loaded.train.batch_size,
+        "networks": loaded.model.members,
         "runs": RUNS,
         "seconds_all": [round(s, 1) for s in seconds],
         "median_s": round(median, 1),

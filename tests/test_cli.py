@@ -151,13 +151,13 @@ def test_the_console_script_shows_each_warning_once_as_one_line(monkeypatch, cap
     """`lookfeel ...` (`run`): a warning is ``lookfeel: warning: <message>``, without the
     library's file and source line, and one that several runs raise alike shows once."""
 
-    def warns_twice(argv=None) -> int:
+    def warns_like_three_runs(argv=None) -> int:
         for _ in range(3):  # as each of a recipe's three networks does
             warnings.warn("2 of 9 touch videos hold no press: a.mov (too short)", stacklevel=1)
         warnings.warn("another thing", RuntimeWarning, stacklevel=1)
         return 0
 
-    monkeypatch.setattr(lookfeel.cli, "main", warns_twice)
+    monkeypatch.setattr(lookfeel.cli, "main", warns_like_three_runs)
     shown_before = warnings.showwarning
     assert run(["data", "info", "x"]) == 0
     err = capsys.readouterr().err.splitlines()
