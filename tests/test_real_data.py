@@ -120,7 +120,8 @@ def test_real_depth_config_trains_embeds_and_evaluates(real_data: Path, tmp_path
         == 0
     )
     with np.load(emb) as z:
-        assert z["embeddings_depth"].shape == (1104, 128)
+        # The recipe's three networks side by side, 128 dimensions each.
+        assert z["embeddings_depth"].shape == (1104, 3 * 128)
     assert (
         main(
             [
