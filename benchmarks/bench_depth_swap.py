@@ -120,7 +120,11 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         return np.where(own_floor[i] > 0, np.maximum(height, 0.1), 0.0).astype(np.float32)
 
     def top(h: np.ndarray) -> np.ndarray:
-        return heights_from_top(h, dc.depth_top_mm) if dc.depth_top_mm is not None else h
+        return (
+            heights_from_top(h, dc.depth_top_mm, dc.depth_top_from)
+            if dc.depth_top_mm is not None
+            else h
+        )
 
     variants: dict[str, list[np.ndarray]] = {name: [] for name in _VARIANTS}
     for i, ((h0, p0), (h1, p1)) in enumerate(zip(own, comp, strict=True)):

@@ -329,3 +329,42 @@ def test_heights_from_the_drape_top_ignore_where_the_floor_was_fitted():
     assert np.array_equal(heights_from_top(np.zeros_like(h), 250.0), np.zeros_like(h))
     with pytest.raises(ConfigError, match="depth_top_mm: must be > 0"):
         dataclasses.replace(plain, depth_top_mm=0.0)
+
+
+def test_drape_top_from_the_highest_row_ignores_a_cap_of_wall_pixels():
+    """``data.depth_top_from``: on Kinect images a few rows where the drape's rim meets the
+    wall often count as cloth, at heights well below the cloth over the post. The first rows'
+    median reads that cap; the highest row median reads the cloth over the post, so heights
+    measured from it do not move when a cap is there."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.images import PreprocessSettings
+    from lookfeel.data.register import drape_top, heights_from_top, registered_heights
+
+    d = BASE.render()["depth"]
+    plain = DataConfig(depth_input="registered", depth_focal_px=BASE.f)
+    h, _ = registered_heights(d, plain)
+    cloth = h > 0
+    rows = np.flatnonzero(cloth.any(axis=1))
+    top_rows = drape_top(h, "first_rows")
+    top_high = drape_top(h, "highest_row")
+    assert top_rows is not None and top_high is not None
+    # Without a cap both rules read the cloth over the post (within a few mm).
+    assert abs(top_high - top_rows) < 0.05 * top_high
+    capped = h.copy()
+    cols = np.flatnonzero(cloth[rows[0]])
+    cap = top_high - 50.0  # wall pixels mixed in: 50 mm below the cloth over the post
+    band = max(2, round(4 * h.shape[0] / 224))
+    capped[rows[0] - band : rows[0], cols[0] : cols[-1] + 1] = cap
+    assert drape_top(capped, "first_rows") == pytest.approx(cap, abs=1e-3)
+    assert drape_top(capped, "highest_row") == pytest.approx(top_high, abs=1e-3)
+    a = heights_from_top(h, 300.0, "highest_row")
+    b = heights_from_top(capped, 300.0, "highest_row")
+    assert np.abs(a - b)[cloth].max() < 1e-3
+    assert np.abs(heights_from_top(h, 300.0) - heights_from_top(capped, 300.0))[cloth].max() > 20
+    assert drape_top(np.zeros_like(h), "highest_row") is None
+    high = dataclasses.replace(plain, depth_top_mm=300.0, depth_top_from="highest_row")
+    assert np.array_equal(registered_heights(d, high)[0], a)
+    rows_cfg = dataclasses.replace(high, depth_top_from="first_rows")
+    assert PreprocessSettings.of(high).digest() != PreprocessSettings.of(rows_cfg).digest()
+    with pytest.raises(ConfigError, match="depth_top_from"):
+        dataclasses.replace(plain, depth_top_from="middle")

@@ -101,6 +101,11 @@ class DataConfig:
     differs between sessions, so it tells sessions apart (docs/results/real-depth.md, "What the
     background swap still changes, and heights from the drape's top"). GelFabric's drape tops
     lie about 256 mm above the floor. ``None``: heights above the fitted floor."""
+    depth_top_from: Literal["first_rows", "highest_row"] = "first_rows"
+    """Registered input with ``depth_top_mm``: where the drape's top is read
+    (`lookfeel.data.register.drape_top`). ``first_rows``: the median of its first rows;
+    ``highest_row``: the highest of the row medians over its top rows, the cloth over the
+    post (GelFabric's first rows are often the sensor's mix of wall and cloth)."""
     depth_post_at: tuple[float, float] | None = None
     """Registered input: move the drape so that its top (where the post holds it,
     `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the

@@ -324,6 +324,8 @@ class PreprocessSettings:
                 registration += ("post", *config.depth_post_at)
             if config.depth_top_mm is not None:
                 registration += ("top", config.depth_top_mm)
+                if config.depth_top_from != "first_rows":
+                    registration += (config.depth_top_from,)
         return cls(
             config.image_size,
             config.depth_min_mm,

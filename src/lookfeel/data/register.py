@@ -54,6 +54,7 @@ __all__ = [
     "RegistrationError",
     "camera_points",
     "drape_mask",
+    "drape_top",
     "heights_from_top",
     "kept_heights",
     "move_drape",
@@ -513,25 +514,51 @@ def kept_heights(reg: Registration, config: DataConfig) -> F32:
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
     if config.depth_top_mm is not None:
-        height = heights_from_top(height, config.depth_top_mm)
+        height = heights_from_top(height, config.depth_top_mm, config.depth_top_from)
     return height.astype(np.float32, copy=False)
 
 
-def heights_from_top(height: F32, top_mm: float) -> F32:
-    """Registered heights re-measured from the drape's top, which is set to ``top_mm``.
+def drape_top(height: F32, rule: str = "first_rows") -> float | None:
+    """The height (mm) of the drape's top, where the post holds it; None without cloth.
 
-    ``top`` is the median height of the cloth in its top rows (4 rows at 224 px, scaled with
-    the image; where the post holds the drape); every cloth pixel becomes ``height - top +
-    top_mm``, at least 1 mm so that it stays cloth (0 is no cloth). A shift of the fitted
-    floor then changes nothing: only the floor's orientation is used (``data.depth_top_mm``).
-    Unchanged when there is no cloth.
+    ``first_rows``: the median height of the cloth in its top rows (4 rows at 224 px, scaled
+    with the image). ``highest_row``: the largest of the per-row median heights over the
+    drape's top 16 rows (scaled), i.e. the cloth lying over the post. On GelFabric's Kinect
+    images the first rows are often not the cloth: where the drape's rim meets the wall the
+    sensor mixes the two, a few rows of wall pixels stand more than the margin in front of
+    the fitted wall and count as cloth, and their heights vary by about 25 mm within one
+    fabric (the cloth over the post: 7 mm; docs/results/real-depth.md, "Where the drape's top
+    is read").
     """
     cloth = height > 0
     rows = np.flatnonzero(cloth.any(axis=1))
     if len(rows) == 0:
+        return None
+    scale = height.shape[0] / GELFABRIC_SIZE
+    if rule == "highest_row":
+        band = max(4, round(16 * scale))
+        meds = [
+            float(np.median(height[r][cloth[r]]))
+            for r in range(rows[0], rows[0] + band)
+            if r < height.shape[0] and cloth[r].any()
+        ]
+        return max(meds)
+    band = max(2, round(4 * scale))
+    return float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
+
+
+def heights_from_top(height: F32, top_mm: float, rule: str = "first_rows") -> F32:
+    """Registered heights re-measured from the drape's top, which is set to ``top_mm``.
+
+    ``top`` is `drape_top` by ``rule`` (``data.depth_top_from``); every cloth pixel becomes
+    ``height - top + top_mm``, at least 1 mm so that it stays cloth (0 is no cloth). A shift
+    of the fitted floor then changes nothing: only the floor's orientation is used
+    (``data.depth_top_mm``). Unchanged when there is no cloth.
+    """
+    cloth = height > 0
+    top = drape_top(height, rule)
+    if top is None:
         return height
-    band = max(2, round(4 * height.shape[0] / GELFABRIC_SIZE))
-    top = float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
     out = np.where(cloth, np.maximum(height - np.float32(top - top_mm), np.float32(1.0)), 0.0)
     return out.astype(np.float32, copy=False)
 
