@@ -366,5 +366,7 @@ def test_drape_top_from_the_highest_row_ignores_a_cap_of_wall_pixels():
     assert np.array_equal(registered_heights(d, high)[0], a)
     rows_cfg = dataclasses.replace(high, depth_top_from="first_rows")
     assert PreprocessSettings.of(high).digest() != PreprocessSettings.of(rows_cfg).digest()
+    with pytest.raises(ValueError, match="unknown drape-top rule"):
+        drape_top(h, "middle")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="depth_top_from"):
         dataclasses.replace(plain, depth_top_from="middle")

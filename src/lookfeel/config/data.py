@@ -100,7 +100,8 @@ class DataConfig:
     distance is the noisiest part of the fit (about 8 mm within one GelFabric session) and
     differs between sessions, so it tells sessions apart (docs/results/real-depth.md, "What the
     background swap still changes, and heights from the drape's top"). GelFabric's drape tops
-    lie about 256 mm above the floor. ``None``: heights above the fitted floor."""
+    lie about 256 mm above the floor read from the first rows, 309 mm from the highest row
+    (``depth_top_from``). ``None``: heights above the fitted floor."""
     depth_top_from: Literal["first_rows", "highest_row"] = "first_rows"
     """Registered input with ``depth_top_mm``: where the drape's top is read
     (`lookfeel.data.register.drape_top`). ``first_rows``: the median of its first rows;

@@ -38,6 +38,7 @@ by the margin rule) are scene: their few-mm shifts between sessions would leak t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,6 +68,7 @@ __all__ = [
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
+TopRule = Literal["first_rows", "highest_row"]
 
 GELFABRIC_SIZE = 224
 """Side in pixels of GelFabric's cropped Kinect depth images."""
@@ -518,7 +520,7 @@ def kept_heights(reg: Registration, config: DataConfig) -> F32:
     return height.astype(np.float32, copy=False)
 
 
-def drape_top(height: F32, rule: str = "first_rows") -> float | None:
+def drape_top(height: F32, rule: TopRule = "first_rows") -> float | None:
     """The height (mm) of the drape's top, where the post holds it; None without cloth.
 
     ``first_rows``: the median height of the cloth in its top rows (4 rows at 224 px, scaled
@@ -529,7 +531,12 @@ def drape_top(height: F32, rule: str = "first_rows") -> float | None:
     the fitted wall and count as cloth, and their heights vary by about 25 mm within one
     fabric (the cloth over the post: 7 mm; docs/results/real-depth.md, "Where the drape's top
     is read").
+
+    Raises:
+        ValueError: ``rule`` is neither.
     """
+    if rule not in ("first_rows", "highest_row"):
+        raise ValueError(f"unknown drape-top rule {rule!r}: first_rows or highest_row")
     cloth = height > 0
     rows = np.flatnonzero(cloth.any(axis=1))
     if len(rows) == 0:
@@ -547,7 +554,7 @@ def drape_top(height: F32, rule: str = "first_rows") -> float | None:
     return float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
 
 
-def heights_from_top(height: F32, top_mm: float, rule: str = "first_rows") -> F32:
+def heights_from_top(height: F32, top_mm: float, rule: TopRule = "first_rows") -> F32:
     """Registered heights re-measured from the drape's top, which is set to ``top_mm``.
 
     ``top`` is `drape_top` by ``rule`` (``data.depth_top_from``); every cloth pixel becomes
