@@ -544,12 +544,10 @@ def drape_top(height: F32, rule: TopRule = "first_rows") -> float | None:
     scale = height.shape[0] / GELFABRIC_SIZE
     if rule == "highest_row":
         band = max(4, round(16 * scale))
-        meds = [
-            float(np.median(height[r][cloth[r]]))
-            for r in range(rows[0], rows[0] + band)
-            if r < height.shape[0] and cloth[r].any()
-        ]
-        return max(meds)
+        last = min(rows[0] + band, height.shape[0])
+        return max(
+            float(np.median(height[r][cloth[r]])) for r in range(rows[0], last) if cloth[r].any()
+        )
     band = max(2, round(4 * scale))
     return float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
 
