@@ -68,6 +68,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         Intrinsics,
         camera_points,
         drape_mask,
+        drape_post,
         heights_from_top,
         kept_heights,
         move_drape,
@@ -95,7 +96,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
     filled = np.stack([fill_holes(d).astype(np.float32) for d in depths])
     rooms = np.stack([r.room for r in regs])
     sw = swap_backgrounds(filled, cloth, fabric, seed=CONTROL_SEED, rooms=rooms)
-    own = [(kept_heights(r, dc), r.post_uv) for r in regs]
+    own = [(kept := kept_heights(r, dc), drape_post(r, kept, dc)) for r in regs]
     # Heights above the image's own fitted floor, kept as the run keeps them but not yet
     # measured from the drape's top: the cloth whose floor the partner's replaces.
     plain = dataclasses.replace(dc, depth_top_mm=None)
@@ -147,8 +148,9 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         in_room = register_in_room(
             filled[i], regs[int(sw.partner[i])].planes, k, margin_mm=dc.depth_margin_mm
         )
-        variants["room"].append(finish(kept_heights(in_room, dc), in_room.post_uv))
-        variants["room_own_top"].append(finish(kept_heights(in_room, dc), p0))
+        kept = kept_heights(in_room, dc)
+        variants["room"].append(finish(kept, drape_post(in_room, kept, dc)))
+        variants["room_own_top"].append(finish(kept, p0))
     row: dict[str, Any] = {"run": run_dir.name, "queries": len(items)}
     return row | score_variants(lm, items, fabric, variants)
 

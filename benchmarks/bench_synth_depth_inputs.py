@@ -37,8 +37,7 @@ from lookfeel.data.images import decode_depth, registered_to_unit
 from lookfeel.data.register import (
     drape_mask,
     drape_top,
-    kept_heights,
-    move_drape,
+    placed_heights,
     register_depth,
     registered_intrinsics,
 )
@@ -64,7 +63,7 @@ def _inputs(files: list[Path], overrides: list[str]) -> dict[str, Any]:
         )
         drape = np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0))
         tops.append((drape_top(drape, "first_rows"), drape_top(drape, "highest_row")))
-        h = move_drape(kept_heights(reg, data), reg.post_uv, data.depth_post_at)
+        h = placed_heights(reg, data)
         heights.append(registered_to_unit(h, data) * data.depth_range_mm)
         m = re.match(r"F(\d+)", f.name)
         fabrics.append(int(m.group(1)) if m else -1)

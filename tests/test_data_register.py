@@ -370,3 +370,45 @@ def test_drape_top_from_the_highest_row_ignores_a_cap_of_wall_pixels():
         drape_top(h, "middle")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="depth_top_from"):
         dataclasses.replace(plain, depth_top_from="middle")
+
+
+def test_cloth_top_drops_a_cap_of_wall_pixels_and_places_the_drape_by_its_cloth():
+    """``data.depth_top_from: cloth_top``: a cap of the sensor's wall-and-cloth mix planted
+    above the drape in the depth image itself (30 mm in front of the wall, so cloth by the
+    15 mm margin) is dropped: the heights and the drape's top are those of the image without
+    it. ``highest_row`` keeps the cap as cloth and places the drape by the cap's top."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.images import PreprocessSettings
+    from lookfeel.data.register import register_depth, registered_heights, without_cap
+
+    d = BASE.render()["depth"].astype(np.float64)
+    cfg = DataConfig(
+        depth_input="registered",
+        depth_focal_px=BASE.f,
+        depth_top_mm=300.0,
+        depth_top_from="cloth_top",
+    )
+    h0, post0 = registered_heights(d, cfg)
+    cloth = h0 > 0
+    rows = np.flatnonzero(cloth.any(axis=1))
+    cols = np.flatnonzero(cloth[rows[0] + 2])
+    assert post0 is not None and rows[0] > 8
+    room = register_depth(d, BASE.intrinsics).room
+    capped = d.copy()
+    n = max(2, round(6 * d.shape[0] / 224))  # 6 rows at 224 px, as on GelFabric
+    cap = (slice(rows[0] - n, rows[0]), slice(cols[0], cols[-1] + 1))
+    capped[cap] = room[cap] - 30.0
+    h1, post1 = registered_heights(capped, cfg)
+    # The room is fitted again on the capped image (RANSAC): the same to a hundredth of a
+    # mm, and a pixel or so at the drape's foot may change sides of the margin.
+    both = (h0 > 0) & (h1 > 0)
+    assert (h1[cap] == 0).all() and ((h0 > 0) != (h1 > 0)).sum() <= 2
+    assert np.abs(h1 - h0)[both].max() < 0.05
+    assert post1 == pytest.approx(post0, abs=0.05)
+    high = dataclasses.replace(cfg, depth_top_from="highest_row")
+    h2, post2 = registered_heights(capped, high)
+    assert (h2[cap] > 0).mean() > 0.5  # the cap stays cloth by the highest-row rule
+    assert post2 is not None and post2[1] < post0[1] - n + 0.5  # and the drape is placed by it
+    assert np.array_equal(without_cap(h0), h0)  # nothing to drop on a drape with no cap
+    assert np.array_equal(without_cap(np.zeros_like(h0)), np.zeros_like(h0))
+    assert PreprocessSettings.of(cfg).digest() != PreprocessSettings.of(high).digest()

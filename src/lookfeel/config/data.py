@@ -102,11 +102,13 @@ class DataConfig:
     background swap still changes, and heights from the drape's top"). GelFabric's drape tops
     lie about 256 mm above the floor read from the first rows, 309 mm from the highest row
     (``depth_top_from``). ``None``: heights above the fitted floor."""
-    depth_top_from: Literal["first_rows", "highest_row"] = "first_rows"
+    depth_top_from: Literal["first_rows", "highest_row", "cloth_top"] = "first_rows"
     """Registered input with ``depth_top_mm``: where the drape's top is read
     (`lookfeel.data.register.drape_top`). ``first_rows``: the median of its first rows;
     ``highest_row``: the highest of the row medians over its top rows, the cloth over the
-    post (GelFabric's first rows are often the sensor's mix of wall and cloth)."""
+    post (GelFabric's first rows are often the sensor's mix of wall and cloth);
+    ``cloth_top``: as ``highest_row``, and the rows of that mix above the cloth are dropped
+    and the drape placed by the cloth's own top (`lookfeel.data.register.without_cap`)."""
     depth_post_at: tuple[float, float] | None = None
     """Registered input: move the drape so that its top (where the post holds it,
     `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the

@@ -61,8 +61,7 @@ from lookfeel.data.register import (
     Plane,
     RegistrationError,
     drape_mask,
-    kept_heights,
-    move_drape,
+    placed_heights,
     register_depth,
     register_in_room,
     registered_intrinsics,
@@ -316,7 +315,7 @@ class BackgroundControl:
                 registered_intrinsics(depth.shape, cfg),
                 margin_mm=cfg.depth_margin_mm,
             )
-            height = move_drape(kept_heights(reg, cfg), reg.post_uv, cfg.depth_post_at)
+            height = placed_heights(reg, cfg)
             return registered_to_unit(height, cfg)
 
         with ThreadPoolExecutor(max(1, cfg.workers)) as pool:

@@ -55,20 +55,23 @@ __all__ = [
     "RegistrationError",
     "camera_points",
     "drape_mask",
+    "drape_post",
     "drape_top",
     "heights_from_top",
     "kept_heights",
     "move_drape",
+    "placed_heights",
     "register_depth",
     "register_in_room",
     "registered_heights",
     "registered_input",
     "registered_intrinsics",
+    "without_cap",
 ]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
-TopRule = Literal["first_rows", "highest_row"]
+TopRule = Literal["first_rows", "highest_row", "cloth_top"]
 
 GELFABRIC_SIZE = 224
 """Side in pixels of GelFabric's cropped Kinect depth images."""
@@ -504,7 +507,8 @@ def registered_heights(
     reg = register_depth(
         d, registered_intrinsics(d.shape, config), margin_mm=config.depth_margin_mm
     )
-    return kept_heights(reg, config), reg.post_uv
+    kept = kept_heights(reg, config)
+    return kept, drape_post(reg, kept, config)
 
 
 def kept_heights(reg: Registration, config: DataConfig) -> F32:
@@ -520,6 +524,62 @@ def kept_heights(reg: Registration, config: DataConfig) -> F32:
     return height.astype(np.float32, copy=False)
 
 
+def drape_post(reg: Registration, kept: F32, config: DataConfig) -> tuple[float, float] | None:
+    """Where the drape's top lies in the image (u, v): `Registration.post_uv`, or with
+    ``depth_top_from: cloth_top`` the top of the cloth kept (``kept``, `kept_heights`), whose
+    cap of the sensor's mixed pixels is gone."""
+    if config.depth_top_mm is not None and config.depth_top_from == "cloth_top":
+        return _post(kept > 0)
+    return reg.post_uv
+
+
+def placed_heights(reg: Registration, config: DataConfig) -> F32:
+    """`registered_input` of an image already registered (``reg``): `kept_heights` moved
+    as ``depth_post_at`` says (`move_drape`, from `drape_post`)."""
+    kept = kept_heights(reg, config)
+    return move_drape(kept, drape_post(reg, kept, config), config.depth_post_at)
+
+
+CAP_TOLERANCE_MM = 10.0
+"""`without_cap`: the drape's first row stands within this of its highest row median."""
+
+
+def _top_band(height: F32) -> list[tuple[int, float]]:
+    """(row, median height of its cloth) over the drape's top 16 rows (at 224 px, scaled)."""
+    cloth = height > 0
+    rows = np.flatnonzero(cloth.any(axis=1))
+    if len(rows) == 0:
+        return []
+    band = max(4, round(16 * height.shape[0] / GELFABRIC_SIZE))
+    last = min(rows[0] + band, height.shape[0])
+    return [
+        (r, float(np.median(height[r][cloth[r]]))) for r in range(rows[0], last) if cloth[r].any()
+    ]
+
+
+def without_cap(height: F32, tolerance_mm: float = CAP_TOLERANCE_MM) -> F32:
+    """``height`` without the cap of mixed pixels above the drape (``depth_top_from:
+    cloth_top``): the rows above the first one whose median height lies within
+    ``tolerance_mm`` of the highest row median over the drape's top rows (`drape_top`'s
+    ``highest_row`` band) are set to 0.
+
+    On GelFabric's Kinect images 3-8 rows (at 224 px) above the drape stand 15-60 mm in
+    front of the wall and 30-60 mm below the cloth over the post, then the depth jumps by
+    about 250 mm to the cloth: the sensor's mix of wall and cloth, counted as cloth by the
+    margin. A drape with no cap (the synthetic world's) is unchanged.
+    """
+    med = _top_band(height)
+    if not med:
+        return height
+    top = max(m for _, m in med)
+    first = next(r for r, m in med if m >= top - tolerance_mm)
+    if first == med[0][0]:
+        return height
+    out = height.copy()
+    out[:first] = 0.0
+    return out
+
+
 def drape_top(height: F32, rule: TopRule = "first_rows") -> float | None:
     """The height (mm) of the drape's top, where the post holds it; None without cloth.
 
@@ -530,24 +590,21 @@ def drape_top(height: F32, rule: TopRule = "first_rows") -> float | None:
     sensor mixes the two, a few rows of wall pixels stand more than the margin in front of
     the fitted wall and count as cloth, and their heights vary by about 25 mm within one
     fabric (the cloth over the post: 7 mm; docs/results/real-depth.md, "Where the drape's top
-    is read").
+    is read"). ``cloth_top`` reads the top as ``highest_row`` does; `heights_from_top` then also
+    drops the cap (`without_cap`) and `drape_post` places the drape by the cloth's top.
 
     Raises:
-        ValueError: ``rule`` is neither.
+        ValueError: ``rule`` is none of the three.
     """
-    if rule not in ("first_rows", "highest_row"):
-        raise ValueError(f"unknown drape-top rule {rule!r}: first_rows or highest_row")
+    if rule not in ("first_rows", "highest_row", "cloth_top"):
+        raise ValueError(f"unknown drape-top rule {rule!r}: first_rows, highest_row or cloth_top")
     cloth = height > 0
     rows = np.flatnonzero(cloth.any(axis=1))
     if len(rows) == 0:
         return None
     scale = height.shape[0] / GELFABRIC_SIZE
-    if rule == "highest_row":
-        band = max(4, round(16 * scale))
-        last = min(rows[0] + band, height.shape[0])
-        return max(
-            float(np.median(height[r][cloth[r]])) for r in range(rows[0], last) if cloth[r].any()
-        )
+    if rule != "first_rows":
+        return max(m for _, m in _top_band(height))
     band = max(2, round(4 * scale))
     return float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
 
@@ -558,8 +615,11 @@ def heights_from_top(height: F32, top_mm: float, rule: TopRule = "first_rows") -
     ``top`` is `drape_top` by ``rule`` (``data.depth_top_from``); every cloth pixel becomes
     ``height - top + top_mm``, at least 1 mm so that it stays cloth (0 is no cloth). A shift
     of the fitted floor then changes nothing: only the floor's orientation is used
-    (``data.depth_top_mm``). Unchanged when there is no cloth.
+    (``data.depth_top_mm``). With ``cloth_top`` the cap above the drape is dropped first
+    (`without_cap`). Unchanged when there is no cloth.
     """
+    if rule == "cloth_top":
+        height = without_cap(height)
     cloth = height > 0
     top = drape_top(height, rule)
     if top is None:
