@@ -11,6 +11,9 @@ network's size, and summarised the same way:
 - ``height_by_row``: median cloth height (mm) in each eighth of the rows;
 - ``top_mm``: where the drape's top is read (`lookfeel.data.register.drape_top`), by each rule,
   with its spread within one fabric's drapes;
+- ``cap``: the rows of the sensor's wall-and-cloth mix above the drape that
+  `lookfeel.data.register.without_cap` drops (``depth_top_from: cloth_top``), at the image's
+  own size, and how far the drape's top moves when it is read below them (`drape_post`);
 - ``profile_gap``: the mean absolute difference of the two worlds' width profiles, as a share
   of the real one's mean width (0: the same silhouettes on average).
 
@@ -23,6 +26,7 @@ written to ``docs/images/registered_real_vs_synth.png``. Needs --data.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import tempfile
 from pathlib import Path
@@ -36,10 +40,12 @@ from lookfeel.config import RunConfig, load_config
 from lookfeel.data.images import decode_depth, registered_to_unit
 from lookfeel.data.register import (
     drape_mask,
+    drape_post,
     drape_top,
     placed_heights,
     register_depth,
     registered_intrinsics,
+    without_cap,
 )
 from lookfeel.modality import Modality
 from lookfeel.synth import SynthConfig, generate
@@ -53,9 +59,13 @@ BANDS = 8
 
 
 def _inputs(files: list[Path], overrides: list[str]) -> dict[str, Any]:
-    """Registered network inputs (mm) of ``files`` and each one's drape top by both rules."""
+    """Registered network inputs (mm) of ``files``, each one's drape top by both rules, the
+    rows of its cap and how far its top moves without them."""
     data = load_config(RunConfig, CONFIG, overrides).data
-    heights, fabrics, tops = [], [], []
+    capless = dataclasses.replace(
+        data, depth_top_from="cloth_top", depth_top_mm=data.depth_top_mm or 300.0
+    )
+    heights, fabrics, tops, caps, shifts = [], [], [], [], []
     for f in files:
         d = decode_depth(f)
         reg = register_depth(
@@ -63,11 +73,21 @@ def _inputs(files: list[Path], overrides: list[str]) -> dict[str, Any]:
         )
         drape = np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0))
         tops.append((drape_top(drape, "first_rows"), drape_top(drape, "highest_row")))
+        kept = without_cap(drape)
+        caps.append(int(((drape > 0).any(axis=1) & ~(kept > 0).any(axis=1)).sum()))
+        a, b = reg.post_uv, drape_post(reg, kept, capless)
+        shifts.append((b[0] - a[0], b[1] - a[1]) if a is not None and b is not None else (0, 0))
         h = placed_heights(reg, data)
         heights.append(registered_to_unit(h, data) * data.depth_range_mm)
         m = re.match(r"F(\d+)", f.name)
         fabrics.append(int(m.group(1)) if m else -1)
-    return {"x": np.stack(heights), "fabric": np.array(fabrics), "tops": np.array(tops, float)}
+    return {
+        "x": np.stack(heights),
+        "fabric": np.array(fabrics),
+        "tops": np.array(tops, float),
+        "cap_rows": np.array(caps, float),
+        "top_shift": np.array(shifts, float),
+    }
 
 
 def _spread(values: NDArray[np.float64], fabric: NDArray[np.int64]) -> dict[str, float]:
@@ -98,6 +118,19 @@ def summarise(world: dict[str, Any]) -> dict[str, Any]:
             "first_rows": _spread(tops[:, 0], fabric),
             "highest_row": _spread(tops[:, 1], fabric),
         },
+        "cap": _cap(world["cap_rows"], world["top_shift"]),
+    }
+
+
+def _cap(rows: NDArray[np.float64], shift: NDArray[np.float64]) -> dict[str, Any]:
+    """The cap's rows per image and the drape top's move (px) when it is dropped."""
+    return {
+        "images_with_cap": round(float((rows > 0).mean()), 3),
+        "rows_median_p10_p90": [float(np.percentile(rows, q)) for q in (50, 10, 90)],
+        "top_down_px_median_p10_p90": [
+            round(float(np.percentile(shift[:, 1], q)), 2) for q in (50, 10, 90)
+        ],
+        "top_sideways_px_abs_p90": round(float(np.percentile(np.abs(shift[:, 0]), 90)), 2),
     }
 
 

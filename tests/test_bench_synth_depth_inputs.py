@@ -18,7 +18,9 @@ def test_summary_reads_widths_heights_and_spreads_of_known_drapes() -> None:
         x[i, : size // 2, :w] = 100.0 + 10 * i
     fabric = np.array([1, 1, 2, 2])
     tops = np.array([[250.0, 300.0], [260.0, 300.0], [250.0, 310.0], [260.0, 310.0]])
-    s = summarise({"x": x, "fabric": fabric, "tops": tops})
+    caps = np.array([0.0, 6.0, 5.0, 8.0])
+    shift = np.array([[0.0, 0.0], [1.0, 6.0], [-2.0, 5.0], [0.5, 8.0]])
+    s = summarise({"x": x, "fabric": fabric, "tops": tops, "cap_rows": caps, "top_shift": shift})
     assert s["images"] == 4 and s["fabrics"] == 2
     assert s["width_by_row"][: BANDS // 2] == [pytest.approx(np.mean(widths))] * (BANDS // 2)
     assert s["width_by_row"][BANDS // 2 :] == [0.0] * (BANDS // 2)
@@ -35,3 +37,8 @@ def test_summary_reads_widths_heights_and_spreads_of_known_drapes() -> None:
     assert s["top_mm"]["first_rows"]["between_fabrics_sd"] == pytest.approx(0.0)
     assert s["top_mm"]["highest_row"]["within_fabric_sd"] == pytest.approx(0.0)
     assert s["top_mm"]["highest_row"]["between_fabrics_sd"] == pytest.approx(5.0)
+    # Three of the four images have a cap; the top moves down by the cap's rows.
+    assert s["cap"]["images_with_cap"] == pytest.approx(0.75)
+    assert s["cap"]["rows_median_p10_p90"][0] == pytest.approx(5.5)
+    assert s["cap"]["top_down_px_median_p10_p90"][0] == pytest.approx(5.5)
+    assert s["cap"]["top_sideways_px_abs_p90"] == pytest.approx(np.percentile([0, 1, 2, 0.5], 90))
