@@ -598,14 +598,14 @@ def drape_top(height: F32, rule: TopRule = "first_rows") -> float | None:
     """
     if rule not in ("first_rows", "highest_row", "cloth_top"):
         raise ValueError(f"unknown drape-top rule {rule!r}: first_rows, highest_row or cloth_top")
+    if rule != "first_rows":
+        medians = _top_band(height)
+        return max(m for _, m in medians) if medians else None
     cloth = height > 0
     rows = np.flatnonzero(cloth.any(axis=1))
     if len(rows) == 0:
         return None
-    scale = height.shape[0] / GELFABRIC_SIZE
-    if rule != "first_rows":
-        return max(m for _, m in _top_band(height))
-    band = max(2, round(4 * scale))
+    band = max(2, round(4 * height.shape[0] / GELFABRIC_SIZE))
     return float(np.median(height[rows[0] : rows[0] + band][cloth[rows[0] : rows[0] + band]]))
 
 
