@@ -108,7 +108,8 @@ class DataConfig:
     ``highest_row``: the highest of the row medians over its top rows, the cloth over the
     post (GelFabric's first rows are often the sensor's mix of wall and cloth);
     ``cloth_top``: as ``highest_row``, and the rows of that mix above the cloth are dropped
-    and the drape placed by the cloth's own top (`lookfeel.data.register.without_cap`)."""
+    and the drape placed by the cloth's own top (`lookfeel.data.register.without_cap`; the
+    real-depth recipe's choice since session 35, with ``depth_top_mm: 308``)."""
     depth_post_at: tuple[float, float] | None = None
     """Registered input: move the drape so that its top (where the post holds it,
     `lookfeel.data.register.Registration.post_uv`) lies at this (x, y), as fractions of the
