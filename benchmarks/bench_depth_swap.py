@@ -11,6 +11,11 @@ time, the rest as the image was:
 
 - ``as_is``; ``swapped``: the control as ``cv`` computes it (partner drawn with seed 0);
 - ``swap_mask``: the image's own heights on the composite's cloth mask;
+- ``mask_low``, ``mask_high``, ``mask_gained``: one part of that mask's change at a time, the
+  drape kept where it is (its own top): only the cloth the composite loses lower than
+  `LOW_MM` above the image's own floor dropped (the drape's foot on the floor), only the cloth
+  it loses higher up dropped, or only the pixels it gains added (at the composite's heights
+  less the fitted plane, as ``swap_mask`` adds them);
 - ``swap_top``: the image's own heights and mask, moved by the composite's drape top;
 - ``swap_level``: own mask, heights changed by the plane (in image coordinates) fitted to
   the composite's change of height; ``swap_shift``: that plane's mean only; ``swap_tilt``:
@@ -24,6 +29,12 @@ time, the rest as the image was:
 Every variant then goes through the run's own settings (``depth_min_height_mm``,
 ``depth_top_mm``, ``depth_post_at``, the map to [0, 1] and the resize).
 
+Each run's row also says where the composite's cloth differs from the image's own
+(``mask``, `mask_changes`, at the registration's resolution, before the resize): the cloth
+pixels the composite loses and those it gains, the lost ones counted by their height above the
+image's own fitted floor and by their distance from the own cloth's edge, and the fraction of
+its cloth each image loses (quantiles over the run's images).
+
     python -m benchmarks.bench_depth_swap --data ../shared/data/gelfabric --cv CV \
         [--runs seed0-fold0,...] [--out JSON]
 """
@@ -32,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import json
 import sys
 import time
@@ -55,6 +67,59 @@ def _plane(h0: np.ndarray, h1: np.ndarray) -> np.ndarray:
     c, *_ = np.linalg.lstsq(a, (h1 - h0)[both], rcond=None)
     vv, uu = np.mgrid[: h0.shape[0], : h0.shape[1]]
     return (c[0] * uu + c[1] * vv + c[2]).astype(np.float32)
+
+
+LOW_MM = 30.0
+"""``mask_low`` / ``mask_high``: lost cloth lower / higher than this above the own floor."""
+HEIGHT_BANDS_MM = (0.0, 15.0, 30.0, 60.0, float("inf"))
+"""`mask_changes`: the bands of height above the own floor the lost cloth is counted in."""
+EDGE_BANDS_PX = (0.0, 1.5, 3.5, 8.5, float("inf"))
+"""`mask_changes`: the bands of distance from the own cloth's edge (pixels; 1 is the rim)."""
+
+
+def _bands(values: np.ndarray, edges: tuple[float, ...], unit: str) -> dict[str, int]:
+    return {
+        f"{lo:g}-{hi:g} {unit}": int(((values > lo) & (values <= hi)).sum())
+        for lo, hi in itertools.pairwise(edges)
+    }
+
+
+def mask_changes(
+    own: list[np.ndarray], comp: list[np.ndarray], above_floor: list[np.ndarray]
+) -> dict[str, Any]:
+    """Where each composite's cloth (``comp[i] > 0``) differs from its image's own (``own[i] >
+    0``), summed over the images; ``above_floor[i]``: the own cloth's heights above its own
+    fitted floor (mm), which band the lost pixels.
+
+    Returns ``own_cloth``, ``lost`` and ``gained`` pixel counts, ``lost_by_height`` (bands of
+    `HEIGHT_BANDS_MM`), ``lost_by_edge`` (distance from the own cloth's edge, `EDGE_BANDS_PX`;
+    a pixel next to the background is 1) and ``lost_fraction`` (the 50th, 75th and 90th
+    percentile over the images of the fraction of its own cloth each loses).
+    """
+    from scipy import ndimage
+
+    lost_h, lost_d, fractions = [], [], []
+    own_px = lost_px = gained_px = 0
+    for h0, h1, floor in zip(own, comp, above_floor, strict=True):
+        m0, m1 = h0 > 0, h1 > 0
+        lost = m0 & ~m1
+        own_px += int(m0.sum())
+        lost_px += int(lost.sum())
+        gained_px += int((m1 & ~m0).sum())
+        fractions.append(lost.sum() / max(1, int(m0.sum())))
+        lost_h.append(floor[lost])
+        lost_d.append(ndimage.distance_transform_edt(m0)[lost])
+    return {
+        "own_cloth": own_px,
+        "lost": lost_px,
+        "gained": gained_px,
+        "lost_by_height": _bands(np.concatenate(lost_h or [np.zeros(0)]), HEIGHT_BANDS_MM, "mm"),
+        "lost_by_edge": _bands(np.concatenate(lost_d or [np.zeros(0)]), EDGE_BANDS_PX, "px"),
+        "lost_fraction": {
+            f"p{q}": round(float(np.percentile(fractions, q)), 4) if fractions else 0.0
+            for q in (50, 75, 90)
+        },
+    }
 
 
 def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
@@ -140,6 +205,10 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         variants["as_is"].append(finish(h0, p0))
         variants["swapped"].append(finish(h1, p1))
         variants["swap_mask"].append(finish(back, p1))
+        lost, low = cl & (h1 <= 0), own_floor[i] < LOW_MM
+        variants["mask_low"].append(finish(np.where(lost & low, 0.0, h0), p0))
+        variants["mask_high"].append(finish(np.where(lost & ~low, 0.0, h0), p0))
+        variants["mask_gained"].append(finish(np.where(cl, h0, back), p0))
         variants["swap_top"].append(finish(h0, p1))
         variants["swap_level"].append(finish(level(plane), p0))
         variants["swap_shift"].append(finish(level(mean), p0))
@@ -152,6 +221,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         variants["room"].append(finish(kept, drape_post(in_room, kept, dc)))
         variants["room_own_top"].append(finish(kept, p0))
     row: dict[str, Any] = {"run": run_dir.name, "queries": len(items)}
+    row["mask"] = mask_changes([h for h, _ in own], [h for h, _ in comp], own_floor)
     return row | score_variants(lm, items, fabric, variants)
 
 
@@ -159,6 +229,9 @@ _VARIANTS = (
     "as_is",
     "swapped",
     "swap_mask",
+    "mask_low",
+    "mask_high",
+    "mask_gained",
     "swap_top",
     "swap_level",
     "swap_shift",
@@ -195,7 +268,17 @@ def main(argv: list[str] | None = None) -> int:
         v: {who: float(np.mean([r[v][who] for r in rows])) for who in ("model", "raw_pixels")}
         for v in _VARIANTS
     }
-    result = {"runs": rows, "mean": mean, "seconds": round(time.perf_counter() - started, 1)}
+    masks = [r["mask"] for r in rows]
+    mask_total = {k: sum(m[k] for m in masks) for k in ("own_cloth", "lost", "gained")} | {
+        k: {band: sum(m[k][band] for m in masks) for band in masks[0][k]}
+        for k in ("lost_by_height", "lost_by_edge")
+    }
+    result = {
+        "runs": rows,
+        "mean": mean,
+        "mask": mask_total,
+        "seconds": round(time.perf_counter() - started, 1),
+    }
     print(json.dumps(mean, indent=1))
     if args.out is not None:
         write_result(result, args.out, "bench_depth_swap", argv)
