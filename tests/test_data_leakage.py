@@ -265,3 +265,28 @@ def test_position_names_the_depth_file_it_cannot_register(tmp_path, capsys):
     assert main(["data", "leakage", str(root), "--position"]) != 0
     err = capsys.readouterr().err
     assert str(bad) in err and "Traceback" not in err
+
+
+def test_position_names_the_depth_images_whose_floor_the_cloth_hides(tmp_path):
+    """A drape spread over the whole floor leaves registration no floor to fit: the position
+    check says how many images that is and names one, in its text and as a warning."""
+    from lookfeel.data.leakage import position_leakage
+
+    from ._scene import Scene
+
+    root = _write_posts(tmp_path / "posts", moved=False, fabrics=10, drapes=2)
+    hidden = root / "depth" / "F0004_Depth_New_000001.png"
+    scene = Scene(size=40, f=90.0 * 40 / 64, peak_mm=200.0, spread_mm=400.0, seed=5)
+    Image.fromarray(scene.render()["depth"]).save(hidden)
+    got = position_leakage(scan(root), n_boot=50)
+    assert not isinstance(got, str)
+    assert got.no_floor == (str(hidden),)
+    report = leakage_report(scan(root), n_boot=50, position=True)
+    text = format_leakage(report)
+    assert "no floor found in 1 of 20 depth images" in text and str(hidden) in text
+    (problem,) = [p for p in leakage_problems(report) if "no floor" in p.message]
+    assert problem.path == hidden and problem.severity == "warning"
+    assert report.to_dict()["position"]["no_floor"] == [str(hidden)]
+    # Every floor in view: nothing to say.
+    clean = position_leakage(scan(_write_posts(tmp_path / "clean", moved=False)), n_boot=50)
+    assert not isinstance(clean, str) and clean.no_floor == ()

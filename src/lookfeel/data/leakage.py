@@ -152,6 +152,9 @@ class PositionLeakage:
         drape_centroid: the drape's centroid.
         chance: top-1 of random guessing.
         leak: whether either interval lies above ``factor`` x chance.
+        no_floor: the depth images in which registration found no floor plane (the cloth
+            hides it, or the camera does not see it): their heights are measured from the
+            nearest wall instead, so registered depth does not compare them with the rest.
     """
 
     n_items: int
@@ -161,6 +164,7 @@ class PositionLeakage:
     drape_centroid: PositionScore
     chance: float
     leak: bool
+    no_floor: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = _json_num(asdict(self))
@@ -484,7 +488,13 @@ def position_leakage(
         RegistrationError: a file whose room cannot be fitted (named).
     """
     from lookfeel.data.images import decode_depth
-    from lookfeel.data.register import RegistrationError, registered_heights
+    from lookfeel.data.register import (
+        RegistrationError,
+        drape_post,
+        kept_heights,
+        register_depth,
+        registered_intrinsics,
+    )
 
     items = catalog.items(Modality.DEPTH)
     fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
@@ -493,14 +503,22 @@ def position_leakage(
         return too_few
     cfg = config if config is not None else DataConfig(depth_input="registered")
 
-    def one(it: Item) -> tuple[tuple[int, int], list[float]]:
+    def one(it: Item) -> tuple[tuple[int, int], list[float], bool]:
+        """(image shape, [post u, v, centroid u, v], whether a floor was fitted), the cloth
+        registered and kept as `registered_heights` keeps it."""
         try:
-            height, post = registered_heights(decode_depth(it.path), cfg)
+            depth = decode_depth(it.path)
+            reg = register_depth(
+                depth, registered_intrinsics(depth.shape, cfg), margin_mm=cfg.depth_margin_mm
+            )
         except RegistrationError as e:
             raise RegistrationError(f"{it.path}: cannot register depth: {e}") from None
+        height = kept_heights(reg, cfg)
+        post = drape_post(reg, height, cfg)
         cloth = np.argwhere(height > 0)
         centroid = cloth.mean(axis=0)[::-1].tolist() if len(cloth) else [math.nan] * 2
-        return height.shape, [*(post if post is not None else (math.nan, math.nan)), *centroid]
+        uv = [*(post if post is not None else (math.nan, math.nan)), *centroid]
+        return height.shape, uv, reg.plane("floor") is not None
 
     with ThreadPoolExecutor(max(1, workers)) as ex:
         rows = list(ex.map(one, items))
@@ -516,6 +534,7 @@ def position_leakage(
         drape_centroid=centroid,
         chance=chance,
         leak=leak,
+        no_floor=tuple(str(it.path) for it, r in zip(items, rows, strict=True) if not r[2]),
     )
 
 
@@ -681,7 +700,17 @@ def _position_lines(p: PositionLeakage, factor: float) -> list[str]:
         )
     else:
         lines.append(f"  no leak found: position top-1 is not far above chance ({factor:g}x)")
+    if p.no_floor:
+        lines.append(f"  {_no_floor(p)}, e.g. {p.no_floor[0]}")
     return lines
+
+
+def _no_floor(p: PositionLeakage) -> str:
+    return (
+        f"no floor found in {len(p.no_floor)} of {p.n_items} depth images (the cloth hides "
+        "it, or the camera does not see it): their heights are measured from the nearest "
+        "wall, so registered depth does not compare them with the rest"
+    )
 
 
 def leakage_problems(report: LeakageReport) -> list[Problem]:
@@ -702,6 +731,10 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
             )
         ]
     )
+    if pos is not None and pos.no_floor:
+        moved.append(
+            Problem(Path(pos.no_floor[0]), f"{_no_floor(pos)}; this one among them", "warning")
+        )
     return moved + [
         Problem(
             report.root / m.modality.value,
