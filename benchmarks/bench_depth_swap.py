@@ -10,6 +10,9 @@ exact, top-1; model and raw pixels of the same inputs) with one part of the swap
 time, the rest as the image was:
 
 - ``as_is``; ``swapped``: the control as ``cv`` computes it (partner drawn with seed 0);
+- ``swap_partner_room``: the composite registered in the room fitted on the partner's own
+  image (`register_in_room`, no fit on the composite): the swap with the composite's room fit
+  made exact, so what ``swapped`` loses beyond it is the fit's error;
 - ``swap_mask``: the image's own heights on the composite's cloth mask;
 - ``mask_low``, ``mask_high``, ``mask_gained``: one part of that mask's change at a time, the
   drape kept where it is (its own top): only the cloth the composite loses lower than
@@ -205,6 +208,11 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
         variants["as_is"].append(finish(h0, p0))
         variants["swapped"].append(finish(h1, p1))
         variants["swap_mask"].append(finish(back, p1))
+        exact = register_in_room(
+            sw.images[i], regs[int(sw.partner[i])].planes, k, margin_mm=dc.depth_margin_mm
+        )
+        exact_kept = kept_heights(exact, dc)
+        variants["swap_partner_room"].append(finish(exact_kept, drape_post(exact, exact_kept, dc)))
         lost, low = cl & (h1 <= 0), own_floor[i] < LOW_MM
         variants["mask_low"].append(finish(np.where(lost & low, 0.0, h0), p0))
         variants["mask_high"].append(finish(np.where(lost & ~low, 0.0, h0), p0))
@@ -228,6 +236,7 @@ def one_run(run_dir: Path, catalog: Catalog) -> dict[str, Any]:
 _VARIANTS = (
     "as_is",
     "swapped",
+    "swap_partner_room",
     "swap_mask",
     "mask_low",
     "mask_high",
