@@ -715,7 +715,8 @@ def _no_floor(p: PositionLeakage) -> str:
 
 def leakage_problems(report: LeakageReport) -> list[Problem]:
     """One warning per leak found (background per modality; the drape's position), for
-    ``lookfeel data check``."""
+    ``lookfeel data check``, and one naming the depth images with no floor fitted (with the
+    position check)."""
     pos = report.position
     moved = (
         []
