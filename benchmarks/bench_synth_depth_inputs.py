@@ -43,8 +43,7 @@ from lookfeel.data.register import (
     drape_post,
     drape_top,
     placed_heights,
-    register_depth,
-    registered_intrinsics,
+    register_configured,
     without_cap,
 )
 from lookfeel.modality import Modality
@@ -68,9 +67,7 @@ def _inputs(files: list[Path], overrides: list[str]) -> dict[str, Any]:
     heights, fabrics, tops, caps, shifts = [], [], [], [], []
     for f in files:
         d = decode_depth(f)
-        reg = register_depth(
-            d, registered_intrinsics(d.shape, data), margin_mm=data.depth_margin_mm
-        )
+        reg = register_configured(d, data)
         drape = np.where(drape_mask(reg.cloth), reg.height, np.float32(0.0))
         tops.append((drape_top(drape, "first_rows"), drape_top(drape, "highest_row")))
         kept = without_cap(drape)

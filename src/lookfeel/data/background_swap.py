@@ -62,6 +62,7 @@ from lookfeel.data.register import (
     RegistrationError,
     drape_mask,
     placed_heights,
+    register_configured,
     register_depth,
     register_in_room,
     registered_intrinsics,
@@ -214,11 +215,7 @@ class BackgroundControl:
         if got is None:
             d = decode_depth(item.path)
             try:
-                reg = register_depth(
-                    d,
-                    registered_intrinsics(d.shape, self.config),
-                    margin_mm=self.config.depth_margin_mm,
-                )
+                reg = register_configured(d, self.config)
             except RegistrationError as e:
                 raise RegistrationError(f"{item.path}: background control: {e}") from None
             cloth = drape_mask(reg.cloth) if self.config.depth_cloth == "drape" else reg.cloth

@@ -492,8 +492,7 @@ def position_leakage(
         RegistrationError,
         drape_post,
         kept_heights,
-        register_depth,
-        registered_intrinsics,
+        register_configured,
     )
 
     items = catalog.items(Modality.DEPTH)
@@ -507,10 +506,7 @@ def position_leakage(
         """(image shape, [post u, v, centroid u, v], whether a floor was fitted), the cloth
         registered and kept as `registered_heights` keeps it."""
         try:
-            depth = decode_depth(it.path)
-            reg = register_depth(
-                depth, registered_intrinsics(depth.shape, cfg), margin_mm=cfg.depth_margin_mm
-            )
+            reg = register_configured(decode_depth(it.path), cfg)
         except RegistrationError as e:
             raise RegistrationError(f"{it.path}: cannot register depth: {e}") from None
         height = kept_heights(reg, cfg)
@@ -718,10 +714,9 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
     ``lookfeel data check``, and one naming the depth images with no floor fitted (with the
     position check)."""
     pos = report.position
-    moved = (
-        []
-        if pos is None or not pos.leak
-        else [
+    found: list[Problem] = []
+    if pos is not None and pos.leak:
+        found.append(
             Problem(
                 report.root / Modality.DEPTH.value,
                 f"where the drape lies in registered depth identifies the fabric at pick-1-of-10 "
@@ -730,13 +725,12 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
                 "--position`; data.depth_post_at removes it)",
                 "warning",
             )
-        ]
-    )
+        )
     if pos is not None and pos.no_floor:
-        moved.append(
+        found.append(
             Problem(Path(pos.no_floor[0]), f"{_no_floor(pos)}; this one among them", "warning")
         )
-    return moved + [
+    return found + [
         Problem(
             report.root / m.modality.value,
             f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "

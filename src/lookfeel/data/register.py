@@ -61,6 +61,7 @@ __all__ = [
     "kept_heights",
     "move_drape",
     "placed_heights",
+    "register_configured",
     "register_depth",
     "register_in_room",
     "registered_heights",
@@ -488,6 +489,19 @@ def registered_intrinsics(shape: tuple[int, ...], config: DataConfig) -> Intrins
     return Intrinsics(config.depth_focal_px, (w - 1) / 2.0, (h - 1) / 2.0)
 
 
+def register_configured(depth_mm: NDArray[np.generic], config: DataConfig) -> Registration:
+    """`register_depth` with ``config``'s camera (``depth_focal_px``; `registered_intrinsics`)
+    and margin (``depth_margin_mm``), as every registered run registers its depth.
+
+    Raises:
+        RegistrationError: no room could be fitted (the message says what is missing).
+    """
+    d = np.asarray(depth_mm)
+    return register_depth(
+        d, registered_intrinsics(d.shape, config), margin_mm=config.depth_margin_mm
+    )
+
+
 def registered_heights(
     depth_mm: NDArray[np.generic], config: DataConfig
 ) -> tuple[F32, tuple[float, float] | None]:
@@ -503,10 +517,7 @@ def registered_heights(
     Raises:
         RegistrationError: no room could be fitted (the message says what is missing).
     """
-    d = np.asarray(depth_mm)
-    reg = register_depth(
-        d, registered_intrinsics(d.shape, config), margin_mm=config.depth_margin_mm
-    )
+    reg = register_configured(depth_mm, config)
     kept = kept_heights(reg, config)
     return kept, drape_post(reg, kept, config)
 
