@@ -412,3 +412,93 @@ def test_cloth_top_drops_a_cap_of_wall_pixels_and_places_the_drape_by_its_cloth(
     assert np.array_equal(without_cap(h0), h0)  # nothing to drop on a drape with no cap
     assert np.array_equal(without_cap(np.zeros_like(h0)), np.zeros_like(h0))
     assert PreprocessSettings.of(cfg).digest() != PreprocessSettings.of(high).digest()
+
+
+# A drape hanging near the back wall: the top of its silhouette stands 15-35 mm in front of it.
+NEAR_WALL = Scene(size=96, f=135.0, cloth_offset=(0.0, 520.0), spread_mm=150.0)
+
+
+def test_wall_views_drop_only_the_cloth_near_the_walls_and_keep_its_heights():
+    """`data.depth_wall_views`: each view is the image with the cloth nearest the fitted walls
+    dropped (never further from them than the largest shift and tilt), the rest of the drape
+    at its own heights and place; deterministic for a seed."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.register import register_configured, registered_input, wall_gaps, wall_views
+
+    depth = NEAR_WALL.render()["depth"]
+    config = DataConfig(
+        image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
+        depth_wall_views=8, depth_wall_shift_mm=20.0, depth_wall_tilt_mm=5.0,
+        depth_post_at=(0.5, 0.1),
+    )  # fmt: skip
+    views = wall_views(depth, config, seed=3)
+    assert len(views) == 1 + 8
+    image = registered_input(depth, config)
+    assert np.array_equal(views[0], image)
+    reg = register_configured(depth, config)
+    assert {p.label for p in reg.planes} >= {"floor", "wall"}
+    # Gaps to the walls, where each pixel's cloth stands in the image as the views place it.
+    unmoved = dataclasses.replace(config, depth_post_at=None)
+    gap = wall_gaps(depth, reg, config).min(axis=0)
+    still = wall_views(depth, unmoved, seed=3)
+    cloth = still[0] > 0
+    assert (gap[cloth] < 20.0).sum() > 30  # the scene has cloth near the wall to drop
+    dropped_any = 0
+    for view, plain in zip(views[1:], still[1:], strict=True):
+        kept = plain > 0
+        assert not (kept & ~cloth).any()
+        assert np.array_equal(plain[kept], still[0][kept])  # the cloth's own heights
+        gone = cloth & ~kept
+        assert (gap[gone] <= 20.0 + 5.0 * np.sqrt(2)).all()  # the walls moved 25 mm at most
+        dropped_any += int(gone.sum())
+        assert (view <= image + 1e-4).all()  # placed as the image: a subset of its cloth
+    assert dropped_any > 0
+    again = wall_views(depth, config, seed=3)
+    assert all(np.array_equal(a, b) for a, b in zip(again, views, strict=True))
+    other = wall_views(depth, config, seed=4)
+    assert any(not np.array_equal(a, b) for a, b in zip(other[1:], views[1:], strict=True))
+
+
+def test_wall_views_through_the_loader_and_the_store(tmp_path):
+    """The loader gives a drape's image first, then its wall views (cached on disk under
+    their own key); a training store draws among them; the image alone is what `array` reads
+    and what the cache key of the image stays."""
+    import torch
+
+    from lookfeel.config import DataConfig
+    from lookfeel.data.catalog import Item
+    from lookfeel.data.images import ImageLoader, PreprocessSettings
+    from lookfeel.data.tensors import ImageStore
+    from lookfeel.modality import Modality
+
+    path = _write(tmp_path / "F0001_Depth_New_000000.png", NEAR_WALL.render()["depth"])
+    plain = DataConfig(
+        image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
+        cache_dir=str(tmp_path / "cache"),
+    )  # fmt: skip
+    config = dataclasses.replace(plain, depth_wall_views=4)
+    assert PreprocessSettings.of(config) == PreprocessSettings.of(plain)
+    item = Item(Modality.DEPTH, 1, (path,))
+    loader = ImageLoader(config)
+    assert loader.has_views(item) and not ImageLoader(plain).has_views(item)
+    views = loader.views(item)
+    assert views.shape == (5, 32, 32) and views.dtype == np.float32
+    assert np.array_equal(views[0], ImageLoader(plain).array(path, Modality.DEPTH))
+    assert len(list((tmp_path / "cache").rglob("*_wall4_20_5.npy"))) == 1
+    assert np.array_equal(ImageLoader(config).views(item), views)  # read back from disk
+    store = ImageStore(ImageLoader(config), [item], views=True)
+    rows = torch.tensor(store.rows(Modality.DEPTH, [item]) * 64)
+    drawn = store.draw_views(Modality.DEPTH, rows, np.random.default_rng(0))
+    assert set(drawn.tolist()) == set(range(5))
+    assert torch.equal(store.batch(Modality.DEPTH, [0])[0, 0], torch.from_numpy(views[0]))
+
+
+def test_wall_views_need_registered_depth():
+    from lookfeel.config import ConfigError, DataConfig
+
+    with pytest.raises(ConfigError, match="data.depth_wall_views: drops cloth near the fitted"):
+        DataConfig(depth_wall_views=4)
+    with pytest.raises(ConfigError, match="data.depth_wall_views: must be >= 0"):
+        DataConfig(depth_input="registered", depth_wall_views=-1)
+    with pytest.raises(ConfigError, match="data.depth_wall_shift_mm must be > 0"):
+        DataConfig(depth_input="registered", depth_wall_shift_mm=0.0)

@@ -535,10 +535,13 @@ class ImageLoader:
 
     def has_views(self, item: Item) -> bool:
         """Whether ``item`` has several training views: a press video with ``video_views`` >
-        1, or a colour photo with re-printed renders in its dataset's ``reprints/`` folder and
-        ``color_reprints`` > 0 (`uses_reprints`)."""
+        1, a colour photo with re-printed renders in its dataset's ``reprints/`` folder and
+        ``color_reprints`` > 0 (`uses_reprints`), or a depth image with ``depth_wall_views``
+        > 0 (registered input)."""
         if item.modality is Modality.COLOR:
             return self.uses_reprints(item.path)
+        if item.modality is Modality.DEPTH:
+            return self.config.depth_wall_views > 0
         return (
             item.modality is Modality.TOUCH
             and self.config.video_views > 1
@@ -559,7 +562,9 @@ class ImageLoader:
         """(V, S, S, 3) uint8 training views of one item: its image first (``load``'s), then
         for a press video with ``video_views`` > 1 its other deep frames (`deep_frames`), for
         a colour photo with ``color_reprints`` N its N re-printed renders (`reprint_path`);
-        (1, ...) for every other item. Cached in memory and on disk like images.
+        for a registered drape with ``depth_wall_views`` N, (1 + N, S, S) float32: its image
+        and N views with the cloth near the walls dropped (`_read_wall_views`); (1, ...) for
+        every other item. Cached in memory and on disk like images.
 
         Raises:
             ImageError: a photo has fewer than N renders (naming the missing file), or one
@@ -572,8 +577,36 @@ class ImageLoader:
         if v is None:
             if item.modality is Modality.COLOR:
                 v = self._read_reprints(path)
+            elif item.modality is Modality.DEPTH:
+                v = self._read_wall_views(path)
             else:
                 v = self._read_press_views(path)[0]
+        return v
+
+    def _read_wall_views(self, path: Path) -> np.ndarray:
+        """(1 + N, S, S) float32: a registered drape's image, then its ``data.depth_wall_views``
+        N views with the cloth near the walls dropped (`lookfeel.data.register.wall_views`),
+        drawn from a seed of the file's content; cached on disk under their own key."""
+        from lookfeel.data.register import RegistrationError, wall_views
+
+        c = self.config
+        data = read_image_file(path)
+
+        def build() -> np.ndarray:
+            seed = int.from_bytes(hashlib.sha1(data).digest()[:8], "little")
+            try:
+                heights = wall_views(decode_depth(path, data), c, seed)
+            except RegistrationError as e:
+                raise RegistrationError(
+                    f"{path}: cannot register depth (data.depth_input: registered): {e}"
+                ) from None
+            return np.stack([registered_to_unit(x, c) for x in heights])
+
+        suffix = f"wall{c.depth_wall_views}_{c.depth_wall_shift_mm:g}_{c.depth_wall_tilt_mm:g}"
+        v = self._cached(data, suffix, build)
+        with self._lock:
+            self._views[path] = v
+            self._memory.setdefault(path, v[0])
         return v
 
     def _read_reprints(self, photo: Path) -> np.ndarray:

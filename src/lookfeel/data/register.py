@@ -67,6 +67,8 @@ __all__ = [
     "registered_heights",
     "registered_input",
     "registered_intrinsics",
+    "wall_gaps",
+    "wall_views",
     "without_cap",
 ]
 
@@ -666,3 +668,64 @@ def registered_input(depth_mm: NDArray[np.generic], config: DataConfig) -> F32:
     """
     height, post = registered_heights(depth_mm, config)
     return move_drape(height, post, config.depth_post_at)
+
+
+def wall_gaps(depth_mm: NDArray[np.generic], reg: Registration, config: DataConfig) -> F32:
+    """(P, H, W) how far each pixel's point lies in front of each fitted plane but the floor,
+    less ``config.depth_margin_mm`` (mm; cloth is where every gap is above 0). (0, H, W)
+    when only a floor was fitted."""
+    d = np.asarray(depth_mm)
+    h, w = d.shape
+    k = registered_intrinsics(d.shape, config) or Intrinsics.gelfabric(w, h)
+    walls = [p for p in reg.planes if p.label != "floor"]
+    if not walls:
+        return np.zeros((0, h, w), np.float32)
+    pts = camera_points(fill_holes(d).astype(np.float64), k)
+    gaps = [p.distance - pts @ np.asarray(p.normal) - config.depth_margin_mm for p in walls]
+    return np.stack(gaps).astype(np.float32)
+
+
+def wall_views(depth_mm: NDArray[np.generic], config: DataConfig, seed: int) -> list[F32]:
+    """`registered_input` of one depth image, then ``config.depth_wall_views`` views of it
+    with the cloth near the room's walls dropped (``data.depth_wall_views``), each (H, W) mm.
+
+    A view moves every fitted plane but the floor toward the cloth by a uniform draw in
+    [0, ``depth_wall_shift_mm``], tilted in a uniform direction by up to
+    ``depth_wall_tilt_mm`` at the image's edge midpoints; the cloth no longer
+    ``depth_margin_mm`` in front of a moved plane is dropped, then only the drape's largest
+    piece is kept (`drape_mask`), as registration in such a room would keep it. The heights
+    left are the image's own, and the drape is placed where the image's is (its top is
+    not read again). Drawn from ``seed``: the same image and seed give the same views.
+
+    Why: in issue #12's background control each drape is measured against another capture
+    session's room, whose walls sit a few millimetres elsewhere, and the cloth this drops
+    there is most of what the control costs (docs/results/real-depth.md, session 36).
+
+    Raises:
+        RegistrationError: no room could be fitted (the message says what is missing).
+    """
+    reg = register_configured(depth_mm, config)
+    kept = kept_heights(reg, config)
+    post = drape_post(reg, kept, config)
+    out = [move_drape(kept, post, config.depth_post_at)]
+    gaps = wall_gaps(depth_mm, reg, config)
+    h, w = kept.shape
+    u = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0)[None, :]
+    v = ((np.arange(h) + 0.5) * (2.0 / h) - 1.0)[:, None]
+    rng = np.random.default_rng(seed)
+    cloth = kept > 0
+    for _ in range(config.depth_wall_views):
+        left = cloth.copy()
+        for gap in gaps:
+            shift, angle, tilt = rng.random(3)
+            tilt *= config.depth_wall_tilt_mm
+            angle *= 2.0 * np.pi
+            moved = shift * config.depth_wall_shift_mm + tilt * (
+                np.cos(angle) * u + np.sin(angle) * v
+            )
+            left &= gap >= moved
+        if left.any():
+            left = drape_mask(left)
+        view = np.where(left, kept, np.float32(0.0)).astype(np.float32)
+        out.append(move_drape(view, post, config.depth_post_at))
+    return out
