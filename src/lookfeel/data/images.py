@@ -37,7 +37,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from struct import error as struct_error
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
@@ -227,18 +227,26 @@ def preprocess_depth(depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
     )
 
 
-def _preprocess_depth_file(path: Path, depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
-    """`preprocess_depth`, a registration failure naming the file (one line)."""
-    if config.depth_input != "registered":
-        return preprocess_depth(depth_mm, config)
+T = TypeVar("T")
+
+
+def _registering(path: Path, build: Callable[[], T]) -> T:
+    """``build()``, a registration failure re-raised naming ``path`` (one line)."""
     from lookfeel.data.register import RegistrationError  # register imports this module
 
     try:
-        return preprocess_depth(depth_mm, config)
+        return build()
     except RegistrationError as e:
         raise RegistrationError(
             f"{path}: cannot register depth (data.depth_input: registered): {e}"
         ) from None
+
+
+def _preprocess_depth_file(path: Path, depth_mm: np.ndarray, config: DataConfig) -> np.ndarray:
+    """`preprocess_depth`, a registration failure naming the file (one line)."""
+    if config.depth_input != "registered":
+        return preprocess_depth(depth_mm, config)
+    return _registering(path, lambda: preprocess_depth(depth_mm, config))
 
 
 def _center_square(a: np.ndarray) -> np.ndarray:
@@ -587,19 +595,14 @@ class ImageLoader:
         """(1 + N, S, S) float32: a registered drape's image, then its ``data.depth_wall_views``
         N views with the cloth near the walls dropped (`lookfeel.data.register.wall_views`),
         drawn from a seed of the file's content; cached on disk under their own key."""
-        from lookfeel.data.register import RegistrationError, wall_views
+        from lookfeel.data.register import wall_views  # register imports this module
 
         c = self.config
         data = read_image_file(path)
 
         def build() -> np.ndarray:
             seed = int.from_bytes(hashlib.sha1(data).digest()[:8], "little")
-            try:
-                heights = wall_views(decode_depth(path, data), c, seed)
-            except RegistrationError as e:
-                raise RegistrationError(
-                    f"{path}: cannot register depth (data.depth_input: registered): {e}"
-                ) from None
+            heights = _registering(path, lambda: wall_views(decode_depth(path, data), c, seed))
             return np.stack([registered_to_unit(x, c) for x in heights])
 
         suffix = f"wall{c.depth_wall_views}_{c.depth_wall_shift_mm:g}_{c.depth_wall_tilt_mm:g}"

@@ -61,6 +61,7 @@ __all__ = [
     "kept_heights",
     "move_drape",
     "placed_heights",
+    "plane_gaps",
     "register_configured",
     "register_depth",
     "register_in_room",
@@ -442,8 +443,7 @@ def _in_room(
         sizes = np.bincount(lab.ravel())
         cloth &= sizes[lab] >= blob
     # Metric geometry: each pixel's 3-D point, its distance in front of each plane.
-    pts = camera_points(z_full, k)
-    gaps = np.stack([p.distance - pts @ np.asarray(p.normal) for p in planes])  # (P, H, W)
+    gaps = plane_gaps(z_full, planes, k)  # (P, H, W)
     clearance = np.where(cloth, gaps.min(axis=0), 0.0)
     floor = [i for i, p in enumerate(planes) if p.label == "floor"]
     height = np.where(cloth, gaps[floor[0]], 0.0) if floor else clearance
@@ -472,6 +472,13 @@ def drape_mask(cloth: NDArray[np.bool_]) -> NDArray[np.bool_]:
     sizes = np.bincount(lab.ravel())
     sizes[0] = 0
     return np.asarray(lab == int(np.argmax(sizes)))
+
+
+def plane_gaps(z_mm: F64, planes: tuple[Plane, ...] | list[Plane], k: Intrinsics) -> F64:
+    """(P, H, W) how far each pixel's point lies in front of each plane (mm, along its
+    normal), from the pixels' depth ``z_mm`` (H, W; holes filled)."""
+    pts = camera_points(z_mm, k)
+    return np.stack([p.distance - pts @ np.asarray(p.normal) for p in planes])
 
 
 def camera_points(z_mm: F64, k: Intrinsics) -> F64:
@@ -680,9 +687,8 @@ def wall_gaps(depth_mm: NDArray[np.generic], reg: Registration, config: DataConf
     walls = [p for p in reg.planes if p.label != "floor"]
     if not walls:
         return np.zeros((0, h, w), np.float32)
-    pts = camera_points(fill_holes(d).astype(np.float64), k)
-    gaps = [p.distance - pts @ np.asarray(p.normal) - config.depth_margin_mm for p in walls]
-    return np.stack(gaps).astype(np.float32)
+    gaps = plane_gaps(fill_holes(d).astype(np.float64), walls, k) - config.depth_margin_mm
+    return gaps.astype(np.float32)
 
 
 def wall_views(depth_mm: NDArray[np.generic], config: DataConfig, seed: int) -> list[F32]:
@@ -724,8 +730,6 @@ def wall_views(depth_mm: NDArray[np.generic], config: DataConfig, seed: int) -> 
                 np.cos(angle) * u + np.sin(angle) * v
             )
             left &= gap >= moved
-        if left.any():
-            left = drape_mask(left)
-        view = np.where(left, kept, np.float32(0.0)).astype(np.float32)
+        view = np.where(drape_mask(left), kept, np.float32(0.0)).astype(np.float32)
         out.append(move_drape(view, post, config.depth_post_at))
     return out
