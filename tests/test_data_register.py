@@ -418,87 +418,118 @@ def test_cloth_top_drops_a_cap_of_wall_pixels_and_places_the_drape_by_its_cloth(
 NEAR_WALL = Scene(size=96, f=135.0, cloth_offset=(0.0, 520.0), spread_mm=150.0)
 
 
-def test_wall_views_drop_only_the_cloth_near_the_walls_and_keep_its_heights():
-    """`data.depth_wall_views`: each view is the image with the cloth nearest the fitted walls
-    dropped (never further from them than the largest shift and tilt), the rest of the drape
-    at its own heights and place; deterministic for a seed."""
-    from lookfeel.config import DataConfig
-    from lookfeel.data.register import register_configured, registered_input, wall_gaps, wall_views
+def test_drop_near_walls_drops_the_cloth_a_moved_wall_reaches():
+    """`drop_near_walls` on a known answer: a wall whose gap grows 5 mm a column drops the
+    columns its shifted (and tilted) plane passes, then only the largest piece is kept."""
+    from lookfeel.data.register import drop_near_walls
 
-    depth = NEAR_WALL.render()["depth"]
-    config = DataConfig(
-        image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
-        depth_wall_views=8, depth_wall_shift_mm=20.0, depth_wall_tilt_mm=5.0,
-        depth_post_at=(0.5, 0.1),
-    )  # fmt: skip
-    views = wall_views(depth, config, seed=3)
-    assert len(views) == 1 + 8
-    image = registered_input(depth, config)
-    assert np.array_equal(views[0], image)
-    reg = register_configured(depth, config)
-    assert {p.label for p in reg.planes} >= {"floor", "wall"}
-    # Gaps to the walls, where each pixel's cloth stands in the image as the views place it.
-    unmoved = dataclasses.replace(config, depth_post_at=None)
-    gap = wall_gaps(depth, reg, config).min(axis=0)
-    still = wall_views(depth, unmoved, seed=3)
-    cloth = still[0] > 0
-    assert (gap[cloth] < 20.0).sum() > 30  # the scene has cloth near the wall to drop
-    dropped_any = 0
-    for view, plain in zip(views[1:], still[1:], strict=True):
-        kept = plain > 0
-        assert not (kept & ~cloth).any()
-        assert np.array_equal(plain[kept], still[0][kept])  # the cloth's own heights
-        gone = cloth & ~kept
-        assert (gap[gone] <= 20.0 + 5.0 * np.sqrt(2)).all()  # the walls moved 25 mm at most
-        dropped_any += int(gone.sum())
-        assert (view <= image + 1e-4).all()  # placed as the image: a subset of its cloth
-    assert dropped_any > 0
-    again = wall_views(depth, config, seed=3)
-    assert all(np.array_equal(a, b) for a, b in zip(again, views, strict=True))
-    other = wall_views(depth, config, seed=4)
-    assert any(not np.array_equal(a, b) for a, b in zip(other[1:], views[1:], strict=True))
+    cloth = np.ones((1, 8, 8), bool)
+    cloth[0, 0, 7] = False
+    gaps = np.broadcast_to(np.arange(8, dtype=np.float32) * 5.0, (1, 1, 8, 8)).copy()
+    no_move = drop_near_walls(cloth, gaps, np.zeros((1, 1, 3)), 20.0, 5.0)
+    assert np.array_equal(no_move, cloth)
+    shifted = drop_near_walls(cloth, gaps, np.array([[[0.5, 0.0, 0.0]]]), 20.0, 5.0)
+    assert np.array_equal(shifted[0], cloth[0] & (np.arange(8) >= 2)[None, :])  # gap < 10 mm
+    # Tilted along x by 5 mm at the edges (u = -7/8 .. 7/8): column 2 (gap 10, u = -3/8) now
+    # stands in front of the moved wall (10 - 3/8 * 5 < 10), column 3 (15) still does.
+    tilted = drop_near_walls(cloth, gaps, np.array([[[0.5, 0.0, 1.0]]]), 20.0, 5.0)
+    assert np.array_equal(tilted[0], cloth[0] & (np.arange(8) >= 2)[None, :])
+    tilted_back = drop_near_walls(cloth, gaps, np.array([[[0.5, 0.5, 1.0]]]), 20.0, 5.0)
+    assert np.array_equal(tilted_back[0], cloth[0] & (np.arange(8) >= 3)[None, :])
+    # A piece cut off from the drape by the dropped band goes too, as registration drops it.
+    island = cloth.copy()
+    island[0, :, 3] = False
+    gaps2 = gaps.copy()
+    gaps2[0, 0, :, :3] = 100.0  # columns 0-2 far from the wall: a piece left of the gap
+    kept = drop_near_walls(island, gaps2, np.array([[[0.5, 0.0, 0.0]]]), 20.0, 5.0)
+    assert np.array_equal(kept[0], island[0] & (np.arange(8) >= 4)[None, :])
+    # A second wall (padding: no wall) changes nothing.
+    padded = np.concatenate([gaps, np.full_like(gaps, 1e4)], axis=1)
+    again = drop_near_walls(
+        cloth, padded, np.array([[[0.5, 0.0, 0.0], [1.0, 0.0, 1.0]]]), 20.0, 5.0
+    )
+    assert np.array_equal(again, shifted)
 
 
-def test_wall_views_through_the_loader_and_the_store(tmp_path):
-    """The loader gives a drape's image first, then its wall views (cached on disk under
-    their own key); a training store draws among them; the image alone is what `array` reads
-    and what the cache key of the image stays."""
+def test_wall_gaps_of_a_drape_near_the_wall_through_the_loader_and_the_store(tmp_path):
+    """`data.depth_wall_drop`: the loader reads a drape's image and its gaps to the walls at the
+    input's size (cached on disk under their own key; the image and its key unchanged); a
+    training store holds the image alone as its row and drops the cloth near the walls in a
+    drawn share of the images, each process's share as the whole batch's."""
     import torch
 
     from lookfeel.config import DataConfig
     from lookfeel.data.catalog import Item
-    from lookfeel.data.images import ImageLoader, PreprocessSettings
+    from lookfeel.data.images import WALL_GAP_NONE, ImageLoader, PreprocessSettings
+    from lookfeel.data.register import register_configured, wall_gap_input, wall_gaps
     from lookfeel.data.tensors import ImageStore
     from lookfeel.modality import Modality
 
-    path = _write(tmp_path / "F0001_Depth_New_000000.png", NEAR_WALL.render()["depth"])
+    depth = NEAR_WALL.render()["depth"]
+    path = _write(tmp_path / "F0001_Depth_New_000000.png", depth)
     plain = DataConfig(
         image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
-        cache_dir=str(tmp_path / "cache"),
+        depth_post_at=(0.5, 0.1), cache_dir=str(tmp_path / "cache"),
     )  # fmt: skip
-    config = dataclasses.replace(plain, depth_wall_views=4)
+    config = dataclasses.replace(plain, depth_wall_drop=1.0)
     assert PreprocessSettings.of(config) == PreprocessSettings.of(plain)
+    # At full size, unmoved, the gaps are registration's own: cloth where every gap is > 0.
+    unmoved = dataclasses.replace(config, depth_post_at=None)
+    heights, share, full = wall_gap_input(depth, unmoved)
+    reg = register_configured(depth, unmoved)
+    assert np.array_equal(share, (heights > 0).astype(np.float32))
+    assert np.allclose(full, wall_gaps(depth, reg, unmoved) * share)
+    assert (full.min(axis=0)[heights > 0] > 0).all()
+    assert ((full.min(axis=0) < 20.0) & (heights > 0)).sum() > 30  # cloth near the wall
+
     item = Item(Modality.DEPTH, 1, (path,))
     loader = ImageLoader(config)
     assert loader.has_views(item) and not ImageLoader(plain).has_views(item)
     views = loader.views(item)
-    assert views.shape == (5, 32, 32) and views.dtype == np.float32
-    assert np.array_equal(views[0], ImageLoader(plain).array(path, Modality.DEPTH))
-    assert len(list((tmp_path / "cache").rglob("*_wall4_20_5.npy"))) == 1
+    assert views.shape[0] == 1 + len(full) and views.shape[1:] == (32, 32)
+    image = ImageLoader(plain).array(path, Modality.DEPTH)
+    assert np.array_equal(views[0], image)
+    on = image > 0
+    assert (views[1:, ~on] == WALL_GAP_NONE).all()
+    assert (views[1:, on] > 0).all() and (views[1:, on] < 1000).all()
+    assert len(list((tmp_path / "cache").rglob("*_wallgaps.npy"))) == 1
     assert np.array_equal(ImageLoader(config).views(item), views)  # read back from disk
+
     store = ImageStore(ImageLoader(config), [item], views=True)
-    rows = torch.tensor(store.rows(Modality.DEPTH, [item]) * 64)
-    drawn = store.draw_views(Modality.DEPTH, rows, np.random.default_rng(0))
-    assert set(drawn.tolist()) == set(range(5))
-    assert torch.equal(store.batch(Modality.DEPTH, [0])[0, 0], torch.from_numpy(views[0]))
+    assert store.shape(Modality.DEPTH) == (1, 32, 32)
+    rows = torch.tensor(store.rows(Modality.DEPTH, [item]) * 16)
+    assert torch.equal(store.draw_views(Modality.DEPTH, rows, np.random.default_rng(0)), rows)
+    x = store.batch(Modality.DEPTH, rows)
+    whole = slice(0, 16)
+    out = store.drop_walls(Modality.DEPTH, rows, x, np.random.default_rng(5), whole)
+    kept = out[:, 0] > 0
+    assert not (kept & (x[:, 0] == 0)).any()
+    assert torch.equal(out[:, 0][kept], x[:, 0][kept])  # the cloth left keeps its heights
+    gone = (x[:, 0] > 0) & ~kept
+    assert 0 < int(gone.sum()) < int((x[:, 0] > 0).sum()) // 2
+    assert len({tuple(g.flatten().tolist()) for g in gone}) > 4  # a new draw per image
+    nearest = torch.from_numpy(views[1:].min(axis=0))
+    assert (nearest.expand_as(gone)[gone] <= 20.0 + 5.0 * np.sqrt(2)).all()
+    halves = [
+        store.drop_walls(Modality.DEPTH, rows, x[s], np.random.default_rng(5), s)
+        for s in (slice(0, 7), slice(7, 16))
+    ]
+    assert torch.equal(torch.cat(halves), out)  # processes draw alike
+    rarely = ImageStore(ImageLoader(dataclasses.replace(config, depth_wall_drop=0.25)), [item],
+                        views=True)  # fmt: skip
+    some = rarely.drop_walls(Modality.DEPTH, rows, x, np.random.default_rng(5), whole)
+    untouched = (some == x).flatten(1).all(dim=1)
+    assert 0 < int(untouched.sum()) < 16
+    evaluation = ImageStore(ImageLoader(config), [item])
+    assert evaluation.drop_walls(Modality.DEPTH, rows, x, np.random.default_rng(5), whole) is x
 
 
-def test_wall_views_need_registered_depth():
+def test_wall_drop_needs_registered_depth():
     from lookfeel.config import ConfigError, DataConfig
 
-    with pytest.raises(ConfigError, match="data.depth_wall_views: drops cloth near the fitted"):
-        DataConfig(depth_wall_views=4)
-    with pytest.raises(ConfigError, match="data.depth_wall_views: must be >= 0"):
-        DataConfig(depth_input="registered", depth_wall_views=-1)
+    with pytest.raises(ConfigError, match="data.depth_wall_drop: drops cloth near the fitted"):
+        DataConfig(depth_wall_drop=1.0)
+    with pytest.raises(ConfigError, match=r"data.depth_wall_drop: must be in \[0, 1\]"):
+        DataConfig(depth_input="registered", depth_wall_drop=2.0)
     with pytest.raises(ConfigError, match="data.depth_wall_shift_mm must be > 0"):
         DataConfig(depth_input="registered", depth_wall_shift_mm=0.0)

@@ -117,20 +117,21 @@ class DataConfig:
     little between capture sessions, so where the drape lies in the image identifies the
     session (docs/results/real-depth.md, "The drape's position"); ``None`` leaves the drape
     where the camera saw it."""
-    depth_wall_views: int = 0
-    """Registered input: training views of each drape with the cloth near the room's walls
-    dropped, as a room fitted a few millimetres elsewhere drops it (another capture session's
-    room: issue #12's background control, where that cloth is most of what the swap costs).
-    Each view moves every fitted plane but the floor toward the cloth by a random
-    ``depth_wall_shift_mm`` at most, tilted by up to ``depth_wall_tilt_mm`` at the image's
-    edges; the cloth left within ``depth_margin_mm`` of a moved plane is dropped, and the
-    drape's largest piece kept, as registration keeps it
-    (`lookfeel.data.register.wall_views`). A training draw takes the image or one of the
-    views, at random; evaluation and embedding read the image alone. 0: none."""
+    depth_wall_drop: float = 0.0
+    """Registered input: the probability that a training draw of a drape drops the cloth near
+    the room's walls, as a room fitted a few millimetres elsewhere drops it (another capture
+    session's room: issue #12's background control, where that cloth is most of what the swap
+    costs). The draw moves every fitted plane but the floor toward the cloth by a uniform
+    shift of up to ``depth_wall_shift_mm``, tilted in a uniform direction by up to
+    ``depth_wall_tilt_mm`` at the image's edges; the cloth left within ``depth_margin_mm`` of a
+    moved plane is dropped, and the drape's largest piece kept, as registration keeps it
+    (`lookfeel.data.tensors.ImageStore.drop_walls`, from each drape's gaps to its walls at
+    the input's size: `lookfeel.data.register.wall_gap_input`). Evaluation and embedding read
+    the image alone. 0: never."""
     depth_wall_shift_mm: float = 20.0
-    """``depth_wall_views``: the largest shift of a wall toward the cloth (mm)."""
+    """``depth_wall_drop``: the largest shift of a wall toward the cloth (mm)."""
     depth_wall_tilt_mm: float = 5.0
-    """``depth_wall_views``: the largest tilt of a moved wall, in mm at the image's edges."""
+    """``depth_wall_drop``: the largest tilt of a moved wall, in mm at the image's edges."""
     color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
     touch_crop: Literal["auto", "center", "none"] = "auto"
@@ -225,11 +226,13 @@ class DataConfig:
             raise ConfigError(f"data.color_size: must be >= 8 or null, got {self.color_size}")
         if self.depth_range_mm <= 0:
             raise ConfigError(f"data.depth_range_mm: must be > 0, got {self.depth_range_mm}")
-        if self.depth_wall_views < 0:
-            raise ConfigError(f"data.depth_wall_views: must be >= 0, got {self.depth_wall_views}")
-        if self.depth_wall_views and self.depth_input != "registered":
+        if not 0.0 <= self.depth_wall_drop <= 1.0:
             raise ConfigError(
-                "data.depth_wall_views: drops cloth near the fitted room's walls, so it needs "
+                f"data.depth_wall_drop: must be in [0, 1], got {self.depth_wall_drop}"
+            )
+        if self.depth_wall_drop and self.depth_input != "registered":
+            raise ConfigError(
+                "data.depth_wall_drop: drops cloth near the fitted room's walls, so it needs "
                 f"data.depth_input: registered (got {self.depth_input!r})"
             )
         if self.depth_wall_shift_mm <= 0 or self.depth_wall_tilt_mm < 0:

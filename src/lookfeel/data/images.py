@@ -193,6 +193,11 @@ def depth_to_unit(
     return np.clip(out, 0.0, 1.0, out=out)
 
 
+WALL_GAP_NONE = 1e4
+"""The gap (mm) held where a drape's input has no cloth, or for a wall it lacks: no moved wall
+reaches it."""
+
+
 def _resize_float(a: np.ndarray, size: int) -> np.ndarray:
     if a.shape == (size, size):
         return a
@@ -544,12 +549,12 @@ class ImageLoader:
     def has_views(self, item: Item) -> bool:
         """Whether ``item`` has several training views: a press video with ``video_views`` >
         1, a colour photo with re-printed renders in its dataset's ``reprints/`` folder and
-        ``color_reprints`` > 0 (`uses_reprints`), or a depth image with ``depth_wall_views``
-        > 0 (registered input)."""
+        ``color_reprints`` > 0 (`uses_reprints`), or a depth image with ``depth_wall_drop`` >
+        0 (registered input: its gaps to the walls, `wall_gaps_follow`)."""
         if item.modality is Modality.COLOR:
             return self.uses_reprints(item.path)
         if item.modality is Modality.DEPTH:
-            return self.config.depth_wall_views > 0
+            return self.wall_gaps_follow(item.modality)
         return (
             item.modality is Modality.TOUCH
             and self.config.video_views > 1
@@ -561,6 +566,11 @@ class ImageLoader:
         ``data.color_reprints`` > 0 and its dataset has a ``reprints/`` folder."""
         return self.config.color_reprints > 0 and reprint_path(photo, 1).parent.is_dir()
 
+    def wall_gaps_follow(self, modality: Modality) -> bool:
+        """Whether the training `views` of ``modality``'s items are an image and its gaps to
+        the room's walls (``data.depth_wall_drop``), not several images."""
+        return modality is Modality.DEPTH and self.config.depth_wall_drop > 0
+
     def skips_first_view(self, modality: Modality) -> bool:
         """Whether a training draw of ``modality`` leaves out each item's first view (its
         image): a re-printed photo is trained on through its renders alone."""
@@ -570,9 +580,10 @@ class ImageLoader:
         """(V, S, S, 3) uint8 training views of one item: its image first (``load``'s), then
         for a press video with ``video_views`` > 1 its other deep frames (`deep_frames`), for
         a colour photo with ``color_reprints`` N its N re-printed renders (`reprint_path`);
-        for a registered drape with ``depth_wall_views`` N, (1 + N, S, S) float32: its image
-        and N views with the cloth near the walls dropped (`_read_wall_views`); (1, ...) for
-        every other item. Cached in memory and on disk like images.
+        for a registered drape with ``depth_wall_drop`` > 0, (1 + P, S, S) float32: its image,
+        then its gap to each of the P fitted planes but the floor (`_read_wall_gaps`: not
+        images; `wall_gaps_follow`); (1, ...) for every other item. Cached in memory and on
+        disk like images.
 
         Raises:
             ImageError: a photo has fewer than N renders (naming the missing file), or one
@@ -586,27 +597,34 @@ class ImageLoader:
             if item.modality is Modality.COLOR:
                 v = self._read_reprints(path)
             elif item.modality is Modality.DEPTH:
-                v = self._read_wall_views(path)
+                v = self._read_wall_gaps(path)
             else:
                 v = self._read_press_views(path)[0]
         return v
 
-    def _read_wall_views(self, path: Path) -> np.ndarray:
-        """(1 + N, S, S) float32: a registered drape's image, then its ``data.depth_wall_views``
-        N views with the cloth near the walls dropped (`lookfeel.data.register.wall_views`),
-        drawn from a seed of the file's content; cached on disk under their own key."""
-        from lookfeel.data.register import wall_views  # register imports this module
+    def _read_wall_gaps(self, path: Path) -> np.ndarray:
+        """(1 + P, S, S) float32: a registered drape's image, then the cloth's gap to each of
+        the P fitted planes but the floor at the input's size (mm past ``depth_margin_mm``,
+        averaged over each input pixel's cloth; `WALL_GAP_NONE` off the cloth), from
+        `lookfeel.data.register.wall_gap_input`; cached on disk under their own key."""
+        from lookfeel.data.register import wall_gap_input  # register imports this module
 
         c = self.config
         data = read_image_file(path)
 
         def build() -> np.ndarray:
-            seed = int.from_bytes(hashlib.sha1(data).digest()[:8], "little")
-            heights = _registering(path, lambda: wall_views(decode_depth(path, data), c, seed))
-            return np.stack([registered_to_unit(x, c) for x in heights])
+            heights, share, gaps = _registering(
+                path, lambda: wall_gap_input(decode_depth(path, data), c)
+            )
+            s = _resize_float(share, c.image_size)
+            on = s > 1e-3
+            out = [registered_to_unit(heights, c)]
+            for g in gaps:
+                g = _resize_float(g, c.image_size)
+                out.append(np.where(on, g / np.where(on, s, 1.0), WALL_GAP_NONE))
+            return np.stack(out).astype(np.float32)
 
-        suffix = f"wall{c.depth_wall_views}_{c.depth_wall_shift_mm:g}_{c.depth_wall_tilt_mm:g}"
-        v = self._cached(data, suffix, build)
+        v = self._cached(data, "wallgaps", build)
         with self._lock:
             self._views[path] = v
             self._memory.setdefault(path, v[0])

@@ -57,6 +57,7 @@ __all__ = [
     "drape_mask",
     "drape_post",
     "drape_top",
+    "drop_near_walls",
     "heights_from_top",
     "kept_heights",
     "move_drape",
@@ -68,8 +69,8 @@ __all__ = [
     "registered_heights",
     "registered_input",
     "registered_intrinsics",
+    "wall_gap_input",
     "wall_gaps",
-    "wall_views",
     "without_cap",
 ]
 
@@ -691,21 +692,13 @@ def wall_gaps(depth_mm: NDArray[np.generic], reg: Registration, config: DataConf
     return gaps.astype(np.float32)
 
 
-def wall_views(depth_mm: NDArray[np.generic], config: DataConfig, seed: int) -> list[F32]:
-    """`registered_input` of one depth image, then ``config.depth_wall_views`` views of it
-    with the cloth near the room's walls dropped (``data.depth_wall_views``), each (H, W) mm.
-
-    A view moves every fitted plane but the floor toward the cloth by a uniform draw in
-    [0, ``depth_wall_shift_mm``], tilted in a uniform direction by up to
-    ``depth_wall_tilt_mm`` at the image's edge midpoints; the cloth no longer
-    ``depth_margin_mm`` in front of a moved plane is dropped, then only the drape's largest
-    piece is kept (`drape_mask`), as registration in such a room would keep it. The heights
-    left are the image's own, and the drape is placed where the image's is (its top is
-    not read again). Drawn from ``seed``: the same image and seed give the same views.
-
-    Why: in issue #12's background control each drape is measured against another capture
-    session's room, whose walls sit a few millimetres elsewhere, and the cloth this drops
-    there is most of what the control costs (docs/results/real-depth.md, session 36).
+def wall_gap_input(depth_mm: NDArray[np.generic], config: DataConfig) -> tuple[F32, F32, F32]:
+    """What ``data.depth_wall_drop`` needs of one depth image, each placed as the training
+    input places the drape (`move_drape`): `registered_input` (H, W) mm; the share of each
+    pixel that is cloth (H, W, in [0, 1]: the moved drape's edge is blended); and (P, H, W)
+    the cloth's gap to each fitted plane but the floor (`wall_gaps`, mm) times that share.
+    Resized to the input's size, the third divided by the second is each input pixel's gap
+    (`lookfeel.data.images.ImageLoader.views`).
 
     Raises:
         RegistrationError: no room could be fitted (the message says what is missing).
@@ -713,23 +706,41 @@ def wall_views(depth_mm: NDArray[np.generic], config: DataConfig, seed: int) -> 
     reg = register_configured(depth_mm, config)
     kept = kept_heights(reg, config)
     post = drape_post(reg, kept, config)
-    out = [move_drape(kept, post, config.depth_post_at)]
+    cloth = (kept > 0).astype(np.float32)
     gaps = wall_gaps(depth_mm, reg, config)
-    h, w = kept.shape
-    u = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0)[None, :]
-    v = ((np.arange(h) + 0.5) * (2.0 / h) - 1.0)[:, None]
-    rng = np.random.default_rng(seed)
-    cloth = kept > 0
-    for _ in range(config.depth_wall_views):
-        left = cloth.copy()
-        for gap in gaps:
-            shift, angle, tilt = rng.random(3)
-            tilt *= config.depth_wall_tilt_mm
-            angle *= 2.0 * np.pi
-            moved = shift * config.depth_wall_shift_mm + tilt * (
-                np.cos(angle) * u + np.sin(angle) * v
-            )
-            left &= gap >= moved
-        view = np.where(drape_mask(left), kept, np.float32(0.0)).astype(np.float32)
-        out.append(move_drape(view, post, config.depth_post_at))
-    return out
+    return (
+        move_drape(kept, post, config.depth_post_at),
+        move_drape(cloth, post, config.depth_post_at),
+        np.stack(
+            [move_drape(np.where(cloth > 0, g, 0).astype(np.float32), post, config.depth_post_at)
+             for g in gaps]
+        ) if len(gaps) else np.zeros((0, *kept.shape), np.float32),
+    )  # fmt: skip
+
+
+def drop_near_walls(
+    cloth: NDArray[np.bool_], gaps: F32, draws: NDArray[np.float64], shift_mm: float, tilt_mm: float
+) -> NDArray[np.bool_]:
+    """The cloth a room with its walls moved toward it keeps (``data.depth_wall_drop``).
+
+    Args:
+        cloth: (B, H, W) where each image is cloth.
+        gaps: (B, P, H, W) each pixel's gap to each wall (mm past ``depth_margin_mm``; large
+            where there is no such wall).
+        draws: (B, P, 3) uniform draws in [0, 1) per image and wall: the shift (times
+            ``shift_mm``), the tilt's direction and its size (times ``tilt_mm``, at the
+            image's edge midpoints).
+        shift_mm, tilt_mm: ``data.depth_wall_shift_mm`` and ``depth_wall_tilt_mm``.
+
+    Returns:
+        (B, H, W): the cloth at least the margin in front of every moved wall, then only its
+        largest piece (`drape_mask`), as registration in such a room would keep it.
+    """
+    b, _, h, w = gaps.shape
+    u = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0)[None, None, None, :]
+    v = ((np.arange(h) + 0.5) * (2.0 / h) - 1.0)[None, None, :, None]
+    shift, angle, tilt = (draws[..., k, None, None] for k in range(3))
+    angle = 2.0 * np.pi * angle
+    moved = shift * shift_mm + tilt * tilt_mm * (np.cos(angle) * u + np.sin(angle) * v)
+    left = cloth & (gaps >= moved).all(axis=1)
+    return np.stack([drape_mask(m) for m in left]) if b else left

@@ -6,9 +6,10 @@ uint8 (N, 3, S, S), exactly the loader's bytes; depth as float32 (N, 1, S, S), t
 values (depth is mapped to [0, 1] from millimetres, which 8 bits would quantise). The tensors
 live on the GPU when they fit in a quarter of its free memory, else in pinned host memory and
 a batch is copied over asynchronously. With ``views``, a press video's other deep frames are
-held after its image and a training step draws one of them (`ImageStore.draw_views`). A step
-then costs one gather and one conversion to
-float on the device: no file decoding and no per-image Python.
+held after its image and a training step draws one of them (`ImageStore.draw_views`); with
+``data.depth_wall_drop`` each drape's gaps to the room's walls are held beside it, on the host,
+and a training draw drops the cloth near walls moved toward it (`ImageStore.drop_walls`). A
+step then costs one gather and one conversion to float on the device: no file decoding.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import torch
 from torch import Tensor
 
 from lookfeel.data.catalog import Item
-from lookfeel.data.images import ImageLoader
+from lookfeel.data.images import WALL_GAP_NONE, ImageLoader
 from lookfeel.modality import Modality
 
 __all__ = ["ImageStore"]
@@ -39,7 +40,8 @@ class ImageStore:
             (see ``on_device``), else pinned in host memory.
         views: also hold each item's other training views (`ImageLoader.views`: the deep
             frames of a press video with ``data.video_views`` > 1, a colour photo's re-printed
-            renders with ``data.color_reprints``), drawn by `draw_views`.
+            renders with ``data.color_reprints``), drawn by `draw_views`; and with
+            ``data.depth_wall_drop`` each drape's gaps to the walls, for `drop_walls`.
 
     Example:
         >>> store = ImageStore(loader, catalog.items(Modality.TOUCH), device)
@@ -62,6 +64,9 @@ class ImageStore:
         self._rows: dict[Modality, dict[Item, int]] = {}
         self._views: dict[Modality, Tensor] = {}
         self._skip_first: set[Modality] = set()
+        self._gaps: dict[Modality, np.ndarray] = {}
+        c = loader.config
+        self._wall = (c.depth_wall_drop, c.depth_wall_shift_mm, c.depth_wall_tilt_mm)
         host: dict[Modality, Tensor] = {}
         for m, its in per.items():
             unique = list(its)
@@ -69,6 +74,9 @@ class ImageStore:
                 loader.views(it) if views else loader.array(loader.frame_path(it), m)[None]
                 for it in unique
             ]
+            if views and loader.wall_gaps_follow(m):
+                self._gaps[m] = _padded_gaps([a[1:] for a in arrays])
+                arrays = [a[:1] for a in arrays]
             counts = np.array([len(a) for a in arrays])
             starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
             self._rows[m] = {it: int(r) for it, r in zip(unique, starts, strict=True)}
@@ -133,6 +141,41 @@ class ImageStore:
         pick = torch.from_numpy((first + np.floor(u * (n - first))).astype(np.int64))
         return rows + pick.to(rows.device)
 
+    def drop_walls(
+        self, modality: Modality, rows: Tensor, x: Tensor, rng: np.random.Generator, share: slice
+    ) -> Tensor:
+        """``x`` with, for each image drawn (probability ``data.depth_wall_drop``), the cloth
+        near the room's walls dropped as walls moved toward it at random would drop it
+        (`lookfeel.data.register.drop_near_walls`); ``x`` unchanged for a modality without
+        gaps (`ImageLoader.wall_gaps_follow`).
+
+        Args:
+            modality: the images' modality.
+            rows: the global batch's rows (`batch`'s): every process draws alike.
+            x: (B, 1, S, S) the images of ``rows[share]``.
+            rng: the draws' generator.
+            share: this process's part of ``rows``.
+        """
+        from lookfeel.data.register import drop_near_walls  # needs scipy: training only
+
+        gaps = self._gaps.get(modality)
+        if gaps is None:
+            return x
+        p, shift_mm, tilt_mm = self._wall
+        chosen = rng.random(len(rows)) < p
+        draws = rng.random((len(rows), gaps.shape[1], 3))
+        picked = np.flatnonzero(chosen[share])
+        if not len(picked):
+            return x
+        at = rows[share].cpu().numpy()[picked]
+        idx = torch.from_numpy(picked).to(x.device)
+        cloth = x[idx, 0].cpu().numpy() > 0
+        keep = drop_near_walls(cloth, gaps[at], draws[share][picked], shift_mm, tilt_mm)
+        dropped = torch.from_numpy(cloth & ~keep).to(x.device).unsqueeze(1)
+        x = x.clone()
+        x[idx] = x[idx].masked_fill(dropped, 0.0)
+        return x
+
     def batch(self, modality: Modality, rows: Sequence[int] | Tensor) -> Tensor:
         """Images of ``rows`` on the device as float32 in the loader's scale ([0, 1]):
         (B, 1, S, S) depth, (B, 3, S, S) RGB; equal to ``loader.load`` image by image."""
@@ -146,6 +189,16 @@ class ImageStore:
         if x.dtype == torch.uint8:
             return x.float().div_(255.0)
         return x
+
+
+def _padded_gaps(gaps: list[np.ndarray]) -> np.ndarray:
+    """(N, P, S, S) float32 of each drape's (P_i, S, S) gaps to its walls, padded with
+    `WALL_GAP_NONE` (no wall) to the most walls any drape has (at least one)."""
+    most = max(1, max(len(g) for g in gaps))
+    out = np.full((len(gaps), most, *gaps[0].shape[1:]), WALL_GAP_NONE, np.float32)
+    for i, g in enumerate(gaps):
+        out[i, : len(g)] = g
+    return out
 
 
 def _free_cuda_bytes(device: torch.device) -> int:

@@ -285,6 +285,7 @@ class _Batches:
         picked: np.ndarray,
         aug_rng: np.random.Generator,
         view_rng: np.random.Generator,
+        wall_rng: np.random.Generator,
     ) -> Tensor:
         """(B*k, C, S, S) images of picked pool indices (B, k), each one of its training views:
         the global batch's draws are made (so every process draws alike), this process's share
@@ -293,7 +294,8 @@ class _Batches:
         rows = self.store.draw_views(
             m, self.store_rows[m][torch.from_numpy(picked.reshape(-1))], view_rng
         )
-        x = self.store.batch(m, rows[self.lo * k : self.hi * k])
+        share = slice(self.lo * k, self.hi * k)
+        x = self.store.drop_walls(m, rows, self.store.batch(m, rows[share]), wall_rng, share)
         aug = self.augmenters.get(m)
         if aug is not None:
             draws = aug.draw_batch(aug_rng, n * k, *self.store.shape(m))
@@ -305,6 +307,7 @@ class _Batches:
         aug_rng = np.random.default_rng([self.seed, step, 1])
         copy_rng = np.random.default_rng([self.seed, step, 2])
         view_rng = np.random.default_rng([self.seed, step, 3])
+        wall_rng = np.random.default_rng([self.seed, step, 4])
         lo, hi = self.lo, self.hi
         inputs: dict[str, Tensor] = {}
         for j, slot in enumerate(self.ds.slots):
@@ -321,7 +324,7 @@ class _Batches:
                 f = self.table.gather_rows(m, rows, copies).unflatten(0, (hi - lo, k))
                 inputs[slot] = f if m is Modality.TOUCH else f[:, 0]
                 continue
-            x = self._pixels(m, picked, aug_rng, view_rng)
+            x = self._pixels(m, picked, aug_rng, view_rng, wall_rng)
             x = x.unflatten(0, (hi - lo, k)) if m is Modality.TOUCH else x
             if self.table is not None:  # cached run, live augmentation: trunk without grad
                 with torch.no_grad(), autocast(self.device):
