@@ -736,11 +736,15 @@ def drop_near_walls(
         (B, H, W): the cloth at least the margin in front of every moved wall, then only its
         largest piece (`drape_mask`), as registration in such a room would keep it.
     """
-    b, _, h, w = gaps.shape
-    u = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0)[None, None, None, :]
-    v = ((np.arange(h) + 0.5) * (2.0 / h) - 1.0)[None, None, :, None]
-    shift, angle, tilt = (draws[..., k, None, None] for k in range(3))
-    angle = 2.0 * np.pi * angle
-    moved = shift * shift_mm + tilt * tilt_mm * (np.cos(angle) * u + np.sin(angle) * v)
-    left = cloth & (gaps >= moved).all(axis=1)
-    return np.stack([drape_mask(m) for m in left]) if b else left
+    _, _, h, w = gaps.shape
+    f = np.float32
+    u = ((np.arange(w, dtype=f) + f(0.5)) * f(2.0 / w) - f(1.0))[None, None, None, :]
+    v = ((np.arange(h, dtype=f) + f(0.5)) * f(2.0 / h) - f(1.0))[None, None, :, None]
+    angle = 2.0 * np.pi * draws[..., 1]
+    tilt = draws[..., 2] * tilt_mm
+    shift, tx, ty = (
+        a.astype(f)[..., None, None]
+        for a in (draws[..., 0] * shift_mm, tilt * np.cos(angle), tilt * np.sin(angle))
+    )
+    left = cloth & (gaps >= shift + tx * u + ty * v).all(axis=1)
+    return np.stack([drape_mask(m) for m in left]) if len(left) else left
