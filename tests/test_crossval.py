@@ -286,6 +286,42 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
     assert "another fabric's room" not in raw_md and "background swapped" in raw_md
 
 
+def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exactly(
+    leaky_depth: Path, tmp_path: Path
+):
+    """``data.depth_wall_drop`` through `train`: the drops change what the net learns (its
+    weights differ from the same run without them), two runs agree bit for bit, and a run
+    killed and resumed ends where the unbroken one does (the drops come from the step's seed)."""
+
+    def state(run: Path) -> dict[str, torch.Tensor]:
+        return torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"]
+
+    registered = ["data.depth_input=registered", "data.depth_focal_px=45.0"]
+    base = [*OVERRIDES, "train.steps=4", "train.checkpoint_every=2", *registered]
+    plain = load_config(RunConfig, TINY, base)
+    # These drapes hang 110-160 mm from the side panel: walls moved up to 200 mm reach them.
+    walls = ["data.depth_wall_drop=1.0", "data.depth_wall_shift_mm=200.0"]
+    dropping = load_config(RunConfig, TINY, [*base, *walls])
+    train(plain, leaky_depth, tmp_path / "plain")
+    train(dropping, leaky_depth, tmp_path / "a")
+    train(dropping, leaky_depth, tmp_path / "b")
+    a, b, without = state(tmp_path / "a"), state(tmp_path / "b"), state(tmp_path / "plain")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert any(not torch.equal(a[k], without[k]) for k in a)
+
+    class Kill(Exception):
+        pass
+
+    def kill(step: int, _: object) -> None:
+        if step == 3:
+            raise Kill
+
+    with pytest.raises(Kill):
+        train(dropping, leaky_depth, tmp_path / "broken", on_step=kill)
+    resumed = state(train(dropping, leaky_depth, tmp_path / "broken", resume=True).run_dir)
+    assert all(torch.equal(a[k], resumed[k]) for k in a)
+
+
 def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_path: Path):
     """With ``presses`` 3 every touch query is one group of 3 presses of a fabric (the
     Multi-input Net's protocol), in the model, raw pixels, label space and through the map;
