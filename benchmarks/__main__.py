@@ -3,7 +3,9 @@
 Each ``benchmarks/bench_<name>.py`` defines ``run(data: Path | None) -> dict``: it measures
 (medians or ratios over repeated runs, never one timing), and returns JSON-able results
 including its targets and whether they were met. This runner adds the machine's description
-and writes ``benchmarks/results/<name>.json`` atomically.
+and writes ``benchmarks/results/<name>.json`` atomically. A benchmark without ``run`` scores
+the runs of a ``lookfeel cv`` folder (``bench_depth_swap``, ``bench_depth_room_labels``): the
+runner names it and skips it; run it on its own with ``--cv``.
 
     python -m benchmarks [--data ../shared/data/gelfabric] [--only NAME ...]
 """
@@ -91,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     failed = 0
     for name in names:
         module = importlib.import_module(f"benchmarks.bench_{name}")
+        if not hasattr(module, "run"):  # scores the runs of a cv folder: run it on its own
+            print(f"== {name}: standalone, see python -m benchmarks.bench_{name} --help")
+            continue
         print(f"== {name}", flush=True)
         started = time.time()
         result = stamp(name, started, module.run(data))

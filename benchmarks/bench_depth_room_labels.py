@@ -55,7 +55,7 @@ def labels(data: Path, fabric: np.ndarray, columns: list[str]) -> np.ndarray:
     return np.array([rows[int(f)] for f in fabric], dtype=np.float64).reshape(-1, len(columns))
 
 
-def run(cv: Path, data: Path) -> dict[str, object]:
+def measure(cv: Path, data: Path) -> dict[str, object]:
     from lookfeel.metrics import property_probe
 
     t0 = time.perf_counter()
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.data.exists():
         print(f"{args.data}: no such dataset", file=sys.stderr)
         return 1
-    result = run(args.cv, args.data)
+    result = measure(args.cv, args.data)
     print(json.dumps(result["mean_r2"], indent=1), flush=True)
     if args.out is not None:
         write_result(result, args.out, "bench_depth_room_labels", argv)
