@@ -286,12 +286,14 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
     assert "another fabric's room" not in raw_md and "background swapped" in raw_md
 
 
+@pytest.mark.filterwarnings("ignore:model.freeze=to_block4 freezes")
 def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exactly(
     leaky_depth: Path, tmp_path: Path
 ):
     """``data.depth_wall_drop`` through `train`: the drops change what the net learns (its
     weights differ from the same run without them), two runs agree bit for bit, and a run
-    killed and resumed ends where the unbroken one does (the drops come from the step's seed)."""
+    killed and resumed ends where the unbroken one does (the drops come from the step's seed).
+    A frozen trunk's cached run, which reads each drape whole, says so."""
 
     def state(run: Path) -> dict[str, torch.Tensor]:
         return torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"]
@@ -320,6 +322,9 @@ def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exac
         train(dropping, leaky_depth, tmp_path / "broken", on_step=kill)
     resumed = state(train(dropping, leaky_depth, tmp_path / "broken", resume=True).run_dir)
     assert all(torch.equal(a[k], resumed[k]) for k in a)
+    frozen = load_config(RunConfig, TINY, [*base, *walls, "model.freeze=to_block4"])
+    with pytest.warns(UserWarning, match=r"data.depth_wall_drop=1 is not used with a frozen"):
+        train(frozen, leaky_depth, tmp_path / "frozen")
 
 
 def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_path: Path):

@@ -215,7 +215,15 @@ def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
 def _say_reprints(
     catalog: Catalog, loader: ImageLoader, config: RunConfig, cached: bool, data: Path
 ) -> None:
-    """Warn when ``data.color_reprints`` asks for re-printed photos that this run cannot read."""
+    """Warn when ``data.color_reprints`` asks for re-printed photos that this run cannot read,
+    or ``data.depth_wall_drop`` for drops that a frozen trunk's cached run does not make."""
+    drop = config.data.depth_wall_drop
+    if cached and drop and Modality.DEPTH in config.train.modalities:
+        warnings.warn(
+            f"data.depth_wall_drop={drop:g} is not used with a frozen trunk (train.cache_trunk): "
+            "training reads each drape whole",
+            stacklevel=3,
+        )
     n = config.data.color_reprints
     photos = catalog.items(Modality.COLOR) if Modality.COLOR in config.train.modalities else []
     if not n or not photos:
