@@ -32,8 +32,9 @@ TOLERANCE_MM = 20.0
 """`lookfeel.data.leakage.DEFAULT_TOLERANCE` for depth: how far a background pixel may stray."""
 
 
-def room_pixels(data: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(N, B) each depth image's background pixels, (N,) its fabric, and the label columns."""
+def room_pixels(data: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """(N, B) each depth image's background pixels, (N,) its fabric, (N, L) its fabric's
+    labels (NaN where unknown) and the L label columns."""
     from lookfeel.data import scan
     from lookfeel.data.leakage import load_pooled, static_mask
     from lookfeel.modality import Modality
@@ -43,24 +44,18 @@ def room_pixels(data: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
     stack, _, _ = load_pooled(items, None, workers=2)
     background = static_mask(stack, TOLERANCE_MM)
     x = stack[:, background].reshape(len(items), -1).astype(np.float64)
-    return x, np.array([it.fabric_id for it in items]), list(catalog.label_columns)
-
-
-def labels(data: Path, fabric: np.ndarray, columns: list[str]) -> np.ndarray:
-    """(N, L) each row's fabric labels, NaN where unknown."""
-    from lookfeel.data import scan
-    from lookfeel.modality import Modality
-
-    rows = scan(data, require=[Modality.DEPTH], strict=True).label_matrix(columns)
-    return np.array([rows[int(f)] for f in fabric], dtype=np.float64).reshape(-1, len(columns))
+    fabric = np.array([it.fabric_id for it in items])
+    columns = list(catalog.label_columns)
+    rows = catalog.label_matrix(columns)
+    y = np.array([rows[int(f)] for f in fabric], dtype=np.float64).reshape(-1, len(columns))
+    return x, fabric, y, columns
 
 
 def measure(cv: Path, data: Path) -> dict[str, object]:
     from lookfeel.metrics import property_probe
 
     t0 = time.perf_counter()
-    x, fabric, columns = room_pixels(data)
-    y = labels(data, fabric, columns)
+    x, fabric, y, columns = room_pixels(data)
     runs = sorted(p.parent for p in cv.glob("seed*-fold*/result.json"))
     if not runs:
         raise SystemExit(f"{cv}: no finished runs (seed*-fold*/result.json)")
