@@ -11,6 +11,8 @@ their median in 95% of images, after 4x4 mean pooling; no cloth reaches them). F
 a ``lookfeel cv`` folder, the probe `lookfeel cv` fits on the embedding (ridge on per-fabric
 means, `lookfeel.metrics.property_probe`) is fitted on the room pixels of the run's training
 fabrics and scored on its held-out ones, beside the run's own model probe. Means over runs.
+Since session 39 `lookfeel cv` reports the same probe (`lookfeel.crossval.RoomProbe`) in its
+property table; this reads it for a cv folder scored before that.
 
     python -m benchmarks.bench_depth_room_labels --cv CV [--data ../shared/data/gelfabric]
 """
@@ -21,59 +23,34 @@ import argparse
 import json
 import sys
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.bench_depth_position import DEFAULT_DATA, write_result
 
-TOLERANCE_MM = 20.0
-"""`lookfeel.data.leakage.DEFAULT_TOLERANCE` for depth: how far a background pixel may stray."""
-
-
-def room_pixels(data: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """(N, B) each depth image's background pixels, (N,) its fabric, (N, L) its fabric's
-    labels (NaN where unknown) and the L label columns."""
-    from lookfeel.data import scan
-    from lookfeel.data.leakage import load_pooled, static_mask
-    from lookfeel.modality import Modality
-
-    catalog = scan(data, require=[Modality.DEPTH], strict=True)
-    items = catalog.items(Modality.DEPTH)
-    stack, _, _ = load_pooled(items, None, workers=2)
-    background = static_mask(stack, TOLERANCE_MM)
-    x = stack[:, background].reshape(len(items), -1).astype(np.float64)
-    fabric = np.array([it.fabric_id for it in items])
-    columns = list(catalog.label_columns)
-    rows = catalog.label_matrix(columns)
-    y = np.array([rows[int(f)] for f in fabric], dtype=np.float64).reshape(-1, len(columns))
-    return x, fabric, y, columns
-
 
 def measure(cv: Path, data: Path) -> dict[str, object]:
-    from lookfeel.metrics import property_probe
+    from lookfeel.crossval import RoomProbe
+    from lookfeel.data import scan
+    from lookfeel.modality import Modality
 
     t0 = time.perf_counter()
-    x, fabric, y, columns = room_pixels(data)
+    catalog = scan(data, require=[Modality.DEPTH], strict=True)
+    room = RoomProbe(catalog, workers=2)
     runs = sorted(p.parent for p in cv.glob("seed*-fold*/result.json"))
     if not runs:
         raise SystemExit(f"{cv}: no finished runs (seed*-fold*/result.json)")
+    columns = list(catalog.label_columns)
     per_run: dict[str, dict[str, dict[str, float]]] = {}
     for r in runs:
         split = json.loads((r / "split.json").read_text())
-        tr = np.isin(fabric, split["train"])
-        te = np.isin(fabric, split["val"])
-        mu, sd = x[tr].mean(0), x[tr].std(0) + 1e-6  # z-scored on the training fabrics
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            room = property_probe(
-                (x[tr] - mu) / sd, y[tr], (x[te] - mu) / sd, y[te], "ridge",
-                names=columns, train_fabric=fabric[tr], test_fabric=fabric[te],
-            )  # fmt: skip
+        alone = room(split["train"], split["val"]) or {}
         model = json.loads((r / "result.json").read_text())["properties"]["depth"]["model"]
         per_run[r.name] = {
-            c: {"room": room[c]["r2"], "model": model[c]["r2"]} for c in columns if c in model
+            c: {"room": alone[c]["r2"], "model": model[c]["r2"]}
+            for c in columns
+            if c in model and c in alone
         }
     mean = {
         c: {k: float(np.nanmean([v[c][k] for v in per_run.values()])) for k in ("room", "model")}
@@ -83,7 +60,7 @@ def measure(cv: Path, data: Path) -> dict[str, object]:
     return {
         "what": "R^2 of ridge probes on held-out fabrics: the room's pixels alone vs the model",
         "cv": str(cv),
-        "background_pixels": int(x.shape[1]),
+        "background_pixels": room.background_pixels,
         "runs": len(runs),
         "mean_r2": mean,
         "per_run": per_run,

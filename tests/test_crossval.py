@@ -232,6 +232,12 @@ def test_background_control_in_cv_and_evaluate(
     md = (tmp_path / "cv" / "cv.md").read_text()
     assert "Background control" in md and "raw pixels top-1, background swapped" in md
     assert "label space top-1, background swapped" in md
+    # The room alone as a property probe, beside the model's (the room here sits 20 mm a
+    # fabric apart and thickness grows with the fabric: it reads thickness from the room).
+    room = summary["properties"]["depth"]["room"]
+    assert set(room) == set(summary["properties"]["depth"]["model"])
+    assert room["thickness_mm"]["r2"] > 0.5
+    assert "room alone R²" in md and "Room alone:" in md
     # Off: no control keys, and the summary says so.
     off = cross_validate(
         config, data, tmp_path / "cv", folds=[0], n_boot=20, background_control=False
@@ -239,6 +245,8 @@ def test_background_control_in_cv_and_evaluate(
     assert "model_swapped_top1" not in off["pairs"]["depth_to_depth"]
     assert "model_labels_swapped_top1" not in off["pairs"]["depth_to_depth"]
     assert off["background_control"]["on"] is False
+    assert "room" not in off["properties"]["depth"]
+    assert "room alone" not in (tmp_path / "cv" / "cv.md").read_text()
 
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
     result = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20))
@@ -366,3 +374,24 @@ def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_pa
         cross_validate(config, data, tmp_path / "cv2", folds=[0], presses=0)
     with pytest.raises(ConfigError, match="no held-out fabric has 4 touch presses"):
         cross_validate(config, data, tmp_path / "cv", folds=[0], presses=4)
+
+
+def test_the_room_probe_reads_labels_that_follow_the_session_and_no_others(tmp_path: Path):
+    """`RoomProbe` on rooms 3 mm a session apart, one fabric a session: thickness grows with
+    the fabric (as the room moves) and is read; stretchiness alternates and is not; with one
+    room for every session nothing is read; without labels there is no probe."""
+    from lookfeel.crossval import RoomProbe
+
+    from ._scene import write_scene_dataset
+
+    train_ids, held_ids = [1, 2, 4, 5, 7, 8], [3, 6]
+    moving = scan(write_scene_dataset(tmp_path / "moving", 8, 2, 32, 3.0, 0.3))
+    probe = RoomProbe(moving)
+    r2 = {k: v["r2"] for k, v in (probe(train_ids, held_ids) or {}).items()}
+    assert probe.background_pixels > 0
+    assert r2["thickness_mm"] > 0.8 and r2["stretchiness"] < 0.2, r2
+    still = scan(write_scene_dataset(tmp_path / "still", 8, 2, 32, 0.0, 0.3))
+    r2_still = {k: v["r2"] for k, v in (RoomProbe(still)(train_ids, held_ids) or {}).items()}
+    assert r2_still and all(v < 0.2 for v in r2_still.values()), r2_still
+    (tmp_path / "moving" / "labels.csv").unlink()
+    assert RoomProbe(scan(tmp_path / "moving"))(train_ids, held_ids) is None

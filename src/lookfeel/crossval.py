@@ -38,7 +38,11 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
 that resamples the held-out fabrics (all their queries together). Physical properties are
 predicted from the fabric-mean embeddings of the held-out fabrics by a ridge probe fitted on the
-training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels.
+training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels and,
+with depth and the background control on, beside the **room alone** (`RoomProbe`: the same probe
+on each raw depth image's background pixels, no cloth). Each fabric was captured in one session;
+where sessions follow the labels, the room predicts them, and a model's probe is only as good
+as its lead over the room's.
 For a model with class heads (``model.class_heads``: hardness 0/1/2, material ...), each held-out
 press's class is read from the heads, one press at a time and with every press of an object
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training
@@ -69,6 +73,7 @@ from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.data import Catalog, ImageLoader, Item, scan
 from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.images import stack_views
+from lookfeel.data.leakage import room_pixels
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.touch_control import UntouchedControl
 from lookfeel.embedding import EmbeddedItems, embed_items, press_pooler, raw_pixels
@@ -92,7 +97,7 @@ from lookfeel.train import run_started, train
 from lookfeel.train.loop import as_trained
 from lookfeel.train.validate import default_pairs
 
-__all__ = ["cross_validate", "format_cv_summary", "score_checkpoint"]
+__all__ = ["RoomProbe", "cross_validate", "format_cv_summary", "score_checkpoint"]
 
 RESULT = "result.json"
 SUMMARY = "cv.json"
@@ -232,6 +237,51 @@ def _probe(
             train_fabric=train_f,
             test_fabric=test_f,
         )
+
+
+class RoomProbe:
+    """The control of the depth property probes: `_probe` on the room alone.
+
+    Each raw depth image's background pixels (`lookfeel.data.leakage.room_pixels`, found once
+    over every depth image of the catalog), z-scored on a run's training fabrics, stand in for
+    the embedding. ``None`` from `__call__` when no pixel holds still or nothing is labelled.
+
+    Example:
+        >>> room = RoomProbe(catalog)
+        >>> room(split["train"], split["val"])  # {"thickness_mm": {"r2": ..., ...}, ...}
+    """
+
+    def __init__(self, catalog: Catalog, workers: int = 1) -> None:
+        self.catalog = catalog
+        self.workers = workers
+        self._x: np.ndarray | None = None
+        self._fabric = np.zeros(0, dtype=np.int64)
+
+    def _pixels(self) -> np.ndarray:
+        if self._x is None:
+            items = self.catalog.items(Modality.DEPTH)
+            self._x = room_pixels(items, self.workers) if items else np.zeros((0, 0))
+            self._fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
+        return self._x
+
+    @property
+    def background_pixels(self) -> int:
+        """How many (pooled) pixels of each depth image are the room's."""
+        return int(self._pixels().shape[1])
+
+    def __call__(
+        self, train_ids: Sequence[int], held_ids: Sequence[int]
+    ) -> dict[str, dict[str, float]] | None:
+        x = self._pixels()
+        if not self.catalog.label_columns or x.shape[1] == 0:
+            return None
+        tr = np.isin(self._fabric, np.asarray(train_ids, dtype=np.int64))
+        te = np.isin(self._fabric, np.asarray(held_ids, dtype=np.int64))
+        if not tr.any() or not te.any():
+            return None
+        mu, sd = x[tr].mean(axis=0), x[tr].std(axis=0) + 1e-6
+        z = (x - mu) / sd
+        return _probe(self.catalog, z[tr], self._fabric[tr], z[te], self._fabric[te])
 
 
 def _score(
@@ -526,6 +576,20 @@ def _evaluate_run(
     )
 
 
+def _with_room(result: dict, run_dir: Path, room: RoomProbe | None) -> dict:
+    """``result`` with the room-alone probe (`RoomProbe`) beside its depth probes, when the
+    run has depth probes and the room has pixels to read; it depends only on the data and
+    the split, so a kept result gets it without being scored again."""
+    depth = result.get("properties", {}).get(Modality.DEPTH.value)
+    if room is None or not depth:
+        return result
+    split = json.loads((run_dir / "split.json").read_text())
+    probe = room(split["train"], split["val"])
+    if probe is not None:
+        depth["room"] = probe
+    return result
+
+
 def _control_status(results: list[dict], asked: bool) -> dict[str, Any]:
     """``{"on": bool, "seed": int, "skipped": reason or None}`` over the runs."""
     skipped = next(
@@ -566,6 +630,8 @@ def _summarise(
     for m, per in results[0]["properties"].items():  # none when no run had training fabrics
         summary["properties"][m] = {}
         for method in per:
+            if not all(method in r["properties"][m] for r in results):
+                continue
             table: dict[str, dict[str, float]] = {}
             for label in per[method]:
                 for score in ("r2", "spearman"):
@@ -796,13 +862,22 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"Physical properties from {m} (ridge probe on fabric-mean embeddings, fitted on "
             "each fold's training fabrics; mean ± std over runs):",
             "",
-            "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |",
-            "|---|---|---|---|---|",
+            "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |"
+            + (" room alone R² | room alone Spearman |" if "room" in per else ""),
+            "|---|---|---|---|---|" + ("---|---|" if "room" in per else ""),
         ]
-        for label, s in per["model"].items():
-            r = per["raw_pixels"][label]
-            cells = [_pm(x, score) for x in (s, r) for score in ("r2", "spearman")]
+        methods = [k for k in ("model", "raw_pixels", "room") if k in per]
+        for label in per["model"]:
+            cells = [_pm(per[k][label], score) for k in methods for score in ("r2", "spearman")]
             lines.append(f"| {label} | {' | '.join(cells)} |")
+        if "room" in per:
+            lines += [
+                "",
+                "Room alone: the same probe on each raw depth image's background pixels (no "
+                "cloth; `lookfeel data leakage`'s rule). Every fabric was captured in one "
+                "session, so where it scores, the sessions follow the labels: read the model's "
+                "probe against it, not against zero.",
+            ]
     for m, per in summary.get("classes", {}).items():
         lines += [
             "",
@@ -878,6 +953,7 @@ def cross_validate(
         BackgroundControl(config.data, CONTROL_SEED) if background_control and uses_depth else None
     )
     untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
+    room = RoomProbe(catalog, config.data.workers) if control is not None else None
     results = []
     for seed in seeds:
         for fold in fold_list:
@@ -898,7 +974,7 @@ def cross_validate(
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
             if saved is not None and saved.get("key") == key:
                 log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
-                results.append(saved)
+                results.append(_with_room(saved, run_dir, room))
                 continue
             last = run_dir / "checkpoints" / "last.pt"
             done = load_model(last) if last.exists() else None
@@ -919,6 +995,7 @@ def cross_validate(
                 seconds = time.perf_counter() - started
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched, presses)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
+            res = _with_room(res, run_dir, room)
             atomic_write_text(result_path, json.dumps(res) + "\n")
             first = res["pairs"][pairs[0]]
             top1 = np.nanmean(np.asarray(first["model"])[:, 0])

@@ -68,6 +68,7 @@ __all__ = [
     "parse_mask_options",
     "position_leakage",
     "read_mask",
+    "room_pixels",
     "static_mask",
 ]
 
@@ -314,6 +315,22 @@ def static_mask(
     med = np.median(stack, axis=0)
     near = (np.abs(stack - med[None]).max(axis=-1) <= tolerance).mean(axis=0)
     return np.asarray(near >= static_fraction)
+
+
+def room_pixels(items: Sequence[Item], workers: int = 1) -> NDArray[np.float64]:
+    """(N, B) each depth image's background pixels: what its room alone shows, no cloth.
+
+    The rule of step 1 (module doc) with depth's default tolerance, on the images pooled as
+    the leak check pools them; B is 0 where no pixel holds still. `lookfeel cv` fits its
+    property probes on them as a control: fabrics captured in one session share a room, so
+    where sessions follow the labels the room predicts them without any cloth.
+
+    Raises:
+        ImageError: the first file that cannot be decoded.
+    """
+    stack, _, _ = load_pooled(items, None, workers=workers)
+    background = static_mask(stack, DEFAULT_TOLERANCE[Modality.DEPTH])
+    return stack[:, background].reshape(len(items), -1).astype(np.float64)
 
 
 def read_mask(path: str | Path, shape: tuple[int, int], pool: int) -> NDArray[np.bool_]:
