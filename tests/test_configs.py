@@ -56,6 +56,8 @@ def test_real_depth_is_leak_free_and_the_leaky_recipe_is_kept():
     assert free.data.depth_post_at is not None and free.data.depth_top_mm is not None
     # And the Kinect's cap of wall pixels over every GelFabric drape (session 35).
     assert free.data.depth_top_from == "cloth_top"
+    # And the cloth a room fitted a few millimetres nearer would drop, at every draw (session 39).
+    assert free.data.depth_wall_drop == 1.0
     assert leaky.data.depth_input == "raw" and not leaky.data.augment
     # The same recipe otherwise: the comparison changes the input, and the leak-free recipe
     # regresses the labels too (session 18; the leaky one is kept as issue #7 measured it).

@@ -451,9 +451,10 @@ def test_drop_near_walls_drops_the_cloth_a_moved_wall_reaches():
     assert np.array_equal(again, shifted)
 
 
-def test_wall_gaps_of_a_drape_near_the_wall_through_the_loader_and_the_store(tmp_path):
+def test_wall_gaps_of_a_drape_near_the_wall_through_the_loader_and_the_store(tmp_path, monkeypatch):
     """`data.depth_wall_drop`: the loader reads a drape's image and its gaps to the walls at the
-    input's size (cached on disk under their own key; the image and its key unchanged); a
+    input's size (cached on disk under their own key; the image unchanged, registered once for
+    both whichever is asked first); a
     training store holds the image alone as its row and drops the cloth near the walls in a
     drawn share of the images, each process's share as the whole batch's."""
     import torch
@@ -494,6 +495,18 @@ def test_wall_gaps_of_a_drape_near_the_wall_through_the_loader_and_the_store(tmp
     assert (views[1:, on] > 0).all() and (views[1:, on] < 1000).all()
     assert len(list((tmp_path / "cache").rglob("*_wallgaps.npy"))) == 1
     assert np.array_equal(ImageLoader(config).views(item), views)  # read back from disk
+    import lookfeel.data.register as register
+
+    calls: list[int] = []
+    registering = register.register_configured
+    monkeypatch.setattr(
+        register, "register_configured", lambda *a: calls.append(1) or registering(*a)
+    )
+    fresh = ImageLoader(dataclasses.replace(config, cache_dir=None))
+    assert np.array_equal(fresh.array(path, Modality.DEPTH), image)  # training preloads it
+    assert np.array_equal(fresh.views(item), views)  # then its store reads the gaps
+    assert len(calls) == 1
+    monkeypatch.undo()
 
     store = ImageStore(ImageLoader(config), [item], views=True)
     assert store.shape(Modality.DEPTH) == (1, 32, 32)

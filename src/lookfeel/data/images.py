@@ -504,6 +504,10 @@ class ImageLoader:
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
         if modality is Modality.TOUCH and self.config.stacks_touch_frames:
             return self._preprocess_stack(path)
+        if self.wall_gaps_follow(modality):
+            # One registration serves the image and its gaps to the walls, whichever is
+            # asked for first (training preloads images, then its store reads the views).
+            return self._read_wall_gaps(path)[0]
         data = read_image_file(path)
 
         def build() -> np.ndarray:
