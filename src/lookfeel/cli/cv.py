@@ -10,7 +10,9 @@ are scored again with every depth image's background (room, wall, floor) replace
 fabric's and the cloth kept, for the model and for raw pixels, side by side; a model that
 reads the cloth scores the same, one that reads the capture session drops. Registered depth
 also gets the room control: each image registered against the room fitted on that other
-fabric's own image, nothing refitted (--no-background-control turns both off). Writes
+fabric's own image, nothing refitted. The depth property probes also stand beside the room
+alone: the same probe on each raw image's background pixels, no cloth (a label the capture
+sessions follow is read from the room). --no-background-control turns all three off. Writes
 OUT/cv.json, OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps
 finished runs and resumes an interrupted one.
 """
@@ -64,8 +66,8 @@ def add_parser(subparsers: Subparsers) -> None:
         action="store_false",
         help="skip the background control (on by default for depth: held-out depth images "
         "scored again with another fabric's background, cloth kept, and registered depth also "
-        "in another fabric's fitted room; registers each held-out image, about 0.2 s each, "
-        "once per fold)",
+        "in another fabric's fitted room, and the property probes on the room alone; "
+        "registers each held-out image, about 0.2 s each, once per fold)",
     )
 
 
