@@ -454,9 +454,9 @@ def test_drop_near_walls_drops_the_cloth_a_moved_wall_reaches():
 def test_wall_gaps_of_a_drape_near_the_wall_through_the_loader_and_the_store(tmp_path, monkeypatch):
     """`data.depth_wall_drop`: the loader reads a drape's image and its gaps to the walls at the
     input's size (cached on disk under their own key; the image unchanged, registered once for
-    both whichever is asked first); a
-    training store holds the image alone as its row and drops the cloth near the walls in a
-    drawn share of the images, each process's share as the whole batch's."""
+    both whichever is asked first); a training store holds the image alone as its row and
+    drops the cloth near the walls in a drawn share of the images, each process's share as the
+    whole batch's."""
     import torch
 
     from lookfeel.config import DataConfig
