@@ -4,8 +4,8 @@ Each ``benchmarks/bench_<name>.py`` defines ``run(data: Path | None) -> dict``: 
 (medians or ratios over repeated runs, never one timing), and returns JSON-able results
 including its targets and whether they were met. This runner adds the machine's description
 and writes ``benchmarks/results/<name>.json`` atomically. A benchmark without ``run`` scores
-the runs of a ``lookfeel cv`` folder (``bench_depth_swap``, ``bench_depth_room_labels``): the
-runner names it and skips it; run it on its own with ``--cv``.
+the runs of a ``lookfeel cv`` folder (``bench_depth_swap``, ``bench_depth_room_labels``,
+``bench_touch_metric``): the runner names it and skips it; run it on its own with ``--cv``.
 
     python -m benchmarks [--data ../shared/data/gelfabric] [--only NAME ...]
 """
