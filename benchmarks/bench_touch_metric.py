@@ -27,6 +27,8 @@ same runs: 0.1-0.5 shrinkage, 5 or 10 neighbours and weights 0.25-0.5 moved the 
 most 0.005, so the rows do not hang on the choice. Each variant is also scored on the
 untouched control (every press replaced by a moment of its video without contact,
 `lookfeel.data.touch_control`): a distance that reads the sensor's own light rises there.
+The control holds one still image a press, so for ``views_as_a_set`` it equals
+``embedding``'s and does not test the comparison of views.
 Per variant: the mean top-1 over the folder's runs, the runs ahead of and behind
 ``embedding``, and a 95% interval resampling objects.
 
