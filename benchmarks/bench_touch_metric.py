@@ -19,7 +19,8 @@ queries (exact pick 1 of 10 among each fold's held-out objects, one press a quer
   counterpart at a like force;
 - ``with_raw_pixels``: the distance plus `RAW_WEIGHT` times the raw-pixel distance (the
   pixels z-scored on the training presses; each distance in units of its mean over training
-  presses).
+  presses);
+- ``raw_pixels``: the raw difference pixels alone (the cv's baseline), beside chance.
 
 Everything is fitted on the run's training objects only. The constants are the library's (10
 neighbours, as the cross-modal maps use) or the first or middle of the settings tried on the
@@ -55,7 +56,15 @@ WHITEN_SHRINK = 0.3
 """Share of the mean variance mixed into the within-object scatter before whitening."""
 RAW_WEIGHT = 0.25
 """Weight of the raw-pixel distance beside the embedding's (each in units of its mean)."""
-VARIANTS = ("embedding", "whitened", "hub_corrected", "views_as_a_set", "with_raw_pixels")
+VARIANTS = (
+    "embedding",
+    "whitened",
+    "hub_corrected",
+    "views_as_a_set",
+    "with_raw_pixels",
+    "raw_pixels",
+)
+"""The distances scored; the last, raw difference pixels alone, is the cv's baseline."""
 
 F64 = np.ndarray
 
@@ -106,59 +115,66 @@ def chamfer(views: F64) -> F64:
     return np.asarray(0.5 * (near + near.T))
 
 
-def _unit(x: F64) -> float:
-    """Mean pairwise distance among (at most 300 of) ``x``: a distance's unit."""
-    from lookfeel.metrics.distances import pairwise_distances
-
-    x = x[:: max(1, len(x) // 300)]
-    return float(pairwise_distances(x, x).mean())
-
-
-def distances(
-    views: F64,
-    pixels: F64,
-    train_emb: F64,
-    train_objects: F64,
-    train_pixels: F64,
-) -> dict[str, F64]:
-    """Each variant's (N, N) distances among N held-out presses.
+def fit(
+    train_emb: F64, train_objects: F64, train_pixels: F64
+) -> Callable[[F64, F64], dict[str, F64]]:
+    """What the variants fit on a run's training presses, fitted once: a function from the
+    held-out presses' (N, V, D) view embeddings (their mean is the press's) and (N, P) raw
+    pixels (the cv baseline's) to each variant's (N, N) distances among them.
 
     Args:
-        views: (N, V, D) the held-out presses' view embeddings (their mean is the press's).
-        pixels: (N, P) their raw pixels (the cv baseline's: views' pixels averaged).
         train_emb: (M, D) the training presses' embeddings; ``train_objects`` (M,) their objects.
         train_pixels: (M, P) the training presses' raw pixels.
     """
-    from lookfeel.metrics.cross_map import HUB_NEIGHBOURS
+    from lookfeel.metrics.cross_map import HUB_NEIGHBOURS, _fabric_means, _mean_distance
     from lookfeel.metrics.distances import pairwise_distances
 
-    emb = views.mean(1)
-    base = pairwise_distances(emb, emb)
     white = whitening(train_emb, train_objects)
-    w = white(emb)
-    means = np.stack([train_emb[train_objects == o].mean(0) for o in np.unique(train_objects)])
-    r = crowding(emb, means, HUB_NEIGHBOURS)
+    means = _fabric_means(train_emb, train_objects, np.unique(train_objects))
     mu, sd = train_pixels.mean(0), train_pixels.std(0) + 1e-6
-    z, z_train = (pixels - mu) / sd, (train_pixels - mu) / sd
-    raw = pairwise_distances(z, z) / _unit(z_train)
-    return {
-        "embedding": base,
-        "whitened": pairwise_distances(w, w),
-        "hub_corrected": hub_corrected(base, r, r),
-        "views_as_a_set": chamfer(views),
-        "with_raw_pixels": base / _unit(train_emb) + RAW_WEIGHT * raw,
-    }
+    z_train = (train_pixels - mu) / sd
+    emb_unit, raw_unit = _mean_distance(train_emb, train_emb), _mean_distance(z_train, z_train)
+
+    def distances(views: F64, pixels: F64) -> dict[str, F64]:
+        emb = views.mean(1)
+        base = pairwise_distances(emb, emb)
+        w = white(emb)
+        r = crowding(emb, means, HUB_NEIGHBOURS)
+        z = (pixels - mu) / sd
+        return {
+            "embedding": base,
+            "whitened": pairwise_distances(w, w),
+            "hub_corrected": hub_corrected(base, r, r),
+            "views_as_a_set": chamfer(views),
+            "with_raw_pixels": base / emb_unit + RAW_WEIGHT * pairwise_distances(z, z) / raw_unit,
+            "raw_pixels": pairwise_distances(pixels, pixels),
+        }
+
+    return distances
 
 
-def top1(dist: F64, objects: F64) -> F64:
-    """(N,) exact pick-1-of-10 top-1 of each press against the others (itself left out)."""
+def distances(
+    views: F64, pixels: F64, train_emb: F64, train_objects: F64, train_pixels: F64
+) -> dict[str, F64]:
+    """Each variant's (N, N) distances among N held-out presses (`fit`, then its function)."""
+    return fit(train_emb, train_objects, train_pixels)(views, pixels)
+
+
+def _pick(dist: F64, objects: F64) -> tuple[F64, float]:
+    """(N,) exact pick-1-of-10 top-1 of each press against the others (itself left out), and
+    its chance."""
     from lookfeel.metrics.scoring import EXACT_PICK, score_distances
 
     n = len(objects)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a fold with fewer than 10 objects says so
         s = score_distances(dist, objects, objects, EXACT_PICK, exclude=np.arange(n))
-    return np.asarray(s.pick.per_query[:, 0], np.float64)
+    return np.asarray(s.pick.per_query[:, 0], np.float64), float(s.pick.chance[0])
+
+
+def top1(dist: F64, objects: F64) -> F64:
+    """(N,) exact pick-1-of-10 top-1 of each press against the others (itself left out)."""
+    return _pick(dist, objects)[0]
 
 
 def _view_embeddings(model: object, items: list, loader: object) -> F64:
@@ -192,6 +208,7 @@ def measure(cv: Path, data: Path) -> dict[str, object]:
     hits: dict[str, dict[str, list[F64]]] = {"as_is": {}, "untouched": {}}
     groups: list[F64] = []
     per_run: dict[str, dict[str, float]] = {}
+    chances: list[float] = []
     catalog = None
     for run in runs:
         lm = load_model(run / "checkpoints" / "last.pt")
@@ -214,13 +231,14 @@ def measure(cv: Path, data: Path) -> dict[str, object]:
             "untouched": (_view_embeddings(lm.model, held, still), raw_pixels(held, still)),
         }
         per_run[run.name] = {}
+        distances_of = fit(train_emb, train_objects, train_pix)
         for case, (views, pix) in inputs.items():
-            dist = distances(views, pix.astype(np.float64), train_emb, train_objects, train_pix)
-            for name, d in dist.items():
-                h = top1(d, objects)
+            for name, d in distances_of(views, pix.astype(np.float64)).items():
+                h, chance = _pick(d, objects)
                 hits[case].setdefault(name, []).append(h)
                 key = name if case == "as_is" else f"{name}_untouched"
                 per_run[run.name][key] = round(float(np.nanmean(h)), 4)
+        chances.append(chance)
         groups.append(objects)
     objs = np.concatenate(groups)
     variants: dict[str, dict[str, object]] = {}
@@ -242,6 +260,7 @@ def measure(cv: Path, data: Path) -> dict[str, object]:
         "what": "touch to touch top-1 (exact pick 1 of 10, held-out objects) by other distances",
         "cv": str(cv),
         "runs": len(runs),
+        "chance_top1": round(float(np.mean(chances)), 3),
         "constants": {
             "whiten_shrink": WHITEN_SHRINK,
             "hub_neighbours": HUB_NEIGHBOURS,
