@@ -49,6 +49,9 @@ def machine() -> dict[str, object]:
         "torch_threads": torch.get_num_threads(),
         "processor": platform.processor() or platform.machine(),
         "cpu_model": _cpu_model(),
+        # The GPU a benchmark may have used (None without CUDA): training, embedding and the
+        # demo run on it by default (`train.device: auto`).
+        "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
     }
 
 

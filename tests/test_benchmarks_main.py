@@ -1,0 +1,23 @@
+"""benchmarks/__main__.py: every result names the machine it was measured on, its GPU too."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import torch
+from benchmarks import __main__ as benchmarks
+
+
+def test_a_result_names_the_gpu_it_ran_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "get_device_name", lambda index=None: "NVIDIA H200")
+    result = benchmarks.stamp("x", time.time(), {"met": True})
+    assert result["benchmark"] == "x" and result["met"] is True
+    assert result["machine"]["gpu"] == "NVIDIA H200"
+    assert result["machine"]["torch"] == torch.__version__
+
+
+def test_without_cuda_the_gpu_is_none(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert benchmarks.machine()["gpu"] is None
