@@ -47,6 +47,7 @@ from scipy import ndimage
 from lookfeel.config import DataConfig
 from lookfeel.data.holes import fill_holes
 from lookfeel.errors import LookfeelError
+from lookfeel.rig import GELFABRIC_CENTRE, GELFABRIC_FOCAL, GELFABRIC_SIZE
 
 __all__ = [
     "Intrinsics",
@@ -77,13 +78,6 @@ __all__ = [
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 TopRule = Literal["first_rows", "highest_row", "cloth_top"]
-
-GELFABRIC_SIZE = 224
-"""Side in pixels of GelFabric's cropped Kinect depth images."""
-GELFABRIC_FOCAL = 373.0
-"""Focal length in pixels of that crop (the synthetic world's camera uses it too)."""
-GELFABRIC_CENTRE = 111.5
-"""Principal point (both axes) in pixels of that crop."""
 
 
 class RegistrationError(LookfeelError):

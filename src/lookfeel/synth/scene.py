@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from lookfeel.data.register import GELFABRIC_CENTRE, GELFABRIC_FOCAL, GELFABRIC_SIZE
+from lookfeel.rig import GELFABRIC_CENTRE, GELFABRIC_FOCAL, GELFABRIC_SIZE
 
 __all__ = [
     "POST_HEIGHT_MM",
