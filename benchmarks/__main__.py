@@ -40,6 +40,23 @@ def _cpu_model() -> str | None:
     return None
 
 
+def _cpu_vectors(cpuinfo: str | None = None) -> str | None:
+    """The widest x86 vector extension the CPU has (``avx512``, ``avx2``), or None, from
+    ``cpuinfo`` (default: ``/proc/cpuinfo``): two CPUs named alike (``AMD EPYC``) may differ in
+    it, and so in speed and in how a run rounds."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return None
+    lines = (ln for ln in cpuinfo.splitlines() if ln.startswith("flags"))
+    flags = next((ln.split(":", 1)[1].split() for ln in lines), [])
+    for name, flag in (("avx512", "avx512f"), ("avx2", "avx2")):
+        if flag in flags:
+            return name
+    return None
+
+
 def machine() -> dict[str, object]:
     """What the numbers were measured on."""
     return {
@@ -49,6 +66,7 @@ def machine() -> dict[str, object]:
         "torch_threads": torch.get_num_threads(),
         "processor": platform.processor() or platform.machine(),
         "cpu_model": _cpu_model(),
+        "cpu_vectors": _cpu_vectors(),
         # The GPU a benchmark may have used (None without CUDA): training, embedding and the
         # demo run on it by default (`train.device: auto`).
         "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,

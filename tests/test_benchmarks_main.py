@@ -21,3 +21,17 @@ def test_a_result_names_the_gpu_it_ran_on(monkeypatch: pytest.MonkeyPatch) -> No
 def test_without_cuda_the_gpu_is_none(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     assert benchmarks.machine()["gpu"] is None
+
+
+@pytest.mark.parametrize(
+    ("flags", "vectors"),
+    [
+        ("fpu sse2 avx2 avx512f avx512bw", "avx512"),
+        ("fpu sse2 avx avx2", "avx2"),
+        ("fpu sse2", None),
+    ],
+)
+def test_the_cpu_is_named_by_its_widest_vectors(flags: str, vectors: str | None) -> None:
+    cpuinfo = f"processor\t: 0\nmodel name\t: AMD EPYC\nflags\t\t: {flags}\n"
+    assert benchmarks._cpu_vectors(cpuinfo) == vectors
+    assert benchmarks._cpu_vectors("model name : no flags line") is None
