@@ -28,29 +28,32 @@ from lookfeel.atomic import atomic_write_text
 HERE = Path(__file__).resolve().parent
 
 
-def _cpu_model() -> str | None:
-    """The CPU's model name (Linux), e.g. ``AMD EPYC``: float results of training differ
-    between CPU families, and so may the numbers a benchmark records."""
+def _cpuinfo() -> str:
+    """``/proc/cpuinfo`` (Linux), or "" where there is none."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.partition(":")[2].strip()
+        return Path("/proc/cpuinfo").read_text()
     except OSError:
-        pass
+        return ""
+
+
+def _cpuinfo_field(cpuinfo: str, key: str) -> str | None:
+    """The value of the first ``key : value`` line of ``cpuinfo``, or None."""
+    for line in cpuinfo.splitlines():
+        if line.startswith(key):
+            return line.partition(":")[2].strip()
     return None
 
 
-def _cpu_vectors(cpuinfo: str | None = None) -> str | None:
-    """The widest x86 vector extension the CPU has (``avx512``, ``avx2``), or None, from
-    ``cpuinfo`` (default: ``/proc/cpuinfo``): two CPUs named alike (``AMD EPYC``) may differ in
-    it, and so in speed and in how a run rounds."""
-    if cpuinfo is None:
-        try:
-            cpuinfo = Path("/proc/cpuinfo").read_text()
-        except OSError:
-            return None
-    lines = (ln for ln in cpuinfo.splitlines() if ln.startswith("flags"))
-    flags = next((ln.split(":", 1)[1].split() for ln in lines), [])
+def _cpu_model(cpuinfo: str) -> str | None:
+    """The CPU's model name, e.g. ``AMD EPYC``: float results of training differ between CPU
+    families, and so may the numbers a benchmark records."""
+    return _cpuinfo_field(cpuinfo, "model name")
+
+
+def _cpu_vectors(cpuinfo: str) -> str | None:
+    """The widest x86 vector extension the CPU has (``avx512``, ``avx2``), or None: two CPUs
+    named alike (``AMD EPYC``) may differ in it, and so in speed and in how a run rounds."""
+    flags = (_cpuinfo_field(cpuinfo, "flags") or "").split()
     for name, flag in (("avx512", "avx512f"), ("avx2", "avx2")):
         if flag in flags:
             return name
@@ -59,14 +62,15 @@ def _cpu_vectors(cpuinfo: str | None = None) -> str | None:
 
 def machine() -> dict[str, object]:
     """What the numbers were measured on."""
+    cpuinfo = _cpuinfo()
     return {
         "python": platform.python_version(),
         "torch": torch.__version__,
         "cpus": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
         "processor": platform.processor() or platform.machine(),
-        "cpu_model": _cpu_model(),
-        "cpu_vectors": _cpu_vectors(),
+        "cpu_model": _cpu_model(cpuinfo),
+        "cpu_vectors": _cpu_vectors(cpuinfo),
         # The GPU a benchmark may have used (None without CUDA): training, embedding and the
         # demo run on it by default (`train.device: auto`).
         "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
