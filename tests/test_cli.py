@@ -63,6 +63,7 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     assert (saved["model"]["width"], saved["train"]["steps"]) == (16, 2)
     assert (saved["data"]["image_size"], saved["data"]["color_size"]) == (24, None)
     assert (saved["data"]["touch_frames"], saved["data"]["touch_frame"]) == ([0, 1, 2], -1)
+    assert saved["model"]["precision"] == "fp32"  # on CUDA too: the numbers a CPU gives
     metrics = json.loads((tmp_path / "demo" / "evaluate" / "metrics.json").read_text())
     assert "touch_to_depth_top1_mapped_ci_low" in metrics
     assert (tmp_path / "demo" / "evaluate" / "figures" / "glance.png").is_file()

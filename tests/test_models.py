@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import warnings
 from pathlib import Path
 
 import pytest
@@ -592,3 +593,35 @@ def test_eval_mode_restores_training_flag_and_press_axis_round_trips() -> None:
     five = to_channels_last(torch.rand(2, 3, 3, 8, 8))
     assert five.flatten(0, 1).is_contiguous(memory_format=torch.channels_last)
     assert torch.equal(to_channels_last(x), x)
+
+
+def test_precision_is_a_checked_choice_that_only_cuda_reads() -> None:
+    from lookfeel.models import autocast
+
+    assert ModelConfig().precision == "auto"
+    with pytest.raises(ConfigError, match="model.precision"):
+        from_dict(ModelConfig, {"precision": "fp16"}, "model")
+    cpu = torch.device("cpu")
+    for precision in ("auto", "fp32"):
+        with autocast(cpu, precision=precision):  # type: ignore[arg-type]
+            assert not torch.is_autocast_enabled("cpu")
+            assert (torch.ones(2, 2) @ torch.ones(2, 2)).dtype == torch.float32
+    # fp32 on CUDA turns TF32 off for the block and restores the user's settings after it
+    # (the flags exist without a GPU, so this runs anywhere).
+    before = torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32
+    try:
+        torch.backends.cuda.matmul.allow_tf32 = torch.backends.cudnn.allow_tf32 = True
+        with autocast(torch.device("cuda"), precision="fp32"):
+            assert not torch.backends.cuda.matmul.allow_tf32
+            assert not torch.backends.cudnn.allow_tf32
+            assert not torch.is_autocast_enabled("cuda")
+        assert torch.backends.cuda.matmul.allow_tf32 and torch.backends.cudnn.allow_tf32
+    finally:
+        torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32 = before
+    with warnings.catch_warnings():  # "CUDA is not available": only its type is asked here
+        warnings.simplefilter("ignore", UserWarning)
+        assert isinstance(autocast(torch.device("cuda")), torch.autocast)  # auto: bf16
+    cfg = ModelConfig(backbone="compact", width=4, embed_dim=8, precision="fp32")
+    assert create_model(cfg, ["touch"]).precision == "fp32"
+    branch = create_model(cfg, ["touch"]).branch("touch")
+    assert Embedder({Modality.TOUCH: branch}).precision == "auto"  # no config: the default

@@ -431,3 +431,12 @@ def test_tree_map_pairs_nested_batches():
     out = _tree_map(lambda x, y: x + y, a, b)
     assert torch.equal(out["inputs"]["depth"], torch.full((2,), 3.0))
     assert torch.equal(out["y"], torch.full((2,), 5.0))
+
+
+def test_precision_travels_with_the_checkpoint_and_a_cpu_run_ignores_it(data: Path, tmp_path: Path):
+    auto = train(_config("train.steps=3"), data, tmp_path / "auto")
+    fp32 = train(_config("train.steps=3", "model.precision=fp32"), data, tmp_path / "fp32")
+    assert load_model(fp32.last_checkpoint).model.precision == "fp32"
+    assert load_model(auto.last_checkpoint).model.precision == "auto"
+    # On a CPU both are fp32: the same weights to the bit.
+    assert _states_equal(auto.last_checkpoint, fp32.last_checkpoint)

@@ -63,8 +63,8 @@ def embed_items(
 
     Images travel to the device as the loader keeps them (uint8 for RGB: a quarter of float32's
     bytes), through two alternating pinned buffers on CUDA so a copy overlaps the previous
-    batch's network, and become float there; on CUDA the network runs under bf16 autocast,
-    channels-last.
+    batch's network, and become float there; on CUDA the network runs channels-last in the
+    precision its config names (`ModelConfig.precision`: bf16 autocast unless ``fp32``).
 
     A press video whose loader `pools_views` (``data.video_embed: views``) is embedded from
     all its views, their embeddings averaged (`Branch.forward`); the same function therefore
@@ -93,7 +93,7 @@ def embed_items(
     stream = iter(ready) if ready is not None else None
     have = 0 if stream is not None else len(items)
     out = []
-    with eval_mode(model), autocast(dev):
+    with eval_mode(model), autocast(dev, precision=model.precision):
         for start in range(0, len(items), batch_size):
             while stream is not None and have < min(start + batch_size, len(items)):
                 have = next(stream, len(items))  # exhausted: every item is held

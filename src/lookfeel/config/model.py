@@ -8,9 +8,16 @@ from typing import Literal
 from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
 
-__all__ = ["BACKBONE_DEFAULT_FREEZE", "BACKBONE_FREEZE_POINTS", "BackboneName", "ModelConfig"]
+__all__ = [
+    "BACKBONE_DEFAULT_FREEZE",
+    "BACKBONE_FREEZE_POINTS",
+    "BackboneName",
+    "ModelConfig",
+    "Precision",
+]
 
 BackboneName = Literal["alexnet", "compact", "resnet18"]
+Precision = Literal["auto", "fp32"]
 """The built-in backbones (`lookfeel.models.list_backbones`; a test keeps the three in step)."""
 
 BACKBONE_FREEZE_POINTS: dict[str, tuple[str, ...]] = {
@@ -107,6 +114,11 @@ class ModelConfig:
     classes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """Each class head's class names, in output order. `lookfeel train` fills it in from the
     dataset's labels (and saves it with the run); leave it unset."""
+    precision: Precision = "auto"
+    """How the network computes on CUDA, in training and whenever its checkpoint embeds:
+    ``auto`` runs the forward pass under bf16 autocast (the GPU's fast path); ``fp32`` in full
+    fp32, TF32 off, as on a CPU (slower; for comparing a GPU run with CPU runs). On a CPU
+    every run is fp32 whatever this says (bf16 there is ~100x slower)."""
 
     def dropout_of(self, modality: Modality | str) -> float:
         """The dropout probability of ``modality``'s branch (``branch_dropout`` or ``dropout``)."""

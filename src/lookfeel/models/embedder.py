@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping, Sequence
 import torch
 from torch import Tensor, nn
 
-from lookfeel.config.model import ModelConfig
+from lookfeel.config.model import ModelConfig, Precision
 from lookfeel.modality import Modality, slot_modality
 from lookfeel.models.branch import Branch, BranchEnsemble
 from lookfeel.models.pretrained import apply_state_dict, read_state_dict
@@ -60,6 +60,11 @@ class Embedder(nn.Module):
     def modalities(self) -> tuple[Modality, ...]:
         """The modalities with a branch, in order."""
         return tuple(Modality(k) for k in self.branches)
+
+    @property
+    def precision(self) -> Precision:
+        """How it computes on CUDA (`ModelConfig.precision`; ``auto`` without a config)."""
+        return self.config.precision if self.config is not None else "auto"
 
     @property
     def embed_dim(self) -> int:

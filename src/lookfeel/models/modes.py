@@ -1,5 +1,5 @@
 """Small shared helpers around a model's calls: eval mode for a block, the touch press axis,
-and the device settings of a forward pass (bf16 autocast and channels-last on CUDA only)."""
+and the device settings of a forward pass (its precision and channels-last on CUDA only)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import torch
 from torch import Tensor, nn
 
+from lookfeel.config.model import Precision
 from lookfeel.modality import Modality
 
 __all__ = ["add_press_axis", "autocast", "drop_press_axis", "eval_mode", "to_channels_last"]
@@ -37,13 +38,31 @@ def drop_press_axis(x: Tensor, modality: Modality) -> Tensor:
     return x.squeeze(1) if modality is Modality.TOUCH else x
 
 
-def autocast(device: torch.device, cache: bool = True) -> contextlib.AbstractContextManager[object]:
-    """bf16 autocast on CUDA; nothing elsewhere (on CPU bf16 is ~100x slower than fp32 on the
-    machines this runs on, and fp32 keeps CPU runs bit-reproducible). ``cache=False`` for code
-    captured in a CUDA graph (autocast's cast cache must not outlive the capture)."""
-    if device.type == "cuda":
-        return torch.autocast("cuda", dtype=torch.bfloat16, cache_enabled=cache)
-    return contextlib.nullcontext()
+def autocast(
+    device: torch.device, cache: bool = True, precision: Precision = "auto"
+) -> contextlib.AbstractContextManager[object]:
+    """The precision of a forward pass (`ModelConfig.precision`): on CUDA, bf16 autocast
+    (``auto``) or full fp32 with TF32 off (``fp32``); on any other device nothing, fp32 (on CPU
+    bf16 is ~100x slower than fp32 on the machines this runs on, and fp32 keeps CPU runs
+    bit-reproducible). ``cache=False`` for code captured in a CUDA graph (autocast's cast
+    cache must not outlive the capture)."""
+    if device.type != "cuda":
+        return contextlib.nullcontext()
+    if precision == "fp32":
+        return _no_tf32()
+    return torch.autocast("cuda", dtype=torch.bfloat16, cache_enabled=cache)
+
+
+@contextlib.contextmanager
+def _no_tf32() -> Iterator[None]:
+    """Full fp32 on CUDA for the block: TF32 off for matrix products and cuDNN's convolutions
+    (cuDNN allows it by default), the previous settings restored afterwards."""
+    matmul, cudnn = torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32
+    torch.backends.cuda.matmul.allow_tf32 = torch.backends.cudnn.allow_tf32 = False
+    try:
+        yield
+    finally:
+        torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32 = matmul, cudnn
 
 
 def to_channels_last(x: Tensor) -> Tensor:

@@ -36,7 +36,7 @@ class FeatureTable:
         seed: seeds the augmented copies (copy ``k`` of every row is drawn from ``(seed, k)``).
         batch_size: images per trunk forward pass.
         device: where the trunk runs; the table is stored on this device (float32; on CUDA
-            the trunk runs under bf16 autocast).
+            the trunk runs in the model's precision, `ModelConfig.precision`).
         rank, world: fill only every ``world``-th row here and sum across processes, so
             ``world`` processes share the work (rows of other ranks stay 0 before the sum).
     """
@@ -102,7 +102,7 @@ class FeatureTable:
             x = store.batch(modality, [rows[i] for i in chunk])
             if aug is not None and draws is not None:
                 x = aug.apply_batch(x, draws[np.array(chunk)])
-            with autocast(self.device):
+            with autocast(self.device, precision=model.precision):
                 f = model.trunk({modality.value: add_press_axis(x, modality)})[modality.value]
             f = drop_press_axis(f, modality).float()
             if out is None:

@@ -13,7 +13,8 @@ run; with the torch RNG (dropout) saved in every checkpoint, a resumed run is bi
 The loop is short: `_Batches` builds step ``s``'s batch on the device (pixels from the
 `ImageStore`, augmented in one pass, or trunk features from the `FeatureTable` when the trunk
 is cached; the same draws either way) and `train_step` runs one optimisation step. On CUDA the
-forward pass runs under bf16 autocast with channels-last images; on CPU everything is fp32.
+forward pass runs with channels-last images under bf16 autocast (``model.precision=fp32``: full
+fp32); on CPU everything is fp32.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from torch import Tensor
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import init_from_checkpoint, read_checkpoint, save_checkpoint
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
+from lookfeel.config.model import Precision
 from lookfeel.data import (
     Catalog,
     DatasetError,
@@ -335,7 +337,7 @@ class _Batches:
             x = self._pixels(m, picked, aug_rng, view_rng, wall_rng)
             x = x.unflatten(0, (hi - lo, k)) if m is Modality.TOUCH else x
             if self.table is not None:  # cached run, live augmentation: trunk without grad
-                with torch.no_grad(), autocast(self.device):
+                with torch.no_grad(), autocast(self.device, precision=self.model.precision):
                     x = self.model.trunk({m.value: x})[m.value].float()
             elif self.channels_last:
                 x = to_channels_last(x)
@@ -370,6 +372,8 @@ class TrainRun:
     cluster: bool
     properties: bool
     classes: bool = False
+    precision: Precision = "auto"
+    """How the forward pass computes on CUDA (`ModelConfig.precision`)."""
 
 
 def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
@@ -387,7 +391,7 @@ def train_step(run: TrainRun, batch: Mapping[str, Any]) -> dict[str, Tensor]:
 
 def _update(run: TrainRun, batch: Mapping[str, Any], cache: bool = True) -> dict[str, Tensor]:
     """Forward, loss, backward and the optimiser's update: what a CUDA graph captures."""
-    with autocast(run.device, cache):
+    with autocast(run.device, cache, run.precision):
         outputs = run.net(batch["inputs"], from_trunk=run.from_trunk, heads=run.heads)
     outputs = {k: v.float() for k, v in outputs.items()}  # the loss in fp32
     terms = run.loss_fn(
@@ -903,6 +907,7 @@ def _train(
         cluster=bool(config.model.cluster_head),
         properties=bool(config.model.num_properties),
         classes=bool(config.model.class_heads),
+        precision=config.model.precision,
     )
 
     def checkpoint_state(step: int) -> dict[str, Any]:
@@ -963,7 +968,7 @@ def _train(
         )
         if is_val:
             if dist.is_main:
-                with autocast(device):
+                with autocast(device, precision=model.precision):
                     last_val = validate(
                         model, val_items, loader, table, t.feature_batch, device, t.val_pairs
                     )
