@@ -94,3 +94,46 @@ def test_bad_requests(data: Path, tmp_path: Path, capsys):
         main(["reproduce", "--data", str(data), "--out", str(tmp_path), "--budget", "paper"]) == 1
     )
     assert "--pretrained" in capsys.readouterr().err
+    args = ["reproduce", "--data", str(data), "--out", str(tmp_path / "w"), "--workers", "-1"]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "workers must be >= 0" in err and "Traceback" not in err
+    assert not (tmp_path / "w").exists()  # refused before anything is written
+
+
+def test_runs_side_by_side_in_workers_give_the_numbers_of_one_process(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import torch
+
+    import lookfeel.reproduce.run as run
+
+    monkeypatch.setattr(run, "available_cores", lambda: 2)  # 2 workers of 1 thread each
+    only = ["cross_modal", "snn_depth", "cross_modal_depth_touch"]
+    lines: list[str] = []
+    side = reproduce(
+        data, tmp_path / "side", "tiny", only=only, n_boot=50, overrides=FAST, log=lines.append
+    )
+    cites = {e.name: e.cites for e in run.EXPERIMENTS}
+    assert sorted(lines) == sorted(f"run  {n} seed 0 ({cites[n]})" for n in only)  # as they start
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        alone = reproduce(
+            data,
+            tmp_path / "alone",
+            "tiny",
+            only=only,
+            n_boot=50,
+            overrides=FAST,
+            log=lambda s: None,
+            workers=1,
+        )
+    finally:
+        torch.set_num_threads(threads)
+    assert list(side.results) == only  # the experiments' order, whichever finished first
+    assert json.dumps(side.results) == json.dumps(alone.results)
+    record = json.loads(
+        (tmp_path / "side" / "runs" / "snn_depth" / "seed0" / "eval.json").read_text()
+    )
+    assert record["threads"] == 1

@@ -6,6 +6,7 @@
 3. Reproduce the paper's experiments on it at the ``tiny`` budget: train the Flat,
    Cross-modal, Auxiliary and Multi-input nets, the colour-augmentation variants and Table 4's
    pair, evaluate each on held-out fabrics, and write the report beside the paper's numbers.
+   On a CPU the runs train side by side, one process of one thread per core (`reproduce`).
 4. Train the recipe that connects the senses here (``configs/synth_cross.yaml``, shortened:
    `CROSS_OVERRIDES`) on the world's 100 training fabrics.
 5. Evaluate it in full on the other 18: every pair in the embedding and through the cross-modal map

@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 
-__all__ = ["can_fork", "die_with_parent"]
+__all__ = ["available_cores", "can_fork", "die_with_parent"]
 
 
 def die_with_parent(parent: int) -> None:
@@ -49,3 +49,11 @@ def can_fork() -> bool:
     system frameworks are not fork-safe, Windows cannot fork), where a forked worker starts in
     milliseconds instead of the seconds a spawned one takes to import torch."""
     return sys.platform.startswith("linux") and hasattr(os, "fork")
+
+
+def available_cores() -> int:
+    """The CPU cores this process may run on (its affinity on Linux, else the machine's)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)

@@ -29,6 +29,13 @@ def add_parser(subparsers: Subparsers) -> None:
     rep.add_argument("--pretrained", type=Path, default=None, help="ImageNet AlexNet weights")
     rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
+    rep.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        help="runs trained at once, each in its own process with a share of the cores "
+        "(default 0: one per core on a CPU, 1 on CUDA; 1: one after the other here)",
+    )
     add_set(rep, "override every run's config")
 
 
@@ -45,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         only=args.only or (),
         n_boot=args.n_boot,
         overrides=args.set,
+        workers=args.workers,
     )
     print()
     for line in headline(result.results):

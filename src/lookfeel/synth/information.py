@@ -453,12 +453,9 @@ def _stream_of(im: WorldImage) -> str:
 
 
 def _workers(workers: int) -> int:
-    if workers > 0:
-        return workers
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+    from lookfeel.processes import available_cores
+
+    return workers if workers > 0 else available_cores()
 
 
 def extract_features(

@@ -38,7 +38,7 @@ from PIL import Image
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.modality import REPRINTS, Modality, PressKind
-from lookfeel.processes import die_with_parent
+from lookfeel.processes import available_cores, die_with_parent
 from lookfeel.synth.color import render_colors
 from lookfeel.synth.config import SynthConfig, SynthSummary
 from lookfeel.synth.depth import render_depth
@@ -283,11 +283,7 @@ def _copied_labels_text(lf: LabelFile) -> str:
 def _workers(cfg: SynthConfig, n_tasks: int) -> int:
     if cfg.workers:
         return max(1, min(cfg.workers, n_tasks))
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, n_tasks))
+    return max(1, min(available_cores(), n_tasks))
 
 
 def generate(
