@@ -257,7 +257,9 @@ def _on_cuda(config: RunConfig) -> bool:
 
 def _workers_for(jobs: Sequence[_Job], workers: int) -> int:
     """How many runs train at once: ``workers``, or by default one per available core on a
-    CPU and one on CUDA (the runs share one GPU); never more than the runs left to train."""
+    CPU and one on CUDA; never more than the runs left to train. (Small runs side by side on
+    one GPU, each in its own process, may well be faster, as the compact nets are bound by
+    launching kernels there; not measured yet, so CUDA keeps one at a time unless asked.)"""
     todo = sum(not j.finished for j in jobs)
     if workers <= 0:
         workers = 1 if any(_on_cuda(j.config) for j in jobs) else available_cores()
