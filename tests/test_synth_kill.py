@@ -1,5 +1,5 @@
 """Killing `lookfeel synth` (even with SIGKILL) kills its workers, and the half-rendered world
-it leaves fails `data check`."""
+it leaves fails `data check`; killing a decoding process or `lookfeel reproduce` kills theirs."""
 
 from __future__ import annotations
 
@@ -121,3 +121,42 @@ def test_sigkill_of_a_decoding_process_kills_its_decode_workers(tmp_path: Path):
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_sigkill_of_reproduce_kills_the_runs_training_side_by_side(tmp_path: Path):
+    from ._tiny import write_tiny_dataset
+
+    root = write_tiny_dataset(tmp_path / "d", fabrics=10, drapes=5, fold_presses=4)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    args = ["--budget", "tiny", "--workers", "2", "--set", "train.steps=5000"]
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "lookfeel",
+            "reproduce",
+            "--data",
+            str(root),
+            "--out",
+            str(tmp_path / "r"),
+            *args,
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        workers: set[int] = set()
+        runs = tmp_path / "r" / "runs"
+        while time.monotonic() < deadline and proc.poll() is None:
+            workers = {w for w in _children(proc.pid) if _alive(w)}
+            if len(workers) >= 2 and len(list(runs.glob("*/seed0/config.yaml"))) >= 2:
+                break  # two runs are training, each in its worker
+            time.sleep(0.05)
+        _kill_and_wait_for(proc, workers, "reproduce (raise train.steps if it finished)")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert not list(runs.glob("*/seed0/eval.json"))  # no run had finished: nothing half-scored
