@@ -81,8 +81,8 @@ without the dropout and the frames gained less (0.28 on seed 1) (docs/synth.md).
 On CUDA it computes in full fp32 (``model.precision=fp32``), as on a CPU, not in bf16 autocast:
 on one H200 (session 42, `benchmarks.bench_demo_seeds`, seeds 0-2, two batches) bf16 read the
 mean of the six pairs 0.009 lower than fp32 in both batches (0.321 / 0.322 against 0.330 /
-0.331; a CPU: 0.328), touch <-> depth about 0.02 lower, and trained no faster for a network
-this small (12.4 against 11.3-12.3 s)."""
+0.331; a CPU: 0.328; fp32 ahead at the same seed in 5 of 6), touch <-> depth 0.01-0.02
+lower, and trained no faster for a network this small (12.4-12.5 against 11.3-12.3 s)."""
 
 
 def demo_world(fabrics: int, seed: int) -> SynthConfig:

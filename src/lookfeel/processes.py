@@ -2,8 +2,8 @@
 
 Every pool of worker processes in lookfeel (the synthetic world's renderers, the information
 table's feature extractors, the image decoders of `lookfeel.data.decode_pool`, the training
-runs of `lookfeel.reproduce`) starts each worker with `die_with_parent`, so a run killed by Ctrl-C, ``kill`` or ``SIGKILL`` leaves no
-orphan behind.
+runs of `lookfeel.reproduce`) starts each worker with `die_with_parent`, so a run killed by
+Ctrl-C, ``kill`` or ``SIGKILL`` leaves no orphan behind.
 """
 
 from __future__ import annotations
