@@ -7,10 +7,12 @@ full fp32 (``model.precision=fp32``, what a CPU computes).
 wide, and this says how much of a difference between two machines is the seed's chance.
 
     python -m benchmarks.bench_demo_seeds [--seeds 0,1,2] [--precision auto,fp32] \\
-        [--world DIR] [--out benchmarks/results/demo_seeds.json]
+        [--world DIR | --fabrics 118 --world-seed 0] [--out benchmarks/results/demo_seeds.json]
 
 Without ``--world`` it renders the demo's world (`lookfeel.demo.demo_world`: 118 fabrics,
-seed 0, the same files as `make demo`'s) in a temporary folder. On a CPU both precisions are
+seed 0, the same files as `make demo`'s) in a temporary folder, or one of its kind with
+``--fabrics`` fabrics and seed ``--world-seed`` (the world holds out its ``paper_split``
+share, 18 of every 118 fabrics). On a CPU both precisions are
 fp32 and train the same weights, so ``--precision`` matters only on CUDA. About 1 minute a run
 on 2 cores (AMD EPYC), 40 s on one H200.
 """
@@ -115,6 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0,1,2", help="training seeds, comma-separated")
     ap.add_argument("--precision", default="auto", help="model.precision values: auto,fp32")
     ap.add_argument("--world", type=Path, default=None, help="the demo's world, if rendered")
+    ap.add_argument("--fabrics", type=int, default=118, help="fabrics of the world to render")
+    ap.add_argument("--world-seed", type=int, default=0, help="seed of the world to render")
     ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = ap.parse_args(argv)
     try:
@@ -126,13 +130,22 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--precision: auto or fp32, got {', '.join(bad)}")
     if args.world is not None and not args.world.is_dir():
         ap.error(f"--world: {args.world} is not a folder")
+    if args.fabrics < 66:
+        ap.error(
+            f"--fabrics: at least 66, so that 10 are held out to pick 1 of 10; got {args.fabrics}"
+        )
     started = time.time()
     with tempfile.TemporaryDirectory(prefix="bench_demo_seeds_") as tmp:
         world = args.world
         if world is None:
             world = Path(tmp) / "world"
-            generate(demo_world(118, 0), world, progress=True)
+            generate(demo_world(args.fabrics, args.world_seed), world, progress=True)
         result = measure(world, seeds, precisions, Path(tmp) / "runs")
+    result["world"] = (
+        str(args.world)
+        if args.world is not None
+        else {"fabrics": args.fabrics, "seed": args.world_seed}
+    )
     return write_standalone("demo_seeds", started, result, args.out)
 
 

@@ -54,6 +54,7 @@ def test_bad_arguments_name_the_option(capsys: pytest.CaptureFixture[str]):
         (["--seeds", "0,x"], "--seeds"),
         (["--precision", "fp16"], "--precision"),
         (["--world", "/nonexistent/world"], "--world"),
+        (["--fabrics", "30"], "--fabrics"),
     ):
         with pytest.raises(SystemExit):
             main(argv)
