@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -59,12 +60,12 @@ def _images(root: Path) -> int:
     return sum(1 for p in root.rglob("*") if p.suffix in (".png", ".jpg"))
 
 
-def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: Path):
-    out = tmp_path / "world"
+def _kill_lookfeel_once_busy(args: list[str], busy: Callable[[], bool], what: str) -> None:
+    """Start ``lookfeel ARGS`` in a fresh interpreter; once it has 2 live child processes and
+    ``busy()`` holds, SIGKILL it and fail unless every child ends within 10 s."""
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
-    args = ["--size", "tiny", "--fabrics", "60", "--workers", "2", "--no-contact-sheet"]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "lookfeel", "synth", str(out), *args, "--quiet"],
+        [sys.executable, "-m", "lookfeel", *args],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -74,17 +75,27 @@ def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: 
         workers: set[int] = set()
         while time.monotonic() < deadline and proc.poll() is None:
             workers = {w for w in _children(proc.pid) if _alive(w)}
-            if len(workers) >= 2 and out.is_dir() and _images(out) > 0:
+            if len(workers) >= 2 and busy():
                 break
             time.sleep(0.05)
-        _kill_and_wait_for(proc, workers, "synth (raise --fabrics if it finished)")
-        n = _images(out)
-        time.sleep(1.5)
-        assert _images(out) == n, "files kept appearing after synth was killed"
+        _kill_and_wait_for(proc, workers, what)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_sigkill_of_synth_kills_its_workers_and_the_world_fails_check(tmp_path: Path):
+    out = tmp_path / "world"
+    args = ["--size", "tiny", "--fabrics", "60", "--workers", "2", "--no-contact-sheet"]
+    _kill_lookfeel_once_busy(
+        ["synth", str(out), *args, "--quiet"],
+        lambda: out.is_dir() and _images(out) > 0,
+        "synth (raise --fabrics if it finished)",
+    )
+    n = _images(out)
+    time.sleep(1.5)
+    assert _images(out) == n, "files kept appearing after synth was killed"
     catalog = check_dataset(out)
     messages = [str(p) for p in catalog.errors]
     assert any("synthetic world was not finished" in m for m in messages), messages
@@ -127,36 +138,11 @@ def test_sigkill_of_reproduce_kills_the_runs_training_side_by_side(tmp_path: Pat
     from ._tiny import write_tiny_dataset
 
     root = write_tiny_dataset(tmp_path / "d", fabrics=10, drapes=5, fold_presses=4)
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    runs = tmp_path / "r" / "runs"
     args = ["--budget", "tiny", "--workers", "2", "--set", "train.steps=5000"]
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "lookfeel",
-            "reproduce",
-            "--data",
-            str(root),
-            "--out",
-            str(tmp_path / "r"),
-            *args,
-        ],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+    _kill_lookfeel_once_busy(
+        ["reproduce", "--data", str(root), "--out", str(tmp_path / "r"), *args],
+        lambda: len(list(runs.glob("*/seed0/config.yaml"))) >= 2,  # two runs training
+        "reproduce (raise train.steps if it finished)",
     )
-    try:
-        deadline = time.monotonic() + 120
-        workers: set[int] = set()
-        runs = tmp_path / "r" / "runs"
-        while time.monotonic() < deadline and proc.poll() is None:
-            workers = {w for w in _children(proc.pid) if _alive(w)}
-            if len(workers) >= 2 and len(list(runs.glob("*/seed0/config.yaml"))) >= 2:
-                break  # two runs are training, each in its worker
-            time.sleep(0.05)
-        _kill_and_wait_for(proc, workers, "reproduce (raise train.steps if it finished)")
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert not list(runs.glob("*/seed0/eval.json"))  # no run had finished: nothing half-scored
