@@ -141,11 +141,17 @@ def main(argv: list[str] | None = None) -> int:
             world = Path(tmp) / "world"
             generate(demo_world(args.fabrics, args.world_seed), world, progress=True)
         result = measure(world, seeds, precisions, Path(tmp) / "runs")
-    result["world"] = (
-        str(args.world)
-        if args.world is not None
-        else {"fabrics": args.fabrics, "seed": args.world_seed}
-    )
+    if args.world is not None:
+        result["world"] = str(args.world)
+    else:
+        made = demo_world(args.fabrics, args.world_seed)
+        result["world"] = {
+            "fabrics": made.fabrics,
+            "seed": made.seed,
+            "drapes": made.drapes,
+            "presses_flat": made.presses_flat,
+            "presses_fold": made.presses_fold,
+        }
     return write_standalone("demo_seeds", started, result, args.out)
 
 
