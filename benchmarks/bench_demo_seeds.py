@@ -26,14 +26,19 @@ import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import get_args
 
 from benchmarks.__main__ import write_standalone
 from benchmarks.bench_demo import demo_pairs
 from lookfeel.config import EvalConfig
+from lookfeel.config.model import Precision
 from lookfeel.demo import cross_config, demo_world
 from lookfeel.evaluate import evaluate_checkpoint
 from lookfeel.synth import generate
 from lookfeel.train import train
+
+WORLD_FIELDS = ("fabrics", "seed", "drapes", "presses_flat", "presses_fold")
+"""What the result records of a world it rendered."""
 
 
 def measure(
@@ -126,8 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:
         ap.error(f"--seeds: integers separated by commas, got {args.seeds!r}")
     precisions = [p.strip() for p in args.precision.split(",")]
-    if bad := [p for p in precisions if p not in ("auto", "fp32")]:
-        ap.error(f"--precision: auto or fp32, got {', '.join(bad)}")
+    if bad := [p for p in precisions if p not in get_args(Precision)]:
+        ap.error(f"--precision: one of {', '.join(get_args(Precision))}, got {', '.join(bad)}")
     if args.world is not None and not args.world.is_dir():
         ap.error(f"--world: {args.world} is not a folder")
     if args.fabrics < 66:
@@ -135,23 +140,16 @@ def main(argv: list[str] | None = None) -> int:
             f"--fabrics: at least 66, so that 10 are held out to pick 1 of 10; got {args.fabrics}"
         )
     started = time.time()
+    made = demo_world(args.fabrics, args.world_seed)
     with tempfile.TemporaryDirectory(prefix="bench_demo_seeds_") as tmp:
         world = args.world
         if world is None:
             world = Path(tmp) / "world"
-            generate(demo_world(args.fabrics, args.world_seed), world, progress=True)
+            generate(made, world, progress=True)
         result = measure(world, seeds, precisions, Path(tmp) / "runs")
-    if args.world is not None:
-        result["world"] = str(args.world)
-    else:
-        made = demo_world(args.fabrics, args.world_seed)
-        result["world"] = {
-            "fabrics": made.fabrics,
-            "seed": made.seed,
-            "drapes": made.drapes,
-            "presses_flat": made.presses_flat,
-            "presses_fold": made.presses_fold,
-        }
+    result["world"] = (
+        str(args.world) if args.world is not None else {k: getattr(made, k) for k in WORLD_FIELDS}
+    )
     return write_standalone("demo_seeds", started, result, args.out)
 
 

@@ -59,3 +59,27 @@ def test_bad_arguments_name_the_option(capsys: pytest.CaptureFixture[str]):
         with pytest.raises(SystemExit):
             main(argv)
         assert option in capsys.readouterr().err
+
+
+def test_a_rendered_world_is_the_demo_kind_and_is_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import benchmarks.bench_demo_seeds as bench
+
+    from lookfeel.demo import demo_world
+
+    rendered: list[object] = []
+    monkeypatch.setattr(bench, "generate", lambda config, out, progress: rendered.append(config))
+    monkeypatch.setattr(bench, "measure", lambda world, seeds, precisions, work: {"runs": []})
+    out = tmp_path / "r.json"
+    assert main(["--fabrics", "70", "--world-seed", "3", "--seeds", "0", "--out", str(out)]) == 0
+    assert rendered == [demo_world(70, 3)]
+    saved = yaml.safe_load(out.read_text())  # JSON is YAML
+    world = demo_world(70, 3)
+    assert saved["world"] == {
+        "fabrics": 70,
+        "seed": 3,
+        "drapes": world.drapes,
+        "presses_flat": world.presses_flat,
+        "presses_fold": world.presses_fold,
+    }
