@@ -337,8 +337,7 @@ def _run_in_worker(job: _Job, data: Path, n_boot: int) -> dict[str, Any]:
     """`_run_one` in a worker process."""
     if data not in _CATALOGS:
         _CATALOGS[data] = scan(data, require=[], strict=True)
-    record = _run_one(job.exp, job.config, _CATALOGS[data], data, job.run_dir, n_boot)
-    return record
+    return _run_one(job.exp, job.config, _CATALOGS[data], data, job.run_dir, n_boot)
 
 
 def reproduce(

@@ -81,6 +81,7 @@ from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 from lookfeel.data.holes import fill_holes
 from lookfeel.data.layout import parse_touch_name
 from lookfeel.metrics import bootstrap_ci, pick_k_of_n_exact
+from lookfeel.processes import available_cores, die_with_parent
 
 __all__ = [
     "CLASS_LATENTS",
@@ -453,8 +454,6 @@ def _stream_of(im: WorldImage) -> str:
 
 
 def _workers(workers: int) -> int:
-    from lookfeel.processes import available_cores
-
     return workers if workers > 0 else available_cores()
 
 
@@ -483,8 +482,6 @@ def extract_features(
         results = [fn(items) for _, items in jobs]
     else:
         ctx = get_context("spawn")
-        from lookfeel.processes import die_with_parent
-
         with ProcessPoolExecutor(
             min(n_workers, len(jobs)),
             mp_context=ctx,
