@@ -440,3 +440,27 @@ def test_precision_travels_with_the_checkpoint_and_a_cpu_run_ignores_it(data: Pa
     assert load_model(auto.last_checkpoint).model.precision == "auto"
     # On a CPU both are fp32: the same weights to the bit.
     assert _states_equal(auto.last_checkpoint, fp32.last_checkpoint)
+
+
+@pytest.mark.parametrize("fails", [False, True], ids=["returns", "raises"])
+def test_train_gives_back_the_callers_cudnn_autotuner_setting(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fails: bool
+):
+    """On CUDA a run turns cuDNN's autotuner on for its fixed shapes; whatever runs after it (an
+    evaluation's batches of every size) must get the caller's setting back, on error too."""
+    import lookfeel.train.loop as loop
+
+    def tuned_run(*args: object, **kwargs: object) -> str:
+        torch.backends.cudnn.benchmark = True  # as `_train` does on CUDA
+        if fails:
+            raise RuntimeError("the run failed")
+        return "trained"
+
+    monkeypatch.setattr(loop, "_train", tuned_run)
+    monkeypatch.setattr(torch.backends.cudnn, "benchmark", False)
+    if fails:
+        with pytest.raises(RuntimeError, match="the run failed"):
+            train(_config("train.steps=1"), data, tmp_path / "run")
+    else:
+        assert train(_config("train.steps=1"), data, tmp_path / "run") == "trained"
+    assert torch.backends.cudnn.benchmark is False

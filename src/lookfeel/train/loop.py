@@ -662,11 +662,16 @@ def train(
         )
     t = config.train
     dist = Distributed.from_env(t.device)
+    # _train turns cuDNN's autotuner on for its fixed shapes on CUDA; what runs after (an
+    # evaluation's batches of every size, the caller's own code) gets the caller's setting back.
+    benchmark = torch.backends.cudnn.benchmark
     try:
         result = _train(config, Path(data), run_dir, state, dist, on_step, loader)
     except BaseException:
         dist.close()  # no barrier: the other processes may be gone
         raise
+    finally:
+        torch.backends.cudnn.benchmark = benchmark
     dist.close(sync=True)
     return result
 
