@@ -7,14 +7,16 @@ full fp32 (``model.precision=fp32``, what a CPU computes).
 wide, and this says how much of a difference between two machines is the seed's chance.
 
     python -m benchmarks.bench_demo_seeds [--seeds 0,1,2] [--precision auto,fp32] \\
-        [--world DIR | --fabrics 118 --world-seed 0] [--out benchmarks/results/demo_seeds.json]
+        [--world DIR | --fabrics 118 --world-seed 0] [--set KEY=VALUE ...] \\
+        [--out benchmarks/results/demo_seeds.json]
 
 Without ``--world`` it renders the demo's world (`lookfeel.demo.demo_world`: 118 fabrics,
 seed 0, the same files as `make demo`'s) in a temporary folder, or one of its kind with
 ``--fabrics`` fabrics and seed ``--world-seed`` (the world holds out its ``paper_split``
 share, 18 of every 118 fabrics). On a CPU both precisions are
-fp32 and train the same weights, so ``--precision`` matters only on CUDA. About 1 minute a run
-on 2 cores (AMD EPYC), 40 s on one H200.
+fp32 and train the same weights, so ``--precision`` matters only on CUDA. ``--set`` changes the
+demo's run for a screen (``--set train.lr=0.002``, repeatable, after the demo's own overrides);
+the result records them. About 1 minute a run on 2 cores (AMD EPYC), 40 s on one H200.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from typing import get_args
 
 from benchmarks.__main__ import write_standalone
 from benchmarks.bench_demo import demo_pairs
-from lookfeel.config import EvalConfig
+from lookfeel.config import ConfigError, EvalConfig
 from lookfeel.config.model import Precision
 from lookfeel.demo import cross_config, demo_world
 from lookfeel.evaluate import evaluate_checkpoint
@@ -124,6 +126,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--world", type=Path, default=None, help="the demo's world, if rendered")
     ap.add_argument("--fabrics", type=int, default=118, help="fabrics of the world to render")
     ap.add_argument("--world-seed", type=int, default=0, help="seed of the world to render")
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override the demo's run (repeatable), e.g. train.lr=0.002",
+    )
     ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = ap.parse_args(argv)
     try:
@@ -139,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(
             f"--fabrics: at least 66, so that 10 are held out to pick 1 of 10; got {args.fabrics}"
         )
+    try:
+        cross_config(args.overrides)
+    except ConfigError as e:
+        ap.error(f"--set: {e}")
     started = time.time()
     made = demo_world(args.fabrics, args.world_seed)
     with tempfile.TemporaryDirectory(prefix="bench_demo_seeds_") as tmp:
@@ -146,10 +160,11 @@ def main(argv: list[str] | None = None) -> int:
         if world is None:
             world = Path(tmp) / "world"
             generate(made, world, progress=True)
-        result = measure(world, seeds, precisions, Path(tmp) / "runs")
+        result = measure(world, seeds, precisions, Path(tmp) / "runs", args.overrides)
     result["world"] = (
         str(args.world) if args.world is not None else {k: getattr(made, k) for k in WORLD_FIELDS}
     )
+    result["overrides"] = list(args.overrides)
     return write_standalone("demo_seeds", started, result, args.out)
 
 

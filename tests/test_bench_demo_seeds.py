@@ -55,6 +55,8 @@ def test_bad_arguments_name_the_option(capsys: pytest.CaptureFixture[str]):
         (["--precision", "fp16"], "--precision"),
         (["--world", "/nonexistent/world"], "--world"),
         (["--fabrics", "30"], "--fabrics"),
+        (["--set", "train.bogus=1"], "unknown key train.bogus"),
+        (["--set", "train.lr"], "expected key=value"),
     ):
         with pytest.raises(SystemExit):
             main(argv)
@@ -70,9 +72,17 @@ def test_a_rendered_world_is_the_demo_kind_and_is_recorded(
 
     rendered: list[object] = []
     monkeypatch.setattr(bench, "generate", lambda config, out, progress: rendered.append(config))
-    monkeypatch.setattr(bench, "measure", lambda world, seeds, precisions, work: {"runs": []})
+    measured: list[object] = []
+
+    def fake_measure(world, seeds, precisions, work, overrides):
+        measured.append(overrides)
+        return {"runs": []}
+
+    monkeypatch.setattr(bench, "measure", fake_measure)
     out = tmp_path / "r.json"
-    assert main(["--fabrics", "70", "--world-seed", "3", "--seeds", "0", "--out", str(out)]) == 0
+    argv = ["--fabrics", "70", "--world-seed", "3", "--seeds", "0", "--out", str(out)]
+    assert main([*argv, "--set", "train.lr=0.002", "--set", "model.embed_dim=64"]) == 0
+    assert measured == [["train.lr=0.002", "model.embed_dim=64"]]
     assert rendered == [demo_world(70, 3)]
     saved = yaml.safe_load(out.read_text())  # JSON is YAML
     world = demo_world(70, 3)
@@ -83,3 +93,4 @@ def test_a_rendered_world_is_the_demo_kind_and_is_recorded(
         "presses_flat": world.presses_flat,
         "presses_fold": world.presses_fold,
     }
+    assert saved["overrides"] == ["train.lr=0.002", "model.embed_dim=64"]
