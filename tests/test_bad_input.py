@@ -532,3 +532,44 @@ def test_index_build_options_are_one_line(
     argv = ["index", "build", "--checkpoint", ckpt, "--data", data, "--out", tmp_path / "lib"]
     _fails(capsys, [*argv, option, value], expected)
     assert not (tmp_path / "lib").exists()
+
+
+class _Foreign:
+    """An object a checkpoint must not hold: loading it would run code from the file."""
+
+
+def test_a_file_that_is_not_a_checkpoint_is_one_line_with_its_reason(
+    run: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    _, ckpt = run
+    text = tmp_path / "notes.pt"
+    text.write_text("not a checkpoint\n")
+    cut = tmp_path / "cut.pt"
+    cut.write_bytes(ckpt.read_bytes()[:100])
+    foreign = tmp_path / "foreign.pt"
+    torch.save({"config": _Foreign(), "model": {}}, foreign)
+    for path, reason in (
+        (text, "Unsupported operand"),
+        (cut, "failed reading zip archive"),
+        (foreign, "Unsupported global"),
+    ):
+        assert main(["predict", "--checkpoint", str(path), str(tmp_path / "q.png")]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1, err
+        assert f"{path.name}: not a readable checkpoint" in err[0] and reason in err[0]
+        assert "weights_only" not in err[0]  # torch's advice to run the file's code: never
+
+
+def test_predict_names_a_missing_file_before_asking_what_it_shows(
+    run: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.train import train
+
+    data, _ = run
+    steps = ["train.steps=2", "train.val_every=0", "train.checkpoint_every=0"]
+    config = load_config(RunConfig, TINY, [*steps, "model.num_properties=auto"])
+    ckpt = train(config, data, tmp_path / "run").last_checkpoint  # three senses, with heads
+    assert main(["predict", "--checkpoint", str(ckpt), str(tmp_path / "missing.png")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "missing.png: file not found" in err[0], err

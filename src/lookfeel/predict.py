@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from lookfeel.checkpoint import LoadedModel
+from lookfeel.data.files import ImageError
 from lookfeel.data.layout import IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.errors import LookfeelError
@@ -143,6 +144,8 @@ def predict_files(
     files = [Path(p) for p in paths]
     if not files:
         raise PredictError("no input file given")
+    if missing := next((p for p in files if not p.exists()), None):
+        raise ImageError(missing, "file not found")  # before asking what a missing file shows
     mods = [modality or guess_modality(p, have) for p in files]
     for p, m in zip(files, mods, strict=True):
         if m not in have:
