@@ -158,10 +158,10 @@ def test_required_modality_missing(tmp_path: Path):
 
 
 def test_missing_root_is_a_clear_error(tmp_path: Path):
-    with pytest.raises(DatasetError, match="does not exist"):
+    with pytest.raises(DatasetError, match=r"^\S*nope: dataset folder does not exist$"):
         scan(tmp_path / "nope")
     (tmp_path / "file").write_text("x")
-    with pytest.raises(DatasetError, match="is not a folder"):
+    with pytest.raises(DatasetError, match=r"^\S*file: is not a folder \(a dataset is a folder"):
         scan(tmp_path / "file")
 
 

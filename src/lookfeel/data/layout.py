@@ -305,9 +305,9 @@ def scan(
     root = Path(root)
     if not root.is_dir():
         raise DatasetError(
-            f"dataset folder {root} does not exist"
+            "dataset folder does not exist"
             if not root.exists()
-            else f"{root} is not a folder",
+            else "is not a folder (a dataset is a folder: depth/, color/, touch/, videos/)",
             root,
         )
     problems: list[Problem] = []
