@@ -573,3 +573,17 @@ def test_predict_names_a_missing_file_before_asking_what_it_shows(
     assert main(["predict", "--checkpoint", str(ckpt), str(tmp_path / "missing.png")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "missing.png: file not found" in err[0], err
+
+
+def test_a_query_of_stacked_press_frames_that_is_not_an_image_says_so(tmp_path: Path):
+    """With data.touch_frames a touch query is read with its press's other frames; a file that
+    is no image at all is refused as such, not for the way its name is written."""
+    from lookfeel.config import DataConfig
+    from lookfeel.index.query import load_query_image
+    from lookfeel.modality import Modality
+
+    labels = tmp_path / "labels.csv"
+    labels.write_text("fabric_id\n1\n")
+    config = DataConfig(image_size=16, touch_frames=(0, -1))
+    with pytest.raises(ImageError, match=r"labels\.csv: not an image \(\.png, \.jpg, \.jpeg\)"):
+        load_query_image(labels, Modality.TOUCH, config)

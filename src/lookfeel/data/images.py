@@ -48,7 +48,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import fill_holes
-from lookfeel.data.layout import press_frame_files
+from lookfeel.data.layout import IMAGE_SUFFIXES, press_frame_files
 from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality, reprint_path
 from lookfeel.processes import can_fork
@@ -451,6 +451,8 @@ class ImageLoader:
             return known
         if not path.is_file():
             read_image_file(path)  # raises its usual line: not found, a folder, not a file
+        if path.suffix.lower() not in IMAGE_SUFFIXES:
+            raise ImageError(path, f"not an image ({', '.join(IMAGE_SUFFIXES)}) of a press")
         frames = press_frame_files(path)
         if not frames or path not in frames:
             raise ImageError(
