@@ -587,3 +587,46 @@ def test_a_query_of_stacked_press_frames_that_is_not_an_image_says_so(tmp_path: 
     config = DataConfig(image_size=16, touch_frames=(0, -1))
     with pytest.raises(ImageError, match=r"labels\.csv: not an image \(\.png, \.jpg, \.jpeg\)"):
         load_query_image(labels, Modality.TOUCH, config)
+
+
+OUT_FOLDER_COMMANDS = [
+    ["train", "--config", "c.yaml", "--data", "d"],
+    ["cv", "--config", "c.yaml", "--data", "d"],
+    ["reproduce", "--data", "d"],
+    ["index", "build", "--checkpoint", "c.pt", "--data", "d"],
+    ["evaluate", "--checkpoint", "c.pt", "--data", "d"],
+    ["export", "--checkpoint", "c.pt"],
+    ["demo"],
+]
+
+
+@pytest.mark.parametrize("command", OUT_FOLDER_COMMANDS, ids=lambda c: " ".join(c[:2]))
+def test_an_out_folder_where_a_file_is_is_refused_before_any_work(
+    command: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """Each command that writes a folder refuses a file in its way at once, in one line (they
+    raised FileExistsError or NotADirectoryError when they first wrote, after their work)."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine\n")
+    cases = (
+        (notes, f"{notes} exists and is not a folder"),
+        (notes / "run", f"{notes} is a file, not a folder to write in"),
+    )
+    for out, said in cases:
+        with pytest.raises(SystemExit) as e:
+            main([*command, "--out", str(out)])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1].endswith(f"argument --out: {said}"), err
+        assert not any("Traceback" in line for line in err)
+    assert notes.read_text() == "mine\n"
+
+
+def test_embed_out_must_name_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    args = ["embed", "--checkpoint", "c.pt", "--data", "d", "--out", str(tmp_path)]
+    with pytest.raises(SystemExit):
+        main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(
+        f"{tmp_path} is a folder; name the file to write (e.g. {tmp_path / 'embeddings.npz'})"
+    )

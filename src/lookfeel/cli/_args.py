@@ -81,10 +81,42 @@ def add_json(parser: argparse.ArgumentParser, help: str = "print as JSON") -> No
     parser.add_argument("--json", action="store_true", help=help)
 
 
-def add_data_out(parser: argparse.ArgumentParser, out_help: str) -> None:
-    """The required ``--data`` (a dataset folder) and ``--out`` (what the command writes)."""
+def _under_a_folder(path: Path) -> None:
+    """Refuse ``path`` when what already exists of it, or of the folders above it, is a file:
+    said before the command starts its work, not as a traceback when it first writes."""
+    for above in path.parents:
+        if above.exists():
+            if not above.is_dir():
+                raise argparse.ArgumentTypeError(f"{above} is a file, not a folder to write in")
+            return
+
+
+def out_folder(text: str) -> Path:
+    """``--out`` of a command that writes a folder (a run, a report, a library)."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} exists and is not a folder")
+    _under_a_folder(path)
+    return path
+
+
+def out_file(text: str) -> Path:
+    """``--out`` of a command that writes one file."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(
+            f"{path} is a folder; name the file to write (e.g. {path / 'embeddings.npz'})"
+        )
+    _under_a_folder(path)
+    return path
+
+
+def add_data_out(parser: argparse.ArgumentParser, out_help: str, file: bool = False) -> None:
+    """The required ``--data`` (a dataset folder) and ``--out`` (what the command writes: a
+    folder, or with ``file`` one file)."""
     parser.add_argument("--data", type=Path, required=True, help="dataset folder")
-    parser.add_argument("--out", type=Path, required=True, help=out_help)
+    out_type = out_file if file else out_folder
+    parser.add_argument("--out", type=out_type, required=True, help=out_help)
 
 
 def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:

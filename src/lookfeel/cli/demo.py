@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_set
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_set, out_folder
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -24,7 +24,7 @@ def add_parser(subparsers: Subparsers) -> None:
         default=Path("../shared/data/gelfabric"),
         help="real data to summarise first when present (default ../shared/data/gelfabric)",
     )
-    demo.add_argument("--out", type=Path, default=Path("demo-output"), help="demo folder")
+    demo.add_argument("--out", type=out_folder, default=Path("demo-output"), help="demo folder")
     demo.add_argument(
         "--fabrics", type=int, default=118, help="fabrics in the synthetic world (118)"
     )

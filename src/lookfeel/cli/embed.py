@@ -25,7 +25,7 @@ def add_parser(subparsers: Subparsers) -> None:
     """Register ``embed``."""
     emb = add_command(subparsers, "embed", __doc__, run)
     emb.add_argument("--checkpoint", type=Path, required=True, help="a run's checkpoint (.pt)")
-    add_data_out(emb, "the .npz file to write")
+    add_data_out(emb, "the .npz file to write", file=True)
     add_choice(
         emb,
         "--split",

@@ -21,7 +21,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_forward, add_set
+from lookfeel.cli._args import (
+    Choices,
+    Subparsers,
+    add_choice,
+    add_command,
+    add_forward,
+    add_set,
+    out_folder,
+)
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -36,7 +44,7 @@ def add_parser(subparsers: Subparsers) -> None:
         default=None,
         help="dataset folder (with --embeddings: optional, for clusters, labels and images)",
     )
-    ev.add_argument("--out", type=Path, required=True, help="folder for the report")
+    ev.add_argument("--out", type=out_folder, required=True, help="folder for the report")
     add_choice(
         ev,
         "--split",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command
+from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, out_folder
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -25,7 +25,7 @@ def add_parser(subparsers: Subparsers) -> None:
         "onnx",
         "export format: %(choices)s (default onnx)",
     )
-    ex.add_argument("--out", type=Path, required=True, help="output folder")
+    ex.add_argument("--out", type=out_folder, required=True, help="output folder")
     ex.add_argument("--opset", type=int, default=17, help="ONNX opset (17)")
 
 
