@@ -65,9 +65,10 @@ def test_strict_errors_name_the_key(data, message):
 
 def test_file_errors_name_the_file(tmp_path: Path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("image_size: [1\n")
-    with pytest.raises(ConfigError, match="bad.yaml: not valid YAML"):
+    bad.write_text("# notes\n\n```bash\n")
+    with pytest.raises(ConfigError, match="bad.yaml: not valid YAML: found character") as e:
         load_config(DataConfig, bad)
+    assert str(e.value).endswith("at line 3, column 1") and "\n" not in str(e.value)
     bad.write_text("- 1\n- 2\n")
     with pytest.raises(ConfigError, match="bad.yaml: the top level must be a mapping"):
         load_config(DataConfig, bad)
@@ -87,6 +88,9 @@ def test_overrides_do_not_modify_input_and_reject_bad_syntax():
         apply_overrides({}, ["image_size"])
     with pytest.raises(ConfigError, match="image_size is not a mapping"):
         apply_overrides({"image_size": 3}, ["image_size.x=1"])
+    with pytest.raises(ConfigError, match=r"'views=\[depth,': the value is not valid YAML") as e:
+        apply_overrides({}, ["views=[depth,"])  # raised yaml's ParserError: a traceback
+    assert "\n" not in str(e.value)
 
 
 def test_save_and_load_round_trip(tmp_path: Path):
