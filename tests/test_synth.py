@@ -237,6 +237,9 @@ def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     bad.write_text("fabric_id,thickness_mm\n1,thick\n")
     with pytest.raises(ValueError, match="line 2.*thickness_mm"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
+    bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
+    with pytest.raises(ValueError, match=r"labels\.csv: not a text CSV in UTF-8 \(byte 0"):
+        generate(TINY, tmp_path / "out", labels=bad, progress=False)
 
 
 # ---- the output folder -------------------------------------------------------------------------

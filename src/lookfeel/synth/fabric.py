@@ -532,6 +532,10 @@ def read_label_file(path: Path) -> LabelFile:
         text = path.read_text(encoding="utf-8-sig")
     except OSError as e:
         raise ValueError(f"cannot read labels file {path}: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise ValueError(
+            f"{path}: not a text CSV in UTF-8 (byte {e.start}: {e.reason}); save it as UTF-8"
+        ) from None
     reader = csv.reader(text.splitlines())
     header = tuple(h.strip() for h in next(reader, []))
     if "fabric_id" not in header:
