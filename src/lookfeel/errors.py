@@ -15,3 +15,13 @@ class LookfeelError(ValueError):
     It subclasses ``ValueError`` so code written against the older, separate error classes keeps
     working.
     """
+
+
+def npz_problem(e: Exception) -> str:
+    """Why ``np.load(path, allow_pickle=False)`` failed, for a person. NumPy reads any file that
+    is neither an .npz nor an .npy as a pickle and then refuses it, advising to load it
+    "unsafely": lookfeel never does, and the file is simply not an .npz archive."""
+    text = str(e)
+    if "pickled" in text and "allow_pickle" in text:
+        return "not an .npz archive"
+    return text.splitlines()[0] if text else type(e).__name__
