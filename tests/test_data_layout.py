@@ -100,6 +100,9 @@ def test_other_files_are_reported_skipped_not_read(tiny_dataset: Path):
         "notes.txt",
         "renders",
     ]
+    [notes] = [p for p in catalog.skipped if p.path is not None and p.path.name == "notes.txt"]
+    # The message lists every folder the layout reads, recordings' videos/ too.
+    assert "(depth/, color/, touch/, videos/, labels.csv)" in str(notes)
     assert catalog.problems == ()
 
 

@@ -330,7 +330,9 @@ def scan(
         if fm is None:
             skipped.append(
                 Problem(
-                    entry, "not part of the layout (depth/, color/, touch/, labels.csv)", "skip"
+                    entry,
+                    "not part of the layout (depth/, color/, touch/, videos/, labels.csv)",
+                    "skip",
                 )
             )
             continue
