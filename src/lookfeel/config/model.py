@@ -17,8 +17,10 @@ __all__ = [
 ]
 
 BackboneName = Literal["alexnet", "compact", "resnet18"]
-Precision = Literal["auto", "fp32"]
 """The built-in backbones (`lookfeel.models.list_backbones`; a test keeps the three in step)."""
+
+Precision = Literal["auto", "fp32"]
+"""How a network computes on CUDA (`ModelConfig.precision`)."""
 
 BACKBONE_FREEZE_POINTS: dict[str, tuple[str, ...]] = {
     "alexnet": ("none", "to_conv5", "to_fc6", "all"),
