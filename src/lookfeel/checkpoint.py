@@ -18,7 +18,7 @@ import torch
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import ConfigError, RunConfig, from_dict
-from lookfeel.errors import LookfeelError
+from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder, create_model
 
@@ -56,7 +56,7 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
     try:
         state = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many types for a damaged or foreign file
-        raise CheckpointError(f"{p}: not a readable checkpoint ({_load_failure(e)})") from None
+        raise CheckpointError(f"{p}: not a readable checkpoint ({load_problem(e)})") from None
     if not isinstance(state, dict) or "config" not in state or "model" not in state:
         raise CheckpointError(f"{p}: not a lookfeel checkpoint (no config and model inside)")
     if state.get("version", 0) > CHECKPOINT_VERSION:
@@ -64,21 +64,6 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
             f"{p}: written by a newer lookfeel (checkpoint version {state['version']}); upgrade"
         )
     return state
-
-
-def _load_failure(e: Exception) -> str:
-    """Why torch could not load a file, in one line. A weights-only refusal is several
-    paragraphs whose advice (load it with ``weights_only=False``, running its code) lookfeel
-    never takes: keep its reason alone. Other errors: their first sentence."""
-    text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
-    if text.startswith("Weights only load failed"):
-        _, _, reason = text.partition("WeightsUnpickler error:")
-        reason = reason.split(" Check the documentation")[0].strip().split(". ")[0]
-        return "not a file torch.save wrote of tensors and plain values" + (
-            f": {reason[:200]}" if reason else ""
-        )
-    first = text.split(". ")[0] if text else "no reason given"
-    return f"{type(e).__name__}: {first[:200]}"
 
 
 @dataclass(frozen=True)

@@ -17,11 +17,21 @@ class LookfeelError(ValueError):
     """
 
 
-def npz_problem(e: Exception) -> str:
-    """Why ``np.load(path, allow_pickle=False)`` failed, for a person. NumPy reads any file that
-    is neither an .npz nor an .npy as a pickle and then refuses it, advising to load it
-    "unsafely": lookfeel never does, and the file is simply not an .npz archive."""
-    text = str(e)
-    if "pickled" in text and "allow_pickle" in text:
+
+def load_problem(e: Exception) -> str:
+    """Why ``torch.load(path, weights_only=True)`` or ``np.load(path, allow_pickle=False)``
+    failed, in one line for a person. Both refuse a file that is not theirs with paragraphs
+    advising to load it unsafely (``weights_only=False``, ``allow_pickle=True``: running code
+    from the file), which lookfeel never does: keep the reason alone, else the error's first
+    sentence."""
+    text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
+    if text.startswith("Weights only load failed"):  # torch
+        _, _, reason = text.partition("WeightsUnpickler error:")
+        reason = reason.split(" Check the documentation")[0].strip().split(". ")[0]
+        return "not a file torch.save wrote of tensors and plain values" + (
+            f": {reason[:200]}" if reason else ""
+        )
+    if "pickled" in text and "allow_pickle" in text:  # NumPy read it as a pickle
         return "not an .npz archive"
-    return text.splitlines()[0] if text else type(e).__name__
+    first = text.split(". ")[0] if text else "no reason given"
+    return f"{type(e).__name__}: {first[:200]}"

@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 from lookfeel.atomic import atomic_write
 from lookfeel.data import Catalog, Item
 from lookfeel.embedding import EmbeddedItems
-from lookfeel.errors import LookfeelError, npz_problem
+from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -174,7 +174,7 @@ def load_embeddings(path: str | os.PathLike[str], catalog: Catalog | None = None
         with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, zipfile.BadZipFile) as e:
-        raise EmbeddingFileError(f"{p}: not a readable npz file ({npz_problem(e)})") from None
+        raise EmbeddingFileError(f"{p}: not a readable npz file ({load_problem(e)})") from None
     meta: dict[str, Any] = {}
     if "meta" in data:
         try:

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, from_dict
-from lookfeel.errors import LookfeelError, npz_problem
+from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.index.calibrate import Calibration
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
 from lookfeel.metrics.cross_map import CrossMap
@@ -156,7 +156,7 @@ def read_cross_maps(path: Path, pairs: Sequence[str], width: int) -> dict[Pair, 
             maps[pair] = cmap
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as e:
         raise LibraryError(
-            f"{path}: cross-modal maps missing or damaged ({npz_problem(e)}); rebuild with "
+            f"{path}: cross-modal maps missing or damaged ({load_problem(e)}); rebuild with "
             "`lookfeel index build` (unchanged shards are reused)"
         ) from None
     return maps
