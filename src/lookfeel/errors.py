@@ -17,7 +17,6 @@ class LookfeelError(ValueError):
     """
 
 
-
 def load_problem(e: Exception) -> str:
     """Why ``torch.load(path, weights_only=True)`` or ``np.load(path, allow_pickle=False)``
     failed, in one line for a person. Both refuse a file that is not theirs with paragraphs
