@@ -11,7 +11,10 @@ its absolute value, 4x4 block means) gives two groups of numbers:
 - ``course``, the time course of the loading, first contact to the deepest frame: the changed
   area and the 99th-percentile change at 16 evenly spaced moments, each divided by its value at
   the deepest frame (the shape of the curve, not its level), and the log number of frames of
-  the loading and of the whole contact.
+  the loading and of the whole contact;
+- ``release``, the unloading, the deepest frame to the first out of contact, sampled alike (a soft
+  object that springs back after the gel, or a sticky one, would let go more slowly than a
+  hard one), with the log number of frames of the unloading and its log ratio to the loading's.
 
 A standardised logistic regression on each group (and on both) predicts each label's rank
 from one press; it is fitted on the presses of 4/5 of the labelled objects and scored on the
@@ -83,25 +86,38 @@ def _peak_stats(g: np.ndarray) -> list[float]:
 
 
 def features(path: str) -> tuple[str, dict[str, np.ndarray] | None]:
-    """The ``peak`` and ``course`` numbers of one video (None: no press found)."""
+    """The ``peak``, ``course`` and ``release`` numbers of one video (None: no press found)."""
     try:
         frames = read_video(path)
         span = detect_press(frames, path)
     except VideoError:
         return path, None
     ref = reference_frame(frames, span)
-    g = _change(frames[span.start : span.peak + 1], ref)  # the loading, deepest frame last
+    # The contact span and the first frame after it (where the release ends), if any.
+    g = _change(frames[span.start : span.end + 1], ref)
+    deepest = span.peak - span.start
     flat = g.reshape(len(g), -1)
     area = (flat > 4.0).mean(axis=1)
     top = np.percentile(flat, 99, axis=1)
-    at = np.linspace(0, len(g) - 1, POINTS)
-    course = [np.interp(at, np.arange(len(g)), c / (c[-1] + 1e-6)) for c in (area, top)]
+    course = [_shape(c[: deepest + 1], c[deepest]) for c in (area, top)]
+    release = [_shape(c[deepest:], c[deepest]) for c in (area, top)]
     loading = np.log(span.peak - span.start + 1)
+    unloading = np.log(span.end - span.peak + 1)
     contact = np.log(span.end - span.start + 1)
     return path, {
-        "peak": np.asarray(_peak_stats(g[-1]), np.float32),
+        "peak": np.asarray(_peak_stats(g[deepest]), np.float32),
         "course": np.asarray([*course[0], *course[1], loading, contact], np.float32),
+        "release": np.asarray(
+            [*release[0], *release[1], unloading, unloading - loading], np.float32
+        ),
     }
+
+
+def _shape(curve: np.ndarray, at_deepest: float) -> np.ndarray:
+    """``curve`` resampled at `POINTS` evenly spaced moments, divided by its value at the
+    deepest frame."""
+    at = np.linspace(0, len(curve) - 1, POINTS)
+    return np.interp(at, np.arange(len(curve)), curve / (at_deepest + 1e-6))
 
 
 def _labels(folder: Path) -> dict[str, dict[str, int]]:
@@ -156,11 +172,9 @@ def run(data: Path | None, videos: Path | None = None, workers: int = 2) -> dict
     rows = [(re.sub(r"_\d+$", "", Path(p).stem), f) for p, f in found]
     rows = [(o, f) for o, f in rows if o in labels]
     objects = np.array([o for o, _ in rows])
-    groups = {
-        "peak": np.stack([f["peak"] for _, f in rows]),
-        "course": np.stack([f["course"] for _, f in rows]),
-    }
-    groups["peak+course"] = np.concatenate([groups["peak"], groups["course"]], axis=1)
+    groups = {k: np.stack([f[k] for _, f in rows]) for k in ("peak", "course", "release")}
+    for combo in ("peak+course", "peak+release", "peak+course+release"):
+        groups[combo] = np.concatenate([groups[k] for k in combo.split("+")], axis=1)
     scores: dict[str, dict[str, dict[str, float]]] = {}
     for label in LABELS:
         y = np.array([labels[o][label] for o in objects])

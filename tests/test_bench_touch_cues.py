@@ -44,3 +44,25 @@ def test_probe_is_object_disjoint_and_beside_the_majority() -> None:
     # A number that says nothing: the probe falls back to the training folds' majority class.
     blind = probe(np.zeros((len(y), 1)), y, objects, partitions=2)
     assert blind["accuracy"] == blind["majority"] < 1.0
+
+
+def test_the_release_follows_the_unloading(tmp_path: Path) -> None:
+    # The same loading, then let go at once or over four frames.
+    quick = {5: 0.4, 6: 0.7, 7: 1.0}
+    slow = {5: 0.4, 6: 0.7, 7: 1.0, 8: 0.9, 9: 0.75, 10: 0.6, 11: 0.45}
+    a = write_video(tmp_path / "cork_0.mov", object_press(3, quick, t=16))
+    b = write_video(tmp_path / "cork_1.mov", object_press(3, slow, t=16))
+    (_, fa), (_, fb) = features(str(a)), features(str(b))
+    assert fa is not None and fb is not None
+    assert fa["release"].shape == fb["release"].shape == (2 * POINTS + 2,)
+    # Each curve starts at the deepest frame (1.0); the log frames of the unloading come after.
+    assert fb["release"][0] == pytest.approx(1.0, abs=1e-3)
+    assert fb["release"][POINTS] == pytest.approx(1.0, abs=1e-3)
+    assert fb["release"][-2] > fa["release"][-2] + 1.0
+    # Both end out of contact, and across the release the slow one holds more of its change.
+    for f in (fa, fb):
+        assert f["release"][2 * POINTS - 1] < 0.3
+    area_a, area_b = fa["release"][:POINTS], fb["release"][:POINTS]
+    assert area_b.mean() > area_a.mean() + 0.15
+    # The loading is the same in both.
+    np.testing.assert_allclose(fa["course"][:-1], fb["course"][:-1], atol=0.05)
