@@ -16,11 +16,11 @@ its absolute value, 4x4 block means) gives two groups of numbers:
   object that springs back after the gel, or a sticky one, would let go more slowly than a
   hard one), with the log number of frames of the unloading and its log ratio to the loading's.
 
-A standardised logistic regression on each group (and on both) predicts each label's rank
-from one press; it is fitted on the presses of 4/5 of the labelled objects and scored on the
-rest, over ``PARTITIONS`` random object-disjoint 5-fold partitions. Accuracy is per press,
-averaged within each object, then over objects (every object counts once), beside the
-training folds' majority class.
+A standardised logistic regression on each group (and on the peak with the others) predicts
+each label's rank from one press; it is fitted on the presses of 4/5 of the labelled objects and
+scored on the rest, over ``PARTITIONS`` random object-disjoint 5-fold partitions. Accuracy is
+per press, averaged within each object, then over objects (every object counts once), beside
+the training folds' majority class.
 
     python -m benchmarks.bench_touch_cues [--videos ../shared/data/physiclear/videos]
 """
