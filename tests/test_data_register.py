@@ -546,3 +546,108 @@ def test_wall_drop_needs_registered_depth():
         DataConfig(depth_input="registered", depth_wall_drop=2.0)
     with pytest.raises(ConfigError, match="data.depth_wall_shift_mm must be > 0"):
         DataConfig(depth_input="registered", depth_wall_shift_mm=0.0)
+
+
+def test_wall_band_drops_the_cloth_near_the_walls_before_the_drape_is_kept():
+    """``data.depth_wall_band_mm``: registration records each pixel's clearance from the walls
+    (not the floor); the band keeps only the cloth more than the margin plus the band in front
+    of them, before the drape's piece, top and heights are taken, in the training input and
+    in the room control alike. The cache key follows it; 0 is the input as before."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.images import PreprocessSettings
+    from lookfeel.data.register import (
+        kept_heights,
+        placed_heights,
+        register_configured,
+        registered_input,
+        wall_gaps,
+    )
+
+    depth = NEAR_WALL.render()["depth"]
+    plain = DataConfig(
+        image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
+        depth_top_mm=300.0, depth_top_from="cloth_top",
+    )  # fmt: skip
+    reg = register_configured(depth, plain)
+    walls = wall_gaps(depth, reg, plain).min(axis=0) + plain.depth_margin_mm
+    assert reg.wall_clearance is not None
+    np.testing.assert_allclose(reg.wall_clearance, walls, rtol=1e-5, atol=1e-3)
+    assert (reg.wall_clearance[reg.cloth] > plain.depth_margin_mm).all()
+
+    before = registered_input(depth, plain)
+    assert np.array_equal(registered_input(depth, dataclasses.replace(plain)), before)
+    cloth = before > 0
+    for band in (10.0, 25.0):
+        banded = dataclasses.replace(plain, depth_wall_band_mm=band)
+        kept = kept_heights(reg, banded) > 0
+        assert 0 < kept.sum() < cloth.sum()
+        assert (reg.wall_clearance[kept] > plain.depth_margin_mm + band).all()
+        # What is dropped is the cloth within the band (the drape's piece aside).
+        near = cloth & (reg.wall_clearance <= plain.depth_margin_mm + band)
+        assert near.any() and not (kept & near).any()
+        # The heights are measured from the top of the cloth left: this drape's top stands
+        # 15-35 mm in front of the wall, so a 25 mm band lowers it and the cloth kept is
+        # re-measured from there (every pixel by one level), a 10 mm band leaves it.
+        shift = kept_heights(reg, banded)[kept] - kept_heights(reg, plain)[kept]
+        assert np.ptp(shift) < 1e-3
+        assert float(shift[0]) == (pytest.approx(4.47, abs=0.05) if band == 25.0 else 0.0)
+        assert np.array_equal(placed_heights(reg, banded), registered_input(depth, banded))
+        assert PreprocessSettings.of(banded) != PreprocessSettings.of(plain)
+        # The image a training draw of depth_wall_drop drops from keeps the band's cloth.
+        assert (kept_heights(reg, banded, band=False) > 0).sum() == cloth.sum()
+    wider = kept_heights(reg, dataclasses.replace(plain, depth_wall_band_mm=25.0)) > 0
+    narrower = kept_heights(reg, dataclasses.replace(plain, depth_wall_band_mm=10.0)) > 0
+    assert wider.sum() < narrower.sum()
+
+    with pytest.raises(ConfigError, match="data.depth_wall_band_mm: must be >= 0"):
+        DataConfig(depth_input="registered", depth_wall_band_mm=-1.0)
+    with pytest.raises(ConfigError, match="data.depth_wall_band_mm: drops cloth near the"):
+        DataConfig(depth_wall_band_mm=10.0)
+
+
+def test_wall_band_through_the_loader_and_the_store(tmp_path):
+    """With ``depth_wall_drop`` and a band, the loader's image (evaluation's) is the banded
+    input and its training views start from the unbanded one; a store drops near randomly
+    moved walls in the draws ``depth_wall_drop`` takes and the band (walls moved that far, no
+    tilt) in the others, which without a band it leaves alone."""
+    import torch
+
+    from lookfeel.config import DataConfig
+    from lookfeel.data.catalog import Item
+    from lookfeel.data.images import ImageLoader
+    from lookfeel.data.tensors import ImageStore
+    from lookfeel.modality import Modality
+
+    depth = NEAR_WALL.render()["depth"]
+    path = _write(tmp_path / "F0001_Depth_New_000000.png", depth)
+    plain = DataConfig(
+        image_size=32, depth_input="registered", depth_focal_px=NEAR_WALL.f,
+        depth_post_at=(0.5, 0.1), depth_wall_drop=0.25,
+    )  # fmt: skip
+    band = dataclasses.replace(plain, depth_wall_band_mm=15.0)
+    item = Item(Modality.DEPTH, 1, (path,))
+    unbanded = ImageLoader(plain).array(path, Modality.DEPTH)
+    loader = ImageLoader(band)
+    image = loader.array(path, Modality.DEPTH)
+    views = loader.views(item)
+    assert np.array_equal(views[0], unbanded)  # a training draw starts from all the cloth
+    assert 0 < (image > 0).sum() < (unbanded > 0).sum()
+    assert np.array_equal(ImageLoader(band).array(path, Modality.DEPTH), image)  # views first
+
+    rows = torch.tensor(ImageStore(loader, [item], views=True).rows(Modality.DEPTH, [item]) * 32)
+    whole = slice(0, 32)
+    gaps = torch.from_numpy(views[1:].min(axis=0))
+    rarely = 1e-9  # (nearly) no draw taken by depth_wall_drop
+    for cfg in (plain, band):
+        store = ImageStore(ImageLoader(dataclasses.replace(cfg, depth_wall_drop=rarely)),
+                           [item], views=True)  # fmt: skip
+        x = store.batch(Modality.DEPTH, rows)
+        out = store.drop_walls(Modality.DEPTH, rows, x, np.random.default_rng(3), whole)
+        within = (x[:, 0] > 0) & (gaps < 15.0)  # the cloth the band drops (gaps past the margin)
+        assert bool(within.any())
+        if cfg is plain:  # left alone
+            assert torch.equal(out, x)
+        else:  # every draw without its band's cloth, and nothing else lost but stray pieces
+            kept = out[:, 0] > 0
+            assert not bool(kept[within].any())
+            assert int(((x[:, 0] > 0) & ~within & ~kept).sum()) < int(within.sum())

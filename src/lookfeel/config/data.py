@@ -132,6 +132,18 @@ class DataConfig:
     """``depth_wall_drop``: the largest shift of a wall toward the cloth (mm)."""
     depth_wall_tilt_mm: float = 5.0
     """``depth_wall_drop``: the largest tilt of a moved wall, in mm at the image's edges."""
+    depth_wall_band_mm: float = 0.0
+    """Registered input: drop the cloth that lies within this of a fitted plane other than
+    the floor, past ``depth_margin_mm``, from every registered image: evaluation, embedding,
+    the background and room controls, and the training draws that ``depth_wall_drop`` does not
+    take. Between capture sessions the walls sit a few millimetres elsewhere, so whether
+    the cloth next to a wall counts as cloth depends on the session's room; without it, a
+    drape registered in another fabric's room loses or gains that cloth. A training draw that
+    ``depth_wall_drop`` takes drops the cloth near walls moved 0 to ``depth_wall_shift_mm``
+    instead (the band is the drop's fixed middle, as a centre crop is a random crop's). The
+    band comes before the drape is kept, placed and measured from its top
+    (`lookfeel.data.register.kept_heights`); in the training draws ``depth_wall_drop`` leaves
+    alone, it is dropped from the placed drape at the input's size. 0: none."""
     color_crop: Literal["none", "center"] = "none"
     """``none`` resizes the whole photo to a square; ``center`` first crops its central square."""
     touch_crop: Literal["auto", "center", "none"] = "auto"
@@ -239,6 +251,15 @@ class DataConfig:
             raise ConfigError(
                 "data.depth_wall_shift_mm must be > 0 and data.depth_wall_tilt_mm >= 0, got "
                 f"{self.depth_wall_shift_mm} and {self.depth_wall_tilt_mm}"
+            )
+        if self.depth_wall_band_mm < 0:
+            raise ConfigError(
+                f"data.depth_wall_band_mm: must be >= 0, got {self.depth_wall_band_mm}"
+            )
+        if self.depth_wall_band_mm and self.depth_input != "registered":
+            raise ConfigError(
+                "data.depth_wall_band_mm: drops cloth near the fitted room's walls, so it needs "
+                f"data.depth_input: registered (got {self.depth_input!r})"
             )
         if self.depth_margin_mm <= 0:
             raise ConfigError(f"data.depth_margin_mm: must be > 0, got {self.depth_margin_mm}")

@@ -317,7 +317,8 @@ class PreprocessSettings:
     depth_registration: tuple[float | str | None, ...] | None = None
     """Registered depth input: (margin mm, focal px, cloth rule[, lowest cloth mm when not
     0][, "post", x, y when the drape is moved][, "top", mm when heights are measured from
-    the drape's top]); ``None`` for raw depth."""
+    the drape's top][, "band", mm of ``depth_wall_band_mm`` when not 0]); ``None`` for raw
+    depth."""
     touch_zoom: float | None = None
     """``data.touch_zoom`` when below 1 (``None``: the whole field, keys as before)."""
     touch_frames: tuple[int, ...] | None = None
@@ -339,6 +340,8 @@ class PreprocessSettings:
                 registration += ("top", config.depth_top_mm)
                 if config.depth_top_from != "first_rows":
                     registration += (config.depth_top_from,)
+            if config.depth_wall_band_mm:
+                registration += ("band", config.depth_wall_band_mm)
         return cls(
             config.image_size,
             config.depth_min_mm,
@@ -506,9 +509,11 @@ class ImageLoader:
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
         if modality is Modality.TOUCH and self.config.stacks_touch_frames:
             return self._preprocess_stack(path)
-        if self.wall_gaps_follow(modality):
+        if self.wall_gaps_follow(modality) and not self.config.depth_wall_band_mm:
             # One registration serves the image and its gaps to the walls, whichever is
             # asked for first (training preloads images, then its store reads the views).
+            # With a wall band the image is not the views' first (that one is unbanded: a
+            # training draw drops near the walls instead), so it is registered on its own.
             return self._read_wall_gaps(path)[0]
         data = read_image_file(path)
 
@@ -633,7 +638,8 @@ class ImageLoader:
         v = self._cached(data, "wallgaps", build)
         with self._lock:
             self._views[path] = v
-            self._memory.setdefault(path, v[0])
+            if not c.depth_wall_band_mm:  # else the image is the banded one (`array`)
+                self._memory.setdefault(path, v[0])
         return v
 
     def _read_reprints(self, photo: Path) -> np.ndarray:

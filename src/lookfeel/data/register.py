@@ -143,6 +143,9 @@ class Registration:
         clearance: the cloth's distance in front of the nearest room plane (mm), 0 off it.
         post_uv: (u, v) pixel of the cloth's top, where the post holds it; None without cloth.
         residual_mm: median absolute depth residual of the room's inlier pixels.
+        wall_clearance: each pixel's distance in front of the nearest fitted plane other than
+            the floor (mm; inf where only a floor was fitted), or None (a registration made
+            by hand): what ``data.depth_wall_band_mm`` reads (`kept_heights`).
     """
 
     planes: tuple[Plane, ...]
@@ -152,6 +155,7 @@ class Registration:
     clearance: F32
     post_uv: tuple[float, float] | None
     residual_mm: float
+    wall_clearance: F32 | None = None
 
     def plane(self, label: str) -> Plane | None:
         """The plane labelled ``label`` (``"floor"``, ``"wall"``), if one was found."""
@@ -442,6 +446,8 @@ def _in_room(
     clearance = np.where(cloth, gaps.min(axis=0), 0.0)
     floor = [i for i, p in enumerate(planes) if p.label == "floor"]
     height = np.where(cloth, gaps[floor[0]], 0.0) if floor else clearance
+    walls = [i for i, p in enumerate(planes) if p.label != "floor"]
+    wall_clearance = gaps[walls].min(axis=0) if walls else np.full((h, w), np.inf)
     resid = -in_front[sub].ravel()
     inl = np.abs(resid) < inlier_mm
     return Registration(
@@ -452,6 +458,7 @@ def _in_room(
         clearance=clearance.astype(np.float32),
         post_uv=_post(cloth),
         residual_mm=float(np.median(np.abs(resid[inl]))) if inl.any() else float("nan"),
+        wall_clearance=wall_clearance.astype(np.float32),
     )
 
 
@@ -526,12 +533,24 @@ def registered_heights(
     return kept, drape_post(reg, kept, config)
 
 
-def kept_heights(reg: Registration, config: DataConfig) -> F32:
+def kept_heights(reg: Registration, config: DataConfig, *, band: bool = True) -> F32:
     """`registered_heights` of an image already registered (``reg``, registered with
-    ``config``'s margin and camera): the cloth kept and measured as ``config`` says."""
+    ``config``'s margin and camera): the cloth kept and measured as ``config`` says.
+
+    With ``band`` (the default) and ``config.depth_wall_band_mm``, the cloth within that of a
+    fitted plane other than the floor, past ``depth_margin_mm``, is not kept
+    (`Registration.wall_clearance`; a registration without it keeps its cloth). This comes
+    first, so the drape's piece, its top and the heights below it are those of the cloth
+    left: a room fitted a few millimetres elsewhere moves none of them. ``band=False`` is the
+    image a training draw of ``data.depth_wall_drop`` drops from (`wall_gap_input`)."""
     height = reg.height
+    cloth = reg.cloth
+    if band and config.depth_wall_band_mm and reg.wall_clearance is not None:
+        cloth = cloth & (reg.wall_clearance > config.depth_margin_mm + config.depth_wall_band_mm)
+        if config.depth_cloth != "drape":
+            height = np.where(cloth, height, np.float32(0.0))
     if config.depth_cloth == "drape":
-        height = np.where(drape_mask(reg.cloth), height, np.float32(0.0))
+        height = np.where(drape_mask(cloth), height, np.float32(0.0))
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
     if config.depth_top_mm is not None:
@@ -688,7 +707,8 @@ def wall_gaps(depth_mm: NDArray[np.generic], reg: Registration, config: DataConf
 
 def wall_gap_input(depth_mm: NDArray[np.generic], config: DataConfig) -> tuple[F32, F32, F32]:
     """What ``data.depth_wall_drop`` needs of one depth image, each placed as the training
-    input places the drape (`move_drape`): `registered_input` (H, W) mm; the share of each
+    input places the drape (`move_drape`): `registered_input` (H, W) mm (without
+    ``depth_wall_band_mm``: the draw drops near the walls instead); the share of each
     pixel that is cloth (H, W, in [0, 1]: the moved drape's edge is blended); and (P, H, W)
     the cloth's gap to each fitted plane but the floor (`wall_gaps`, mm) times that share.
     Resized to the input's size, the third divided by the second is each input pixel's gap
@@ -698,7 +718,7 @@ def wall_gap_input(depth_mm: NDArray[np.generic], config: DataConfig) -> tuple[F
         RegistrationError: no room could be fitted (the message says what is missing).
     """
     reg = register_configured(depth_mm, config)
-    kept = kept_heights(reg, config)
+    kept = kept_heights(reg, config, band=False)  # a training draw drops near the walls
     post = drape_post(reg, kept, config)
     cloth = (kept > 0).astype(np.float32)
     gaps = wall_gaps(depth_mm, reg, config)

@@ -66,7 +66,12 @@ class ImageStore:
         self._skip_first: set[Modality] = set()
         self._gaps: dict[Modality, np.ndarray] = {}
         c = loader.config
-        self._wall = (c.depth_wall_drop, c.depth_wall_shift_mm, c.depth_wall_tilt_mm)
+        self._wall = (
+            c.depth_wall_drop,
+            c.depth_wall_shift_mm,
+            c.depth_wall_tilt_mm,
+            c.depth_wall_band_mm,
+        )
         host: dict[Modality, Tensor] = {}
         for m, its in per.items():
             unique = list(its)
@@ -146,8 +151,9 @@ class ImageStore:
     ) -> Tensor:
         """``x`` with, for each image drawn (probability ``data.depth_wall_drop``), the cloth
         near the room's walls dropped as walls moved toward it at random would drop it
-        (`lookfeel.data.register.drop_near_walls`); ``x`` unchanged for a modality without
-        gaps (`ImageLoader.wall_gaps_follow`).
+        (`lookfeel.data.register.drop_near_walls`), and with ``data.depth_wall_band_mm`` the
+        others dropped by walls moved that far (no tilt), as evaluation's images are; ``x``
+        unchanged for a modality without gaps (`ImageLoader.wall_gaps_follow`).
 
         Args:
             modality: the images' modality.
@@ -161,9 +167,13 @@ class ImageStore:
         gaps = self._gaps.get(modality)
         if gaps is None:
             return x
-        p, shift_mm, tilt_mm = self._wall
+        p, shift_mm, tilt_mm, band_mm = self._wall
         chosen = rng.random(len(rows)) < p
         draws = rng.random((len(rows), gaps.shape[1], 3))
+        if band_mm:  # the draws left alone drop the fixed band (``data.depth_wall_band_mm``)
+            draws[~chosen, :, 0] = band_mm / shift_mm
+            draws[~chosen, :, 2] = 0.0
+            chosen[:] = True
         picked = np.flatnonzero(chosen[share])
         if not len(picked):
             return x
