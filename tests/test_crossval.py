@@ -301,7 +301,8 @@ def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exac
     """``data.depth_wall_drop`` through `train`: the drops change what the net learns (its
     weights differ from the same run without them), two runs agree bit for bit, and a run
     killed and resumed ends where the unbroken one does (the drops come from the step's seed).
-    A frozen trunk's cached run, which reads each drape whole, says so."""
+    A frozen trunk's cached run, which reads each drape whole, says so. A band along the walls
+    changes no training draw of such a run, and every image of a run without the drops."""
 
     def state(run: Path) -> dict[str, torch.Tensor]:
         return torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"]
@@ -333,6 +334,16 @@ def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exac
     frozen = load_config(RunConfig, TINY, [*base, *walls, "model.freeze=to_block4"])
     with pytest.warns(UserWarning, match=r"data.depth_wall_drop=1 is not used with a frozen"):
         train(frozen, leaky_depth, tmp_path / "frozen")
+    # A band along the walls (data.depth_wall_band_mm) reaching these drapes: every draw of a
+    # run with depth_wall_drop=1 drops near randomly moved walls instead, so it trains the
+    # same weights; without the drop, the band is in every training image.
+    band = ["data.depth_wall_band_mm=130.0"]
+    banded = load_config(RunConfig, TINY, [*base, *walls, *band])
+    same = state(train(banded, leaky_depth, tmp_path / "banded").run_dir)
+    assert all(torch.equal(a[k], same[k]) for k in a)
+    plain_band = state(train(load_config(RunConfig, TINY, [*base, *band]), leaky_depth,
+                             tmp_path / "plain_band").run_dir)  # fmt: skip
+    assert any(not torch.equal(plain_band[k], without[k]) for k in without)
 
 
 def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_path: Path):
