@@ -296,7 +296,7 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
 
 @pytest.mark.filterwarnings("ignore:model.freeze=to_block4 freezes")
 def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exactly(
-    leaky_depth: Path, tmp_path: Path
+    leaky_depth: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ):
     """``data.depth_wall_drop`` through `train`: the drops change what the net learns (its
     weights differ from the same run without them), two runs agree bit for bit, and a run
@@ -339,8 +339,26 @@ def test_a_run_that_drops_the_cloth_near_the_walls_trains_on_it_and_resumes_exac
     # same weights; without the drop, the band is in every training image.
     band = ["data.depth_wall_band_mm=130.0"]
     banded = load_config(RunConfig, TINY, [*base, *walls, *band])
-    same = state(train(banded, leaky_depth, tmp_path / "banded").run_dir)
+    import lookfeel.data.register as register
+
+    calls: dict[str, int] = {}
+    registering = register.register_configured
+
+    def counted(name: str, config: RunConfig) -> dict[str, torch.Tensor]:
+        def count(*args: object) -> object:
+            calls[name] = calls.get(name, 0) + 1
+            return registering(*args)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(register, "register_configured", count)
+        out = state(train(config, leaky_depth, tmp_path / name).run_dir)
+        monkeypatch.undo()
+        return out
+
+    same = counted("banded", banded)
     assert all(torch.equal(a[k], same[k]) for k in a)
+    # Training reads each drape's views alone: the banded image is not registered as well.
+    counted("dropping", dropping)
+    assert calls["banded"] == calls["dropping"] > 0
     plain_band = state(train(load_config(RunConfig, TINY, [*base, *band]), leaky_depth,
                              tmp_path / "plain_band").run_dir)  # fmt: skip
     assert any(not torch.equal(plain_band[k], without[k]) for k in without)

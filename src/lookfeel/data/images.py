@@ -511,9 +511,9 @@ class ImageLoader:
             return self._preprocess_stack(path)
         if self.wall_gaps_follow(modality) and not self.config.depth_wall_band_mm:
             # One registration serves the image and its gaps to the walls, whichever is
-            # asked for first (training preloads images, then its store reads the views).
-            # With a wall band the image is not the views' first (that one is unbanded: a
-            # training draw drops near the walls instead), so it is registered on its own.
+            # asked for first. With a wall band the image is not the views' first (that one
+            # is unbanded: a training draw drops near the walls instead), so what embeds or
+            # scores registers it on its own; training reads only the views.
             return self._read_wall_gaps(path)[0]
         data = read_image_file(path)
 

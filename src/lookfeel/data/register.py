@@ -543,14 +543,12 @@ def kept_heights(reg: Registration, config: DataConfig, *, band: bool = True) ->
     first, so the drape's piece, its top and the heights below it are those of the cloth
     left: a room fitted a few millimetres elsewhere moves none of them. ``band=False`` is the
     image a training draw of ``data.depth_wall_drop`` drops from (`wall_gap_input`)."""
-    height = reg.height
     cloth = reg.cloth
     if band and config.depth_wall_band_mm and reg.wall_clearance is not None:
         cloth = cloth & (reg.wall_clearance > config.depth_margin_mm + config.depth_wall_band_mm)
-        if config.depth_cloth != "drape":
-            height = np.where(cloth, height, np.float32(0.0))
     if config.depth_cloth == "drape":
-        height = np.where(drape_mask(cloth), height, np.float32(0.0))
+        cloth = drape_mask(cloth)
+    height = np.where(cloth, reg.height, np.float32(0.0))  # reg.height is 0 off its cloth
     if config.depth_min_height_mm:
         height = np.where(height < config.depth_min_height_mm, np.float32(0.0), height)
     if config.depth_top_mm is not None:

@@ -817,7 +817,10 @@ def _train(
     val_items: dict[Modality, list[Item]] = {}
     if val_cat is not None:
         val_items = {m: val_cat.items(m, config.data.touch_kinds) for m in modalities}
-    loader.preload([*ds.items(), *(it for v in val_items.values() for it in v)])
+    # What the store below reads: each training item's views (its image among them) when it
+    # draws views, else its image; validation embeds images.
+    loader.preload(ds.items(), views=not cached)
+    loader.preload([it for v in val_items.values() for it in v])
 
     torch.manual_seed(t.seed)
     model = create_model(config.model, modalities, touch_channels=config.data.touch_channels)
