@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from lookfeel.config import DataConfig, ModelConfig
 from lookfeel.data import ImageError, ImageLoader, scan
@@ -36,6 +37,17 @@ def test_processes_decode_the_same_arrays_as_threads(
     monkeypatch.setattr(ImageLoader, "_preprocess_file", lambda *a: pytest.fail("decoded again"))
     a, b = _held(threads, items), _held(processes, items)
     assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_decoding_in_processes_leaves_the_callers_torch_rng_alone(tiny_dataset: Path):
+    # A DataLoader draws its workers' seed from torch's global RNG unless given its own: a
+    # training run's dropout then shifted with whether its images decoded in processes.
+    items = scan(tiny_dataset).items(Modality.DEPTH)
+    loader = ImageLoader(DataConfig(image_size=16, workers=2, decode="processes"))
+    torch.manual_seed(3)
+    before = torch.get_rng_state()
+    assert loader.preload(items) == len(items)
+    assert torch.equal(torch.get_rng_state(), before)
 
 
 def test_auto_uses_processes_for_many_files_only(tiny_config: DataConfig):

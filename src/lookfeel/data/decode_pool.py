@@ -11,6 +11,8 @@ this module does not import `lookfeel.data.images`, which imports it.)
 
 - Same bytes as threads: the workers call the same function with the same settings, and the
   disk cache (``data.cache_dir``) is shared (written atomically).
+- The caller's torch RNG is left as it was: whether files decode in processes or threads
+  (how many, ``data.decode``, the platform) changes no training run.
 - Errors as in one process: a file that fails in a worker is decoded again by the caller,
   which raises the very error (naming the file) that a thread would have.
 - Workers are forked on Linux (they start in milliseconds), spawned elsewhere (seconds: each
@@ -162,6 +164,10 @@ def decode_in_processes(
         worker_init_fn=functools.partial(_worker_init, os.getpid()),
         multiprocessing_context=context,
         prefetch_factor=4,
+        # Its own generator: a DataLoader draws its workers' base seed from the one it is
+        # given, else from torch's global RNG, which would shift a training run's dropout and
+        # every draw after by whether its images happened to decode in processes.
+        generator=torch.Generator(),
     )
     for index, stacked in batches:
         entries = _entries(stacked, len(index))
