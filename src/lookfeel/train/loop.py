@@ -817,15 +817,12 @@ def _train(
     val_items: dict[Modality, list[Item]] = {}
     if val_cat is not None:
         val_items = {m: val_cat.items(m, config.data.touch_kinds) for m in modalities}
-    val = [it for v in val_items.values() for it in v]
-    # A registered drape with a wall band is trained on its views alone, whose image is not
-    # the banded one embedding reads (`ImageLoader.wall_gaps_follow`): the store registers
-    # it once for those, so it is not preloaded as an image too.
-    views_only = (
-        not cached and config.data.depth_wall_band_mm and loader.wall_gaps_follow(Modality.DEPTH)
-    )
-    train_items = [it for it in ds.items() if not (views_only and it.modality is Modality.DEPTH)]
-    loader.preload([*train_items, *val])
+    # What the store below reads: each training item's views (its image among them) when it
+    # draws views, else its image (with a wall band a registered drape's views hold the
+    # unbanded image: its banded one is never read in training, so it is not made);
+    # validation embeds images.
+    loader.preload(ds.items(), views=not cached)
+    loader.preload([it for v in val_items.values() for it in v])
 
     torch.manual_seed(t.seed)
     model = create_model(config.model, modalities, touch_channels=config.data.touch_channels)
