@@ -10,16 +10,21 @@ world's room registers as the real one does (floor, wall, side panel), so both w
 seen as the cloth's height above the fitted floor. One network (`model.members=1`): the recipe
 has trained three used as one since session 32, which triples the training and is a gain on
 real depth; this benchmark asks what synthetic drapes teach, so it keeps the single network
-every stored result was measured with. Needs --data.
+every stored result was measured with; ``python -m benchmarks.bench_synth_fidelity --data
+DIR --members 3 --out FILE`` trains the recipe's three (``--keep DIR`` keeps the world and the
+run, to score again). Needs --data.
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks.__main__ import write_standalone
 from lookfeel.config import RunConfig, load_config
 from lookfeel.crossval import score_checkpoint
 from lookfeel.modality import Modality
@@ -32,11 +37,15 @@ DRAPES = 10
 MEMBERS = 1
 
 
-def run(data: Path | None) -> dict[str, Any]:
+def run(data: Path | None, members: int = MEMBERS, keep: Path | None = None) -> dict[str, Any]:
+    """Render the world, train on it, score on ``data``; ``members`` networks used as one
+    (the recipe's own is 3); ``keep``: a folder to keep the world and the run in (new or
+    empty), else a temporary one."""
     if data is None:
         return {"skipped": "needs the real GelFabric depth (--data)"}
     with tempfile.TemporaryDirectory() as tmp:
-        world = Path(tmp) / "world"
+        work = keep if keep is not None else Path(tmp)
+        world = work / "world"
         started = time.perf_counter()
         generate(
             SynthConfig(fabrics=FABRICS, drapes=DRAPES, modalities=(Modality.DEPTH,), seed=1),
@@ -44,10 +53,10 @@ def run(data: Path | None) -> dict[str, Any]:
             progress=False,
         )
         synth_s = time.perf_counter() - started
-        overrides = ["train.split=none", "train.progress=false", f"model.members={MEMBERS}"]
+        overrides = ["train.split=none", "train.progress=false", f"model.members={members}"]
         config = load_config(RunConfig, CONFIG, overrides)
         started = time.perf_counter()
-        result = train(config, world, Path(tmp) / "run")
+        result = train(config, world, work / "run")
         train_s = time.perf_counter() - started
         scored = score_checkpoint(result.last_checkpoint, data, pairs=["depth_to_depth"])
     pair = scored["pairs"]["depth_to_depth"]
@@ -57,7 +66,7 @@ def run(data: Path | None) -> dict[str, Any]:
         "depth only",
         "world": {"fabrics": FABRICS, "drapes": DRAPES, "seconds": round(synth_s, 1)},
         "config": str(CONFIG.name),
-        "members": MEMBERS,
+        "members": members,
         "train_seconds": round(train_s, 1),
         "model_top1": model["mean"],
         "model_top1_ci95": model["ci95"],
@@ -72,3 +81,30 @@ def run(data: Path | None) -> dict[str, Any]:
         "target": "model top-1 > raw-pixel top-1",
         "met": model["mean"] > raw["mean"],
     }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.bench_synth_fidelity", description=__doc__.splitlines()[0]
+    )
+    ap.add_argument("--data", type=Path, required=True, help="the real GelFabric root")
+    ap.add_argument(
+        "--members", type=int, default=MEMBERS, help=f"networks used as one (default {MEMBERS})"
+    )
+    ap.add_argument("--keep", type=Path, default=None, help="keep the world and the run here")
+    ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
+    args = ap.parse_args(argv)
+    if not args.data.is_dir():
+        ap.error(f"--data: {args.data} is not a folder")
+    if args.members < 1:
+        ap.error(f"--members: at least 1, got {args.members}")
+    if args.keep is not None and args.keep.exists() and any(args.keep.iterdir()):
+        ap.error(f"--keep: {args.keep} is not empty")
+    started = time.time()
+    return write_standalone(
+        "synth_fidelity", started, run(args.data, args.members, args.keep), args.out
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())
