@@ -12,7 +12,7 @@ has trained three used as one since session 32, which triples the training and i
 real depth; this benchmark asks what synthetic drapes teach, so it keeps the single network
 every stored result was measured with; ``python -m benchmarks.bench_synth_fidelity --data
 DIR --members 3 --out FILE`` trains the recipe's three (``--keep DIR`` keeps the world and the
-run, to score again). Needs --data.
+run, to score again; ``--set KEY=VALUE`` changes the recipe). Needs --data.
 """
 
 from __future__ import annotations
@@ -21,11 +21,12 @@ import argparse
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from benchmarks.__main__ import write_standalone
-from lookfeel.config import RunConfig, load_config
+from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.crossval import score_checkpoint
 from lookfeel.modality import Modality
 from lookfeel.synth import SynthConfig, generate
@@ -37,10 +38,16 @@ DRAPES = 10
 MEMBERS = 1
 
 
-def run(data: Path | None, members: int = MEMBERS, keep: Path | None = None) -> dict[str, Any]:
+def run(
+    data: Path | None,
+    members: int = MEMBERS,
+    keep: Path | None = None,
+    overrides: Sequence[str] = (),
+) -> dict[str, Any]:
     """Render the world, train on it, score on ``data``; ``members`` networks used as one
     (the recipe's own is 3); ``keep``: a folder to keep the world and the run in (new or
-    empty), else a temporary one."""
+    empty), else a temporary one; ``overrides``: ``key=value`` changes of the recipe, after
+    the benchmark's own."""
     if data is None:
         return {"skipped": "needs the real GelFabric depth (--data)"}
     with tempfile.TemporaryDirectory() as tmp:
@@ -53,8 +60,8 @@ def run(data: Path | None, members: int = MEMBERS, keep: Path | None = None) -> 
             progress=False,
         )
         synth_s = time.perf_counter() - started
-        overrides = ["train.split=none", "train.progress=false", f"model.members={members}"]
-        config = load_config(RunConfig, CONFIG, overrides)
+        own = ["train.split=none", "train.progress=false", f"model.members={members}"]
+        config = load_config(RunConfig, CONFIG, [*own, *overrides])
         started = time.perf_counter()
         result = train(config, world, work / "run")
         train_s = time.perf_counter() - started
@@ -67,6 +74,7 @@ def run(data: Path | None, members: int = MEMBERS, keep: Path | None = None) -> 
         "world": {"fabrics": FABRICS, "drapes": DRAPES, "seconds": round(synth_s, 1)},
         "config": str(CONFIG.name),
         "members": members,
+        "overrides": list(overrides),
         "train_seconds": round(train_s, 1),
         "model_top1": model["mean"],
         "model_top1_ci95": model["ci95"],
@@ -92,6 +100,14 @@ def main(argv: list[str] | None = None) -> int:
         "--members", type=int, default=MEMBERS, help=f"networks used as one (default {MEMBERS})"
     )
     ap.add_argument("--keep", type=Path, default=None, help="keep the world and the run here")
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change the recipe (repeatable), e.g. train.steps=1200",
+    )
     ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = ap.parse_args(argv)
     if not args.data.is_dir():
@@ -100,10 +116,13 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--members: at least 1, got {args.members}")
     if args.keep is not None and args.keep.exists() and any(args.keep.iterdir()):
         ap.error(f"--keep: {args.keep} is not empty")
+    try:
+        load_config(RunConfig, CONFIG, args.overrides)
+    except ConfigError as e:
+        ap.error(f"--set: {e}")
     started = time.time()
-    return write_standalone(
-        "synth_fidelity", started, run(args.data, args.members, args.keep), args.out
-    )
+    result = run(args.data, args.members, args.keep, args.overrides)
+    return write_standalone("synth_fidelity", started, result, args.out)
 
 
 if __name__ == "__main__":
