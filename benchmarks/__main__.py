@@ -88,6 +88,19 @@ def stamp(name: str, started: float, result: dict[str, object]) -> dict[str, obj
     }
 
 
+def add_set_option(parser: argparse.ArgumentParser, example: str) -> None:
+    """``--set KEY=VALUE`` (repeatable, into ``args.overrides``) for a benchmark run on its own
+    that trains: a config change, e.g. ``example``."""
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=f"change the config (repeatable), e.g. {example}",
+    )
+
+
 def write_standalone(name: str, started: float, result: dict[str, object], out: Path | None) -> int:
     """Stamp a benchmark run on its own, print its JSON and write it to ``out`` if given.
 

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import get_args
 
-from benchmarks.__main__ import write_standalone
+from benchmarks.__main__ import add_set_option, write_standalone
 from benchmarks.bench_demo import demo_pairs
 from lookfeel.config import ConfigError, EvalConfig
 from lookfeel.config.model import Precision
@@ -126,14 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--world", type=Path, default=None, help="the demo's world, if rendered")
     ap.add_argument("--fabrics", type=int, default=118, help="fabrics of the world to render")
     ap.add_argument("--world-seed", type=int, default=0, help="seed of the world to render")
-    ap.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override the demo's run (repeatable), e.g. train.lr=0.002",
-    )
+    add_set_option(ap, "train.lr=0.002")
     ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = ap.parse_args(argv)
     try:

@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from benchmarks.__main__ import write_standalone
+from benchmarks.__main__ import add_set_option, write_standalone
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.crossval import score_checkpoint
 from lookfeel.modality import Modality
@@ -100,14 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         "--members", type=int, default=MEMBERS, help=f"networks used as one (default {MEMBERS})"
     )
     ap.add_argument("--keep", type=Path, default=None, help="keep the world and the run here")
-    ap.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="change the recipe (repeatable), e.g. train.steps=1200",
-    )
+    add_set_option(ap, "train.steps=1200")
     ap.add_argument("--out", type=Path, default=None, help="write the JSON here")
     args = ap.parse_args(argv)
     if not args.data.is_dir():
