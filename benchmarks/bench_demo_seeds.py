@@ -28,7 +28,7 @@ import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import get_args
+from typing import cast, get_args
 
 from benchmarks.__main__ import add_set_option, write_standalone
 from benchmarks.bench_demo import demo_pairs
@@ -100,10 +100,14 @@ def summarise(runs: Sequence[dict[str, object]]) -> dict[str, dict[str, object]]
     highest), the mean of all pairs, and the lowest interval bound of any pair."""
     out: dict[str, dict[str, object]] = {}
     for precision in dict.fromkeys(str(r["precision"]) for r in runs):
-        mine = [r["pairs"] for r in runs if r["precision"] == precision]
+        mine = [
+            cast(dict[str, dict[str, float]], r["pairs"])
+            for r in runs
+            if r["precision"] == precision
+        ]
         pairs: dict[str, dict[str, float]] = {}
-        for pair in mine[0]:  # type: ignore[union-attr]
-            values = [p[pair]["mapped"] for p in mine]  # type: ignore[index]
+        for pair in mine[0]:
+            values = [p[pair]["mapped"] for p in mine]
             pairs[pair] = {
                 "mean": round(statistics.mean(values), 4),
                 "low": round(min(values), 4),

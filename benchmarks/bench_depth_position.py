@@ -137,13 +137,13 @@ def moved_drapes(cv: Path, data: Path) -> list[dict[str, object]]:
         regs = [registered[it.path] for it in items]
         fabric = np.array([it.fabric_id for it in items])
 
-        def to_input(h: np.ndarray, post: tuple[float, float], dc=dc) -> np.ndarray:
+        def to_input(h: np.ndarray, post: tuple[float, float], dc: DataConfig = dc) -> np.ndarray:
             """The network's input of registered heights ``h`` whose drape top is ``post``,
             as `registered_input` and `preprocess_depth` make it."""
             known = None if np.isnan(post).any() else post
             return registered_to_unit(move_drape(h, known, dc.depth_post_at), dc)
 
-        def moved(partner: np.ndarray, regs=regs) -> list[np.ndarray]:
+        def moved(partner: np.ndarray, regs: list[Any] = regs) -> list[np.ndarray]:
             arrays = []
             for i, j in enumerate(partner):
                 (h, own), other = regs[i], regs[int(j)][1]

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from benchmarks.bench_metrics import DIM, SIZES, _embeddings  # one synthetic-embedding recipe
 from lookfeel.config import EvalConfig
-from lookfeel.evaluate import embedded_from_arrays, evaluate_embeddings
+from lookfeel.evaluate import EvalResult, embedded_from_arrays, evaluate_embeddings
 from lookfeel.metrics import PAPER_PROTOCOL, score_pairs
 
 TARGET_S = 20.0
@@ -43,7 +43,7 @@ def _measure(n_fabrics: int) -> dict[str, object]:
     emb, fab = _embeddings(n_fabrics)
     embedded = embedded_from_arrays(emb, fab)
     clusters = {i: i % 8 for i in range(n_fabrics)}
-    out = {}
+    out: dict[str, EvalResult] = {}
 
     def evaluate() -> None:
         out["result"] = evaluate_embeddings(embedded, EvalConfig(), clusters)
@@ -52,7 +52,7 @@ def _measure(n_fabrics: int) -> dict[str, object]:
         warnings.simplefilter("ignore")
         median, times = _median(evaluate)
         core, _ = _median(lambda: score_pairs(emb, fab, PAPER_PROTOCOL))
-    metrics = out["result"].metrics  # type: ignore[attr-defined]
+    metrics = out["result"].metrics
     return {
         "fabrics": n_fabrics,
         "embeddings": sum(SIZES.values()),

@@ -51,8 +51,8 @@ def write_dataset(
 ) -> Path:
     """Images in the layout: depth 128 px (16-bit), colour 128 px, touch 160x120 frames."""
     rng = np.random.default_rng(seed)
-    for d in ("depth", "color", "touch"):
-        (root / d).mkdir(parents=True, exist_ok=True)
+    for sub in ("depth", "color", "touch"):
+        (root / sub).mkdir(parents=True, exist_ok=True)
     lines = ["fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness"]
     for f in range(1, fabrics + 1):
         base = rng.integers(0, 255, 3)

@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -81,7 +82,7 @@ def serving(library: Path) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
             proc.wait(5)
 
 
-def _load(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[str, object]:
+def _load(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[str, Any]:
     latencies: list[float] = []
     failures: list[str] = []
     lock = threading.Lock()

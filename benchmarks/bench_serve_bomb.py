@@ -17,6 +17,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -54,7 +55,7 @@ def _device() -> str:
     return f"CPU: {platform.processor() or platform.machine()}"
 
 
-def _attack(url: str, bomb: bytes, probe: bytes) -> dict[str, object]:
+def _attack(url: str, bomb: bytes, probe: bytes) -> dict[str, Any]:
     statuses: dict[int, int] = {}
     wrong: list[str] = []
     probe_ms: list[float] = []
