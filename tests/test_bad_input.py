@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from lookfeel.cli import main
+from lookfeel.config import ConfigError
 from lookfeel.data import ImageError, check_dataset, decode_depth, decode_rgb, scan
 from lookfeel.data.splits import SplitError, stratified_fabric_folds, stratified_fabric_split
 from lookfeel.index import Library, LibraryError
@@ -483,10 +484,20 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     with pytest.raises(KeyboardInterrupt):
         demo.run_demo(tmp_path / "demo", overrides=["train.steps=2"], log=lines.append)
     assert seen["synth_progress"] is True
-    assert seen["overrides"] == ["train.progress=true", "train.steps=2"]  # the user's win
+    cache = f"data.cache_dir={tmp_path / 'demo' / 'cache'}"  # the runs share decoded images
+    assert seen["overrides"] == ["train.progress=true", cache, "train.steps=2"]  # the user's win
     steps = [ln for ln in lines if ln.startswith("[")]
     assert [s[:4] for s in steps] == ["[2/5", "[3/5"], lines
-    assert " min] Generating a synthetic world of 118 fabrics" in steps[0]
+    assert " min] Generating a synthetic world of 150 fabrics (50 held out)" in steps[0]
+
+
+def test_demo_refuses_a_split_it_cannot_evaluate_before_writing_anything(tmp_path: Path):
+    import lookfeel.demo as demo
+
+    for held in (1, 7):
+        with pytest.raises(ConfigError, match=f"8 fabrics with {held} held out"):
+            demo.run_demo(tmp_path / "demo", fabrics=8, test_fabrics=held, log=lambda line: None)
+    assert not (tmp_path / "demo").exists()
 
 
 # ---- match on an image of the library ----------------------------------------------------------

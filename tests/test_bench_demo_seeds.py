@@ -54,7 +54,7 @@ def test_bad_arguments_name_the_option(capsys: pytest.CaptureFixture[str]):
         (["--seeds", "0,x"], "--seeds"),
         (["--precision", "fp16"], "--precision"),
         (["--world", "/nonexistent/world"], "--world"),
-        (["--fabrics", "30"], "--fabrics"),
+        (["--fabrics", "28"], "--fabrics"),
         (["--set", "train.bogus=1"], "unknown key train.bogus"),
         (["--set", "train.lr"], "expected key=value"),
     ):
@@ -88,6 +88,7 @@ def test_a_rendered_world_is_the_demo_kind_and_is_recorded(
     world = demo_world(70, 3)
     assert saved["world"] == {
         "fabrics": 70,
+        "test_fabrics": 23,
         "seed": 3,
         "drapes": world.drapes,
         "presses_flat": world.presses_flat,

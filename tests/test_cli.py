@@ -50,10 +50,10 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     args = ["demo", "--out", str(tmp_path / "demo"), "--fabrics", "10", "--data", str(tmp_path)]
     assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0
     out = capsys.readouterr().out
-    assert "Generating a synthetic world of 10 fabrics" in out
+    assert "Generating a synthetic world of 10 fabrics (3 held out)" in out
     assert "touch->depth top-1" in out and "Report:" in out and "Evaluation:" in out
     assert "[4/5" in out and "Training the cross-modal recipe" in out
-    assert "Look and feel connected" in out and "on 2 held-out fabrics" in out
+    assert "Look and feel connected" in out and "on 3 held-out fabrics" in out
     assert re.search(r"^  touch -> depth .* through the map, .* in the embedding", out, re.M)
     assert (tmp_path / "demo" / "cross" / "checkpoints" / "last.pt").is_file()
     # The short run keeps the full recipe's dropout on depth and touch and its three frames a

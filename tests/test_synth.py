@@ -16,7 +16,7 @@ import pytest
 from PIL import Image
 from scipy import ndimage, stats
 
-from lookfeel.config import RunConfig, load_config
+from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config.recipes import recipe_path
 from lookfeel.data import check_dataset, parse_touch_name
 from lookfeel.modality import REPRINTS, Modality, PressKind, reprint_path
@@ -240,6 +240,46 @@ def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
     with pytest.raises(ValueError, match=r"labels\.csv: not a text CSV in UTF-8 \(byte 0"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
+
+
+def test_test_fabrics_sets_how_many_are_held_out_and_nothing_else(tmp_path: Path) -> None:
+    """`test_fabrics` holds out exactly that many; labels and clusters are those of the paper's
+    share, so a world with more held out differs only in its split."""
+    base = dataclasses.replace(
+        TINY, fabrics=6, drapes=1, modalities=(Modality.DEPTH,), contact_sheet=False
+    )
+    generate(base, tmp_path / "paper", progress=False)
+    generate(dataclasses.replace(base, test_fabrics=4), tmp_path / "four", progress=False)
+
+    def rows(name: str) -> list[list[str]]:
+        lines = (tmp_path / name / "labels.csv").read_text().splitlines()[1:]
+        return [line.split(",") for line in lines]
+
+    paper, four = rows("paper"), rows("four")
+    assert [r[-1] for r in paper].count("test") == 1  # round(6 * 18 / 118)
+    assert [r[-1] for r in four].count("test") == 4
+    assert [r[:-1] for r in four] == [r[:-1] for r in paper]
+    assert _digest(tmp_path / "four" / "depth") == _digest(tmp_path / "paper" / "depth")
+    # Recorded only when set, so a world made before the field existed keeps its config.
+    assert "test_fabrics" not in base.to_dict()
+    manifest = json.loads((tmp_path / "four" / MANIFEST).read_text())
+    assert manifest["config"]["test_fabrics"] == 4
+
+
+def test_test_fabrics_refuses_what_cannot_be_held_out(tmp_path: Path) -> None:
+    for bad in (6, -1, True):
+        with pytest.raises(ConfigError, match="synth.test_fabrics"):
+            dataclasses.replace(TINY, fabrics=6, test_fabrics=bad)
+    labels = tmp_path / "labels.csv"
+    labels.write_text("fabric_id\n1\n2\n")
+    with pytest.raises(ValueError, match="test_fabrics: not with a labels file"):
+        generate(
+            dataclasses.replace(TINY, test_fabrics=1),
+            tmp_path / "out",
+            labels=labels,
+            progress=False,
+        )
+    assert not (tmp_path / "out").exists()
 
 
 # ---- the output folder -------------------------------------------------------------------------

@@ -23,6 +23,14 @@ def add_parser(subparsers: Subparsers) -> None:
         "out", type=Path, help="output folder (new, empty, or an earlier synth output)"
     )
     syn.add_argument("--fabrics", type=int, default=118, help="fabrics to sample (default 118)")
+    syn.add_argument(
+        "--test-fabrics",
+        type=int,
+        default=None,
+        metavar="N",
+        help="fabrics held out as paper_split test in labels.csv (default: the paper's share, "
+        "18 of every 118)",
+    )
     syn.add_argument("--drapes", type=int, default=10, help="drapes per fabric (default 10)")
     syn.add_argument("--presses-flat", type=int, default=10, help="flat presses (default 10)")
     syn.add_argument("--presses-fold", type=int, default=15, help="fold presses (default 15)")
@@ -86,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             modalities=args.modalities,
             contact_sheet=not args.no_contact_sheet,
             reprints=args.reprints,
+            test_fabrics=args.test_fabrics,
         )
         summary = generate(
             config, args.out, labels=args.labels, progress=not args.quiet, beside=args.beside

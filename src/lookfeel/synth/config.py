@@ -68,6 +68,11 @@ class SynthConfig:
     the drape and the material's look instead (domain randomisation). The photos themselves
     are the same with or without them, and a world's first N renders are the same whatever
     more it writes. 4 (the default) are what ``configs/synth_cross.yaml`` reads; 0 writes none."""
+    test_fabrics: int | None = None
+    """Fabrics held out as ``paper_split`` ``test`` in labels.csv, drawn at random; ``None``:
+    the paper's share, 18 of every 118 (at least one from 4 fabrics). `make demo` holds out 50
+    of 150 so that its intervals are narrower than 18 allow. Not in label-conditioned mode,
+    where the labels file decides."""
 
     def __post_init__(self) -> None:
         def need(name: str, ok: bool, what: str) -> None:
@@ -90,6 +95,15 @@ class SynthConfig:
             need(name, isinstance(v, int) and not isinstance(v, bool), "must be an integer")
             need(name, lo <= v <= hi, f"must be in [{lo}, {hi}]")
         need("seed", isinstance(self.seed, int) and self.seed >= 0, "must be an integer >= 0")
+        if self.test_fabrics is not None:
+            t = self.test_fabrics
+            is_int = isinstance(t, int) and not isinstance(t, bool)
+            need("test_fabrics", is_int, "must be an integer")
+            need(
+                "test_fabrics",
+                0 <= t < self.fabrics,
+                f"must be in [0, fabrics - 1] = [0, {self.fabrics - 1}]",
+            )
         ts = self.touch_size
         need(
             "touch_size",
@@ -146,6 +160,8 @@ class SynthConfig:
             "modalities": None if self.modalities is None else [m.value for m in self.modalities],
             "contact_sheet": self.contact_sheet,
             "reprints": self.reprints,
+            # Only when set: a world made before the field existed keeps its manifest's config.
+            **({} if self.test_fabrics is None else {"test_fabrics": self.test_fabrics}),
         }
 
 

@@ -251,14 +251,16 @@ def _prepare_out(out: Path, planned: Iterable[str]) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
-def _labels_text(fabrics: Sequence[Fabric], seed: int) -> str:
-    """labels.csv of a sampled world: human-style labels, k-means clusters, a split."""
+def _labels_text(fabrics: Sequence[Fabric], seed: int, n_test: int | None = None) -> str:
+    """labels.csv of a sampled world: human-style labels, k-means clusters, a split holding
+    out ``n_test`` fabrics (``None``: the paper's share)."""
     rows = [human_labels(f, seed) for f in fabrics]
     x = np.array([[r[c] for c in LABEL_COLUMNS] for r in rows], dtype=np.float64)
     clusters = kmeans(x, 8, seed)
     n = len(fabrics)
-    # The paper holds out 18 of 118 fabrics; keep that share (at least one when n >= 4).
-    n_test = max(1 if n >= 4 else 0, round(n * 18 / 118))
+    if n_test is None:
+        # The paper holds out 18 of 118 fabrics; keep that share (at least one when n >= 4).
+        n_test = max(1 if n >= 4 else 0, round(n * 18 / 118))
     test = set(np.random.default_rng([seed, 16]).permutation(n)[:n_test].tolist())
     lines = ["fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split"]
     for i, (f, r) in enumerate(zip(fabrics, rows, strict=True)):
@@ -314,10 +316,15 @@ def generate(
 
     Raises:
         FileExistsError: ``out`` is not empty and not an earlier synth output.
-        ValueError: the labels file is unreadable or malformed (the message names the line).
+        ValueError: the labels file is unreadable or malformed (the message names the line),
+            or given with ``config.test_fabrics``.
     """
     started = time.perf_counter()
     out = Path(out)
+    if labels is not None and config.test_fabrics is not None:
+        raise ValueError(
+            f"synth.test_fabrics: not with a labels file ({labels}): its rows decide the split"
+        )
     if labels is not None:
         lf: LabelFile | None = read_label_file(Path(labels))
         assert lf is not None
@@ -353,7 +360,11 @@ def generate(
     }
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     labels_path = out / "labels.csv"
-    text = _copied_labels_text(lf) if lf is not None else _labels_text(fabrics, config.seed)
+    text = (
+        _copied_labels_text(lf)
+        if lf is not None
+        else _labels_text(fabrics, config.seed, config.test_fabrics)
+    )
     atomic_write_text(labels_path, text)
 
     tasks = [_Task(f, config, mods, out) for f in fabrics]
