@@ -85,6 +85,49 @@ def test_findings_logic_on_hand_made_results():
     assert findings(results)["model_order"]["verdict"] == "does not hold"
 
 
+def test_findings_are_decided_only_beyond_the_intervals():
+    """A comparison counts when the two 95% intervals do not overlap: at chance, with
+    overlapping intervals, a finding is noise whichever way its numbers point."""
+
+    def model(td: tuple[float, float, float], tc: tuple[float, float, float]) -> dict:
+        m = {}
+        for pair, (v, lo, hi) in (("touch_to_depth", td), ("touch_to_color", tc)):
+            m |= {f"{pair}_top1": v, f"{pair}_top1_ci_low": lo, f"{pair}_top1_ci_high": hi}
+        for pair in ("color_to_touch", "depth_to_color", "color_to_depth"):
+            m |= {f"{pair}_top1": 0.1, f"{pair}_top1_ci_low": 0.07, f"{pair}_top1_ci_high": 0.13}
+        return {"metrics": m}
+
+    chance = (0.10, 0.07, 0.13)
+    results = {
+        "multi_input": model((0.12, 0.09, 0.15), chance),
+        "auxiliary": model((0.11, 0.08, 0.14), chance),
+        "cross_modal": model((0.10, 0.07, 0.13), chance),
+        "flat": model((0.09, 0.06, 0.12), chance),
+        "cross_modal_aug": model((0.10, 0.07, 0.13), (0.104, 0.074, 0.134)),
+        "multi_input_aug": model((0.12, 0.09, 0.15), (0.104, 0.074, 0.134)),
+        "snn_depth": {"novel": {"top1": 0.46, "top1_ci_low": 0.41, "top1_ci_high": 0.51}},
+        "cross_modal_depth_touch": {
+            "novel": {"top1": 0.28, "top1_ci_low": 0.24, "top1_ci_high": 0.33}
+        },
+    }
+    f = findings(results)
+    # Every number points the paper's way, inside each other's intervals.
+    assert f["model_order"]["verdict"] == "within noise"
+    assert f["model_order"]["detail"].endswith("(95% intervals overlap)")
+    assert f["depth_beats_color"]["verdict"] == "within noise"
+    assert f["augmentation_helps_color"]["verdict"] == "within noise"
+    # The joint net is below the SNN beyond both intervals.
+    assert f["touch_helps_depth"]["verdict"] == "does not hold"
+
+    results["multi_input"] = model((0.50, 0.45, 0.55), (0.30, 0.25, 0.35))
+    results["auxiliary"] = model((0.40, 0.35, 0.44), (0.20, 0.15, 0.25))
+    results["cross_modal"] = model((0.30, 0.26, 0.34), (0.15, 0.10, 0.20))
+    results["flat"] = model((0.20, 0.15, 0.25), (0.10, 0.07, 0.13))
+    f = findings(results)
+    assert f["model_order"]["verdict"] == "holds"
+    assert f["depth_beats_color"]["verdict"] == "holds"
+
+
 def test_bad_requests(data: Path, tmp_path: Path, capsys):
     with pytest.raises(ConfigError, match="needs the ImageNet weights"):
         reproduce(data, tmp_path, budget="paper")

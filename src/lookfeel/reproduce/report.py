@@ -22,73 +22,124 @@ __all__ = ["findings", "write_reproduction_report"]
 _COLOR_PAIRS = ("touch_to_color", "color_to_touch", "depth_to_color", "color_to_depth")
 
 
+Interval = tuple[float, float, float]
+"""A number and its 95% interval: (value, low, high); low = high = value when there is none."""
+
+HOLDS, NOT_HOLD, NOISE, UNTESTED = "holds", "does not hold", "within noise", "not tested"
+"""The verdicts a finding gets (`findings`)."""
+
+
 def _top1(results: Mapping[str, Any], model: str, pair: str) -> float | None:
     m = results.get(model, {}).get("metrics")
     return None if m is None or f"{pair}_top1" not in m else float(m[f"{pair}_top1"])
 
 
-def _verdict(ok: bool | None, detail: str, reason: str = "") -> dict[str, Any]:
-    if ok is None:
-        return {"verdict": "not tested", "detail": reason}
-    return {"verdict": "holds" if ok else "does not hold", "detail": detail}
+def _interval(table: Mapping[str, Any] | None, key: str) -> Interval | None:
+    """``table[key]`` with its interval (``key_ci_low``, ``key_ci_high``) when recorded."""
+    if table is None or key not in table:
+        return None
+    v = float(table[key])
+    lo, hi = table.get(f"{key}_ci_low"), table.get(f"{key}_ci_high")
+    if lo is None or hi is None:
+        return v, v, v
+    return v, float(lo), float(hi)
+
+
+def _top1_interval(results: Mapping[str, Any], model: str, pair: str) -> Interval | None:
+    return _interval(results.get(model, {}).get("metrics"), f"{pair}_top1")
+
+
+def _mean_interval(values: list[Interval]) -> Interval:
+    """The mean of several numbers, with the mean of their bounds as its interval (as wide as
+    their average interval: no narrower than the mean's own, whatever their correlation)."""
+    n = len(values)
+    return (
+        sum(v[0] for v in values) / n,
+        sum(v[1] for v in values) / n,
+        sum(v[2] for v in values) / n,
+    )
+
+
+def _side(better: Interval, worse: Interval) -> int:
+    """+1 if ``better`` is above ``worse`` beyond both intervals, -1 if below beyond them, 0 if
+    the intervals overlap (without intervals, the values decide)."""
+    if better[1] > worse[2]:
+        return 1
+    if worse[1] > better[2]:
+        return -1
+    if better[1:] == (better[0], better[0]) and worse[1:] == (worse[0], worse[0]):
+        return 1 if better[0] > worse[0] else -1  # no intervals recorded: the values decide
+    return 0
+
+
+def _verdict(sides: list[int] | None, detail: str, reason: str = "") -> dict[str, Any]:
+    """The finding's verdict from its comparisons (`_side`, each the paper's way round)."""
+    if not sides:
+        return {"verdict": UNTESTED, "detail": reason}
+    if all(s > 0 for s in sides):
+        return {"verdict": HOLDS, "detail": detail}
+    if any(s < 0 for s in sides):
+        return {"verdict": NOT_HOLD, "detail": detail}
+    return {"verdict": NOISE, "detail": f"{detail} (95% intervals overlap)"}
 
 
 def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """Check each of the paper's findings (`PAPER_FINDINGS`) on our numbers."""
+    """Check each of the paper's findings (`PAPER_FINDINGS`) on our numbers.
+
+    Each finding is one or more comparisons (Multi-input above Auxiliary, ...). A comparison is
+    decided only when the two numbers' 95% intervals (over test fabrics) do not overlap: the
+    finding ``holds`` when every comparison goes the paper's way so, ``does not hold`` when one
+    goes the other way so, and is ``within noise`` otherwise. Numbers recorded without an
+    interval are compared as they are.
+    """
     out: dict[str, dict[str, Any]] = {}
     order = [m for m in ("multi_input", "auxiliary", "cross_modal", "flat")]
-    vals = {m: _top1(results, m, "touch_to_depth") for m in order}
-    if all(v is not None for v in vals.values()):
-        seq = [vals[m] for m in order]
-        ok = all(a is not None and b is not None and a > b for a, b in itertools.pairwise(seq))
-        detail = " > ".join(f"{m} {vals[m]:.3f}" for m in order)
-        out["model_order"] = _verdict(ok, detail)
+    vals = {m: _top1_interval(results, m, "touch_to_depth") for m in order}
+    known = {m: v for m, v in vals.items() if v is not None}
+    if len(known) == len(order):
+        sides = [_side(known[a], known[b]) for a, b in itertools.pairwise(order)]
+        detail = " > ".join(f"{m} {known[m][0]:.3f}" for m in order)
+        out["model_order"] = _verdict(sides, detail)
     else:
         missing = [m for m, v in vals.items() if v is None]
         out["model_order"] = _verdict(None, "", f"not run: {', '.join(missing)}")
     rows = []
-    oks = []
+    sides = []
     for m in MODEL_COLUMNS:
-        d, c = _top1(results, m, "touch_to_depth"), _top1(results, m, "touch_to_color")
+        d = _top1_interval(results, m, "touch_to_depth")
+        c = _top1_interval(results, m, "touch_to_color")
         if d is not None and c is not None:
-            oks.append(d > c)
-            rows.append(f"{m}: depth {d:.3f} vs colour {c:.3f}")
-    out["depth_beats_color"] = (
-        _verdict(all(oks), "; ".join(rows))
-        if oks
-        else _verdict(None, "", "no model with touch, depth and colour")
+            sides.append(_side(d, c))
+            rows.append(f"{m}: depth {d[0]:.3f} vs colour {c[0]:.3f}")
+    out["depth_beats_color"] = _verdict(
+        sides, "; ".join(rows), "no model with touch, depth and colour"
     )
-    rows, oks = [], []
+    rows, sides = [], []
     for base in ("cross_modal", "multi_input"):
-        a = [_top1(results, base, p) for p in _COLOR_PAIRS]
-        b = [_top1(results, base + "_aug", p) for p in _COLOR_PAIRS]
+        a = [_top1_interval(results, base, p) for p in _COLOR_PAIRS]
+        b = [_top1_interval(results, base + "_aug", p) for p in _COLOR_PAIRS]
         if all(x is not None for x in a + b):
-            ma = sum(x for x in a if x is not None) / len(a)
-            mb = sum(x for x in b if x is not None) / len(b)
-            oks.append(mb > ma)
+            ma = _mean_interval([x for x in a if x is not None])
+            mb = _mean_interval([x for x in b if x is not None])
+            sides.append(_side(mb, ma))
             rows.append(
-                f"{base}: {ma:.3f} -> {mb:.3f} with augmentation (mean of the colour pairs)"
+                f"{base}: {ma[0]:.3f} -> {mb[0]:.3f} with augmentation (mean of the colour pairs)"
             )
-    out["augmentation_helps_color"] = (
-        _verdict(all(oks), "; ".join(rows))
-        if oks
-        else _verdict(None, "", "augmentation runs not run")
-    )
+    out["augmentation_helps_color"] = _verdict(sides, "; ".join(rows), "augmentation runs not run")
     snn, joint = results.get("snn_depth", {}), results.get("cross_modal_depth_touch", {})
-    sides = [s for s in ("novel", "seen") if s in snn and s in joint]
-    if sides:
-        sides = [s for s in sides if snn[s]["top1"] == snn[s]["top1"]]  # drop NaN (n/a) sides
-        holds = all(joint[s]["top1"] > snn[s]["top1"] for s in sides) if sides else None
-        detail = "; ".join(
-            f"{s}: SNN {snn[s]['top1']:.3f} vs joint {joint[s]['top1']:.3f}" for s in sides
-        )
-        out["touch_helps_depth"] = _verdict(
-            holds, detail, "no side with two held-out items per fabric"
-        )
-    else:
-        out["touch_helps_depth"] = _verdict(
-            None, "", "needs both Table 4 runs (depth and touch data)"
-        )
+    both = [s for s in ("novel", "seen") if s in snn and s in joint]
+    both = [s for s in both if snn[s]["top1"] == snn[s]["top1"]]  # drop NaN (n/a) sides
+    pairs = {s: (_interval(joint[s], "top1"), _interval(snn[s], "top1")) for s in both}
+    sides = [_side(j, n) for j, n in pairs.values() if j is not None and n is not None]
+    detail = "; ".join(
+        f"{s}: SNN {snn[s]['top1']:.3f} vs joint {joint[s]['top1']:.3f}" for s in both
+    )
+    reason = (
+        "no side with two held-out items per fabric"
+        if "snn_depth" in results and "cross_modal_depth_touch" in results
+        else "needs both Table 4 runs (depth and touch data)"
+    )
+    out["touch_helps_depth"] = _verdict(sides, detail, reason)
     for k, v in out.items():
         v["claim"] = PAPER_FINDINGS[k]
     return out
