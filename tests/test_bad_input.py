@@ -491,6 +491,35 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     assert " min] Generating a synthetic world of 150 fabrics (50 held out)" in steps[0]
 
 
+def test_a_new_demo_world_starts_the_runs_made_on_the_old_one_afresh(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Runs trained and scored on another world must not be resumed or reported as done."""
+    import lookfeel.demo as demo
+
+    out = tmp_path / "demo"
+    for rel in ("cross/checkpoints/last.pt", "reproduce/flat-s0/eval.json", "cache/x.npy"):
+        (out / rel).parent.mkdir(parents=True)
+        (out / rel).write_text("from the old world")
+    (out / "notes.txt").write_text("mine")
+    seen: dict[str, list[str]] = {}
+
+    def fake_generate(config, world, progress):
+        write_tiny_dataset(world, fabrics=3)
+
+    def fake_reproduce(world, where, **kwargs):
+        seen["left"] = sorted(p.name for p in out.iterdir())
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(demo, "generate", fake_generate)
+    monkeypatch.setattr(demo, "reproduce", fake_reproduce)
+    lines: list[str] = []
+    with pytest.raises(KeyboardInterrupt):
+        demo.run_demo(out, fabrics=9, log=lines.append)
+    assert seen["left"] == ["notes.txt", "world"]
+    assert any("starting reproduce/, cross/, cache/ afresh" in ln for ln in lines), lines
+
+
 def test_demo_refuses_a_split_it_cannot_evaluate_before_writing_anything(tmp_path: Path):
     import lookfeel.demo as demo
 

@@ -3,7 +3,9 @@
 1. Summarise the real GelFabric data when it is present (``../shared/data/gelfabric``).
 2. Generate a synthetic fabric world of 150 fabrics, 100 to train on as in the paper and 50
    held out (the paper held out 18), with fewer images of each than ``lookfeel synth`` makes by
-   default (`demo_world`), or reuse the one a previous demo left.
+   default (`demo_world`), or reuse the one a previous demo left. A new world starts afresh
+   what the demo made from the old one (`RUN_FOLDERS`): nothing trained or scored on another
+   world is resumed or reported.
 3. Reproduce the paper's experiments on it at the ``tiny`` budget: train the Flat,
    Cross-modal, Auxiliary and Multi-input nets, the colour-augmentation variants and Table 4's
    pair, evaluate each on held-out fabrics, and write the report beside the paper's numbers.
@@ -26,6 +28,7 @@ reproduction run prints a line as it starts.
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -150,6 +153,11 @@ class DemoResult:
     """Wall seconds of each numbered step that ran (1: the real data's summary ... 5)."""
 
 
+RUN_FOLDERS = ("reproduce", "cross", "evaluate", "cache")
+"""What the demo makes from its world, in its folder: removed when it renders a new world, so
+that nothing trained or scored on another world is resumed or reported."""
+
+
 def _complete_world(path: Path, config: SynthConfig) -> bool:
     """Whether ``path`` holds a finished synthetic world made with ``config`` by this version
     of the generator."""
@@ -217,6 +225,11 @@ def run_demo(
             f"Generating a synthetic world of {fabrics} fabrics ({config.test_fabrics} held "
             f"out) in {world} ...",
         )
+        stale = [d for d in RUN_FOLDERS if (out / d).is_dir()]
+        if stale:  # made on another world: their runs would be resumed or reused as done
+            log(f"The world is new: starting {', '.join(f'{d}/' for d in stale)} afresh.")
+            for d in stale:
+                shutil.rmtree(out / d)
         generate(config, world, progress=True)
     log(format_summary(scan(world)))
     log("")
