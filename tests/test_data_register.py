@@ -10,7 +10,9 @@ from lookfeel.data.background_swap import register_items
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
+    _counts,
     _post,
+    _residual,
     register_depth,
     register_in_room,
 )
@@ -129,6 +131,23 @@ def test_drape_moved_to_a_fixed_place_undoes_a_camera_that_moved_sideways():
     assert after < 0.5 * before
     with pytest.raises(ConfigError, match="depth_post_at: must be"):
         dataclasses.replace(plain, depth_post_at=(0.5, 1.5))
+
+
+def test_ransac_counts_are_those_of_the_residuals():
+    """The hot loop's counts (one buffer, in place) equal those read from `_residual`, including
+    hypotheses whose plane the rays miss (residual -inf)."""
+    rng = np.random.default_rng(3)
+    n = 500
+    u, v = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
+    z = rng.uniform(700, 1300, n)
+    free = rng.random(n) > 0.3
+    coefs = np.column_stack([rng.normal(0, 2e-4, 40), rng.normal(0, 2e-4, 40), 1 / z[:40]])
+    coefs[:5, 2] = -1e-3  # behind the camera: every ray misses
+    r = _residual(coefs, u, v, z)
+    inl, behind = _counts(coefs, u, v, z, free, 8.0, 30.0)
+    np.testing.assert_array_equal(inl, ((np.abs(r) < 8.0) & free).sum(axis=1))
+    np.testing.assert_array_equal(behind, (r > 30.0).sum(axis=1))
+    assert (inl[:5] == 0).all() and inl[5:].sum() > 0
 
 
 def test_deterministic_and_errors():

@@ -183,6 +183,26 @@ def _residual(coef: F64, u: F64, v: F64, z: F64) -> F64:
     return r[0] if np.ndim(coef) == 1 else r
 
 
+def _counts(
+    coefs: F64, u: F64, v: F64, z: F64, free: NDArray[np.bool_], inlier_mm: float, behind_mm: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """For (K, 3) hypotheses: the free pixels within ``inlier_mm`` of each, and the pixels more
+    than ``behind_mm`` behind it. The numbers of `_residual`, computed in one (K, N) buffer:
+    the registration's hot loop, about a third faster than with a new array at every step."""
+    r = coefs[:, 0:1] * u[None]
+    r += coefs[:, 1:2] * v[None]
+    r += coefs[:, 2:3]
+    missed = r <= 1e-12  # the ray misses the plane: depth inf, residual -inf
+    np.maximum(r, 1e-12, out=r)
+    np.divide(1.0, r, out=r)
+    np.copyto(r, np.inf, where=missed)
+    np.subtract(z[None], r, out=r)
+    behind = np.count_nonzero(r > behind_mm, axis=1)
+    np.abs(r, out=r)
+    inl = np.count_nonzero((r < inlier_mm) & free[None], axis=1)
+    return inl, behind
+
+
 def _ransac_plane(
     u: F64,
     v: F64,
@@ -220,9 +240,7 @@ def _ransac_plane(
     coefs = np.linalg.solve(a[ok], (1.0 / z[picks[ok]])[..., None])[..., 0]  # (K, 3)
     best: tuple[float, F64] | None = None
     for chunk in np.array_split(coefs, max(1, len(coefs) // 64)):
-        r = _residual(chunk, u, v, z)  # (k, N)
-        inl = ((np.abs(r) < inlier_mm) & free[None]).sum(axis=1)
-        behind = (r > behind_mm).sum(axis=1)
+        inl, behind = _counts(chunk, u, v, z, free, inlier_mm, behind_mm)
         score = inl - 20.0 * behind
         j = int(np.argmax(score))
         if best is None or score[j] > best[0]:
