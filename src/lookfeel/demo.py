@@ -211,7 +211,8 @@ def run_demo(
         log("")
     world = out / "world"
     config = demo_world(fabrics, seed, test_fabrics)
-    held = demo_test_fabrics(fabrics) if test_fabrics is None else test_fabrics
+    held = config.test_fabrics
+    assert held is not None  # demo_world always sets it
     if held < 2 or fabrics - held < 2:
         raise ConfigError(
             f"demo: {fabrics} fabrics with {held} held out; at least 2 must be held out and 2 "

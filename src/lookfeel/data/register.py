@@ -187,8 +187,9 @@ def _counts(
     coefs: F64, u: F64, v: F64, z: F64, free: NDArray[np.bool_], inlier_mm: float, behind_mm: float
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """For (K, 3) hypotheses: the free pixels within ``inlier_mm`` of each, and the pixels more
-    than ``behind_mm`` behind it. The numbers of `_residual`, computed in one (K, N) buffer:
-    the registration's hot loop, about a third faster than with a new array at every step."""
+    than ``behind_mm`` behind it. The numbers `_residual` gives, bit for bit, computed in one
+    (K, N) buffer: the registration's hot loop (with a new array at every step, registering a
+    GelFabric drape took 41 ms on one thread; so, 26 ms: `benchmarks/bench_register.py`)."""
     r = coefs[:, 0:1] * u[None]
     r += coefs[:, 1:2] * v[None]
     r += coefs[:, 2:3]

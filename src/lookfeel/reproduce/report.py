@@ -29,11 +29,6 @@ HOLDS, NOT_HOLD, NOISE, UNTESTED = "holds", "does not hold", "within noise", "no
 """The verdicts a finding gets (`findings`)."""
 
 
-def _top1(results: Mapping[str, Any], model: str, pair: str) -> float | None:
-    m = results.get(model, {}).get("metrics")
-    return None if m is None or f"{pair}_top1" not in m else float(m[f"{pair}_top1"])
-
-
 def _interval(table: Mapping[str, Any] | None, key: str) -> Interval | None:
     """``table[key]`` with its interval (``key_ci_low``, ``key_ci_high``) when recorded."""
     if table is None or key not in table:
