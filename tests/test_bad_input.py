@@ -484,11 +484,34 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     with pytest.raises(KeyboardInterrupt):
         demo.run_demo(tmp_path / "demo", overrides=["train.steps=2"], log=lines.append)
     assert seen["synth_progress"] is True
-    cache = f"data.cache_dir={tmp_path / 'demo' / 'cache'}"  # the runs share decoded images
+    cache = f'data.cache_dir="{tmp_path / "demo" / "cache"}"'  # the runs share decoded images
     assert seen["overrides"] == ["train.progress=true", cache, "train.steps=2"]  # the user's win
     steps = [ln for ln in lines if ln.startswith("[")]
     assert [s[:4] for s in steps] == ["[2/5", "[3/5"], lines
     assert " min] Generating a synthetic world of 150 fabrics (50 held out)" in steps[0]
+
+
+def test_the_demo_cache_is_in_its_folder_whatever_the_folder_is_called(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """An override's value is YAML: a folder named "demo #1: a" must not become "demo"."""
+    import lookfeel.demo as demo
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.config.recipes import recipe_path
+
+    out = tmp_path / "demo #1: a"
+    seen: dict[str, list[str]] = {}
+
+    def fake_reproduce(world, where, **kwargs):
+        seen["overrides"] = kwargs["overrides"]
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(demo, "generate", lambda c, w, progress: write_tiny_dataset(w, fabrics=3))
+    monkeypatch.setattr(demo, "reproduce", fake_reproduce)
+    with pytest.raises(KeyboardInterrupt):
+        demo.run_demo(out, fabrics=9, log=lambda line: None)
+    config = load_config(RunConfig, recipe_path("synth_cross.yaml"), seen["overrides"])
+    assert config.data.cache_dir == str(out / "cache")
 
 
 def test_a_new_demo_world_starts_the_runs_made_on_the_old_one_afresh(

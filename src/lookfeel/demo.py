@@ -243,7 +243,12 @@ def run_demo(
         n_boot=500,
         # A bar per run, and one decode cache for the runs (they read the same images at one
         # size: 52 -> 39 s on 2 cores, the results the same); the user's overrides come last.
-        overrides=["train.progress=true", f"data.cache_dir={out / 'cache'}", *overrides],
+        # The path quoted: an override's value is YAML, where "demo #1" would end at the "#".
+        overrides=[
+            "train.progress=true",
+            f"data.cache_dir={json.dumps(str(out / 'cache'))}",
+            *overrides,
+        ],
         log=log,
     )
     cross = cross_config(["train.progress=true", *overrides])
