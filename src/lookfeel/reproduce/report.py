@@ -45,8 +45,9 @@ def _top1_interval(results: Mapping[str, Any], model: str, pair: str) -> Interva
 
 
 def _mean_interval(values: list[Interval]) -> Interval:
-    """The mean of several numbers, with the mean of their bounds as its interval (as wide as
-    their average interval: no narrower than the mean's own, whatever their correlation)."""
+    """The mean of several numbers, with the mean of their bounds as its interval: as wide as
+    their average interval, which is conservative (a mean's standard error is at most the mean
+    of its terms' standard errors, whatever their correlation)."""
     n = len(values)
     return (
         sum(v[0] for v in values) / n,
