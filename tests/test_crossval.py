@@ -84,6 +84,12 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     assert 0.0 <= low <= pair["model_labels_top1"]["mean"] <= high <= 1.0
     assert "Matching in label space" in report and "| depth_to_depth |" in report
     assert any("label space" in line and "trained in" in line for line in logs)
+    # Every held-out fabric's own top-1, named as the data names it; its queries in all runs.
+    items = pair["per_item"]
+    assert sorted(r["fabric_id"] for r in items) == sorted(i for t in seen for i in t)
+    assert all(r["item"] == f"F{r['fabric_id']:04d}" and r["runs"] == 2 for r in items)
+    assert sum(r["queries"] for r in items) == 2 * 6 * 3  # 2 seeds x 2 folds of 3 x 3 drapes
+    assert "Held-out items matched worst" in report
 
     # A rerun keeps every finished run (nothing is retrained) and gives the same summary.
     before = {p: p.stat().st_mtime_ns for p in (tmp_path / "cv").rglob("last.pt")}
@@ -424,3 +430,36 @@ def test_the_room_probe_reads_labels_that_follow_the_session_and_no_others(tmp_p
     assert r2_still and all(v < 0.2 for v in r2_still.values()), r2_still
     (tmp_path / "moving" / "labels.csv").unlink()
     assert RoomProbe(scan(tmp_path / "moving"))(train_ids, held_ids) is None
+
+
+def test_each_held_out_item_is_scored_over_its_own_queries_worst_first():
+    from lookfeel.crossval import _per_item, _per_item_lines
+    from lookfeel.modality import Pair
+
+    pair = Pair.parse("touch_to_touch")
+    nan = float("nan")
+    runs = [
+        {"pairs": {pair: {  # item 1 right once in two queries; item 2's query had no pick
+            "query_fabric": [1, 1, 2],
+            "model": [[1.0, 1.0], [0.0, 1.0], [nan, nan]],
+            "raw_pixels": [[1.0, 1.0], [1.0, 1.0], [nan, nan]],
+        }}},
+        {"pairs": {pair: {
+            "query_fabric": [2, 3, 3, 3, 3],
+            "model": [[1.0, 1.0], [0.25, 1.0], [0.25, 1.0], [1.0, 1.0], [0.5, 1.0]],
+            "raw_pixels": [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 1.0], [0.0, 1.0]],
+        }}},
+    ]  # fmt: skip
+    rows = _per_item(runs, pair, {1: "sponge", 2: "ruler"})
+    # Worst first, ties by name; an unnamed item keeps its id; a query with no pick is not counted.
+    assert [r["item"] for r in rows] == ["F0003", "sponge", "ruler"]
+    assert [r["model_top1"] for r in rows] == [0.5, 0.5, 1.0]
+    assert [r["raw_pixels_top1"] for r in rows] == [0.0, 1.0, 0.0]
+    assert [(r["queries"], r["runs"]) for r in rows] == [(4, 1), (2, 1), (1, 1)]
+    assert "model_swapped_top1" not in rows[0]  # only what every run scored
+
+    lines = _per_item_lines({"pairs": {pair: {"per_item": rows}}})
+    table = [line for line in lines if line.startswith("| touch_to_touch |")]
+    assert table[0] == "| touch_to_touch | F0003 | 4 | 0.500 | 0.000 |"
+    assert table[-1] == "| touch_to_touch | (1 of 3 items always right) | | | |"
+    assert _per_item_lines({"pairs": {pair: {}}}) == []

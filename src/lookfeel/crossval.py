@@ -36,7 +36,10 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
   embeddings carried into the other's by linear maps fitted on the run's training fabrics.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
-that resamples the held-out fabrics (all their queries together). Physical properties are
+that resamples the held-out fabrics (all their queries together). Each held-out fabric (or
+object) also gets its own top-1 over every query it made in every run, beside raw pixels
+(``per_item`` in ``cv.json``; the worst few in ``cv.md``): which items the model cannot tell
+apart. Physical properties are
 predicted from the fabric-mean embeddings of the held-out fabrics by a ridge probe fitted on the
 training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels and,
 with depth and the background control on, beside the **room alone** (`RoomProbe`: the same probe
@@ -60,7 +63,7 @@ import json
 import math
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -546,7 +549,8 @@ def score_checkpoint(
     control = BackgroundControl(lm.config.data, CONTROL_SEED) if background_control else None
     presses = lm.config.data.presses if presses is None else presses
     res = _score(lm, catalog, catalog.ids, [], wanted, tta, loader, control, None, presses)
-    summary = _summarise([res], wanted, n_boot, control is not None)
+    names = {f.id: f.display_name for f in catalog.fabrics}
+    summary = _summarise([res], wanted, n_boot, control is not None, names)
     return {
         "checkpoint": str(checkpoint),
         "data": str(data),
@@ -599,9 +603,52 @@ def _control_status(results: list[dict], asked: bool) -> dict[str, Any]:
     return {"on": asked and skipped is None, "seed": CONTROL_SEED, "skipped": skipped}
 
 
+PER_ITEM_METHODS = ("model", "raw_pixels", "model_swapped")
+"""The methods `_per_item` breaks down by held-out item (where a run scored them)."""
+
+
+def _per_item(
+    results: list[dict], pair: Pair, names: Mapping[int, str] | None
+) -> list[dict[str, Any]]:
+    """Each held-out item's top-1 as a query of ``pair``, over every query it made in every
+    run: ``[{"item", "fabric_id", "queries", "runs", "model_top1", "raw_pixels_top1", ...}]``,
+    worst model first (ties by name). Which fabrics or objects the model cannot tell apart,
+    beside what raw pixels make of them; an item a query never came from is absent."""
+    per = [r["pairs"][pair] for r in results]
+    methods = [m for m in PER_ITEM_METHODS if all(m in p for p in per)]
+    ids = np.concatenate([np.asarray(p["query_fabric"]) for p in per])
+    runs = np.concatenate([np.full(len(p["query_fabric"]), i) for i, p in enumerate(per)])
+    hits = {m: np.concatenate([np.asarray(p[m], np.float64)[:, 0] for p in per]) for m in methods}
+    rows = []
+    for fid in np.unique(ids):
+        at = ids == fid
+        scored = at & ~np.isnan(hits["model"])
+        if not scored.any():
+            continue
+        row: dict[str, Any] = {
+            "item": names.get(int(fid), f"F{int(fid):04d}") if names else f"F{int(fid):04d}",
+            "fabric_id": int(fid),
+            "queries": int(scored.sum()),
+            "runs": len(np.unique(runs[scored])),
+        }
+        for m in methods:
+            h = hits[m][at]
+            row[f"{m}_top1"] = float(np.nanmean(h)) if np.any(~np.isnan(h)) else math.nan
+        rows.append(row)
+    rows.sort(key=lambda r: (r["model_top1"], r["item"]))
+    return rows
+
+
 def _summarise(
-    results: list[dict], pairs: Sequence[Pair], n_boot: int, control: bool = True
+    results: list[dict],
+    pairs: Sequence[Pair],
+    n_boot: int,
+    control: bool = True,
+    names: Mapping[int, str] | None = None,
 ) -> dict[str, Any]:
+    """The runs' scores pooled: per pair and method the mean over runs with a 95% interval
+    resampling held-out items, each item's own top-1 (`_per_item`; ``names`` maps fabric ids
+    to what the report calls them), the property probes and the classes."""
     summary: dict[str, Any] = {"runs": len(results), "pairs": {}, "properties": {}}
     summary["background_control"] = _control_status(results, control)
     for pair in pairs:
@@ -626,6 +673,8 @@ def _summarise(
             entry[f"chance_top{k}"] = float(
                 np.mean([r["pairs"][pair]["chance"][j] for r in results])
             )
+        if "model_top1" in entry:
+            entry["per_item"] = _per_item(results, pair, names)
         summary["pairs"][pair] = entry
     for m, per in results[0]["properties"].items():  # none when no run had training fabrics
         summary["properties"][m] = {}
@@ -820,6 +869,46 @@ def _untouched_lines(summary: dict[str, Any]) -> list[str]:
     )
 
 
+WORST_ITEMS = 8
+"""Held-out items per pair that the report lists, worst first (`cv.json` keeps every one)."""
+
+
+def _per_item_lines(summary: dict[str, Any]) -> list[str]:
+    """The held-out items each pair matches worst, beside raw pixels (`_per_item`)."""
+    rows = [(p, e["per_item"]) for p, e in summary["pairs"].items() if e.get("per_item")]
+    if not rows:
+        return []
+    swapped = any("model_swapped_top1" in r for _, items in rows for r in items)
+    lines = [
+        "",
+        f"Held-out items matched worst: each item's top-1 over every query it made, in every "
+        f"run (the {WORST_ITEMS} worst per pair; `cv.json` lists all under `per_item`), beside raw "
+        "pixels: where they score higher, the pixels hold something of the item that the model "
+        "does not use.",
+        "",
+        "| pair | item | queries | model top-1 | raw pixels top-1 |"
+        + (" background swapped |" if swapped else ""),
+        "|---|---|---|---|---|" + ("---|" if swapped else ""),
+    ]
+
+    def cell(r: dict[str, Any], key: str) -> str:
+        v = r.get(key)
+        return "-" if v is None or math.isnan(v) else f"{v:.3f}"
+
+    for pair, items in rows:
+        perfect = sum(r["model_top1"] >= 1.0 for r in items)
+        for r in items[:WORST_ITEMS]:
+            cells = [str(r["queries"]), cell(r, "model_top1"), cell(r, "raw_pixels_top1")]
+            if swapped:
+                cells.append(cell(r, "model_swapped_top1"))
+            lines.append(f"| {pair} | {r['item']} | {' | '.join(cells)} |")
+        lines.append(
+            f"| {pair} | ({perfect} of {len(items)} items always right) | | | |"
+            + (" |" if swapped else "")
+        )
+    return lines
+
+
 def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
     size = summary["fold_size"]
@@ -854,6 +943,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     lines += _mapped_lines(summary)
     lines += _control_lines(summary)
     lines += _untouched_lines(summary)
+    lines += _per_item_lines(summary)
     for m, per in summary["properties"].items():
         if not per.get("model"):
             continue
@@ -1012,7 +1102,8 @@ def cross_validate(
             took = "" if math.isnan(seconds) else f" (trained in {seconds:.0f} s)"
             log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f}{extra}{took}")
             results.append(res)
-    summary = _summarise(results, pairs, n_boot, control is not None) | {
+    names = {f.id: f.display_name for f in catalog.fabrics}
+    summary = _summarise(results, pairs, n_boot, control is not None, names) | {
         "folds": fold_list,
         "seeds": list(seeds),
         "fold_size": t.fold_size,
