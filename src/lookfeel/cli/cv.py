@@ -12,8 +12,9 @@ reads the cloth scores the same, one that reads the capture session drops. Regis
 also gets the room control: each image registered against the room fitted on that other
 fabric's own image, nothing refitted. The depth property probes also stand beside the room
 alone: the same probe on each raw image's background pixels, no cloth (a label the capture
-sessions follow is read from the room). --no-background-control turns all three off. Writes
-OUT/cv.json, OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps
+sessions follow is read from the room). --no-background-control turns all three off. Each
+held-out fabric or object is also scored on its own queries, beside raw pixels, and the report
+lists those matched worst. Writes OUT/cv.json, OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps
 finished runs and resumes an interrupted one.
 """
 
