@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -140,6 +141,64 @@ def test_classes_are_resolved_from_the_labels_in_their_own_order(tmp_path: Path)
         resolve_classes(catalog, _config(class_heads=("stiffness",)))
     with pytest.raises(ConfigError, match="no classes for hardness"):
         _ = _config(class_heads=("hardness",)).model.class_sizes
+
+
+def test_a_class_temperature_names_a_head_and_is_positive():
+    cfg = _config(class_heads=("hardness",), class_temperature={"hardness": 2.5})
+    assert cfg.model.class_temperature == {"hardness": 2.5}
+    # A column with no head is ignored: a recipe's temperatures outlive fewer heads.
+    assert _config(class_heads=("hardness",), class_temperature={"roughness": 2.0})
+    # It changes neither training nor the cv's scores: a cv keeps runs trained without it.
+    from lookfeel.crossval import _result_config
+
+    assert _result_config(cfg) == _result_config(_config(class_heads=("hardness",)))
+    for bad in (0.0, -1.0, float("inf"), "hot"):
+        with pytest.raises(ConfigError, match="class_temperature.hardness: must be a number > 0"):
+            _config(class_heads=("hardness",), class_temperature={"hardness": bad})
+
+
+def test_the_temperature_that_fits_a_head_is_the_one_it_was_drawn_at():
+    from lookfeel.metrics.classes import UNKNOWN, fit_logit_temperature, softmax
+
+    rng = np.random.default_rng(0)
+    u = rng.normal(0, 2, (20000, 3))  # the true log-odds
+    p = softmax(u)
+    truth = (rng.random(20000)[:, None] > p.cumsum(1)).sum(1)  # classes drawn from softmax(u)
+    # A head three times surer than it should be: its logits are 3u; T = 3 undoes that.
+    assert fit_logit_temperature(3 * u, truth) == pytest.approx(3.0, rel=0.05)
+    assert fit_logit_temperature(u / 2, truth) == pytest.approx(0.5, rel=0.05)
+    unknown = np.r_[truth[:100], [UNKNOWN] * 5]
+    assert fit_logit_temperature(np.r_[3 * u[:105]], unknown) == pytest.approx(
+        fit_logit_temperature(3 * u[:100], truth[:100])
+    )  # rows of unknown class are left out
+    assert fit_logit_temperature(u[:3], [UNKNOWN] * 3) == 1.0
+    assert softmax(u[:4]).sum(1) == pytest.approx(np.ones(4))
+
+
+def test_cv_says_how_far_a_heads_probabilities_can_be_trusted():
+    from lookfeel.crossval import _calibration, _calibration_lines
+    from lookfeel.metrics.classes import softmax
+
+    rng = np.random.default_rng(1)
+    runs = []
+    for _ in range(3):  # three runs of a head four times surer than it is right
+        u = rng.normal(0, 1.5, (400, 3))
+        truth = (rng.random(400)[:, None] > softmax(u).cumsum(1)).sum(1)
+        truth[:10] = -1  # unknown labels
+        runs.append({"truth": truth.tolist(), "logits": (4 * u).tolist()})
+    c = _calibration(runs)
+    assert c["confidence"] > c["accuracy"] + 0.1  # surer than right
+    assert c["ece"] > 0.1
+    assert c["temperature"] == pytest.approx(4.0, rel=0.15)
+    # A temperature fitted on the other runs brings each run's probability near its accuracy.
+    assert abs(c["confidence_cross_fitted"] - c["accuracy"]) < 0.03
+    assert c["ece_cross_fitted"] < c["ece"] / 2
+    one = _calibration(runs[:1])
+    assert math.isnan(one["ece_cross_fitted"]) and not math.isnan(one["ece"])
+    lines = _calibration_lines("touch", {"hardness": {"calibration": c}, "material": {}})
+    (row,) = [line for line in lines if line.startswith("| hardness |")]
+    assert row.endswith(f"| {c['temperature']:.2f} |") and f"{c['ece']:.3f}" in row
+    assert _calibration_lines("touch", {"material": {}}) == []
 
 
 def test_auto_property_head_follows_the_numeric_label_columns(tmp_path: Path):
@@ -287,6 +346,24 @@ def test_recordings_train_predict_and_embed_as_the_readme_says(
         assert sum(hardness["probabilities"].values()) == pytest.approx(1.0, abs=1e-3)
         assert hardness["probability"] == max(hardness["probabilities"].values())
         assert a["properties"]["material"]["value"] in {"fabric", "wood", "paper", "metal"}
+
+    # A temperature per head (model.class_temperature) softens the probabilities, never the class.
+    from dataclasses import replace
+
+    from lookfeel.checkpoint import load_model
+    from lookfeel.predict import predict_files
+
+    lm = load_model(ck)
+    temps = {**lm.config.model.class_temperature, "hardness": 1000.0}
+    hot = replace(lm.config.model, class_temperature=temps)
+    (soft,) = predict_files(replace(lm, config=replace(lm.config, model=hot)), videos[:1])
+    hardness = soft.properties["hardness"]
+    assert hardness.value == answers[0]["properties"]["hardness"]["value"]
+    assert max(hardness.probabilities.values()) < 0.34  # near 1/3 each at T = 1000
+    assert (
+        soft.properties["material"].probability
+        == answers[0]["properties"]["material"]["probability"]
+    )  # a head without a temperature is as before
 
     together = [str(p) for p in sorted((recordings / "videos").glob("cork_*.mov"))]
     assert main(["predict", "--checkpoint", str(ck), *together, "--together", "--json"]) == 0

@@ -92,7 +92,15 @@ from lookfeel.metrics import (
     score_distances,
     score_pairs,
 )
-from lookfeel.metrics.classes import accuracy, knn_classes, macro_f1, majority_class
+from lookfeel.metrics.calibration import expected_calibration_error
+from lookfeel.metrics.classes import (
+    accuracy,
+    fit_logit_temperature,
+    knn_classes,
+    macro_f1,
+    majority_class,
+    softmax,
+)
 from lookfeel.metrics.cross_map import HUB_NEIGHBOURS, CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
@@ -135,10 +143,15 @@ _NO_EFFECT = ("checkpoint_every", "log_every", "progress")
 """Train keys that do not change a run's result: runs differing only in them are the same."""
 
 
+_NO_EFFECT_MODEL = ("class_temperature",)
+"""Model keys that change neither training nor the cv's scores (`predict` reads them)."""
+
+
 def _result_config(config: RunConfig) -> dict[str, Any]:
     """The config as plain data, without the keys that do not change the result."""
     d = to_dict(config)
     d["train"] = {k: v for k, v in d["train"].items() if k not in _NO_EFFECT}
+    d["model"] = {k: v for k, v in d["model"].items() if k not in _NO_EFFECT_MODEL}
     return d
 
 
@@ -502,6 +515,7 @@ def _classes(
                 "query_fabric": fab[m].tolist(),
                 "truth": truth.tolist(),
                 "model": logits[h].argmax(-1).tolist(),
+                "logits": np.round(logits[h].float().numpy(), 4).tolist(),
                 "probe": knn_classes(train_e, train_c, e, n).tolist(),
                 "raw_pixels": knn_classes(train_pix, train_c, pix[m], n).tolist(),
                 "majority": [majority_class(train_c, n)] * len(truth),
@@ -697,6 +711,53 @@ CLASS_METHODS = ("model", "model_pooled", "probe", "raw_pixels", "majority")
 """How a held-out query's class is predicted in the class table (`_classes`)."""
 
 
+CALIBRATION_BINS = 10
+"""Equal-width bins of the expected calibration error of the class heads."""
+
+
+def _calibration(runs: list[dict[str, Any]]) -> dict[str, float]:
+    """How far a class head's probability can be trusted on held-out objects, every run's
+    held-out presses pooled: the mean probability of the predicted class (``confidence``)
+    beside how often it is right (``accuracy``), their expected calibration error (``ece``),
+    the temperature that fits them best (``temperature``: what a user would apply), and the
+    same confidence and error under a temperature fitted on the *other* runs' presses
+    (``*_cross_fitted``: an honest estimate of what the temperature buys; NaN for one run)."""
+
+    def known(r: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        t = np.asarray(r["truth"], dtype=np.int64)
+        z = np.asarray(r["logits"], dtype=np.float64).reshape(len(t), -1)
+        return z[t >= 0], t[t >= 0]
+
+    parts = [known(r) for r in runs]
+    z = np.concatenate([p[0] for p in parts])
+    t = np.concatenate([p[1] for p in parts])
+    nan = float("nan")
+    if not len(t):
+        return {"confidence": nan, "accuracy": nan, "ece": nan, "temperature": nan}
+    hit = (z.argmax(1) == t).astype(np.float64)
+    conf = softmax(z).max(1)
+    out = {
+        "confidence": float(conf.mean()),
+        "accuracy": float(hit.mean()),
+        "ece": expected_calibration_error(conf, hit, CALIBRATION_BINS),
+        "temperature": fit_logit_temperature(z, t),
+        "confidence_cross_fitted": nan,
+        "ece_cross_fitted": nan,
+    }
+    if len(parts) > 1:
+        crossed = []
+        for i, (zi, _) in enumerate(parts):
+            others = [p for j, p in enumerate(parts) if j != i]
+            temp = fit_logit_temperature(
+                np.concatenate([p[0] for p in others]), np.concatenate([p[1] for p in others])
+            )
+            crossed.append(softmax(zi, temp).max(1) if len(zi) else np.zeros(0))
+        c = np.concatenate(crossed)
+        out["confidence_cross_fitted"] = float(c.mean())
+        out["ece_cross_fitted"] = expected_calibration_error(c, hit, CALIBRATION_BINS)
+    return out
+
+
 def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
     """Accuracy (mean over runs, 95% interval resampling objects) and macro-F1 (mean and std
     over runs) of each class-prediction method, per modality and column."""
@@ -735,6 +796,8 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                     "queries": int(np.sum(~np.isnan(hits))),
                 }
             entry["chance"] = 1.0 / len(first["classes"])
+            if all("logits" in r for r in runs):
+                entry["calibration"] = _calibration(runs)
             out[m][col] = entry
     return out
 
@@ -985,7 +1048,36 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
                 for k in CLASS_METHODS
             ]
             lines.append(f"| {col} | {' | '.join(cells)} | {e['chance']:.2f} |")
+        lines += _calibration_lines(m, per)
     return "\n".join(lines) + "\n"
+
+
+def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
+    """The class heads' calibration table (`_calibration`), when the runs kept their logits."""
+    cols = [(col, e["calibration"]) for col, e in per.items() if "calibration" in e]
+    if not cols:
+        return []
+    lines = [
+        "",
+        f"How far the class heads' probabilities from {modality} can be trusted (one press, "
+        "every run's held-out presses): the mean probability of the predicted class beside "
+        f"how often it is right, and their expected calibration error ({CALIBRATION_BINS} "
+        "bins); then a temperature fitted on the other runs' held-out presses applied to each "
+        "run's, and the temperature fitted on them all (`model.class_temperature` applies one "
+        "in `predict`).",
+        "",
+        "| label | probability | right | error | probability, other runs' temperature "
+        "| error, other runs' temperature | temperature |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for col, c in cols:
+        cells = [
+            c["confidence"], c["accuracy"], c["ece"], c["confidence_cross_fitted"],
+            c["ece_cross_fitted"],
+        ]  # fmt: skip
+        text = ["-" if math.isnan(v) else f"{v:.3f}" for v in cells]
+        lines.append(f"| {col} | {' | '.join(text)} | {c['temperature']:.2f} |")
+    return lines
 
 
 def cross_validate(
@@ -1057,6 +1149,8 @@ def cross_validate(
             if presses > 1:
                 key["presses"] = presses
                 key["pooled_gallery"] = True  # session 23: touch candidates pooled too
+            if cfg.model.class_heads:
+                key["class_logits"] = True  # session 47: the heads' calibration needs them
             if control is not None:
                 key["background_control"] = CONTROL_SEED
                 if control.has_room_control:

@@ -192,6 +192,7 @@ def _read_heads(
     if logits is not None:
         parts = logits[0].float().split(cfg.class_sizes)
         for col, z in zip(cfg.class_heads, parts, strict=True):
+            z = z / float(cfg.class_temperature.get(col, 1.0))
             p = torch.softmax(z, dim=0).cpu().numpy().astype(np.float64)
             names = cfg.classes[col]
             best = int(p.argmax())

@@ -14,8 +14,8 @@ fabric's own image, nothing refitted. The depth property probes also stand besid
 alone: the same probe on each raw image's background pixels, no cloth (a label the capture
 sessions follow is read from the room). --no-background-control turns all three off. Each
 held-out fabric or object is also scored on its own queries, beside raw pixels, and the report
-lists those matched worst. Writes OUT/cv.json, OUT/cv.md and a run per fold and seed (OUT/seed{S}-fold{F}); a rerun keeps
-finished runs and resumes an interrupted one.
+lists those matched worst. Writes OUT/cv.json, OUT/cv.md and a run per fold and seed
+(OUT/seed{S}-fold{F}); a rerun keeps finished runs and resumes an interrupted one.
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -116,6 +117,13 @@ class ModelConfig:
     classes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """Each class head's class names, in output order. `lookfeel train` fills it in from the
     dataset's labels (and saves it with the run); leave it unset."""
+    class_temperature: dict[str, float] = field(default_factory=dict)
+    """A temperature per class head that `lookfeel predict` (and the server) divide its logits by
+    before the softmax: above 1 softens a head that is surer than it is right on objects it
+    never saw. The predicted class does not change. `lookfeel cv` measures how far each head's
+    probabilities can be trusted and fits the temperature on held-out objects (its cv.md);
+    unset heads use 1, and a column with no head is ignored (a recipe's temperatures stay valid
+    when ``--set model.class_heads=...`` keeps fewer heads)."""
     precision: Precision = "auto"
     """How the network computes on CUDA, in training and whenever its checkpoint embeds:
     ``auto`` runs the forward pass under bf16 autocast (the GPU's fast path); ``fp32`` in full
@@ -180,6 +188,11 @@ class ModelConfig:
         for col in self.classes:
             if col not in self.class_heads:
                 raise ConfigError(f"model.classes: {col!r} is not one of model.class_heads")
+        for col, temp in self.class_temperature.items():
+            if not (isinstance(temp, int | float) and math.isfinite(temp) and temp > 0):
+                raise ConfigError(
+                    f"model.class_temperature.{col}: must be a number > 0, got {temp!r}"
+                )
         for col, names in self.classes.items():
             if len(names) < 2 or len(set(names)) != len(names):
                 raise ConfigError(

@@ -11,7 +11,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["UNKNOWN", "accuracy", "knn_classes", "macro_f1", "majority_class"]
+__all__ = [
+    "UNKNOWN",
+    "accuracy",
+    "fit_logit_temperature",
+    "knn_classes",
+    "macro_f1",
+    "majority_class",
+    "softmax",
+]
 
 UNKNOWN = -1
 """Class index of a query whose label is unknown: scored by nothing."""
@@ -48,6 +56,43 @@ def macro_f1(truth: ArrayLike, predicted: ArrayLike, n_classes: int | None = Non
         if tp + fp + fn:
             scores.append(2 * tp / (2 * tp + fp + fn))
     return float(np.mean(scores)) if scores else float("nan")
+
+
+def softmax(logits: ArrayLike, temperature: float = 1.0) -> NDArray[np.float64]:
+    """Row-wise softmax of (N, K) ``logits / temperature`` (the row maximum subtracted)."""
+    z = np.asarray(logits, dtype=np.float64) / temperature
+    z = np.exp(z - z.max(axis=-1, keepdims=True))
+    return np.asarray(z / z.sum(axis=-1, keepdims=True), dtype=np.float64)
+
+
+def fit_logit_temperature(
+    logits: ArrayLike, truth: ArrayLike, bounds: tuple[float, float] = (0.05, 50.0)
+) -> float:
+    """The temperature T under which softmax(logits / T) gives the known classes of ``truth``
+    the highest likelihood (temperature scaling, Guo et al. 2017): T > 1 softens a head that is
+    surer than it is right, T < 1 sharpens one that is less sure. The predicted class is the
+    same at any T. Rows of unknown truth are left out; 1.0 when none is known.
+
+    Args:
+        logits: (N, K) a class head's outputs.
+        truth: (N,) class indices (`UNKNOWN`: left out).
+        bounds: the range searched (the search is over log T).
+    """
+    from scipy.optimize import minimize_scalar
+
+    z = np.asarray(logits, dtype=np.float64)
+    t = np.asarray(truth, dtype=np.int64)
+    keep = t != UNKNOWN
+    z, t = z[keep], t[keep]
+    if not t.size:
+        return 1.0
+
+    def nll(log_t: float) -> float:
+        p = softmax(z, float(np.exp(log_t)))
+        return float(-np.log(np.clip(p[np.arange(len(t)), t], 1e-300, None)).mean())
+
+    lo, hi = np.log(bounds[0]), np.log(bounds[1])
+    return float(np.exp(minimize_scalar(nll, bounds=(lo, hi), method="bounded").x))
 
 
 def majority_class(train_classes: ArrayLike, n_classes: int) -> int:
