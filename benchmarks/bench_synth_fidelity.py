@@ -130,10 +130,11 @@ def zero_shot_properties(checkpoint: Path, world: Path, data: Path) -> dict[str,
             "embedding": _fabric_means(emb, cat, items, columns),
             "raw_pixels": _fabric_means(pix, cat, items, columns),
         }
-        if name == "real":
-            with torch.inference_mode():
-                out = lm.model.branch(depth.value).heads(torch.from_numpy(emb).float())
-        if name == "real" and PROPERTY in out:
+        if name != "real":
+            continue
+        with torch.inference_mode():
+            out = lm.model.branch(depth.value).heads(torch.from_numpy(emb).float())
+        if PROPERTY in out:  # the run's own head, on the real drapes
             head = out[PROPERTY].float().numpy().astype(np.float64)
             for j, col in enumerate(lm.label_columns):  # back to the label's units
                 mean, std = lm.label_stats.get(col, (0.0, 1.0))

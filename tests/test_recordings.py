@@ -199,6 +199,10 @@ def test_cv_says_how_far_a_heads_probabilities_can_be_trusted():
     (row,) = [line for line in lines if line.startswith("| hardness |")]
     assert row.endswith(f"| {c['temperature']:.2f} |") and f"{c['ece']:.3f}" in row
     assert _calibration_lines("touch", {"material": {}}) == []
+    unknown = _calibration([{"truth": [-1, -1], "logits": [[0.0, 1.0], [1.0, 0.0]]}])
+    assert all(math.isnan(v) for v in unknown.values())  # no known class: nothing to say
+    (row,) = _calibration_lines("touch", {"h": {"calibration": unknown}})[-1:]
+    assert row == "| h | - | - | - | - | - | - |"
 
 
 def test_auto_property_head_follows_the_numeric_label_columns(tmp_path: Path):

@@ -732,17 +732,17 @@ def _calibration(runs: list[dict[str, Any]]) -> dict[str, float]:
     z = np.concatenate([p[0] for p in parts])
     t = np.concatenate([p[1] for p in parts])
     nan = float("nan")
-    if not len(t):
-        return {"confidence": nan, "accuracy": nan, "ece": nan, "temperature": nan}
+    keys = ("confidence", "accuracy", "ece", "temperature")
+    out = dict.fromkeys((*keys, "confidence_cross_fitted", "ece_cross_fitted"), nan)
+    if not len(t):  # no held-out press of a known class
+        return out
     hit = (z.argmax(1) == t).astype(np.float64)
     conf = softmax(z).max(1)
-    out = {
+    out |= {
         "confidence": float(conf.mean()),
         "accuracy": float(hit.mean()),
         "ece": expected_calibration_error(conf, hit, CALIBRATION_BINS),
         "temperature": fit_logit_temperature(z, t),
-        "confidence_cross_fitted": nan,
-        "ece_cross_fitted": nan,
     }
     if len(parts) > 1:
         crossed = []
@@ -1076,7 +1076,8 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
             c["ece_cross_fitted"],
         ]  # fmt: skip
         text = ["-" if math.isnan(v) else f"{v:.3f}" for v in cells]
-        lines.append(f"| {col} | {' | '.join(text)} | {c['temperature']:.2f} |")
+        temp = "-" if math.isnan(c["temperature"]) else f"{c['temperature']:.2f}"
+        lines.append(f"| {col} | {' | '.join(text)} | {temp} |")
     return lines
 
 
