@@ -195,6 +195,10 @@ def test_cv_says_how_far_a_heads_probabilities_can_be_trusted():
     assert c["ece_cross_fitted"] < c["ece"] / 2
     one = _calibration(runs[:1])
     assert math.isnan(one["ece_cross_fitted"]) and not math.isnan(one["ece"])
+    # Runs of one fold held out the same objects: no temperature is fitted on other objects.
+    same = _calibration(runs, folds=[0, 0, 0])
+    assert math.isnan(same["ece_cross_fitted"]) and same["ece"] == c["ece"]
+    assert _calibration(runs, folds=[0, 0, 1])["ece_cross_fitted"] < c["ece"] / 2
     lines = _calibration_lines("touch", {"hardness": {"calibration": c}, "material": {}})
     (row,) = [line for line in lines if line.startswith("| hardness |")]
     assert row.endswith(f"| {c['temperature']:.2f} |") and f"{c['ece']:.3f}" in row

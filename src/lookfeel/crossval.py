@@ -715,13 +715,17 @@ CALIBRATION_BINS = 10
 """Equal-width bins of the expected calibration error of the class heads."""
 
 
-def _calibration(runs: list[dict[str, Any]]) -> dict[str, float]:
+def _calibration(
+    runs: list[dict[str, Any]], folds: Sequence[int] | None = None
+) -> dict[str, float]:
     """How far a class head's probability can be trusted on held-out objects, every run's
     held-out presses pooled: the mean probability of the predicted class (``confidence``)
     beside how often it is right (``accuracy``), their expected calibration error (``ece``),
     the temperature that fits them best (``temperature``: what a user would apply), and the
-    same confidence and error under a temperature fitted on the *other* runs' presses
-    (``*_cross_fitted``: an honest estimate of what the temperature buys; NaN for one run)."""
+    same confidence and error under a temperature fitted on the runs of *other folds*
+    (``*_cross_fitted``: an honest estimate of what the temperature buys, fitted on other
+    objects than those it is applied to; NaN when every run is of one fold). ``folds``: each
+    run's fold (default: every run its own)."""
 
     def known(r: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         t = np.asarray(r["truth"], dtype=np.int64)
@@ -744,10 +748,11 @@ def _calibration(runs: list[dict[str, Any]]) -> dict[str, float]:
         "ece": expected_calibration_error(conf, hit, CALIBRATION_BINS),
         "temperature": fit_logit_temperature(z, t),
     }
-    if len(parts) > 1:
+    fold_of = list(range(len(parts))) if folds is None else list(folds)
+    if len(set(fold_of)) > 1:
         crossed = []
         for i, (zi, _) in enumerate(parts):
-            others = [p for j, p in enumerate(parts) if j != i]
+            others = [p for j, p in enumerate(parts) if fold_of[j] != fold_of[i]]
             temp = fit_logit_temperature(
                 np.concatenate([p[0] for p in others]), np.concatenate([p[1] for p in others])
             )
@@ -797,7 +802,8 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                 }
             entry["chance"] = 1.0 / len(first["classes"])
             if all("logits" in r for r in runs):
-                entry["calibration"] = _calibration(runs)
+                folds = [r.get("fold", i) for i, r in enumerate(results)]
+                entry["calibration"] = _calibration(runs, folds)
             out[m][col] = entry
     return out
 
@@ -1062,12 +1068,12 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
         f"How far the class heads' probabilities from {modality} can be trusted (one press, "
         "every run's held-out presses): the mean probability of the predicted class beside "
         f"how often it is right, and their expected calibration error ({CALIBRATION_BINS} "
-        "bins); then a temperature fitted on the other runs' held-out presses applied to each "
+        "bins); then a temperature fitted on the other folds' held-out presses applied to each "
         "run's, and the temperature fitted on them all (`model.class_temperature` applies one "
         "in `predict`).",
         "",
-        "| label | probability | right | error | probability, other runs' temperature "
-        "| error, other runs' temperature | temperature |",
+        "| label | probability | right | error | probability, other folds' temperature "
+        "| error, other folds' temperature | temperature |",
         "|---|---|---|---|---|---|---|",
     ]
     for col, c in cols:
