@@ -152,7 +152,7 @@ def test_a_class_temperature_names_a_head_and_is_positive():
     from lookfeel.crossval import _result_config
 
     assert _result_config(cfg) == _result_config(_config(class_heads=("hardness",)))
-    for bad in (0.0, -1.0, float("inf"), "hot"):
+    for bad in (0.0, -1.0, float("inf"), "hot", True):
         with pytest.raises(ConfigError, match="class_temperature.hardness: must be a number > 0"):
             _config(class_heads=("hardness",), class_temperature={"hardness": bad})
 

@@ -118,8 +118,8 @@ class ModelConfig:
     """Each class head's class names, in output order. `lookfeel train` fills it in from the
     dataset's labels (and saves it with the run); leave it unset."""
     class_temperature: dict[str, float] = field(default_factory=dict)
-    """A temperature per class head that `lookfeel predict` (and the server) divide its logits by
-    before the softmax: above 1 softens a head that is surer than it is right on objects it
+    """A temperature per class head that `lookfeel predict` divides its logits by before the
+    softmax: above 1 softens a head that is surer than it is right on objects it
     never saw. The predicted class does not change. `lookfeel cv` measures how far each head's
     probabilities can be trusted and fits the temperature on held-out objects (its cv.md);
     unset heads use 1, and a column with no head is ignored (a recipe's temperatures stay valid
@@ -189,7 +189,8 @@ class ModelConfig:
             if col not in self.class_heads:
                 raise ConfigError(f"model.classes: {col!r} is not one of model.class_heads")
         for col, temp in self.class_temperature.items():
-            if not (isinstance(temp, int | float) and math.isfinite(temp) and temp > 0):
+            number = isinstance(temp, int | float) and not isinstance(temp, bool)
+            if not (number and math.isfinite(temp) and temp > 0):
                 raise ConfigError(
                     f"model.class_temperature.{col}: must be a number > 0, got {temp!r}"
                 )
