@@ -687,8 +687,7 @@ def _summarise(
             entry[f"chance_top{k}"] = float(
                 np.mean([r["pairs"][pair]["chance"][j] for r in results])
             )
-        if "model_top1" in entry:
-            entry["per_item"] = _per_item(results, pair, names)
+        entry["per_item"] = _per_item(results, pair, names)
         summary["pairs"][pair] = entry
     for m, per in results[0]["properties"].items():  # none when no run had training fabrics
         summary["properties"][m] = {}

@@ -189,7 +189,7 @@ def _counts(
     """For (K, 3) hypotheses: the free pixels within ``inlier_mm`` of each, and the pixels more
     than ``behind_mm`` behind it. The numbers `_residual` gives, bit for bit, computed in one
     (K, N) buffer: the registration's hot loop (with a new array at every step, registering a
-    GelFabric drape took 41 ms on one thread; so, 26 ms: `benchmarks/bench_register.py`)."""
+    GelFabric drape took 41 ms on one thread; so it takes 26 ms: `benchmarks/bench_register.py`)."""
     r = coefs[:, 0:1] * u[None]
     r += coefs[:, 1:2] * v[None]
     r += coefs[:, 2:3]

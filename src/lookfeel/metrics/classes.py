@@ -59,26 +59,27 @@ def macro_f1(truth: ArrayLike, predicted: ArrayLike, n_classes: int | None = Non
 
 
 def softmax(logits: ArrayLike, temperature: float = 1.0) -> NDArray[np.float64]:
-    """Row-wise softmax of (N, K) ``logits / temperature`` (the row maximum subtracted)."""
-    z = np.asarray(logits, dtype=np.float64) / temperature
-    z = np.exp(z - z.max(axis=-1, keepdims=True))
-    return np.asarray(z / z.sum(axis=-1, keepdims=True), dtype=np.float64)
+    """Row-wise softmax of (N, K) ``logits / temperature``."""
+    from scipy.special import softmax as _softmax
+
+    return np.asarray(_softmax(np.asarray(logits, np.float64) / temperature, axis=-1))
 
 
-def fit_logit_temperature(
-    logits: ArrayLike, truth: ArrayLike, bounds: tuple[float, float] = (0.05, 50.0)
-) -> float:
+def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
     """The temperature T under which softmax(logits / T) gives the known classes of ``truth``
     the highest likelihood (temperature scaling, Guo et al. 2017): T > 1 softens a head that is
     surer than it is right, T < 1 sharpens one that is less sure. The predicted class is the
     same at any T. Rows of unknown truth are left out; 1.0 when none is known.
 
+    The fit is `lookfeel.metrics.calibration.fit_temperature`'s, with each class a gallery item
+    at squared distance ``max(logits) - logits`` from its row: ``exp(-c D^2)`` is then
+    ``softmax(c logits)``, so T = 1 / c.
+
     Args:
         logits: (N, K) a class head's outputs.
         truth: (N,) class indices (`UNKNOWN`: left out).
-        bounds: the range searched (the search is over log T).
     """
-    from scipy.optimize import minimize_scalar
+    from lookfeel.metrics.calibration import fit_temperature
 
     z = np.asarray(logits, dtype=np.float64)
     t = np.asarray(truth, dtype=np.int64)
@@ -86,13 +87,8 @@ def fit_logit_temperature(
     z, t = z[keep], t[keep]
     if not t.size:
         return 1.0
-
-    def nll(log_t: float) -> float:
-        p = softmax(z, float(np.exp(log_t)))
-        return float(-np.log(np.clip(p[np.arange(len(t)), t], 1e-300, None)).mean())
-
-    lo, hi = np.log(bounds[0]), np.log(bounds[1])
-    return float(np.exp(minimize_scalar(nll, bounds=(lo, hi), method="bounded").x))
+    dist = np.sqrt(z.max(axis=1, keepdims=True) - z)
+    return 1.0 / fit_temperature(dist, t, np.arange(z.shape[1]))
 
 
 def majority_class(train_classes: ArrayLike, n_classes: int) -> int:

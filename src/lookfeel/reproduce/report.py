@@ -64,7 +64,7 @@ def _side(better: Interval, worse: Interval) -> int:
     if worse[1] > better[2]:
         return -1
     if better[1:] == (better[0], better[0]) and worse[1:] == (worse[0], worse[0]):
-        return 1 if better[0] > worse[0] else -1  # no intervals recorded: the values decide
+        return -1  # no intervals recorded and equal values: not above, so against the paper
     return 0
 
 
