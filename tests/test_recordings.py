@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -172,6 +173,9 @@ def test_the_temperature_that_fits_a_head_is_the_one_it_was_drawn_at():
         fit_logit_temperature(3 * u[:100], truth[:100])
     )  # rows of unknown class are left out
     assert fit_logit_temperature(u[:3], [UNKNOWN] * 3) == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a head that knows nothing: the edge, no warning
+        assert fit_logit_temperature(u, rng.integers(0, 3, 20000)) > 100
     assert softmax(u[:4]).sum(1) == pytest.approx(np.ones(4))
 
 

@@ -8,6 +8,8 @@ nothing of models. A query's class is its object's, so intervals resample object
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -73,7 +75,9 @@ def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
 
     The fit is `lookfeel.metrics.calibration.fit_temperature`'s, with each class a gallery item
     at squared distance ``max(logits) - logits`` from its row: ``exp(-c D^2)`` is then
-    ``softmax(c logits)``, so T = 1 / c.
+    ``softmax(c logits)``, so T = 1 / c. Where the likelihood is best at the search's edge (a
+    head that knows nothing wants T -> infinity, one never wrong T -> 0) the edge is returned,
+    silently: the temperature itself then says so.
 
     Args:
         logits: (N, K) a class head's outputs.
@@ -88,7 +92,9 @@ def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
     if not t.size:
         return 1.0
     dist = np.sqrt(z.max(axis=1, keepdims=True) - z)
-    return 1.0 / fit_temperature(dist, t, np.arange(z.shape[1]))
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "fit_temperature: the likelihood is best at the search")
+        return 1.0 / fit_temperature(dist, t, np.arange(z.shape[1]))
 
 
 def majority_class(train_classes: ArrayLike, n_classes: int) -> int:
