@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,7 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     assert set(props["model"]) == set(scan(data).label_columns)
     report = (tmp_path / "cv" / "cv.md").read_text()
     assert report.startswith("Fabric-disjoint cross-validation")
+    assert "(1 of all of them where a fold holds fewer than 10: see chance)" in report
     # The labelled fabrics also give matching in label space, fitted on each run's training.
     low, high = pair["model_labels_top1"]["ci95"]
     assert 0.0 <= low <= pair["model_labels_top1"]["mean"] <= high <= 1.0
@@ -163,6 +165,32 @@ def test_rescoring_keeps_the_runs_and_refuses_another_config(data: Path, tmp_pat
     other = load_config(RunConfig, TINY, [*OVERRIDES, "train.lr=0.01"])
     with pytest.raises(ConfigError, match="finished run of another config"):
         cross_validate(other, data, tmp_path / "cv", folds=[0], n_boot=20)
+
+
+def test_a_cv_folder_keeps_its_runs_for_the_same_data_moved_and_refuses_other_data(
+    data: Path, tmp_path: Path
+):
+    import shutil
+
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
+    moved = Path(shutil.copytree(data, tmp_path / "moved"))
+    logs: list[str] = []
+    cross_validate(config, moved, tmp_path / "cv", folds=[0], n_boot=20, log=logs.append)
+    assert logs == [f"seed 0 fold 0: done before, kept ({tmp_path / 'cv' / 'seed0-fold0'}"
+                    "/result.json)"]  # fmt: skip
+    # The same fabrics with one more drape, or a label changed, is another dataset.
+    other = write_tiny_dataset(tmp_path / "other", fabrics=7, drapes=4)
+    with pytest.raises(ConfigError, match=re.escape(f"holds a run on another dataset ({data})")):
+        cross_validate(config, other, tmp_path / "cv", folds=[0], n_boot=20)
+    labels = moved / "labels.csv"
+    lines = labels.read_text().splitlines()
+    head, row = lines[0].split(","), lines[1].split(",")
+    col = head.index("thickness_mm")
+    row[col] = str(float(row[col]) + 1.0)
+    labels.write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n")
+    with pytest.raises(ConfigError, match="before its files or labels changed"):
+        cross_validate(config, moved, tmp_path / "cv", folds=[0], n_boot=20)
 
 
 def test_an_auto_property_head_is_the_same_run_when_scored_again(data: Path, tmp_path: Path):

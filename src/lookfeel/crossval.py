@@ -59,8 +59,10 @@ the steps since a run's last checkpoint.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
+import os
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -981,10 +983,13 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
     size = summary["fold_size"]
     per_fold = "every fabric held out once" if size is None else f"{size} fabrics per fold"
+    fewer = any(e.get("chance_top1", 0.0) > 0.1 + 1e-9 for e in summary["pairs"].values())
     lines = [
         f"Fabric-disjoint cross-validation: {summary['runs']} runs "
         f"(folds {summary['folds']}, seeds {summary['seeds']}, {per_fold}). "
-        "Pick 1 of 10 among each fold's held-out fabrics; mean over runs "
+        "Pick 1 of 10 among each fold's held-out fabrics"
+        + (" (1 of all of them where a fold holds fewer than 10: see chance)" if fewer else "")
+        + "; mean over runs "
         "[95% interval, resampling held-out fabrics]."
         + (
             f" Touch pools {summary['presses']} presses of one fabric, as a query and as the "
@@ -1086,6 +1091,28 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
     return lines
 
 
+def dataset_fingerprint(catalog: Catalog) -> str:
+    """A digest of what a run learns and is scored on: every fabric's id, name and labels and
+    its items' files, relative to the dataset folder (so a moved folder keeps its digest; a
+    file added, removed or renamed, or a label changed, does not). A cv folder's runs record
+    it, so results on one dataset are never reported as another's."""
+    rows = [
+        [
+            f.id,
+            f.name,
+            sorted(f.labels.items()),
+            sorted(f.text_labels.items()),
+            f.cluster,
+            [
+                [m.value, [[os.path.relpath(p, catalog.root) for p in it.frames] for it in its]]
+                for m, its in sorted(f.items.items(), key=lambda kv: kv[0].value)
+            ],
+        ]
+        for f in catalog.fabrics
+    ]
+    return hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
+
+
 def cross_validate(
     config: RunConfig,
     data: str | Path,
@@ -1106,7 +1133,8 @@ def cross_validate(
             per run, ``train.folds``, ``train.fold_size`` and ``train.split_seed`` define the
             folds.
         data: the dataset folder.
-        out: the cross-validation folder (created; reruns skip finished runs).
+        out: the cross-validation folder (created; reruns skip finished runs, and refuse a
+            folder whose runs were made on another dataset: `dataset_fingerprint`).
         seeds: training seeds.
         folds: which folds to run (default: all ``train.folds``).
         tta: embed each image and its left-right mirror and average the two (test-time pooling).
@@ -1142,6 +1170,8 @@ def cross_validate(
     )
     untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
     room = RoomProbe(catalog, config.data.workers) if control is not None else None
+    fingerprint = dataset_fingerprint(catalog)
+    data_id = {"root": str(catalog.root), "fingerprint": fingerprint}
     results = []
     for seed in seeds:
         for fold in fold_list:
@@ -1162,6 +1192,11 @@ def cross_validate(
                 if control.has_room_control:
                     key["room_control"] = True
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
+            if saved is not None and saved.get("data", data_id)["fingerprint"] != fingerprint:
+                raise ConfigError(
+                    f"{run_dir} holds a run on another dataset ({saved['data']['root']}), or on "
+                    f"{catalog.root} before its files or labels changed; use another --out"
+                )
             if saved is not None and saved.get("key") == key:
                 log(f"seed {seed} fold {fold}: done before, kept ({result_path})")
                 results.append(_with_room(saved, run_dir, room))
@@ -1185,6 +1220,7 @@ def cross_validate(
                 seconds = time.perf_counter() - started
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched, presses)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
+            res["data"] = data_id
             res = _with_room(res, run_dir, room)
             atomic_write_text(result_path, json.dumps(res) + "\n")
             first = res["pairs"][pairs[0]]
