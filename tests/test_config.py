@@ -36,6 +36,18 @@ def test_defaults_then_yaml_then_overrides(tmp_path: Path):
     assert cfg.depth_min_mm == 800.0  # untouched default
 
 
+def test_a_bad_value_is_blamed_on_the_file_or_on_the_set_that_gave_it(tmp_path: Path):
+    path = tmp_path / "c.yaml"
+    path.write_text("train:\n  steps: 10\n  lr: fast\n")
+    with pytest.raises(ConfigError, match=r"^--set train.steps=abc: train.steps: expected an"):
+        load_config(RunConfig, path, ["train.lr=0.1", "train.steps=abc"])
+    with pytest.raises(ConfigError, match=rf"^{path}: train.lr: expected a number"):
+        load_config(RunConfig, path, ["train.steps=5"])
+    # A whole section given with --set answers for the keys inside it.
+    with pytest.raises(ConfigError, match=r"^--set train=\{steps: x\}: train.steps:"):
+        load_config(RunConfig, None, ["train={steps: x}"])
+
+
 @pytest.mark.parametrize(
     ("data", "message"),
     [

@@ -330,8 +330,14 @@ def load_config(
     try:
         return from_dict(cls, data)
     except ConfigError as e:
+        message = str(e)
+        # A value given with --set is blamed on it, not on the file it overrode.
+        for given in reversed(overrides):
+            key = given.partition("=")[0].strip()
+            if message.startswith((f"{key}:", f"{key}.", f"{key}[")):
+                raise ConfigError(f"--set {given}: {message}") from None
         if path is not None:
-            raise ConfigError(f"{path}: {e}") from None
+            raise ConfigError(f"{path}: {message}") from None
         raise
 
 
