@@ -114,10 +114,15 @@ def _select(
     if split == "paper":
         ps = paper_split(catalog)
         if not ps.test:
+            other = (
+                "--split val for the run's held-out fabrics, or --split all"
+                if s.get("val") or s.get("val_items")
+                else "--split all (the run held out no fabrics)"
+            )
             raise DatasetError(
-                "--split paper: none of the paper's 18 test fabrics is in this dataset (the "
-                "shared real data holds them back); use --split val for the run's held-out "
-                "fabrics",
+                "--split paper: no fabric of this dataset is one of the paper's test fabrics "
+                "(labels.csv paper_split=test; the shared GelFabric data holds its 18 back); "
+                f"use {other}",
                 catalog.root,
             )
         ref = catalog.subset(ps.train) if ps.train else None
@@ -152,9 +157,10 @@ def _select(
             if split == "novel"
             else "it trained on every fabric (train.split=none)"
         )
+        other = "--split paper or --split all" if paper_split(catalog).test else "--split all"
         raise DatasetError(
             f"{loaded.path}: the run held out no {'novel ' if split == 'novel' else ''}fabrics "
-            f"({why}); use --split paper or --split all",
+            f"({why}); use {other}",
             catalog.root,
         )
     ref = catalog.subset(train_ids) if train_ids else None
