@@ -7,6 +7,7 @@ import pytest
 
 from lookfeel.config import ConfigError
 from lookfeel.data.background_swap import register_items
+from lookfeel.data.holes import unseen_regions
 from lookfeel.data.register import (
     Intrinsics,
     RegistrationError,
@@ -158,6 +159,51 @@ def test_deterministic_and_errors():
         register_depth(np.zeros((16, 16), np.uint16))
     with pytest.raises(RegistrationError, match="2-D"):
         register_depth(np.ones((2, 16, 16), np.uint16))
+
+
+@pytest.mark.parametrize("blind", ["bottom", "frame"])
+def test_a_region_without_reading_is_left_out_of_the_fit_and_the_cloth(blind: str):
+    # Another camera leaves a band without reading (0) along its image's edge. Filled from its
+    # rim it would be a flat strip behind the floor, which then no longer looks like a room.
+    scene = dataclasses.replace(BASE, size=96)
+    r = scene.render()
+    d = r["depth"].copy()
+    band = np.zeros(d.shape, bool)
+    if blind == "bottom":
+        band[-12:] = True
+    else:
+        band[:8], band[-8:], band[:, :8], band[:, -8:] = True, True, True, True
+    d[band] = 0
+    reg = register_depth(d, scene.intrinsics)
+    truth = scene.planes()
+    assert sorted(p.label for p in reg.planes) == ["floor", "side", "wall"]
+    for p in reg.planes:
+        assert _angle_deg(p.normal, truth[p.label][0]) < 1.0, p
+    whole = register_depth(r["depth"], scene.intrinsics)
+    assert not (reg.cloth & band).any()
+    agree = (reg.cloth == whole.cloth)[~band].mean()
+    assert agree > 0.995, agree
+    # The small holes a depth camera leaves are filled as before: the same registration.
+    holes = d.copy()
+    holes[::9, ::7] = 0
+    holes[band] = r["depth"][band]
+    assert holes.size * 0.002 < (holes == 0).sum() < holes.size * 0.02
+    assert unseen_regions(holes) is None and unseen_regions(d) is not None
+    assert sorted(p.label for p in register_depth(holes, scene.intrinsics).planes) == [
+        "floor", "side", "wall"
+    ]  # fmt: skip
+
+
+def test_an_image_with_nothing_in_front_of_the_room_is_refused():
+    from lookfeel.config import DataConfig
+    from lookfeel.data.register import registered_input
+
+    r = BASE.render()
+    empty = np.round(r["room"]).astype(np.uint16)  # the room alone, no cloth
+    config = DataConfig(depth_input="registered")
+    with pytest.raises(RegistrationError, match=r"no cloth found: nothing stands more than "):
+        registered_input(empty, config)
+    assert (registered_input(r["depth"], config) > 0).any()
 
 
 def test_registered_in_its_own_room_is_the_registration_and_in_another_is_measured_from_it():

@@ -47,7 +47,7 @@ from lookfeel.atomic import atomic_write
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
-from lookfeel.data.holes import fill_holes
+from lookfeel.data.holes import UNSEEN_REGION, fill_holes
 from lookfeel.data.layout import IMAGE_SUFFIXES, press_frame_files
 from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
 from lookfeel.modality import Modality, reprint_path
@@ -332,6 +332,9 @@ class PreprocessSettings:
         registration: tuple[float | str | None, ...] | None = None
         if config.depth_input == "registered":
             registration = (config.depth_margin_mm, config.depth_focal_px, config.depth_cloth)
+            # Session 48: large regions without a reading left out of the fit
+            # (`unseen_regions`): an image registered before is registered again.
+            registration += ("unseen", UNSEEN_REGION)
             if config.depth_min_height_mm:
                 registration += (config.depth_min_height_mm,)
             if config.depth_post_at is not None:

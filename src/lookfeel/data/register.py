@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from lookfeel.config import DataConfig
-from lookfeel.data.holes import fill_holes
+from lookfeel.data.holes import fill_holes, unseen_regions
 from lookfeel.errors import LookfeelError
 from lookfeel.rig import GELFABRIC_CENTRE, GELFABRIC_FOCAL, GELFABRIC_SIZE
 
@@ -184,12 +184,21 @@ def _residual(coef: F64, u: F64, v: F64, z: F64) -> F64:
 
 
 def _counts(
-    coefs: F64, u: F64, v: F64, z: F64, free: NDArray[np.bool_], inlier_mm: float, behind_mm: float
+    coefs: F64,
+    u: F64,
+    v: F64,
+    z: F64,
+    free: NDArray[np.bool_],
+    inlier_mm: float,
+    behind_mm: float,
+    seen: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """For (K, 3) hypotheses: the free pixels within ``inlier_mm`` of each, and the pixels more
-    than ``behind_mm`` behind it. The numbers `_residual` gives, bit for bit, computed in one
-    (K, N) buffer: the registration's hot loop (with a new array at every step, registering a
-    GelFabric drape took 41 ms on one thread; so it takes 26 ms: `benchmarks/bench_register.py`)."""
+    than ``behind_mm`` behind it (of the ``seen`` pixels only, when given: those outside
+    `lookfeel.data.holes.unseen_regions`). The numbers `_residual` gives, bit for bit, computed
+    in one (K, N) buffer: the registration's hot loop (with a new array at every step,
+    registering a GelFabric drape took 41 ms on one thread; so it takes 26 ms:
+    `benchmarks/bench_register.py`)."""
     r = coefs[:, 0:1] * u[None]
     r += coefs[:, 1:2] * v[None]
     r += coefs[:, 2:3]
@@ -198,7 +207,9 @@ def _counts(
     np.divide(1.0, r, out=r)
     np.copyto(r, np.inf, where=missed)
     np.subtract(z[None], r, out=r)
-    behind = np.count_nonzero(r > behind_mm, axis=1)
+    behind = np.count_nonzero(
+        (r > behind_mm) if seen is None else (r > behind_mm) & seen[None], axis=1
+    )
     np.abs(r, out=r)
     inl = np.count_nonzero((r < inlier_mm) & free[None], axis=1)
     return inl, behind
@@ -214,8 +225,9 @@ def _ransac_plane(
     iterations: int,
     inlier_mm: float,
     behind_mm: float,
+    seen: NDArray[np.bool_] | None = None,
 ) -> tuple[F64, NDArray[np.bool_]] | None:
-    """The best plane among ``free`` pixels: most inliers, nearly nothing behind it.
+    """The best plane among ``free`` pixels: most inliers, nearly nothing (``seen``) behind it.
 
     Half the hypotheses draw three pixels anywhere, half draw two more near a first one (within
     a tenth of the image): a plane that fills 5% of the image is then still drawn often.
@@ -241,7 +253,7 @@ def _ransac_plane(
     coefs = np.linalg.solve(a[ok], (1.0 / z[picks[ok]])[..., None])[..., 0]  # (K, 3)
     best: tuple[float, F64] | None = None
     for chunk in np.array_split(coefs, max(1, len(coefs) // 64)):
-        inl, behind = _counts(chunk, u, v, z, free, inlier_mm, behind_mm)
+        inl, behind = _counts(chunk, u, v, z, free, inlier_mm, behind_mm, seen)
         score = inl - 20.0 * behind
         j = int(np.argmax(score))
         if best is None or score[j] > best[0]:
@@ -351,20 +363,28 @@ def register_depth(
     sub = (slice(None, None, step), slice(None, None, step))
     u, v, z = ug[sub].ravel(), vg[sub].ravel(), z_full[sub].ravel()
     rng = np.random.default_rng(seed)
-    free = np.ones(len(z), dtype=bool)
+    unseen = unseen_regions(d)
+    seen = None if unseen is None else ~unseen[sub].ravel()
+    if seen is not None and seen.sum() < 3:
+        raise RegistrationError("depth image has almost no valid pixel")
+    free = np.ones(len(z), dtype=bool) if seen is None else seen.copy()
+    n_seen = len(z) if seen is None else int(seen.sum())
     found: list[tuple[F64, float]] = []
     behind_mm = max(margin_mm, 2.0 * inlier_mm)
     for _ in range(2 * max_planes):  # a rejected candidate costs an attempt, not the search
         if len(found) == max_planes:
             break
-        fit = _ransac_plane(u, v, z, free, z_full[sub].shape, rng, iterations, inlier_mm, behind_mm)
+        fit = _ransac_plane(
+            u, v, z, free, z_full[sub].shape, rng, iterations, inlier_mm, behind_mm, seen
+        )
         if fit is None:
             break
         coef, inliers = fit
-        if inliers.sum() < min_plane_fraction * len(z):
+        if inliers.sum() < min_plane_fraction * n_seen:
             break
         r = _residual(coef, u, v, z)
-        behind = (r > behind_mm).mean() > 0.01  # part of the room lies behind it
+        far = r > behind_mm if seen is None else (r > behind_mm)[seen]
+        behind = far.mean() > 0.01  # part of the room lies behind it
         if not behind and box_deg is not None and found:
             n_new = _metric(coef, k)[0]
             cos = [abs(float(n_new @ _metric(c, k)[0])) for c, _ in found]
@@ -372,7 +392,7 @@ def register_depth(
         if behind:  # cloth (a heap covering the floor, a flat fold): not a room plane
             free &= ~inliers
             continue
-        found.append((coef, float(inliers.mean())))
+        found.append((coef, float(inliers.mean() if seen is None else inliers.sum() / n_seen)))
         # Also retire what lies just above it (cloth lying flat on the floor), so the next
         # plane found is another wall, not the floor again a few millimetres higher.
         free &= ~((r > -behind_mm) & (r < inlier_mm))
@@ -390,7 +410,7 @@ def register_depth(
         )
         for (c, frac), (n, dist), lab in zip(found, metric, labels, strict=True)
     )
-    return _in_room(z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step)
+    return _in_room(z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step, unseen)
 
 
 def register_in_room(
@@ -431,7 +451,9 @@ def register_in_room(
     k = intrinsics or Intrinsics.gelfabric(w, h)
     step = max(1, round(max(h, w) / 64)) if stride is None else stride
     z_full = fill_holes(d).astype(np.float64)
-    return _in_room(z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step)
+    return _in_room(
+        z_full, planes, k, margin_mm, inlier_mm, min_blob, open_px, step, unseen_regions(d)
+    )
 
 
 def _in_room(
@@ -443,14 +465,18 @@ def _in_room(
     min_blob: int | None,
     open_px: int | None,
     step: int,
+    unseen: NDArray[np.bool_] | None = None,
 ) -> Registration:
-    """`register_in_room` of a depth image whose holes are filled (``z_full``, mm)."""
+    """`register_in_room` of a depth image whose holes are filled (``z_full``, mm); no cloth
+    where the camera saw nothing (``unseen``: `lookfeel.data.holes.unseen_regions`)."""
     h, w = z_full.shape
     vg, ug = np.mgrid[0:h, 0:w].astype(np.float64)
     sub = (slice(None, None, step), slice(None, None, step))
     room = np.min([p.depth(ug, vg) for p in planes], axis=0)
     in_front = room - z_full
     cloth = np.isfinite(room) & (in_front > margin_mm)
+    if unseen is not None:
+        cloth &= ~unseen
     rad = round(min(h, w) / 112) if open_px is None else open_px
     if rad > 0:  # thin strips along the room's corners and edges are not cloth
         disk = np.hypot(*np.mgrid[-rad : rad + 1, -rad : rad + 1]) <= rad + 0.5
@@ -469,6 +495,8 @@ def _in_room(
     wall_clearance = gaps[walls].min(axis=0) if walls else np.full((h, w), np.inf)
     resid = -in_front[sub].ravel()
     inl = np.abs(resid) < inlier_mm
+    if unseen is not None:
+        inl &= ~unseen[sub].ravel()
     return Registration(
         planes=planes,
         room=np.where(np.isfinite(room), room, 0.0).astype(np.float32),
@@ -545,9 +573,16 @@ def registered_heights(
     measured from the drape's top (`heights_from_top`); 0 elsewhere.
 
     Raises:
-        RegistrationError: no room could be fitted (the message says what is missing).
+        RegistrationError: no room could be fitted, or no cloth stands in front of it (the
+            message says what is missing).
     """
     reg = register_configured(depth_mm, config)
+    if not reg.cloth.any():  # an input of zeros would train and embed as if it were a drape
+        found = ", ".join(p.label for p in reg.planes)
+        raise RegistrationError(
+            f"no cloth found: nothing stands more than data.depth_margin_mm="
+            f"{config.depth_margin_mm:g} mm in front of the fitted room ({found})"
+        )
     kept = kept_heights(reg, config)
     return kept, drape_post(reg, kept, config)
 
