@@ -177,3 +177,41 @@ def test_subset_and_with_items(tiny_dataset: Path):
     keep = catalog.items(Modality.DEPTH)[:4]
     only = catalog.with_items(keep)
     assert only.ids == [1, 2] and only.modalities == (Modality.DEPTH,)
+
+
+def test_files_in_subfolders_of_a_modality_folder_are_skipped_not_read(tiny_dataset: Path):
+    # The layout is flat: depth/old/ (an old copy) and videos/sub/ used to be read recursively.
+    write_depth(tiny_dataset / "depth" / "old" / "F0001_Depth_New_000099.png", 1, 99)
+    write_depth(tiny_dataset / "depth" / "old" / "deeper" / "F0007_Depth_New_1.png", 7, 1)
+    (tiny_dataset / "depth" / "empty").mkdir()
+    (tiny_dataset / "videos" / "sub").mkdir(parents=True)
+    (tiny_dataset / "videos" / "sub" / "bowl_0.mov").write_bytes(
+        b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
+    )
+    catalog = scan(tiny_dataset)
+    read = {
+        p.name for f in catalog.fabrics for its in f.items.values() for it in its for p in it.frames
+    }
+    assert "F0001_Depth_New_000099.png" not in read and "bowl_0.mov" not in read
+    assert catalog.ids == [1, 2, 3, 4, 5, 6]  # no fabric 7, no object "bowl"
+    assert len(catalog.items(Modality.DEPTH)) == 18
+    skipped = {str(p.path.relative_to(tiny_dataset)): p.message for p in catalog.skipped if p.path}
+    assert skipped == {
+        "depth/empty": "in a subfolder of depth/: not read (empty; the layout is flat)",
+        "depth/old": "in a subfolder of depth/: not read (2 file(s), e.g. "
+        "F0001_Depth_New_000099.png; the layout is flat)",
+        "videos/sub": "in a subfolder of videos/: not read (1 file(s), e.g. bowl_0.mov; the "
+        "layout is flat)",
+    }
+    assert catalog.problems == ()
+
+
+def test_labels_csv_that_is_a_folder_is_an_error_not_skipped(tiny_dataset: Path):
+    (tiny_dataset / "labels.csv").unlink()
+    (tiny_dataset / "labels.csv").mkdir()
+    catalog = scan(tiny_dataset)
+    assert [str(p) for p in catalog.errors] == [
+        f"{tiny_dataset / 'labels.csv'}: labels.csv is a folder, not a file"
+    ]
+    assert catalog.skipped == ()
+    assert catalog.label_columns == () and catalog.ids == [1, 2, 3, 4, 5, 6]

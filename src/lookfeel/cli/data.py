@@ -30,8 +30,9 @@ def add_parser(subparsers: Subparsers) -> None:
             "Decode every file of a dataset and report all problems at once, each with its "
             "path: undecodable or truncated files, depth that is not 16-bit, touch names that "
             "do not parse, fabrics missing from labels.csv (or labelled without images, a "
-            "warning), fabrics lacking a modality. Exit 1 on errors, 0 when clean. Nothing "
-            "under ROOT is modified."
+            "warning), fabrics lacking a modality, depth maps whose values do not read as "
+            "millimetres (a warning). Exit 1 on errors, 0 when clean. Nothing under ROOT is "
+            "modified."
         ),
     )
     check.add_argument("root", type=Path, help="dataset folder")
@@ -113,11 +114,17 @@ def add_parser(subparsers: Subparsers) -> None:
 
 
 def run_info(args: argparse.Namespace) -> int:
-    """Print a dataset's summary (or its JSON)."""
+    """Print a dataset's summary (or its JSON), with the errors ``data check`` reports of the
+    dataset as a whole (empty, or a single fabric) that the scan alone does not."""
+    from dataclasses import replace
+
     from lookfeel.data import scan
+    from lookfeel.data.check import size_problems
     from lookfeel.data.summary import format_summary
 
     catalog = scan(args.root)
+    whole = size_problems(catalog.root, catalog.fabrics)
+    catalog = replace(catalog, problems=(*catalog.problems, *whole))
     if args.json:
         print(json.dumps(catalog.summary(), indent=2))
     else:

@@ -258,7 +258,13 @@ class Catalog:
     # ---- summary -----------------------------------------------------------------------------
 
     def summary(self) -> dict[str, object]:
-        """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels."""
+        """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels.
+
+        When the data names objects (``videos/<name>_<n>.mov``), two more keys give the names
+        behind the ids: ``object_names`` (id as text -> name, of every named object, labelled
+        only ones included) and ``labelled_without_images_names`` (the names of the objects
+        in labels.csv that have no video; ``labelled_without_images`` keeps their ids).
+        """
         items: dict[str, int] = {}
         for m in Modality:
             n = sum(len(f.items.get(m, ())) for f in self.fabrics)
@@ -281,7 +287,7 @@ class Catalog:
         per_fabric = {
             m.value: sorted(len(f.items.get(m, ())) for f in self.fabrics) for m in self.modalities
         }
-        return {
+        out: dict[str, object] = {
             "root": str(self.root),
             "fabrics": len(self.fabrics),
             "fabric_ids": self.ids,
@@ -310,3 +316,10 @@ class Catalog:
             "warnings": len(self.warnings),
             "skipped": len(self.skipped),
         }
+        everyone = sorted([*self.fabrics, *self.labelled_only.values()], key=lambda f: f.id)
+        if any(f.name is not None for f in everyone):
+            out["object_names"] = {str(f.id): f.name for f in everyone if f.name is not None}
+            out["labelled_without_images_names"] = sorted(
+                f.name for f in self.labelled_only.values() if f.name is not None
+            )
+        return out

@@ -12,8 +12,9 @@
 
 The authors' folder names are aliases (``kinect_depth``, ``kinect_depth_new``; ``canon``,
 ``canon_resize``; ``image_fold``, ``image_flat``, ``image_rand*``, whose kind the names may then
-omit). Anything else is reported as skipped, never silently read. The scan reads only names and
-the first bytes of each file (cheap); `lookfeel.data.check_dataset` decodes every pixel.
+omit). Anything else, a subfolder of these folders included (the layout is flat), is reported
+as skipped, never silently read. The scan reads only names and the first bytes of each file
+(cheap); `lookfeel.data.check_dataset` decodes every pixel.
 """
 
 from __future__ import annotations
@@ -189,10 +190,27 @@ def _id_message(path: Path) -> str:
     return f"fabric id in the file name is larger than {MAX_FABRIC_ID}; expected F<id>_..."
 
 
-def _walk(folder: Path) -> Iterable[Path]:
-    for p in sorted(folder.rglob("*")):
-        if p.is_symlink() or not p.is_dir():
-            yield p
+def _walk(folder: Path) -> tuple[list[Path], list[Path]]:
+    """(entries to read, subfolders) of a modality folder, each sorted by name.
+
+    The layout is flat (shared/DATASET.md): a folder inside ``depth/`` or ``videos/`` (an
+    ``old/`` copy, a camera's session folder) is listed as skipped, never read, so that no file
+    enters a run unseen. A symbolic link is an entry even when it leads to a folder (the file
+    policy then reports it)."""
+    entries: list[Path] = []
+    subfolders: list[Path] = []
+    for p in sorted(folder.iterdir()):
+        (subfolders if p.is_dir() and not p.is_symlink() else entries).append(p)
+    return entries, subfolders
+
+
+def _subfolder_skip(path: Path, folder: Path) -> Problem:
+    """The skip entry of a subfolder of a modality folder: what it holds, which is not read."""
+    files = sorted(p for p in path.rglob("*") if not p.is_dir())
+    holds = f"{len(files)} file(s), e.g. {files[0].name}" if files else "empty"
+    return Problem(
+        path, f"in a subfolder of {folder.name}/: not read ({holds}; the layout is flat)", "skip"
+    )
 
 
 def _file_problem(path: Path, real_root: Path) -> str | None:
@@ -213,6 +231,19 @@ def _file_problem(path: Path, real_root: Path) -> str | None:
                 "file in, or link the whole dataset folder instead"
             )
     return None
+
+
+def _labels_file_problem(path: Path) -> str | None:
+    """Why ``labels.csv`` cannot be read as a file (a folder, a FIFO, a dangling link), if so."""
+    try:
+        mode = path.stat().st_mode  # follows links
+    except FileNotFoundError:
+        return f"labels.csv is a symbolic link to {os.readlink(path)}, which does not exist"
+    except OSError as e:
+        return f"cannot read labels file: {e.strerror}"
+    if stat.S_ISREG(mode):
+        return None
+    return f"labels.csv is {file_kind(mode)}, not a file"
 
 
 def _fabric_id(text: str) -> int | None:
@@ -321,8 +352,11 @@ def scan(
     used_single: dict[Modality, Path] = {}
     labels_path: Path | None = None
     for entry in sorted(root.iterdir()):
-        if entry.is_file() and entry.name == "labels.csv":
-            labels_path = entry
+        if entry.name == "labels.csv":
+            if msg := _labels_file_problem(entry):
+                problems.append(Problem(entry, msg))  # not skipped: the labels would be lost
+            else:
+                labels_path = entry
             continue
         if entry.is_dir() and entry.name == REPRINTS:
             continue  # training views of the colour photos (`reprint_path`), not items
@@ -360,7 +394,9 @@ def scan(
     videos: dict[tuple[int | str, PressKind | None, str], Path] = {}
     for folder, modality, folder_kind in kept:
         in_videos = folder.name.lower() == "videos"
-        for path in _walk(folder):
+        entries, subfolders = _walk(folder)
+        skipped.extend(_subfolder_skip(sub, folder) for sub in subfolders)
+        for path in entries:
             suffix = path.suffix.lower()
             is_video = modality is Modality.TOUCH and suffix in VIDEO_SUFFIXES
             if path.name.startswith(".") or not (

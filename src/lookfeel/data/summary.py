@@ -28,14 +28,55 @@ def _ranges(ids: Sequence[int]) -> str:
     return ", ".join(out)
 
 
+def _count(n: object, word: str) -> str:
+    """``1 error``, ``0 errors``."""
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
+def _listed(names: Sequence[str], most: int = 6) -> str:
+    """``a, b, c`` (at most ``most`` names, then ``and N more``)."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
+def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
+    """The ``labels`` row: the label columns, or why there are none (no labels.csv, or one that
+    cannot be read), then how many fabrics or objects are labelled."""
+    cols = s["label_columns"]
+    assert isinstance(cols, list)
+    path = catalog.root / "labels.csv"
+    unread = [p for p in catalog.errors if p.path == path and p.line in (None, 1)]
+    if not cols and not catalog.text_columns and unread and (path.exists() or path.is_symlink()):
+        # The scan reported why (it is counted under problems); no row of it was read.
+        return (
+            f"labels.csv exists but cannot be read: {unread[0].message} (see `lookfeel data check`)"
+        )
+    if cols:
+        what = ", ".join(cols)
+    elif path.exists():
+        what = "no numeric label columns in labels.csv"
+    else:
+        what = "no labels.csv"
+    if named:
+        n = sum(bool(f.labels or f.text_labels) for f in catalog.fabrics)
+        return f"{what}; {n} objects labelled"
+    return f"{what}; {s['fabrics_with_physical_labels']} fabrics with physical labels"
+
+
 def format_summary(catalog: Catalog) -> str:
-    """A dataset summary a person reads (``lookfeel data info``)."""
+    """A dataset summary a person reads (``lookfeel data info``).
+
+    It reports what the scan saw (names and file headers, no pixels), so its problem count
+    covers those only; the catalog's errors about the dataset as a whole (an empty dataset,
+    one fabric, which ``lookfeel data info`` adds with `lookfeel.data.check.size_problems`)
+    are printed in full.
+    """
     s = catalog.summary()
     named = s["named_objects"]
-    rows: list[tuple[str, str]] = [("fabrics", f"{s['fabrics']} (ids {_ranges(catalog.ids)})")]
+    ids = f" (ids {_ranges(catalog.ids)})" if catalog.ids else ""
+    rows: list[tuple[str, str]] = [("fabrics", f"{s['fabrics']}{ids}")]
     if named:
-        shown = [f.display_name for f in catalog.fabrics]
-        listed = ", ".join(shown[:6]) + (f" and {len(shown) - 6} more" if len(shown) > 6 else "")
+        listed = _listed([f.display_name for f in catalog.fabrics])
         rows[0] = ("objects", f"{s['fabrics']} named in labels.csv or videos/: {listed}")
     per = s["items_per_fabric"]
     assert isinstance(per, dict)
@@ -63,20 +104,7 @@ def format_summary(catalog: Catalog) -> str:
             n = sum(1 for p in (catalog.root / REPRINTS).iterdir() if not p.name.startswith("."))
             line += f"; {n} re-printed renders in {REPRINTS}/ (training views)"
         rows.append((m.value, line))
-    cols = s["label_columns"]
-    assert isinstance(cols, list)
-    rows.append(
-        (
-            "labels",
-            (", ".join(cols) if cols else "no labels.csv")
-            + (
-                f"; {sum(bool(f.labels or f.text_labels) for f in catalog.fabrics)} objects "
-                "labelled"
-                if named
-                else f"; {s['fabrics_with_physical_labels']} fabrics with physical labels"
-            ),
-        )
-    )
+    rows.append(("labels", _labels_line(catalog, s, bool(named))))
     texts = s["text_columns"]
     assert isinstance(texts, list)
     if texts:
@@ -104,17 +132,30 @@ def format_summary(catalog: Catalog) -> str:
         rows.append(("paper split", ", ".join(f"{k} {v}" for k, v in split.items())))
     held = s["labelled_without_images"]
     assert isinstance(held, list)
-    if held:
+    held_names = s.get("labelled_without_images_names")
+    if held_names:  # labels.csv keyed by object: names, and videos are what they lack
+        assert isinstance(held_names, list)
+        rows.append(("no videos", f"{len(held)} labelled objects: {_listed(held_names)}"))
+    elif held:
         rows.append(("no images", f"{len(held)} labelled fabrics: {_ranges(held)}"))
     if catalog.skipped:
         names = ", ".join(p.path.name for p in catalog.skipped[:5] if p.path is not None)
         more = f" and {len(catalog.skipped) - 5} more" if len(catalog.skipped) > 5 else ""
         rows.append(("skipped", f"{len(catalog.skipped)} not in the layout: {names}{more}"))
+    # Problems of the dataset as a whole (empty, one fabric: `lookfeel.data.check.size_problems`)
+    # are the ones a reader must see here; the rest concern single files, counted below.
+    rows.extend(("error", p.message) for p in catalog.errors if p.path == catalog.root)
+    # The scan reads names and headers only: say so, or "0 errors" reads as a clean dataset.
     rows.append(
         (
             "problems",
-            f"{s['errors']} errors, {s['warnings']} warnings"
-            + (" (run `lookfeel data check`)" if s["errors"] or s["warnings"] else ""),
+            f"{_count(s['errors'], 'error')}, {_count(s['warnings'], 'warning')} in names and "
+            "headers "
+            + (
+                "(run `lookfeel data check`)"
+                if s["errors"] or s["warnings"]
+                else "(`lookfeel data check` decodes every file)"
+            ),
         )
     )
     width = max(len(k) for k, _ in rows)

@@ -1,0 +1,132 @@
+"""`lookfeel data info` (`format_summary`, `Catalog.summary`): what it says about datasets that
+`data check` fails, labels it cannot read, and named objects."""
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from lookfeel.cli import main
+from lookfeel.data import scan
+
+from ._tiny import write_tiny_dataset
+
+QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
+"""The first bytes of a QuickTime file: enough for the scan, which never decodes."""
+
+
+def _info(root: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    assert main(["data", "info", str(root)]) == 0
+    return capsys.readouterr().out
+
+
+def _info_json(root: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
+    assert main(["data", "info", str(root), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _objects(root: Path, labels: str, presses: dict[str, int]) -> Path:
+    """A PhysiCLeAR-style dataset: ``videos/<object>_<n>.mov`` and labels.csv by ``object``."""
+    (root / "videos").mkdir(parents=True)
+    (root / "labels.csv").write_text(labels)
+    for name, n in presses.items():
+        for k in range(n):
+            (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
+    return root
+
+
+def test_info_on_a_videos_folder_reports_check_s_error_and_no_empty_ids(tmp_path: Path, capsys):
+    # The user gave ROOT/videos instead of ROOT: info used to print "fabrics 0 (ids )" and
+    # "0 errors" while `data check` failed.
+    videos = _objects(tmp_path / "rec", "object,hardness\nsponge,0\ncork,1\n", {"sponge": 2})
+    videos = videos / "videos"
+    out = _info(videos, capsys)
+    assert "(ids )" not in out
+    assert re.search(r"^  fabrics +0$", out, re.M)
+    assert re.search(
+        r"^  error +no usable image found: .* holds 2 press video\(s\) directly "
+        r"\(e\.g\. sponge_0\.mov\); they belong in .*videos/videos/ \(is this the videos/ "
+        r"folder\? give its parent\)$",
+        out,
+        re.M,
+    )
+    assert re.search(r"^  problems +1 error, 0 warnings in names and headers", out, re.M)
+    assert _info_json(videos, capsys)["errors"] == 1
+
+
+def test_info_on_one_fabric_reports_what_check_reports(tmp_path: Path, capsys):
+    one = write_tiny_dataset(tmp_path / "one", fabrics=1, drapes=1)
+    out = _info(one, capsys)
+    assert re.search(r"^  fabrics +1 \(ids 1\)$", out, re.M)
+    assert re.search(r"^  error +only one fabric \(id 1\) has usable images", out, re.M)
+    assert main(["data", "check", str(one), "--no-leakage"]) == 1
+    assert "only one fabric (id 1) has usable images" in capsys.readouterr().out
+
+
+def test_problems_row_says_it_covers_names_and_headers_only(tmp_path: Path, capsys):
+    # A file whose header is intact but whose pixels are cut off: info cannot see it (it reads
+    # no pixels), so its "0 errors" must say what it covers and point to `data check`.
+    root = write_tiny_dataset(tmp_path / "t", fabrics=2, drapes=2)
+    png = root / "depth" / "F0001_Depth_New_000000.png"
+    png.write_bytes(png.read_bytes()[:80])
+    out = _info(root, capsys)
+    assert re.search(
+        r"^  problems +0 errors, 0 warnings in names and headers "
+        r"\(`lookfeel data check` decodes every file\)$",
+        out,
+        re.M,
+    )
+    assert main(["data", "check", str(root), "--no-leakage"]) == 1
+    assert "file is truncated" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("content", "why"),
+    [
+        ("object,hardness\nsponge,0\n".encode("latin-1") + "éponge,1\n".encode("latin-1"), "utf-8"),
+        (b"", "labels file is empty"),
+        (b"object;hardness\nsponge;0\ncork;1\n", "no 'fabric_id' or 'object' column"),
+    ],
+    ids=["latin1", "empty", "semicolons"],
+)
+def test_unreadable_labels_csv_is_not_reported_as_absent(
+    tmp_path: Path, capsys, content: bytes, why: str
+):
+    root = _objects(tmp_path / "rec", "", {"sponge": 1, "cork": 1})
+    (root / "labels.csv").write_bytes(content)
+    out = _info(root, capsys)
+    (labels,) = [line for line in out.splitlines() if line.startswith("  labels ")]
+    assert "no labels.csv" not in labels
+    assert "labels.csv exists but cannot be read: " in labels and why in labels
+    assert "lookfeel data check" in labels
+
+
+def test_labels_csv_that_is_a_folder_is_reported_by_info(tmp_path: Path, capsys):
+    root = write_tiny_dataset(tmp_path / "t", fabrics=2, drapes=1, labels=False)
+    (root / "labels.csv").mkdir()
+    out = _info(root, capsys)
+    assert "labels.csv exists but cannot be read: labels.csv is a folder, not a file" in out
+    assert re.search(r"^  problems +1 error, ", out, re.M)
+
+
+def test_labelled_objects_without_videos_are_named(tmp_path: Path, capsys):
+    labels = "object,hardness\nsponge,0\ncork,1\nghost,2\n"
+    root = _objects(tmp_path / "rec", labels, {"sponge": 2, "cork": 1})
+    out = _info(root, capsys)
+    assert re.search(r"^  no videos +1 labelled objects: ghost$", out, re.M)
+    assert "no images" not in out
+    s = _info_json(root, capsys)
+    ids = {name: int(i) for i, name in s["object_names"].items()}  # type: ignore[union-attr]
+    assert set(ids) == {"cork", "ghost", "sponge"}
+    assert s["labelled_without_images"] == [ids["ghost"]]  # the numeric list is kept
+    assert s["labelled_without_images_names"] == ["ghost"]
+    assert sorted(s["fabric_ids"]) == sorted([ids["cork"], ids["sponge"]])  # type: ignore[arg-type]
+
+
+def test_numbered_fabrics_get_no_object_names(tiny_dataset: Path):
+    with open(tiny_dataset / "labels.csv", "a") as f:
+        f.write("50,0,1,1,1,0,test\n")
+    s = scan(tiny_dataset).summary()
+    assert s["labelled_without_images"] == [50]
+    assert "object_names" not in s and "labelled_without_images_names" not in s
