@@ -180,6 +180,28 @@ def test_real_depth_wall_leak_is_flagged(real_data: Path):
     assert depth.chance == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--tolerance", "-5", "argument --tolerance: must be >= 0, got -5"),
+        ("--static-fraction", "2", "argument --static-fraction: must be in (0, 1], got 2"),
+        ("--static-fraction", "0", "argument --static-fraction: must be in (0, 1], got 0"),
+        ("--pool", "0", "argument --pool: must be >= 1, got 0"),
+        ("--pool", "1.5", "argument --pool: expected int, got '1.5'"),
+        ("--workers", "0", "argument --workers: must be >= 1, got 0"),
+    ],
+)
+def test_cli_data_leakage_names_the_flag_of_a_bad_setting(
+    clean: Path, capsys, flag: str, value: str, message: str
+):
+    from lookfeel.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["data", "leakage", str(clean), flag, value])
+    assert e.value.code == 2
+    assert capsys.readouterr().err.strip().endswith(message)
+
+
 def test_cli_data_check_warns_of_a_leak(leaky: Path, clean: Path, capsys):
     from lookfeel.cli import main
 

@@ -64,6 +64,29 @@ def _modalities(text: str) -> tuple[Modality, ...]:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+def number(
+    kind: type[int] | type[float], low: float, high: float | None = None, open_low: bool = False
+) -> Callable[[str], float]:
+    """An argparse ``type`` for a number within bounds: ``number(float, 0)`` is ``>= 0``,
+    ``number(float, 0, 1, open_low=True)`` is in (0, 1]; a value outside is argparse's one-line
+    usage error naming the flag."""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {kind.__name__}, got {text!r}") from None
+        if (value <= low if open_low else value < low) or (high is not None and value > high):
+            if high is not None:
+                want = f"in {'(' if open_low else '['}{low:g}, {high:g}]"
+            else:
+                want = f"{'>' if open_low else '>='} {low:g}"
+            raise argparse.ArgumentTypeError(f"must be {want}, got {text}")
+        return value
+
+    return parse
+
+
 def add_modalities(parser: argparse.ArgumentParser, flag: str, what: str, default: str) -> None:
     """An option naming modalities, e.g. ``--require depth,touch``: a tuple of `Modality`, or None
     when it is not given (``default`` says what that means)."""

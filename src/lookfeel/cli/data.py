@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_json, add_modalities
+from lookfeel.cli._args import Subparsers, add_json, add_modalities, number
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -41,7 +41,9 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     check.add_argument("--strict", action="store_true", help="treat warnings as errors")
     add_json(check, "print the report as JSON")
-    check.add_argument("--workers", type=int, default=2, help="decoding threads (default 2)")
+    check.add_argument(
+        "--workers", type=number(int, 1), default=2, help="decoding threads (default 2)"
+    )
     check.add_argument(
         "--no-leakage",
         action="store_true",
@@ -80,19 +82,22 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     leakage.add_argument(
         "--tolerance",
-        type=float,
+        type=number(float, 0),
         default=None,
         help="how far a still pixel may stray from its median, in the modality's units "
         "(default: depth 20 mm, colour and touch 12 levels)",
     )
     leakage.add_argument(
         "--static-fraction",
-        type=float,
+        type=number(float, 0, 1, open_low=True),
         default=0.95,
         help="share of images in which a background pixel must be still (default 0.95)",
     )
     leakage.add_argument(
-        "--pool", type=int, default=None, help="mean-pooling factor (default: to <= 64 px)"
+        "--pool",
+        type=number(int, 1),
+        default=None,
+        help="mean-pooling factor (default: to <= 64 px)",
     )
     leakage.add_argument(
         "--position",
@@ -102,13 +107,15 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     leakage.add_argument(
         "--focal-px",
-        type=float,
+        type=number(float, 0, open_low=True),
         default=None,
         help="with --position: the depth camera's focal length in pixels "
         "(data.depth_focal_px; default GelFabric's Kinect crop)",
     )
     leakage.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
-    leakage.add_argument("--workers", type=int, default=2, help="decoding threads (default 2)")
+    leakage.add_argument(
+        "--workers", type=number(int, 1), default=2, help="decoding threads (default 2)"
+    )
     add_json(leakage, "print the report as JSON")
     leakage.set_defaults(func=run_leakage)
 

@@ -593,8 +593,9 @@ def leakage_report(
     if not 0.0 < static_fraction <= 1.0:
         raise LookfeelError(f"static_fraction must be in (0, 1]; got {static_fraction}")
     tol = {**DEFAULT_TOLERANCE, **(tolerance or {})}
-    if any(v < 0 for v in tol.values()):
-        raise LookfeelError(f"tolerance must be >= 0; got {tol}")
+    for m, v in tol.items():
+        if v < 0:
+            raise LookfeelError(f"tolerance must be >= 0; got {v:g} for {m.value}")
     mods = list(modalities) if modalities is not None else list(catalog.modalities)
     masks = dict(masks or {})
     start = time.perf_counter()
