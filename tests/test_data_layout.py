@@ -106,6 +106,24 @@ def test_other_files_are_reported_skipped_not_read(tiny_dataset: Path):
     assert catalog.problems == ()
 
 
+def test_a_synthetic_world_s_own_files_are_not_listed_as_skipped(tmp_path: Path):
+    from lookfeel.synth import SynthConfig, generate
+
+    out = tmp_path / "world"
+    config = SynthConfig(fabrics=2, drapes=2, depth_size=32, modalities=(Modality.DEPTH,))
+    generate(config, out, progress=False)
+    assert {"synth.json", "contact_sheet.png"} <= {p.name for p in out.iterdir()}
+    assert scan(out).skipped == ()
+    # Outside a world, a file of that name is listed like any other.
+    (tmp_path / "plain" / "depth").mkdir(parents=True)
+    for p in (out / "depth").iterdir():
+        (tmp_path / "plain" / "depth" / p.name).write_bytes(p.read_bytes())
+    (tmp_path / "plain" / "contact_sheet.png").write_bytes(b"x")
+    assert [p.path.name for p in scan(tmp_path / "plain").skipped if p.path] == [
+        "contact_sheet.png"
+    ]
+
+
 def test_every_problem_is_reported_at_once(tiny_dataset: Path):
     depth = tiny_dataset / "depth"
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(depth / "F0001_eight_bit.png")

@@ -184,6 +184,8 @@ MAX_FABRIC_ID = 2**31 - 1
 """Largest fabric id a file name may carry (ids are stored as 64-bit integers everywhere; a
 name like ``F99999999999999999999999_1.jpg`` is reported, not overflowed)."""
 SYNTH_MANIFEST = "synth.json"
+_SYNTH_FILES = (SYNTH_MANIFEST, "contact_sheet.png")
+"""What `lookfeel synth` writes beside a world's data: not items, and not listed as skipped."""
 
 
 def _id_message(path: Path) -> str:
@@ -360,6 +362,8 @@ def scan(
             continue
         if entry.is_dir() and entry.name == REPRINTS:
             continue  # training views of the colour photos (`reprint_path`), not items
+        if entry.name in _SYNTH_FILES and (root / SYNTH_MANIFEST).is_file():
+            continue  # a `lookfeel synth` world's own record and picture (read above)
         fm = _folder_modality(entry.name) if entry.is_dir() else None
         if fm is None:
             skipped.append(
