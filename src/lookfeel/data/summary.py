@@ -48,9 +48,8 @@ def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
     unread = [p for p in catalog.errors if p.path == path and p.line in (None, 1)]
     if not cols and not catalog.text_columns and unread and (path.exists() or path.is_symlink()):
         # The scan reported why (it is counted under problems); no row of it was read.
-        return (
-            f"labels.csv exists but cannot be read: {unread[0].message} (see `lookfeel data check`)"
-        )
+        why = unread[0].message.removeprefix("cannot read labels file: ")
+        return f"labels.csv exists but cannot be read: {why} (see `lookfeel data check`)"
     if cols:
         what = ", ".join(cols)
     elif path.exists():
