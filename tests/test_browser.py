@@ -13,6 +13,7 @@ import contextlib
 import fcntl
 import json
 import os
+import re
 import select
 import shutil
 import subprocess
@@ -200,3 +201,47 @@ def test_upload_shows_ranked_fabrics_and_their_images(browser: Browser, tmp_path
         )
         assert status == "Error 415: notes.png: not a PNG or JPEG image"
         assert browser.eval("document.querySelectorAll('.fabric').length") == 0
+
+
+def test_named_objects_show_by_name_with_their_words(browser: Browser, tmp_path: Path):
+    pytest.importorskip("av")
+    from ._video import PRESS, object_press, write_video
+
+    _, ckpt = tiny_run()  # trained on still frames: it reads press videos too
+    data = tmp_path / "objects"
+    (data / "videos").mkdir(parents=True)
+    objects = {  # ranks and words that repeat are classes (as `lookfeel data info` says)
+        "sponge": ("0", "foam"),
+        "spoon": ("2", "metal"),
+        "cork": ("1", "wood"),
+        "pad": ("0", "foam"),
+    }
+    rows = ["object,hardness,material"]
+    for k, (name, (hardness, material)) in enumerate(objects.items()):
+        rows.append(f"{name},{hardness},{material}")
+        for n in range(2):
+            write_video(data / "videos" / f"{name}_{n}.mov", object_press(k, PRESS, 14, 10 * k + n))
+    (data / "labels.csv").write_text("\n".join(rows) + "\n")
+    build_library(ckpt, data, tmp_path / "lib", shard_size=64)
+    with background_server(create_app(Library.open(tmp_path / "lib"))) as url:
+        browser.navigate(url + "/")
+        assert browser.wait_for("document.querySelector('#pick').options.length") == 4
+        options = browser.eval("[...document.querySelector('#pick').options].map(o => o.text)")
+        assert [o.split(":")[0] for o in options] == ["cork", "pad", "sponge", "spoon"]
+
+        browser.eval("document.querySelector('#pick').selectedIndex = 3")  # a press of spoon
+        browser.eval("document.querySelector('#match-item').click()")
+        browser.wait_for("document.querySelectorAll('.fabric').length === 4")
+        titles = browser.eval(
+            "[...document.querySelectorAll('.fabric h3')].map(h => h.textContent)"
+        )
+        assert sorted(t.split(" ", 1)[1] for t in titles) == ["cork", "pad", "sponge", "spoon"]
+        metas = browser.eval(
+            "[...document.querySelectorAll('.fabric .meta')].map(m => m.textContent)"
+        )
+        assert "hardness 2.00 · material metal" in metas
+        props = browser.eval("document.querySelector('.props').textContent")
+        assert re.fullmatch(
+            r"Predicted properties: hardness [012] \(\d+%\) · material (foam|metal|wood) \(\d+%\)",
+            props,
+        ), props

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -624,3 +625,229 @@ def test_press_videos_decode_in_worker_processes_as_in_threads(recordings: Path)
         held[decode] = [(loader.views(it), loader.embed_array(it)) for it in items]
     for (tv, te), (pv, pe) in zip(held["threads"], held["processes"], strict=True):
         assert tv.shape[0] > 1 and np.array_equal(tv, pv) and np.array_equal(te, pe)
+
+
+# ---- a model trained on press videos, used: what it takes, how it names objects ----------------
+
+
+@pytest.fixture(scope="module")
+def video_model(recordings: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(checkpoint, library): the recipe (three networks, merged into one checkpoint) trained
+    for a few steps on `recordings`, and a library of its presses."""
+    from lookfeel.cli import main
+
+    root = tmp_path_factory.mktemp("video_model")
+    config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")
+    args = ["--data", str(recordings), *TINY, "--set", "train.steps=2"]
+    with pytest.warns(UserWarning, match="hold no press"):
+        assert main(["train", "--config", config, "--out", str(root / "run"), *args]) == 0
+    ck = root / "run" / "checkpoints" / "last.pt"
+    with pytest.warns(UserWarning, match="hold no press"):
+        code = main(["index", "build", "--checkpoint", str(ck), "--data", str(recordings),
+                     "--out", str(root / "lib")])  # fmt: skip
+    assert code == 0
+    return ck, root / "lib"
+
+
+def _still_frame(recordings: Path, path: Path) -> Path:
+    """One raw frame of a press video, saved as a PNG: what a still GelSight image looks like."""
+    from ._video import PRESS, object_press
+
+    Image = pytest.importorskip("PIL.Image")
+    Image.fromarray(object_press(2, PRESS, t=14)[7]).save(path)
+    return path
+
+
+def test_a_video_model_refuses_a_still_touch_image_by_name(
+    recordings: Path,
+    video_model: tuple[Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+):
+    from lookfeel.checkpoint import TOUCH_VIDEOS, load_model, read_checkpoint
+    from lookfeel.cli import main
+    from lookfeel.index.query import STILL_TOUCH_REFUSED
+
+    ck, lib = video_model
+    assert read_checkpoint(ck)["touch_input"] == TOUCH_VIDEOS  # the members' merged checkpoint
+    member = ck.parents[1] / "members" / "0" / "checkpoints" / "last.pt"
+    assert read_checkpoint(member)["touch_input"] == TOUCH_VIDEOS
+    assert load_model(ck).touch_input == TOUCH_VIDEOS
+
+    still = _still_frame(recordings, tmp_path / "still.png")
+    video = str(recordings / "videos" / "cork_0.mov")
+    refused = f"lookfeel: {still}: {STILL_TOUCH_REFUSED}"
+    capsys.readouterr()
+    for argv in (
+        ["predict", "--checkpoint", str(ck), str(still)],
+        ["predict", "--checkpoint", str(ck), video, str(still), "--together"],
+        ["predict", "--checkpoint", str(ck), video, str(still), "--json"],
+        ["match", "--index", str(lib), "--modality", "touch", video, str(still)],
+    ):
+        assert main(argv) == 1, argv
+        out = capsys.readouterr()
+        assert out.err.strip().splitlines() == [refused] and out.out == "", argv
+    assert main(["predict", "--checkpoint", str(ck), video]) == 0  # a video is still taken
+    capsys.readouterr()
+
+    # serve: the upload is refused with a 422 naming the client's file, a video is matched
+    import httpx
+
+    from lookfeel.serve import background_server, create_app
+
+    with background_server(create_app(lib)) as url:
+        png = ("files", ("my press.png", still.read_bytes(), "image/png"))
+        r = httpx.post(url + "/api/match", data={"modality": "touch"}, files=[png])
+        assert r.status_code == 422 and r.json()["detail"] == f"my press.png: {STILL_TOUCH_REFUSED}"
+        mov = ("files", ("cork.mov", Path(video).read_bytes(), "video/quicktime"))
+        r = httpx.post(url + "/api/match", data={"modality": "touch"}, files=[mov])
+        assert r.status_code == 200, r.text
+
+    # A checkpoint from before the record is not checked (nor is a library built with it).
+    state = torch.load(ck, weights_only=True)
+    del state["touch_input"]
+    old = tmp_path / "old.pt"
+    torch.save(state, old)
+    assert load_model(old).touch_input is None
+    assert main(["predict", "--checkpoint", str(old), str(still)]) == 0
+    assert capsys.readouterr().out.startswith(f"{still}: hardness ")
+
+
+def test_the_still_frame_check_spares_raw_frame_and_frame_trained_models(tmp_path: Path):
+    from lookfeel.checkpoint import TOUCH_BOTH, TOUCH_FRAMES, TOUCH_VIDEOS, touch_input_of
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageError
+    from lookfeel.index.query import check_touch_query, load_query_bytes
+
+    assert touch_input_of(["a/cup_0.MOV", "b/cup_1.mp4"]) == TOUCH_VIDEOS
+    assert touch_input_of(["touch/F0001_fold_01_100.png"]) == TOUCH_FRAMES
+    assert touch_input_of(["cup_0.mkv", "touch/F0001_fold_01_100.jpg"]) == TOUCH_BOTH
+    assert touch_input_of([]) is None
+
+    diff, raw = DataConfig(image_size=32), DataConfig(image_size=32, video_reference="none")
+    with pytest.raises(ImageError, match=r"^a\.png: this model was trained on press videos"):
+        check_touch_query("a.png", False, TOUCH_VIDEOS, diff)
+    check_touch_query("a.mov", True, TOUCH_VIDEOS, diff)
+    check_touch_query("a.png", False, TOUCH_VIDEOS, raw)  # trained on raw frames: a frame is one
+    for trained_on in (TOUCH_FRAMES, TOUCH_BOTH, None):
+        check_touch_query("a.png", False, trained_on, diff)
+        check_touch_query("a.mov", True, trained_on, diff)
+    # an upload is a video by its content, whatever its name says
+    png = tmp_path / "x.png"
+    Image = pytest.importorskip("PIL.Image")
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(png)
+    with pytest.raises(ImageError, match=r"^up\.mov: this model was trained on press videos"):
+        load_query_bytes(png.read_bytes(), "up.mov", Modality.TOUCH, diff, trained_on=TOUCH_VIDEOS)
+    assert load_query_bytes(png.read_bytes(), "up.png", Modality.TOUCH, diff).shape == (3, 32, 32)
+
+
+def test_predict_answers_a_single_video_without_a_press_as_it_answers_several(
+    recordings: Path, video_model: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.checkpoint import load_model
+    from lookfeel.cli import main
+    from lookfeel.predict import predict_files
+
+    ck, _ = video_model
+    unpressed = str(recordings / "videos" / "foam_3.mov")
+    pressed = str(recordings / "videos" / "cork_0.mov")
+    (answer,) = predict_files(load_model(ck), [unpressed])
+    assert answer.properties == {} and "foam_3.mov: no contact found" in (answer.error or "")
+    capsys.readouterr()
+    for inputs, status in (
+        ([unpressed], 1),
+        ([unpressed, unpressed], 1),
+        ([unpressed, pressed], 0),
+    ):
+        assert main(["predict", "--checkpoint", str(ck), *inputs, "--json"]) == status, inputs
+        out = capsys.readouterr()
+        answers = json.loads(out.out)
+        assert [a["path"] for a in answers] == inputs
+        assert answers[0]["properties"] == {} and "no contact found" in answers[0]["error"]
+        assert len(out.err.strip().splitlines()) == inputs.count(unpressed)  # one warning each
+    assert main(["predict", "--checkpoint", str(ck), unpressed]) == 1
+    out = capsys.readouterr()
+    assert out.out.strip().endswith("(nothing predicted)") and "foam_3.mov" in out.out
+
+
+def test_a_library_of_named_objects_names_them_and_their_words(
+    recordings: Path,
+    video_model: tuple[Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+):
+    import shutil
+
+    from lookfeel.cli import main
+    from lookfeel.index import Library, Matcher, format_match
+
+    _, lib = video_model
+    library = Library.open(lib)
+    by_name = {r.name: r for r in library.fabrics.values()}
+    assert set(by_name) == set(OBJECTS)
+    assert by_name["spoon"].text_labels == {"hardness": "2", "material": "metal"}
+    assert library.text_columns == ("material",)
+    assert library.classes == {
+        "hardness": ("0", "1", "2"),
+        "material": ("fabric", "metal", "paper", "wood"),
+    }
+
+    query = str(recordings / "videos" / "spoon_1.mov")  # a library item: it is itself
+    assert main(["match", "--index", str(lib), "--modality", "touch", query, "--top", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "  match: spoon: the query is library item touch:" in out
+    rows = out.splitlines()
+    header = next(i for i, line in enumerate(rows) if line.lstrip().startswith("rank"))
+    assert rows[header].split()[:4] == ["rank", "fabric", "P", "D"]
+    assert rows[header + 1].split()[:2] == ["1", "spoon"]
+    props = rows[-1]
+    assert re.search(
+        r"hardness [012] \(\d+%\), material (fabric|metal|paper|wood) \(\d+%\)$", props
+    )
+    assert "e-" not in props
+
+    assert main(["match", "--index", str(lib), "--modality", "touch", query, "--json"]) == 0
+    [r] = json.loads(capsys.readouterr().out)
+    first = r["fabrics"][0]
+    assert (first["name"], first["text_labels"]["material"]) == ("spoon", "metal")
+    assert first["fabric_id"] == by_name["spoon"].id
+    material = {p["name"]: p for p in r["properties"]}["material"]
+    assert material["mean"] is None and material["value"] in {"fabric", "metal", "paper", "wood"}
+    assert material["probability"] == max(material["probabilities"].values())
+    assert sum(material["probabilities"].values()) == pytest.approx(1.0, abs=1e-3)
+
+    # A library built before names were recorded opens and names fabrics by id, as it did.
+    old = shutil.copytree(lib, tmp_path / "old")
+    manifest = json.loads((old / "manifest.json").read_text())
+    manifest.pop("text_columns")
+    for f in manifest["fabrics"]:
+        del f["name"], f["text_labels"]
+    (old / "manifest.json").write_text(json.dumps(manifest))
+    former = Matcher(Library.open(old))
+    assert all(
+        rec.name is None and rec.text_labels == {} for rec in former.library.fabrics.values()
+    )
+    (res,) = former.match_files([query], Modality.TOUCH, top=2)
+    assert res.message.startswith(f"fabric {by_name['spoon'].id}: the query is library item")
+    assert res.fabrics[0].name is None
+    text = format_match(res)
+    assert f"     1  {by_name['spoon'].id:>6}  " in text
+    assert re.search(r"properties \(top fabrics weighted by P\): hardness [012] \(\d+%\)$", text)
+
+
+def test_serve_names_objects_and_shows_their_words(video_model: tuple[Path, Path]):
+    import httpx
+
+    from lookfeel.serve import background_server, create_app
+
+    _, lib = video_model
+    with background_server(create_app(lib)) as url:
+        fabrics = httpx.get(url + "/api/fabrics").json()
+        spoon = next(f for f in fabrics if f["name"] == "spoon")
+        assert spoon["text_labels"]["material"] == "metal"
+        item = spoon["items"]["touch"][0]
+        r = httpx.post(url + "/api/match/item", json={"item": item, "top": 2})
+        assert r.status_code == 200, r.text
+        [res] = r.json()["results"]
+        assert all(f["name"] in OBJECTS for f in res["fabrics"])
+        assert {p["name"] for p in res["properties"]} == {"hardness", "material"}

@@ -4,12 +4,16 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
 
     version, step, config (the resolved RunConfig as plain data), modalities, label_columns,
     split (fabric ids on each side), model (state dict), optimizer, scheduler, loss (state
-    dicts), rng (torch CPU generator state), best (the best validation value so far)
+    dicts), rng (torch CPU generator state), best (the best validation value so far),
+    touch_input (what the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or
+    `TOUCH_BOTH`; absent in checkpoints from before it was recorded, and for a model without
+    a touch branch)
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,21 +22,51 @@ import torch
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import ConfigError, RunConfig, from_dict
+from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder, create_model
 
 __all__ = [
     "CHECKPOINT_VERSION",
+    "TOUCH_BOTH",
+    "TOUCH_FRAMES",
+    "TOUCH_VIDEOS",
     "CheckpointError",
     "LoadedModel",
     "init_from_checkpoint",
     "load_model",
     "read_checkpoint",
     "save_checkpoint",
+    "touch_input_of",
 ]
 
 CHECKPOINT_VERSION = 1
+
+TOUCH_VIDEOS = "videos"
+"""A touch branch trained on press videos only (``videos/<object>_<n>.mov``): each press read as
+its video's frames are read (by default their change from the no-contact frames,
+``data.video_reference: subtract``)."""
+TOUCH_FRAMES = "frames"
+"""A touch branch trained on still GelSight frames only (``touch/`` images: GelFabric, the
+synthetic world)."""
+TOUCH_BOTH = "videos and frames"
+"""A touch branch trained on both kinds of press."""
+
+
+def touch_input_of(paths: Iterable[str | os.PathLike[str]]) -> str | None:
+    """What a touch branch trained on these press files saw: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or
+    `TOUCH_BOTH` (a video by its suffix, `VIDEO_SUFFIXES`); None for no files.
+
+    Recorded in checkpoints as ``touch_input`` so that a query of the other kind can be refused
+    (`lookfeel.index.query.check_touch_query`).
+    """
+    kinds = {Path(p).suffix.lower() in VIDEO_SUFFIXES for p in paths}
+    if not kinds:
+        return None
+    if kinds == {True}:
+        return TOUCH_VIDEOS
+    return TOUCH_FRAMES if kinds == {False} else TOUCH_BOTH
 
 
 class CheckpointError(LookfeelError):
@@ -81,6 +115,10 @@ class LoadedModel:
     label_stats: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Per label column, the training fabrics' (mean, std) the property head's targets were
     standardised with (empty in checkpoints from before it was saved)."""
+    touch_input: str | None = None
+    """What the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or `TOUCH_BOTH`;
+    None in checkpoints from before it was recorded (queries are then not checked against
+    it) and for a model without a touch branch."""
 
 
 def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[str]:
@@ -138,4 +176,17 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
             k: (float(v[0]), float(v[1])) for k, v in state.get("label_stats", {}).items()
         },
         split=dict(state.get("split", {})),
+        touch_input=_touch_input(path, state.get("touch_input")),
     )
+
+
+def _touch_input(path: str | os.PathLike[str], value: object) -> str | None:
+    """The checkpoint's ``touch_input`` record, checked (None when absent)."""
+    if value is None:
+        return None
+    if value not in (TOUCH_VIDEOS, TOUCH_FRAMES, TOUCH_BOTH):
+        raise CheckpointError(
+            f"{path}: touch_input is {value!r}; expected {TOUCH_VIDEOS!r}, {TOUCH_FRAMES!r} or "
+            f"{TOUCH_BOTH!r} (a damaged checkpoint, or one from a newer lookfeel)"
+        )
+    return str(value)

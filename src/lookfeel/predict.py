@@ -6,6 +6,9 @@ hardness 0/1/2, or words such as material) gives its most likely class and every
 probability; a property-regression head (``model.num_properties``) gives values in the label
 columns' own units. Several presses of one object can be pooled into one query, as the
 Multi-input Net pools presses (``together=True``).
+
+A touch query must be what the model was trained on: a model trained on press videos refuses a
+still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file.
 """
 
 from __future__ import annotations
@@ -22,7 +25,8 @@ from lookfeel.data.files import ImageError
 from lookfeel.data.layout import IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.errors import LookfeelError
-from lookfeel.index.query import load_query_image, query_batch
+from lookfeel.index.match import class_value
+from lookfeel.index.query import check_touch_query, load_query_image, query_batch
 from lookfeel.modality import Modality
 from lookfeel.models import CLASSES, PROPERTY, eval_mode
 
@@ -67,15 +71,6 @@ class Prediction:
     modality: str
     properties: dict[str, PropertyValue]
     error: str | None = None
-
-
-def _plain(name: str) -> int | float | str:
-    """A class name in its column's own terms: ``"2"`` -> 2, ``"0.5"`` -> 0.5, words as they are."""
-    try:
-        number = float(name)
-    except ValueError:
-        return name
-    return int(number) if number.is_integer() else number
 
 
 def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality:
@@ -130,13 +125,16 @@ def predict_files(
         device: where the network runs.
 
     Returns:
-        One `Prediction` per file, or one for all with ``together``.
+        One `Prediction` per file, or one for all with ``together``. A query whose video
+        holds no press (too short, no contact) is answered with its ``error`` and no
+        properties, the only query as well as one of several (the others are still
+        predicted); ``lookfeel predict`` exits with 1 when every query was answered so.
 
     Raises:
         PredictError: the model has no heads, lacks the modality, or the files mix modalities.
-        ImageError: naming a file that cannot be read (video errors included), or the only
-            query is a video that holds no press. With several queries, one without a press
-            is answered with its ``error`` instead (the others are still predicted).
+        ImageError: naming a file that cannot be read (video errors other than a missing press
+            included), or a still touch image for a model trained on press videos (checked
+            for every file before any is decoded).
     """
     _heads(loaded)
     model = loaded.model
@@ -158,16 +156,19 @@ def predict_files(
     if together and mods[0] is not Modality.TOUCH:
         raise PredictError("--together pools touch presses; depth and colour are one image each")
     data = loaded.config.data
+    for p, m in zip(files, mods, strict=True):
+        if m is Modality.TOUCH:
+            check_touch_query(p, p.suffix.lower() in VIDEO_SUFFIXES, loaded.touch_input, data)
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []
     with eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
             try:
-                images = [load_query_image(p, m, data) for p in group]
+                images = [
+                    load_query_image(p, m, data, trained_on=loaded.touch_input) for p in group
+                ]
             except NoPressError as e:
-                if len(groups) == 1:
-                    raise
                 out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(e)))
                 continue
             x = query_batch(images, m).to(device)
@@ -197,7 +198,7 @@ def _read_heads(
             names = cfg.classes[col]
             best = int(p.argmax())
             props[col] = PropertyValue(
-                value=_plain(names[best]),
+                value=class_value(names[best]),
                 probability=round(float(p[best]), 4),
                 probabilities={n: round(float(q), 4) for n, q in zip(names, p, strict=True)},
             )

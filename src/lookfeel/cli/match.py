@@ -4,7 +4,13 @@ properties.
 Rank the library's fabrics for query images of one modality: calibrated probabilities, each
 fabric's nearest items in every modality, predicted physical properties, and 'no known fabric'
 below the calibrated threshold. Several touch images are the presses of one query (pooled);
-depth and colour images are matched one by one. A query identical to an item of the library is
+depth and colour images are matched one by one. A fabric is shown by its name where the data
+names its objects (videos/sponge_0.mov: sponge), else by its id; a property whose values are
+classes (a word such as material, a rank such as hardness 0/1/2) is answered with its most
+likely class and that class's share of the top fabrics' probability, as `lookfeel predict`
+answers, other properties with the probability-weighted mean and spread. A touch query must be
+what the model was trained on: a model trained on press videos refuses a still frame. A query
+identical to an item of the library is
 reported as that item's fabric; otherwise, below the calibrated threshold, the answer is 'no
 known fabric', shown beside the chance level 1/F (F: the library's fabrics). Across two senses
 the library matches through its cross-modal map where calibration found that better (`lookfeel

@@ -4,7 +4,9 @@ Read a trained model's property heads on query files: touch videos (.mov, .mp4, 
 frames, depth maps or photos. Each file is one query; --together pools the files as presses of
 one object (the Multi-input Net's max over presses). A video that holds no press (too short, no
 contact) is answered with an "error" and no properties, and a warning; the others are still
-predicted (the exit status is 1 only when nothing could be). A class head (model.class_heads, e.g.
+predicted (the exit status is 1 only when nothing could be; one input is answered alike). A
+model trained on press videos refuses a still touch image: it read each press as its change from
+the frames before contact, which a still image lacks. A class head (model.class_heads, e.g.
 hardness 0/1/2 or material) answers with its most likely class in the label column's own terms
 and that class's probability; a property-regression head answers in the column's units.
 """
@@ -37,7 +39,7 @@ def add_parser(subparsers: Subparsers) -> None:
         "--together", action="store_true", help="the files are presses of one object: pool them"
     )
     pr.add_argument("--device", default="cpu", help="torch device (default cpu)")
-    add_json(pr, "print a JSON list: per query its path(s) and properties")
+    add_json(pr, "print a JSON list: per query its path(s) and properties, or its error")
 
 
 def _line(p: object) -> str:

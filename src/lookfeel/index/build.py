@@ -345,8 +345,15 @@ def build_library(
         status="complete",
         backend=resolved,
         label_columns=list(catalog.label_columns),
+        text_columns=list(catalog.text_columns),
         fabrics=[
-            {"id": f.id, "labels": dict(f.labels), "cluster": f.cluster}
+            {
+                "id": f.id,
+                "labels": dict(f.labels),
+                "cluster": f.cluster,
+                "name": f.name,  # the object's name (``sponge``); None for a numbered fabric
+                "text_labels": dict(f.text_labels),  # every label cell as written
+            }
             for f in catalog.fabrics
             if f.id in present
         ],

@@ -3,7 +3,8 @@
 ::
 
     LIB/manifest.json            format, status, checkpoint (path, sha256), run config, modalities
-                                 and their shards, fabrics (labels, cluster), calibration, backend
+                                 and their shards, fabrics (labels, cluster, name, text labels),
+                                 the label columns of words, calibration, backend
     LIB/shards/depth-00000.npz   one chunk of one modality: embeddings (N, D) float32, fabric ids,
                                  paths, the frame embedded, press kind and id, and its key
     LIB/index-depth.faiss        a faiss index per modality (faiss backend only)
@@ -17,6 +18,10 @@ written first with status ``building`` and last with ``complete``; only a comple
 
 The library refers to its checkpoint by path and SHA-256 (queries are embedded with that model);
 `Library.load_model` refuses a checkpoint that has changed since the build.
+
+Each fabric's name (``sponge``, for data that names its objects) and its label cells as written
+(``material: metal``) are recorded in the manifest; a library built before they were opens
+without them (its fabrics are then shown by id, and only its numeric labels are known).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import json
 import os
 import zipfile
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +43,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, from_dict
+from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.index.calibrate import Calibration
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
@@ -191,11 +197,29 @@ class LibraryItem:
 
 @dataclass(frozen=True)
 class FabricRecord:
-    """A fabric of the library: its known labels and cluster."""
+    """A fabric of the library: its known labels and cluster, and its name if it has one.
+
+    Attributes:
+        id: the fabric id.
+        labels: known numeric label values by column.
+        cluster: its cluster, or None when unknown.
+        name: the object's name (``sponge``) when the dataset names its objects
+            (``videos/<name>_<n>.mov``); None for a numbered fabric, and in a library built
+            before names were recorded.
+        text_labels: every known label cell as written, text columns (``material``) included;
+            empty in a library built before they were recorded.
+    """
 
     id: int
     labels: dict[str, float]
     cluster: int | None
+    name: str | None = None
+    text_labels: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def title(self) -> str:
+        """How a person reads the fabric: its name (``sponge``), else ``fabric 7``."""
+        return self.name if self.name is not None else f"fabric {self.id}"
 
 
 class ModalityTable:
@@ -262,7 +286,12 @@ class Library:
         manifest: the parsed ``manifest.json``.
         tables: modality -> its rows.
         fabrics: fabric id -> labels and cluster.
-        label_columns: label names, in the dataset's order.
+        label_columns: the numeric label columns, in the dataset's order.
+        text_columns: the label columns of words (``material``); empty in a library built
+            before they were recorded.
+        classes: per label column whose values are classes (words, or ranks such as hardness
+            0/1/2), its classes in order (numbers in numeric order, words alphabetical): the
+            columns `lookfeel data info` counts as classes, and the model's class heads.
         calibration: c and the unknown threshold per (query, gallery) pair.
         cross_maps: the maps between modalities (`lookfeel.metrics.cross_map`); a pair whose
             calibration says ``mapped`` is matched through its map.
@@ -288,14 +317,47 @@ class Library:
         self.config = from_dict(RunConfig, manifest["config"])
         self.backend: str = manifest["backend"]
         self.label_columns: tuple[str, ...] = tuple(manifest["label_columns"])
+        self.text_columns: tuple[str, ...] = tuple(manifest.get("text_columns", ()))
         self.fabrics = {
             int(f["id"]): FabricRecord(
-                int(f["id"]), {k: float(v) for k, v in f["labels"].items()}, f["cluster"]
+                int(f["id"]),
+                {k: float(v) for k, v in f["labels"].items()},
+                f["cluster"],
+                name=None if f.get("name") is None else str(f["name"]),
+                text_labels={str(k): str(v) for k, v in f.get("text_labels", {}).items()},
             )
             for f in manifest["fabrics"]
         }
+        self.classes = self._classes()
         self.calibration = Calibration.from_dict(manifest["calibration"])
         self.cross_maps = dict(cross_maps or {})
+
+    def _classes(self) -> dict[str, tuple[str, ...]]:
+        """The label columns whose values are classes: those `lookfeel data info` finds
+        (`Catalog.class_counts`: text columns, and numeric columns of a few whole numbers; not
+        a column whose every cell differs, such as a description), and the model's class heads
+        (``model.classes``). Classes in order: numbers in numeric order, words alphabetical."""
+        fabrics = tuple(
+            Fabric(id=r.id, labels=r.labels, name=r.name, text_labels=r.text_labels)
+            for r in self.fabrics.values()
+        )
+        catalog = Catalog(
+            root=self.root,
+            fabrics=fabrics,
+            label_columns=self.label_columns,
+            text_columns=self.text_columns,
+        )
+        found = {col: set(counts) for col, counts in catalog.class_counts().items()}
+        for col in self.config.model.classes:
+            names = {k for f in fabrics if (k := f.class_of(col)) is not None}
+            if names:
+                found.setdefault(col, names)
+        out = {}
+        for col in [*self.label_columns, *self.text_columns]:
+            if col in found:
+                numeric = col in self.label_columns
+                out[col] = tuple(sorted(found[col], key=float if numeric else str))
+        return out
 
     @property
     def modalities(self) -> tuple[Modality, ...]:

@@ -7,10 +7,15 @@ is the sum over its items, times ``1 - P(unknown)``, the calibrated unknown clas
 (`lookfeel.index.calibrate`). The fabrics are ranked by probability; for each, its items nearest
 to e in every modality of the library say what it looks like (depth, colour) and how it feels
 (touch). Physical properties are predicted from the top ``k_properties`` fabrics, each weighted
-by its probability: the weighted mean and standard deviation of their known labels. When the
-best probability is below the calibrated threshold the answer is "no known fabric", with the
-chance level 1/F beside it, and a note when the pair's threshold accepted no known fabric at all
-in calibration (its ranking is then still worth reading).
+by its probability: the weighted mean and standard deviation of their known labels, rounded to
+`PROPERTY_DIGITS` significant digits of the column's largest value in the library (a weight of
+1e-20 does not make a mean of 5e-20); for a column of classes (words such as material, ranks
+such as hardness 0/1/2: `Library.classes`) the most likely class, the one whose fabrics carry
+the most weight, with that share as its probability, as ``lookfeel predict`` answers a class
+head. Fabrics are named by name where the data names its objects (``sponge``), else by id
+(``fabric 7``). When the best probability is below the calibrated threshold the answer is "no
+known fabric", with the chance level 1/F beside it, and a note when the pair's threshold
+accepted no known fabric at all in calibration (its ranking is then still worth reading).
 
 A pair that calibration found better matched through its cross-modal map (``mapped``, see
 `lookfeel.index.calibrate`) is matched that way: D is then the map's distance (both routes and
@@ -36,9 +41,10 @@ import torch
 from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
+from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
-from lookfeel.index.query import load_query_image, query_batch
+from lookfeel.index.query import check_touch_query, load_query_image, query_batch
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
@@ -50,6 +56,7 @@ __all__ = [
     "MatchResult",
     "Matcher",
     "PropertyEstimate",
+    "class_value",
     "format_match",
 ]
 
@@ -58,6 +65,18 @@ IDENTICAL_DISTANCE = 1e-3
 embeddings: distinct images are typically 0.1-1.4 apart; one file re-embedded, ~1e-6)."""
 FAISS_CANDIDATES = 2048
 """Items a faiss search returns; probabilities are normalised over these."""
+PROPERTY_DIGITS = 4
+"""Significant digits of a property estimate, relative to the column's largest value in the
+library (labels are written with 2-3; more would be the weights' rounding noise)."""
+
+
+def class_value(name: str) -> int | float | str:
+    """A class name in its column's own terms: ``"2"`` -> 2, ``"0.5"`` -> 0.5, words as they are."""
+    try:
+        number = float(name)
+    except ValueError:
+        return name
+    return int(number) if number.is_integer() else number
 
 
 @dataclass(frozen=True)
@@ -80,11 +99,19 @@ class PropertyEstimate:
 
     name: str
     mean: float | None
-    """Probability-weighted mean over the top fabrics with the label known; None if none is."""
+    """Probability-weighted mean over the top fabrics with the label known; None if none is,
+    or the column is of words. Rounded to `PROPERTY_DIGITS` digits of the column's scale."""
     std: float | None
     """Probability-weighted standard deviation (the spread among plausible fabrics)."""
     fabrics: int
     """How many fabrics carried the label."""
+    value: int | float | str | None = None
+    """For a column of classes (`Library.classes`): the most likely class, in the column's
+    own terms (the rank ``2``, the word ``"metal"``); None for other columns."""
+    probability: float | None = None
+    """The most likely class's probability: the share of the fabrics' weight that carries it."""
+    probabilities: dict[str, float] = field(default_factory=dict)
+    """Every class's share, in the column's class order (classes no top fabric carries: 0)."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +120,9 @@ class FabricMatch:
 
     rank: int
     fabric_id: int
+    name: str | None
+    """The object's name (``sponge``) where the data names its objects; None for a numbered
+    fabric and in a library built before names were recorded (then it is ``fabric <id>``)."""
     probability: float
     """Calibrated P(the query shows this fabric); with P(unknown), these sum to 1."""
     distance: float
@@ -101,6 +131,14 @@ class FabricMatch:
     labels: dict[str, float]
     nearest: dict[str, list[ItemRef]]
     """Modality -> the fabric's items nearest to the query: what it looks like and feels like."""
+    text_labels: dict[str, str] = field(default_factory=dict)
+    """Every known label cell as written, words included (``material: metal``); empty in a
+    library built before they were recorded."""
+
+    @property
+    def title(self) -> str:
+        """How a person reads the fabric: its name, else ``fabric 7``."""
+        return self.name if self.name is not None else f"fabric {self.fabric_id}"
 
 
 @dataclass(frozen=True)
@@ -146,8 +184,16 @@ class Matcher:
     def __init__(self, library: Library, device: torch.device | str = "cpu") -> None:
         self.library = library
         self.device = torch.device(device)
-        self.model = library.load_model(device).model
+        loaded = library.load_model(device)
+        self.model = loaded.model
+        self.touch_input = loaded.touch_input
+        """What the model's touch branch was trained on (`LoadedModel.touch_input`): a touch
+        query must suit it (`lookfeel.index.query.check_touch_query`)."""
         self._against: dict[Pair, Callable[[NDArray[np.floating]], NDArray[np.float64]]] = {}
+        self._scales: dict[str, float] = {}  # per numeric column, its largest |label|
+        for record in library.fabrics.values():
+            for col, v in record.labels.items():
+                self._scales[col] = max(self._scales.get(col, 0.0), abs(v))
 
     @property
     def data_config(self) -> DataConfig:
@@ -170,10 +216,19 @@ class Matcher:
         return out.float().cpu().numpy()
 
     def load(self, paths: Sequence[str | Path], modality: Modality) -> torch.Tensor:
-        """Read query files into a `query_batch`; errors name the file."""
+        """Read query files into a `query_batch`; errors name the file (a still touch image
+        for a model trained on press videos is refused before any file is decoded)."""
         self.check_modality(modality)
+        if modality is Modality.TOUCH:
+            for p in paths:
+                video = Path(p).suffix.lower() in VIDEO_SUFFIXES
+                check_touch_query(p, video, self.touch_input, self.data_config)
         return query_batch(
-            [load_query_image(p, modality, self.data_config) for p in paths], modality
+            [
+                load_query_image(p, modality, self.data_config, trained_on=self.touch_input)
+                for p in paths
+            ],
+            modality,
         )
 
     def match_files(
@@ -328,21 +383,21 @@ class Matcher:
         ranked = [(int(table.fabrics[j]), float(pf[j])) for j in order[:k_properties]]
         properties = self._properties(ranked)
         best_id = int(table.fabrics[order[0]]) if len(order) else None
+        best_name = self._title(best_id) if best_id is not None else "fabric None"
         chance = f"chance 1/{nf} = {1 / max(nf, 1):.3f}"
         same = self._identical(e, modality, exclude)
         if same is not None:
             known = True
-            message = f"fabric {same.fabric_id}: the query is library item {same.id} itself"
+            message = f"{self._title(same.fabric_id)}: the query is library item {same.id} itself"
             if best_id != same.fabric_id:
                 message += (
-                    f"; against {g.value} the best match is fabric {best_id} (P = {best:.3f}, "
-                    f"{chance})"
+                    f"; against {g.value} the best match is {best_name} (P = {best:.3f}, {chance})"
                 )
         elif known:
-            message = f"fabric {best_id} (P = {best:.3f}, P(unknown) = {p_unknown:.3f}, {chance})"
+            message = f"{best_name} (P = {best:.3f}, P(unknown) = {p_unknown:.3f}, {chance})"
         else:
             message = (
-                f"no known fabric: the best match, fabric {best_id}, has P = {best:.3f} "
+                f"no known fabric: the best match, {best_name}, has P = {best:.3f} "
                 f"(P(unknown) = {p_unknown:.3f}, {chance}), below the threshold "
                 f"{cal.threshold:.3f} calibrated for a {100 * cal.target_false_accept:g}% "
                 "false-accept rate on held-out fabrics"
@@ -370,6 +425,11 @@ class Matcher:
             backend=search.name,
             timing_ms={"search": 1e3 * (t1 - t0)},
         )
+
+    def _title(self, fabric_id: int) -> str:
+        """A fabric as a person reads it: its name (``sponge``), else ``fabric 7``."""
+        record = self.library.fabrics.get(fabric_id)
+        return record.title if record is not None else f"fabric {fabric_id}"
 
     def _map(self, query: Modality, gallery: Modality) -> CrossMap | None:
         """The pair's cross-modal map when calibration chose to match through it."""
@@ -442,33 +502,71 @@ class Matcher:
         return FabricMatch(
             rank=rank,
             fabric_id=fabric_id,
+            name=record.name if record else None,
             probability=probability,
             distance=distance,
             cluster=record.cluster if record else None,
             labels=dict(record.labels) if record else {},
             nearest=nearest,
+            text_labels=dict(record.text_labels) if record else {},
         )
 
     def _properties(self, ranked: list[tuple[int, float]]) -> list[PropertyEstimate]:
+        """Per label column (numeric ones in the dataset's order, then the columns of words
+        that are classes), the estimate from the ``ranked`` (fabric id, probability) pairs."""
+        lib = self.library
+        columns = [*lib.label_columns, *(c for c in lib.classes if c not in lib.label_columns)]
         out = []
-        for name in self.library.label_columns:
-            vals, weights = [], []
+        for name in columns:
+            cells: list[tuple[float | None, str | None, float]] = []
             for fid, p in ranked:
-                record = self.library.fabrics.get(fid)
-                if record is not None and name in record.labels:
-                    vals.append(record.labels[name])
-                    weights.append(p)
-            if not vals:
+                record = lib.fabrics.get(fid)
+                if record is None:
+                    continue
+                number = record.labels.get(name)
+                cls = f"{number:g}" if number is not None else record.text_labels.get(name)
+                if number is not None or cls is not None:
+                    cells.append((number, cls, p))
+            if not cells:
                 out.append(PropertyEstimate(name, None, None, 0))
                 continue
-            v, w = np.asarray(vals), np.asarray(weights)
-            w = w / w.sum() if w.sum() > 0 else np.full(len(v), 1.0 / len(v))
-            mean = float((w * v).sum())
-            std = float(math.sqrt(max(float((w * (v - mean) ** 2).sum()), 0.0)))
-            if std <= 1e-9 * max(1.0, abs(mean)):
-                std = 0.0  # one plausible fabric (or equal labels): rounding noise, not spread
-            out.append(PropertyEstimate(name, mean, std, len(vals)))
+            w = np.asarray([p for _, _, p in cells], dtype=np.float64)
+            w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
+            mean = std = None
+            if name in lib.label_columns:
+                v = np.asarray([x for x, _, _ in cells], dtype=np.float64)
+                m = float((w * v).sum())
+                spread = math.sqrt(max(float((w * (v - m) ** 2).sum()), 0.0))
+                mean, std = self._round(name, m), self._round(name, spread)
+            if name not in lib.classes:
+                out.append(PropertyEstimate(name, mean, std, len(cells)))
+                continue
+            share = dict.fromkeys(lib.classes[name], 0.0)
+            for (_, cls, _), wi in zip(cells, w, strict=True):
+                assert cls is not None
+                share[cls] = share.get(cls, 0.0) + float(wi)
+            best = max(share, key=lambda k: share[k])  # ties: the first in class order
+            out.append(
+                PropertyEstimate(
+                    name,
+                    mean,
+                    std,
+                    len(cells),
+                    value=class_value(best),
+                    probability=round(share[best], 4),
+                    probabilities={k: round(q, 4) for k, q in share.items()},
+                )
+            )
         return out
+
+    def _round(self, column: str, x: float) -> float:
+        """``x`` to `PROPERTY_DIGITS` significant digits of the column's largest value (0 when
+        the column is all zeros); never -0.0."""
+        scale = self._scales.get(column, 0.0)
+        if not scale > 0:
+            return 0.0
+        decimals = PROPERTY_DIGITS - 1 - math.floor(math.log10(scale))
+        return round(x, decimals) + 0.0
 
 
 def format_match(result: MatchResult, width: int = 48) -> str:
@@ -487,28 +585,39 @@ def format_match(result: MatchResult, width: int = 48) -> str:
         {m for f in result.fabrics for m in f.nearest},
         key=lambda m: list(Modality).index(Modality(m)),
     )
-    header = f"  {'rank':>4}  {'fabric':>6}  {'P':>6}  {'D':>7}  " + "  ".join(
+    # A fabric is its name where the data names its objects (left-aligned, as words), else
+    # its id (right-aligned, as numbers).
+    names = [f.name if f.name is not None else str(f.fabric_id) for f in result.fabrics]
+    named = any(f.name is not None for f in result.fabrics)
+    col = max([6, *(len(n) for n in names)]) if named else 6
+    align = "<" if named else ">"
+    header = f"  {'rank':>4}  {'fabric':{align}{col}}  {'P':>6}  {'D':>7}  " + "  ".join(
         f"{m:<{width}}" for m in mods
     )
     lines.append(header.rstrip())
-    for f in result.fabrics:
+    for f, name in zip(result.fabrics, names, strict=True):
         cells = []
         for m in mods:
             refs = f.nearest.get(m, [])
             cells.append(_shorten(refs[0].path, width) if refs else "-")
         lines.append(
             (
-                f"  {f.rank:>4}  {f.fabric_id:>6}  {f.probability:6.3f}  {f.distance:7.3f}  "
+                f"  {f.rank:>4}  {name:{align}{col}}  {f.probability:6.3f}  {f.distance:7.3f}  "
                 + "  ".join(f"{c:<{width}}" for c in cells)
             ).rstrip()
         )
-    props = [p for p in result.properties if p.mean is not None]
+    props = [_property(p) for p in result.properties if p.mean is not None or p.value is not None]
     if props:
-        lines.append(
-            "  properties (top fabrics weighted by P): "
-            + ", ".join(f"{p.name} {p.mean:.3g} ± {p.std:.2g}" for p in props)
-        )
+        lines.append("  properties (top fabrics weighted by P): " + ", ".join(props))
     return "\n".join(lines)
+
+
+def _property(p: PropertyEstimate) -> str:
+    """``hardness 2 (87%)`` for a column of classes, as ``lookfeel predict`` prints a class
+    head; ``thickness_mm 1.43 ± 0.3`` for a number."""
+    if p.value is not None:
+        return f"{p.name} {p.value} ({p.probability:.0%})"
+    return f"{p.name} {p.mean:.3g} ± {p.std:.2g}"
 
 
 def _shorten(path: str, width: int) -> str:

@@ -8,6 +8,13 @@ a press together, ``data.touch_frames``, any one of them, the others read from b
 Preprocessing is the run's `DataConfig`
 through `lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training
 uses. No image is cached, so a path reused for different content is always read afresh.
+
+A touch query must be what the model's touch branch was trained on (the checkpoint's
+``touch_input``, `lookfeel.checkpoint.LoadedModel.touch_input`): a model trained on press
+videos read as their change from the no-contact frames (``data.video_reference: subtract``)
+refuses a still frame, which has no such frames (`check_touch_query`). A model trained on still
+frames takes a video too, read as `lookfeel.data.video` reads one; a checkpoint from before the
+record is not checked.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from lookfeel.checkpoint import TOUCH_VIDEOS
 from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth
 from lookfeel.data.images import (
@@ -35,7 +43,15 @@ from lookfeel.data.images import (
 from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
 from lookfeel.modality import Modality
 
-__all__ = ["IMAGE_TYPES", "load_query_bytes", "load_query_image", "query_batch", "sniff_type"]
+__all__ = [
+    "IMAGE_TYPES",
+    "STILL_TOUCH_REFUSED",
+    "check_touch_query",
+    "load_query_bytes",
+    "load_query_image",
+    "query_batch",
+    "sniff_type",
+]
 
 IMAGE_TYPES = {"image/png": b"\x89PNG\r\n\x1a\n", "image/jpeg": b"\xff\xd8\xff"}
 """The image types a query may be: content type -> the bytes its files begin with."""
@@ -47,6 +63,38 @@ def sniff_type(head: bytes) -> str | None:
         if head.startswith(magic):
             return mime
     return None
+
+
+STILL_TOUCH_REFUSED = (
+    "this model was trained on press videos, each read as its change from the frames before "
+    "contact; a still image has none: give the press's video"
+)
+"""Why a still touch image is refused for a model trained on press videos (`check_touch_query`)."""
+
+
+def check_touch_query(
+    name: str | Path, video: bool, trained_on: str | None, config: DataConfig
+) -> None:
+    """Refuse a still touch image for a model that saw only press videos as differences.
+
+    Such a model never saw a raw GelSight frame: each press it was trained on was read as
+    ``128 + video_gain * (frame - no-contact frame)`` (``data.video_reference: subtract``), and
+    a still image has no no-contact frame, so its answer would be confident and meaningless.
+    A model trained with ``video_reference: none`` read raw frames, and one trained on still
+    frames (or both kinds), or from a checkpoint that does not say (``trained_on`` None), is
+    not refused anything.
+
+    Args:
+        name: the query's file (or an upload's name), named in the error.
+        video: whether the query is a press video.
+        trained_on: the checkpoint's ``touch_input`` (`lookfeel.checkpoint.TOUCH_VIDEOS`, ...).
+        config: the run's data settings.
+
+    Raises:
+        ImageError: naming the file, when it is a still image and the model needs a video.
+    """
+    if trained_on == TOUCH_VIDEOS and not video and config.video_reference == "subtract":
+        raise ImageError(Path(name), STILL_TOUCH_REFUSED)
 
 
 def _preprocess(
@@ -64,11 +112,15 @@ def load_query_image(
     modality: Modality,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
+    *,
+    trained_on: str | None = None,
 ) -> torch.Tensor:
     """Decode and preprocess one query image as training does.
 
     The file must be a regular file (a FIFO or device is refused at once, never waited on) of
-    at most ``max_pixels`` pixels, checked from its header before decoding.
+    at most ``max_pixels`` pixels, checked from its header before decoding. A touch query must
+    suit what the model was trained on, ``trained_on`` (the checkpoint's ``touch_input``; None:
+    not checked), before anything is decoded (`check_touch_query`).
 
     Returns:
         (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1]; for a press
@@ -76,9 +128,12 @@ def load_query_image(
 
     Raises:
         ImageError: naming the file when it is missing, not a regular file, not an image, too
-            large, or the wrong kind (e.g. an 8-bit PNG given as depth).
+            large, or the wrong kind (e.g. an 8-bit PNG given as depth), or a still touch
+            image for a model trained on press videos.
     """
     path = Path(path)
+    if modality is Modality.TOUCH:
+        check_touch_query(path, path.suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
         # Several frames of the press stacked (``data.touch_frames``): read with the file's
         # sibling frames, as in training.
@@ -96,13 +151,18 @@ def load_query_bytes(
     modality: Modality,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
+    *,
+    trained_on: str | None = None,
 ) -> torch.Tensor:
     """`load_query_image` for an upload, decoded from memory: errors name ``name`` (the
-    client's file name) and nothing of the server's disk.
+    client's file name) and nothing of the server's disk. A touch upload is a video by its
+    content (`sniff_video`), whatever its name.
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
     """
+    if modality is Modality.TOUCH:
+        check_touch_query(name, sniff_video(data[:16]), trained_on, config)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
         raise ImageError(
             Path(name),

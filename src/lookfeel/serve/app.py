@@ -265,8 +265,15 @@ class FabricInfo(BaseModel):
     """One library fabric with a few of its items per modality."""
 
     id: int
+    name: str | None = None
+    """The object's name (``sponge``) where the data names its objects; None for a numbered
+    fabric and in a library built before names were recorded."""
     cluster: int | None
     labels: dict[str, float]
+    text_labels: dict[str, str] = Field(
+        default_factory=dict,
+        description="every known label cell as written, words included (material: metal)",
+    )
     items: dict[str, list[str]]
 
 
@@ -489,7 +496,14 @@ def create_app(
                 for m, t in lib.tables.items()
             }
             out.append(
-                FabricInfo(id=fid, cluster=record.cluster, labels=record.labels, items=items)
+                FabricInfo(
+                    id=fid,
+                    name=record.name,
+                    cluster=record.cluster,
+                    labels=record.labels,
+                    text_labels=record.text_labels,
+                    items=items,
+                )
             )
         return out
 
@@ -604,7 +618,9 @@ def create_app(
 
         def work() -> list[MatchResult]:
             images = [
-                load_query_bytes(d, n, modality, match.data_config, cfg.max_pixels)
+                load_query_bytes(
+                    d, n, modality, match.data_config, cfg.max_pixels, trained_on=match.touch_input
+                )
                 for n, d in blobs
             ]
             x = query_batch(images, modality)

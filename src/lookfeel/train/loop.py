@@ -34,7 +34,12 @@ import torch
 from torch import Tensor
 
 from lookfeel.atomic import atomic_write_text
-from lookfeel.checkpoint import init_from_checkpoint, read_checkpoint, save_checkpoint
+from lookfeel.checkpoint import (
+    init_from_checkpoint,
+    read_checkpoint,
+    save_checkpoint,
+    touch_input_of,
+)
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
 from lookfeel.config.model import Precision
 from lookfeel.data import (
@@ -762,7 +767,7 @@ def _train_members(
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(merged, run_dir / "config.yaml")
         atomic_write_text(run_dir / "split.json", json.dumps(states[0]["split"], indent=1) + "\n")
-        keep = ("step", "modalities", "label_columns", "label_stats", "split")
+        keep = ("step", "modalities", "label_columns", "label_stats", "split", "touch_input")
         save_checkpoint(
             last,
             {k: states[0][k] for k in keep if k in states[0]}
@@ -920,9 +925,18 @@ def _train(
         precision=config.model.precision,
     )
 
+    # What a touch query must be to be read as training read its presses (predict, match and
+    # serve refuse a still frame for a model trained on press videos).
+    touch_input = (
+        touch_input_of(it.path for it in train_cat.items(Modality.TOUCH, config.data.touch_kinds))
+        if Modality.TOUCH in modalities
+        else None
+    )
+
     def checkpoint_state(step: int) -> dict[str, Any]:
         return {
             "step": step,
+            "touch_input": touch_input,
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),

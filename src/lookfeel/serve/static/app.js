@@ -24,6 +24,26 @@ function fmt(x, digits = 3) {
   return x === null || x === undefined ? "?" : Number(x).toPrecision(digits);
 }
 
+// A fabric by its name where the data names its objects ("sponge"), else by id ("fabric 7").
+function title(f) {
+  return f.name === null || f.name === undefined ? `fabric ${f.fabric_id ?? f.id}` : f.name;
+}
+
+// A property estimate as `lookfeel match` prints it: "hardness 2 (87%)" for a column of
+// classes, "thickness_mm 1.43 ± 0.3" for a number.
+function property(p) {
+  if (p.value !== null && p.value !== undefined) return `${p.name} ${p.value} (${Math.round(100 * p.probability)}%)`;
+  return `${p.name} ${fmt(p.mean)} ± ${fmt(p.std, 2)}`;
+}
+
+// A fabric's labels: the numbers, then the words (material) it also has.
+function labels(f) {
+  const text = f.text_labels || {};
+  const words = Object.entries(text).filter(([k]) => !(k in f.labels));
+  return [...Object.entries(f.labels).map(([k, v]) => `${k} ${fmt(v)}`),
+          ...words.map(([k, v]) => `${k} ${v}`)].join(" · ");
+}
+
 async function loadLibrary() {
   const r = await fetch("/api/library");
   info = await r.json();
@@ -37,7 +57,7 @@ async function loadLibrary() {
   const pick = $("#pick");
   for (const f of fabrics) {
     for (const [m, ids] of Object.entries(f.items)) {
-      for (const id of ids) pick.append(el("option", { value: id }, `fabric ${f.id}: ${m} (${id})`));
+      for (const id of ids) pick.append(el("option", { value: id }, `${title(f)}: ${m} (${id})`));
     }
   }
 }
@@ -56,21 +76,20 @@ function renderResult(res) {
   const box = el("div", { class: "result" });
   const what = res.presses > 1 ? `${res.presses} presses` : res.query.join(", ");
   box.append(el("h2", {}, `${res.query_modality} query (${what}) against ${res.gallery_modality}`));
-  const props = res.properties.filter((p) => p.mean !== null)
-    .map((p) => `${p.name} ${fmt(p.mean)} ± ${fmt(p.std, 2)}`);
+  const props = res.properties.filter((p) => p.mean !== null || p.value !== null).map(property);
   if (props.length) box.append(el("p", { class: "props" }, "Predicted properties: " + props.join(" · ")));
   for (const f of res.fabrics) {
     const left = el("div", {},
-      el("h3", {}, `#${f.rank} fabric ${f.fabric_id}`),
+      el("h3", {}, `#${f.rank} ${title(f)}`),
       el("div", { class: "p" }, `P = ${fmt(f.probability)}`),
       el("div", { class: "bar" }, el("div", { style: `width:${(100 * f.probability).toFixed(1)}%` })),
       el("div", { class: "meta" }, `D = ${fmt(f.distance)}` + (f.cluster !== null ? ` · cluster ${f.cluster}` : "")),
-      el("div", { class: "meta" }, Object.entries(f.labels).map(([k, v]) => `${k} ${fmt(v)}`).join(" · ")));
+      el("div", { class: "meta" }, labels(f)));
     const views = el("div", { class: "views" });
     for (const [m, refs] of Object.entries(f.nearest)) {
       for (const ref of refs.slice(0, 1)) {
         views.append(el("figure", {},
-          el("img", { src: `/api/items/${ref.id}/image`, alt: `${m} of fabric ${f.fabric_id}`, title: ref.path }),
+          el("img", { src: `/api/items/${ref.id}/image`, alt: `${m} of ${title(f)}`, title: ref.path }),
           el("figcaption", {}, NAMES[m] || m)));
       }
     }
