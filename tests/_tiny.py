@@ -8,6 +8,19 @@ import numpy as np
 from PIL import Image
 
 LABELS_HEADER = "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split\n"
+QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
+"""The first bytes of a QuickTime file: enough for the scan, which never decodes."""
+
+
+def write_recordings(root: Path, presses: dict[str, int], labels: str) -> Path:
+    """Recordings in the layout: ``videos/<object>_<n>.mov`` (QuickTime headers only, nothing
+    to decode) for ``presses`` (object -> how many) and ``labels`` as labels.csv."""
+    (root / "videos").mkdir(parents=True)
+    (root / "labels.csv").write_text(labels)
+    for name, n in presses.items():
+        for k in range(n):
+            (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
+    return root
 
 
 def write_depth(path: Path, fabric: int, k: int, size: int = 24, holes: bool = True) -> None:

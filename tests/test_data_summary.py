@@ -10,10 +10,7 @@ import pytest
 from lookfeel.cli import main
 from lookfeel.data import scan
 
-from ._tiny import write_tiny_dataset
-
-QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
-"""The first bytes of a QuickTime file: enough for the scan, which never decodes."""
+from ._tiny import write_recordings, write_tiny_dataset
 
 
 def _info(root: Path, capsys: pytest.CaptureFixture[str]) -> str:
@@ -26,21 +23,11 @@ def _info_json(root: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, obje
     return json.loads(capsys.readouterr().out)
 
 
-def _objects(root: Path, labels: str, presses: dict[str, int]) -> Path:
-    """A PhysiCLeAR-style dataset: ``videos/<object>_<n>.mov`` and labels.csv by ``object``."""
-    (root / "videos").mkdir(parents=True)
-    (root / "labels.csv").write_text(labels)
-    for name, n in presses.items():
-        for k in range(n):
-            (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
-    return root
-
-
 def test_info_on_a_videos_folder_reports_check_s_error_and_no_empty_ids(tmp_path: Path, capsys):
     # The user gave ROOT/videos instead of ROOT: info used to print "fabrics 0 (ids )" and
     # "0 errors" while `data check` failed.
-    videos = _objects(tmp_path / "rec", "object,hardness\nsponge,0\ncork,1\n", {"sponge": 2})
-    videos = videos / "videos"
+    labels = "object,hardness\nsponge,0\ncork,1\n"
+    videos = write_recordings(tmp_path / "rec", {"sponge": 2}, labels) / "videos"
     out = _info(videos, capsys)
     assert "(ids )" not in out
     assert re.search(r"^  fabrics +0$", out, re.M)
@@ -93,7 +80,7 @@ def test_problems_row_says_it_covers_names_and_headers_only(tmp_path: Path, caps
 def test_unreadable_labels_csv_is_not_reported_as_absent(
     tmp_path: Path, capsys, content: bytes, why: str
 ):
-    root = _objects(tmp_path / "rec", "", {"sponge": 1, "cork": 1})
+    root = write_recordings(tmp_path / "rec", {"sponge": 1, "cork": 1}, "")
     (root / "labels.csv").write_bytes(content)
     out = _info(root, capsys)
     (labels,) = [line for line in out.splitlines() if line.startswith("  labels ")]
@@ -112,7 +99,7 @@ def test_labels_csv_that_is_a_folder_is_reported_by_info(tmp_path: Path, capsys)
 
 def test_labelled_objects_without_videos_are_named(tmp_path: Path, capsys):
     labels = "object,hardness\nsponge,0\ncork,1\nghost,2\n"
-    root = _objects(tmp_path / "rec", labels, {"sponge": 2, "cork": 1})
+    root = write_recordings(tmp_path / "rec", {"sponge": 2, "cork": 1}, labels)
     out = _info(root, capsys)
     assert re.search(r"^  no videos +1 labelled objects: ghost$", out, re.M)
     assert "no images" not in out

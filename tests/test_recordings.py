@@ -24,8 +24,7 @@ from lookfeel.modality import Modality, PressKind
 from lookfeel.models import CLASSES, create_model
 from lookfeel.train.loop import resolve_classes, resolve_properties
 
-QUICKTIME = b"\x00\x00\x00\x14ftypqt  \x00\x00\x02\x00" + bytes(64)
-"""The first bytes of a QuickTime file: enough for the scan, which never decodes."""
+from ._tiny import QUICKTIME, write_recordings
 
 LABELS = """object,hardness,roughness,material,description
 sponge,0,2,fabric,a kitchen sponge
@@ -37,12 +36,7 @@ apple,,,,
 
 
 def _recordings(root: Path, presses: dict[str, int], labels: str = LABELS) -> Path:
-    (root / "videos").mkdir(parents=True)
-    (root / "labels.csv").write_text(labels)
-    for name, n in presses.items():
-        for k in range(n):
-            (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
-    return root
+    return write_recordings(root, presses, labels)
 
 
 def test_object_keyed_labels_have_text_columns_and_keep_every_cell(tmp_path: Path):
