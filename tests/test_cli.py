@@ -148,6 +148,58 @@ def test_output_into_a_closed_pipe_ends_quietly(tiny_dataset: Path):
     assert done.returncode == 141 and done.stderr == ""
 
 
+@pytest.mark.parametrize(
+    ("raised", "status", "line"),
+    [
+        (KeyboardInterrupt(), 130, "lookfeel: interrupted"),
+        (PermissionError(13, "Permission denied", "/data/out/x.npz"), 1,
+         "lookfeel: /data/out/x.npz: Permission denied"),
+        (OSError(30, "Read-only file system", "/mnt/ro/run"), 1,
+         "lookfeel: /mnt/ro/run: Read-only file system"),
+    ],
+)  # fmt: skip
+def test_ctrl_c_and_a_refused_file_end_in_one_line(
+    tiny_dataset: Path, monkeypatch, capsys, raised: BaseException, status: int, line: str
+):
+    import lookfeel.cli.data
+
+    def fails(args: argparse.Namespace) -> int:
+        raise raised
+
+    monkeypatch.setattr(lookfeel.cli.data, "run_info", fails)
+    assert main(["data", "info", str(tiny_dataset)]) == status
+    assert capsys.readouterr().err == line + "\n"
+
+
+def test_an_os_error_about_no_file_is_a_bug_and_keeps_its_traceback(
+    tiny_dataset: Path, monkeypatch
+):
+    import lookfeel.cli.data
+
+    def fails(args: argparse.Namespace) -> int:
+        raise OSError("no file named")
+
+    monkeypatch.setattr(lookfeel.cli.data, "run_info", fails)
+    with pytest.raises(OSError, match="no file named"):
+        main(["data", "info", str(tiny_dataset)])
+
+
+def test_an_out_folder_this_user_cannot_write_in_is_refused_before_the_work(
+    tmp_path: Path, monkeypatch, capsys
+):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: Path(p) != ro and real_access(p, mode))
+    for out in (ro / "run", ro / "deeper" / "run"):
+        with pytest.raises(SystemExit):
+            main(["train", "--data", str(tmp_path), "--out", str(out)])
+        assert f"cannot write in {ro}: it is read-only for this user" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # a file to write over: its folder must be writable
+        main(["embed", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out", str(ro / "e.npz")])
+    assert f"cannot write in {ro}" in capsys.readouterr().err
+
+
 def test_the_console_script_shows_each_warning_once_as_one_line(monkeypatch, capsys):
     """`lookfeel ...` (`run`): a warning is ``lookfeel: warning: <message>``, without the
     library's file and source line, and one that several runs raise alike shows once."""

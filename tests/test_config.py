@@ -43,6 +43,8 @@ def test_a_bad_value_is_blamed_on_the_file_or_on_the_set_that_gave_it(tmp_path: 
         load_config(RunConfig, path, ["train.lr=0.1", "train.steps=abc"])
     with pytest.raises(ConfigError, match=rf"^{path}: train.lr: expected a number"):
         load_config(RunConfig, path, ["train.steps=5"])
+    with pytest.raises(ConfigError, match=r"^--set train.stepz=3: unknown key train.stepz;"):
+        load_config(RunConfig, path, ["train.stepz=3"])
     # A whole section given with --set answers for the keys inside it.
     with pytest.raises(ConfigError, match=r"^--set train=\{steps: x\}: train.steps:"):
         load_config(RunConfig, None, ["train={steps: x}"])

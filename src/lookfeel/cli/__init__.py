@@ -119,11 +119,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     except LookfeelError as e:
         print(f"lookfeel: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: what was written is whole (atomic writes); runs resume
+        print("lookfeel: interrupted", file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports a command stopped by it
     except BrokenPipeError:  # `lookfeel ... | head`: the reader has what it wanted
         # Point stdout at /dev/null so that Python's own flush at exit does not fail again.
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, as a shell reports a command killed by it
+    except OSError as e:
+        if e.filename is None:
+            raise  # not about a file: a bug, whose traceback says where
+        # The system refused a file (permissions, a read-only or full disk): say which.
+        print(f"lookfeel: {e.filename}: {e.strerror or e}", file=sys.stderr)
+        return 1
     return status
 
 

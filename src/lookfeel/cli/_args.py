@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -105,13 +106,21 @@ def add_json(parser: argparse.ArgumentParser, help: str = "print as JSON") -> No
 
 
 def _under_a_folder(path: Path) -> None:
-    """Refuse ``path`` when what already exists of it, or of the folders above it, is a file:
-    said before the command starts its work, not as a traceback when it first writes."""
-    for above in path.parents:
-        if above.exists():
-            if not above.is_dir():
-                raise argparse.ArgumentTypeError(f"{above} is a file, not a folder to write in")
-            return
+    """Refuse ``path`` when what already exists of it, or of the folders above it, is a file
+    or a folder this user cannot write in (read-only, or another's): said before the command
+    starts its work, not as a traceback when it first writes."""
+    for above in (path, *path.parents):
+        if not above.exists():
+            continue
+        if not above.is_dir():
+            if above == path:
+                continue  # a file `out_file` writes over (`out_folder` refused it): its folder
+            raise argparse.ArgumentTypeError(f"{above} is a file, not a folder to write in")
+        if not os.access(above, os.W_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(
+                f"cannot write in {above}: it is read-only for this user"
+            )
+        return
 
 
 def out_folder(text: str) -> Path:

@@ -334,7 +334,10 @@ def load_config(
         # A value given with --set is blamed on it, not on the file it overrode.
         for given in reversed(overrides):
             key = given.partition("=")[0].strip()
-            if message.startswith((f"{key}:", f"{key}.", f"{key}[")):
+            named = message.startswith((f"{key}:", f"{key}.", f"{key}[")) or message.startswith(
+                f"unknown key {key}"
+            )
+            if named:
                 raise ConfigError(f"--set {given}: {message}") from None
         if path is not None:
             raise ConfigError(f"{path}: {message}") from None

@@ -85,5 +85,5 @@ def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) 
         )
     raise ConfigError(
         f"{root} holds no depth, colour or touch images to choose a recipe for; "
-        "run `lookfeel data check --data` on it"
+        f"run `lookfeel data check {root}` on it"
     )
