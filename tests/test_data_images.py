@@ -1,5 +1,6 @@
 """Decoding and preprocessing: the authors' conventions, holes, crops, errors, caching."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -158,6 +159,25 @@ def test_touch_frames_stack_a_press_s_frames_as_channels_in_order(
     again = ImageLoader(config, cache_dir=tmp_path / "cache")
     assert np.array_equal(again.array(again.frame_path(press), Modality.TOUCH), a)
     assert len(list((tmp_path / "cache").rglob("*.npy"))) == 1
+
+
+def test_touch_frames_warn_once_of_presses_with_fewer_frames(tiny_dataset: Path):
+    presses = scan(tiny_dataset).items(Modality.TOUCH)  # 3 frames each
+    enough = ImageLoader(DataConfig(image_size=16, touch_frames=(0, 1, 2)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for press in presses:
+            enough.frame_path(press)
+    short = ImageLoader(DataConfig(image_size=16, touch_frames=(0, 2, 3)))
+    with pytest.warns(UserWarning, match=r"reads frames \[0, 2, 3\] of each press, and .* has 3"):
+        for press in presses:
+            short.frame_path(press)
+    with warnings.catch_warnings():  # said once for the loader, not once a press
+        warnings.simplefilter("error")
+        short.frame_path(presses[0])
+    # A press of 4 frames read from the end needs 4.
+    with pytest.warns(UserWarning, match=r"reads frames \[-4, -1\]"):
+        ImageLoader(DataConfig(image_size=16, touch_frames=(-4, -1))).frame_path(presses[0])
 
 
 def test_touch_frames_refuse_a_file_whose_press_is_unknown_and_a_video(tmp_path: Path):

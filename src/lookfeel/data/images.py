@@ -423,6 +423,7 @@ class ImageLoader:
         self._embedded: dict[Path, np.ndarray] = {}
         self._bad_videos: dict[Path, VideoError] = {}
         self._stacks: dict[Path, tuple[Path, ...]] = {}
+        self._said_short = False  # `frame_path` warns once of presses with too few frames
         """Press frames stacked as one input (``data.touch_frames``), by `frame_path`."""
         self._lock = threading.Lock()
 
@@ -439,6 +440,15 @@ class ImageLoader:
         path = item.frame(indices[-1])
         if self.config.stacks_touch_frames and path not in self._stacks:
             self._stacks[path] = tuple(item.frame(i) for i in indices)
+            need = max(i if i >= 0 else -i - 1 for i in indices) + 1
+            if len(item.frames) < need and not is_video(path) and not self._said_short:
+                self._said_short = True
+                warnings.warn(
+                    f"data.touch_frames reads frames {list(indices)} of each press, and "
+                    f"{item.path.name}'s press has {len(item.frames)}: the nearest frame is "
+                    "read in place of each missing one (first such press; others may follow)",
+                    stacklevel=2,
+                )
         return path
 
     def source_files(self, item: Item) -> tuple[Path, ...]:
