@@ -825,6 +825,7 @@ def test_a_library_of_named_objects_names_them_and_their_words(
     assert res.message.startswith(f"fabric {by_name['spoon'].id}: the query is library item")
     assert res.fabrics[0].name is None
     text = format_match(res)
+    assert text.startswith(f"Query touch (1 video: {Path(query).name}) against touch")
     assert f"     1  {by_name['spoon'].id:>6}  " in text
     assert re.search(r"properties \(top fabrics weighted by P\): hardness [012] \(\d+%\)$", text)
 

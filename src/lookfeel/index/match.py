@@ -572,7 +572,8 @@ class Matcher:
 def format_match(result: MatchResult, width: int = 48) -> str:
     """A match result as a person reads it (``lookfeel match`` without ``--json``)."""
     files = ", ".join(Path(f).name for f in result.query)
-    what = f"{result.presses} presses" if result.presses > 1 else "1 image"
+    video = any(Path(f).suffix.lower() in VIDEO_SUFFIXES for f in result.query)
+    what = f"{result.presses} presses" if result.presses > 1 else "1 video" if video else "1 image"
     lines = [
         f"Query {result.query_modality.value} ({what}: {files}) against "
         f"{result.gallery_modality.value}, c = {result.c:.4g}, unknown below P = "
