@@ -122,3 +122,51 @@ def test_colour_branch_takes_data_color_size(exported, tmp_path: Path):
     with torch.inference_mode():
         want = load_model(sized).model({"color": x})["color"].numpy()
     np.testing.assert_allclose(session.run(None, {"image": x.numpy()})[0], want, atol=1e-4)
+
+
+def test_opsets_outside_the_supported_range_are_refused_before_anything_runs(
+    exported, tmp_path: Path, capsys
+):
+    from torch.onnx import _constants
+
+    from lookfeel.export import MIN_OPSET, ExportError, supported_opsets
+
+    opsets = supported_opsets()
+    assert opsets[0] == MIN_OPSET == 13
+    assert opsets[-1] == _constants.ONNX_TORCHSCRIPT_EXPORTER_MAX_OPSET  # torch's own limit
+    ckpt, _ = exported
+    for bad in ("5", "99", str(opsets[-1] + 1)):
+        with pytest.raises(SystemExit) as e:
+            main(
+                ["export", "--checkpoint", str(ckpt), "--out", str(tmp_path / bad), "--opset", bad]
+            )
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --opset: must be in [13, {opsets[-1]}]" in err and f"got {bad}" in err
+    with pytest.raises(ExportError, match=rf"^opset 12: .* opsets 13 to {opsets[-1]} with torch"):
+        export_onnx(ckpt, tmp_path / "lib", opset=12)
+    assert not any(tmp_path.iterdir())
+    # Both ends of the range export the touch branch (the one that needs 13).
+    for opset in (opsets[0], opsets[-1]):
+        [touch] = export_onnx(
+            ckpt, tmp_path / str(opset), modalities=[Modality.TOUCH], opset=opset, check=False
+        )
+        assert touch.path.is_file()
+
+
+def test_an_exporter_failure_is_one_line_naming_the_branch_and_opset(
+    exported, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd
+):
+    # Below 13 the touch branch's press pooling (Tensor.unflatten) cannot be exported: let
+    # opset 12 through the range check to see torch's own failure reported.
+    monkeypatch.setattr("lookfeel.export.MIN_OPSET", 9)
+    ckpt, _ = exported
+    out = tmp_path / "onnx"
+    assert main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--opset", "12"]) == 1
+    captured = capfd.readouterr()
+    assert captured.err == (
+        "lookfeel: touch branch: the ONNX export at opset 12 failed: UnsupportedOperatorError: "
+        "Exporting the operator 'aten::unflatten' to ONNX opset version 12 is not supported\n"
+    )
+    assert "graph" not in captured.out  # torch's dump of its graph is not shown
+    assert not any(out.iterdir())  # neither depth.onnx nor color.onnx without the touch branch

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import re
+import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -211,16 +212,44 @@ def test_cli_serve(server, monkeypatch, capsys):
     _, matcher = server
     served: dict = {}
 
-    def fake_serve(app, host: str, port: int) -> None:  # the real one blocks until Ctrl-C
+    def fake_serve(app, host: str, port: int, on_bound) -> None:  # the real one blocks
         served.update(app=app, host=host, port=port)
+        on_bound(f"http://{host}:{port}/")
 
     monkeypatch.setattr("lookfeel.serve.serve", fake_serve)
     lib = str(matcher.library.root)
     assert main(["serve", "--index", lib, "--port", "8123", "--max-upload-mb", "0.5"]) == 0
-    assert "Serving " in capsys.readouterr().out
+    assert "at http://127.0.0.1:8123/ (Ctrl-C stops)" in capsys.readouterr().out
     assert (served["host"], served["port"]) == ("127.0.0.1", 8123)
     with background_server(served["app"]) as cli_url:
         info = httpx.get(cli_url + "/api/library").json()
     assert info["limits"]["max_upload_bytes"] == 512 * 1024 and info["fabrics"] == 6
     assert main(["serve", "--index", lib + "-missing"]) == 1
     assert "library folder not found" in capsys.readouterr().err
+
+
+def test_fabrics_per_modality_out_of_range_is_422(server):
+    url, _ = server
+    for bad in (-5, 51):
+        r = httpx.get(url + "/api/fabrics", params={"per_modality": bad})
+        assert r.status_code == 422, bad
+        assert r.json()["detail"] == f"per_modality must be between 0 and 50; got {bad}"
+    r = httpx.get(url + "/api/fabrics", params={"per_modality": 0})
+    assert r.status_code == 200
+    assert r.json()[0]["items"] == {"depth": [], "color": [], "touch": []}
+
+
+def test_cli_serve_on_a_busy_port_says_so_in_one_line_and_never_that_it_serves(server, capsys):
+    _, matcher = server
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        args = ["serve", "--index", str(matcher.library.root), "--port", str(port)]
+        assert main(args) == 1
+    captured = capsys.readouterr()
+    assert "Serving" not in captured.out
+    assert captured.err == (
+        f"lookfeel: --port {port}: 127.0.0.1:{port} is already in use (another server?); "
+        "choose another --port\n"
+    )

@@ -40,7 +40,8 @@ from lookfeel.data import scan
 from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import EvalResult, evaluate_checkpoint, write_report
 from lookfeel.modality import Modality, Pair
-from lookfeel.reproduce import BUDGETS, ReproduceResult, headline, reproduce
+from lookfeel.reproduce import BUDGETS, EXPERIMENTS, ReproduceResult, headline, reproduce
+from lookfeel.reproduce.run import config_dir
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import GENERATOR_VERSION, MANIFEST
 from lookfeel.train import run_started, train
@@ -51,6 +52,7 @@ __all__ = [
     "DEMO_FABRICS",
     "DEMO_REPRINTS",
     "DemoResult",
+    "check_demo",
     "demo_test_fabrics",
     "demo_world",
     "print_demo_result",
@@ -138,6 +140,131 @@ def cross_config(overrides: Sequence[str] = ()) -> RunConfig:
     return load_config(RunConfig, recipe_path("synth_cross.yaml"), [*CROSS_OVERRIDES, *overrides])
 
 
+def _run_overrides(out: Path, overrides: Sequence[str]) -> list[str]:
+    """The overrides the demo gives every reproduction run: a progress bar, one decode cache for
+    all runs (they read the same images at one size: 52 -> 39 s on 2 cores, the results the
+    same), then the user's, which win. The cache path is quoted: an override's value is YAML,
+    where "demo #1" would end at the "#"."""
+    return ["train.progress=true", f"data.cache_dir={json.dumps(str(out / 'cache'))}", *overrides]
+
+
+def _reproduce_split(fabrics: int, held: int) -> tuple[list[str], list[str]]:
+    """The split overrides `lookfeel.reproduce.reproduce` gives the runs of Tables 1-3 and
+    those of Table 4 on a demo world of ``fabrics`` fabrics with ``held`` held out.
+
+    It mirrors ``reproduce`` (keep the two in step): with 10 or more held-out fabrics every run
+    trains on the others (``paper``, ``seen``); with fewer, the runs of Tables 1-3 also hold
+    out ``n_val`` of the training fabrics to be scored on (``stratified``), while Table 4's
+    runs score on the world's held-out fabrics as their novel ones.
+    """
+    if held >= 10:
+        return ["train.split=paper"], ["train.split=seen", "train.val_fabrics=0"]
+    pool = fabrics - held
+    n_val = min(18, max(round(0.18 * pool), min(10, pool // 3), 2))
+    models = ["train.split=stratified", f"train.val_fabrics={n_val}"]
+    return models, ["train.split=seen", f"train.val_fabrics={n_val}"]
+
+
+def _demo_configs(
+    fabrics: int, held: int, budget: str, overrides: Sequence[str]
+) -> list[tuple[str, RunConfig]]:
+    """Every run the demo trains, named, with its config as it will train (but for its decode
+    cache): the reproduction's, as `lookfeel.reproduce.reproduce` loads them on this world, and
+    the cross-modal recipe; ``overrides`` are the user's.
+
+    Raises:
+        ConfigError: an override names an unknown key or gives a bad value.
+    """
+    models, vision = _reproduce_split(fabrics, held)
+    configs = []
+    for exp in EXPERIMENTS:
+        split = vision if exp.table == "vision" else models
+        extra = [*BUDGETS[budget], "train.progress=false", "train.val_every=0", *split]
+        path = config_dir() / f"{exp.name}.yaml"
+        mine = [*extra, "train.progress=true", *overrides]
+        configs.append((exp.name, load_config(RunConfig, path, mine)))
+    configs.append(("cross-modal recipe", cross_config(["train.progress=true", *overrides])))
+    return configs
+
+
+def _trained_on(config: RunConfig, fabrics: int, held: int) -> int:
+    """How many fabrics a run of ``config`` trains on in a demo world of ``fabrics`` with
+    ``held`` held out (as `lookfeel.train.loop.select_split` splits it)."""
+    t = config.train
+    pool = fabrics - held  # no split trains on the world's held-out fabrics but ``none``
+    if t.split == "none":
+        return fabrics
+    if t.split == "stratified":
+        return pool - t.val_fabrics
+    if t.split == "fold":
+        return pool - (t.fold_size if t.fold_size is not None else -(-pool // t.folds))
+    return pool  # paper, seen (its novel fabrics are the held-out ones)
+
+
+def _fabrics_needed(config: RunConfig) -> int:
+    """Training fabrics a run needs: one per slot of a tuple when slots come from different
+    fabrics (`lookfeel.data.datasets.TupleDataset`), else one."""
+    return len(config.train.views) if config.data.same_fraction < 1.0 else 1
+
+
+def _world_problem(fabrics: int, held: int, budget: str, overrides: Sequence[str]) -> str | None:
+    """Why the demo's runs cannot train on a world of ``fabrics`` with ``held`` held out, or
+    None when they can.
+
+    Raises:
+        ConfigError: an override names an unknown key or gives a bad value.
+    """
+    if held < 2 or fabrics - held < 2:
+        return "at least 2 must be held out and 2 left to train on"
+    for name, config in _demo_configs(fabrics, held, budget, overrides):
+        trained, needed = _trained_on(config, fabrics, held), _fabrics_needed(config)
+        if trained < needed:
+            how = {
+                "stratified": f" (it validates on {config.train.val_fabrics} of the "
+                f"{fabrics - held} not held out, as the reproduction does with fewer than 10 "
+                "held out)",
+                "fold": " (the others less its fold's test fabrics)",
+            }.get(config.train.split, "")
+            return (
+                f"the {name} run trains on {max(trained, 0)} fabric(s){how} and draws "
+                f"{needed} different fabrics for each training tuple"
+            )
+    return None
+
+
+def check_demo(
+    fabrics: int, test_fabrics: int | None, budget: str = "tiny", overrides: Sequence[str] = ()
+) -> None:
+    """Check what the demo is asked before it does anything: the budget, every override (on
+    every config the demo trains) and that the world has enough fabrics for each of its runs.
+
+    Args:
+        fabrics: fabrics in the world (``--fabrics``).
+        test_fabrics: fabrics held out (``--test-fabrics``; ``None``: `demo_test_fabrics`).
+        budget: the reproduction budget.
+        overrides: the user's ``key=value`` overrides of every training run (``--set``).
+
+    Raises:
+        ConfigError: naming the budget, the override, or the fabrics and the smallest world
+            that runs.
+    """
+    if budget not in DEMO_BUDGETS:
+        raise ConfigError(f"demo: budget {budget!r} is not one of {', '.join(DEMO_BUDGETS)}")
+    held = demo_test_fabrics(fabrics) if test_fabrics is None else test_fabrics
+    problem = _world_problem(fabrics, held, budget, overrides)
+    if problem is None:
+        return
+    hint = ""
+    for more in range(max(fabrics, held + 2) + 1, max(fabrics, held) + 200):
+        more_held = demo_test_fabrics(more) if test_fabrics is None else test_fabrics
+        if _world_problem(more, more_held, budget, overrides) is None:
+            hint = f"; use --fabrics {more} or more"
+            break
+    raise ConfigError(
+        f"demo: {fabrics} fabrics with {held} held out: {problem}{hint} (--fabrics, --test-fabrics)"
+    )
+
+
 @dataclass(frozen=True)
 class DemoResult:
     """Where the demo put things, and how long it took."""
@@ -198,6 +325,9 @@ def run_demo(
         log: where progress lines go.
     """
     started = time.perf_counter()
+    # Every check before any work: a typo in --set or a world too small for a run would
+    # otherwise show only after minutes of rendering and training.
+    check_demo(fabrics, test_fabrics, budget, overrides)
 
     marks: list[tuple[int, float]] = []
 
@@ -213,11 +343,6 @@ def run_demo(
     config = demo_world(fabrics, seed, test_fabrics)
     held = config.test_fabrics
     assert held is not None  # demo_world always sets it
-    if held < 2 or fabrics - held < 2:
-        raise ConfigError(
-            f"demo: {fabrics} fabrics with {held} held out; at least 2 must be held out and 2 "
-            "left to train on (--fabrics, --test-fabrics)"
-        )
     if _complete_world(world, config):
         step(2, f"Reusing the synthetic world in {world}.")
     else:
@@ -241,14 +366,7 @@ def run_demo(
         budget=budget,
         seeds=1,
         n_boot=500,
-        # A bar per run, and one decode cache for the runs (they read the same images at one
-        # size: 52 -> 39 s on 2 cores, the results the same); the user's overrides come last.
-        # The path quoted: an override's value is YAML, where "demo #1" would end at the "#".
-        overrides=[
-            "train.progress=true",
-            f"data.cache_dir={json.dumps(str(out / 'cache'))}",
-            *overrides,
-        ],
+        overrides=_run_overrides(out, overrides),
         log=log,
     )
     cross = cross_config(["train.progress=true", *overrides])

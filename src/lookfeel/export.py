@@ -20,15 +20,20 @@ counts) before it is written; the largest difference is recorded, and one above 
 (1e-4) is an error.
 
 The export uses PyTorch's TorchScript-based exporter (``dynamo=False``): the newer exporter
-needs the ``onnxscript`` package, which lookfeel does not depend on.
+needs the ``onnxscript`` package, which lookfeel does not depend on. It writes ONNX opsets
+`MIN_OPSET` (13) up to the highest that exporter supports in the installed torch
+(`supported_opsets`; 20 in torch 2.13); any other is refused before the checkpoint is read.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 import tempfile
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,9 +49,69 @@ from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 from lookfeel.models import Branch
 
-__all__ = ["EXPORT_FORMATS", "ExportError", "ExportedBranch", "export_onnx"]
+__all__ = [
+    "DEFAULT_OPSET",
+    "EXPORT_FORMATS",
+    "MIN_OPSET",
+    "ExportError",
+    "ExportedBranch",
+    "export_onnx",
+    "supported_opsets",
+]
 
 EXPORT_FORMATS = ("onnx",)
+
+DEFAULT_OPSET = 17
+"""The ONNX opset `export_onnx` writes unless asked for another (``lookfeel export --opset``)."""
+
+MIN_OPSET = 13
+"""The lowest ONNX opset every lookfeel model exports to. The touch branch un-flattens its
+presses' features, (B * P, D) -> (B, P, D), before pooling them (`lookfeel.models.Branch`), and
+the TorchScript exporter writes ``Tensor.unflatten`` from opset 13 on. (Measured with torch 2.13
+on the compact CNN, AlexNet and ResNet-18: depth and colour branches alone export from opset 9;
+below 9 the exporter cannot write ``expand``, and opset 8's graph does not load in onnxruntime.)"""
+
+
+def supported_opsets() -> range:
+    """The ONNX opsets `export_onnx` accepts: `MIN_OPSET` up to the highest the installed
+    torch's TorchScript exporter supports (above it torch only warns that the opset is
+    unsupported, so lookfeel refuses it rather than write a file torch does not stand behind)."""
+    from torch.onnx import _constants
+
+    high = getattr(_constants, "ONNX_TORCHSCRIPT_EXPORTER_MAX_OPSET", _constants.ONNX_MAX_OPSET)
+    return range(MIN_OPSET, int(high) + 1)
+
+
+@contextlib.contextmanager
+def _quiet_native_output() -> Iterator[None]:
+    """Discard what C++ code writes to the process's stdout and stderr (file descriptors 1 and
+    2) inside.
+
+    When the TorchScript exporter fails, it prints its whole graph to stdout, hundreds of lines,
+    before raising: its ``setup_onnx_logging`` switches ONNX logging on whatever the setting
+    (it tests the function ``_jit_is_onnx_log_enabled``, not its result; torch 2.13).
+    `export_onnx` says in one line what failed instead.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    try:
+        with open(os.devnull, "wb") as devnull:
+            for fd in saved:
+                os.dup2(devnull.fileno(), fd)
+        yield
+    finally:
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
+def _first_line(e: Exception) -> str:
+    """An exporter's or onnxruntime's error in one line: its first sentence, without the graph
+    dumps and advice that follow it."""
+    text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
+    first = text.split(". ")[0].split(" [Caused by")[0] if text else "no reason given"
+    return f"{type(e).__name__}: {first[:300]}"
 
 
 class ExportError(LookfeelError):
@@ -86,6 +151,12 @@ class ExportedBranch:
 
 
 def _check(onnx_bytes: bytes, module: nn.Module, inputs: list[Tensor], name: str) -> float:
+    """The largest |onnxruntime - PyTorch| of the exported graph over ``inputs``.
+
+    Raises:
+        Whatever onnxruntime raises for a graph it cannot load or run (`export_onnx` says
+        which branch and opset).
+    """
     import onnxruntime as ort  # type: ignore[import-untyped]
 
     session = ort.InferenceSession(onnx_bytes, providers=["CPUExecutionProvider"])
@@ -103,7 +174,7 @@ def export_onnx(
     out: str | os.PathLike[str],
     *,
     modalities: list[Modality] | None = None,
-    opset: int = 17,
+    opset: int = DEFAULT_OPSET,
     check: bool = True,
     atol: float = 1e-4,
 ) -> list[ExportedBranch]:
@@ -113,7 +184,7 @@ def export_onnx(
         checkpoint: a lookfeel checkpoint.
         out: output folder (created).
         modalities: branches to export; default all.
-        opset: ONNX opset version.
+        opset: ONNX opset version, one of `supported_opsets` (13 to 20 with torch 2.13).
         check: compare each file with PyTorch under onnxruntime.
         atol: the largest difference the check accepts.
 
@@ -122,9 +193,18 @@ def export_onnx(
 
     Raises:
         CheckpointError: the checkpoint cannot be read.
-        ExportError: naming a modality the model has no branch for, or a branch whose
-            ONNX outputs differ from PyTorch's by more than ``atol`` (nothing is written then).
+        ExportError: an opset outside `supported_opsets` (said before the checkpoint is
+            read); naming a modality the model has no branch for; or naming the branch and
+            opset, a branch that the exporter cannot write, that onnxruntime cannot run, or
+            whose ONNX outputs differ from PyTorch's by more than ``atol`` (no file is written
+            then).
     """
+    opsets = supported_opsets()
+    if opset not in opsets:
+        raise ExportError(
+            f"opset {opset}: lookfeel's models export to ONNX opsets {opsets[0]} to "
+            f"{opsets[-1]} with torch {torch.__version__}"
+        )
     loaded = load_model(checkpoint)
     model = loaded.model.eval()
     wanted = list(modalities) if modalities else list(model.modalities)
@@ -135,7 +215,7 @@ def export_onnx(
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = torch.Generator().manual_seed(0)
-    exported = []
+    graphs: list[tuple[Modality, bytes, str, list[int | str], float | None]] = []
     for m in wanted:
         shape: list[int | str]
         module = _BranchGraph(model.branch(m.value)).eval()  # eval: the exporter restores modes
@@ -169,25 +249,49 @@ def export_onnx(
             # The TorchScript exporter warns that it is legacy, and the input checks' Python
             # booleans are traced as constants (they hold for any valid input).
             warnings.simplefilter("ignore")
-            torch.onnx.export(
-                module,
-                (example,),
-                Path(tmp) / "branch.onnx",
-                dynamo=False,
-                input_names=[name],
-                output_names=["embedding"],
-                dynamic_axes=axes,
-                opset_version=opset,
-            )
+            try:
+                with _quiet_native_output():
+                    torch.onnx.export(
+                        module,
+                        (example,),
+                        Path(tmp) / "branch.onnx",
+                        dynamo=False,
+                        input_names=[name],
+                        output_names=["embedding"],
+                        dynamic_axes=axes,
+                        opset_version=opset,
+                    )
+            except Exception as e:  # the exporter's own errors share no base class
+                raise ExportError(
+                    f"{m.value} branch: the ONNX export at opset {opset} failed: {_first_line(e)}"
+                ) from None
             data = (Path(tmp) / "branch.onnx").read_bytes()
-        diff = _check(data, module, checks, name) if check else None
+        try:
+            diff = _check(data, module, checks, name) if check else None
+        except Exception as e:  # onnxruntime's errors share no base class either
+            raise ExportError(
+                f"{m.value} branch: onnxruntime cannot run its ONNX export at opset {opset}: "
+                f"{_first_line(e)}; nothing written"
+            ) from None
         if diff is not None and diff > atol:
             raise ExportError(
                 f"{m.value} branch: ONNX outputs differ from PyTorch's by {diff:.3g} "
-                f"(> {atol:g}) under onnxruntime; not written"
+                f"(> {atol:g}) under onnxruntime; nothing written"
             )
-        path = atomic_write_bytes(out_dir / f"{m.value}.onnx", data)
-        exported.append(ExportedBranch(m, path, name, shape, model.embed_dim, diff))
+        graphs.append((m, data, name, shape, diff))
+    # Written once every branch has exported and passed its check: a failure leaves no
+    # branch files without their export.json.
+    exported = [
+        ExportedBranch(
+            m,
+            atomic_write_bytes(out_dir / f"{m.value}.onnx", data),
+            name,
+            shape,
+            model.embed_dim,
+            diff,
+        )
+        for m, data, name, shape, diff in graphs
+    ]
     meta: dict[str, Any] = {
         "format": "onnx",
         "opset": opset,

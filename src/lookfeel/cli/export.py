@@ -26,7 +26,33 @@ def add_parser(subparsers: Subparsers) -> None:
         "export format: %(choices)s (default onnx)",
     )
     ex.add_argument("--out", type=out_folder, required=True, help="output folder")
-    ex.add_argument("--opset", type=int, default=17, help="ONNX opset (17)")
+    ex.add_argument(
+        "--opset",
+        type=_opset,
+        default=17,  # lookfeel.export.DEFAULT_OPSET, not imported: it loads torch
+        help="ONNX opset, 13 up to the highest the installed torch exports (default 17)",
+    )
+
+
+def _opset(text: str) -> int:
+    """``--opset``: an opset lookfeel's models export to with the installed torch (an argparse
+    type: outside them, argparse's one-line usage error naming the flag and the range)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    # Imported only when --opset is given: it loads torch, which `lookfeel --help` must not.
+    import torch
+
+    from lookfeel.export import supported_opsets
+
+    opsets = supported_opsets()
+    if value not in opsets:
+        raise argparse.ArgumentTypeError(
+            f"must be in [{opsets[0]}, {opsets[-1]}] (the ONNX opsets lookfeel's models export "
+            f"to with torch {torch.__version__}), got {text}"
+        )
+    return value
 
 
 def run(args: argparse.Namespace) -> int:

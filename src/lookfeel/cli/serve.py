@@ -49,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
     # beats several queries sharing two-thread teams that spin waiting for each other.
     torch.set_num_threads(options.threads)
     app = create_app(Library.open(args.index, checkpoint=args.checkpoint), options.config())
-    print(f"Serving {args.index} at http://{options.host}:{options.port}/ (Ctrl-C stops)")
-    serve(app, host=options.host, port=options.port)
+
+    def serving(url: str) -> None:  # said once the address is bound, never of one in use
+        print(f"Serving {args.index} at {url} (Ctrl-C stops)", flush=True)
+
+    serve(app, host=options.host, port=options.port, on_bound=serving)
     return 0

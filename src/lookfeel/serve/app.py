@@ -82,6 +82,10 @@ def public_message(text: str) -> str:
     return _ABS_PATH.sub(r"\1", text)
 
 
+MAX_PER_MODALITY = 50
+"""The most item ids per modality ``GET /api/fabrics?per_modality=N`` lists for each fabric."""
+
+
 class ServeOptionError(LookfeelError):
     """A server option is out of range; the message names the option and the value."""
 
@@ -487,12 +491,17 @@ def create_app(
 
     @app.get("/api/fabrics", response_model=list[FabricInfo])
     def fabrics(per_modality: int = 3) -> list[FabricInfo]:
-        """Every fabric with its labels and up to ``per_modality`` item ids per modality."""
-        per = max(0, min(per_modality, 50))
+        """Every fabric with its labels and up to ``per_modality`` item ids per modality
+        (0 to `MAX_PER_MODALITY`; 422 outside)."""
+        if not 0 <= per_modality <= MAX_PER_MODALITY:
+            raise HTTPException(
+                422,
+                f"per_modality must be between 0 and {MAX_PER_MODALITY}; got {per_modality}",
+            )
         out = []
         for fid, record in sorted(lib.fabrics.items()):
             items = {
-                m.value: [f"{m.value}:{r}" for r in t.rows_of(fid)[:per]]
+                m.value: [f"{m.value}:{r}" for r in t.rows_of(fid)[:per_modality]]
                 for m, t in lib.tables.items()
             }
             out.append(
