@@ -555,6 +555,56 @@ def test_cli_errors(
         main(["evaluate", "--checkpoint", str(ckpt), "--embeddings", "e.npz", "--out", out])
 
 
+def _with_weights(ckpt: Path, out: Path, change: dict[str, float]) -> Path:
+    """A copy of ``ckpt`` with each tensor whose name ends in a key of ``change`` filled with
+    that value."""
+    import torch
+
+    state = torch.load(ckpt, weights_only=True)
+    for name, t in state["model"].items():
+        for end, value in change.items():
+            if name.endswith(end):
+                t.fill_(value)
+    torch.save(state, out)
+    return out
+
+
+def test_a_checkpoint_with_non_finite_weights_is_refused_by_name(
+    run: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.checkpoint import CheckpointError
+
+    data, _, ckpt = run
+    bad = _with_weights(ckpt, tmp_path / "nan.pt", {"touch.project.bias": float("nan")})
+    said = (
+        f"lookfeel: {bad}: its weights hold NaN or infinity (branches.touch.project.bias): the "
+        "run diverged or the file is damaged; use an earlier checkpoint of the run\n"
+    )
+    npz = tmp_path / "e.npz"
+    assert main(["embed", "--checkpoint", str(bad), "--data", str(data), "--out", str(npz)]) == 1
+    assert capsys.readouterr().err == said and not npz.exists()
+    assert evaluate_cli(bad, data, tmp_path / "ev") == 1
+    assert capsys.readouterr().err == said
+    # Finite weights so large that every embedding overflows: refused as they are embedded.
+    huge = _with_weights(ckpt, tmp_path / "huge.pt", {"fc.1.weight": 1e30, "project.weight": 3e38})
+    with pytest.raises(CheckpointError) as e:
+        embed_checkpoint(huge, data)
+    assert str(e.value).startswith(f"{huge}: the model embeds ")
+    assert "items as NaN or infinity (first " in str(e.value)
+
+
+def test_an_embeddings_file_holding_nan_is_refused_by_name(tmp_path: Path):
+    embedded, _ = _world()
+    embedded[T].embeddings[3, 1] = np.nan
+    path = save_embeddings(tmp_path / "e.npz", EmbeddingSet(embedded))
+    with pytest.raises(EmbeddingFileError) as e:
+        load_embeddings(path)
+    assert str(e.value) == (
+        f"{path}: embeddings_touch holds NaN or infinity in 1 of 72 rows: the model that "
+        "embedded them diverged or the file is damaged"
+    )
+
+
 def test_evaluate_checkpoint_in_label_space(run: tuple[Path, Path, Path], tmp_path: Path):
     data, _, ckpt = run
     out = tmp_path / "labels"

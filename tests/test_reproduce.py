@@ -63,6 +63,41 @@ def test_runs_the_data_cannot_serve_are_skipped_with_reasons(data: Path, tmp_pat
     assert "- `cross_modal_depth_touch`: needs touch" in result.report.read_text()
 
 
+def test_runs_pooling_more_presses_than_a_fabric_has_are_skipped_with_reasons(tmp_path: Path):
+    """The Multi-input Net pools 3 fold presses into a touch input; with 2 a fabric its touch
+    inputs cannot be formed, so it is skipped before training, as a missing modality is."""
+    two = write_tiny_dataset(tmp_path / "two", fabrics=10, drapes=2, fold_presses=2)
+    lines: list[str] = []
+    args = dict(budget="tiny", n_boot=20, overrides=FAST, log=lines.append)
+    result = reproduce(two, tmp_path / "o", only=["multi_input", "multi_input_aug"], **args)
+    reason = (
+        "pools 3 fold touch presses of one fabric into each touch input (data.presses); "
+        "the data has at most 2 per fabric"
+    )
+    assert result.skipped == {"multi_input": reason, "multi_input_aug": reason}
+    assert not result.results and not (tmp_path / "o" / "runs").exists()  # nothing trained
+    assert f"skip multi_input: {reason}" in lines
+    assert f"- `multi_input`: {reason}" in result.report.read_text()
+    assert json.loads((tmp_path / "o" / "results.json").read_text())["skipped"] == result.skipped
+
+
+def test_held_out_fabrics_without_enough_presses_are_named():
+    import numpy as np
+
+    from lookfeel.data import DatasetError
+    from lookfeel.reproduce.run import _pooled
+
+    emb, fabric = np.ones((5, 4)), np.array([3, 3, 7, 7, 8])
+    _, ids = _pooled(emb, fabric, 2, seed=0)
+    assert ids.tolist() == [3, 7]  # fabric 8's single press is left out
+    with pytest.raises(DatasetError) as e:
+        _pooled(emb, fabric, 3, seed=0)
+    assert str(e.value) == (
+        "touch inputs pool 3 presses of one fabric (data.presses), but none of the 3 "
+        "held-out fabrics has 3: fabric 3 has the most, 2"
+    )
+
+
 def test_findings_logic_on_hand_made_results():
     def model(td: float, tc: float) -> dict:
         return {"metrics": {"touch_to_depth_top1": td, "touch_to_color_top1": tc}}

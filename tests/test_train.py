@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -21,7 +22,7 @@ from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
 from lookfeel.modality import Modality
 from lookfeel.models import BranchEnsemble
-from lookfeel.train import TrainResult, member_config, train
+from lookfeel.train import TrainingDiverged, TrainResult, member_config, train
 
 from ._tiny import write_tiny_dataset
 
@@ -297,6 +298,77 @@ def test_run_errors_are_clear(data: Path, tmp_path: Path):
         train(_config("train.split=paper"), data, tmp_path / "paper")
     with pytest.raises(ConfigError, match="num_properties=2, but labels.csv has 4"):
         train(_config("model.num_properties=2"), data, tmp_path / "props")
+
+
+def _strict_json_lines(path: Path) -> list[dict]:
+    """metrics.jsonl read as JSON proper: Python's bare NaN and Infinity are refused."""
+
+    def refuse(name: str) -> None:
+        raise ValueError(f"{path}: {name} is not JSON")
+
+    return [json.loads(x, parse_constant=refuse) for x in path.read_text().splitlines()]
+
+
+def test_a_diverging_run_stops_with_one_line_and_keeps_its_last_finite_checkpoint(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    out = tmp_path / "nan"
+    args = ["train", "--config", str(TINY), "--data", str(data), "--out", str(out)]
+    sets = ["train.steps=30", "train.lr=1e8", "train.log_every=1", "train.checkpoint_every=1"]
+    assert main([*args, *(a for s in sets for a in ("--set", s))]) == 1
+    err = capsys.readouterr().err
+    said = re.fullmatch(
+        r"lookfeel: train: the loss became (NaN|infinite) at step (\d+) \(train\.lr=1e\+08 too "
+        r"high\?\); the last finite checkpoint is kept at (.+) \(step (\d+)\)\n",
+        err,
+    )
+    assert said is not None, err
+    bad, kept, at = int(said[2]), Path(said[3]), int(said[4])
+    assert kept == out / "checkpoints" / "last.pt" and at == bad - 1
+    assert load_model(kept).step == at  # finite weights: it loads
+    lines = _strict_json_lines(out / "metrics.jsonl")
+    assert lines[-1]["step"] == bad and lines[-1]["loss"] is None  # null, not NaN
+    assert all(x["loss"] is not None for x in lines[:-1] if "loss" in x)
+
+    # Read only at log steps: the line names the window, and nothing was written before it.
+    with pytest.raises(TrainingDiverged) as e:
+        train(_config("train.lr=1e8", "train.checkpoint_every=0"), data, tmp_path / "early")
+    assert re.fullmatch(
+        r"train: the loss became (NaN|infinite) between steps 1 and 5 \(train\.lr=1e\+08 too "
+        r"high\?\); no checkpoint was written before it \(train\.checkpoint_every=0\)",
+        str(e.value),
+    )
+    assert not (tmp_path / "early" / "checkpoints").exists()
+
+
+def test_non_finite_weights_are_never_written_over_a_checkpoint(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Weights that turn NaN in the very step a checkpoint is due (its loss, computed before
+    the update, still finite) stop the run; the previous checkpoint stays as it was."""
+    import lookfeel.train.loop as loop
+
+    steps = []
+    step = loop.train_step
+
+    def poisoned(run: loop.TrainRun, batch: dict) -> dict:
+        terms = step(run, batch)
+        steps.append(1)
+        if len(steps) == 10:
+            next(run.net.parameters()).data.fill_(float("nan"))
+        return terms
+
+    monkeypatch.setattr(loop, "train_step", poisoned)
+    out = tmp_path / "run"
+    cfg = _config("train.checkpoint_every=5", "train.val_every=0")
+    with pytest.raises(TrainingDiverged) as e:
+        train(cfg, data, out)
+    last = out / "checkpoints" / "last.pt"
+    assert str(e.value) == (
+        "train: the weights became NaN at step 10 (train.lr=0.001 too high?); the last finite "
+        f"checkpoint is kept at {last} (step 5)"
+    )
+    assert load_model(last).step == 5
 
 
 def test_cli_train_then_load_and_embed(data: Path, tmp_path: Path, capsys):

@@ -13,7 +13,7 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,7 @@ __all__ = [
     "LoadedModel",
     "init_from_checkpoint",
     "load_model",
+    "non_finite_tensors",
     "read_checkpoint",
     "save_checkpoint",
     "touch_input_of",
@@ -121,6 +122,34 @@ class LoadedModel:
     it) and for a model without a touch branch."""
 
 
+def non_finite_tensors(tensors: Mapping[str, Any]) -> list[str]:
+    """The names of the floating-point tensors that hold NaN or infinity (a diverged run's
+    weights, or a damaged file's), in the order given.
+
+    Args:
+        tensors: a state dict (name -> tensor); entries that are not float tensors are skipped.
+    """
+    return [
+        k
+        for k, v in tensors.items()
+        if isinstance(v, torch.Tensor)
+        and v.is_floating_point()
+        and not bool(torch.isfinite(v).all())
+    ]
+
+
+def _refuse_non_finite(path: str | os.PathLike[str], tensors: Mapping[str, Any]) -> None:
+    """Raise `CheckpointError` naming ``path`` when its weights hold NaN or infinity: a model
+    built from them would embed every item as NaN, silently or with a traceback later."""
+    bad = non_finite_tensors(tensors)
+    if bad:
+        more = f" and {len(bad) - 1} more" if len(bad) > 1 else ""
+        raise CheckpointError(
+            f"{path}: its weights hold NaN or infinity ({bad[0]}{more}): the run diverged or "
+            "the file is damaged; use an earlier checkpoint of the run"
+        )
+
+
 def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[str]:
     """Start ``model`` from another run's weights (``model.init_from``: e.g. pre-training on
     the synthetic world, then training on real data).
@@ -132,9 +161,11 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
         The names of the tensors that were not copied.
 
     Raises:
-        CheckpointError: the file is not a checkpoint, or no tensor of it fits this model.
+        CheckpointError: the file is not a checkpoint, its weights hold NaN or infinity, or
+            no tensor of it fits this model.
     """
     source = read_checkpoint(path)["model"]
+    _refuse_non_finite(path, source)
     own = model.state_dict()
     fits = {k: v for k, v in source.items() if k in own and own[k].shape == v.shape}
     if not fits:
@@ -150,7 +181,8 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
     """Rebuild the trained model from a checkpoint alone, in eval mode.
 
     Raises:
-        CheckpointError: naming the file, when it cannot be read or does not fit its config.
+        CheckpointError: naming the file, when it cannot be read, does not fit its config, or
+            its weights hold NaN or infinity.
     """
     state = read_checkpoint(path)
     try:
@@ -165,6 +197,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         model.load_state_dict(state["model"])
     except RuntimeError as e:
         raise CheckpointError(f"{path}: weights do not fit the model of its config: {e}") from None
+    _refuse_non_finite(path, state["model"])
     model.to(device).eval()
     return LoadedModel(
         path=Path(path),

@@ -12,17 +12,46 @@ from numpy.typing import NDArray
 
 from lookfeel.data import Catalog, ImageLoader, ImageStore, Item
 from lookfeel.data.images import stack_views
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder, add_press_axis, autocast, eval_mode, to_channels_last
 
 __all__ = [
     "EmbeddedItems",
+    "EmbeddingError",
     "PressPooler",
+    "check_finite",
     "embed_catalog",
     "embed_items",
     "press_pooler",
     "raw_pixels",
 ]
+
+
+class EmbeddingError(LookfeelError):
+    """A model embedded items as NaN or infinity: its weights hold them, or overflow on these
+    inputs (a diverged run). Distances, rankings and an index built from such rows would be
+    meaningless, so embedding stops and says which items."""
+
+
+def check_finite(emb: np.ndarray, items: Sequence[Item]) -> np.ndarray:
+    """``emb`` itself when every row is finite.
+
+    Args:
+        emb: (N, D) embeddings of ``items``, in their order.
+
+    Raises:
+        EmbeddingError: naming how many rows are not finite and the first one's file.
+    """
+    bad = ~np.isfinite(emb).all(axis=1)  # (N, D) -> (N,)
+    if bad.any():
+        first = items[int(np.flatnonzero(bad)[0])]
+        raise EmbeddingError(
+            f"the model embeds {int(bad.sum())} of {len(items)} {first.modality.value} items as "
+            f"NaN or infinity (first {first.path}): its weights hold NaN or infinity or "
+            "overflow on these inputs (a diverged run?)"
+        )
+    return emb
 
 
 @dataclass(frozen=True)
@@ -81,6 +110,9 @@ def embed_items(
 
     Returns:
         (N, D) float32 embeddings, in the order of ``items``.
+
+    Raises:
+        EmbeddingError: some embedding holds NaN or infinity (naming the first item).
     """
     if not items:
         return np.zeros((0, model.embed_dim), np.float32)
@@ -110,7 +142,7 @@ def embed_items(
         pass
     if dev.type == "cuda":
         torch.cuda.synchronize(dev)  # the non-blocking copies back have landed
-    return torch.cat(out).numpy()
+    return check_finite(torch.cat(out).numpy(), items)
 
 
 PressPooler = Callable[["EmbeddedItems", NDArray[np.int64]], NDArray[np.float64]]
@@ -147,7 +179,8 @@ def press_pooler(
                 out.append(e.cpu())
         if not out:
             return np.zeros((0, model.embed_dim))
-        return np.asarray(torch.cat(out).numpy(), dtype=np.float64)
+        pooled = np.asarray(torch.cat(out).numpy(), dtype=np.float64)  # (M, D)
+        return check_finite(pooled, [touch.items[j] for j in members[:, 0]])  # by 1st press
 
     return pool
 

@@ -148,6 +148,12 @@ def _group(
         if fkey not in data:
             raise EmbeddingFileError(f"{where}: has {key} but no {fkey}")
         emb[m], fab[m] = data[key], data[fkey]
+        if np.issubdtype(emb[m].dtype, np.number) and not np.isfinite(emb[m]).all():
+            rows = int((~np.isfinite(emb[m].reshape(len(emb[m]), -1))).any(axis=1).sum())
+            raise EmbeddingFileError(
+                f"{where}: {key} holds NaN or infinity in {rows} of {len(emb[m])} rows: the "
+                "model that embedded them diverged or the file is damaged"
+            )
         pkey = f"{prefix}path_{m.value}"
         if pkey in data:
             paths[m] = [str(p) for p in data[pkey].tolist()]

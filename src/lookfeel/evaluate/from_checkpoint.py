@@ -29,7 +29,8 @@ scored through the same map under each control too (``{pair}_top{k}_mapped_swapp
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -37,7 +38,7 @@ from typing import Any
 import numpy as np
 from torch import nn
 
-from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.checkpoint import CheckpointError, LoadedModel, load_model
 from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
@@ -45,6 +46,7 @@ from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import (
     EmbeddedItems,
+    EmbeddingError,
     PressPooler,
     embed_catalog,
     embed_items,
@@ -177,6 +179,16 @@ def _load(checkpoint: str | os.PathLike[str] | LoadedModel, device: str) -> Load
     return checkpoint if isinstance(checkpoint, LoadedModel) else load_model(checkpoint, device)
 
 
+@contextmanager
+def _naming(loaded: LoadedModel) -> Iterator[None]:
+    """Turn an `EmbeddingError` (the model embeds NaN or infinity) into a `CheckpointError`
+    naming the checkpoint: the weights are at fault, and the user knows the file."""
+    try:
+        yield
+    except EmbeddingError as e:
+        raise CheckpointError(f"{loaded.path}: {e}") from None
+
+
 def _embed(
     loaded: LoadedModel,
     catalog: Catalog,
@@ -242,17 +254,19 @@ def embed_checkpoint(
         `EmbeddingSet` (write it with `save_embeddings`).
 
     Raises:
-        CheckpointError, DatasetError: naming the file or fabric ids at fault.
+        CheckpointError, DatasetError: naming the file or fabric ids at fault (a checkpoint
+            whose model embeds NaN or infinity among them).
     """
     loaded = _load(checkpoint, device)
-    emb, _ = _embed(
-        loaded,
-        _scan(data_root),
-        split,
-        reference,
-        batch_size,
-        device,
-    )
+    with _naming(loaded):
+        emb, _ = _embed(
+            loaded,
+            _scan(data_root),
+            split,
+            reference,
+            batch_size,
+            device,
+        )
     return emb
 
 
@@ -334,13 +348,14 @@ def evaluate_checkpoint(
     """
     loaded = _load(checkpoint, device)
     catalog = _scan(data_root)
-    emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
-    exact = bool(emb.meta["pool_exact"])
-    pool = None if exact else press_pooler(loaded.model, loader, batch_size, device)
-    result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
-    if not result.config.background_control or Modality.DEPTH not in emb.embedded:
-        return result
-    extra, notes = _background_control(loaded, emb, result, loader, batch_size, device, catalog)
+    with _naming(loaded):
+        emb, loader = _embed(loaded, catalog, split, True, batch_size, device)
+        exact = bool(emb.meta["pool_exact"])
+        pool = None if exact else press_pooler(loaded.model, loader, batch_size, device)
+        result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
+        if not result.config.background_control or Modality.DEPTH not in emb.embedded:
+            return result
+        extra, notes = _background_control(loaded, emb, result, loader, batch_size, device, catalog)
     return replace(result, metrics={**result.metrics, **extra}, notes=result.notes + tuple(notes))
 
 

@@ -11,8 +11,10 @@ trained with a *budget* and scored on fabrics held out from training:
 
 The architectures stay the paper's under every budget: which presses (flat or fold), the
 cluster head, three pooled presses, colour augmentation and the modalities of each run. Runs
-whose modalities the data lacks are listed as skipped with the reason. Each finished run writes
-``runs/<name>/seed<k>/eval.json``; a killed reproduction resumes where it stopped.
+the data cannot serve (modalities or touch presses it lacks, or fewer presses a fabric than the
+run pools into one touch input) are listed as skipped with the reason, before any training.
+Each finished run writes ``runs/<name>/seed<k>/eval.json``; a killed reproduction resumes where
+it stopped.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config.recipes import recipe_path
-from lookfeel.data import Catalog, ImageLoader, paper_split, scan
+from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import (
     EXACT_PICK,
@@ -117,18 +119,38 @@ def _needs(config: RunConfig, catalog: Catalog) -> str | None:
         return f"needs {', '.join(missing)}; the data has {has}"
     if Modality.TOUCH in config.train.modalities:
         kinds = config.data.touch_kinds
+        names = "/".join(k.value for k in kinds)
         if not catalog.items(Modality.TOUCH, kinds):
-            return f"needs {'/'.join(k.value for k in kinds)} touch presses; the data has none"
+            return f"needs {names} touch presses; the data has none"
+        presses = config.data.presses
+        most = max(len(f.items_of(Modality.TOUCH, kinds)) for f in catalog.fabrics)
+        if most < presses:  # its touch queries and candidates pool P presses of one fabric
+            return (
+                f"pools {presses} {names} touch presses of one fabric into each touch input "
+                f"(data.presses); the data has at most {most} per fabric"
+            )
     return None
 
 
 def _pooled(
     emb: np.ndarray, fabric: np.ndarray, presses: int, seed: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Touch embeddings of single presses -> of P-press inputs (the Multi-input Net's max)."""
+    """Touch embeddings of single presses -> of P-press inputs (the Multi-input Net's max).
+
+    Raises:
+        DatasetError: no fabric has ``presses`` presses, so there is no touch input to score.
+    """
     if presses <= 1:
         return emb, fabric
     groups = group_queries(emb, fabric, presses=presses, seed=seed)
+    if not len(groups.fabric):
+        ids, counts = np.unique(fabric, return_counts=True)
+        top = int(np.argmax(counts))
+        raise DatasetError(
+            f"touch inputs pool {presses} presses of one fabric (data.presses), but none of the "
+            f"{len(ids)} held-out fabrics has {presses}: fabric {ids[top]} has the most, "
+            f"{counts[top]}"
+        )
     return groups.emb, groups.fabric
 
 

@@ -15,6 +15,11 @@ The loop is short: `_Batches` builds step ``s``'s batch on the device (pixels fr
 is cached; the same draws either way) and `train_step` runs one optimisation step. On CUDA the
 forward pass runs with channels-last images under bf16 autocast (``model.precision=fp32``: full
 fp32); on CPU everything is fp32.
+
+A run whose loss or weights stop being finite (a learning rate far too high) stops with one
+line, `TrainingDiverged`, at the first log step, validation or checkpoint after it; the
+checkpoints written before are kept, and none of non-finite weights is ever written
+(`lookfeel.train.divergence`). ``metrics.jsonl`` writes a non-finite number as ``null``.
 """
 
 from __future__ import annotations
@@ -57,10 +62,12 @@ from lookfeel.data import (
     stratified_fabric_split,
 )
 from lookfeel.data.recordings import drop_unpressed
+from lookfeel.embedding import EmbeddingError
 from lookfeel.losses import create_loss
 from lookfeel.modality import REPRINTS, Modality, slot_modality
 from lookfeel.models import BranchEnsemble, Embedder, autocast, create_model, to_channels_last
 from lookfeel.train.distributed import Distributed
+from lookfeel.train.divergence import TrainingDiverged, diverged, weights_finite
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
 
@@ -543,10 +550,16 @@ class _Log:
                 self.tb = None
 
     def write(self, record: dict[str, Any]) -> None:
+        """Append ``record`` as one line of JSON. NaN and infinity (a diverged loss) are written
+        as ``null``: JSON has no such numbers, and readers choke on Python's bare ``NaN``."""
         if not self.enabled:
             return
+        record = {
+            k: None if isinstance(v, float) and not math.isfinite(v) else v
+            for k, v in record.items()
+        }
         with self.path.open("a") as f:
-            f.write(json.dumps(record) + "\n")
+            f.write(json.dumps(record, allow_nan=False) + "\n")
         if self.tb is not None:
             for k, v in record.items():
                 if k != "step" and isinstance(v, (int, float)):
@@ -647,6 +660,8 @@ def train(
     Raises:
         DatasetError: the data cannot serve this run (every problem listed).
         ConfigError: a config key is wrong, or ``resume`` with a different config.
+        TrainingDiverged: the loss or the weights became NaN or infinite (the message names
+            the steps and the last finite checkpoint, which is kept).
     """
     run_dir = Path(out)
     if loader is not None and loader.config != config.data:
@@ -965,6 +980,28 @@ def _train(
     last_val: dict[str, float] = {}
     sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
     window_start, window_steps = time.perf_counter(), 0
+    # Checkpoints on disk with finite weights (what a diverged run keeps), and the last step
+    # whose loss was read and found finite.
+    kept: dict[Path, int] = {}
+    if state is not None:
+        kept[last] = start_step
+    checked = start_step
+
+    def stop(what: str, value: float, done: int) -> TrainingDiverged:
+        if progress is not None:
+            progress.close()
+        log.close()
+        return diverged(what, value, checked + 1, done, t.lr, kept, t.checkpoint_every)
+
+    def save(path: Path, done: int) -> None:
+        """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
+        every process checks: their weights are equal, so all stop together)."""
+        if not weights_finite(model):
+            raise stop("weights", math.nan, done)
+        if dist.is_main:
+            save_checkpoint(path, checkpoint_state(done))
+            kept[path] = done
+
     model.train()
     step_fn = _step_function(run, config)
     for step in range(start_step, t.steps):
@@ -979,7 +1016,13 @@ def _train(
             progress.update(1)
             if done % 10 == 0 or done == t.steps:
                 progress.set_postfix(loss=f"{float(terms['loss']):.4f}")
-        if done % max(t.log_every, 1) == 0 or done == t.steps:
+        is_log = done % max(t.log_every, 1) == 0 or done == t.steps
+        is_val = val_cat is not None and bool(
+            (t.val_every and done % t.val_every == 0) or done == t.steps
+        )
+        is_save = bool(t.checkpoint_every and done % t.checkpoint_every == 0) or done == t.steps
+        loss: float | None = None
+        if is_log:
             means = dist.mean_values({k: float(v) / window_steps for k, v in sums.items()})
             elapsed = time.perf_counter() - window_start
             record: dict[str, Any] = {"step": done, **means}
@@ -987,15 +1030,22 @@ def _train(
             record["steps_per_s"] = window_steps / elapsed if elapsed > 0 else None
             log.write(record)
             sums, window_start, window_steps = {}, time.perf_counter(), 0
-        is_val = val_cat is not None and (
-            (t.val_every and done % t.val_every == 0) or done == t.steps
-        )
+            loss = means["loss"]
+        elif is_val or is_save:  # the device syncs here anyway
+            loss = dist.mean_values({"loss": float(sums["loss"])})["loss"]
+        if loss is not None:
+            if not math.isfinite(loss):
+                raise stop("loss", loss, done)
+            checked = done
         if is_val:
             if dist.is_main:
                 with autocast(device, precision=model.precision):
-                    last_val = validate(
-                        model, val_items, loader, table, t.feature_batch, device, t.val_pairs
-                    )
+                    try:
+                        last_val = validate(
+                            model, val_items, loader, table, t.feature_batch, device, t.val_pairs
+                        )
+                    except EmbeddingError:  # a finite loss, but held-out items overflow
+                        raise stop("validation embeddings", math.nan, done) from None
                 key = f"{primary or last_val['primary_pair']}_top1"
                 log.write(
                     {
@@ -1005,11 +1055,10 @@ def _train(
                 )
                 if last_val[key] > best:
                     best = last_val[key]
-                    save_checkpoint(run_dir / "checkpoints" / "best.pt", checkpoint_state(done))
+                    save(run_dir / "checkpoints" / "best.pt", done)
             dist.barrier()
-        if (t.checkpoint_every and done % t.checkpoint_every == 0) or done == t.steps:
-            if dist.is_main:
-                save_checkpoint(last, checkpoint_state(done))
+        if is_save:
+            save(last, done)
             dist.barrier()
     if progress is not None:
         progress.close()

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from lookfeel.data import ImageLoader, Item
-from lookfeel.embedding import embed_items
+from lookfeel.embedding import check_finite, embed_items
 from lookfeel.metrics import EXACT_PICK, score_pairs
 from lookfeel.modality import Modality, Pair
 from lookfeel.models import Embedder, add_press_axis, eval_mode
@@ -39,7 +39,7 @@ def _embed_cached(
     for start in range(0, len(items), batch):
         f = add_press_axis(table.gather(m, items[start : start + batch]), m)
         out.append(model({m.value: f}, from_trunk=True)[m.value].float().cpu())
-    return torch.cat(out).numpy()
+    return check_finite(torch.cat(out).numpy(), items)
 
 
 def validate(
@@ -63,6 +63,9 @@ def validate(
     Returns:
         ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per pair, and ``primary_pair``
         (the first pair's name: what ``best.pt`` is chosen by).
+
+    Raises:
+        EmbeddingError: the model embeds some item as NaN or infinity (a diverged run).
     """
     emb: dict[Modality, np.ndarray] = {}
     fab: dict[Modality, np.ndarray] = {}
