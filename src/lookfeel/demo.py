@@ -41,7 +41,7 @@ from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import EvalResult, evaluate_checkpoint, write_report
 from lookfeel.modality import Modality, Pair
 from lookfeel.reproduce import BUDGETS, EXPERIMENTS, ReproduceResult, headline, reproduce
-from lookfeel.reproduce.run import config_dir
+from lookfeel.reproduce.run import config_dir, split_overrides
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import GENERATOR_VERSION, MANIFEST
 from lookfeel.train import run_started, train
@@ -148,23 +148,6 @@ def _run_overrides(out: Path, overrides: Sequence[str]) -> list[str]:
     return ["train.progress=true", f"data.cache_dir={json.dumps(str(out / 'cache'))}", *overrides]
 
 
-def _reproduce_split(fabrics: int, held: int) -> tuple[list[str], list[str]]:
-    """The split overrides `lookfeel.reproduce.reproduce` gives the runs of Tables 1-3 and
-    those of Table 4 on a demo world of ``fabrics`` fabrics with ``held`` held out.
-
-    It mirrors ``reproduce`` (keep the two in step): with 10 or more held-out fabrics every run
-    trains on the others (``paper``, ``seen``); with fewer, the runs of Tables 1-3 also hold
-    out ``n_val`` of the training fabrics to be scored on (``stratified``), while Table 4's
-    runs score on the world's held-out fabrics as their novel ones.
-    """
-    if held >= 10:
-        return ["train.split=paper"], ["train.split=seen", "train.val_fabrics=0"]
-    pool = fabrics - held
-    n_val = min(18, max(round(0.18 * pool), min(10, pool // 3), 2))
-    models = ["train.split=stratified", f"train.val_fabrics={n_val}"]
-    return models, ["train.split=seen", f"train.val_fabrics={n_val}"]
-
-
 def _demo_configs(
     fabrics: int, held: int, budget: str, overrides: Sequence[str]
 ) -> list[tuple[str, RunConfig]]:
@@ -175,7 +158,8 @@ def _demo_configs(
     Raises:
         ConfigError: an override names an unknown key or gives a bad value.
     """
-    models, vision = _reproduce_split(fabrics, held)
+    # The world marks its held-out fabrics paper_split=test: `reproduce` splits it so.
+    models, vision, _ = split_overrides(held >= 10, fabrics - held)
     configs = []
     for exp in EXPERIMENTS:
         split = vision if exp.table == "vision" else models

@@ -53,7 +53,14 @@ from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
 from lookfeel.train import run_started, train
 
-__all__ = ["BUDGETS", "EXPERIMENTS", "Experiment", "ReproduceResult", "reproduce"]
+__all__ = [
+    "BUDGETS",
+    "EXPERIMENTS",
+    "Experiment",
+    "ReproduceResult",
+    "reproduce",
+    "split_overrides",
+]
 
 
 @dataclass(frozen=True)
@@ -370,6 +377,24 @@ def _run_in_worker(job: _Job, data: Path, n_boot: int) -> dict[str, Any]:
     return _run_one(job.exp, job.config, _CATALOGS[data], data, job.run_dir, n_boot)
 
 
+def split_overrides(has_paper_test: bool, pool: int) -> tuple[list[str], list[str], int]:
+    """How `reproduce` splits a dataset: the overrides of the runs of Tables 1-3, those of
+    Table 4's (``seen``), and how many training fabrics the first hold out to be scored on.
+
+    With 10 or more of the paper's test fabrics (``has_paper_test``), every run scores on
+    them (``paper``; Table 4's as its novel fabrics). Otherwise the runs of Tables 1-3 hold
+    out a cluster-stratified share of the ``pool`` training fabrics, 18 of 118 as the paper
+    and at least 10 when there are 30 or more, and Table 4's as many as novel ones."""
+    n_val = min(18, max(round(0.18 * pool), min(10, pool // 3), 2))
+    if has_paper_test:
+        return ["train.split=paper"], ["train.split=seen", "train.val_fabrics=0"], n_val
+    return (
+        ["train.split=stratified", f"train.val_fabrics={n_val}"],
+        ["train.split=seen", f"train.val_fabrics={n_val}"],
+        n_val,
+    )
+
+
 def reproduce(
     data: str | Path,
     out: str | Path,
@@ -425,13 +450,7 @@ def reproduce(
     # at least 10 when there are 30 or more.
     paper = paper_split(catalog)
     has_paper_test = len(paper.test) >= 10
-    pool = len(paper.train) or len(catalog.ids)
-    n_val = min(18, max(round(0.18 * pool), min(10, pool // 3), 2))
-    split = (
-        ["train.split=paper"]
-        if has_paper_test
-        else ["train.split=stratified", f"train.val_fabrics={n_val}"]
-    )
+    split, vision, n_val = split_overrides(has_paper_test, len(paper.train) or len(catalog.ids))
     result = ReproduceResult(out=out, report=out / "report.md")
     started = time.perf_counter()
     jobs: list[_Job] = []
@@ -439,13 +458,7 @@ def reproduce(
         if only and exp.name not in only:
             continue
         run_overrides = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
-        if exp.table == "vision":
-            run_overrides += [
-                "train.split=seen",
-                f"train.val_fabrics={0 if has_paper_test else n_val}",
-            ]
-        else:
-            run_overrides += split
+        run_overrides += vision if exp.table == "vision" else split
         if pretrained is not None and budget == "paper":
             run_overrides.append(f"model.pretrained={pretrained}")
         run_overrides += list(overrides)
