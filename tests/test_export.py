@@ -170,3 +170,38 @@ def test_an_exporter_failure_is_one_line_naming_the_branch_and_opset(
     )
     assert "graph" not in captured.out  # torch's dump of its graph is not shown
     assert not any(out.iterdir())  # neither depth.onnx nor color.onnx without the touch branch
+
+
+def test_an_alexnet_touch_branch_exports_with_dynamic_presses(tmp_path: Path):
+    """The paper's backbone: its adaptive pooling to 6x6 needs the map's size, which the
+    exporter loses once presses are folded into the batch; a 6x6 map is passed through."""
+    from torch import nn
+
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.models import create_model
+    from lookfeel.models.alexnet import _PoolTo6
+
+    pool, reference = _PoolTo6(), nn.AdaptiveAvgPool2d((6, 6))
+    for size in (6, 7, 13):  # 6x6 untouched; other sizes pooled as torchvision pools them
+        x = torch.rand(2, 4, size, size)
+        assert torch.equal(pool(x), reference(x))
+    config = load_config(RunConfig, None, ["model.backbone=alexnet", "model.freeze=none"])
+    model = create_model(config.model, [Modality.TOUCH], load_weights=False).eval()
+    branch = model.branch("touch")
+    x = torch.rand(1, 2, 3, 227, 227)
+    path = tmp_path / "touch.onnx"
+    torch.onnx.export(
+        branch,
+        (x,),
+        path,
+        dynamo=False,
+        input_names=["presses"],
+        output_names=["embedding"],
+        dynamic_axes={"presses": {0: "batch", 1: "presses"}, "embedding": {0: "batch"}},
+        opset_version=17,
+    )
+    session = ort.InferenceSession(str(path))
+    y = torch.rand(2, 3, 3, 227, 227)
+    with torch.inference_mode():
+        want = branch(y).numpy()
+    np.testing.assert_allclose(session.run(None, {"presses": y.numpy()})[0], want, atol=1e-4)

@@ -10,12 +10,27 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from torch import nn
+from torch import Tensor, nn
 
 from lookfeel.models.backbone import Backbone
 from lookfeel.models.dropout import FastDropout
 
 __all__ = ["AlexNet"]
+
+
+class _PoolTo6(nn.AdaptiveAvgPool2d):
+    """torchvision's adaptive average pool to 6x6, passing a map that is 6x6 already (an image
+    of 224-231 px) through untouched: the same numbers, and a graph that ONNX can export with
+    a dynamic number of presses, where the exporter no longer knows the map's size, which
+    adaptive pooling needs."""
+
+    def __init__(self) -> None:
+        super().__init__((6, 6))
+
+    def forward(self, x: Tensor) -> Tensor:
+        if tuple(x.shape[-2:]) == (6, 6):
+            return x
+        return super().forward(x)
 
 
 class AlexNet(Backbone):
@@ -51,7 +66,7 @@ class AlexNet(Backbone):
             nn.ReLU(inplace=True),
             nn.MaxPool2d(kernel_size=3, stride=2),
         )
-        self.avgpool = nn.AdaptiveAvgPool2d((6, 6))
+        self.avgpool = _PoolTo6()
         self.classifier = nn.Sequential(
             FastDropout(p=dropout),
             nn.Linear(256 * 6 * 6, 4096),
