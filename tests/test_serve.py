@@ -98,6 +98,7 @@ def test_library_fabrics_and_item_images(server):
     info = httpx.get(url + "/api/library").json()
     assert info["fabrics"] == 6 and info["items"] == {"depth": 18, "color": 18, "touch": 18}
     assert info["backbone"] == "compact" and info["limits"]["max_files"] == 3
+    assert info["uploads"] == info["modalities"] == ["depth", "color", "touch"]
     fabrics = httpx.get(url + "/api/fabrics", params={"per_modality": 1}).json()
     assert [f["id"] for f in fabrics] == [1, 2, 3, 4, 5, 6]
     assert fabrics[2]["items"] == {"depth": ["depth:6"], "color": ["color:6"], "touch": ["touch:6"]}
@@ -253,3 +254,29 @@ def test_cli_serve_on_a_busy_port_says_so_in_one_line_and_never_that_it_serves(s
         f"lookfeel: --port {port}: 127.0.0.1:{port} is already in use (another server?); "
         "choose another --port\n"
     )
+
+
+def test_a_model_reading_several_frames_of_a_press_takes_no_touch_upload(run, tmp_path: Path):
+    """With ``data.touch_frames`` one uploaded image is not a press: the library says touch is
+    not uploadable (the page then offers library presses only), and an upload is a 422."""
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.train import train
+
+    data, _ = run
+    config = load_config(
+        RunConfig,
+        Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml",
+        ["data.touch_frames=[0,1]", "train.steps=2", "train.val_every=0"],
+    )
+    ckpt = train(config, data, tmp_path / "run").last_checkpoint
+    build_library(ckpt, data, tmp_path / "lib", shard_size=64)
+    library = Library.open(tmp_path / "lib")
+    with background_server(create_app(library, ServeConfig())) as url:
+        info = httpx.get(url + "/api/library").json()
+        assert info["modalities"] == ["depth", "color", "touch"]
+        assert info["uploads"] == ["depth", "color"]
+        press = next((data / "touch").glob("*.png"))
+        r = httpx.post(url + "/api/match", data={"modality": "touch"}, files=[_file(press)])
+        assert r.status_code == 422 and "data.touch_frames" in r.json()["detail"]
+        r = httpx.post(url + "/api/match/item", json={"item": "touch:0", "top": 2})
+        assert r.status_code == 200

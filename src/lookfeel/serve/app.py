@@ -242,6 +242,10 @@ class LibraryInfo(BaseModel):
     fabrics: int
     items: dict[str, int]
     modalities: list[Modality]
+    uploads: list[Modality]
+    """The modalities an uploaded file can be matched as: all of ``modalities`` but touch when
+    the model reads several frames of a press together (``data.touch_frames``), which one
+    uploaded image cannot give (a library press can still be matched by its id)."""
     default_gallery: dict[str, Modality]
     label_columns: list[str]
     backbone: str
@@ -473,6 +477,12 @@ def create_app(
             fabrics=len(lib.fabrics),
             items={m.value: len(t) for m, t in lib.tables.items()},
             modalities=[m for m in match.model.modalities if m in lib.tables],
+            uploads=[
+                m
+                for m in match.model.modalities
+                if m in lib.tables
+                and not (m is Modality.TOUCH and lib.config.data.stacks_touch_frames)
+            ],
             default_gallery={q.value: g for q, g in lib.calibration.default_gallery.items()},
             label_columns=list(lib.label_columns),
             backbone=lib.config.model.backbone,

@@ -52,7 +52,14 @@ async function loadLibrary() {
     `${info.fabrics} fabrics (${items}); model ${info.backbone} at ${info.image_size} px` +
     (info.color_size ? ` (colour ${info.color_size} px)` : "") + ", " +
     `D = ${info.embed_dim}; search ${info.backend}.`;
-  for (const opt of $("#modality").options) opt.disabled = !info.modalities.includes(opt.value);
+  for (const opt of $("#modality").options) {
+    opt.disabled = !(info.uploads || info.modalities).includes(opt.value);
+    if (info.modalities.includes(opt.value) && opt.disabled) {
+      opt.textContent += " — this model reads several frames of a press: pick a library press below";
+    }
+  }
+  const first = [...$("#modality").options].find((o) => !o.disabled);
+  if (first && $("#modality").selectedOptions[0]?.disabled) $("#modality").value = first.value;
   const fabrics = await (await fetch("/api/fabrics?per_modality=1")).json();
   const pick = $("#pick");
   for (const f of fabrics) {
