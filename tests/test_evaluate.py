@@ -13,7 +13,7 @@ from PIL import Image
 from lookfeel.checkpoint import load_model
 from lookfeel.cli import main
 from lookfeel.config import ConfigError, EvalConfig, RunConfig, from_dict, load_config
-from lookfeel.data import DatasetError
+from lookfeel.data import DatasetError, scan
 from lookfeel.embedding import EmbeddedItems
 from lookfeel.evaluate import (
     EmbeddingFileError,
@@ -641,3 +641,23 @@ def test_figures_show_depth_whole_and_touch_as_its_last_frame(tmp_path: Path):
     stacked = ImageLoader(DataConfig(image_size=32, touch_frames=(0, -1)))
     last = _image(stacked, result, T, 0)  # type: ignore[arg-type]
     assert last.shape == (32, 32, 3)
+
+
+def test_a_split_of_the_run_on_another_dataset_is_warned_of(run: tuple[Path, Path, Path], tmp_path):
+    import shutil
+    import warnings
+
+    data, ckpt, _ = run
+    loaded = load_model(ckpt)
+    assert loaded.data_fingerprint == scan(data).fingerprint()
+    moved = Path(shutil.copytree(data, tmp_path / "moved"))  # the same data elsewhere: quiet
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        embed_checkpoint(loaded, moved, "val")
+    other = write_tiny_dataset(tmp_path / "other", fabrics=8, drapes=2, fold_presses=4)
+    for split in ("val", "train"):
+        with pytest.warns(UserWarning, match=rf"trained on another dataset .* --split {split}"):
+            embed_checkpoint(loaded, other, split)
+    with warnings.catch_warnings():  # every item of any dataset: nothing of the run's is used
+        warnings.simplefilter("error")
+        embed_checkpoint(loaded, other, "all")

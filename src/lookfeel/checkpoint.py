@@ -7,7 +7,8 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     dicts), rng (torch CPU generator state), best (the best validation value so far),
     touch_input (what the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or
     `TOUCH_BOTH`; absent in checkpoints from before it was recorded, and for a model without
-    a touch branch)
+    a touch branch), data_fingerprint (the dataset trained on, `Catalog.fingerprint`; absent
+    before it was recorded)
 """
 
 from __future__ import annotations
@@ -116,6 +117,10 @@ class LoadedModel:
     label_stats: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Per label column, the training fabrics' (mean, std) the property head's targets were
     standardised with (empty in checkpoints from before it was saved)."""
+    data_fingerprint: str | None = None
+    """`lookfeel.data.Catalog.fingerprint` of the dataset the run trained on (None in
+    checkpoints from before it was recorded): a split of the run's (its held-out fabrics)
+    names the same fabrics only in that dataset."""
     touch_input: str | None = None
     """What the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or `TOUCH_BOTH`;
     None in checkpoints from before it was recorded (queries are then not checked against
@@ -210,6 +215,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         },
         split=dict(state.get("split", {})),
         touch_input=_touch_input(path, state.get("touch_input")),
+        data_fingerprint=state.get("data_fingerprint"),
     )
 
 

@@ -59,10 +59,8 @@ the steps since a run's last checkpoint.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import math
-import os
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -1091,28 +1089,6 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
     return lines
 
 
-def dataset_fingerprint(catalog: Catalog) -> str:
-    """A digest of what a run learns and is scored on: every fabric's id, name and labels and
-    its items' files, relative to the dataset folder (so a moved folder keeps its digest; a
-    file added, removed or renamed, or a label changed, does not). A cv folder's runs record
-    it, so results on one dataset are never reported as another's."""
-    rows = [
-        [
-            f.id,
-            f.name,
-            sorted(f.labels.items()),
-            sorted(f.text_labels.items()),
-            f.cluster,
-            [
-                [m.value, [[os.path.relpath(p, catalog.root) for p in it.frames] for it in its]]
-                for m, its in sorted(f.items.items(), key=lambda kv: kv[0].value)
-            ],
-        ]
-        for f in catalog.fabrics
-    ]
-    return hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
-
-
 def cross_validate(
     config: RunConfig,
     data: str | Path,
@@ -1134,7 +1110,7 @@ def cross_validate(
             folds.
         data: the dataset folder.
         out: the cross-validation folder (created; reruns skip finished runs, and refuse a
-            folder whose runs were made on another dataset: `dataset_fingerprint`).
+            folder whose runs were made on another dataset: `Catalog.fingerprint`).
         seeds: training seeds.
         folds: which folds to run (default: all ``train.folds``).
         tta: embed each image and its left-right mirror and average the two (test-time pooling).
@@ -1170,7 +1146,7 @@ def cross_validate(
     )
     untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
     room = RoomProbe(catalog, config.data.workers) if control is not None else None
-    fingerprint = dataset_fingerprint(catalog)
+    fingerprint = catalog.fingerprint()
     data_id = {"root": str(catalog.root), "fingerprint": fingerprint}
     results = []
     for seed in seeds:

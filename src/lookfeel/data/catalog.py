@@ -6,7 +6,10 @@ take. It is immutable and cheap: it holds paths and labels, never pixels.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
+import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -256,6 +259,28 @@ class Catalog:
             raise DatasetError(problems, self.root)
 
     # ---- summary -----------------------------------------------------------------------------
+
+    def fingerprint(self) -> str:
+        """A digest of what a run learns and is scored on: every fabric's id, name, labels and
+        cluster and its items' files, relative to the dataset folder (a moved folder keeps its
+        digest; a file added, removed or renamed, or a label changed, does not). Runs record
+        it (``lookfeel cv``'s folders, checkpoints), so that results on one dataset are never
+        taken for another's."""
+        rows = [
+            [
+                f.id,
+                f.name,
+                sorted(f.labels.items()),
+                sorted(f.text_labels.items()),
+                f.cluster,
+                [
+                    [m.value, [[os.path.relpath(p, self.root) for p in it.frames] for it in its]]
+                    for m, its in sorted(f.items.items(), key=lambda kv: kv[0].value)
+                ],
+            ]
+            for f in self.fabrics
+        ]
+        return hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
 
     def summary(self) -> dict[str, object]:
         """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels.

@@ -29,6 +29,7 @@ scored through the same map under each control too (``{pair}_top{k}_mapped_swapp
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import replace
@@ -113,6 +114,16 @@ def _select(
     kind = s.get("kind", "")
     if split == "all":
         return catalog, None, "every item of the dataset (training fabrics included)"
+    if split in ("val", "train", "novel") and loaded.data_fingerprint not in (
+        None,
+        catalog.fingerprint(),
+    ):
+        warnings.warn(
+            f"{loaded.path} was trained on another dataset than {catalog.root}, or on this one "
+            f"before its files or labels changed: --split {split} takes the run's fabric ids, "
+            "which may name other fabrics here",
+            stacklevel=2,
+        )
     if split == "paper":
         ps = paper_split(catalog)
         if not ps.test:

@@ -782,7 +782,15 @@ def _train_members(
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(merged, run_dir / "config.yaml")
         atomic_write_text(run_dir / "split.json", json.dumps(states[0]["split"], indent=1) + "\n")
-        keep = ("step", "modalities", "label_columns", "label_stats", "split", "touch_input")
+        keep = (
+            "step",
+            "modalities",
+            "label_columns",
+            "label_stats",
+            "split",
+            "touch_input",
+            "data_fingerprint",
+        )
         save_checkpoint(
             last,
             {k: states[0][k] for k in keep if k in states[0]}
@@ -823,6 +831,7 @@ def _train(
     # A live run trains on the press videos' views: decode them once, while finding the presses.
     catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
     _say_reprints(catalog, loader, config, cached, data)
+    data_fingerprint = catalog.fingerprint()  # before k-means clusters: as `evaluate` scans it
     catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
@@ -952,6 +961,7 @@ def _train(
         return {
             "step": step,
             "touch_input": touch_input,
+            "data_fingerprint": data_fingerprint,
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),
