@@ -94,12 +94,17 @@ def test_other_files_are_reported_skipped_not_read(tiny_dataset: Path):
     (tiny_dataset / "notes.txt").write_text("hello")
     (tiny_dataset / "renders").mkdir()
     (tiny_dataset / "depth" / "Thumbs.db").write_bytes(b"x")
+    (tiny_dataset / "depth" / "._F0001_Depth_New_1.png").write_bytes(b"x")  # macOS's copies
     catalog = scan(tiny_dataset)
     assert sorted(p.path.name for p in catalog.skipped if p.path) == [
+        "._F0001_Depth_New_1.png",
         "Thumbs.db",
         "notes.txt",
         "renders",
     ]
+    why = {p.path.name: p.message for p in catalog.skipped if p.path}
+    assert why["._F0001_Depth_New_1.png"] == "a hidden file (its name begins with a dot)"
+    assert why["Thumbs.db"] == "not an image (.png, .jpg, .jpeg)"
     [notes] = [p for p in catalog.skipped if p.path is not None and p.path.name == "notes.txt"]
     # The message lists every folder the layout reads, recordings' videos/ too.
     assert "(depth/, color/, touch/, videos/, labels.csv)" in str(notes)

@@ -407,7 +407,9 @@ def scan(
                 is_video or (suffix in IMAGE_SUFFIXES and not in_videos)
             ):
                 what = (
-                    "not a video (" + ", ".join(VIDEO_SUFFIXES) + ")"
+                    "a hidden file (its name begins with a dot)"
+                    if path.name.startswith(".")
+                    else "not a video (" + ", ".join(VIDEO_SUFFIXES) + ")"
                     if in_videos
                     else "not an image (.png, .jpg, .jpeg)"
                     + (" or a video" if modality is Modality.TOUCH else "")
