@@ -69,7 +69,8 @@ def test_warnings_fail_only_when_strict(tiny_dataset: Path, capsys):
     with open(tiny_dataset / "labels.csv", "a") as f:
         f.write("50,0,1,1,1,0,test\n")
     assert main(["data", "check", str(tiny_dataset)]) == 0
-    assert "WARNING  " in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "WARNING  " in out and f"Checked {tiny_dataset}: 6 fabrics, " in out
     assert main(["data", "check", str(tiny_dataset), "--strict"]) == 1
 
 

@@ -331,6 +331,7 @@ def test_recordings_train_predict_and_embed_as_the_readme_says(
     assert main(["data", "check", str(recordings)]) == 0
     out = capsys.readouterr()
     assert "foam_3.mov" in out.out + out.err and "no contact found" in out.out + out.err
+    assert re.search(r"^Checked .*: \d+ objects, \d+ files decoded\.$", out.out, re.M)
 
     run = tmp_path / "run"
     config = str(Path(__file__).resolve().parents[1] / "configs" / "physiclear.yaml")

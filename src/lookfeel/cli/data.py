@@ -169,7 +169,9 @@ def run_check(args: argparse.Namespace) -> int:
         )
         return 1 if failed else 0
     files = sum(len(it.frames) for f in catalog.fabrics for its in f.items.values() for it in its)
-    print(f"Checked {catalog.root}: {len(catalog.fabrics)} fabrics, {files} files decoded.")
+    named = any(f.name is not None for f in catalog.fabrics)
+    what = "objects" if named else "fabrics"
+    print(f"Checked {catalog.root}: {len(catalog.fabrics)} {what}, {files} files decoded.")
     for p in errors:
         print(f"ERROR    {p}")
     for p in warnings:
