@@ -281,7 +281,12 @@ def test_create_model_loads_weights_once_into_every_branch(alexnet_file: Path) -
 def test_load_pretrained_rejects_wrong_files(alexnet: AlexNet, tmp_path: Path) -> None:
     tiny = {k: torch.zeros(1) for k in TORCHVISION_ALEXNET}
     cases: list[tuple[str, object, str]] = [
-        ("text.pth", None, r"text.pth: not a readable PyTorch weights file"),
+        (
+            "text.pth",
+            None,
+            r"text.pth: not a readable PyTorch weights file \(not a file "
+            r"torch.save or NumPy wrote: it begins as neither a zip archive nor a pickle\)",
+        ),
         ("list.pth", [1, 2, 3], r"list.pth: not a state dict .* holds a list"),
         ("values.pth", {"features.0.weight": 3}, r"values.pth: not a state dict; .*features.0"),
         (

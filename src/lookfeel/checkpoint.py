@@ -92,7 +92,7 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
     try:
         state = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many types for a damaged or foreign file
-        raise CheckpointError(f"{p}: not a readable checkpoint ({load_problem(e)})") from None
+        raise CheckpointError(f"{p}: not a readable checkpoint ({load_problem(e, p)})") from None
     if not isinstance(state, dict) or "config" not in state or "model" not in state:
         raise CheckpointError(f"{p}: not a lookfeel checkpoint (no config and model inside)")
     if state.get("version", 0) > CHECKPOINT_VERSION:

@@ -2,11 +2,14 @@
 
 A ``LookfeelError`` carries a message for a person: one line that names the file, key or value
 and what is wrong. ``lookfeel.cli.main`` catches it once, prints ``lookfeel: <message>`` and
-exits 1; anything else is a bug and keeps its traceback. Library code raises a subclass (or this
-class) and never prints.
+exits 1 (as it does for an ``OSError`` naming a file the system refused, and Ctrl-C, which
+exits 130); anything else is a bug and keeps its traceback. Library code raises a subclass (or
+this class) and never prints.
 """
 
 from __future__ import annotations
+
+import os
 
 
 class LookfeelError(ValueError):
@@ -17,12 +20,25 @@ class LookfeelError(ValueError):
     """
 
 
-def load_problem(e: Exception) -> str:
+def load_problem(e: Exception, path: str | os.PathLike[str] | None = None) -> str:
     """Why ``torch.load(path, weights_only=True)`` or ``np.load(path, allow_pickle=False)``
     failed, in one line for a person. Both refuse a file that is not theirs with paragraphs
     advising to load it unsafely (``weights_only=False``, ``allow_pickle=True``: running code
     from the file), which lookfeel never does: keep the reason alone, else the error's first
-    sentence."""
+    sentence. Given the file's ``path``, a file that begins as neither a zip archive (what
+    ``torch.save`` and ``np.savez`` write) nor a pickle is said to be so: torch's own error for
+    it (a text file gives ``KeyError: '101'``) says nothing."""
+    if path is not None:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(4)
+        except OSError:
+            head = b"PK\x03\x04"  # unreadable now: leave it to the error itself
+        if head and not head.startswith((b"PK\x03\x04", b"\x80", b"\x93NUMPY")):
+            return (
+                "not a file torch.save or NumPy wrote: it begins as neither a zip archive nor "
+                "a pickle"
+            )
     text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
     if text.startswith("Weights only load failed"):  # torch
         _, _, reason = text.partition("WeightsUnpickler error:")

@@ -14,7 +14,7 @@ from pathlib import Path
 import torch
 from torch import Tensor, nn
 
-from lookfeel.errors import LookfeelError
+from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.models.backbone import Backbone
 
 __all__ = ["PretrainedError", "apply_state_dict", "load_pretrained", "read_state_dict"]
@@ -53,7 +53,9 @@ def read_state_dict(path: str | os.PathLike[str]) -> dict[str, Tensor]:
         try:  # files in the legacy (pre-zip) format cannot be memory-mapped
             data = torch.load(p, map_location="cpu", weights_only=True)
         except Exception as e:  # torch raises several types for corrupt or foreign files
-            raise PretrainedError(f"{p}: not a readable PyTorch weights file ({e})") from None
+            raise PretrainedError(
+                f"{p}: not a readable PyTorch weights file ({load_problem(e, p)})"
+            ) from None
     if not isinstance(data, Mapping):
         raise PretrainedError(
             f"{p}: not a state dict (a mapping of parameter names to tensors); "
