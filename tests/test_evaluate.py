@@ -661,3 +661,36 @@ def test_a_split_of_the_run_on_another_dataset_is_warned_of(run: tuple[Path, Pat
     with warnings.catch_warnings():  # every item of any dataset: nothing of the run's is used
         warnings.simplefilter("error")
         embed_checkpoint(loaded, other, "all")
+
+
+def test_touch_to_touch_with_every_press_in_its_query_is_not_scored_and_says_why(
+    tmp_path: Path,
+):
+    """Three presses a fabric pooled three at a time leave no press of the query's fabric
+    among touch to touch's single presses: that pair is marked not scored with the reason
+    (result, notes, printed summary, report), its calibration is NaN, and the other pairs are
+    scored as they were."""
+    from lookfeel.evaluate import summary_lines
+
+    embedded, _ = _world(per={D: 4, T: 3}, noise=0.1)
+    r = evaluate_embeddings(embedded, dataclasses.replace(FAST, presses=3))
+    t2t = Pair(T, T)
+    assert set(r.not_scored) == {t2t}
+    why = r.not_scored[t2t]
+    assert "no test fabric has more than 3 touch presses" in why
+    assert why.endswith("use --set presses=2 or fewer")
+    assert any(n.startswith("touch_to_touch not scored: ") for n in r.notes)
+    assert np.isnan(r.metrics["touch_to_touch_top1"])
+    cal = r.calibration[t2t]
+    assert all(np.isnan(v) for v in (cal.accuracy, cal.confidence, cal.nll, cal.reliability.ece))
+    assert r.metrics["touch_to_depth_top1"] == pytest.approx(1.0)  # pooled queries still score
+    assert not any("c for touch_to_touch" in n for n in r.notes)  # no c fitted on nothing
+    lines = summary_lines(r)
+    assert f"  touch_to_touch   not scored: {why}" in lines
+    assert not any("nan" in line for line in lines)
+    report = write_report(r, tmp_path).report.read_text()
+    assert "| touch → touch | not scored |" in report
+    assert f"Not scored: touch → touch: {why}." in report
+    # Two presses a query leave one to find: scored, nothing marked.
+    r2 = evaluate_embeddings(embedded, dataclasses.replace(FAST, presses=2))
+    assert not r2.not_scored and r2.metrics["touch_to_touch_top1"] == pytest.approx(1.0)

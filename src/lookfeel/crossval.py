@@ -36,16 +36,17 @@ by its *last* checkpoint (no choice is made on the held-out fabrics), and report
   embeddings carried into the other's by linear maps fitted on the run's training fabrics.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
-that resamples the held-out fabrics (all their queries together). Each held-out fabric (or
-object) also gets its own top-1 over every query it made in every run, beside raw pixels
-(``per_item`` in ``cv.json``; the worst few in ``cv.md``): which items the model cannot tell
-apart. Physical properties are
-predicted from the fabric-mean embeddings of the held-out fabrics by a ridge probe fitted on the
-training fabrics of the same fold (R^2 and Spearman per label), again beside raw pixels and,
-with depth and the background control on, beside the **room alone** (`RoomProbe`: the same probe
-on each raw depth image's background pixels, no cloth). Each fabric was captured in one session;
-where sessions follow the labels, the room predicts them, and a model's probe is only as good
-as its lead over the room's.
+that resamples the held-out fabrics (all their queries together). A pair none of whose queries has
+an item of its own fabric to find (touch to touch when every held-out fabric's presses all went
+into its query) gets no numbers but the reason (``not_scored`` in ``cv.json``). Each held-out
+fabric (or object) also gets its own top-1 over every query it made in every run, beside raw pixels
+(``per_item`` in ``cv.json``; the worst few in ``cv.md``): which items the model cannot tell apart.
+Physical properties are predicted from the fabric-mean embeddings of the held-out fabrics by a
+ridge probe fitted on the training fabrics of the same fold (R^2 and Spearman per label), again
+beside raw pixels and, with depth and the background control on, beside the **room alone**
+(`RoomProbe`: the same probe on each raw depth image's background pixels, no cloth). Where the
+background follows the labels (as when each fabric was captured in its own session), the room
+predicts them, and a model's probe is only as good as its lead over the room's.
 For a model with class heads (``model.class_heads``: hardness 0/1/2, material ...), each held-out
 press's class is read from the heads, one press at a time and with every press of an object
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training
@@ -81,7 +82,7 @@ from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.touch_control import UntouchedControl
 from lookfeel.embedding import EmbeddedItems, embed_items, press_pooler, raw_pixels
 from lookfeel.errors import LookfeelError
-from lookfeel.evaluate.core import press_queries
+from lookfeel.evaluate.core import no_query_scored, press_queries
 from lookfeel.metrics import (
     EXACT_PICK,
     PairScore,
@@ -104,7 +105,7 @@ from lookfeel.metrics.classes import (
 from lookfeel.metrics.cross_map import HUB_NEIGHBOURS, CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
-from lookfeel.train import run_started, train
+from lookfeel.train import run_started, select_split, train
 from lookfeel.train.loop import as_trained
 from lookfeel.train.validate import default_pairs
 
@@ -564,7 +565,12 @@ def score_checkpoint(
     presses = lm.config.data.presses if presses is None else presses
     res = _score(lm, catalog, catalog.ids, [], wanted, tta, loader, control, None, presses)
     names = {f.id: f.display_name for f in catalog.fabrics}
-    summary = _summarise([res], wanted, n_boot, control is not None, names)
+    kinds = [k.value for k in lm.config.data.touch_kinds]
+
+    def why(pair: Pair) -> str:
+        return no_query_scored(pair, presses, kinds=kinds, option="presses=")
+
+    summary = _summarise([res], wanted, n_boot, control is not None, names, why)
     return {
         "checkpoint": str(checkpoint),
         "data": str(data),
@@ -659,23 +665,29 @@ def _summarise(
     n_boot: int,
     control: bool = True,
     names: Mapping[int, str] | None = None,
+    why: Callable[[Pair], str] | None = None,
 ) -> dict[str, Any]:
     """The runs' scores pooled: per pair and method the mean over runs with a 95% interval
     resampling held-out items, each item's own top-1 (`_per_item`; ``names`` maps fabric ids
-    to what the report calls them), the property probes and the classes."""
+    to what the report calls them), the property probes and the classes. A pair no query of
+    which was scored in any run (none had an item of its own fabric to find) gets, instead of
+    numbers, ``not_scored``: ``why(pair)`` (default `no_query_scored` of single presses)."""
     summary: dict[str, Any] = {"runs": len(results), "pairs": {}, "properties": {}}
     summary["background_control"] = _control_status(results, control)
     for pair in pairs:
         entry: dict[str, Any] = {}
         groups = np.concatenate([r["pairs"][pair]["query_fabric"] for r in results])
+        model = [np.asarray(r["pairs"][pair]["model"], np.float64).reshape(-1) for r in results]
+        if all(np.isnan(v).all() for v in model):
+            entry["not_scored"] = why(pair) if why else no_query_scored(pair, 1, fabrics="held-out")
         for method in _METHODS:
-            if not all(method in r["pairs"][pair] for r in results):
+            if "not_scored" in entry or not all(method in r["pairs"][pair] for r in results):
                 continue
             per_run = [np.asarray(r["pairs"][pair][method], dtype=np.float64) for r in results]
             pooled = np.concatenate(per_run)
             low, high = bootstrap_ci(pooled, groups, n_boot=n_boot, seed=0)
             for j, k in enumerate(_KS):
-                runs = [float(np.nanmean(v[:, j])) for v in per_run]
+                runs = [_scored_mean(v[:, j]) for v in per_run]
                 spread = mean_and_spread(runs)
                 entry[f"{method}_top{k}"] = {
                     "mean": spread["mean"],
@@ -807,6 +819,12 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
     return out
 
 
+def _scored_mean(values: np.ndarray) -> float:
+    """The mean over the queries that were scored (``np.nanmean``); NaN, without numpy's
+    warning, when none was."""
+    return float(np.nanmean(values)) if (~np.isnan(values)).any() else math.nan
+
+
 def _fmt(x: dict[str, Any]) -> str:
     lo, hi = x["ci95"]
     return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]"
@@ -886,18 +904,20 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
         ("model top-3", "model_top3"),
         ("label space top-3", "model_labels_top3"),
     )
-    room = _has(summary, "model_labels_room_top1")
-    also = " (and registered in another fabric's room)" if room else ""
-    return _pair_table(
-        summary,
+    intro = (
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
         "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
         "run's training fabrics only, and a query matched to the gallery item whose predicted "
-        "labels are nearest; for pairs with depth also with every depth image's background "
-        f"swapped{also}, as in the "
-        "background control below.",
-        columns,
+        "labels are nearest"
     )
+    if _has(summary, "model_labels_swapped_top1"):  # the background control ran
+        room = _has(summary, "model_labels_room_top1")
+        also = " (and registered in another fabric's room)" if room else ""
+        intro += (
+            f"; for pairs with depth also with every depth image's background swapped{also}, "
+            "as in the background control below"
+        )
+    return _pair_table(summary, intro + ".", columns)
 
 
 def _mapped_lines(summary: dict[str, Any]) -> list[str]:
@@ -982,17 +1002,22 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     size = summary["fold_size"]
     per_fold = "every fabric held out once" if size is None else f"{size} fabrics per fold"
     fewer = any(e.get("chance_top1", 0.0) > 0.1 + 1e-9 for e in summary["pairs"].values())
+    runs = summary["runs"]
+    touch_pair = summary["pairs"].get("touch_to_touch", {})
+    same_touch = ""
+    if "touch_to_touch" in summary["pairs"]:
+        same_touch = "; touch to touch picks among the single presses outside the query" + (
+            " (none is left here: see below)" if "not_scored" in touch_pair else ""
+        )
     lines = [
-        f"Fabric-disjoint cross-validation: {summary['runs']} runs "
+        f"Fabric-disjoint cross-validation: {runs} run{'' if runs == 1 else 's'} "
         f"(folds {summary['folds']}, seeds {summary['seeds']}, {per_fold}). "
         "Pick 1 of 10 among each fold's held-out fabrics"
         + (" (1 of all of them where a fold holds fewer than 10: see chance)" if fewer else "")
-        + "; mean over runs "
-        "[95% interval, resampling held-out fabrics]."
+        + "; mean over runs [95% interval, resampling held-out fabrics]."
         + (
             f" Touch pools {summary['presses']} presses of one fabric, as a query and as the "
-            "candidates of another sense's queries (the Multi-input Net's protocol); touch to "
-            "touch picks among single presses."
+            f"candidates of another sense's queries (the Multi-input Net's protocol){same_touch}."
             if summary.get("presses", 1) > 1
             else ""
         ),
@@ -1001,6 +1026,12 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         "|---|---|---|---|---|---|",
     ]
     for pair, e in summary["pairs"].items():
+        if "not_scored" in e:
+            lines.append(
+                f"| {pair} | not scored | - | - | - "
+                f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
+            )
+            continue
         raw = (
             (_fmt(e["raw_pixels_top1"]), _fmt(e["raw_pixels_top3"]))
             if "raw_pixels_top1" in e
@@ -1010,6 +1041,9 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {pair} | {_fmt(e['model_top1'])} | {_fmt(e['model_top3'])} | {raw[0]} | {raw[1]} "
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
+    unscored = [(p, e["not_scored"]) for p, e in summary["pairs"].items() if "not_scored" in e]
+    if unscored:
+        lines += [""] + [f"Not scored: {pair.replace('_', ' ')}: {why}." for pair, why in unscored]
     lines += _label_space_lines(summary)
     lines += _mapped_lines(summary)
     lines += _control_lines(summary)
@@ -1021,7 +1055,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         lines += [
             "",
             f"Physical properties from {m} (ridge probe on fabric-mean embeddings, fitted on "
-            "each fold's training fabrics; mean ± std over runs):",
+            "each fold's training fabrics" + ("; mean ± std over runs):" if runs > 1 else "):"),
             "",
             "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |"
             + (" room alone R² | room alone Spearman |" if "room" in per else ""),
@@ -1035,15 +1069,17 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             lines += [
                 "",
                 "Room alone: the same probe on each raw depth image's background pixels (no "
-                "cloth; `lookfeel data leakage`'s rule). Every fabric was captured in one "
-                "session, so where it scores, the sessions follow the labels: read the model's "
-                "probe against it, not against zero.",
+                "cloth; `lookfeel data leakage`'s rule). Where it scores, the background "
+                "follows the labels (as it does when each fabric was captured in its own "
+                "session and the sessions follow the labels): read the model's probe against "
+                "it, not against zero.",
             ]
     for m, per in summary.get("classes", {}).items():
+        unit = "press" if m == Modality.TOUCH.value else "image"
         lines += [
             "",
             f"Classes from {m}: accuracy [95% interval, resampling held-out objects] / macro-F1. "
-            "model: the class head on one press; pooled: every press of an object at once; "
+            f"model: the class head on one {unit}; pooled: every {unit} of an object at once; "
             "probe: 5-NN on the training embeddings; raw pixels: 5-NN on training pixels; "
             "majority: the training majority class.",
             "",
@@ -1065,14 +1101,15 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
     cols = [(col, e["calibration"]) for col, e in per.items() if "calibration" in e]
     if not cols:
         return []
+    unit = "press" if modality == Modality.TOUCH.value else "image"
     lines = [
         "",
-        f"How far the class heads' probabilities from {modality} can be trusted (one press, "
-        "every run's held-out presses): the mean probability of the predicted class beside "
+        f"How far the class heads' probabilities from {modality} can be trusted (one {unit}, "
+        f"every run's held-out {unit}s): the mean probability of the predicted class beside "
         f"how often it is right, and their expected calibration error ({CALIBRATION_BINS} "
-        "bins); then a temperature fitted on the other folds' held-out presses applied to each "
-        "run's, and the temperature fitted on them all (`model.class_temperature` applies one "
-        "in `predict`).",
+        f"bins); then a temperature fitted on the other folds' held-out {unit}s applied to "
+        "each run's (- where there are none), and the temperature fitted on them all "
+        "(`model.class_temperature` applies one in `predict`).",
         "",
         "| label | probability | right | error | probability, other folds' temperature "
         "| error, other folds' temperature | temperature |",
@@ -1126,7 +1163,6 @@ def cross_validate(
         The summary that ``cv.json`` holds.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     t = config.train
     fold_list = list(range(t.folds)) if folds is None else list(folds)
     for f in fold_list:
@@ -1140,6 +1176,22 @@ def cross_validate(
     pairs = _pairs(config)
     loader = ImageLoader(config.data)  # runs differ only in train keys: one decode for all
     catalog = drop_unpressed(scan(data, require=config.train.modalities, strict=True), loader)
+    # The folds and the touch queries checked before anything is printed, written or trained.
+    select_split(catalog, _run_config(config, fold_list[0], seeds[0]))
+    kinds = [k.value for k in config.data.touch_kinds]
+    if presses > 1 and Modality.TOUCH in _modalities(pairs):
+        press_counts = np.unique(
+            [it.fabric_id for it in catalog.items(Modality.TOUCH, config.data.touch_kinds)],
+            return_counts=True,
+        )[1]
+        most = int(press_counts.max()) if len(press_counts) else 0
+        if most < presses:
+            raise ConfigError(
+                f"presses: no held-out fabric has {presses} touch presses ({', '.join(kinds)}) "
+                f"to pool into a query (no fabric of {catalog.root} has more than {most}); use "
+                f"--presses {max(most, 1)} or fewer"
+            )
+    out.mkdir(parents=True, exist_ok=True)
     uses_depth = any(Modality.DEPTH in (p.query, p.gallery) for p in pairs)
     control = (
         BackgroundControl(config.data, CONTROL_SEED) if background_control and uses_depth else None
@@ -1200,9 +1252,9 @@ def cross_validate(
             res = _with_room(res, run_dir, room)
             atomic_write_text(result_path, json.dumps(res) + "\n")
             first = res["pairs"][pairs[0]]
-            top1 = np.nanmean(np.asarray(first["model"])[:, 0])
+            top1 = _scored_mean(np.asarray(first["model"], np.float64)[:, 0])
             extra = "".join(
-                f", {name} {np.nanmean(np.asarray(first[method])[:, 0]):.3f}"
+                f", {name} {_scored_mean(np.asarray(first[method], np.float64)[:, 0]):.3f}"
                 for method, name in (
                     ("model_labels", "label space"),
                     ("model_mapped", "cross-modal map"),
@@ -1212,10 +1264,17 @@ def cross_validate(
                 if method in first
             )
             took = "" if math.isnan(seconds) else f" (trained in {seconds:.0f} s)"
-            log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f}{extra}{took}")
+            if math.isnan(top1):  # no query had its own fabric to find: the report says why
+                log(f"seed {seed} fold {fold}: {pairs[0]} not scored{took}")
+            else:
+                log(f"seed {seed} fold {fold}: {pairs[0]} top-1 {top1:.3f}{extra}{took}")
             results.append(res)
     names = {f.id: f.display_name for f in catalog.fabrics}
-    summary = _summarise(results, pairs, n_boot, control is not None, names) | {
+
+    def why(pair: Pair) -> str:
+        return no_query_scored(pair, presses, fabrics="held-out", kinds=kinds, option="--presses ")
+
+    summary = _summarise(results, pairs, n_boot, control is not None, names, why) | {
         "folds": fold_list,
         "seeds": list(seeds),
         "fold_size": t.fold_size,

@@ -74,7 +74,12 @@ def add_parser(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Evaluate and write the report; print each pair's top-k with its interval and chance."""
     from lookfeel.config import EvalConfig, load_config
-    from lookfeel.evaluate import evaluate_checkpoint, evaluate_embedding_file, write_report
+    from lookfeel.evaluate import (
+        evaluate_checkpoint,
+        evaluate_embedding_file,
+        summary_lines,
+        write_report,
+    )
 
     overrides = list(args.set)
     if args.released_variant:
@@ -104,18 +109,6 @@ def run(args: argparse.Namespace) -> int:
             return 2
         result = evaluate_embedding_file(args.embeddings, config, args.data)
     files = write_report(result, args.out)
-    k = result.config.ks[0]
-    print(f"Evaluated {result.info.get('split_description', 'the embeddings')}:")
-    for pair in result.pairs:
-        m = result.metrics
-        v, lo, hi = (m.get(f"{pair}_top{k}{s}", float("nan")) for s in ("", "_ci_low", "_ci_high"))
-        chance = m.get(f"{pair}_top{k}_chance", float("nan"))
-        swapped = m.get(f"{pair}_top{k}_swapped")
-        control = "" if swapped is None else f"  background swapped {swapped:.3f}"
-        room = m.get(f"{pair}_top{k}_room")
-        control += "" if room is None else f", in another fabric's room {room:.3f}"
-        mapped = m.get(f"{pair}_top{k}_mapped")
-        control += "" if mapped is None else f"  through the cross-modal map {mapped:.3f}"
-        print(f"  {pair:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}{control}")
+    print("\n".join(summary_lines(result)))
     print(f"Wrote {files.metrics}, {files.report} and {len(files.figures)} figures")
     return 0

@@ -35,7 +35,7 @@ from lookfeel.evaluate.from_checkpoint import (
     evaluate_embedding_file,
     pools_final_embedding,
 )
-from lookfeel.evaluate.report import ReportFiles, write_metrics, write_report
+from lookfeel.evaluate.report import ReportFiles, summary_lines, write_metrics, write_report
 from lookfeel.evaluate.result import CalibrationResult, EvalResult, PickExample, PressCurve
 
 __all__ = [
@@ -57,6 +57,7 @@ __all__ = [
     "max_pool_presses",
     "pools_final_embedding",
     "save_embeddings",
+    "summary_lines",
     "write_metrics",
     "write_report",
 ]

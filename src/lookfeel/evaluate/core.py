@@ -49,6 +49,7 @@ __all__ = [
     "PressPooler",
     "evaluate_embeddings",
     "max_pool_presses",
+    "no_query_scored",
     "press_queries",
     "project_to_labels",
     "scoring_protocol",
@@ -106,6 +107,45 @@ def press_queries(
     members = g.members.astype(np.int64)
     pooled = g.emb if pool is max_pool_presses else pool(e, members)
     return QuerySet(np.asarray(pooled, dtype=np.float64), fab[members[:, 0]], members)
+
+
+def no_query_scored(
+    pair: Pair,
+    presses: int,
+    *,
+    fabrics: str = "test",
+    kinds: Sequence[str] = (),
+    option: str = "presses=",
+) -> str:
+    """Why no query of ``pair`` could be scored: none has an item of its own fabric among
+    what it picks from (every per-query pick is NaN).
+
+    The usual cause is touch to touch with pooled queries: a query's own presses are never its
+    candidates, so a fabric with exactly ``presses`` presses leaves none of its own to find.
+
+    Args:
+        pair: the pair none of whose queries was scored.
+        presses: presses pooled into each touch query.
+        fabrics: what the scored fabrics are called (``"test"``, ``"held-out"``).
+        kinds: the press kinds counted (``("fold",)``), named in the text when given.
+        option: how the user sets ``presses``, followed by the number (``"--presses "``).
+
+    Returns:
+        One sentence without the pair's name, e.g. ``"no test fabric has more than 3 touch
+        presses, so ..."``.
+    """
+    q, g = pair.query.value, pair.gallery.value
+    if pair.same and pair.query is Modality.TOUCH and presses > 1:
+        kind = f" ({', '.join(kinds)})" if kinds else ""
+        fewer = presses - 1
+        return (
+            f"no {fabrics} fabric has more than {presses} touch presses{kind}, so each query "
+            f"pools every press of its fabric and leaves none to find among the single presses "
+            f"it picks from; use {option}{fewer}" + (" or fewer" if fewer > 1 else "")
+        )
+    if pair.same:
+        return f"no {fabrics} fabric has a second {q} item for a query to find"
+    return f"no {fabrics} fabric that makes a {q} query has a {g} candidate to find"
 
 
 class _Notes:
@@ -246,17 +286,23 @@ def _calibrate(
     config: EvalConfig,
     clusters: Mapping[Hashable, Hashable] | None,
     figure: bool,
+    scorable: bool = True,
 ) -> CalibrationResult:
+    """The calibration of one pair; ``scorable`` False (no query has an item of its own
+    fabric to find: `no_query_scored`) leaves its accuracy, confidence, ECE and NLL NaN."""
     probs, fabrics = fabric_probabilities(dist, gallery_fabric, c, exclude)  # (Q, F)
     rows = np.arange(len(probs))
     best = np.argmax(probs, axis=1) if len(probs) else np.zeros(0, dtype=np.int64)
     own = np.searchsorted(fabrics, q.fabric).clip(0, max(len(fabrics) - 1, 0))
     has = fabrics[own] == q.fabric if len(fabrics) else np.zeros(len(q.fabric), dtype=bool)
+    has &= scorable
     conf = np.clip(probs[rows, best][has], 0.0, 1.0)  # sums of P may round just past 1
     correct = (best == own)[has]
     p_own = probs[rows, own][has]
     rel = reliability_curve(conf, correct, config.n_bins)
     nan = float("nan")
+    if not has.any():  # nothing to be calibrated on: no error either
+        rel = replace(rel, ece=nan)
     confusion = cluster_conf = None
     if figure:
         order = None
@@ -659,6 +705,7 @@ def evaluate_embeddings(
     ref_queries: dict[Modality, QuerySet] = {}  # built once per modality, when c is fitted
     calibration: dict[Pair, CalibrationResult] = {}
     examples: dict[Pair, tuple[PickExample, ...]] = {}
+    not_scored: dict[Pair, str] = {}  # pairs none of whose queries has its own fabric to find
     glance_q = np.zeros(0, dtype=np.int64)
     if Modality.TOUCH in mods and any(m in mods for m in _LOOKS):
         count = min(GLANCE_QUERIES, config.examples)
@@ -692,15 +739,29 @@ def evaluate_embeddings(
         with notes.catching(pair):
             scored = score_distances(dist, qs.fabric, gf, protocol, exclude=excl)
         out = {f"{pair}_{k}": v for k, v in scored.metrics.items()}
+        scorable = scored.pick.n_queries > 0
+        if not scorable:  # its numbers are NaN: say why instead
+            kinds = [k.value for k in data_config.touch_kinds] if data_config else []
+            why = no_query_scored(pair, presses, kinds=kinds, option="--set presses=")
+            not_scored[pair] = why
+            notes.add(f"{pair} not scored: {why}")
         c_used, source = config.c, "fixed"
         if c_used is None:
             fitted = None
-            if reference is not None and config.fit_c and q in reference and g in reference:
+            if (
+                scorable
+                and reference is not None
+                and config.fit_c
+                and q in reference
+                and g in reference
+            ):
                 rg = reference_gallery(g, pair.same)
                 fitted = _fit_c(reference_queries(q), rg, q, g, notes)
             c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
         figure = pair in figure_pairs
-        cal = _calibrate(pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure)
+        cal = _calibrate(
+            pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure, scorable
+        )
         calibration[pair] = cal
         out[f"{pair}_c"] = cal.c
         out[f"{pair}_c_fitted"] = 1.0 if source == "fitted" else 0.0
@@ -841,4 +902,5 @@ def evaluate_embeddings(
         data_config=data_config,
         glance=tuple(glance),
         cross_maps=maps,
+        not_scored=not_scored,
     )

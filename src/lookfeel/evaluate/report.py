@@ -30,7 +30,7 @@ from lookfeel.plots import (
 
 from .result import CalibrationResult, EvalResult, GlanceExample, PickExample, PressCurve
 
-__all__ = ["ReportFiles", "write_metrics", "write_report"]
+__all__ = ["ReportFiles", "summary_lines", "write_metrics", "write_report"]
 
 _ARROW = "→"
 
@@ -159,7 +159,7 @@ def _section_pick(result: EvalResult) -> list[str]:
         rows.append(
             [
                 _pretty(pair),
-                _f(m.get(p)),
+                "not scored" if pair in result.not_scored else _f(m.get(p)),
                 _ci(m, p),
                 _f(m.get(f"{p}_sampled")),
                 _f(m.get(f"{pair}_top{cfg.ks[-1]}")) if len(cfg.ks) > 1 else "–",
@@ -182,9 +182,39 @@ def _section_pick(result: EvalResult) -> list[str]:
         ],
         rows,
     )
+    for pair, why in result.not_scored.items():
+        lines += [f"Not scored: {_pretty(pair)}: {why}.", ""]
     for pair in result.pairs:
         lines += [f"### {_pretty(pair)}", ""]
+        if pair in result.not_scored:
+            lines += [f"Not scored: {result.not_scored[pair]}.", ""]
+            continue
         lines += _table(["metric", "value", "95% interval", "chance"], _pair_rows(result, pair))
+    return lines
+
+
+def summary_lines(result: EvalResult) -> list[str]:
+    """What `lookfeel evaluate` prints: each pair's first top-k with its interval and chance,
+    beside the background control and the cross-modal map where they ran; a pair none of
+    whose queries could be scored says why instead (`EvalResult.not_scored`)."""
+    m, k = result.metrics, result.config.ks[0]
+    nan = float("nan")
+    lines = [f"Evaluated {result.info.get('split_description', 'the embeddings')}:"]
+    for pair in result.pairs:
+        if pair in result.not_scored:
+            lines.append(f"  {pair!s:<16} not scored: {result.not_scored[pair]}")
+            continue
+        v, lo, hi = (m.get(f"{pair}_top{k}{s}", nan) for s in ("", "_ci_low", "_ci_high"))
+        chance = m.get(f"{pair}_top{k}_chance", nan)
+        swapped = m.get(f"{pair}_top{k}_swapped")
+        control = "" if swapped is None else f"  background swapped {swapped:.3f}"
+        room = m.get(f"{pair}_top{k}_room")
+        control += "" if room is None else f", in another fabric's room {room:.3f}"
+        mapped = m.get(f"{pair}_top{k}_mapped")
+        control += "" if mapped is None else f"  through the cross-modal map {mapped:.3f}"
+        lines.append(
+            f"  {pair!s:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}{control}"
+        )
     return lines
 
 

@@ -165,6 +165,10 @@ class EvalResult:
             were scored.
         cross_maps: the cross-modal map of every pair scored through one (``*_mapped`` keys),
             fitted on the reference fabrics (`EvalConfig.cross_map`).
+        not_scored: pairs none of whose queries could be scored (none has an item of its own
+            fabric to find, e.g. touch to touch when every test fabric's presses all went into
+            its query), each with the reason (`lookfeel.evaluate.core.no_query_scored`); their
+            ``top{k}`` and calibration keys are NaN.
     """
 
     metrics: dict[str, float]
@@ -180,6 +184,7 @@ class EvalResult:
     data_config: DataConfig | None = None
     glance: tuple[GlanceExample, ...] = ()
     cross_maps: dict[Pair, CrossMap] = field(default_factory=dict)
+    not_scored: dict[Pair, str] = field(default_factory=dict)
 
     @property
     def figure_pairs(self) -> tuple[Pair, ...]:
