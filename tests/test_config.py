@@ -173,3 +173,61 @@ def test_pairs_load_as_pairs_and_save_as_their_names(tmp_path: Path):
         load_config(RunConfig, overrides=["train.val_pairs=[touch_to_depth,touch_depth]"])
     with pytest.raises(ConfigError, match="eval.figure_pairs: 'touch_to_smell' is not a modality"):
         EvalConfig(figure_pairs=("touch_to_smell",))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("section", "cls", "key"),
+    [
+        ("train", TrainConfig, "seed"),
+        ("train", TrainConfig, "split_seed"),
+        ("eval", EvalConfig, "seed"),
+    ],
+)
+def test_a_negative_seed_is_refused_naming_its_key(section: str, cls: type, key: str):
+    """numpy's generators take no negative seed: -1 failed deep in training or evaluation with
+    numpy's "expected non-negative integer" (QA); the config refuses it, and 0 is a seed."""
+    with pytest.raises(ConfigError, match=rf"^{section}\.{key}: must be >= 0, got -1$"):
+        from_dict(cls, {key: -1})
+    assert getattr(from_dict(cls, {key: 0}), key) == 0
+    if section == "train":  # as `lookfeel train --set train.seed=-1` gives it
+        with pytest.raises(ConfigError, match=rf"^--set train\.{key}=-1: train\.{key}: must"):
+            load_config(RunConfig, None, [f"train.{key}=-1"])
+
+
+def test_an_input_smaller_than_the_backbone_takes_is_refused_naming_the_size_key():
+    """alexnet at 32 px, compact or resnet18 at 8 px trained until the first forward pass and
+    died with a traceback (QA). The minimum is the backbone class's own, passed in."""
+    from lookfeel.models import BACKBONES
+
+    for name, cls in BACKBONES.items():
+        low = cls.min_size - 1
+        cfg = load_config(RunConfig, None, [f"model.backbone={name}", f"data.image_size={low}"])
+        with pytest.raises(ConfigError) as e:
+            cfg.check_input_sizes(cls.min_size)
+        assert str(e.value) == (
+            f"data.image_size={low} is below the {cls.min_size} px on each side that "
+            f"model.backbone={name} accepts; set data.image_size to at least {cls.min_size}, "
+            "or choose another model.backbone"
+        )
+        at_min = dataclasses.replace(cfg, data=DataConfig(image_size=cls.min_size))
+        at_min.check_input_sizes(cls.min_size)  # the minimum itself is fine
+
+
+def test_the_colour_size_is_checked_where_colour_has_its_own_and_is_trained():
+    from lookfeel.models import BACKBONES
+
+    least = BACKBONES["alexnet"].min_size
+    base = ["model.backbone=alexnet", f"data.image_size={least + 1}"]
+    small_colour = load_config(RunConfig, None, [*base, "data.color_size=32"])
+    with pytest.raises(
+        ConfigError, match=rf"^data\.color_size=32 is below the {least} px .*alexnet"
+    ):
+        small_colour.check_input_sizes(least)
+    both = load_config(RunConfig, None, [*base, "data.image_size=32", "data.color_size=32"])
+    with pytest.raises(ConfigError, match=r"^data\.image_size=32 and data\.color_size=32 are "):
+        both.check_input_sizes(least)
+    # Without colour in the training tuple its size is never used, so never refused.
+    no_colour = load_config(
+        RunConfig, None, [*base, "data.color_size=32", "train.views=[depth,touch]"]
+    )
+    no_colour.check_input_sizes(least)

@@ -491,3 +491,155 @@ def test_each_held_out_item_is_scored_over_its_own_queries_worst_first():
     assert table[0] == "| touch_to_touch | F0003 | 4 | 0.500 | 0.000 |"
     assert table[-1] == "| touch_to_touch | (1 of 3 items always right) | | | |"
     assert _per_item_lines({"pairs": {pair: {}}}) == []
+
+
+def test_cli_cv_refuses_a_negative_seed_and_a_too_small_image_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """``--seeds=-1`` ended in numpy's traceback ("expected non-negative integer") and alexnet
+    at 32 px in one from the trunk (QA). Both are one line now, before the folds are made:
+    the dataset given does not exist, and OUT is not created."""
+    out = tmp_path / "cv"
+    args = ["cv", "--config", str(TINY), "--data", str(tmp_path / "none"), "--out", str(out)]
+    with pytest.raises(SystemExit) as e:
+        main([*args, "--seeds=0,-1,-2"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1] == (
+        "lookfeel cv: error: argument --seeds: a seed must be an integer >= 0, got -1, -2"
+    )
+    assert main([*args, "--set", "model.backbone=alexnet", "--set", "model.width=null"]) == 1
+    assert capsys.readouterr().err.startswith(
+        "lookfeel: data.image_size=32 is below the 63 px on each side that model.backbone=alexnet"
+    )
+    assert not out.exists()
+
+
+def _hand_made_run(fold: int, pairs: dict[str, dict[str, list]]) -> dict:
+    """A run's result as `_score` writes it: per pair its queries' fabrics, per method the
+    per-query (top-1, top-3), and chance."""
+    from lookfeel.modality import Pair
+
+    out = {}
+    for name, methods in pairs.items():
+        fabrics = [10 * fold + i for i in range(len(methods["model"]))]
+        out[Pair.parse(name)] = {"query_fabric": fabrics, "chance": [0.25, 0.75], **methods}
+    return {"fold": fold, "pairs": out, "properties": {}}
+
+
+def _report(results: list[dict], **extra) -> tuple[dict, str]:
+    """`_summarise` and `format_cv_summary` of hand-made runs, numpy's warnings as errors."""
+    import warnings
+
+    from lookfeel.crossval import _summarise, format_cv_summary
+    from lookfeel.evaluate.core import no_query_scored
+
+    pairs = list(results[0]["pairs"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        summary = _summarise(
+            results, pairs, 20, why=lambda p: no_query_scored(p, 3, option="--presses ")
+        )
+        summary |= {"folds": [0, 1], "seeds": [0], "fold_size": 4, "presses": 3} | extra
+        return summary, format_cv_summary(summary)
+
+
+def test_a_pair_no_query_of_which_was_scored_says_why_and_warns_nothing():
+    """Touch to touch with every press of a fabric in its query has nothing to find in any
+    run: cv.json gives the reason instead of NaN numbers, cv.md says so, numpy stays silent;
+    the other pairs and a pair scored in only some runs keep their numbers."""
+    nan = float("nan")
+    runs = [
+        _hand_made_run(fold, {
+            "touch_to_depth": {"model": [[1.0, 1.0], [0.0, 1.0]]},
+            "touch_to_touch": {"model": [[nan, nan]] * 2, "raw_pixels": [[nan, nan]] * 2},
+            "depth_to_depth": {"model": [[nan, nan], [nan, nan]] if fold else [[1.0, 1.0]] * 2},
+        })
+        for fold in (0, 1)
+    ]  # fmt: skip
+    summary, md = _report(runs)
+    t2t = summary["pairs"]["touch_to_touch"]
+    assert t2t["not_scored"].startswith("no test fabric has more than 3 touch presses")
+    assert t2t["not_scored"].endswith("use --presses 2 or fewer")
+    assert not any(k.startswith(("model", "raw_pixels")) for k in t2t)
+    assert t2t["chance_top1"] == 0.25 and t2t["per_item"] == []
+    assert summary["pairs"]["touch_to_depth"]["model_top1"]["mean"] == pytest.approx(0.5)
+    d2d = summary["pairs"]["depth_to_depth"]["model_top1"]  # scored in fold 0 only
+    assert d2d["mean"] == 1.0 and np.isnan(d2d["per_run"][1])
+    assert "| touch_to_touch | not scored | - | - | - | 0.250 / 0.750 |" in md
+    assert f"Not scored: touch to touch: {t2t['not_scored']}." in md
+    assert "touch to touch picks among the single presses outside the query (none is left" in md
+    assert "nan" not in md
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_cv_with_every_fold_press_in_one_query_marks_touch_to_touch_not_scored(
+    data: Path, tmp_path: Path
+):
+    """The tiny data's 3 fold presses a fabric, pooled 3 at a time: cv trains and scores every
+    other pair, and touch to touch carries the reason, with the presses to use, in cv.json,
+    cv.md and the run's line."""
+    path = Path(__file__).resolve().parents[1] / "configs" / "synth_cross.yaml"
+    overrides = ["train.folds=2", "train.fold_size=3", "train.steps=2", "train.val_every=0"]
+    pairs = "train.val_pairs=[touch_to_touch,touch_to_depth]"  # the run's line: the first
+    config = load_config(RunConfig, path, [*overrides, "data.image_size=32", pairs])
+    logs: list[str] = []
+    summary = cross_validate(
+        config,
+        data,
+        tmp_path / "cv",
+        folds=[0],
+        n_boot=20,
+        presses=3,
+        background_control=False,
+        log=logs.append,
+    )
+    why = summary["pairs"]["touch_to_touch"]["not_scored"]
+    assert why == (
+        "no held-out fabric has more than 3 touch presses (fold), so each query pools every "
+        "press of its fabric and leaves none to find among the single presses it picks from; "
+        "use --presses 2 or fewer"
+    )
+    assert (
+        json.loads((tmp_path / "cv" / "cv.json").read_text())["pairs"]["touch_to_touch"]
+        == (summary["pairs"]["touch_to_touch"])
+    )
+    assert 0.0 <= summary["pairs"]["touch_to_depth"]["model_top1"]["mean"] <= 1.0
+    assert f"Not scored: touch to touch: {why}." in (tmp_path / "cv" / "cv.md").read_text()
+    assert logs[-1].startswith("seed 0 fold 0: touch_to_touch not scored (trained in")
+
+
+def test_cv_md_says_only_what_the_options_made():
+    """Without the background control the label-space paragraph points at no control section;
+    with it, it does; the room-alone note holds for any dataset; one run is one run."""
+    base = {"model": [[1.0, 1.0], [0.0, 1.0]], "model_labels": [[1.0, 1.0], [1.0, 1.0]]}
+    _, plain = _report([_hand_made_run(0, {"depth_to_depth": base})], runs=1)
+    assert "Matching in label space" in plain and "background" not in plain
+    assert plain.startswith("Fabric-disjoint cross-validation: 1 run (")
+    swapped = base | {"model_labels_swapped": [[0.0, 1.0], [1.0, 1.0]]}
+    summary, control = _report([_hand_made_run(0, {"depth_to_depth": swapped})])
+    assert "background swapped, as in the background control below." in control
+    probe = {"thickness_mm": {"r2": 0.5, "r2_std": 0.1, "spearman": 0.4, "spearman_std": 0.1}}
+    summary["properties"] = {"depth": {"model": probe, "raw_pixels": probe, "room": probe}}
+    from lookfeel.crossval import format_cv_summary
+
+    md = format_cv_summary(summary)
+    assert "Where it scores, the background follows the labels" in md
+    assert "Every fabric was captured in one session" not in md
+
+
+def test_impossible_folds_or_presses_are_refused_before_anything_is_printed_or_written(
+    data: Path, tmp_path: Path
+):
+    """2 folds of 5 of the 7 fabrics, or touch queries of more presses than any fabric has:
+    refused with the numbers, no line logged and no folder made."""
+    from lookfeel.data import SplitError
+
+    logs: list[str] = []
+    big = load_config(RunConfig, TINY, [*OVERRIDES, "train.fold_size=5"])
+    with pytest.raises(SplitError, match="2 folds of 5 fabrics need 10 training fabrics"):
+        cross_validate(big, data, tmp_path / "cv", log=logs.append)
+    touch = load_config(RunConfig, TINY, ["train.folds=2", "train.fold_size=3"])
+    with pytest.raises(ConfigError, match=r"has more than 3\); use --presses 3 or fewer"):
+        cross_validate(touch, data, tmp_path / "cv", presses=4, log=logs.append)
+    assert logs == [] and not (tmp_path / "cv").exists()

@@ -52,3 +52,18 @@ def test_header_is_required(tmp_path: Path):
     assert problems[0].message.startswith("no 'fabric_id' or 'object' column in the header")
     _, problems = _read(tmp_path, "")
     assert [p.message for p in problems] == ["labels file is empty"]
+
+
+def test_an_infinite_cell_is_not_finite_and_a_nan_cell_is_unknown(tmp_path: Path):
+    """The reader's words for a number that is not finite (synth's labels check says the same,
+    tests/test_synth.py); a plain "nan" is an empty cell, "+nan" a number that is not finite."""
+    table, problems = _read(
+        tmp_path, "fabric_id,density,stiffness\n1,inf,2\n2,-inf,2\n3,nan,2\n4,+nan,2\n5,1,2\n"
+    )
+    assert [(p.line, p.message) for p in problems] == [
+        (2, "column 'density': 'inf' is not finite"),
+        (3, "column 'density': '-inf' is not finite"),
+        (5, "column 'density': '+nan' is not finite"),
+    ]
+    assert table.rows[3].values == {"stiffness": 2.0}  # nan: unknown, not a problem
+    assert table.rows[5].values == {"density": 1.0, "stiffness": 2.0}

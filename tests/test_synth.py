@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import subprocess
 import sys
 import warnings
@@ -18,14 +19,21 @@ from scipy import ndimage, stats
 
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config.recipes import recipe_path
-from lookfeel.data import check_dataset, parse_touch_name
+from lookfeel.data import check_dataset, parse_touch_name, read_labels
 from lookfeel.modality import REPRINTS, Modality, PressKind, reprint_path
 from lookfeel.synth import MANIFEST, SIZE_PRESETS, SynthConfig, generate
 from lookfeel.synth import world as world_module
 from lookfeel.synth.color import render_color
 from lookfeel.synth.depth import render_depth
 from lookfeel.synth.drape import drape_surface, sample_drape
-from lookfeel.synth.fabric import MATERIALS, Fabric, make_fabric, reprinted, sample_fabrics
+from lookfeel.synth.fabric import (
+    MATERIALS,
+    Fabric,
+    make_fabric,
+    read_label_file,
+    reprinted,
+    sample_fabrics,
+)
 from lookfeel.synth.gelsight import fold_gap_mm, no_contact_frame, render_press, sensor
 from lookfeel.synth.measure import (
     drape_extent,
@@ -240,6 +248,66 @@ def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
     with pytest.raises(ValueError, match=r"labels\.csv: not a text CSV in UTF-8 \(byte 0"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
+
+
+_LABELS_HEADER = "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split\n"
+
+
+@pytest.mark.parametrize(
+    ("row", "said"),
+    [
+        ("2,2,2.7,1.3,3.3,1,bogus", ":3: column 'paper_split': 'bogus' is not one of train, "),
+        ("2,-1,2.7,1.3,3.3,1,test", ":3: column 'cluster8': '-1' is not a cluster number"),
+        ("2,2.5,2.7,1.3,3.3,1,test", ":3: column 'cluster8': '2.5' is not a cluster number"),
+    ],
+)
+def test_label_mode_refuses_a_labels_file_the_dataset_reader_refuses(
+    tmp_path: Path, row: str, said: str
+) -> None:
+    """synth copies the labels file as the world's labels.csv: one the dataset reader refuses
+    (a paper_split of 'bogus', QA) made a world that `lookfeel data check` then refused. It is
+    refused up front now, with the reader's own line, and nothing is written."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text(_LABELS_HEADER + "1,0,5.3,3.9,2.8,0.5,train\n" + row + "\n")
+    assert [said in str(p) for p in read_labels(labels)[1]] == [True]  # the reader's words
+    with pytest.raises(ValueError, match=re.escape(f"{labels}{said}")):
+        generate(TINY, tmp_path / "out", labels=labels, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_label_mode_takes_the_clusters_and_unknown_cells_the_dataset_reader_takes(
+    tmp_path: Path,
+) -> None:
+    """A cluster is any integer >= 0 for the reader, whatever the column is called (9 in
+    ``cluster8``), and "nan" is an unknown cell: synth takes both, as the reader does."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        _LABELS_HEADER + "1,9,5.3,nan,2.8,0.5,train\n2,2,2.7,1.3,3.3,1,test\n2007,2,,,,,\n"
+    )
+    assert read_labels(labels)[1] == []
+    assert read_label_file(labels).ids == (1, 2, 2007)
+
+
+@pytest.mark.parametrize("value", ["inf", "-inf", "1e999", "+nan"])
+def test_label_mode_says_an_infinite_label_is_not_finite(tmp_path: Path, value: str) -> None:
+    """'inf' was refused with "must be >= 0" (QA), which is not what is wrong with it."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text(_LABELS_HEADER + f"1,0,5.3,{value},2.8,0.5,train\n")
+    with pytest.raises(
+        ValueError, match=rf"line 2: column 'density': '{re.escape(value)}' is not finite$"
+    ):
+        read_label_file(labels)
+    labels.write_text(_LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n")  # negative: its own words
+    with pytest.raises(ValueError, match=r"line 2: column 'thickness_mm': '-5.3' must be >= 0$"):
+        read_label_file(labels)
+
+
+def test_label_mode_says_a_non_ascii_digit_is_not_a_fabric_id(tmp_path: Path) -> None:
+    """A "²" is a digit to str.isdigit but not to int(), which said "invalid literal"."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text("fabric_id,density\n\u00b2,1\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="line 2: fabric_id '\u00b2' is not an integer$"):
+        read_label_file(labels)
 
 
 def test_test_fabrics_sets_how_many_are_held_out_and_nothing_else(tmp_path: Path) -> None:

@@ -186,6 +186,26 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
 
 
+def test_a_run_resumes_without_its_pretrained_file_or_named_from_elsewhere(
+    data: Path, tmp_path: Path
+):
+    """A resumed run takes every weight from its checkpoint: the weights file it started from
+    is not read again, and naming it another way (from another folder) is no change."""
+    from lookfeel.models import create_backbone
+
+    weights = tmp_path / "resnet18.pth"
+    torch.save(create_backbone("resnet18").state_dict(), weights)
+    net = ["model.backbone=resnet18", "model.width=null", "data.image_size=32"]
+    train(_config(*net, f"model.pretrained={weights}", "train.steps=2"), data, tmp_path / "run")
+    weights.rename(tmp_path / "moved.pth")  # gone from where the run named it
+    longer = _config(*net, "model.pretrained=moved.pth", "train.steps=3")
+    resumed = train(longer, data, tmp_path / "run", resume=True)
+    assert load_model(resumed.last_checkpoint).step == 3
+    with pytest.raises(ConfigError, match=r"data.image_size \(32 -> 40\)"):  # others: refused
+        train(_config(*net[:2], "data.image_size=40", "train.steps=4"), data, tmp_path / "run",
+              resume=True)  # fmt: skip
+
+
 def test_a_run_saved_in_nchw_layout_resumes_channels_last(data: Path, tmp_path: Path):
     """A run killed before training went channels-last on the CPU (session 26) holds its Adam
     state in NCHW layout. Resumed now, its convolutions are channels-last and the state is laid
@@ -383,6 +403,7 @@ def test_cli_train_then_load_and_embed(data: Path, tmp_path: Path, capsys):
     assert main([*args, "--set", "train.lr=2"]) == 1
     assert "already holds a run" in capsys.readouterr().err
     alexnet = ["--set", "model.backbone=alexnet", "--set", "model.width=null"]
+    alexnet += ["--set", "data.image_size=64"]  # its least is 63: 32 px is refused first
     weights = ["--pretrained", str(tmp_path / "missing.pth")]
     assert main([*args[:-1], str(tmp_path / "p"), *alexnet, *weights]) == 1
     assert "missing.pth" in capsys.readouterr().err
@@ -430,6 +451,8 @@ def test_two_processes_agree_with_one(data: Path, tmp_path: Path):
     ]  # fmt: skip
     proc = subprocess.run(multi, env=env, capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    # One process reports the run they trained together.
+    assert proc.stdout.count("Trained 6 steps; run in") == 1, proc.stdout
     assert _states_equal(
         tmp_path / "one/checkpoints/last.pt", tmp_path / "two/checkpoints/last.pt", atol=1e-5
     )
@@ -536,3 +559,25 @@ def test_train_gives_back_the_callers_cudnn_autotuner_setting(
     else:
         assert train(_config("train.steps=1"), data, tmp_path / "run") == "trained"
     assert torch.backends.cudnn.benchmark is False
+
+
+def test_an_image_smaller_than_the_backbone_takes_is_refused_before_the_data_are_read(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """alexnet at 32 px (the tiny config's size) trained until the trunk cache's first forward
+    pass and died with a 40-line traceback (QA). Now `train` refuses it first: the dataset
+    given here does not exist, and the size, not the data, is what it names."""
+    alexnet = ("model.backbone=alexnet", "model.width=null")
+    for extra in ((), ("model.members=2",)):  # an ensemble's too, before its first member
+        with pytest.raises(ConfigError, match=r"^data\.image_size=32 is below the 63 px"):
+            train(_config(*alexnet, *extra), tmp_path / "no-data", tmp_path / "run")
+        assert not (tmp_path / "run").exists()
+    out = tmp_path / "cli"
+    args = ["train", "--config", str(TINY), "--data", str(data), "--out", str(out)]
+    assert main([*args, "--set", "data.image_size=8"]) == 1  # compact needs 16
+    assert capsys.readouterr().err == (
+        "lookfeel: data.image_size=8 is below the 16 px on each side that "
+        "model.backbone=compact accepts; set data.image_size to at least 16, or choose "
+        "another model.backbone\n"
+    )
+    assert not out.exists()

@@ -46,7 +46,11 @@ def add_parser(subparsers: Subparsers) -> None:
         help="run only these folds, e.g. 0,1,2 (default: all)",
     )
     cv.add_argument(
-        "--seeds", type=_int_list, default=[0], metavar="S,S", help="training seeds (default 0)"
+        "--seeds",
+        type=_seed_list,
+        default=[0],
+        metavar="S,S",
+        help="training seeds, integers >= 0 (default 0)",
     )
     cv.add_argument(
         "--tta",
@@ -85,10 +89,23 @@ def _int_list(text: str) -> list[int]:
     return values
 
 
+def _seed_list(text: str) -> list[int]:
+    """``"0,1"`` -> ``[0, 1]``, refusing a negative seed (numpy's generators take none), as
+    ``train.seed`` does (an argparse type)."""
+    values = _int_list(text)
+    negative = [v for v in values if v < 0]
+    if negative:
+        raise argparse.ArgumentTypeError(
+            f"a seed must be an integer >= 0, got {', '.join(map(str, negative))}"
+        )
+    return values
+
+
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
     from lookfeel.config import RunConfig, load_config
     from lookfeel.crossval import cross_validate, format_cv_summary
+    from lookfeel.models import BACKBONES
 
     path, overrides = run_config_source(args)
     if args.folds is not None:
@@ -96,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
     if args.fold_size is not None:
         overrides.append(f"train.fold_size={args.fold_size}")
     config = load_config(RunConfig, path, overrides)
+    # Before the folds are made and the first run starts (each run checks again, in `train`).
+    config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
     summary = cross_validate(
         config,
         args.data,

@@ -11,6 +11,7 @@ RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on many processes und
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from lookfeel.cli._args import Subparsers, add_command, add_run_config, run_config_source
@@ -44,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
         overrides.append(f"model.pretrained={args.pretrained}")
     config = load_config(RunConfig, path, overrides)
     result = train(config, args.data, args.out, resume=args.resume)
+    if int(os.environ.get("RANK", "0")) != 0:
+        return 0  # under torchrun one process reports (they trained one run)
     print(f"Trained {result.steps} steps; run in {result.run_dir}")
     print(f"  last checkpoint: {result.last_checkpoint}")
     if result.best_checkpoint is not None:

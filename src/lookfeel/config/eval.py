@@ -47,7 +47,8 @@ class EvalConfig:
     alpha: float = 0.05
     """Intervals cover 1 - alpha (0.05: 95%)."""
     seed: int = 0
-    """Seeds every draw: the sampled protocol, bootstrap, press groups and pick examples."""
+    """Seeds every draw: the sampled protocol, bootstrap, press groups and pick examples
+    (>= 0)."""
     presses: int | None = None
     """Presses per touch query in the main ``touch_to_*`` keys, max-pooled like the
     Multi-input Net (paper: 3). ``None``: the checkpoint's ``data.presses`` (1 for bare
@@ -115,6 +116,8 @@ class EvalConfig:
             raise ConfigError(f"eval.presses: must be >= 1, got {self.presses}")
         if self.n_boot < 0:
             raise ConfigError(f"eval.n_boot: must be >= 0, got {self.n_boot}")
+        if self.seed < 0:  # numpy's generators take no negative seed
+            raise ConfigError(f"eval.seed: must be >= 0, got {self.seed}")
         if self.examples < 0:
             raise ConfigError(f"eval.examples: must be >= 0, got {self.examples}")
         if not 0.0 < self.alpha < 1.0:

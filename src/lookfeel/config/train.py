@@ -45,7 +45,7 @@ class TrainConfig:
     warmup_steps: int = 0
     """Linear warm-up steps for the learning rate."""
     seed: int = 0
-    """Seeds the model's initialisation, tuple draws, augmentation and dropout."""
+    """Seeds the model's initialisation, tuple draws, augmentation and dropout (>= 0)."""
     split: SplitKind = "stratified"
     """Validation fabrics: ``stratified`` holds out ``val_fabrics`` training fabrics evenly
     over clusters; ``paper`` validates on the paper's 18 test fabrics (when the data has them);
@@ -63,7 +63,7 @@ class TrainConfig:
     fold: int = 0
     """Which fold the ``fold`` split holds out (0-based)."""
     split_seed: int = 0
-    """Seed of the split (kept apart from ``seed`` so seeds vary over one split)."""
+    """Seed of the split (kept apart from ``seed`` so seeds vary over one split; >= 0)."""
     val_every: int = 1000
     """Validate every this many steps (and at the end); 0 only at the end."""
     val_pairs: tuple[Pair, ...] = ()
@@ -116,7 +116,15 @@ class TrainConfig:
         for key in ("steps", "batch_size", "feature_batch"):
             if getattr(self, key) < 1:
                 raise ConfigError(f"train.{key}: must be >= 1, got {getattr(self, key)}")
-        for key in ("val_every", "checkpoint_every", "log_every", "augment_copies", "workers"):
+        for key in (
+            "val_every",
+            "checkpoint_every",
+            "log_every",
+            "augment_copies",
+            "workers",
+            "seed",  # numpy's generators take no negative seed
+            "split_seed",
+        ):
             if getattr(self, key) < 0:
                 raise ConfigError(f"train.{key}: must be >= 0, got {getattr(self, key)}")
         if self.lr <= 0:
@@ -144,3 +152,34 @@ class RunConfig:
     model: ModelConfig = field(default_factory=ModelConfig)
     loss: LossConfig = field(default_factory=LossConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
+
+    def check_input_sizes(self, min_size: int) -> None:
+        """Refuse network inputs smaller than the backbone accepts, before any work is done.
+
+        Every branch uses ``model.backbone``; each modality the run trains (``train.views``)
+        enters it at ``data.size_of(modality)`` pixels a side: ``data.color_size`` for colour
+        when set, else ``data.image_size``. Without this check a too small image fails deep
+        inside training, after the data are loaded.
+
+        Args:
+            min_size: the smallest side the backbone accepts, in pixels: its class's
+                ``min_size`` (`lookfeel.models.BACKBONES`), which the caller looks up so that
+                the minimums live in one place and configs need not import the models.
+
+        Raises:
+            ConfigError: naming the size key, its value, the backbone and its minimum.
+        """
+        small: dict[str, int] = {}  # size key -> its value, for every key below the minimum
+        for modality in self.train.modalities:
+            own = modality is Modality.COLOR and self.data.color_size is not None
+            key = "color_size" if own else "image_size"
+            if self.data.size_of(modality) < min_size:
+                small[f"data.{key}"] = self.data.size_of(modality)
+        if small:
+            sizes = " and ".join(f"{k}={v}" for k, v in small.items())
+            verb = "is" if len(small) == 1 else "are"
+            raise ConfigError(
+                f"{sizes} {verb} below the {min_size} px on each side that "
+                f"model.backbone={self.model.backbone} accepts; set {' and '.join(small)} to "
+                f"at least {min_size}, or choose another model.backbone"
+            )

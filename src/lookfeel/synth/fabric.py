@@ -516,7 +516,7 @@ def _parse_id(text: str) -> int | None:
     t = text.strip()
     if t[:1] in ("F", "f"):
         t = t[1:]
-    return int(t) if t.isdigit() else None
+    return int(t) if t.isascii() and t.isdigit() else None  # not "²", which int() refuses
 
 
 def read_label_file(path: Path) -> LabelFile:
@@ -524,8 +524,10 @@ def read_label_file(path: Path) -> LabelFile:
 
     Raises:
         ValueError: the file is missing, has no ``fabric_id`` column, a row has a bad or
-            repeated id or the wrong number of cells, or a physical label is not a number;
-            the message names the file and line.
+            repeated id or the wrong number of cells, a physical label is not a number, not
+            finite or negative, or the dataset reader refuses the file (a ``paper_split``
+            other than train, test, excluded; a cluster that is not an integer >= 0); the
+            message names the file and line.
     """
     path = Path(path)
     try:
@@ -564,7 +566,11 @@ def read_label_file(path: Path) -> LabelFile:
                         raise ValueError(
                             f"{path}, line {line}: column {name!r}: {raw!r} is not a number"
                         ) from None
-                    if not math.isfinite(v) or v < 0:
+                    if not math.isfinite(v):  # "nan" alone means unknown, as in a dataset
+                        raise ValueError(
+                            f"{path}, line {line}: column {name!r}: {raw!r} is not finite"
+                        )
+                    if v < 0:
                         raise ValueError(
                             f"{path}, line {line}: column {name!r}: {raw!r} must be >= 0"
                         )
@@ -572,7 +578,29 @@ def read_label_file(path: Path) -> LabelFile:
         ids.append(fid)
     if not rows:
         raise ValueError(f"{path}: no fabric rows")
+    _check_as_dataset_labels(path)
     return LabelFile(path, header, tuple(rows), tuple(ids))
+
+
+def _check_as_dataset_labels(path: Path) -> None:
+    """Refuse a labels file that the dataset reader (`lookfeel.data.labels.read_labels`) would
+    reject: the world copies it as its own labels.csv, which `lookfeel data check` and
+    `lookfeel train` read with that reader, so synth must not write a world they refuse
+    (a ``paper_split`` of ``bogus``, a cluster of ``-1`` or ``2.5``). The reader's rules,
+    not a copy of them: a cluster is any integer >= 0, whatever the column's name says.
+
+    Raises:
+        ValueError: the reader's first problem, as it words it (``FILE:LINE: what``).
+    """
+    # Imported here, not at the top: `lookfeel.data` imports torch, which the spawned render
+    # workers (they import this module) never need.
+    from lookfeel.data.labels import read_labels
+
+    _, problems = read_labels(path)
+    errors = [p for p in problems if p.severity == "error"]
+    if errors:
+        more = f" (and {len(errors) - 1} more problem(s) in this file)" if len(errors) > 1 else ""
+        raise ValueError(f"{errors[0]}{more}")
 
 
 def _cell(lf: LabelFile, row: tuple[str, ...], name: str) -> float | None:

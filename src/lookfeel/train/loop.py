@@ -65,7 +65,14 @@ from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddingError
 from lookfeel.losses import create_loss
 from lookfeel.modality import REPRINTS, Modality, slot_modality
-from lookfeel.models import BranchEnsemble, Embedder, autocast, create_model, to_channels_last
+from lookfeel.models import (
+    BACKBONES,
+    BranchEnsemble,
+    Embedder,
+    autocast,
+    create_model,
+    to_channels_last,
+)
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.divergence import TrainingDiverged, diverged, weights_finite
 from lookfeel.train.features import FeatureTable
@@ -511,10 +518,12 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
     """The saved config, with a longer ``train.steps`` allowed; any other change is an error.
     What the run resolved from its labels counts as given where the config leaves it to the
-    labels (`as_trained`)."""
+    labels (`as_trained`). ``model.pretrained`` may differ (the same file named from another
+    folder, or no longer there): a resumed run takes every weight from its checkpoint."""
     old = from_dict(RunConfig, saved)
     a, b = _flatten(to_dict(old)), _flatten(to_dict(as_trained(given, old)))
-    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k != "train.steps")
+    free = ("train.steps", "model.pretrained")
+    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in free)
     if changed:
         raise ConfigError(
             f"--resume: the config differs from the run's ({path}) in "
@@ -666,6 +675,9 @@ def train(
     run_dir = Path(out)
     if loader is not None and loader.config != config.data:
         raise ValueError("train: the loader given must be of this run's data config")
+    # Images smaller than the backbone takes are refused here, before any data is read, not
+    # after the data are loaded; each backbone class knows its own minimum.
+    config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
     if config.model.members > 1:
         return _train_members(config, Path(data), run_dir, resume, on_step, loader)
     last = run_dir / "checkpoints" / "last.pt"
@@ -854,7 +866,13 @@ def _train(
     loader.preload([it for v in val_items.values() for it in v])
 
     torch.manual_seed(t.seed)
-    model = create_model(config.model, modalities, touch_channels=config.data.touch_channels)
+    # A resumed run's weights all come from its checkpoint: its pretrained file is not read.
+    model = create_model(
+        config.model,
+        modalities,
+        load_weights=state is None,
+        touch_channels=config.data.touch_channels,
+    )
     if state is None and config.model.init_from is not None:
         fresh = init_from_checkpoint(model, config.model.init_from)
         if fresh:
