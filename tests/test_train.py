@@ -581,3 +581,14 @@ def test_an_image_smaller_than_the_backbone_takes_is_refused_before_the_data_are
         "another model.backbone\n"
     )
     assert not out.exists()
+
+
+def test_a_cluster_the_head_has_no_class_for_is_refused_naming_it(data: Path, tmp_path: Path):
+    # The tiny fabrics' cluster8 column holds 0, 1 and 2 ((id - 1) % 3).
+    cfg = _config("model.cluster_head=true", "model.num_clusters=2", "train.steps=1")
+    with pytest.raises(ConfigError, match=r"labels.csv: fabric F0003 is in cluster 2, and the "
+                       r"cluster head has model.num_clusters=2 \(clusters 0-1\); set "
+                       r"model.num_clusters=3$"):  # fmt: skip
+        train(cfg, data, tmp_path / "run")
+    three = _config("model.cluster_head=true", "model.num_clusters=3", "train.steps=1")
+    assert train(three, data, tmp_path / "ok").steps == 1

@@ -220,12 +220,29 @@ def as_trained(asked: RunConfig, trained: RunConfig) -> RunConfig:
 
 
 def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
-    """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3)."""
-    if not config.model.cluster_head or all(f.cluster is not None for f in catalog.fabrics):
+    """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3).
+
+    Raises:
+        ConfigError: labels.csv names a cluster the head has no class for
+            (``model.num_clusters``).
+    """
+    if not config.model.cluster_head:
+        return catalog
+    k = config.model.num_clusters
+    beyond = sorted(
+        {f.cluster for f in catalog.fabrics if f.cluster is not None and f.cluster >= k}
+    )
+    if beyond:
+        first = next(f for f in catalog.fabrics if f.cluster == beyond[0])
+        raise ConfigError(
+            f"{catalog.root / 'labels.csv'}: fabric {first.display_name} is in cluster "
+            f"{beyond[0]}, and the cluster head has model.num_clusters={k} (clusters 0-{k - 1}); "
+            f"set model.num_clusters={beyond[-1] + 1}"
+        )
+    if all(f.cluster is not None for f in catalog.fabrics):
         return catalog
     if any(f.cluster is not None for f in catalog.fabrics):
         return catalog  # partly known: unknown ones are masked out of the cluster loss
-    k = config.model.num_clusters
     warnings.warn(
         f"no cluster column in labels.csv: clustering fabrics into {k} by k-means on their labels",
         stacklevel=3,
