@@ -76,9 +76,12 @@ def supported_opsets() -> range:
     """The ONNX opsets `export_onnx` accepts: `MIN_OPSET` up to the highest the installed
     torch's TorchScript exporter supports (above it torch only warns that the opset is
     unsupported, so lookfeel refuses it rather than write a file torch does not stand behind)."""
-    from torch.onnx import _constants
+    try:  # a private module of torch's (2.0 to 2.13 at least); without it, the default only
+        from torch.onnx import _constants
 
-    high = getattr(_constants, "ONNX_TORCHSCRIPT_EXPORTER_MAX_OPSET", _constants.ONNX_MAX_OPSET)
+        high = getattr(_constants, "ONNX_TORCHSCRIPT_EXPORTER_MAX_OPSET", _constants.ONNX_MAX_OPSET)
+    except (ImportError, AttributeError):
+        high = DEFAULT_OPSET
     return range(MIN_OPSET, int(high) + 1)
 
 
