@@ -765,6 +765,48 @@ def test_predict_answers_a_single_video_without_a_press_as_it_answers_several(
     assert out.out.strip().endswith("(nothing predicted)") and "foam_3.mov" in out.out
 
 
+def test_a_pooled_query_leaves_out_a_press_without_contact_and_says_so(
+    recordings: Path, video_model: tuple[Path, Path]
+):
+    """`--together` and a multi-press `match` go on with the presses they have, as a run
+    does; a query with none is still answered with its error."""
+    from lookfeel.checkpoint import load_model
+    from lookfeel.index import Library, Matcher
+    from lookfeel.predict import predict_files
+
+    ck, lib = video_model
+    videos = recordings / "videos"
+    unpressed = videos / "foam_3.mov"
+    pressed = sorted(p for p in videos.glob("foam_*.mov") if p != unpressed)
+    loaded = load_model(ck)
+    with pytest.warns(
+        UserWarning, match=r"foam_3\.mov: no contact found.*: left out of the pooled"
+    ):
+        (pooled,) = predict_files(loaded, [*pressed, unpressed], together=True)
+    (alone,) = predict_files(loaded, pressed, together=True)
+    assert pooled.error is None and pooled.paths == [str(p) for p in pressed]
+    assert pooled.properties == alone.properties
+    (none,) = predict_files(loaded, [unpressed, unpressed], together=True)
+    assert none.properties == {} and "no contact found" in (none.error or "")
+    matcher = Matcher(Library.open(lib))
+    with pytest.warns(UserWarning, match=r"foam_3\.mov: .*left out of the pooled query"):
+        (res,) = matcher.match_files([*pressed, unpressed], Modality.TOUCH, top=2)
+    assert res.query == [str(p) for p in pressed] and res.presses == len(pressed)
+
+
+def test_match_takes_a_video_as_touch_without_being_told(
+    recordings: Path, video_model: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.cli import main
+
+    _, lib = video_model
+    press = str(recordings / "videos" / "cork_0.mov")
+    assert main(["match", "--index", str(lib), press, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["query_modality"] == "touch"
+    assert main(["match", "--index", str(lib), str(recordings / "labels.csv")]) == 1
+    assert "not an image" in capsys.readouterr().err  # what the file shows cannot be told
+
+
 def test_a_library_of_named_objects_names_them_and_their_words(
     recordings: Path,
     video_model: tuple[Path, Path],

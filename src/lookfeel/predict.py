@@ -13,6 +13,7 @@ still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -128,7 +129,9 @@ def predict_files(
         One `Prediction` per file, or one for all with ``together``. A query whose video
         holds no press (too short, no contact) is answered with its ``error`` and no
         properties, the only query as well as one of several (the others are still
-        predicted); ``lookfeel predict`` exits with 1 when every query was answered so.
+        predicted); ``lookfeel predict`` exits with 1 when every query was answered so. With
+        ``together``, a press without one is left out of the pooled query with a warning (as
+        a run leaves it out), and the query is answered from the others (its ``paths``).
 
     Raises:
         PredictError: the model has no heads, lacks the modality, or the files mix modalities.
@@ -164,13 +167,21 @@ def predict_files(
     out = []
     with eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
-            try:
-                images = [
-                    load_query_image(p, m, data, trained_on=loaded.touch_input) for p in group
-                ]
-            except NoPressError as e:
-                out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(e)))
+            images, used, failed = [], [], []
+            for p in group:
+                try:
+                    images.append(load_query_image(p, m, data, trained_on=loaded.touch_input))
+                    used.append(p)
+                except NoPressError as e:
+                    failed.append(e)
+            if not images:
+                out.append(
+                    Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(failed[0]))
+                )
                 continue
+            for missed in failed:  # a pooled query goes on with the presses it has, as a run does
+                warnings.warn(f"{missed}: left out of the pooled query", stacklevel=2)
+            group = used
             x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
             out.append(

@@ -57,7 +57,7 @@ def add_parser(subparsers: Subparsers) -> None:
         description=(
             "Score how well each image modality's background identifies an item's fabric: "
             "pick 1 of 10 top-1 from raw pixels (mean-pooled to at most 64 px, z-scored) of the "
-            "background alone, beside the whole image and chance, with 95%% intervals over "
+            "background alone, beside the whole image and chance, with 95% intervals over "
             "fabrics. Background = pixels that stay still across the modality's images: within "
             "--tolerance of their per-pixel median (depth 20 mm, colour/touch 12 levels) in at "
             "least --static-fraction of them (cloth moves by centimetres between drapes, the "

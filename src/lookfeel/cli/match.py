@@ -34,7 +34,11 @@ def add_parser(subparsers: Subparsers) -> None:
     mt.add_argument("images", type=Path, nargs="+", metavar="IMAGE", help="query image file(s)")
     add_library(mt)
     mt.add_argument(
-        "--modality", choices=[m.value for m in Modality], required=True, help="what they show"
+        "--modality",
+        choices=[m.value for m in Modality],
+        default=None,
+        help="what they show (default: a video is touch; an image, the model's only image "
+        "modality; else this is needed)",
     )
     mt.add_argument("--top", type=int, default=5, help="fabrics to list (5)")
     mt.add_argument(
@@ -49,12 +53,24 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Match the images and print each result (or all of them as JSON)."""
+    from lookfeel.errors import LookfeelError
     from lookfeel.index import Library, Matcher, format_match
+    from lookfeel.predict import guess_modality
 
     matcher = Matcher(Library.open(args.index, checkpoint=args.checkpoint))
-    results = matcher.match_files(
-        args.images, Modality(args.modality), top=args.top, gallery=args.gallery
-    )
+    if args.modality is not None:
+        modality = Modality(args.modality)
+    else:  # as `predict` guesses it, among the senses the library holds
+        have = [m for m in matcher.model.modalities if m in matcher.library.tables]
+        guessed = {guess_modality(p, have) for p in args.images}
+        if len(guessed) > 1:
+            raise LookfeelError(
+                "the query files show "
+                + " and ".join(sorted(m.value for m in guessed))
+                + ": a query is of one modality; say which with --modality"
+            )
+        (modality,) = guessed
+    results = matcher.match_files(args.images, modality, top=args.top, gallery=args.gallery)
     if args.json:
         print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
     else:

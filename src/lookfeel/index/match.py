@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES
+from lookfeel.data.video import NoPressError
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import check_touch_query, load_query_image, query_batch
@@ -218,18 +220,36 @@ class Matcher:
     def load(self, paths: Sequence[str | Path], modality: Modality) -> torch.Tensor:
         """Read query files into a `query_batch`; errors name the file (a still touch image
         for a model trained on press videos is refused before any file is decoded)."""
+        return self._load(paths, modality)[0]
+
+    def _load(
+        self, paths: Sequence[str | Path], modality: Modality
+    ) -> tuple[torch.Tensor, list[str | Path]]:
+        """`load`, and the files it read: of several touch presses (one query), a video
+        without a press is left out with a warning, as a run leaves it out; the only one, or
+        every one, is an error."""
         self.check_modality(modality)
         if modality is Modality.TOUCH:
             for p in paths:
                 video = Path(p).suffix.lower() in VIDEO_SUFFIXES
                 check_touch_query(p, video, self.touch_input, self.data_config)
-        return query_batch(
-            [
-                load_query_image(p, modality, self.data_config, trained_on=self.touch_input)
-                for p in paths
-            ],
-            modality,
-        )
+        images, used = [], []
+        failed: list[NoPressError] = []
+        for p in paths:
+            try:
+                images.append(
+                    load_query_image(p, modality, self.data_config, trained_on=self.touch_input)
+                )
+                used.append(p)
+            except NoPressError as e:
+                if modality is not Modality.TOUCH or len(paths) == 1:
+                    raise
+                failed.append(e)
+        if not images:
+            raise failed[0]
+        for missed in failed:
+            warnings.warn(f"{missed}: left out of the pooled query", stacklevel=3)
+        return query_batch(images, modality), used
 
     def match_files(
         self,
@@ -247,11 +267,11 @@ class Matcher:
             LibraryError: the modality or gallery is not in the library.
         """
         t0 = time.perf_counter()
-        x = self.load(paths, modality)
+        x, used = self._load(paths, modality)
         t1 = time.perf_counter()
         emb = self.embed(x, modality)
         t2 = time.perf_counter()
-        names = [str(p) for p in paths]
+        names = [str(p) for p in used]
         groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
         results = []
         for e, files in zip(emb, groups, strict=True):
