@@ -794,6 +794,27 @@ def test_a_pooled_query_leaves_out_a_press_without_contact_and_says_so(
     assert res.query == [str(p) for p in pressed] and res.presses == len(pressed)
 
 
+def test_predict_says_when_its_probabilities_are_not_calibrated(
+    recordings: Path, video_model: tuple[Path, Path]
+):
+    import dataclasses
+    import warnings
+
+    from lookfeel.checkpoint import load_model
+    from lookfeel.predict import predict_files
+
+    ck, _ = video_model
+    press = recordings / "videos" / "cork_0.mov"
+    loaded = load_model(ck)  # the recipe's: temperatures fitted by `lookfeel cv`
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        predict_files(loaded, [press])
+    model = dataclasses.replace(loaded.config.model, class_temperature={})
+    bare = dataclasses.replace(loaded, config=dataclasses.replace(loaded.config, model=model))
+    with pytest.warns(UserWarning, match=r"probabilities are as trained, not calibrated"):
+        predict_files(bare, [press])
+
+
 def test_match_takes_a_video_as_touch_without_being_told(
     recordings: Path, video_model: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
 ):

@@ -140,6 +140,14 @@ def predict_files(
             for every file before any is decoded).
     """
     _heads(loaded)
+    cfg = loaded.config.model
+    if cfg.class_heads and not any(c in cfg.class_temperature for c in cfg.class_heads):
+        warnings.warn(
+            f"{loaded.path}: its class heads' probabilities are as trained, not calibrated "
+            "(no model.class_temperature): on objects they never saw, such heads are often "
+            "far surer than they are right; `lookfeel cv` fits a temperature for each",
+            stacklevel=2,
+        )
     model = loaded.model
     have = list(model.modalities)
     files = [Path(p) for p in paths]
