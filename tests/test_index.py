@@ -368,9 +368,12 @@ def test_cli_index_build_and_info(run, tmp_path: Path, capsys):
     printed = capsys.readouterr().out
     assert "18 depth, 18 color, 18 touch; 3 shard(s) embedded, 0 reused; search numpy" in printed
     assert "touch_to_depth" in printed
+    legend = "(top1: how often a library item's best match, its own item left out, is its own"
+    assert legend in printed  # what top1, c and the threshold are
     assert main(["index", "info", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "compact at 32 px, D = 16" in printed and "target false-accept 0.1" in printed
+    assert legend in printed
     assert main(["index", "info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["items"] == {"depth": 18, "color": 18, "touch": 18} and info["fabrics"] == 6

@@ -107,6 +107,7 @@ def run_build(args: argparse.Namespace) -> int:
         f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded, "
         f"{result.shards_reused} reused; search {result.backend}; {result.seconds:.1f} s"
     )
+    print(_LEGEND)
     for key, p in result.calibration.pairs.items():
         print(
             f"  {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  unknown below P {p.threshold:.3g}: "
@@ -115,6 +116,13 @@ def run_build(args: argparse.Namespace) -> int:
     for note in result.calibration.notes:
         print(f"  note: {note}")
     return 0
+
+
+_LEGEND = (
+    "  (top1: how often a library item's best match, its own item left out, is its own fabric, "
+    "among all the library's fabrics, not pick 1 of 10; c: how sharp P is; below the "
+    "threshold P: no known fabric)"
+)
 
 
 def _how(p: PairCalibration) -> str:
@@ -147,6 +155,7 @@ def run_info(args: argparse.Namespace) -> int:
     print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")
     cal = library.calibration
     print(f"  calibration target false-accept {cal.target_false_accept:g}, {cal.folds} folds")
+    print("  " + _LEGEND)
     for key, p in cal.pairs.items():
         print(
             f"    {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  threshold {p.threshold:.3g}  "
