@@ -132,15 +132,18 @@ def non_finite_tensors(tensors: Mapping[str, Any]) -> list[str]:
     weights, or a damaged file's), in the order given.
 
     Args:
-        tensors: a state dict (name -> tensor); entries that are not float tensors are skipped.
+        tensors: a state dict (name -> tensor) on one device; entries that are not float
+            tensors are skipped. One device sync in all (the per-tensor flags are stacked on
+            the device first), so a training run checks its weights before every checkpoint
+            for little.
     """
-    return [
-        k
-        for k, v in tensors.items()
-        if isinstance(v, torch.Tensor)
-        and v.is_floating_point()
-        and not bool(torch.isfinite(v).all())
+    named = [
+        (k, v) for k, v in tensors.items() if isinstance(v, torch.Tensor) and v.is_floating_point()
     ]
+    if not named:
+        return []
+    finite = torch.stack([v.isfinite().all() for _, v in named]).tolist()
+    return [k for (k, _), ok in zip(named, finite, strict=True) if not ok]
 
 
 def _refuse_non_finite(path: str | os.PathLike[str], tensors: Mapping[str, Any]) -> None:

@@ -4,7 +4,8 @@ A learning rate far too high makes the weights overflow within a few steps: the 
 every embedding after it is NaN, and a checkpoint written then is useless. The training loop
 therefore reads the loss only where it reads it anyway (log steps, validations, checkpoints:
 reading it every step would make the CPU wait for the GPU every step), checks the weights
-before it writes a checkpoint, and stops with `TrainingDiverged`. Checkpoints written before
+before it writes a checkpoint (`lookfeel.checkpoint.non_finite_tensors`, which loading a
+checkpoint uses too), and stops with `TrainingDiverged`. Checkpoints written before
 are kept as they are: nothing non-finite is ever written over them.
 """
 
@@ -14,27 +15,14 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-import torch
-from torch import nn
-
 from lookfeel.errors import LookfeelError
 
-__all__ = ["TrainingDiverged", "diverged", "weights_finite"]
+__all__ = ["TrainingDiverged", "diverged"]
 
 
 class TrainingDiverged(LookfeelError):
     """A run's loss or weights became NaN or infinite; the message says when, a likely cause,
     and which checkpoint is kept."""
-
-
-def weights_finite(model: nn.Module) -> bool:
-    """Whether every floating-point parameter and buffer of ``model`` is finite.
-
-    One device sync in all (the per-tensor flags are stacked on the device first), so it is
-    cheap beside the checkpoint it guards.
-    """
-    flags = [t.isfinite().all() for t in model.state_dict().values() if t.is_floating_point()]
-    return bool(torch.stack(flags).all()) if flags else True
 
 
 def diverged(

@@ -41,6 +41,7 @@ from torch import Tensor
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import (
     init_from_checkpoint,
+    non_finite_tensors,
     read_checkpoint,
     save_checkpoint,
     touch_input_of,
@@ -74,7 +75,7 @@ from lookfeel.models import (
     to_channels_last,
 )
 from lookfeel.train.distributed import Distributed
-from lookfeel.train.divergence import TrainingDiverged, diverged, weights_finite
+from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
 
@@ -1041,7 +1042,7 @@ def _train(
     def save(path: Path, done: int) -> None:
         """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
         every process checks: their weights are equal, so all stop together)."""
-        if not weights_finite(model):
+        if non_finite_tensors(model.state_dict()):
             raise stop("weights", math.nan, done)
         if dist.is_main:
             save_checkpoint(path, checkpoint_state(done))
