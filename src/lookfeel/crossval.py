@@ -1180,11 +1180,7 @@ def cross_validate(
     select_split(catalog, _run_config(config, fold_list[0], seeds[0]))
     kinds = [k.value for k in config.data.touch_kinds]
     if presses > 1 and Modality.TOUCH in _modalities(pairs):
-        press_counts = np.unique(
-            [it.fabric_id for it in catalog.items(Modality.TOUCH, config.data.touch_kinds)],
-            return_counts=True,
-        )[1]
-        most = int(press_counts.max()) if len(press_counts) else 0
+        most = catalog.most_presses(config.data.touch_kinds)
         if most < presses:
             raise ConfigError(
                 f"presses: no held-out fabric has {presses} touch presses ({', '.join(kinds)}) "

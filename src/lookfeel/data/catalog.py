@@ -161,6 +161,12 @@ class Catalog:
         kinds = None if kinds is None else tuple(kinds)
         return [it for f in self.fabrics for it in f.items_of(modality, kinds)]
 
+    def most_presses(self, kinds: Iterable[PressKind] | None = None) -> int:
+        """The most touch presses (of ``kinds`` when given) any one fabric has: how many a
+        query can pool (``data.presses``, ``--presses``); 0 without touch."""
+        kinds = None if kinds is None else tuple(kinds)
+        return max((len(f.items_of(Modality.TOUCH, kinds)) for f in self.fabrics), default=0)
+
     @property
     def errors(self) -> tuple[Problem, ...]:
         return tuple(p for p in self.problems if p.severity == "error")

@@ -130,7 +130,7 @@ def _needs(config: RunConfig, catalog: Catalog) -> str | None:
         if not catalog.items(Modality.TOUCH, kinds):
             return f"needs {names} touch presses; the data has none"
         presses = config.data.presses
-        most = max(len(f.items_of(Modality.TOUCH, kinds)) for f in catalog.fabrics)
+        most = catalog.most_presses(kinds)
         if most < presses:  # its touch queries and candidates pool P presses of one fabric
             return (
                 f"pools {presses} {names} touch presses of one fabric into each touch input "
