@@ -41,7 +41,7 @@ from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import EvalResult, evaluate_checkpoint, write_report
 from lookfeel.modality import Modality, Pair
 from lookfeel.reproduce import BUDGETS, EXPERIMENTS, ReproduceResult, headline, reproduce
-from lookfeel.reproduce.run import config_dir, split_overrides
+from lookfeel.reproduce.run import config_dir, experiment_overrides, split_overrides
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import GENERATOR_VERSION, MANIFEST
 from lookfeel.train import run_started, train
@@ -160,14 +160,12 @@ def _demo_configs(
     """
     # The world marks its held-out fabrics paper_split=test: `reproduce` splits it so.
     models, vision, _ = split_overrides(held >= 10, fabrics - held)
+    mine_too = ["train.progress=true", *overrides]
     configs = []
     for exp in EXPERIMENTS:
-        split = vision if exp.table == "vision" else models
-        extra = [*BUDGETS[budget], "train.progress=false", "train.val_every=0", *split]
-        path = config_dir() / f"{exp.name}.yaml"
-        mine = [*extra, "train.progress=true", *overrides]
-        configs.append((exp.name, load_config(RunConfig, path, mine)))
-    configs.append(("cross-modal recipe", cross_config(["train.progress=true", *overrides])))
+        mine = experiment_overrides(exp, budget, models, vision, mine_too)
+        configs.append((exp.name, load_config(RunConfig, config_dir() / f"{exp.name}.yaml", mine)))
+    configs.append(("cross-modal recipe", cross_config(mine_too)))
     return configs
 
 

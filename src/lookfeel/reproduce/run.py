@@ -58,6 +58,7 @@ __all__ = [
     "EXPERIMENTS",
     "Experiment",
     "ReproduceResult",
+    "experiment_overrides",
     "reproduce",
     "split_overrides",
 ]
@@ -395,6 +396,25 @@ def split_overrides(has_paper_test: bool, pool: int) -> tuple[list[str], list[st
     )
 
 
+def experiment_overrides(
+    exp: Experiment,
+    budget: str,
+    split: Sequence[str],
+    vision: Sequence[str],
+    overrides: Sequence[str] = (),
+    pretrained: str | os.PathLike[str] | None = None,
+) -> list[str]:
+    """The overrides `reproduce` trains ``exp`` with, on its config under ``configs/paper/``:
+    the budget's, the split (``split`` for the runs of Tables 1-3, ``vision`` for Table 4's:
+    `split_overrides`), the weights file under the paper budget, then ``overrides``, which
+    win."""
+    run = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
+    run += vision if exp.table == "vision" else split
+    if pretrained is not None and budget == "paper":
+        run.append(f"model.pretrained={pretrained}")
+    return [*run, *overrides]
+
+
 def reproduce(
     data: str | Path,
     out: str | Path,
@@ -457,11 +477,7 @@ def reproduce(
     for exp in EXPERIMENTS:
         if only and exp.name not in only:
             continue
-        run_overrides = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
-        run_overrides += vision if exp.table == "vision" else split
-        if pretrained is not None and budget == "paper":
-            run_overrides.append(f"model.pretrained={pretrained}")
-        run_overrides += list(overrides)
+        run_overrides = experiment_overrides(exp, budget, split, vision, overrides, pretrained)
         base = load_config(RunConfig, config_dir() / f"{exp.name}.yaml", run_overrides)
         reason = _needs(base, catalog)
         if reason is not None:
