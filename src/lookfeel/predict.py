@@ -27,7 +27,7 @@ from lookfeel.data.layout import IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.errors import LookfeelError
 from lookfeel.index.match import class_value
-from lookfeel.index.query import check_touch_query, load_query_image, query_batch
+from lookfeel.index.query import check_touch_files, load_query_files, query_batch
 from lookfeel.modality import Modality
 from lookfeel.models import CLASSES, PROPERTY, eval_mode
 
@@ -167,29 +167,18 @@ def predict_files(
     if together and mods[0] is not Modality.TOUCH:
         raise PredictError("--together pools touch presses; depth and colour are one image each")
     data = loaded.config.data
-    for p, m in zip(files, mods, strict=True):
-        if m is Modality.TOUCH:
-            check_touch_query(p, p.suffix.lower() in VIDEO_SUFFIXES, loaded.touch_input, data)
+    touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
+    check_touch_files(touch, loaded.touch_input, data)  # every file before any is decoded
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []
     with eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
-            images, used, failed = [], [], []
-            for p in group:
-                try:
-                    images.append(load_query_image(p, m, data, trained_on=loaded.touch_input))
-                    used.append(p)
-                except NoPressError as e:
-                    failed.append(e)
-            if not images:
-                out.append(
-                    Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(failed[0]))
-                )
+            try:
+                images, group = load_query_files(group, m, data)
+            except NoPressError as e:  # none of its files holds a press
+                out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(e)))
                 continue
-            for missed in failed:  # a pooled query goes on with the presses it has, as a run does
-                warnings.warn(f"{missed}: left out of the pooled query", stacklevel=2)
-            group = used
             x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
             out.append(

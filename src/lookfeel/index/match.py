@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,10 +42,9 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES
-from lookfeel.data.video import NoPressError
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
-from lookfeel.index.query import check_touch_query, load_query_image, query_batch
+from lookfeel.index.query import check_touch_files, load_query_files, query_batch
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
@@ -224,31 +222,14 @@ class Matcher:
 
     def _load(
         self, paths: Sequence[str | Path], modality: Modality
-    ) -> tuple[torch.Tensor, list[str | Path]]:
+    ) -> tuple[torch.Tensor, list[Path]]:
         """`load`, and the files it read: of several touch presses (one query), a video
         without a press is left out with a warning, as a run leaves it out; the only one, or
         every one, is an error."""
         self.check_modality(modality)
         if modality is Modality.TOUCH:
-            for p in paths:
-                video = Path(p).suffix.lower() in VIDEO_SUFFIXES
-                check_touch_query(p, video, self.touch_input, self.data_config)
-        images, used = [], []
-        failed: list[NoPressError] = []
-        for p in paths:
-            try:
-                images.append(
-                    load_query_image(p, modality, self.data_config, trained_on=self.touch_input)
-                )
-                used.append(p)
-            except NoPressError as e:
-                if modality is not Modality.TOUCH or len(paths) == 1:
-                    raise
-                failed.append(e)
-        if not images:
-            raise failed[0]
-        for missed in failed:
-            warnings.warn(f"{missed}: left out of the pooled query", stacklevel=3)
+            check_touch_files(paths, self.touch_input, self.data_config)
+        images, used = load_query_files(paths, modality, self.data_config)
         return query_batch(images, modality), used
 
     def match_files(

@@ -20,6 +20,7 @@ record is not checked.
 from __future__ import annotations
 
 import tempfile
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -41,13 +42,16 @@ from lookfeel.data.images import (
     to_tensor,
 )
 from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
+from lookfeel.data.video import NoPressError
 from lookfeel.modality import Modality
 
 __all__ = [
     "IMAGE_TYPES",
     "STILL_TOUCH_REFUSED",
+    "check_touch_files",
     "check_touch_query",
     "load_query_bytes",
+    "load_query_files",
     "load_query_image",
     "query_batch",
     "sniff_type",
@@ -97,6 +101,15 @@ def check_touch_query(
         raise ImageError(Path(name), STILL_TOUCH_REFUSED)
 
 
+def check_touch_files(
+    paths: Sequence[str | Path], trained_on: str | None, config: DataConfig
+) -> None:
+    """`check_touch_query` of every file of a touch query (a video by its suffix), before any
+    of them is decoded."""
+    for p in paths:
+        check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
+
+
 def _preprocess(
     name: Path, data: bytes, modality: Modality, config: DataConfig, max_pixels: int
 ) -> torch.Tensor:
@@ -112,15 +125,14 @@ def load_query_image(
     modality: Modality,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
-    *,
-    trained_on: str | None = None,
 ) -> torch.Tensor:
     """Decode and preprocess one query image as training does.
 
     The file must be a regular file (a FIFO or device is refused at once, never waited on) of
-    at most ``max_pixels`` pixels, checked from its header before decoding. A touch query must
-    suit what the model was trained on, ``trained_on`` (the checkpoint's ``touch_input``; None:
-    not checked), before anything is decoded (`check_touch_query`).
+    at most ``max_pixels`` pixels, checked from its header before decoding. Whether a touch
+    query suits what the model was trained on is the caller's to check first, for every file
+    of a query before any is decoded (`check_touch_query`, as `lookfeel.predict.predict_files`
+    and `lookfeel.index.Matcher.load` do).
 
     Returns:
         (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1]; for a press
@@ -128,12 +140,9 @@ def load_query_image(
 
     Raises:
         ImageError: naming the file when it is missing, not a regular file, not an image, too
-            large, or the wrong kind (e.g. an 8-bit PNG given as depth), or a still touch
-            image for a model trained on press videos.
+            large, or the wrong kind (e.g. an 8-bit PNG given as depth).
     """
     path = Path(path)
-    if modality is Modality.TOUCH:
-        check_touch_query(path, path.suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
         # Several frames of the press stacked (``data.touch_frames``): read with the file's
         # sibling frames, as in training.
@@ -143,6 +152,33 @@ def load_query_image(
         # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
         return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
     return _preprocess(path, read_image_file(path), modality, config, max_pixels)
+
+
+def load_query_files(
+    paths: Sequence[str | Path], modality: Modality, config: DataConfig
+) -> tuple[list[torch.Tensor], list[Path]]:
+    """`load_query_image` of each file of one query, and the files read: of several, a press
+    video without a press is left out with a warning (as a run leaves it out), so that one bad
+    recording among an object's presses does not lose the whole answer.
+
+    Raises:
+        NoPressError: the only file, or every file, holds no press (the first one's error).
+        ImageError: as `load_query_image`.
+    """
+    images: list[torch.Tensor] = []
+    used: list[Path] = []
+    failed: list[NoPressError] = []
+    for p in paths:
+        try:
+            images.append(load_query_image(p, modality, config))
+            used.append(Path(p))
+        except NoPressError as e:
+            failed.append(e)
+    if not images:
+        raise failed[0]
+    for missed in failed:
+        warnings.warn(f"{missed}: left out of the pooled query", stacklevel=3)
+    return images, used
 
 
 def load_query_bytes(
