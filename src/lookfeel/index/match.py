@@ -135,11 +135,6 @@ class FabricMatch:
     """Every known label cell as written, words included (``material: metal``); empty in a
     library built before they were recorded."""
 
-    @property
-    def title(self) -> str:
-        """How a person reads the fabric: its name, else ``fabric 7``."""
-        return self.name if self.name is not None else f"fabric {self.fabric_id}"
-
 
 @dataclass(frozen=True)
 class MatchResult:
