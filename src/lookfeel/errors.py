@@ -48,5 +48,13 @@ def load_problem(e: Exception, path: str | os.PathLike[str] | None = None) -> st
         )
     if "pickled" in text and "allow_pickle" in text:  # NumPy read it as a pickle
         return "not an .npz archive"
-    first = text.split(". ")[0] if text else "no reason given"
-    return f"{type(e).__name__}: {first[:200]}"
+    return error_line(e)
+
+
+def error_line(e: BaseException, limit: int = 200) -> str:
+    """Another library's error in one line for a person: its type and its first sentence (at
+    most ``limit`` characters), without the paragraphs, graph dumps and advice that follow it
+    (``[Caused by ...]``)."""
+    text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
+    first = text.split(". ")[0].split(" [Caused by")[0] if text else "no reason given"
+    return f"{type(e).__name__}: {first[:limit]}"

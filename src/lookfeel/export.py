@@ -45,7 +45,7 @@ from torch import Tensor, nn
 from lookfeel.atomic import atomic_write_bytes, atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import to_dict
-from lookfeel.errors import LookfeelError
+from lookfeel.errors import LookfeelError, error_line
 from lookfeel.modality import Modality
 from lookfeel.models import Branch
 
@@ -107,14 +107,6 @@ def _quiet_native_output() -> Iterator[None]:
         for fd, copy in saved.items():
             os.dup2(copy, fd)
             os.close(copy)
-
-
-def _first_line(e: Exception) -> str:
-    """An exporter's or onnxruntime's error in one line: its first sentence, without the graph
-    dumps and advice that follow it."""
-    text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
-    first = text.split(". ")[0].split(" [Caused by")[0] if text else "no reason given"
-    return f"{type(e).__name__}: {first[:300]}"
 
 
 class ExportError(LookfeelError):
@@ -266,7 +258,8 @@ def export_onnx(
                     )
             except Exception as e:  # the exporter's own errors share no base class
                 raise ExportError(
-                    f"{m.value} branch: the ONNX export at opset {opset} failed: {_first_line(e)}"
+                    f"{m.value} branch: the ONNX export at opset {opset} failed: "
+                    + error_line(e, 300)
                 ) from None
             data = (Path(tmp) / "branch.onnx").read_bytes()
         try:
@@ -274,7 +267,7 @@ def export_onnx(
         except Exception as e:  # onnxruntime's errors share no base class either
             raise ExportError(
                 f"{m.value} branch: onnxruntime cannot run its ONNX export at opset {opset}: "
-                f"{_first_line(e)}; nothing written"
+                f"{error_line(e, 300)}; nothing written"
             ) from None
         if diff is not None and diff > atol:
             raise ExportError(
