@@ -166,7 +166,22 @@ def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
     assert main(["match", "--index", lib, "--modality", "touch", *presses, "--top", "2"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("Query touch (3 presses: F0005_fold_02_500.png, F0005_fold_02_501")
-    assert "rank  fabric       P        D  depth" in out and "properties (top fabrics" in out
+    assert "rank  fabric       P        D  depth" in out
+    assert "properties (the 5 likeliest fabrics weighted by P)" in out  # 5, not --top's 2
+    depth = str(data / "depth/F0004_Depth_New_000001.png")
+    args = ["match", "--index", lib, "--modality", "depth", depth, "--top", "3"]
+    assert main([*args, "--property-fabrics", "1", "--json"]) == 0
+    [r] = json.loads(capsys.readouterr().out)
+    assert len(r["fabrics"]) == 3 and r["property_fabrics"] == 1
+    best = r["fabrics"][0]["fabric_id"]  # one fabric: its own labels, no spread
+    labels = {f["id"]: f["labels"] for f in matcher.library.manifest["fabrics"]}[best]
+    thickness = {p["name"]: p for p in r["properties"]}["thickness_mm"]
+    assert (thickness["mean"], thickness["std"]) == (pytest.approx(labels["thickness_mm"]), 0.0)
+    assert main([*args, "--property-fabrics", "1"]) == 0
+    assert "properties (the likeliest fabric weighted by P)" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main([*args, "--property-fabrics", "0"])
+    assert "--property-fabrics: must be >= 1, got 0" in capsys.readouterr().err
     depth = str(data / "depth/F0004_Depth_New_000001.png")
     assert main(["match", "--index", lib, "--modality", "depth", depth, "--json"]) == 0
     [r] = json.loads(capsys.readouterr().out)
@@ -216,8 +231,8 @@ def test_property_estimates_drop_the_weights_rounding_noise_and_name_classes(
     [r] = m.match_files([query], Modality.DEPTH)
     line = format_match(replace(r, properties=list(by_name.values()))).splitlines()[-1]
     assert line == (
-        "  properties (top fabrics weighted by P): thickness_mm 0 ± 0, density 0.2 ± 0, "
-        "stiffness 2 (100%), stretchiness 0 (100%)"
+        "  properties (the 5 likeliest fabrics weighted by P): thickness_mm 0 ± 0, "
+        "density 0.2 ± 0, stiffness 2 (100%), stretchiness 0 (100%)"
     )
 
 

@@ -891,7 +891,8 @@ def test_a_library_of_named_objects_names_them_and_their_words(
     text = format_match(res)
     assert text.startswith(f"Query touch (1 video: {Path(query).name}) against touch")
     assert f"     1  {by_name['spoon'].id:>6}  " in text
-    assert re.search(r"properties \(top fabrics weighted by P\): hardness [012] \(\d+%\)$", text)
+    weighted = r"properties \(the \d likeliest fabrics weighted by P\)"
+    assert re.search(weighted + r": hardness [012] \(\d+%\)$", text)
 
 
 def test_serve_names_objects_and_shows_their_words(video_model: tuple[Path, Path]):

@@ -7,8 +7,9 @@ below the calibrated threshold. Several touch images are the presses of one quer
 depth and colour images are matched one by one. A fabric is shown by its name where the data
 names its objects (videos/sponge_0.mov: sponge), else by its id; a property whose values are
 classes (a word such as material, a rank such as hardness 0/1/2) is answered with its most
-likely class and that class's share of the top fabrics' probability, as `lookfeel predict`
-answers, other properties with the probability-weighted mean and spread. A touch query must be
+likely class and that class's share of the likeliest fabrics' probability, as `lookfeel
+predict` answers, other properties with the probability-weighted mean and spread, both over the
+5 likeliest fabrics (`--property-fabrics`), whatever `--top` lists. A touch query must be
 what the model was trained on: a model trained on press videos refuses a still frame. A query
 identical to an item of the library is
 reported as that item's fabric; otherwise, below the calibrated threshold, the answer is 'no
@@ -24,7 +25,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_command, add_json, add_library
+from lookfeel.cli._args import Subparsers, add_command, add_json, add_library, number
 from lookfeel.modality import Modality
 
 
@@ -40,7 +41,15 @@ def add_parser(subparsers: Subparsers) -> None:
         help="what they show (default: a video is touch; an image, the model's only image "
         "modality; else this is needed)",
     )
-    mt.add_argument("--top", type=int, default=5, help="fabrics to list (5)")
+    mt.add_argument("--top", type=number(int, 1), default=5, help="fabrics to list (5)")
+    mt.add_argument(
+        "--property-fabrics",
+        type=number(int, 1),
+        default=5,
+        metavar="K",
+        help="predict the properties from the K likeliest fabrics, each weighted by its "
+        "probability, whatever --top lists (5)",
+    )
     mt.add_argument(
         "--gallery",
         type=Modality,
@@ -70,7 +79,13 @@ def run(args: argparse.Namespace) -> int:
                 + ": a query is of one modality; say which with --modality"
             )
         (modality,) = guessed
-    results = matcher.match_files(args.images, modality, top=args.top, gallery=args.gallery)
+    results = matcher.match_files(
+        args.images,
+        modality,
+        top=args.top,
+        gallery=args.gallery,
+        k_properties=args.property_fabrics,
+    )
     if args.json:
         print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))
     else:

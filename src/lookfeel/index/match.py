@@ -156,6 +156,8 @@ class MatchResult:
     message: str
     fabrics: list[FabricMatch]
     properties: list[PropertyEstimate]
+    property_fabrics: int
+    """How many of the likeliest fabrics the properties were drawn from (whatever ``top``)."""
     backend: str
     timing_ms: dict[str, float] = field(default_factory=dict)
 
@@ -319,6 +321,8 @@ class Matcher:
         """
         if top < 1:
             raise LibraryError(f"top must be >= 1; got {top}")
+        if k_properties < 1:
+            raise LibraryError(f"k_properties must be >= 1; got {k_properties}")
         lib = self.library
         t0 = time.perf_counter()
         g = gallery if gallery is not None else lib.calibration.default_gallery.get(modality)
@@ -418,6 +422,7 @@ class Matcher:
             message=message,
             fabrics=fabrics,
             properties=properties,
+            property_fabrics=len(ranked),
             backend=search.name,
             timing_ms={"search": 1e3 * (t1 - t0)},
         )
@@ -605,7 +610,9 @@ def format_match(result: MatchResult, width: int = 48) -> str:
         )
     props = [_property(p) for p in result.properties if p.mean is not None or p.value is not None]
     if props:
-        lines.append("  properties (top fabrics weighted by P): " + ", ".join(props))
+        k = result.property_fabrics
+        likeliest = "the likeliest fabric" if k == 1 else f"the {k} likeliest fabrics"
+        lines.append(f"  properties ({likeliest} weighted by P): " + ", ".join(props))
     return "\n".join(lines)
 
 
