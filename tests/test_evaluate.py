@@ -34,7 +34,7 @@ from lookfeel.modality import Modality, Pair
 from lookfeel.train import train
 
 from ._library import evaluate_cli
-from ._tiny import write_tiny_dataset
+from ._tiny import write_recordings, write_tiny_dataset
 
 TINY = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
 D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
@@ -694,3 +694,121 @@ def test_touch_to_touch_with_every_press_in_its_query_is_not_scored_and_says_why
     # Two presses a query leave one to find: scored, nothing marked.
     r2 = evaluate_embeddings(embedded, dataclasses.replace(FAST, presses=2))
     assert not r2.not_scored and r2.metrics["touch_to_touch_top1"] == pytest.approx(1.0)
+
+
+OBJECTS = (
+    "bark", "cork", "denim", "felt", "foam", "leaf", "linen", "moss", "rice_spatula_head", "sponge",
+)  # fmt: skip
+
+
+def test_the_report_names_the_objects_the_data_names_and_numbers_the_rest(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Recordings (``videos/<object>_<n>.mov``) name their objects: the report's pick examples,
+    glance, confusion axes and test fabrics say ``sponge`` (a long name broken after an
+    underscore to fit under its image); numbered fabrics keep ``F3``."""
+    from lookfeel.evaluate import report as report_module
+
+    labels = "object,hardness\n" + "".join(f"{o},{k % 3}\n" for k, o in enumerate(OBJECTS))
+    data = write_recordings(tmp_path / "rec", dict.fromkeys(OBJECTS, 1), labels)
+    name_of = {f.id: f.name for f in scan(data).fabrics}
+    assert sorted(name_of) == list(range(1, 11))
+    embedded, _ = _world(n_fabrics=10, noise=0.6, seed=2)
+    npz = save_embeddings(tmp_path / "e.npz", EmbeddingSet(embedded, None, {}))
+    named = evaluate_embedding_file(npz, FAST, data)
+    assert named.names == name_of
+    numbered = evaluate_embeddings(embedded, FAST)
+    assert numbered.names == {}
+
+    drawn: dict[str, list[tuple[object, ...]]] = {}
+
+    def spy(name: str) -> None:  # record each call's arguments, then draw
+        real = getattr(report_module, name)
+
+        def recording(*args: object, **kwargs: object) -> object:
+            drawn.setdefault(name, []).append(args)
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(report_module, name, recording)
+
+    for name in ("pick_examples_figure", "glance_figure", "confusion_figure"):
+        spy(name)
+    # The hand-made items have no files: every figure shows a blank image.
+    monkeypatch.setattr(report_module, "_image", lambda *a: np.zeros((8, 8, 3), np.uint8))
+
+    def flat(label: str) -> str:  # a label as one line
+        return label.replace("_\n", "_").replace("\n", " ")
+
+    t_fab, d_fab = embedded[T].fabric_ids, embedded[D].fabric_ids
+    for result in (named, numbered):
+        want = {i: name_of[i] if result is named else f"F{i}" for i in range(1, 11)}
+        drawn.clear()
+        report = write_report(result, tmp_path / str(len(result.names))).report.read_text()
+        [[picks]] = drawn["pick_examples_figure"]
+        [[glances]] = drawn["glance_figure"]
+        con = result.calibration["touch_to_depth"].confusion
+        assert con is not None
+        confusion_axes = drawn["confusion_figure"][0][1:3]  # then the clusters'
+        for ex, row in zip(result.examples["touch_to_depth"], picks, strict=True):
+            assert flat(row.query_label) == f"query: touch {want[t_fab[ex.query_rows[0]]]}"
+            labels = [flat(c.split("\nD = ")[0]) for c in row.candidate_labels]
+            assert labels == [f"{k + 1}. {want[d_fab[c]]}" for k, c in enumerate(ex.candidates)]
+        for ex, row in zip(result.glance, glances, strict=True):
+            assert flat(row.query_label) == f"query: touch {want[ex.fabric]}"
+            for g, look in zip(ex.galleries, row.looks, strict=True):
+                assert [flat(x) for x in look.labels] == [
+                    f"{k + 1}. {want[f]}" for k, f in enumerate(g.fabrics)
+                ]
+        texts = [row.query_label for row in [*picks, *glances]]
+        texts += [x for row in picks for x in row.candidate_labels]
+        texts += [x for row in glances for look in row.looks for x in look.labels]
+        assert max(len(line) for x in texts for line in x.split("\n")) <= 17
+        if result is named:
+            assert any("rice_spatula_\nhead" in x for x in texts)
+            assert list(confusion_axes) == [
+                [name_of[int(f)] for f in ids] for ids in (con.rows, con.cols)
+            ]
+            shown = ", ".join(OBJECTS)
+        else:  # numbered fabrics: their ids, as before
+            assert list(confusion_axes) == [
+                [str(int(f)) for f in ids] for ids in (con.rows, con.cols)
+            ]
+            shown = ", ".join(str(i) for i in range(1, 11))
+        assert f"| test fabrics | 10: {shown} |" in report
+
+
+def test_a_split_the_run_did_not_hold_out_is_refused_before_any_video_is_decoded(
+    run: tuple[Path, Path, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+):
+    """A run with train.split=none held out nothing: --split val (evaluate, embed) and novel
+    are refused from the checkpoint and the catalog alone, before a press video is decoded
+    (minutes on hundreds of videos)."""
+    from lookfeel.checkpoint import read_checkpoint, save_checkpoint
+    from lookfeel.data import images as images_module
+
+    labels = "object,hardness\ncork,1\nsponge,0\n"
+    data = write_recordings(tmp_path / "rec", {"cork": 2, "sponge": 2}, labels)
+    catalog = scan(data)
+    state = read_checkpoint(run[1])
+    state["split"] = {"kind": "none", "train": catalog.ids, "val": []}  # as train writes it
+    state["data_fingerprint"] = catalog.fingerprint()  # trained on these recordings
+    ckpt = save_checkpoint(tmp_path / "none.pt", state)
+
+    def decode(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a press video was decoded before the split was refused")
+
+    monkeypatch.setattr(images_module, "read_press", decode)
+    refused = r"the run held out no fabrics \(it trained on every fabric \(train.split=none\)\); "
+    with pytest.raises(DatasetError, match=refused + "use --split all$"):
+        evaluate_checkpoint(ckpt, data, "val", FAST)
+    with pytest.raises(DatasetError, match=refused):
+        embed_checkpoint(ckpt, data, "val")
+    with pytest.raises(DatasetError, match=r"held out no novel fabrics \(it is not a seen run\)"):
+        embed_checkpoint(ckpt, data, "novel")
+    capsys.readouterr()
+    assert evaluate_cli(ckpt, data, tmp_path / "out", "--split", "val") == 1
+    [line] = capsys.readouterr().err.strip().splitlines()
+    assert "train.split=none" in line and "use --split all" in line

@@ -200,6 +200,25 @@ def _naming(loaded: LoadedModel) -> Iterator[None]:
         raise CheckpointError(f"{loaded.path}: {e}") from None
 
 
+def _drop_unpressed(
+    catalog: Catalog, test: Catalog, ref: Catalog | None, loader: ImageLoader
+) -> tuple[Catalog, Catalog | None]:
+    """``test`` and ``ref`` without their touch videos that hold no press (`drop_unpressed`,
+    one warning naming them all): only the videos of these two are decoded."""
+    parts = [c for c in (test, ref) if c is not None]
+    wanted = [it for c in parts for m in c.modalities for it in c.items(m)]
+    both = catalog.with_items(wanted)
+    kept = drop_unpressed(both, loader)
+    if kept is both:  # every press held one
+        return test, ref
+    keep = {it for m in kept.modalities for it in kept.items(m)}
+
+    def only_kept(c: Catalog) -> Catalog:
+        return c.with_items(it for m in c.modalities for it in c.items(m) if it in keep)
+
+    return only_kept(test), None if ref is None else only_kept(ref)
+
+
 def _embed(
     loaded: LoadedModel,
     catalog: Catalog,
@@ -208,8 +227,8 @@ def _embed(
     batch_size: int,
     device: str,
 ) -> tuple[EmbeddingSet, ImageLoader]:
-    loader = ImageLoader(loaded.config.data)
-    catalog = drop_unpressed(catalog, loader)
+    # Everything that can refuse the split is asked of the checkpoint and the catalog first:
+    # the videos are decoded only once the items to embed are known (minutes on hundreds).
     test, ref, description = _select(loaded, catalog, split)
     mods = [m for m in loaded.model.modalities if m in catalog.modalities]
     if not mods:
@@ -219,6 +238,8 @@ def _embed(
             f"dataset has {have}",
             catalog.root,
         )
+    loader = ImageLoader(loaded.config.data)
+    test, ref = _drop_unpressed(catalog, test, ref if reference else None, loader)
 
     def run(cat: Catalog) -> dict[Modality, EmbeddedItems]:
         return embed_catalog(
@@ -238,7 +259,7 @@ def _embed(
         "presses": loaded.config.data.presses,
         "pool_exact": pools_final_embedding(loaded.model),
     }
-    ref_emb = run(ref) if reference and ref is not None and ref.fabrics else None
+    ref_emb = run(ref) if ref is not None and ref.fabrics else None
     return EmbeddingSet(embedded, ref_emb or None, meta), loader
 
 
@@ -311,23 +332,25 @@ def _evaluate_set(
         config = replace(config, presses=int(emb.meta.get("presses", 1)))
     clusters: Mapping[int, int | None] | None = None
     labels: dict[int, list[float]] | None = None
-    names: list[str] = []
+    label_names: list[str] = []
+    objects: dict[int, str] = {}  # the data's object names, shown in place of fabric ids
     notes = list(extra_notes)
     if catalog is not None:
-        clusters, labels, names, more = _clusters_and_labels(catalog)
+        clusters, labels, label_names, more = _clusters_and_labels(catalog)
         notes += more
+        objects = {f.id: f.name for f in catalog.fabrics if f.name is not None}
     result = evaluate_embeddings(
         emb.embedded,
         config,
         clusters,
         labels,
-        label_names=names or None,
+        label_names=label_names or None,
         reference=emb.reference,
         pool_presses=pool,
         info=emb.meta,
         data_config=data_config,
     )
-    return replace(result, notes=tuple(notes) + result.notes)
+    return replace(result, notes=tuple(notes) + result.notes, names=objects)
 
 
 def evaluate_checkpoint(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -448,6 +449,27 @@ def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> ND
     return img[..., -3:] if img.ndim == 3 else img
 
 
+def _wrap(text: str, width: int = 17) -> str:
+    """``text`` on lines of at most ``width`` characters, broken after a space or an underscore
+    (``4. rice_spatula_`` / ``handle``): an object's long name under an image would run into
+    its neighbours' labels. Short labels (``3. F12``) are left as they are."""
+    if len(text) <= width:
+        return text
+    lines = [""]
+    for part in re.split(r"(?<=[ _])", text):
+        if lines[-1] and len(lines[-1]) + len(part.rstrip()) > width:
+            lines.append(part)
+        else:
+            lines[-1] += part
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def _query_label(modality: Modality, name: str) -> str:
+    """``query: touch F12``; a long name on its own line(s): ``query: touch`` / ``sponge_soft``."""
+    label = f"query: {modality.value} {name}"
+    return label if len(label) <= 17 else f"query: {modality.value}\n{_wrap(name)}"
+
+
 def _example_rows(
     result: EvalResult, examples: tuple[PickExample, ...], loader: ImageLoader
 ) -> list[PickRow]:
@@ -456,7 +478,7 @@ def _example_rows(
         mq, mg = ex.pair.query, ex.pair.gallery
         q_items = result.embedded[mq]
         fid = int(q_items.fabric_ids[ex.query_rows[0]])
-        label = f"query: {mq.value} F{fid}"
+        label = _query_label(mq, result.fabric_label(fid))
         if len(ex.query_rows) > 1:
             label += f"\n(1st of {len(ex.query_rows)} presses)"
         g_fab = result.embedded[mg].fabric_ids
@@ -466,7 +488,7 @@ def _example_rows(
                 query_label=label,
                 candidate_images=[_image(loader, result, mg, c) for c in ex.candidates],
                 candidate_labels=[
-                    f"{i + 1}. F{int(g_fab[c])}\nD = {d:.3g}"
+                    _wrap(f"{i + 1}. {result.fabric_label(int(g_fab[c]))}") + f"\nD = {d:.3g}"
                     for i, (c, d) in enumerate(zip(ex.candidates, ex.distances, strict=True))
                 ],
                 true_index=ex.true_position,
@@ -485,14 +507,16 @@ def _glance_rows(
     rows = []
     for ex in examples:
         presses = len(ex.query_rows)
-        label = f"query: touch F{ex.fabric}"
+        label = _query_label(Modality.TOUCH, result.fabric_label(ex.fabric))
         if presses > 1:
             label += f"\n(1st of {presses} presses)"
         looks = [
             GlanceLook(
                 name=g.modality.value,
                 images=[_image(loader, result, g.modality, r) for r in g.rows],
-                labels=[f"{i + 1}. F{f}" for i, f in enumerate(g.fabrics)],
+                labels=[
+                    _wrap(f"{i + 1}. {result.fabric_label(f)}") for i, f in enumerate(g.fabrics)
+                ],
                 true=[f == ex.fabric for f in g.fabrics],
                 note=(
                     f"nearest {g.modality.value} of {g.n_fabrics} fabrics"
@@ -543,7 +567,8 @@ def _provenance(result: EvalResult) -> list[str]:
     if "split" in info:
         rows.append(["split", f"{info['split']}: {info.get('split_description', '')}"])
     fabrics = info.get("fabrics", [])
-    rows.append(["test fabrics", f"{len(fabrics)}: {', '.join(str(f) for f in fabrics)}"])
+    shown = ", ".join(result.names.get(int(f), str(f)) for f in fabrics)  # names, else ids
+    rows.append(["test fabrics", f"{len(fabrics)}: {shown}"])
     items = info.get("items", {})
     rows.append(
         [
@@ -637,8 +662,8 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
                 save(
                     confusion_figure(
                         con.matrix,
-                        [str(x) for x in con.rows],
-                        [str(x) for x in con.cols],
+                        [result.names.get(int(x), str(x)) for x in con.rows],
+                        [result.names.get(int(x), str(x)) for x in con.cols],
                         row_groups=row_groups,
                         col_groups=col_groups,
                         title=f"Fabric confusion, {q} {_ARROW} {g} (ordered by cluster)",

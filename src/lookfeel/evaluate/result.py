@@ -169,6 +169,10 @@ class EvalResult:
             fabric to find, e.g. touch to touch when every test fabric's presses all went into
             its query), each with the reason (`lookfeel.evaluate.core.no_query_scored`); their
             ``top{k}`` and calibration keys are NaN.
+        names: fabric id -> the object's name, for data that names its objects
+            (``videos/<name>_<n>.mov``, `lookfeel.data.Fabric.name`); empty for numbered
+            fabrics (GelFabric) or when the dataset is unknown. The report shows these names
+            in place of the ids (`fabric_label`).
     """
 
     metrics: dict[str, float]
@@ -185,6 +189,11 @@ class EvalResult:
     glance: tuple[GlanceExample, ...] = ()
     cross_maps: dict[Pair, CrossMap] = field(default_factory=dict)
     not_scored: dict[Pair, str] = field(default_factory=dict)
+    names: dict[int, str] = field(default_factory=dict)
+
+    def fabric_label(self, fabric_id: int) -> str:
+        """How the report names a fabric: ``sponge`` for a named object, ``F12`` otherwise."""
+        return self.names.get(int(fabric_id), f"F{int(fabric_id)}")
 
     @property
     def figure_pairs(self) -> tuple[Pair, ...]:
