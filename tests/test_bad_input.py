@@ -585,7 +585,7 @@ def test_match_on_a_library_image_names_its_fabric(library: Path, run, capsys):
             "1.5",
             "--false-accept (target_false_accept) must be in [0, 1); got 1.5",
         ),
-        ("--folds", "-1", "--folds must be 0 or more"),
+        ("--folds", "-1", "--folds (folds) must be 0 or more"),
     ],
 )
 def test_index_build_options_are_one_line(

@@ -1,5 +1,6 @@
 """Decoding and preprocessing: the authors' conventions, holes, crops, errors, caching."""
 
+import threading
 import warnings
 from pathlib import Path
 
@@ -243,3 +244,87 @@ def test_preprocessing_a_pillow_image_gives_the_bytes_of_its_array(
     from_image = preprocess_rgb(images_module.open_rgb(path), modality, config)
     assert from_array.shape == (image_size, image_size, 3) and from_array.flags.writeable
     np.testing.assert_array_equal(from_image, from_array)
+
+
+def test_a_modality_given_by_name_is_preprocessed_as_its_member():
+    cfg = DataConfig(image_size=32, color_size=48)
+    photo = np.random.default_rng(0).integers(0, 255, (60, 80, 3), np.uint8)
+    assert cfg.size_of("color") == 48 and preprocess_rgb(photo, "color", cfg).shape == (48, 48, 3)
+    frame = np.zeros((720, 960, 3), np.uint8)
+    frame[:, :120] = 255  # a white band left of the central 720x720: cropped away as touch
+    assert np.array_equal(
+        preprocess_rgb(frame, "touch", cfg), preprocess_rgb(frame, Modality.TOUCH, cfg)
+    )
+    assert preprocess_rgb(frame, "touch", cfg).max() == 0
+    from lookfeel.modality import ModalityError
+
+    with pytest.raises(ModalityError, match="unknown modality 'colour'; expected one of"):
+        preprocess_rgb(photo, "colour", cfg)
+    with pytest.raises(ModalityError, match="'colour'"):
+        cfg.size_of("colour")
+
+
+@pytest.fixture
+def catch_warnings_threads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The name of the thread of each use of ``warnings.catch_warnings`` during the test (it is
+    replaced by a stand-in that records that, then does what it does)."""
+    threads: list[str] = []
+    real = warnings.catch_warnings
+
+    class Recording:
+        def __init__(self, *args, **kwargs) -> None:
+            self._real = real(*args, **kwargs)
+
+        def __enter__(self):
+            threads.append(threading.current_thread().name)
+            return self._real.__enter__()
+
+        def __exit__(self, *exc) -> None:
+            self._real.__exit__(*exc)
+
+    monkeypatch.setattr(warnings, "catch_warnings", Recording)
+    return threads
+
+
+def test_threaded_decoding_leaves_the_warnings_filters_alone(
+    tiny_dataset: Path, catch_warnings_threads: list[str]
+):
+    # ``warnings.catch_warnings`` swaps the process's filters: in two decoding threads at once
+    # one thread's "ignore" can outlive both (Python < 3.14). Decoding must never use it.
+    catalog = scan(tiny_dataset)
+    items = [it for m in catalog.modalities for it in catalog.items(m)]
+    before = list(warnings.filters)
+    for _ in range(3):
+        loader = ImageLoader(DataConfig(image_size=16, workers=4, decode="threads"), cache_dir=None)
+        assert loader.preload(items) > 8  # enough files to decode in the thread pool
+    assert warnings.filters == before
+    assert [t for t in catch_warnings_threads if t != "MainThread"] == []
+
+
+@pytest.mark.filterwarnings("error")  # a warning fails the decode
+def test_a_decompression_bomb_is_refused_without_a_warning_or_a_filter(
+    tmp_path: Path, catch_warnings_threads: list[str]
+):
+    from ._tiny import bomb_png
+
+    bomb = tmp_path / "bomb.png"
+    bomb.write_bytes(bomb_png(13000, 13000))  # beyond Pillow's own limit: it would warn
+    with pytest.raises(ImageError, match="image declares 13000x13000"):
+        decode_rgb(bomb)
+    assert catch_warnings_threads == []
+
+
+def test_declared_size_reads_png_and_jpeg_headers_alone():
+    import io
+
+    from lookfeel.data.images import declared_size
+
+    a = np.random.default_rng(0).integers(0, 255, (13, 21, 3), np.uint8)
+    for fmt, options in [("PNG", {}), ("JPEG", {}), ("JPEG", {"progressive": True})]:
+        buf = io.BytesIO()
+        Image.fromarray(a).save(buf, fmt, exif=Image.Exif(), **options)
+        assert declared_size(buf.getvalue()) == (21, 13)
+        assert declared_size(buf.getvalue()[:10]) is None  # too short to say
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, "BMP")
+    assert declared_size(buf.getvalue()) is None  # another format: Pillow says

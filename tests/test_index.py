@@ -341,6 +341,15 @@ def test_build_errors_are_clear(run, tmp_path: Path):
         Library.open(foreign)
     with pytest.raises(LibraryError, match="library folder not found"):
         Library.open(tmp_path / "absent")
+    # Called from Python, an option is named as the CLI's flag and as the argument.
+    for kwargs, message in [
+        ({"folds": -1}, r"^--folds \(folds\) must be 0 or more"),
+        ({"calibration_queries": 0}, r"^--calibration-queries \(calibration_queries\) must be"),
+        ({"target_false_accept": 1.5}, r"^--false-accept \(target_false_accept\) must be"),
+    ]:
+        with pytest.raises(LibraryError, match=message):
+            build_library(ckpt, data, tmp_path / "z", **kwargs)
+        assert not (tmp_path / "z").exists()
 
 
 def test_changed_or_moved_checkpoint(run, library: Path, tmp_path: Path):
@@ -350,7 +359,7 @@ def test_changed_or_moved_checkpoint(run, library: Path, tmp_path: Path):
     moved = tmp_path / "moved.pt"
     shutil.copy(ckpt, moved)
     assert Library.open(copy, checkpoint=moved).load_model().step == 20
-    with pytest.raises(LibraryError, match="checkpoint is not there"):
+    with pytest.raises(LibraryError, match=r"not there; .*\(--checkpoint, Library.open's checkpo"):
         Library.open(copy, checkpoint=tmp_path / "gone.pt").load_model()
     moved.write_bytes(moved.read_bytes() + b"\0")
     with pytest.raises(LibraryError, match="differs from the one the library was built with"):

@@ -252,3 +252,44 @@ def test_a_model_trained_on_still_frames_takes_frames_and_videos(
     video = write_video(tmp_path / "press.mov", object_press(1, PRESS, t=14))
     [r] = matcher.match_files([video], Modality.TOUCH, top=2)  # read as a press video is read
     assert r.query == [str(video)] and len(r.fabrics) == 2
+
+
+def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, matcher: Matcher):
+    from lookfeel.errors import LookfeelError
+    from lookfeel.modality import ModalityError
+
+    data, _ = run
+    photo = data / "color/F0002_1.png"
+    cfg = matcher.data_config
+    assert torch.equal(
+        load_query_image(photo, "color", cfg), load_query_image(photo, Modality.COLOR, cfg)
+    )
+    [want] = matcher.match_files([photo], Modality.COLOR, gallery=Modality.DEPTH)
+    for paths in (str(photo), photo):  # one file, not one per character of its name
+        [r] = matcher.match_files(paths, "color", gallery="depth")
+        assert r.query == [str(photo)] and r.query_modality is Modality.COLOR
+        assert r.gallery_modality is Modality.DEPTH and r.fabrics == want.fabrics
+    assert matcher.match_item("depth:7", gallery="color").gallery_modality is Modality.COLOR
+    press = data / "touch/F0004_fold_02_400.png"
+    assert matcher.match_files(str(press), "touch")[0].query_modality is Modality.TOUCH
+    with pytest.raises(ModalityError, match="unknown modality 'colour'; expected one of"):
+        matcher.match_files([photo], "colour")
+    with pytest.raises(ModalityError, match="unknown modality 'deep'"):
+        matcher.match_files([photo], Modality.COLOR, gallery="deep")
+    with pytest.raises(ModalityError, match="'colour'"):
+        load_query_image(photo, "colour", cfg)
+    with pytest.raises(LookfeelError, match="no query file given"):
+        matcher.match_files([], Modality.COLOR)
+
+
+def test_a_query_embedding_must_be_one_finite_vector_of_the_library_s_width(matcher: Matcher):
+    e = matcher.library.table(Modality.DEPTH).embeddings[7]
+    r = matcher.match_embedding(torch.from_numpy(e), "depth", "q.png")
+    assert r.known and r.query == ["q.png"]
+    for bad in (np.full_like(e, np.nan), np.where(np.arange(len(e)) == 0, np.inf, e)):
+        with pytest.raises(LibraryError, match="embedding of q.png holds non-finite values"):
+            matcher.match_embedding(bad, Modality.DEPTH, ["q.png"])  # not "library item" itself
+    dim = matcher.library.embed_dim
+    for shape in [(dim // 2,), (2, dim)]:
+        with pytest.raises(LibraryError, match=rf"has shape \({shape[0]}, ?.*expected \({dim},\)"):
+            matcher.match_embedding(np.zeros(shape, np.float32), Modality.DEPTH, ["q"])

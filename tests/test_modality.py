@@ -64,3 +64,17 @@ def test_pair_rejects_what_is_not_a_pair(bad):
         Pair.parse(bad)
     with pytest.raises(ValueError, match="unknown modality 'smell'"):
         Pair("smell", Modality.DEPTH)
+
+
+def test_modality_of_takes_a_member_or_its_name_and_refuses_any_other():
+    from lookfeel.errors import LookfeelError
+    from lookfeel.modality import ModalityError
+
+    assert Modality.of("color") is Modality.COLOR and Modality.of(Modality.TOUCH) is Modality.TOUCH
+    assert "of" not in Modality.__members__ and len(Modality) == 3
+    for bad in ("colour", "Color", "", 3, None):
+        with pytest.raises(
+            ModalityError, match=r"unknown modality .*; expected one of: depth, color, touch"
+        ):
+            Modality.of(bad)  # type: ignore[arg-type]
+    assert issubclass(ModalityError, LookfeelError)  # one line from the CLI, a ValueError

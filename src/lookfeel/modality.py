@@ -13,9 +13,12 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
+from lookfeel.errors import LookfeelError
+
 __all__ = [
     "REPRINTS",
     "Modality",
+    "ModalityError",
     "Pair",
     "PressKind",
     "parse_modalities",
@@ -36,8 +39,17 @@ def reprint_path(photo: Path, k: int) -> Path:
     return photo.parent.parent / REPRINTS / f"{photo.stem}_r{k}{photo.suffix}"
 
 
+class ModalityError(LookfeelError):
+    """A modality named by a value that is none of `Modality`'s names."""
+
+
 class Modality(str, Enum):
-    """One way of sensing a fabric (paper section 3)."""
+    """One way of sensing a fabric (paper section 3).
+
+    A modality is a ``str`` (``Modality.COLOR == "color"``), but code compares members by
+    identity (``m is Modality.COLOR``), so a plain ``"color"`` must become the member first:
+    every public function that takes a modality accepts either and converts it with `of`.
+    """
 
     DEPTH = "depth"
     """Kinect depth image of the fabric draped over the post (16-bit PNG, millimetres)."""
@@ -48,6 +60,26 @@ class Modality(str, Enum):
 
     def __str__(self) -> str:
         return self.value
+
+    @classmethod
+    def of(cls, value: Modality | str) -> Modality:
+        """``value`` as a member: a `Modality` as it is, a name (``"color"``) as its member.
+
+        Example:
+            >>> Modality.of("color") is Modality.COLOR
+            True
+
+        Raises:
+            ModalityError: ``value`` names no modality (``"colour"``), naming it and the
+                valid names.
+        """
+        if isinstance(value, cls):
+            return value
+        try:
+            return cls(value)
+        except ValueError:
+            valid = ", ".join(m.value for m in cls)
+            raise ModalityError(f"unknown modality {value!r}; expected one of: {valid}") from None
 
 
 class PressKind(str, Enum):
@@ -85,7 +117,7 @@ class Pair(str):
     gallery: Modality
 
     def __new__(cls, query: Modality | str, gallery: Modality | str) -> Pair:
-        q, g = _modality(query), _modality(gallery)
+        q, g = Modality.of(query), Modality.of(gallery)
         self = super().__new__(cls, f"{q.value}{cls.SEPARATOR}{g.value}")
         object.__setattr__(self, "query", q)
         object.__setattr__(self, "gallery", g)
@@ -136,30 +168,19 @@ class Pair(str):
         return (Pair, (self.query.value, self.gallery.value))
 
 
-def _modality(m: Modality | str) -> Modality:
-    try:
-        return Modality(m)
-    except ValueError:
-        valid = ", ".join(x.value for x in Modality)
-        raise ValueError(f"unknown modality {m!r}; expected one of: {valid}") from None
-
-
 def parse_modalities(text: str | list[str] | tuple[str, ...]) -> tuple[Modality, ...]:
     """Parse ``"depth,touch"`` (or a list of names) into modalities, keeping order.
 
     Raises:
-        ValueError: naming the unknown value and the valid ones.
+        ModalityError: naming the unknown value and the valid ones (a ``ValueError``).
+        ValueError: no modality given.
     """
     names = [t.strip() for t in text.split(",")] if isinstance(text, str) else list(text)
     out: list[Modality] = []
     for name in names:
         if not name:
             continue
-        try:
-            m = Modality(name)
-        except ValueError:
-            valid = ", ".join(x.value for x in Modality)
-            raise ValueError(f"unknown modality {name!r}; expected one of: {valid}") from None
+        m = Modality.of(name)
         if m not in out:
             out.append(m)
     if not out:

@@ -27,7 +27,13 @@ from lookfeel.data.layout import IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.errors import LookfeelError
 from lookfeel.index.match import class_value
-from lookfeel.index.query import check_touch_files, load_query_files, query_batch
+from lookfeel.index.query import (
+    QueryFiles,
+    check_touch_files,
+    load_query_files,
+    query_batch,
+    query_paths,
+)
 from lookfeel.modality import Modality
 from lookfeel.models import CLASSES, PROPERTY, eval_mode
 
@@ -92,8 +98,8 @@ def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality
     if len(model_modalities) == 1:
         return model_modalities[0]
     raise PredictError(
-        f"{path}: say which modality the image shows with --modality (the model has "
-        f"{', '.join(m.value for m in model_modalities)})"
+        f"{path}: say which modality the image shows with --modality (modality); the model "
+        f"has {', '.join(m.value for m in model_modalities)}"
     )
 
 
@@ -110,8 +116,8 @@ def _heads(loaded: LoadedModel) -> None:
 @torch.inference_mode()
 def predict_files(
     loaded: LoadedModel,
-    paths: Sequence[str | Path],
-    modality: Modality | None = None,
+    paths: QueryFiles,
+    modality: Modality | str | None = None,
     *,
     together: bool = False,
     device: torch.device | str = "cpu",
@@ -120,8 +126,10 @@ def predict_files(
 
     Args:
         loaded: a checkpoint's model (`lookfeel.checkpoint.load_model`).
-        paths: query files: videos or images of one modality.
-        modality: what the files show; default: guessed per file (`guess_modality`).
+        paths: query files: videos or images of one modality; a single path (``str`` or
+            `~pathlib.Path`) is one file.
+        modality: what the files show, a `Modality` or its name (``"touch"``); default:
+            guessed per file (`guess_modality`).
         together: the files are presses of one object: pool them into one query (touch only).
         device: where the network runs.
 
@@ -134,12 +142,16 @@ def predict_files(
         a run leaves it out), and the query is answered from the others (its ``paths``).
 
     Raises:
-        PredictError: the model has no heads, lacks the modality, or the files mix modalities.
+        PredictError: the model has no heads, lacks the modality, the files mix modalities, or
+            no file is given.
+        ModalityError: ``modality`` names no modality.
         ImageError: naming a file that cannot be read (video errors other than a missing press
             included), or a still touch image for a model trained on press videos (checked
             for every file before any is decoded).
     """
     _heads(loaded)
+    if modality is not None:
+        modality = Modality.of(modality)
     cfg = loaded.config.model
     if cfg.class_heads and not any(c in cfg.class_temperature for c in cfg.class_heads):
         warnings.warn(
@@ -150,9 +162,10 @@ def predict_files(
         )
     model = loaded.model
     have = list(model.modalities)
-    files = [Path(p) for p in paths]
-    if not files:
-        raise PredictError("no input file given")
+    try:
+        files = query_paths(paths)
+    except LookfeelError:
+        raise PredictError("no input file given") from None
     if missing := next((p for p in files if not p.exists()), None):
         raise ImageError(missing, "file not found")  # before asking what a missing file shows
     mods = [modality or guess_modality(p, have) for p in files]
@@ -163,9 +176,13 @@ def predict_files(
                 f"{', '.join(x.value for x in have)})"
             )
     if together and len(set(mods)) > 1:
-        raise PredictError("--together pools presses of one object: give files of one modality")
+        raise PredictError(
+            "--together (together) pools presses of one object: give files of one modality"
+        )
     if together and mods[0] is not Modality.TOUCH:
-        raise PredictError("--together pools touch presses; depth and colour are one image each")
+        raise PredictError(
+            "--together (together) pools touch presses; depth and colour are one image each"
+        )
     data = loaded.config.data
     touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
     check_touch_files(touch, loaded.touch_input, data)  # every file before any is decoded

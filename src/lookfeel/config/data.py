@@ -351,10 +351,14 @@ class DataConfig:
         """Whether a touch input is several frames of a press stacked as channels."""
         return len(self.touch_frame_indices) > 1
 
-    def size_of(self, modality: Modality) -> int:
-        """Side in pixels of ``modality``'s network input: ``color_size`` for colour when
-        set, else ``image_size``."""
-        if modality is Modality.COLOR and self.color_size is not None:
+    def size_of(self, modality: Modality | str) -> int:
+        """Side in pixels of ``modality``'s network input (a `Modality` or its name):
+        ``color_size`` for colour when set, else ``image_size``.
+
+        Raises:
+            ModalityError: ``modality`` names no modality.
+        """
+        if Modality.of(modality) is Modality.COLOR and self.color_size is not None:
             return self.color_size
         return self.image_size
 

@@ -58,6 +58,7 @@ __all__ = [
     "ImageError",
     "ImageLoader",
     "PreprocessSettings",
+    "declared_size",
     "decode_depth",
     "decode_rgb",
     "depth_to_unit",
@@ -80,10 +81,67 @@ GELSIGHT_SIZE = (960, 720)
 
 
 _MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff")
+_JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+"""JPEG start-of-frame markers (SOF0-SOF15 less DHT, JPG and DAC): where its size is declared."""
+
+
+def declared_size(data: bytes) -> tuple[int, int] | None:
+    """Width and height a PNG or JPEG declares in its header, read from the bytes alone
+    (nothing decoded, no Pillow): None for another format or a header too damaged to say.
+
+    `_open` refuses an oversized image by this before Pillow opens it: Pillow warns of (or
+    refuses) an image beyond its own `PIL.Image.MAX_IMAGE_PIXELS` as it opens it, and silencing
+    that warning needs ``warnings.catch_warnings``, which swaps the process's warning filters
+    and so is not safe in the decoding threads (two threads' filters can outlive both)."""
+    if data.startswith(_MAGIC[0]):
+        if len(data) < 24 or data[12:16] != b"IHDR":
+            return None
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if not data.startswith(b"\xff\xd8"):
+        return None
+    i = 2
+    while i + 4 <= len(data):  # segments: FF <marker> <2-byte length, itself included> ...
+        if data[i] != 0xFF:
+            return None
+        while i < len(data) and data[i] == 0xFF:  # fill bytes
+            i += 1
+        if i >= len(data):
+            return None
+        marker = data[i]
+        i += 1
+        if marker == 0x01 or 0xD0 <= marker <= 0xD8:  # no length: TEM, RSTn, SOI
+            continue
+        if marker in (0xD9, 0xDA):  # end of image, or the scan with no frame header before
+            return None
+        if marker in _JPEG_FRAMES:
+            if i + 7 > len(data):
+                return None
+            h, w = (
+                int.from_bytes(data[i + 3 : i + 5], "big"),
+                int.from_bytes(data[i + 5 : i + 7], "big"),
+            )
+            return w, h
+        if i + 2 > len(data):
+            return None
+        i += int.from_bytes(data[i : i + 2], "big")
+    return None
+
+
+def _too_many_pixels(path: Path, w: int, h: int, limit: int) -> ImageError:
+    return ImageError(
+        path,
+        f"image declares {w}x{h} = {w * h / 1e6:.1f} megapixels; at most "
+        f"{limit / 1e6:g} are decoded",
+    )
 
 
 def _open(path: Path, data: bytes | None = None, max_pixels: int | None = None) -> Image.Image:
     """Decode ``data`` (default: the file at ``path``), refusing oversized images unread.
+
+    The size is checked from the header before Pillow opens a PNG or JPEG (`declared_size`),
+    so Pillow's own warning of a "decompression bomb" (beyond its ``MAX_IMAGE_PIXELS``) is never
+    reached for them, with no change to the process's warning filters (this runs in decoding
+    threads); another format is checked once Pillow has read its header.
 
     Errors name ``path`` and never echo Pillow's message (it may hold a temp path).
     """
@@ -91,18 +149,15 @@ def _open(path: Path, data: bytes | None = None, max_pixels: int | None = None) 
     blob = read_image_file(path) if data is None else data
     if not blob:
         raise ImageError(path, "file is empty")
+    size = declared_size(blob)
+    if size is not None and size[0] * size[1] > limit:
+        raise _too_many_pixels(path, size[0], size[1], limit)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            im = Image.open(io.BytesIO(blob))
-            w, h = im.size
-            if w * h > limit:
-                raise ImageError(
-                    path,
-                    f"image declares {w}x{h} = {w * h / 1e6:.1f} megapixels; at most "
-                    f"{limit / 1e6:g} are decoded",
-                )
-            im.load()
+        im = Image.open(io.BytesIO(blob))
+        w, h = im.size
+        if w * h > limit:
+            raise _too_many_pixels(path, w, h, limit)
+        im.load()
     except ImageError:
         raise
     except Image.DecompressionBombError:
@@ -262,13 +317,18 @@ def _center_square(a: np.ndarray) -> np.ndarray:
 
 
 def preprocess_rgb(
-    rgb: np.ndarray | Image.Image, modality: Modality, config: DataConfig
+    rgb: np.ndarray | Image.Image, modality: Modality | str, config: DataConfig
 ) -> np.ndarray:
     """8-bit RGB -> (S, S, 3) uint8, S = ``config.size_of(modality)``: crop as configured for
-    the modality, then resize.
+    the modality (a `Modality` or its name, ``"touch"``), then resize.
 
     ``rgb`` is an (H, W, 3) uint8 array or an RGB Pillow image (`open_rgb`); both give the
-    same bytes."""
+    same bytes.
+
+    Raises:
+        ModalityError: ``modality`` names no modality.
+    """
+    modality = Modality.of(modality)
     im = rgb if isinstance(rgb, Image.Image) else None
     w, h = im.size if im is not None else (rgb.shape[1], rgb.shape[0])  # type: ignore[union-attr]
     if modality is Modality.TOUCH:
@@ -555,9 +615,10 @@ class ImageLoader:
             return press.images[0]
         return np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
 
-    def array(self, path: Path, modality: Modality) -> np.ndarray:
+    def array(self, path: Path, modality: Modality | str) -> np.ndarray:
         """The preprocessed array of one file: (S, S) float32 for depth, (S, S, 3) uint8 else
         ((S, S, 3F) for F touch frames stacked: ``data.touch_frames``)."""
+        modality = Modality.of(modality)
         a = self._memory.get(path)
         if a is None:
             a = self._preprocess_file(path, modality)
@@ -745,8 +806,9 @@ class ImageLoader:
         in memory and on disk like images."""
         return self.embed_file(self.frame_path(item), item.modality)
 
-    def embed_file(self, path: Path, modality: Modality) -> np.ndarray:
-        """`embed_array` of a file given as such (a query)."""
+    def embed_file(self, path: Path, modality: Modality | str) -> np.ndarray:
+        """`embed_array` of a file given as such (a query), of ``modality`` (or its name)."""
+        modality = Modality.of(modality)
         if not self._pools(path, modality):
             return self.array(path, modality)
         v = self._embedded.get(path)
@@ -929,7 +991,8 @@ class ArrayLoader(ImageLoader):
             return True
         return super()._held(item, views)
 
-    def array(self, path: Path, modality: Modality) -> np.ndarray:
+    def array(self, path: Path, modality: Modality | str) -> np.ndarray:
+        modality = Modality.of(modality)
         if modality is self._modality and path in self._arrays:
             return self._arrays[path]
         return super().array(path, modality)

@@ -219,9 +219,14 @@ def build_library(
             f"--false-accept (target_false_accept) must be in [0, 1); got {target_false_accept}"
         )
     if folds < 0:
-        raise LibraryError(f"--folds must be 0 or more (below 2: no unknown class); got {folds}")
+        raise LibraryError(
+            f"--folds (folds) must be 0 or more (below 2: no unknown class); got {folds}"
+        )
     if calibration_queries < 1:
-        raise LibraryError(f"--calibration-queries must be at least 1; got {calibration_queries}")
+        raise LibraryError(
+            "--calibration-queries (calibration_queries) must be at least 1; got "
+            f"{calibration_queries}"
+        )
     try:
         choose_backend(backend, 0)  # validate before any work
     except ValueError as e:
@@ -346,6 +351,7 @@ def build_library(
         backend=resolved,
         label_columns=list(catalog.label_columns),
         text_columns=list(catalog.text_columns),
+        rank_columns=list(catalog.rank_columns),
         fabrics=[
             {
                 "id": f.id,

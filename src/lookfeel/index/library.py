@@ -44,6 +44,7 @@ from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, from_dict
 from lookfeel.data.catalog import Catalog, Fabric
+from lookfeel.data.labels import is_rank_column
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.index.calibrate import Calibration
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
@@ -334,18 +335,26 @@ class Library:
 
     def _classes(self) -> dict[str, tuple[str, ...]]:
         """The label columns whose values are classes: those `lookfeel data info` finds
-        (`Catalog.class_counts`: text columns, and numeric columns of a few whole numbers; not
+        (`Catalog.class_counts`: text columns, and numeric columns of ranks 0-10; not
         a column whose every cell differs, such as a description), and the model's class heads
         (``model.classes``). Classes in order: numbers in numeric order, words alphabetical."""
         fabrics = tuple(
             Fabric(id=r.id, labels=r.labels, name=r.name, text_labels=r.text_labels)
             for r in self.fabrics.values()
         )
+        ranks = self.manifest.get("rank_columns")
+        if ranks is None:  # a library built before they were recorded: its fabrics' values
+            ranks = [
+                c
+                for c in self.label_columns
+                if is_rank_column(f.labels[c] for f in fabrics if c in f.labels)
+            ]
         catalog = Catalog(
             root=self.root,
             fabrics=fabrics,
             label_columns=self.label_columns,
             text_columns=self.text_columns,
+            rank_columns=tuple(ranks),
         )
         found = {col: set(counts) for col, counts in catalog.class_counts().items()}
         for col in self.config.model.classes:
@@ -434,7 +443,7 @@ class Library:
         if not ck.is_file():
             raise LibraryError(
                 f"{ck}: the library's checkpoint is not there; pass the checkpoint it was built "
-                "with (--checkpoint) or rebuild the library"
+                "with (--checkpoint, Library.open's checkpoint) or rebuild the library"
             )
         expected = self.manifest["checkpoint"]["sha256"]
         if file_sha256(ck) != expected:

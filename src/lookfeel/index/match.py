@@ -44,7 +44,13 @@ from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
-from lookfeel.index.query import check_touch_files, load_query_files, query_batch
+from lookfeel.index.query import (
+    QueryFiles,
+    check_touch_files,
+    load_query_files,
+    query_batch,
+    query_paths,
+)
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
@@ -197,33 +203,40 @@ class Matcher:
         """How query images are preprocessed: the run's own data settings."""
         return self.library.config.data
 
-    def check_modality(self, modality: Modality) -> None:
-        """Raise `LibraryError` when the model cannot embed ``modality``."""
+    def check_modality(self, modality: Modality | str) -> Modality:
+        """``modality`` (a `Modality` or its name) as a `Modality`, which the model embeds.
+
+        Raises:
+            ModalityError: ``modality`` names no modality.
+            LibraryError: the model cannot embed it.
+        """
+        modality = Modality.of(modality)
         if modality not in self.model.modalities:
             have = ", ".join(m.value for m in self.model.modalities)
             raise LibraryError(
                 f"the library's model has no {modality.value} branch (it embeds: {have})"
             )
+        return modality
 
     @torch.inference_mode()
-    def embed(self, x: torch.Tensor, modality: Modality) -> NDArray[np.float32]:
+    def embed(self, x: torch.Tensor, modality: Modality | str) -> NDArray[np.float32]:
         """Embed a `query_batch` (N, C, S, S) or (1, P, 3, S, S) -> (N, D) float32."""
-        self.check_modality(modality)
+        modality = self.check_modality(modality)
         out = self.model({modality.value: x.to(self.device)})[modality.value]
         return out.float().cpu().numpy()
 
-    def load(self, paths: Sequence[str | Path], modality: Modality) -> torch.Tensor:
-        """Read query files into a `query_batch`; errors name the file (a still touch image
-        for a model trained on press videos is refused before any file is decoded)."""
+    def load(self, paths: QueryFiles, modality: Modality | str) -> torch.Tensor:
+        """Read query files (a single path is one file) into a `query_batch`; errors name the
+        file (a still touch image for a model trained on press videos is refused before any
+        file is decoded)."""
         return self._load(paths, modality)[0]
 
-    def _load(
-        self, paths: Sequence[str | Path], modality: Modality
-    ) -> tuple[torch.Tensor, list[Path]]:
+    def _load(self, paths: QueryFiles, modality: Modality | str) -> tuple[torch.Tensor, list[Path]]:
         """`load`, and the files it read: of several touch presses (one query), a video
         without a press is left out with a warning, as a run leaves it out; the only one, or
         every one, is an error."""
-        self.check_modality(modality)
+        modality = self.check_modality(modality)
+        paths = query_paths(paths)
         if modality is Modality.TOUCH:
             check_touch_files(paths, self.touch_input, self.data_config)
         images, used = load_query_files(paths, modality, self.data_config)
@@ -231,19 +244,28 @@ class Matcher:
 
     def match_files(
         self,
-        paths: Sequence[str | Path],
-        modality: Modality,
+        paths: QueryFiles,
+        modality: Modality | str,
         top: int = 5,
-        gallery: Modality | None = None,
+        gallery: Modality | str | None = None,
         k_properties: int = 5,
         n_items: int = 2,
     ) -> list[MatchResult]:
         """Match image files: one result per depth/colour image, one for all touch presses.
 
+        Args:
+            paths: the query's files; a single path (``str`` or `~pathlib.Path`) is one file.
+            modality: what the files show: a `Modality` or its name (``"color"``).
+            top, gallery, k_properties, n_items: as `match_embedding`.
+
         Raises:
             ImageError: naming a file that cannot be used.
             LibraryError: the modality or gallery is not in the library.
+            ModalityError: ``modality`` or ``gallery`` names no modality.
+            LookfeelError: no file given.
         """
+        modality = Modality.of(modality)
+        gallery = None if gallery is None else Modality.of(gallery)  # before any file is read
         t0 = time.perf_counter()
         x, used = self._load(paths, modality)
         t1 = time.perf_counter()
@@ -270,7 +292,7 @@ class Matcher:
         self,
         item_id: str,
         top: int = 5,
-        gallery: Modality | None = None,
+        gallery: Modality | str | None = None,
         k_properties: int = 5,
         n_items: int = 2,
     ) -> MatchResult:
@@ -294,12 +316,12 @@ class Matcher:
 
     def match_embedding(
         self,
-        e: NDArray[np.floating],
-        modality: Modality,
-        files: list[str],
+        e: NDArray[np.floating] | torch.Tensor,
+        modality: Modality | str,
+        files: Sequence[str],
         *,
         top: int = 5,
-        gallery: Modality | None = None,
+        gallery: Modality | str | None = None,
         k_properties: int = 5,
         n_items: int = 2,
         exclude: str | None = None,
@@ -307,18 +329,25 @@ class Matcher:
         """Rank the library's fabrics for one query embedding (see the module docstring).
 
         Args:
-            e: (D,) the query's embedding.
-            modality: the query's modality.
-            files: the query's files, for the report.
+            e: (D,) the query's embedding, D the library's (`Library.embed_dim`).
+            modality: the query's modality (a `Modality` or its name).
+            files: the query's files, for the report (one name may be given as such).
             top: fabrics to return.
-            gallery: the modality to match against; default: calibration's best for ``modality``.
+            gallery: the modality to match against (a `Modality` or its name); default:
+                calibration's best for ``modality``.
             k_properties: fabrics the property estimate is drawn from.
             n_items: nearest items shown per fabric and modality.
             exclude: a library item id left out everywhere (a library item used as query).
 
         Raises:
-            LibraryError: ``gallery`` is not in the library or was not calibrated.
+            LibraryError: ``gallery`` is not in the library or was not calibrated; ``e`` is
+                not one (D,) embedding, or holds NaN or infinite values.
+            ModalityError: ``modality`` or ``gallery`` names no modality.
         """
+        modality = Modality.of(modality)
+        gallery = None if gallery is None else Modality.of(gallery)
+        files = [files] if isinstance(files, str) else list(files)  # one name, not its letters
+        e = self._query_embedding(e, files)
         if top < 1:
             raise LibraryError(f"top must be >= 1; got {top}")
         if k_properties < 1:
@@ -427,6 +456,28 @@ class Matcher:
             timing_ms={"search": 1e3 * (t1 - t0)},
         )
 
+    def _query_embedding(
+        self, e: NDArray[np.floating] | torch.Tensor, files: Sequence[str]
+    ) -> NDArray[np.floating]:
+        """``e`` as a numpy array, checked: one embedding of the library's dimension, finite
+        (a NaN is no distance from anything, and would otherwise pass for a library item)."""
+        if isinstance(e, torch.Tensor):
+            e = e.detach().cpu().numpy()
+        q = np.asarray(e)
+        what = f"the query embedding of {', '.join(files)}" if files else "the query embedding"
+        dim = self.library.embed_dim
+        if q.shape != (dim,) or q.dtype.kind not in "fiu":
+            raise LibraryError(
+                f"{what} has shape {q.shape} ({q.dtype}); expected ({dim},): one embedding "
+                f"of the library's dimension {dim}"
+            )
+        if not np.isfinite(q).all():
+            raise LibraryError(
+                f"{what} holds non-finite values (NaN or infinity); it matches nothing "
+                "(a model whose weights diverged gives such embeddings)"
+            )
+        return q
+
     def _title(self, fabric_id: int) -> str:
         """A fabric as a person reads it: its name (``sponge``), else ``fabric 7``."""
         record = self.library.fabrics.get(fabric_id)
@@ -463,7 +514,7 @@ class Matcher:
         for dist, row in zip(d[0], idx[0], strict=True):
             if row < 0 or f"{modality.value}:{int(row)}" == exclude:
                 continue
-            if dist > IDENTICAL_DISTANCE:
+            if not dist <= IDENTICAL_DISTANCE:  # a NaN distance is no identity either
                 return None
             return table.item(int(row))
         return None

@@ -19,9 +19,10 @@ record is not checked.
 
 from __future__ import annotations
 
+import os
 import tempfile
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +44,7 @@ from lookfeel.data.images import (
 )
 from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
 from lookfeel.data.video import NoPressError
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
 __all__ = [
@@ -54,8 +56,33 @@ __all__ = [
     "load_query_files",
     "load_query_image",
     "query_batch",
+    "query_paths",
     "sniff_type",
 ]
+
+QueryFiles = str | os.PathLike[str] | Iterable[str | os.PathLike[str]]
+"""The files of a query: one path (a ``str`` or `~pathlib.Path`), or several."""
+
+
+def query_paths(paths: QueryFiles) -> list[Path]:
+    """The files of a query as a list: a single path, a ``str`` included, is one file (not a
+    sequence of one-letter names); any other iterable gives its paths in order.
+
+    Raises:
+        LookfeelError: no file given (an empty list).
+    """
+    files = _paths(paths)
+    if not files:
+        raise LookfeelError("no query file given: a query needs at least one file")
+    return files
+
+
+def _paths(paths: QueryFiles) -> list[Path]:
+    """`query_paths`, an empty list allowed."""
+    if isinstance(paths, (str, os.PathLike)):
+        return [Path(paths)]
+    return [Path(p) for p in paths]
+
 
 IMAGE_TYPES = {"image/png": b"\x89PNG\r\n\x1a\n", "image/jpeg": b"\xff\xd8\xff"}
 """The image types a query may be: content type -> the bytes its files begin with."""
@@ -101,18 +128,17 @@ def check_touch_query(
         raise ImageError(Path(name), STILL_TOUCH_REFUSED)
 
 
-def check_touch_files(
-    paths: Sequence[str | Path], trained_on: str | None, config: DataConfig
-) -> None:
+def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataConfig) -> None:
     """`check_touch_query` of every file of a touch query (a video by its suffix), before any
     of them is decoded."""
-    for p in paths:
+    for p in _paths(paths):
         check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
 
 
 def _preprocess(
-    name: Path, data: bytes, modality: Modality, config: DataConfig, max_pixels: int
+    name: Path, data: bytes, modality: Modality | str, config: DataConfig, max_pixels: int
 ) -> torch.Tensor:
+    modality = Modality.of(modality)
     if modality is Modality.DEPTH:
         a = preprocess_depth(decode_depth(name, data, max_pixels), config)  # (S, S) float32
         return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
@@ -121,12 +147,13 @@ def _preprocess(
 
 
 def load_query_image(
-    path: str | Path,
-    modality: Modality,
+    path: str | os.PathLike[str],
+    modality: Modality | str,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
 ) -> torch.Tensor:
-    """Decode and preprocess one query image as training does.
+    """Decode and preprocess one query image of ``modality`` (a `Modality` or its name,
+    ``"color"``) as training does.
 
     The file must be a regular file (a FIFO or device is refused at once, never waited on) of
     at most ``max_pixels`` pixels, checked from its header before decoding. Whether a touch
@@ -141,8 +168,10 @@ def load_query_image(
     Raises:
         ImageError: naming the file when it is missing, not a regular file, not an image, too
             large, or the wrong kind (e.g. an 8-bit PNG given as depth).
+        ModalityError: ``modality`` names no modality.
     """
     path = Path(path)
+    modality = Modality.of(modality)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
         # Several frames of the press stacked (``data.touch_frames``): read with the file's
         # sibling frames, as in training.
@@ -155,20 +184,23 @@ def load_query_image(
 
 
 def load_query_files(
-    paths: Sequence[str | Path], modality: Modality, config: DataConfig
+    paths: QueryFiles, modality: Modality | str, config: DataConfig
 ) -> tuple[list[torch.Tensor], list[Path]]:
-    """`load_query_image` of each file of one query, and the files read: of several, a press
-    video without a press is left out with a warning (as a run leaves it out), so that one bad
-    recording among an object's presses does not lose the whole answer.
+    """`load_query_image` of each file of one query (a single path is one file:
+    `query_paths`), and the files read: of several, a press video without a press is left out
+    with a warning (as a run leaves it out), so that one bad recording among an object's
+    presses does not lose the whole answer.
 
     Raises:
+        LookfeelError: no file given.
         NoPressError: the only file, or every file, holds no press (the first one's error).
         ImageError: as `load_query_image`.
     """
+    modality = Modality.of(modality)
     images: list[torch.Tensor] = []
     used: list[Path] = []
     failed: list[NoPressError] = []
-    for p in paths:
+    for p in query_paths(paths):
         try:
             images.append(load_query_image(p, modality, config))
             used.append(Path(p))
@@ -184,7 +216,7 @@ def load_query_files(
 def load_query_bytes(
     data: bytes,
     name: str,
-    modality: Modality,
+    modality: Modality | str,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
     *,
@@ -196,7 +228,9 @@ def load_query_bytes(
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
+        ModalityError: ``modality`` names no modality.
     """
+    modality = Modality.of(modality)
     if modality is Modality.TOUCH:
         check_touch_query(name, sniff_video(data[:16]), trained_on, config)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
@@ -224,7 +258,7 @@ def _video_bytes(data: bytes, name: str, config: DataConfig) -> torch.Tensor:
             raise ImageError(Path(name), e.reason) from None
 
 
-def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Tensor:
+def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> torch.Tensor:
     """Stack preprocessed images into the model's input for one modality.
 
     Depth and colour images are separate queries: (N, C, S, S). Touch images are the presses
@@ -234,6 +268,6 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality) -> torch.Ten
     if not images:
         raise ValueError("a query needs at least one image")
     x = stack_views(list(images))
-    if modality is Modality.TOUCH:
+    if Modality.of(modality) is Modality.TOUCH:
         return x.unsqueeze(0)  # (P, 3, S, S) -> (1, P, 3, S, S)
     return x.contiguous(memory_format=torch.channels_last)

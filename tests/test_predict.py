@@ -1,0 +1,59 @@
+"""`lookfeel.predict.predict_files` called from Python: modalities by name, single paths, the
+wording of its errors."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.config import RunConfig, load_config
+from lookfeel.modality import Modality, ModalityError
+from lookfeel.predict import PredictError, predict_files
+from lookfeel.train import train
+
+from ._library import TINY
+
+pytestmark = pytest.mark.filterwarnings("ignore:.*probabilities are as trained, not calibrated")
+
+
+@pytest.fixture(scope="module")
+def heads(run, tmp_path_factory: pytest.TempPathFactory) -> LoadedModel:
+    """`run`'s dataset under a tiny model with a class head (stretchiness), a few steps."""
+    data, _ = run
+    overrides = ["model.class_heads=[stretchiness]", "train.steps=2", "train.split=none"]
+    config = load_config(
+        RunConfig, TINY, [*overrides, "train.val_every=0", "train.checkpoint_every=0"]
+    )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as `tests._library.tiny_run`: faster on a shared CPU
+    try:
+        result = train(config, data, tmp_path_factory.mktemp("heads") / "run")
+    finally:
+        torch.set_num_threads(threads)
+    return load_model(result.last_checkpoint)
+
+
+def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, heads: LoadedModel):
+    data, _ = run
+    photo = data / "color/F0003_2.png"
+    [want] = predict_files(heads, [photo], Modality.COLOR)
+    assert want.modality == "color" and "stretchiness" in want.properties
+    for paths in (str(photo), photo):  # one file, not one per character of its name
+        assert predict_files(heads, paths, "color") == [want]
+    press = data / "touch/F0004_fold_02_400.png"
+    [touch] = predict_files(heads, str(press), "touch", together=True)
+    assert touch.paths == [str(press)] and touch.modality == "touch"
+    with pytest.raises(ModalityError, match="unknown modality 'colour'; expected one of"):
+        predict_files(heads, [photo], "colour")
+    with pytest.raises(PredictError, match="no input file given"):
+        predict_files(heads, [])
+
+
+def test_errors_name_the_cli_flag_and_the_python_argument(run, heads: LoadedModel):
+    data, _ = run
+    photo = str(data / "color/F0003_2.png")
+    with pytest.raises(PredictError, match=r"F0003_2.png: say which .* --modality \(modality\)"):
+        predict_files(heads, [photo])
+    with pytest.raises(PredictError, match=r"^--together \(together\) pools touch presses"):
+        predict_files(heads, [photo, photo], Modality.COLOR, together=True)
