@@ -1,6 +1,13 @@
 from pathlib import Path
 
-from lookfeel.data import read_labels
+import pytest
+
+from lookfeel.cli import main
+from lookfeel.config import ConfigError, ModelConfig, RunConfig
+from lookfeel.data import read_labels, scan
+from lookfeel.train.loop import resolve_classes
+
+from ._tiny import write_tiny_dataset
 
 
 def _read(tmp_path: Path, text: str):
@@ -67,3 +74,77 @@ def test_an_infinite_cell_is_not_finite_and_a_nan_cell_is_unknown(tmp_path: Path
     ]
     assert table.rows[3].values == {"stiffness": 2.0}  # nan: unknown, not a problem
     assert table.rows[5].values == {"density": 1.0, "stiffness": 2.0}
+
+
+# ---- ranks: one rule for data info, data check, training's class heads ------------------------
+
+
+def _ranked(root: Path, hardness_of_3: str) -> Path:
+    """Four fabrics with images; labels.csv with ranks ``hardness`` (fabric 3's cell given)."""
+    write_tiny_dataset(
+        root, fabrics=4, drapes=1, fold_presses=1, flat_presses=0, frames=1, labels=False
+    )
+    (root / "labels.csv").write_text(
+        f"fabric_id,hardness,material\n1,0,cloth\n2,2,metal\n3,{hardness_of_3},wood\n4,1,cloth\n"
+    )
+    return root
+
+
+def test_one_odd_rank_makes_the_column_numbers_in_every_command_and_is_named(
+    tmp_path: Path, capsys
+):
+    """``1.5`` among ranks 0, 1, 2: `data info` showed no classes for the column while a class
+    head learnt 1.5 as a class of its own. Now the column is numbers everywhere (no classes
+    in info, a class head refused), and the reader warns naming the file, line, column, fabric
+    and cell; with the cell corrected, it is ranks everywhere."""
+    root = _ranked(tmp_path / "odd", "1.5")
+    catalog = scan(root)
+    assert catalog.label_columns == ("hardness",) and catalog.rank_columns == ()
+    assert catalog.class_columns == ("material",)
+    assert "hardness" not in catalog.summary()["classes"]
+    warning = (
+        f"{root / 'labels.csv'}:4: column 'hardness': fabric 3 has '1.5', where the column's "
+        "other values are whole numbers 0-10 (0, 1, 2): the whole column is read as numbers, "
+        "not ranks (no classes in `lookfeel data info`, no class head); correct the cell if "
+        "it is a rank"
+    )
+    assert [str(p) for p in catalog.warnings] == [warning]
+
+    assert main(["data", "info", str(root)]) == 0
+    info = capsys.readouterr().out
+    assert "\n    material   cloth:2 metal:1 wood:1\n" in info  # the rows of classes
+    assert "\n    hardness " not in info
+    assert "0 errors, 1 warning in names and headers (run `lookfeel data check`)" in info
+    assert main(["data", "check", str(root), "--no-leakage"]) == 0
+    assert f"WARNING  {warning}\n" in capsys.readouterr().out
+
+    heads = RunConfig(model=ModelConfig(backbone="compact", class_heads=("hardness",)))
+    with pytest.raises(
+        ConfigError,
+        match=r"^model.class_heads: column 'hardness' of labels.csv is numbers, not classes: "
+        r"F0003 has 1.5, not a whole number 0-10 \(a rank\)",
+    ):
+        resolve_classes(catalog, heads)
+
+    fixed = scan(_ranked(tmp_path / "fixed", "1"))
+    assert fixed.rank_columns == ("hardness",) and fixed.warnings == ()
+    assert fixed.summary()["classes"]["hardness"] == {"0": 1, "1": 2, "2": 1}
+    assert resolve_classes(fixed, heads).model.classes == {"hardness": ("0", "1", "2")}
+
+
+def test_half_ranks_and_measurements_are_numbers_without_a_warning(tmp_path: Path):
+    """A column of 0 and 1 with a few 0.5 (two of 20 here), a measurement, and the paper's
+    physical labels (GelFabric's stretchiness is 0, 0.5 or 1) are numbers, and no typo; a rank
+    below 0 (or above 10) breaks a column of ranks as 1.5 does."""
+    rows = "".join(
+        f"{i},{0.5 if i % 7 == 0 else i % 2},{1.2 + i / 10},{0.5 if i == 3 else i % 2},"
+        f"{i % 3 if i != 5 else -1}\n"
+        for i in range(1, 21)
+    )
+    header = "fabric_id,softness,thickness,stretchiness,hardness\n"
+    table, problems = _read(tmp_path, header + rows)
+    assert table.columns == ("softness", "thickness", "stretchiness", "hardness")
+    assert table.rank_columns == ()
+    assert [(p.line, p.severity, p.message[:45]) for p in problems] == [
+        (6, "warning", "column 'hardness': fabric 5 has '-1', where t")
+    ]

@@ -71,7 +71,10 @@ def test_problems_row_says_it_covers_names_and_headers_only(tmp_path: Path, caps
 @pytest.mark.parametrize(
     ("content", "why"),
     [
-        ("object,hardness\nsponge,0\n".encode("latin-1") + "éponge,1\n".encode("latin-1"), "utf-8"),
+        (
+            "object,hardness\nsponge,0\n".encode("latin-1") + "éponge,1\n".encode("latin-1"),
+            "not a text CSV in UTF-8 (byte 25",
+        ),
         (b"", "labels file is empty"),
         (b"object;hardness\nsponge;0\ncork;1\n", "no 'fabric_id' or 'object' column"),
     ],

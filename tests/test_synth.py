@@ -29,6 +29,7 @@ from lookfeel.synth.drape import drape_surface, sample_drape
 from lookfeel.synth.fabric import (
     MATERIALS,
     Fabric,
+    fabrics_from_labels,
     make_fabric,
     read_label_file,
     reprinted,
@@ -243,7 +244,7 @@ def test_label_mode_keeps_ids_and_columns_and_renders_only_what_is_asked(tmp_pat
 def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     bad = tmp_path / "labels.csv"
     bad.write_text("fabric_id,thickness_mm\n1,thick\n")
-    with pytest.raises(ValueError, match="line 2.*thickness_mm"):
+    with pytest.raises(ValueError, match=r"labels\.csv:2: column 'thickness_mm'"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
     bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
     with pytest.raises(ValueError, match=r"labels\.csv: not a text CSV in UTF-8 \(byte 0"):
@@ -294,11 +295,11 @@ def test_label_mode_says_an_infinite_label_is_not_finite(tmp_path: Path, value: 
     labels = tmp_path / "labels.csv"
     labels.write_text(_LABELS_HEADER + f"1,0,5.3,{value},2.8,0.5,train\n")
     with pytest.raises(
-        ValueError, match=rf"line 2: column 'density': '{re.escape(value)}' is not finite$"
+        ValueError, match=rf":2: column 'density': '{re.escape(value)}' is not finite$"
     ):
         read_label_file(labels)
     labels.write_text(_LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n")  # negative: its own words
-    with pytest.raises(ValueError, match=r"line 2: column 'thickness_mm': '-5.3' must be >= 0$"):
+    with pytest.raises(ValueError, match=r":2: column 'thickness_mm': '-5.3' must be >= 0$"):
         read_label_file(labels)
 
 
@@ -306,8 +307,33 @@ def test_label_mode_says_a_non_ascii_digit_is_not_a_fabric_id(tmp_path: Path) ->
     """A "²" is a digit to str.isdigit but not to int(), which said "invalid literal"."""
     labels = tmp_path / "labels.csv"
     labels.write_text("fabric_id,density\n\u00b2,1\n", encoding="utf-8")
-    with pytest.raises(ValueError, match="line 2: fabric_id '\u00b2' is not an integer$"):
+    with pytest.raises(ValueError, match=r":2: fabric_id '\u00b2' is not an integer id \("):
         read_label_file(labels)
+
+
+def test_label_mode_reads_the_file_once_with_the_dataset_reader(tmp_path: Path) -> None:
+    """synth parsed the file itself, then again with the dataset reader: its own first error
+    came alone and in its own words ("FILE, line 2: ..."), and a "nan" cell was a NaN label.
+    Now the reader parses it: the first problem in the reader's words with how many more, and
+    "nan" is an unknown cell, filled from the fabric's cluster as an empty one is."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text(_LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n2,0,2.7,1.3,3.3,1,bogus\n")
+    with pytest.raises(ValueError) as raised:
+        read_label_file(labels)
+    assert str(raised.value) == (
+        f"{labels}:2: column 'thickness_mm': '-5.3' must be >= 0 (and 1 more problem(s) in "
+        "this file)"
+    )
+    labels.write_text("object,hardness\nsponge,0\n")
+    with pytest.raises(ValueError, match=r":1: no 'fabric_id' column in the header: synth "):
+        read_label_file(labels)
+
+    rows = "1,0,5.3,{},2.8,0.5,train\n2,0,2.7,1.3,3.3,1,test\n3,0,2.9,1.5,3.1,1,test\n"
+    labels.write_text(_LABELS_HEADER + rows.format("nan"))
+    with_nan = read_label_file(labels)
+    assert with_nan.values[0] == {"thickness_mm": 5.3, "stiffness": 2.8, "stretchiness": 0.5}
+    labels.write_text(_LABELS_HEADER + rows.format(""))
+    assert fabrics_from_labels(with_nan, 0) == fabrics_from_labels(read_label_file(labels), 0)
 
 
 def test_test_fabrics_sets_how_many_are_held_out_and_nothing_else(tmp_path: Path) -> None:

@@ -15,14 +15,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from lookfeel.data.files import VIDEO_SUFFIXES
-from lookfeel.data.labels import class_of
+from lookfeel.data.labels import PHYSICAL_LABELS, class_of
 from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.modality import Modality, PressKind
 
 __all__ = ["PHYSICAL_LABELS", "Catalog", "Fabric", "Item"]
-
-PHYSICAL_LABELS = ("thickness_mm", "density", "stiffness", "stretchiness")
-"""The paper's four human/physical labels (section 3), in its order."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +114,9 @@ class Catalog:
         label_columns: the numeric label columns of labels.csv beyond the key (in file order),
             other than ``paper_split`` and cluster columns.
         text_columns: the label columns of words (``material``), usable as classes.
+        rank_columns: the numeric label columns of ranks (``hardness`` 0/1/2: every value in
+            labels.csv a whole number 0-10, `lookfeel.data.labels.is_rank_column`), whose
+            values are classes too.
         cluster_column: the labels.csv column the clusters came from, if any.
         labelled_only: fabric ids that are in labels.csv but have no image.
         problems: everything the scan found wrong or worth a warning.
@@ -127,6 +127,7 @@ class Catalog:
     fabrics: tuple[Fabric, ...]
     label_columns: tuple[str, ...] = ()
     text_columns: tuple[str, ...] = ()
+    rank_columns: tuple[str, ...] = ()
     cluster_column: str | None = None
     labelled_only: Mapping[int, Fabric] = field(default_factory=dict)
     problems: tuple[Problem, ...] = ()
@@ -175,11 +176,17 @@ class Catalog:
     def warnings(self) -> tuple[Problem, ...]:
         return tuple(p for p in self.problems if p.severity == "warning")
 
+    @property
+    def class_columns(self) -> tuple[str, ...]:
+        """The label columns whose values are classes: the text columns, then the ranks."""
+        return (*self.text_columns, *self.rank_columns)
+
     def class_counts(self, columns: Iterable[str] | None = None) -> dict[str, dict[str, int]]:
-        """Per label column whose values are classes (text columns, and numeric columns of a
-        few whole numbers such as ranks 0, 1, 2): fabrics per class, in sorted class order."""
+        """Per column of classes (`class_columns` by default) in which some class is shared
+        (a column of all-different words is descriptions): fabrics per class, in sorted class
+        order."""
         if columns is None:
-            columns = [*self.text_columns, *(c for c in self.label_columns if self._ranks(c))]
+            columns = self.class_columns
         out: dict[str, dict[str, int]] = {}
         for c in columns:
             counts: dict[str, int] = {}
@@ -190,10 +197,6 @@ class Catalog:
             if counts and max(counts.values()) >= 2:  # all-unique cells (descriptions) are not
                 out[c] = dict(sorted(counts.items()))
         return out
-
-    def _ranks(self, column: str) -> bool:
-        values = {f.labels[column] for f in self.fabrics if column in f.labels}
-        return 0 < len(values) <= 10 and all(float(v).is_integer() for v in values)
 
     def clusters(self) -> dict[int, int | None]:
         """Fabric id -> cluster (``None`` where unknown)."""
@@ -332,6 +335,7 @@ class Catalog:
             "named_objects": sum(f.name is not None for f in self.fabrics),
             "label_columns": list(self.label_columns),
             "text_columns": list(self.text_columns),
+            "rank_columns": list(self.rank_columns),
             "classes": self.class_counts(),
             "fabrics_with_physical_labels": sum(f.has_physical_labels for f in self.fabrics),
             "cluster_column": self.cluster_column,

@@ -6,8 +6,12 @@ of recordings: ``videos/<object>_<n>.mov``). Columns (README, *Data*): ``cluster
 (``train``, ``test``, ``excluded``), and any further column. A column whose cells are mostly
 numbers is numeric (a regression target; a bad cell is reported); a column whose cells are
 mostly words (``material``: ``fabric``, ``metal`` ...) is a text column, usable as classes.
-Every known cell is also kept as text, so a numeric rank (``hardness``: 0, 1, 2) can be a class
-too. Empty cells mean unknown.
+A numeric column whose every value is a whole number from 0 to `MAX_RANK` is a column of ranks
+(``hardness``: 0, 1, 2): numbers and classes both (`is_rank_column`, the one rule that ``lookfeel
+data info``, ``data check``, training's class heads and so ``predict`` follow). One odd value
+(``1.5`` among 0, 1, 2) makes the column numbers only, and the reader warns naming its cell.
+Every known cell is also kept as text (a rank's class is its text, ``"2"``). Empty cells mean
+unknown.
 """
 
 from __future__ import annotations
@@ -15,12 +19,27 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from lookfeel.data.problems import Problem
 
-__all__ = ["KEY_COLUMNS", "PAPER_SPLITS", "LabelRow", "LabelTable", "class_of", "read_labels"]
+__all__ = [
+    "KEY_COLUMNS",
+    "MAX_RANK",
+    "PAPER_SPLITS",
+    "PHYSICAL_LABELS",
+    "LabelRow",
+    "LabelTable",
+    "class_of",
+    "is_rank",
+    "is_rank_column",
+    "read_labels",
+]
+
+PHYSICAL_LABELS = ("thickness_mm", "density", "stiffness", "stretchiness")
+"""The paper's four human/physical labels (section 3), in its order."""
 
 KEY_COLUMNS = ("fabric_id", "object")
 """The key column of labels.csv, by preference: fabric ids, or object names."""
@@ -28,6 +47,24 @@ KEY_COLUMNS = ("fabric_id", "object")
 PAPER_SPLITS = ("train", "test", "excluded")
 _MISSING = {"", "na", "n/a", "nan", "none", "null"}
 _ID = re.compile(r"^[Ff]?0*(\d+)$")
+
+MAX_RANK = 10
+"""The largest rank: a numeric column whose values are all whole numbers from 0 to this is a
+column of ranks (``hardness`` 0/1/2), whose values are classes as well as numbers."""
+
+
+def is_rank(value: float) -> bool:
+    """Whether a label value is a rank: a whole number from 0 to `MAX_RANK`."""
+    return float(value).is_integer() and 0 <= value <= MAX_RANK
+
+
+def is_rank_column(values: Iterable[float]) -> bool:
+    """Whether a numeric column with these known values is a column of ranks: it has a value,
+    and every one is a rank (`is_rank`). Its values are then classes too: ``lookfeel data info``
+    counts them, and a class head (``model.class_heads``) may learn them; any other numeric
+    column is numbers only (a regression target), in every command."""
+    values = list(values)
+    return bool(values) and all(is_rank(v) for v in values)
 
 
 @dataclass(frozen=True)
@@ -64,6 +101,8 @@ class LabelTable:
     """Columns of words rather than numbers (e.g. ``material``): classes, never regressed."""
     key: str = "fabric_id"
     named: dict[str, LabelRow] = field(default_factory=dict)
+    rank_columns: tuple[str, ...] = ()
+    """The numeric columns of ranks (`is_rank_column` over every row): classes as well."""
 
     def with_ids(self, ids: dict[str, int]) -> LabelTable:
         """The table with each named row under its id (``ids``: object name -> fabric id)."""
@@ -96,8 +135,12 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     problems: list[Problem] = []
     try:
         text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as e:
-        return LabelTable(path, (), None, {}), [Problem(path, f"cannot read labels file: {e}")]
+    except OSError as e:
+        why = f"cannot read labels file: {e.strerror or e}"
+        return LabelTable(path, (), None, {}), [Problem(path, why)]
+    except UnicodeDecodeError as e:
+        why = f"not a text CSV in UTF-8 (byte {e.start}: {e.reason}); save it as UTF-8"
+        return LabelTable(path, (), None, {}), [Problem(path, why)]
     reader = csv.reader(text.splitlines())
     header = next(reader, None)
     if header is None:
@@ -235,8 +278,41 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         else:
             rows[row.fabric_id] = row
     numeric = tuple(c for c in value_cols if c not in text_cols)
-    table = LabelTable(path, numeric, cluster_column, rows, text_cols, key, named)
+    every = [*rows.values(), *named.values()]
+    ranks = tuple(c for c in numeric if is_rank_column(r.values[c] for r in every if c in r.values))
+    # The paper's physical labels are measurements and ratings, not ranks: GelFabric's
+    # stretchiness is 0, 0.5 or 1, and a world of 20 fabrics may well hold one 0.5.
+    maybe = [c for c in numeric if c not in ranks and c not in PHYSICAL_LABELS]
+    problems.extend(_broken_ranks(path, maybe, every))
+    table = LabelTable(path, numeric, cluster_column, rows, text_cols, key, named, ranks)
     return table, problems
+
+
+def _broken_ranks(path: Path, columns: Iterable[str], rows: list[LabelRow]) -> list[Problem]:
+    """A warning for each cell that alone keeps a column from being ranks: the column's other
+    values are ranks (two or more of them, 0 to `MAX_RANK`) and only a few are not (one, or
+    one in twenty: a column of 0 and 1 with 15 of 100 at 0.5 is numbers)."""
+    out = []
+    for col in columns:
+        known = [r for r in rows if col in r.values]
+        odd = [r for r in known if not is_rank(r.values[col])]
+        ranks = sorted({r.values[col] for r in known} - {r.values[col] for r in odd})
+        if len(ranks) < 2 or len(odd) > max(1, len(known) // 20):
+            continue
+        for r in odd:
+            who = f"object {r.name!r}" if r.name is not None else f"fabric {r.fabric_id}"
+            out.append(
+                Problem(
+                    path,
+                    f"column {col!r}: {who} has {r.text[col]!r}, where the column's other "
+                    f"values are whole numbers 0-{MAX_RANK} ({', '.join(f'{v:g}' for v in ranks)}"
+                    "): the whole column is read as numbers, not ranks (no classes in `lookfeel "
+                    "data info`, no class head); correct the cell if it is a rank",
+                    "warning",
+                    r.line,
+                )
+            )
+    return out
 
 
 def _is_number(text: str) -> bool:

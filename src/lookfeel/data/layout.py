@@ -606,6 +606,7 @@ def scan(
         fabrics=tuple(fabrics),
         label_columns=table.columns if table else (),
         text_columns=table.text_columns if table else (),
+        rank_columns=table.rank_columns if table else (),
         cluster_column=table.cluster_column if table else None,
         labelled_only=labelled_only,
         problems=tuple(problems),

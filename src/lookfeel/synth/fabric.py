@@ -14,7 +14,6 @@ and k-means on them gives the clusters.
 from __future__ import annotations
 
 import colorsys
-import csv
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -504,113 +503,84 @@ def kmeans(x: NDArray[np.float64], k: int, seed: int, n_init: int = 10) -> NDArr
 
 @dataclass(frozen=True)
 class LabelFile:
-    """A labels.csv as read: its header and its rows (cells as written), in file order."""
+    """A labels.csv keyed by ``fabric_id``, as the dataset reader parsed it (rows in file
+    order), and its text: the world's labels.csv is a copy."""
 
     path: Path
-    header: tuple[str, ...]
-    rows: tuple[tuple[str, ...], ...]
+    text: str
     ids: tuple[int, ...]
-
-
-def _parse_id(text: str) -> int | None:
-    t = text.strip()
-    if t[:1] in ("F", "f"):
-        t = t[1:]
-    return int(t) if t.isascii() and t.isdigit() else None  # not "²", which int() refuses
+    values: tuple[dict[str, float], ...]
+    """Per row, its known physical labels (`LABEL_COLUMNS`)."""
+    clusters: tuple[int | None, ...]
+    """Per row, its cluster (``cluster8``, or another ``cluster*`` column), None if unknown."""
 
 
 def read_label_file(path: Path) -> LabelFile:
     """Read a labels.csv for label-conditioned rendering.
 
-    Raises:
-        ValueError: the file is missing, has no ``fabric_id`` column, a row has a bad or
-            repeated id or the wrong number of cells, a physical label is not a number, not
-            finite or negative, or the dataset reader refuses the file (a ``paper_split``
-            other than train, test, excluded; a cluster that is not an integer >= 0); the
-            message names the file and line.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as e:
-        raise ValueError(f"cannot read labels file {path}: {e.strerror}") from None
-    except UnicodeDecodeError as e:
-        raise ValueError(
-            f"{path}: not a text CSV in UTF-8 (byte {e.start}: {e.reason}); save it as UTF-8"
-        ) from None
-    reader = csv.reader(text.splitlines())
-    header = tuple(h.strip() for h in next(reader, []))
-    if "fabric_id" not in header:
-        raise ValueError(f"{path}: no 'fabric_id' column in the header (line 1)")
-    col = header.index("fabric_id")
-    rows, ids = [], []
-    for line, cells in enumerate(reader, start=2):
-        if not cells or all(not c.strip() for c in cells):
-            continue
-        if len(cells) != len(header):
-            raise ValueError(
-                f"{path}, line {line}: {len(cells)} cells but the header has {len(header)}"
-            )
-        fid = _parse_id(cells[col])
-        if fid is None or fid < 0:
-            raise ValueError(f"{path}, line {line}: fabric_id {cells[col]!r} is not an integer")
-        if fid in ids:
-            raise ValueError(f"{path}, line {line}: fabric {fid} appears twice")
-        for name in LABEL_COLUMNS:
-            if name in header:
-                raw = cells[header.index(name)].strip()
-                if raw and raw.lower() not in ("na", "n/a", "nan", "none", "null"):
-                    try:
-                        v = float(raw)
-                    except ValueError:
-                        raise ValueError(
-                            f"{path}, line {line}: column {name!r}: {raw!r} is not a number"
-                        ) from None
-                    if not math.isfinite(v):  # "nan" alone means unknown, as in a dataset
-                        raise ValueError(
-                            f"{path}, line {line}: column {name!r}: {raw!r} is not finite"
-                        )
-                    if v < 0:
-                        raise ValueError(
-                            f"{path}, line {line}: column {name!r}: {raw!r} must be >= 0"
-                        )
-        rows.append(tuple(cells))
-        ids.append(fid)
-    if not rows:
-        raise ValueError(f"{path}: no fabric rows")
-    _check_as_dataset_labels(path)
-    return LabelFile(path, header, tuple(rows), tuple(ids))
-
-
-def _check_as_dataset_labels(path: Path) -> None:
-    """Refuse a labels file that the dataset reader (`lookfeel.data.labels.read_labels`) would
-    reject: the world copies it as its own labels.csv, which `lookfeel data check` and
-    `lookfeel train` read with that reader, so synth must not write a world they refuse
-    (a ``paper_split`` of ``bogus``, a cluster of ``-1`` or ``2.5``). The reader's rules,
-    not a copy of them: a cluster is any integer >= 0, whatever the column's name says.
+    The dataset reader (`lookfeel.data.labels.read_labels`) parses it, the one that `lookfeel
+    data check` and `lookfeel train` read the world's copy with: synth refuses what they would
+    refuse, in their words. Rendering needs more: numbered fabrics (a ``fabric_id`` column, not
+    ``object``), at least one row, and physical labels that are numbers >= 0.
 
     Raises:
-        ValueError: the reader's first problem, as it words it (``FILE:LINE: what``).
+        ValueError: the first problem as the reader words it (``FILE:LINE: what``), and how
+            many more there are: the file cannot be read or is not UTF-8, it has no
+            ``fabric_id`` column, a row has a bad or repeated id or the wrong number of cells,
+            a label is not a number or not finite (or, for a physical label, negative), a
+            ``paper_split`` is not train, test or excluded, a cluster is not an integer >= 0,
+            or there is no fabric row.
     """
     # Imported here, not at the top: `lookfeel.data` imports torch, which the spawned render
     # workers (they import this module) never need.
     from lookfeel.data.labels import read_labels
+    from lookfeel.data.problems import Problem
 
-    _, problems = read_labels(path)
-    errors = [p for p in problems if p.severity == "error"]
+    path = Path(path)
+    table, problems = read_labels(path)
+    problems = [p for p in problems if p.severity == "error"]  # not a warning of the reader's
+    if not problems and table.key != "fabric_id":
+        problems = [
+            Problem(
+                path, "no 'fabric_id' column in the header: synth renders fabrics by id", line=1
+            )
+        ]
+    for row in table.rows.values():
+        for name in LABEL_COLUMNS:
+            raw = row.text.get(name)
+            if raw is None:  # unknown
+                continue
+            if name in table.text_columns and not _is_number(raw):  # mostly words: text
+                problems.append(
+                    Problem(path, f"column {name!r}: {raw!r} is not a number", line=row.line)
+                )
+            elif row.values.get(name, 0.0) < 0:
+                problems.append(
+                    Problem(path, f"column {name!r}: {raw!r} must be >= 0", line=row.line)
+                )
+    if not problems and not table.rows:
+        problems = [Problem(path, "no fabric rows")]
+    errors = sorted(problems, key=lambda p: p.line or 0)
     if errors:
         more = f" (and {len(errors) - 1} more problem(s) in this file)" if len(errors) > 1 else ""
         raise ValueError(f"{errors[0]}{more}")
+    rows = list(table.rows.values())
+    return LabelFile(
+        path,
+        # The world copies the file as it is; the reader read it a moment ago.
+        path.read_text(encoding="utf-8-sig"),
+        tuple(table.rows),
+        tuple({n: r.values[n] for n in LABEL_COLUMNS if n in r.values} for r in rows),
+        tuple(r.cluster for r in rows),
+    )
 
 
-def _cell(lf: LabelFile, row: tuple[str, ...], name: str) -> float | None:
-    if name not in lf.header:
-        return None
-    raw = row[lf.header.index(name)].strip()
+def _is_number(text: str) -> bool:
     try:
-        return float(raw)
+        float(text)
     except ValueError:
-        return None
+        return False
+    return True
 
 
 def fabrics_from_labels(lf: LabelFile, seed: int) -> list[Fabric]:
@@ -621,11 +591,8 @@ def fabrics_from_labels(lf: LabelFile, seed: int) -> list[Fabric]:
     from the whole file, else from the prior; stiffness is clipped at 0.3, thickness and
     density at small positive values. Surface and appearance are drawn from ``(seed, id)``.
     """
-    cluster_col = next((h for h in lf.header if h.lower().startswith("cluster")), None)
-    if "cluster8" in lf.header:
-        cluster_col = "cluster8"
-    values = {name: [_cell(lf, r, name) for r in lf.rows] for name in LABEL_COLUMNS}
-    clusters = [_cell(lf, r, cluster_col) if cluster_col is not None else None for r in lf.rows]
+    values = {name: [row.get(name) for row in lf.values] for name in LABEL_COLUMNS}
+    clusters = lf.clusters
     prior = dict(zip(LABEL_COLUMNS, (2.4, 1.54, 2.9, 0.5), strict=True))
     out = []
     for i, fid in enumerate(lf.ids):

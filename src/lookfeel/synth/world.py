@@ -271,17 +271,6 @@ def _labels_text(fabrics: Sequence[Fabric], seed: int, n_test: int | None = None
     return "\n".join(lines) + "\n"
 
 
-def _copied_labels_text(lf: LabelFile) -> str:
-    """The given labels file's header and rows, cells as written."""
-    import csv
-
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(lf.header)
-    writer.writerows(lf.rows)
-    return buf.getvalue()
-
-
 def _workers(cfg: SynthConfig, n_tasks: int) -> int:
     if cfg.workers:
         return max(1, min(cfg.workers, n_tasks))
@@ -360,11 +349,7 @@ def generate(
     }
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     labels_path = out / "labels.csv"
-    text = (
-        _copied_labels_text(lf)
-        if lf is not None
-        else _labels_text(fabrics, config.seed, config.test_fabrics)
-    )
+    text = lf.text if lf is not None else _labels_text(fabrics, config.seed, config.test_fabrics)
     atomic_write_text(labels_path, text)
 
     tasks = [_Task(f, config, mods, out) for f in fabrics]

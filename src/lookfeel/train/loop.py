@@ -62,6 +62,7 @@ from lookfeel.data import (
     stratified_fabric_folds,
     stratified_fabric_split,
 )
+from lookfeel.data.labels import MAX_RANK, is_rank
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddingError
 from lookfeel.losses import create_loss
@@ -158,10 +159,16 @@ def select_split(
 
 def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
     """The config with ``model.classes`` filled in: each class head's classes, as the whole
-    dataset's labels name them (numbers in numeric order, words in alphabetical order).
+    dataset's labels name them (ranks in numeric order, words in alphabetical order).
+
+    A class head learns a column of classes (`Catalog.class_columns`: words, or ranks such as
+    hardness 0/1/2), the columns ``lookfeel data info`` counts as classes; a numeric column
+    that is not ranks (``1.5`` among 0, 1, 2; a thickness) is refused, naming a value that is
+    not a rank.
 
     Raises:
-        ConfigError: a ``model.class_heads`` column is not in labels.csv, or has < 2 classes.
+        ConfigError: a ``model.class_heads`` column is not in labels.csv, is numbers and not
+            classes, or has < 2 classes.
     """
     model = config.model
     if not model.class_heads:
@@ -173,6 +180,21 @@ def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
             raise ConfigError(
                 f"model.class_heads: {col!r} is not a column of labels.csv (have: "
                 f"{', '.join(known) or 'none'})"
+            )
+        if col not in catalog.class_columns:
+            everyone = [*catalog.fabrics, *catalog.labelled_only.values()]
+            odd = next(
+                (f for f in everyone if col in f.labels and not is_rank(f.labels[col])), None
+            )
+            what = (
+                f"numbers, not classes: {odd.display_name} has {odd.class_of(col)}, not a "
+                f"whole number 0-{MAX_RANK} (a rank)"
+                if odd is not None
+                else "empty"
+            )
+            raise ConfigError(
+                f"model.class_heads: column {col!r} of labels.csv is {what}; a class head "
+                "needs words or ranks"
             )
         if col in model.classes:
             classes[col] = model.classes[col]  # a resumed or fine-tuned run keeps its order
