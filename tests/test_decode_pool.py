@@ -1,5 +1,5 @@
 """Decoding in worker processes (`lookfeel.data.decode_pool`, ``data.decode``): the same
-arrays as threads, the same one-line errors, in order while the caller embeds."""
+arrays as threads, the same one-line errors and warnings, in order while the caller embeds."""
 
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ import torch
 
 from lookfeel.config import DataConfig, ModelConfig
 from lookfeel.data import ImageError, ImageLoader, scan
+from lookfeel.data.catalog import Item
 from lookfeel.data.images import ArrayLoader
+from lookfeel.data.video import TruncatedVideoWarning
 from lookfeel.embedding import embed_catalog, embed_items
 from lookfeel.modality import Modality
 from lookfeel.models import create_model
@@ -69,6 +71,21 @@ def test_a_bad_file_in_a_worker_fails_as_in_one_process(tmp_path: Path):
         with pytest.raises(ImageError, match=f"{bad.name}: file is truncated") as e:
             loader.preload(items)
         assert e.value.path == bad
+
+
+@pytest.mark.parametrize("decode", ["threads", "processes"])
+def test_a_worker_warns_in_the_caller_as_in_one_process(tmp_path: Path, decode: str):
+    pytest.importorskip("av")
+    from ._video import PRESS, object_press, write_video
+
+    good = write_video(tmp_path / "whole.mkv", object_press(1, PRESS, t=60))
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(good.read_bytes()[: int(good.stat().st_size * 0.6)])
+    items = [Item(Modality.TOUCH, 1, (p,), None, p.stem) for p in (good, cut)]
+    loader = ImageLoader(DataConfig(image_size=16, workers=2, decode=decode))
+    with pytest.warns(TruncatedVideoWarning) as caught:
+        assert loader.preload(items) == 2
+    assert [str(w.message).split(": ")[0] for w in caught] == [str(cut)]
 
 
 def test_preload_stream_says_what_is_ready_in_order(tmp_path: Path):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,9 @@ from lookfeel.data.catalog import Item
 from lookfeel.data.images import PreprocessSettings
 from lookfeel.data.video import (
     MIN_VIDEO_FRAMES,
+    NoPressError,
     PressSpan,
+    TruncatedVideoWarning,
     VideoError,
     contact_frames,
     deep_frames,
@@ -58,15 +61,19 @@ def _sensor() -> np.ndarray:
     return np.stack([90 + 60 * x / W, 100 + 50 * y / H, 150 - 40 * x / W], axis=-1)
 
 
-def press_frames(amplitude: dict[int, float] = AMPLITUDE, t: int = T) -> np.ndarray:
-    """(t, H, W, 3) uint8: the sensor, with a blob pressed in to ``amplitude[i]`` at frame i."""
+def press_frames(
+    amplitude: dict[int, float] = AMPLITUDE, t: int = T, light: dict[int, float] | None = None
+) -> np.ndarray:
+    """(t, H, W, 3) uint8: the sensor, with a blob pressed in to ``amplitude[i]`` at frame i,
+    its light times ``light[i]`` at frame i (others: 1)."""
     y, x = np.mgrid[0:H, 0:W].astype(np.float32)
     blob = np.exp(-((x - 30) ** 2 + (y - 22) ** 2) / (2 * 7.0**2))[..., None]
     tint = np.array([70.0, 30.0, -40.0], dtype=np.float32)  # brighter (+34 luma), and coloured
     rng = np.random.default_rng(0)
     out = []
     for i in range(t):
-        f = _sensor() + amplitude.get(i, 0.0) * blob * tint + rng.normal(0, 0.7, (H, W, 1))
+        f = _sensor() * (light or {}).get(i, 1.0) + amplitude.get(i, 0.0) * blob * tint
+        f += rng.normal(0, 0.7, (H, W, 1))
         out.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
     return np.stack(out)
 
@@ -184,6 +191,24 @@ def test_a_video_with_no_contact_is_refused(tmp_path: Path):
     assert str(path) in str(e.value) and "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize("gain", [0.8, 1.2])
+def test_a_change_of_light_with_no_press_is_not_a_press(tmp_path: Path, gain: float):
+    # The LED or the exposure steps at frame 8 and stays: every pixel of the untouched sensor
+    # changes by the same factor. Read before as a press from frame 8 never released.
+    frames = press_frames({}, light={i: gain for i in range(8, T)})
+    path = write_video(tmp_path / "light.mp4", frames)
+    with pytest.raises(NoPressError, match="no contact found: the light changed with no") as e:
+        read_press(path)
+    assert str(e.value).startswith(f"{path}: ") and "\n" not in str(e.value)
+    assert ("brighter" if gain > 1 else "darker") in str(e.value) and "from frame 8" in str(e.value)
+
+
+def test_a_press_while_the_light_changes_is_still_a_press(tmp_path: Path):
+    light = {i: 1.0 - 0.02 * min(i, 10) for i in range(T)}  # the exposure drifts 20% darker
+    span = read_press(write_video(tmp_path / "drift.mp4", press_frames(light=light))).span
+    assert abs(span.peak - PEAK) <= 1 and abs(span.start - START) <= 1
+
+
 def test_a_press_from_the_first_frame_has_no_reference():
     frames = press_frames({i: 1.0 - 0.08 * i for i in range(12)})
     with pytest.raises(VideoError, match="(no contact|first frame)"):
@@ -229,6 +254,27 @@ def test_a_truncated_avi_is_refused(videos, tmp_path: Path):
     path.write_bytes(good[: int(len(good) * 0.6)])
     with pytest.raises(VideoError, match="(truncated|cannot decode)"):
         read_press(path)
+
+
+@pytest.mark.parametrize("codec", ["mpeg4", "ffv1"])
+def test_a_truncated_matroska_video_warns_and_reads_what_is_there(tmp_path: Path, codec: str):
+    # Matroska declares its duration but not its frames: a file cut short decoded silently.
+    good = write_video(tmp_path / "whole.mkv", press_frames(t=40), codec)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TruncatedVideoWarning)
+        assert len(read_video(good)) == 40  # the whole file: no warning
+    path = tmp_path / "cut.mkv"
+    path.write_bytes(good.read_bytes()[: int(good.stat().st_size * 0.6)])
+    with pytest.warns(TruncatedVideoWarning) as caught:
+        frames = read_video(path)
+    assert 13 <= len(frames) < 30 and len(caught) == 1
+    assert str(caught[0].message).startswith(
+        f"{path}: video is truncated: {len(frames)} frames ({len(frames) / 10:.2f} s) decoded of "
+        "the 4.00 s (about 40 frames) it declares"
+    )
+    with pytest.warns(TruncatedVideoWarning, match="cut.mkv: video is truncated"):
+        span = read_press(path).span  # the press (frames 5-12) is in what is left
+    assert abs(span.peak - PEAK) <= 1 and span.frames == len(frames)
 
 
 def test_limits_on_pixels_and_frames(videos: dict[str, Path], monkeypatch):

@@ -15,6 +15,9 @@ this module does not import `lookfeel.data.images`, which imports it.)
   (how many, ``data.decode``, the platform) changes no training run.
 - Errors as in one process: a file that fails in a worker is decoded again by the caller,
   which raises the very error (naming the file) that a thread would have.
+- Warnings as in one process: what a worker warns while decoding a file (a truncated video,
+  `lookfeel.data.video.TruncatedVideoWarning`) is warned again by the caller, in order, as
+  its chunk comes back, where the caller's warning filters and display see it.
 - Workers are forked on Linux (they start in milliseconds), spawned elsewhere (seconds: each
   imports torch); each dies with the process that started it (`die_with_parent`).
 """
@@ -23,6 +26,8 @@ from __future__ import annotations
 
 import functools
 import os
+import sys
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +44,10 @@ __all__ = ["Decoded", "Decoder", "decode_in_processes"]
 
 Entries = dict[str, np.ndarray]
 """What one file decoded to, by the loader's store it belongs in (`ImageLoader.take`)."""
+Warned = tuple[tuple[type[Warning], str], ...]
+"""What decoding one file warned: each warning's category and message."""
+Row = tuple[int, Entries | None, Warned]
+"""One decoded file: its position among the jobs, what it decoded to, what it warned."""
 
 
 class Decoder(Protocol):
@@ -63,7 +72,13 @@ class Decoded:
     entries: tuple[Entries | None, ...]
 
 
-class _Jobs(Dataset[tuple[int, Entries | None]]):
+def _sendable(category: type[Warning]) -> type[Warning]:
+    """``category`` where another process can import it by name, else `UserWarning`."""
+    module = sys.modules.get(category.__module__)
+    return category if getattr(module, category.__qualname__, None) is category else UserWarning
+
+
+class _Jobs(Dataset[Row]):
     """The files to decode, decoded by a loader built inside each worker."""
 
     def __init__(
@@ -77,28 +92,31 @@ class _Jobs(Dataset[tuple[int, Entries | None]]):
     def __len__(self) -> int:
         return len(self.jobs)
 
-    def __getitem__(self, i: int) -> tuple[int, Entries | None]:
+    def __getitem__(self, i: int) -> Row:
         if self._loader is None:
             self._loader = self.new_loader()
         path, item = self.jobs[i]
-        try:
-            self._loader.decode_one(item, views=self.views)
-        except Exception:  # raised again, with its own message, by the caller
-            self._loader.take(path)
-            return i, None
-        return i, self._loader.take(path)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")  # every one goes back; the caller's filters choose
+            try:
+                self._loader.decode_one(item, views=self.views)
+            except Exception:  # raised again, with its own message (and warnings), by the caller
+                self._loader.take(path)
+                return i, None, ()
+        warned = tuple((_sendable(w.category), str(w.message)) for w in caught)
+        return i, self._loader.take(path), warned
 
 
 Stacked = list[tuple[list[int], dict[str, torch.Tensor]]]
 """A chunk's entries: groups of rows (positions in the chunk), each with one tensor per key."""
 
 
-def _collate(rows: list[tuple[int, Entries | None]]) -> tuple[list[int], Stacked]:
+def _collate(rows: list[Row]) -> tuple[list[int], Stacked, list[Warned]]:
     """A chunk as few tensors as possible: rows whose entries share keys, shapes and dtypes
     are stacked (one shared-memory block per key instead of one per image); failed rows
-    are in no group."""
+    are in no group. With each row's warnings."""
     groups: dict[tuple[Any, ...], list[int]] = {}
-    for pos, (_, e) in enumerate(rows):
+    for pos, (_, e, _) in enumerate(rows):
         if e is not None:
             sig = tuple((k, a.shape, a.dtype.str) for k, a in sorted(e.items()))
             groups.setdefault(sig, []).append(pos)
@@ -108,10 +126,10 @@ def _collate(rows: list[tuple[int, Entries | None]]) -> tuple[list[int], Stacked
         for key, _, _ in sig:
             tensors[key] = torch.from_numpy(np.stack([_row(rows, p)[key] for p in members]))
         stacked.append((members, tensors))
-    return [i for i, _ in rows], stacked
+    return [i for i, _, _ in rows], stacked, [w for _, _, w in rows]
 
 
-def _row(rows: list[tuple[int, Entries | None]], pos: int) -> Entries:
+def _row(rows: list[Row], pos: int) -> Entries:
     e = rows[pos][1]
     assert e is not None  # only rows that decoded are grouped
     return e
@@ -169,6 +187,9 @@ def decode_in_processes(
         # every draw after by whether its images happened to decode in processes.
         generator=torch.Generator(),
     )
-    for index, stacked in batches:
+    for index, stacked, warned in batches:
+        for row in warned:
+            for category, message in row:
+                warnings.warn(message, category, stacklevel=2)
         entries = _entries(stacked, len(index))
         yield Decoded(tuple(jobs[i][0] for i in index), tuple(entries))

@@ -1,11 +1,12 @@
 """Touch recordings in a dataset run: leave out the videos that hold no press, and say which.
 
-A press video that decodes but shows no press (too short, no contact, contact from its first
-frame: `lookfeel.data.video.NoPressError`) is a recording that went wrong, not a broken
-dataset: one among hundreds should not stop a training run, a cross-validation or an embedding.
-`drop_unpressed` decodes every touch video once (the loader keeps the result for the run) and
-returns the catalog without those, with one warning naming each file and why. A video that
-cannot be decoded at all is still an error. `lookfeel data check` lists them as warnings.
+A press video that decodes but shows no press (too short, no contact or a change of the
+sensor's light alone, contact from its first frame: `lookfeel.data.video.NoPressError`) is a
+recording that went wrong, not a broken dataset: one among hundreds should not stop a
+training run, a cross-validation or an embedding. `drop_unpressed` decodes every touch video
+once (the loader keeps the result for the run) and returns the catalog without those, with one
+warning naming each file and why. A video that cannot be decoded at all is still an error.
+`lookfeel data check` lists them as warnings.
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ it, and returns the frames the model needs:
   of deepest contact (`PressSpan`), from a per-frame contact signal: how far each frame's small
   greyscale version moved from the median of the first frames (the mean of its 5% most changed
   pixels, after removing a global brightness shift), thresholded relative to the noise of the
-  frames before contact and to the peak.
+  frames before contact and to the peak. A change of the whole frame's light (the LED, the
+  exposure) is told from contact by its shape: it is a gain and offset of the untouched frame.
 - `contact_frames`, `reference_frame`, `difference_image`: the chosen frames and their
   difference from the no-contact frame (``128 + gain * (frame - reference)``), which removes
   the sensor's own light pattern and its drift.
@@ -25,14 +26,17 @@ Every file goes through the image policy (`lookfeel.data.files.read_image_file`:
 file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`), a video of
 more than `MAX_VIDEO_FRAMES` frames or more than 4 gigapixels in all is refused, from the
 stream's header before decoding where it declares them. A file that cannot be decoded (not a
-video, an image renamed, damaged, or fewer frames than it declares), a video with no contact,
-or one too short raises `VideoError` naming the file.
+video, an image renamed, damaged, or fewer frames than it declares), a video with no contact
+(a change of light alone included), or one too short raises `VideoError` naming the file. A
+file that declares its duration but not its frames (Matroska) and whose frames end clearly
+before it is read as far as it goes, with a `TruncatedVideoWarning` naming it.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +57,7 @@ __all__ = [
     "NoPressError",
     "Press",
     "PressSpan",
+    "TruncatedVideoWarning",
     "VideoError",
     "contact_frames",
     "deep_frames",
@@ -91,16 +96,30 @@ _SIGNAL_SIDE = 30
 """The small greyscale version of a frame has about this many pixels on its short side."""
 _TOP_FRACTION = 0.05
 """The contact signal averages this fraction of the most changed pixels of a frame."""
+_LIGHT_SHARE = 0.5
+"""A press's deepest frame must keep more than this share of its contrast once a change of the
+whole frame's light (a gain and offset of the untouched frame) is removed, else the video is
+a change of light with no press. Synthetic steps of 10-20% in brightness keep 3-40% (weaker
+ones mostly stay under the contact threshold); the 398 PhysiCLeAR presses keep at least 75%
+(median 99%), so the rule changes none of them."""
+_TRUNCATED_SLACK = 0.02
+"""A file's frames may end this fraction of its declared duration (and two frames) early
+before `TruncatedVideoWarning` says it is truncated."""
 
 
 class VideoError(ImageError):
     """A video cannot be used: undecodable, too short, too large, or no press found in it."""
 
 
+class TruncatedVideoWarning(UserWarning):
+    """A video's frames end clearly before the duration its file declares: the file was cut
+    (a copy or a recording interrupted); what is there is read."""
+
+
 class NoPressError(VideoError):
-    """A video decodes but holds no usable press: too short, no contact, or contact from its
-    first frame. A dataset's run leaves such a recording out with a warning
-    (`lookfeel.data.drop_unpressed`); a query that is one is an error."""
+    """A video decodes but holds no usable press: too short, no contact (or a change of light
+    alone), or contact from its first frame. A dataset's run leaves such a recording out with a
+    warning (`lookfeel.data.drop_unpressed`); a query that is one is an error."""
 
 
 def is_video(path: str | os.PathLike[str]) -> bool:
@@ -132,6 +151,48 @@ def _import_av(path: Path) -> Any:
 
 # ---------------------------------------------------------------------------------------------
 # Decoding.
+
+
+def _declared_seconds(container: Any, stream: Any) -> float | None:
+    """How long the file says its video stream lasts, in seconds, or ``None`` if it does not.
+
+    The stream's own duration where the container keeps one (QuickTime/MP4, AVI), else its
+    ``DURATION`` tag (Matroska as FFmpeg writes it), else the whole file's duration when
+    the video is its only stream (an audio track may last longer than the video).
+    """
+    if stream.duration and stream.time_base:
+        return float(stream.duration * stream.time_base)
+    tag = stream.metadata.get("DURATION") or stream.metadata.get("duration")
+    if tag:
+        try:
+            h, m, sec = tag.split(":")
+            return int(h) * 3600 + int(m) * 60 + float(sec)
+        except ValueError:
+            pass
+    if container.duration and len(container.streams) == 1:
+        return float(container.duration) / 1_000_000  # in AV_TIME_BASE units
+    return None
+
+
+def _warn_if_cut(
+    path: Path, n: int, first: float | None, last: float | None, declared: float | None, rate: float
+) -> None:
+    """Warn (`TruncatedVideoWarning`) when the ``n`` frames decoded, presented from ``first`` to
+    ``last`` seconds at ``rate`` frames/s, end clearly before the ``declared`` duration."""
+    if declared is None or declared <= 0 or first is None or last is None:
+        return
+    step = 1.0 / rate if rate > 0 else 0.0
+    read = last - first + step
+    if declared - read <= max(2 * step, _TRUNCATED_SLACK * declared):
+        return
+    about = f" (about {round(declared * rate)} frames)" if rate > 0 else ""
+    warnings.warn(
+        TruncatedVideoWarning(
+            f"{path}: video is truncated: {n} frames ({read:.2f} s) decoded of the "
+            f"{declared:.2f} s{about} it declares; reading those"
+        ),
+        stacklevel=3,
+    )
 
 
 def _decode(
@@ -184,6 +245,10 @@ def _decode(
                 f"video is too large: {declared} frames of {w}x{h} exceed "
                 f"{_MAX_DECODED_PIXELS / 1e9:g} gigapixels in all",
             )
+        seconds = None if declared > 0 else _declared_seconds(container, stream)
+        rate = float(stream.average_rate or stream.guessed_rate or 0)
+        first: float | None = None
+        last: float | None = None
         stream.thread_type = "AUTO"
         n = total = 0
         try:
@@ -196,6 +261,9 @@ def _decode(
                     )
                 n += 1
                 total += frame.width * frame.height
+                if frame.time is not None:
+                    first = frame.time if first is None else min(first, frame.time)
+                    last = frame.time if last is None else max(last, frame.time)
                 if n > most:
                     raise VideoError(path, f"video is too large: more than {most} frames")
                 if total > _MAX_DECODED_PIXELS:
@@ -217,6 +285,7 @@ def _decode(
         raise VideoError(
             path, f"video is truncated: {n} of the {declared} frames it declares could be decoded"
         )
+    _warn_if_cut(path, n, first, last, seconds, rate)
 
 
 def read_video(
@@ -400,12 +469,43 @@ def _strength(grey: np.ndarray, first: int) -> np.ndarray:
     is local, so averaging the whole frame would drown a fingertip-sized press.
     """
     ref = np.median(grey[:first], axis=0)
-    d = (grey - ref).reshape(len(grey), -1)
+    return _top_change((grey - ref).reshape(len(grey), -1))
+
+
+def _top_change(d: np.ndarray) -> np.ndarray:
+    """(T,) mean of the ``_TOP_FRACTION`` largest ``|d - median|`` of each row of (T, N) ``d``
+    (changed in place)."""
     d -= np.median(d, axis=1, keepdims=True)
     np.abs(d, out=d)
     k = max(1, round(d.shape[1] * _TOP_FRACTION))
     top = np.partition(d, d.shape[1] - k, axis=1)[:, -k:]
     return top.mean(axis=1).astype(np.float32)
+
+
+def _light_change(reference: np.ndarray, frame: np.ndarray) -> tuple[float, float]:
+    """What of a frame's change is not a change of the whole frame's light.
+
+    A step of the sensor's light (its LED, the camera's exposure) changes every pixel of the
+    untouched frame by one gain and offset: ``frame ~ gain * reference + offset``. A press
+    changes part of the gel, which no gain and offset reproduce. The gain and offset are
+    fitted robustly (least squares, refitted twice on the half of the pixels it fits best, so
+    that a press does not pull the fit) and removed.
+
+    Returns:
+        The contact signal of the remainder (as `_strength` measures a frame), and the fitted
+        change of the frame's mean brightness, in grey levels.
+    """
+    x = reference.reshape(-1).astype(np.float64)
+    y = frame.reshape(-1).astype(np.float64)
+    design = np.stack([x, np.ones_like(x)], axis=1)
+    keep = np.ones(len(x), bool)
+    for _ in range(3):
+        (gain, offset), *_ = np.linalg.lstsq(design[keep], y[keep], rcond=None)
+        rest = y - (gain * x + offset)
+        off = np.abs(rest - np.median(rest))
+        keep = off <= np.median(off)
+    left = float(_top_change(rest.astype(np.float32)[None])[0])
+    return left, float((gain - 1.0) * x.mean() + offset)
 
 
 def detect_press(
@@ -428,6 +528,12 @@ def detect_press(
     contact frames around the peak; the reference is the first frames, as many as stay quiet
     (up to ``reference_frames``, never into the span).
 
+    A press changes part of the gel; a step of the sensor's light (its LED, the camera's
+    exposure) changes the whole frame at once and stays. So the deepest frame must keep more
+    than half its contrast (`_LIGHT_SHARE`) once the best gain and offset of the whole
+    untouched frame are removed (`_light_change`), else the video is a change of light with no
+    press (`NoPressError`). A press during which the light also changes still counts.
+
     The signal is on brightness only (a GelSight press changes it; its colour channels are
     noisier after compression): a change of colour at constant brightness is not seen. On the
     401 PhysiCLeAR videos it finds a press in 398; the other three are two videos of 3 frames
@@ -447,8 +553,9 @@ def detect_press(
         `PressSpan`.
 
     Raises:
-        VideoError: fewer than ``min_frames`` frames, no contact, or contact from the first
-            frame (no no-contact reference before it).
+        NoPressError: fewer than ``min_frames`` frames, no contact (or a change of the whole
+            frame's light alone), or contact from the first frame (no no-contact reference
+            before it).
     """
     p = Path(path) if path is not None else Path("<frames>")
     t = len(frames)
@@ -459,7 +566,8 @@ def detect_press(
             f"video is too short: {t} frame{'s' if t != 1 else ''}; at least {min_frames} are "
             f"needed ({first} without contact, then the press)",
         )
-    s = _strength(_greyscale(frames), first)
+    grey = _greyscale(frames)
+    s = _strength(grey, first)
     rest = s[first:]
     floor = float(np.percentile(rest, 10))
     quiet = rest[rest <= np.percentile(rest, 50)]
@@ -484,6 +592,15 @@ def detect_press(
     if start == 0:
         raise NoPressError(
             p, "contact from the first frame: no no-contact frames to take as the reference"
+        )
+    left, shift = _light_change(np.median(grey[:first], axis=0), grey[peak])
+    if left - floor <= _LIGHT_SHARE * contrast:
+        raise NoPressError(
+            p,
+            f"no contact found: the light changed with no press (from frame {start} the whole "
+            f"frame is {abs(shift):.1f} grey levels {'brighter' if shift > 0 else 'darker'}; "
+            f"without that the frames change by {max(left - floor, 0.0):.2f} grey levels, a "
+            f"press needs more than {_LIGHT_SHARE * contrast:.2f})",
         )
     # The reference: the first frames (the signal's own reference, untouched by assumption),
     # extended while quiet up to ``reference_frames``. Measured on PhysiCLeAR, this beats the
