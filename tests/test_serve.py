@@ -141,6 +141,12 @@ def test_upload_matches_and_touch_presses_pool(run, server):
     assert r.status_code == 200 and res["query_modality"] == "color" and len(res["fabrics"]) == 2
 
 
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG's signature and header chunk declaring ``width`` x ``height`` (no pixels)."""
+    ihdr = width.to_bytes(4, "big") + height.to_bytes(4, "big") + bytes([8, 0, 0, 0, 0])
+    return b"\x89PNG\r\n\x1a\n" + len(ihdr).to_bytes(4, "big") + b"IHDR" + ihdr + bytes(4)
+
+
 def test_bad_uploads_get_clear_4xx(run, server):
     url, _ = server
     data, _ = run
@@ -158,6 +164,9 @@ def test_bad_uploads_get_clear_4xx(run, server):
                                                  "image/png"))]), 413,
          "big.png: larger than the 20000 bytes allowed"),
         (post({"modality": "depth"}, [_file(depth)] * 4), 413, "4 files; at most 3 per query"),
+        (post({"modality": "depth"}, [("files", ("huge.png", _png_header(30_000, 20_000),
+                                                 "image/png"))]), 413,
+         "huge.png: declares 30000x20000 pixels; at most"),
         (post({"modality": "depth", "top": "99"}, [_file(depth)]), 422,
          "top must be between 1 and 20"),
         (post({"modality": "depth"}, [("files", ("empty.png", b"", "image/png"))]), 422,

@@ -28,7 +28,6 @@ import asyncio
 import io
 import os
 import re
-import warnings
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from importlib import resources
@@ -45,6 +44,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
+from lookfeel.data.images import declared_size
 from lookfeel.data.layout import sniff_video
 from lookfeel.errors import LookfeelError
 from lookfeel.index import (
@@ -222,18 +222,6 @@ class ServeOptions:
             max_concurrency=self.max_concurrency,
             max_pixels=max(1, int(self.max_megapixels * 1e6)),
         )
-
-
-def image_size(data: bytes) -> tuple[int, int] | None:
-    """Width and height an image declares in its header (nothing decoded); None if unreadable."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(io.BytesIO(data)) as im:
-                w, h = im.size
-                return int(w), int(h)
-    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError):
-        return None
 
 
 class LibraryInfo(BaseModel):
@@ -622,7 +610,7 @@ def create_app(
                     f"{name}: not a PNG or JPEG image"
                     + (" or a video (.mov, .mp4, .avi)" if modality is Modality.TOUCH else ""),
                 )
-            size = image_size(data)
+            size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:
                 raise HTTPException(
                     422, f"{name}: cannot decode the image header (not a whole PNG or JPEG)"
