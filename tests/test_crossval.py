@@ -46,7 +46,11 @@ def test_folds_of_a_fixed_size_are_disjoint_and_spread_over_clusters():
         assert set(f.train) | set(f.test) == set(ids)
         per_cluster = np.bincount([clusters[i] for i in f.test], minlength=8)
         assert per_cluster.max() - per_cluster.min() <= 1  # 18 over 8 clusters: 2 or 3 each
-    with pytest.raises(ValueError, match="5 folds of 21 fabrics need 105"):
+    # Named as the config key and as cv's flag, with a size that fits (100 // 5).
+    fits = r"train.fold_size=20 \(--fold-size 20\) fits"
+    with pytest.raises(
+        ValueError, match=r"5 folds of 21 fabrics need 105 .*--fold-size\)" + ".*" + fits
+    ):
         stratified_fabric_folds(ids, clusters, 5, fold_size=21)
 
 

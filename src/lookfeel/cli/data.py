@@ -17,7 +17,7 @@ def add_parser(subparsers: Subparsers) -> None:
     info = actions.add_parser(
         "info",
         help="what a dataset holds: fabrics, items per modality and press kind, labels, clusters",
-        description="Summarise a dataset in the lookfeel layout (see DATASET.md).",
+        description="Summarise a dataset in the lookfeel layout (the README's Data section).",
     )
     info.add_argument("root", type=Path, help="dataset folder (depth/, color/, touch/, labels.csv)")
     add_json(info, "print the summary as JSON")

@@ -1,7 +1,7 @@
 """``lookfeel predict``: what an input feels like, each property with its probability.
 
-Read a trained model's property heads on query files: touch videos (.mov, .mp4, .avi), touch
-frames, depth maps or photos. Each file is one query; --together pools the files as presses of
+Read a trained model's property heads on query files: touch videos (.mov, .mp4, .avi, .mkv),
+touch frames, depth maps or photos. Each file is one query; --together pools the files as presses of
 one object (the Multi-input Net's max over presses). A video that holds no press (too short, no
 contact) is answered with an "error" and no properties, and a warning; the others are still
 predicted (the exit status is 1 only when nothing could be; one input is answered alike). A

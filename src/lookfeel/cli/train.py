@@ -4,8 +4,9 @@ Train a run config (see configs/) on a dataset folder; without --config, the shi
 for what the folder holds (a synthetic world or other data with two or more senses:
 configs/synth_cross.yaml, which connects them; touch alone: configs/physiclear.yaml; depth
 alone: configs/real_depth.yaml). Writes RUN/config.yaml, RUN/split.json,
-RUN/metrics.jsonl and RUN/checkpoints/{last,best}.pt. Runs on many processes under `torchrun
---nproc_per_node N -m lookfeel train ...`.
+RUN/metrics.jsonl and RUN/checkpoints/last.pt, and best.pt (the checkpoint that validated
+best) where the run validates (not with train.split=none or train.val_every=0). Runs on many
+processes under `torchrun --nproc_per_node N -m lookfeel train ...`.
 """
 
 from __future__ import annotations

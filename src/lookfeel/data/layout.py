@@ -1,4 +1,4 @@
-"""Scanning a dataset folder in the one on-disk layout (shared/DATASET.md) into a `Catalog`.
+"""Scanning a dataset folder in the one on-disk layout (README, "Data") into a `Catalog`.
 
 ::
 
@@ -195,7 +195,7 @@ def _id_message(path: Path) -> str:
 def _walk(folder: Path) -> tuple[list[Path], list[Path]]:
     """(entries to read, subfolders) of a modality folder, each sorted by name.
 
-    The layout is flat (shared/DATASET.md): a folder inside ``depth/`` or ``videos/`` (an
+    The layout is flat (README, "Data"): a folder inside ``depth/`` or ``videos/`` (an
     ``old/`` copy, a camera's session folder) is listed as skipped, never read, so that no file
     enters a run unseen. A symbolic link is an entry even when it leads to a folder (the file
     policy then reports it)."""

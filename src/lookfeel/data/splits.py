@@ -205,9 +205,15 @@ def stratified_fabric_folds(
         if fold_size < 1 or n_folds * fold_size > len(ids):
             raise SplitError(
                 f"{n_folds} folds of {fold_size} fabrics need {n_folds * fold_size} training "
-                f"fabrics (train.folds x train.fold_size); there are {len(ids)}"
+                f"fabrics (train.folds x train.fold_size, cv's --folds x --fold-size); there "
+                f"are {len(ids)}"
                 + _left_out(excluded)
-                + (f"; train.fold_size={len(ids) // n_folds} fits" if len(ids) >= n_folds else "")
+                + (
+                    f"; train.fold_size={len(ids) // n_folds} (--fold-size {len(ids) // n_folds}) "
+                    "fits"
+                    if len(ids) >= n_folds
+                    else ""
+                )
             )
         if n_folds * fold_size < len(ids):
             # Choosing the fabrics that are ever tested: each fold trains on all but its own.

@@ -576,7 +576,7 @@ def create_app(
         files: Annotated[
             list[UploadFile],
             File(
-                description="PNG or JPEG images, or touch videos (.mov, .mp4, .avi); several "
+                description="PNG or JPEG images, or touch videos (.mov, .mp4, .avi, .mkv); several "
                 "touch files are one query's presses"
             ),
         ],
@@ -608,7 +608,9 @@ def create_app(
                 raise HTTPException(
                     415,
                     f"{name}: not a PNG or JPEG image"
-                    + (" or a video (.mov, .mp4, .avi)" if modality is Modality.TOUCH else ""),
+                    + (
+                        " or a video (.mov, .mp4, .avi, .mkv)" if modality is Modality.TOUCH else ""
+                    ),
                 )
             size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:

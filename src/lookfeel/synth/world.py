@@ -1,4 +1,4 @@
-"""Write a synthetic world to disk in the one dataset layout (shared/DATASET.md).
+"""Write a synthetic world to disk in the one dataset layout (the README's "Data" section).
 
 ::
 
