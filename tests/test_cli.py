@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -198,6 +199,23 @@ def test_an_out_folder_this_user_cannot_write_in_is_refused_before_the_work(
     with pytest.raises(SystemExit):  # a file to write over: its folder must be writable
         main(["embed", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out", str(ro / "e.npz")])
     assert f"cannot write in {ro}" in capsys.readouterr().err
+    # What the permissions allow but the file system does not (as root, /proc looks writable).
+    monkeypatch.setattr(os, "access", real_access)
+    refused = tmp_path / "refused"
+    refused.mkdir()
+    real_file = tempfile.TemporaryFile
+
+    def no_files_in_refused(*args, **kwargs):
+        if Path(kwargs["dir"]) == refused:
+            raise OSError(30, "Read-only file system")
+        return real_file(*args, **kwargs)
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", no_files_in_refused)
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out",
+              str(refused / "eval")])  # fmt: skip
+    assert f"cannot write in {refused}: Read-only file system" in capsys.readouterr().err
+    assert list(refused.iterdir()) == []
 
 
 def test_the_console_script_shows_each_warning_once_as_one_line(monkeypatch, capsys):

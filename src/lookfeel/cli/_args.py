@@ -10,6 +10,7 @@ import argparse
 import importlib
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -107,8 +108,9 @@ def add_json(parser: argparse.ArgumentParser, help: str = "print as JSON") -> No
 
 def _under_a_folder(path: Path) -> None:
     """Refuse ``path`` when what already exists of it, or of the folders above it, is a file
-    or a folder this user cannot write in (read-only, or another's): said before the command
-    starts its work, not as a traceback when it first writes."""
+    or a folder this user cannot write in (read-only, or another's; a temporary file is
+    created and removed there to be sure): said before the command starts its work, not as a
+    traceback when it first writes."""
     for above in (path, *path.parents):
         if not above.exists():
             continue
@@ -120,6 +122,13 @@ def _under_a_folder(path: Path) -> None:
             raise argparse.ArgumentTypeError(
                 f"cannot write in {above}: it is read-only for this user"
             )
+        try:  # what permissions do not show: a read-only mount, /proc, root on a foreign share
+            with tempfile.TemporaryFile(dir=above):
+                pass
+        except OSError as e:
+            raise argparse.ArgumentTypeError(
+                f"cannot write in {above}: {e.strerror or e}"
+            ) from None
         return
 
 
