@@ -6,6 +6,8 @@ two modules that cannot be understood, tested or moved one without the other.
 """
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -133,3 +135,24 @@ def test_every_module_says_what_it_is_for(name: str):
     path = _modules()[name]
     doc = ast.get_docstring(ast.parse(path.read_text()))
     assert doc and len(doc.split()) >= 4, f"{path}: no module docstring saying what it is for"
+
+
+def test_the_top_level_holds_what_a_python_user_starts_with():
+    """QA: `lookfeel.__all__` lacked `RunConfig`, which `load_config` needs. It now holds the
+    configs, the errors and `load_model`; each name there resolves, and ``import lookfeel``
+    still imports no torch (the names that need it are imported on first use)."""
+    code = (
+        "import sys, lookfeel\n"
+        "print('torch' in sys.modules)\n"
+        "[getattr(lookfeel, n) for n in lookfeel.__all__]\n"
+        "print('torch' in sys.modules)\n"
+        "from lookfeel import RunConfig, load_config, load_model\n"
+        "print(load_config(RunConfig, None).train.steps > 0, load_model.__module__)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split("\n")[:3] == ["False", "True", "True lookfeel.checkpoint"]
+    assert {"RunConfig", "ModelConfig", "TrainConfig", "LookfeelError", "DeviceError"} <= set(
+        lookfeel.__all__
+    )
+    with pytest.raises(AttributeError, match="module 'lookfeel' has no attribute 'nothing'"):
+        lookfeel.nothing  # noqa: B018

@@ -14,6 +14,7 @@ from torch import nn
 
 from lookfeel.config import ConfigError, ModelConfig, from_dict, load_config
 from lookfeel.config.model import BACKBONE_DEFAULT_FREEZE, BACKBONE_FREEZE_POINTS
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 from lookfeel.models import (
     BACKBONES,
@@ -21,6 +22,7 @@ from lookfeel.models import (
     Backbone,
     BranchEnsemble,
     Embedder,
+    ModelInputError,
     PretrainedError,
     create_backbone,
     create_model,
@@ -120,6 +122,42 @@ def test_alexnet_has_torchvision_layout_and_embeds_at_fc7(alexnet: AlexNet) -> N
         alexnet(_images(1, 3, 62))
     with pytest.raises(ValueError, match=r"\(N, 3, H, W\)"):
         alexnet(_images(1, 1, ALEX_PX))
+
+
+def test_images_must_be_floats_in_0_1() -> None:
+    """A uint8 image, 0-255 floats or NaN were embedded silently, into a wrong embedding (QA).
+    Each is refused, saying what was given; a value a little outside [0, 1] (resampling
+    overshoot) passes, through `forward` and `trunk` alike."""
+    model = create_model(ModelConfig(backbone="compact", width=4), ["depth", "color"]).eval()
+    x = _images(2, 3, SMALL_PX)
+    depth = _images(2, 1, SMALL_PX)
+    with torch.no_grad():
+        model({"color": x * 1.2 - 0.1, "depth": depth})  # -0.1 to 1.1
+        refused = [
+            (
+                {"color": (x * 255).to(torch.uint8)},
+                r"float images in \[0, 1\], got torch\.uint8 \(",
+            ),
+            (
+                {"color": x.double().mul(255)},
+                r"got values from 0\.\d+ to 25\d\.\d+ \(0-255 pixels\?",
+            ),
+            ({"depth": depth * 1000 + 800}, r"got values from 80\d\.?\d* to 1[78]\d\d\.?\d* \("),
+            ({"color": (x - 0.45) / 0.22}, r"from -2\.\d+ to 2\.\d+ \(standardised\? the model"),
+            ({"color": x * 1.8}, r"got values from 0\.\d+ to 1\.7\d+$"),
+            ({"depth": depth.masked_fill(depth > 0.9, float("nan"))}, "got NaN among them$"),
+            ({"color": x.masked_fill(x > 0.9, float("inf"))}, r"got values from \S+ to inf$"),
+        ]
+        for inputs, says in refused:
+            for run in (model, model.trunk):
+                with pytest.raises(ModelInputError, match=r"^compact: inputs must be .*" + says):
+                    run(inputs)
+    with pytest.raises(ModelInputError, match=r"^slot 'color': expected a torch.Tensor, got "
+                       r"ndarray \(torch.from_numpy"):  # fmt: skip
+        model({"color": x.numpy()})
+    with torch.no_grad():  # float64 (NumPy's default) embeds as the float32 it holds
+        torch.testing.assert_close(model({"color": x.double()}), model({"color": x}))
+    assert issubclass(ModelInputError, LookfeelError)  # the CLI says it in one line
 
 
 def test_resnet18_has_torchvision_layout() -> None:
@@ -414,7 +452,9 @@ def test_views_of_a_press_are_averaged_before_the_presses_are_pooled(pool: str) 
 
 def test_forward_from_cached_trunk_equals_forward() -> None:
     cfg = dataclasses.replace(COMPACT, freeze="to_block4", embed_dim=8, normalize=True)
-    with pytest.warns(UserWarning, match="freezes randomly initialised compact"):
+    # The warning names the Python setting beside the CLI flag (QA: it said only the flag).
+    says = r"freezes randomly initialised compact .* set model\.pretrained \(ModelConfig\("
+    with pytest.warns(UserWarning, match=says + r"pretrained=PATH\), or `lookfeel train --pre"):
         model = create_model(cfg, [Modality.DEPTH, Modality.TOUCH])
     model.train()  # frozen trunks stay deterministic, so this also holds in training
     batch = {"depth": _batch()["depth"], "touch": _batch(p=2)["touch"]}

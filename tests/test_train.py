@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import re
 import statistics
 import subprocess
@@ -18,6 +19,7 @@ from lookfeel.checkpoint import load_model
 from lookfeel.cli import main
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.data import DatasetError, ImageLoader, scan
+from lookfeel.devices import DeviceError
 from lookfeel.embedding import embed_catalog
 from lookfeel.metrics import pairwise_distances, pick_k_of_n_exact
 from lookfeel.modality import Modality
@@ -300,7 +302,7 @@ def test_an_ensemble_resumes_keeping_finished_members(data: Path, tmp_path: Path
     resumed = train(cfg, data, broken, resume=True)
     assert (broken / "members/0/checkpoints/last.pt").stat().st_mtime_ns == done  # kept
     assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
-    with pytest.raises(ConfigError, match="no run in .* to resume from"):
+    with pytest.raises(ConfigError, match=r"^--resume \(resume=True\): no run in .* to resume"):
         train(cfg, data, tmp_path / "new", resume=True)
     with pytest.raises(ConfigError, match="model.members: must be >= 1"):
         _config("model.members=0")
@@ -308,11 +310,15 @@ def test_an_ensemble_resumes_keeping_finished_members(data: Path, tmp_path: Path
 
 def test_run_errors_are_clear(data: Path, tmp_path: Path):
     train(_config("train.steps=2", "train.val_every=0"), data, tmp_path / "run")
-    with pytest.raises(ConfigError, match="already holds a run .* pass --resume"):
+    # Each names the Python argument beside the CLI flag (QA: a library error said only flags).
+    with pytest.raises(ConfigError, match=r"already holds a run .* pass --resume \(resume=True\) "
+                       r"to continue it, or choose another --out \(out=\.\.\.\)$"):  # fmt: skip
         train(_config(), data, tmp_path / "run")
-    with pytest.raises(ConfigError, match=r"differs from the run's .* train.lr \(0.001 -> 0.5\)"):
+    with pytest.raises(ConfigError, match=r"^--resume \(resume=True\): the config differs from "
+                       r"the run's .* train.lr \(0.001 -> 0.5\)"):  # fmt: skip
         train(_config("train.lr=0.5"), data, tmp_path / "run", resume=True)
-    with pytest.raises(ConfigError, match="no checkpoint at .* to resume from"):
+    with pytest.raises(ConfigError, match=r"^--resume \(resume=True\): no checkpoint at .* to "
+                       "resume from"):  # fmt: skip
         train(_config(), data, tmp_path / "new", resume=True)
     with pytest.raises(DatasetError, match="none of the paper's test fabrics"):
         train(_config("train.split=paper"), data, tmp_path / "paper")
@@ -559,6 +565,73 @@ def test_train_gives_back_the_callers_cudnn_autotuner_setting(
     else:
         assert train(_config("train.steps=1"), data, tmp_path / "run") == "trained"
     assert torch.backends.cudnn.benchmark is False
+
+
+def _draws() -> tuple[torch.Tensor, float, float]:
+    """The next numbers of torch's, NumPy's and Python's global generators."""
+    return torch.rand(3), float(np.random.random()), random.random()
+
+
+@pytest.mark.parametrize("fails", [False, True], ids=["returns", "raises"])
+def test_train_gives_back_the_callers_random_numbers_and_thread_count(
+    data: Path, tmp_path: Path, fails: bool
+):
+    """A run seeds torch's generator from train.seed and sets train.threads; the caller's
+    stream went on from the run's seed and its thread count stayed the run's (QA: with user
+    seeds 123 and 456, the numbers drawn after train were the same). Now both come back as
+    they were, when the run ends and when it raises; the ensemble's draws too."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(3)  # not the run's 1
+    try:
+        for extra in [()] if fails else [(), ("model.members=2",)]:
+            torch.manual_seed(123)
+            np.random.seed(4)
+            random.seed(5)
+            expected = _draws()
+            torch.manual_seed(123)
+            np.random.seed(4)
+            random.seed(5)
+            run = ["train.steps=2", "train.val_every=0", "train.threads=1", *extra]
+            out = tmp_path / f"run{len(extra)}"
+            if fails:  # diverges at its first log step, after the seed and the threads
+                with pytest.raises(TrainingDiverged):
+                    train(_config(*run, "train.lr=1e8"), data, out)
+            else:
+                train(_config(*run), data, out)
+            after = _draws()
+            assert torch.equal(after[0], expected[0]) and after[1:] == expected[1:]
+            assert torch.get_num_threads() == 3
+    finally:
+        torch.set_num_threads(threads)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_a_cuda_run_gives_back_the_callers_cuda_random_numbers(data: Path, tmp_path: Path):
+    torch.cuda.manual_seed(7)
+    expected = torch.rand(3, device="cuda")
+    torch.cuda.manual_seed(7)
+    cfg = _config("train.steps=2", "train.val_every=0", "train.device=cuda", "model.dropout=0.3")
+    train(cfg, data, tmp_path / "a")
+    assert torch.equal(torch.rand(3, device="cuda"), expected)
+    again = train(cfg, data, tmp_path / "b")  # the run's own seed still decides its dropout
+    assert _states_equal(tmp_path / "a" / "checkpoints" / "last.pt", again.last_checkpoint)
+
+
+def test_a_device_this_pytorch_lacks_is_refused_in_one_line(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+):
+    """train.device=cuda on a CPU build of PyTorch raised RuntimeError (QA); the CLI printed a
+    traceback. Now it is a `DeviceError`, said before the data are read."""
+    monkeypatch.setattr(torch.version, "cuda", None)  # a CPU build, on any machine
+    monkeypatch.setattr(torch.version, "hip", None)
+    with pytest.raises(DeviceError, match=r"^train\.device 'cuda': this PyTorch has no CUDA"):
+        train(_config("train.device=cuda"), tmp_path / "no-data", tmp_path / "run")
+    out = tmp_path / "cli"
+    args = ["train", "--config", str(TINY), "--data", str(data), "--out", str(out)]
+    assert main([*args, "--set", "train.device=cuda"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("lookfeel: train.device 'cuda': this PyTorch has no CUDA (torch ")
+    assert err.count("\n") == 1 and not out.exists()
 
 
 def test_an_image_smaller_than_the_backbone_takes_is_refused_before_the_data_are_read(

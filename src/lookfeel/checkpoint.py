@@ -24,6 +24,7 @@ import torch
 from lookfeel.atomic import atomic_write
 from lookfeel.config import ConfigError, RunConfig, from_dict
 from lookfeel.data.files import VIDEO_SUFFIXES
+from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder, create_model
@@ -188,10 +189,25 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
 def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu") -> LoadedModel:
     """Rebuild the trained model from a checkpoint alone, in eval mode.
 
+    Args:
+        path: a checkpoint a run wrote (``RUN/checkpoints/best.pt`` or ``last.pt``).
+        device: where the model runs: ``cpu``, ``cuda``, ``cuda:1``, a ``torch.device``, or
+            ``auto`` (`lookfeel.devices.resolve_device`).
+
     Raises:
+        DeviceError: the device is unknown to torch or not usable here (checked first).
         CheckpointError: naming the file, when it cannot be read, does not fit its config, or
             its weights hold NaN or infinity.
+
+    Example:
+        >>> from lookfeel.checkpoint import load_model
+        >>> from lookfeel.data.images import load_image
+        >>> loaded = load_model("run/checkpoints/best.pt")
+        >>> x = torch.from_numpy(load_image("photo.png", "color", loaded.config.data))
+        >>> with torch.no_grad():
+        ...     emb = loaded.model({"color": x[None]})["color"]  # (1, D); floats in [0, 1]
     """
+    device = resolve_device(device)
     state = read_checkpoint(path)
     try:
         config = from_dict(RunConfig, state["config"])

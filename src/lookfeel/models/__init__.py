@@ -9,7 +9,7 @@ Example:
 """
 
 from lookfeel.models.alexnet import AlexNet
-from lookfeel.models.backbone import Backbone
+from lookfeel.models.backbone import Backbone, ModelInputError
 from lookfeel.models.branch import CLASSES, CLUSTER, PROPERTY, Branch, BranchEnsemble
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.embedder import Embedder, create_model, head_key
@@ -40,6 +40,7 @@ __all__ = [
     "BranchEnsemble",
     "CompactCNN",
     "Embedder",
+    "ModelInputError",
     "PretrainedError",
     "ResNet18",
     "add_press_axis",

@@ -9,16 +9,29 @@ cache it, and train on ``head(cached)`` (ARCHITECTURE.md, "What makes it fast").
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import ClassVar
 
 import torch
 from torch import Tensor, nn
 
-__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "Backbone"]
+from lookfeel.errors import LookfeelError
+
+__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "INPUT_RANGE", "Backbone", "ModelInputError"]
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
+
+INPUT_RANGE = (-0.5, 1.5)
+"""The values `Backbone.prepare` accepts on the CPU. Images are in [0, 1]; the margin lets
+through what resampling overshoots, and refuses what is plainly another scale (0-255 pixels,
+depth in millimetres, standardised inputs), NaN and infinity."""
+
+
+class ModelInputError(LookfeelError):
+    """An image batch a network cannot embed: wrong shape, not floating point, or values
+    plainly outside [0, 1]; the message says what was given."""
 
 
 class Backbone(nn.Module):
@@ -132,22 +145,43 @@ class Backbone(nn.Module):
     def prepare(self, x: Tensor) -> Tensor:
         """Check an image batch in [0, 1] and normalise it with the ImageNet statistics.
 
+        The images are what `lookfeel.data.images.to_tensor` makes of a preprocessed image
+        (``preprocess_depth``, ``preprocess_rgb``): floats in [0, 1] (float64 is taken as the
+        weights' float32), never 0-255 pixels. A
+        batch that is not floating point is refused; on the CPU, so is one with a value
+        outside `INPUT_RANGE` or NaN (one min/max pass over the batch, well under 1% of a
+        forward pass). On an accelerator the values are not read: that would wait for the
+        device at every batch. Nor are they while tracing (ONNX export) or compiling.
+
         Args:
             x: (N, in_channels, H, W) in [0, 1].
 
         Returns:
             (N, stem_channels, H, W), normalised.
+
+        Raises:
+            ModelInputError: the shape, the dtype or (on the CPU) the values are wrong.
         """
         if x.dim() != 4 or x.shape[1] != self.in_channels:
-            raise ValueError(
+            raise ModelInputError(
                 f"{self.name}: expected images of shape (N, {self.in_channels}, H, W), "
                 f"got {tuple(x.shape)}"
             )
         if min(x.shape[-2:]) < self.min_size:
-            raise ValueError(
+            raise ModelInputError(
                 f"{self.name}: inputs must be at least {self.min_size} px on each side, "
                 f"got {tuple(x.shape[-2:])}"
             )
+        if not x.is_floating_point():
+            hint = " (0-255 pixels? use x.float() / 255)" if x.dtype == torch.uint8 else ""
+            raise ModelInputError(
+                f"{self.name}: inputs must be float images in [0, 1], got {x.dtype}{hint}; "
+                "lookfeel.data.images.to_tensor makes them of preprocess_depth/preprocess_rgb"
+            )
+        if not _tracing() and x.device.type == "cpu" and x.numel():
+            _check_range(self.name, x)
+        if x.dtype == torch.float64:  # NumPy's default: the weights are float32
+            x = x.to(self.mean.dtype)
         if self._replicate:
             x = x.expand(-1, 3, -1, -1)  # (N, 1, H, W) -> (N, 3, H, W)
         return (x - self.mean) / self.std
@@ -189,3 +223,27 @@ class Backbone(nn.Module):
             (N, D) embeddings.
         """
         return self.head(self.trunk(x))
+
+
+def _tracing() -> bool:
+    """Whether the forward pass is being traced or compiled (a value read would be baked in)."""
+    return bool(torch.jit.is_tracing() or torch.compiler.is_compiling())
+
+
+def _check_range(name: str, x: Tensor) -> None:
+    """Raise `ModelInputError` when ``x`` holds a value outside `INPUT_RANGE` or NaN."""
+    lo, hi = (float(v) for v in x.detach().aminmax())  # NaN if any value is NaN
+    if INPUT_RANGE[0] <= lo and hi <= INPUT_RANGE[1]:  # False for NaN
+        return
+    if math.isnan(lo) or math.isnan(hi):
+        raise ModelInputError(f"{name}: inputs must be images in [0, 1], got NaN among them")
+    hint = ""
+    if not math.isfinite(lo) or not math.isfinite(hi):
+        pass  # infinity: no scale explains it
+    elif hi > 2 and lo >= 0:
+        hint = " (0-255 pixels? divide by 255; depth? preprocess_depth maps it to [0, 1])"
+    elif lo < 0:
+        hint = " (standardised? the model normalises [0, 1] images itself)"
+    raise ModelInputError(
+        f"{name}: inputs must be images in [0, 1], got values from {lo:g} to {hi:g}{hint}"
+    )

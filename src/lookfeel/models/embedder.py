@@ -16,6 +16,7 @@ from torch import Tensor, nn
 
 from lookfeel.config.model import ModelConfig, Precision
 from lookfeel.modality import Modality, slot_modality
+from lookfeel.models.backbone import ModelInputError
 from lookfeel.models.branch import Branch, BranchEnsemble
 from lookfeel.models.pretrained import apply_state_dict, read_state_dict
 from lookfeel.models.registry import create_backbone
@@ -96,6 +97,11 @@ class Embedder(nn.Module):
         return [p for p in self.parameters() if p.requires_grad]
 
     def _check(self, slot: str, x: Tensor, views: bool = True) -> None:
+        if not isinstance(x, Tensor):
+            raise ModelInputError(
+                f"slot {slot!r}: expected a torch.Tensor, got {type(x).__name__}"
+                + (" (torch.from_numpy(a) makes one)" if type(x).__module__ == "numpy" else "")
+            )
         b = self.branch(slot)
         m, c = b.modality, b.in_channels
         if m is Modality.TOUCH:
@@ -212,10 +218,11 @@ def create_model(
     elif load_weights and freeze != "none":
         warnings.warn(
             f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers "
-            "because model.pretrained is not set: pass --pretrained PATH (a local file of "
-            f"weights for {config.backbone} in torchvision's layout"
-            + (", e.g. alexnet-owt-7be5be79.pth" if config.backbone == "alexnet" else "")
-            + "; lookfeel never downloads) or set model.freeze=none",
+            "because model.pretrained is not set: set model.pretrained (ModelConfig(pretrained="
+            "PATH), or `lookfeel train --pretrained PATH`) to a local file of weights for "
+            f"{config.backbone} in torchvision's layout ("
+            + ("e.g. alexnet-owt-7be5be79.pth; " if config.backbone == "alexnet" else "")
+            + "lookfeel never downloads), or set model.freeze=none",
             stacklevel=2,
         )
     branches: dict[Modality, Branch] = {}

@@ -15,6 +15,8 @@ import torch
 import torch.distributed as torch_dist
 from torch import nn
 
+from lookfeel.devices import resolve_device
+
 __all__ = ["Distributed"]
 
 _SETTLE_S = 0.1
@@ -33,14 +35,21 @@ class Distributed:
 
     @classmethod
     def from_env(cls, device: str = "auto") -> Distributed:
-        """Read torchrun's variables; start the process group when there are several."""
+        """Read torchrun's variables; start the process group when there are several.
+
+        Args:
+            device: ``train.device``: ``auto`` (CUDA where there is one), ``cpu`` or ``cuda``.
+
+        Raises:
+            DeviceError: ``cuda`` where this PyTorch or machine has no CUDA, or a process's
+                ``LOCAL_RANK`` past the GPUs there are.
+        """
         world = int(os.environ.get("WORLD_SIZE", "1"))
         rank = int(os.environ.get("RANK", "0"))
         local = int(os.environ.get("LOCAL_RANK", "0"))
-        use_cuda = device == "cuda" or (device == "auto" and torch.cuda.is_available())
-        if device == "cuda" and not torch.cuda.is_available():
-            raise RuntimeError("train.device=cuda, but no CUDA device is available")
-        dev = torch.device(f"cuda:{local}") if use_cuda else torch.device("cpu")
+        use_cuda = resolve_device(device, "train.device").type == "cuda"
+        # Under torchrun each process of a node takes its own GPU.
+        dev = resolve_device(f"cuda:{local}", "train.device") if use_cuda else torch.device("cpu")
         if use_cuda:
             torch.cuda.set_device(dev)
         owns = False

@@ -29,7 +29,8 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -566,7 +567,7 @@ def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) ->
     changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in free)
     if changed:
         raise ConfigError(
-            f"--resume: the config differs from the run's ({path}) in "
+            f"{_RESUME}: the config differs from the run's ({path}) in "
             + ", ".join(f"{k} ({a.get(k)!r} -> {b.get(k)!r})" for k in changed[:6])
             + "; resume with the run's own config.yaml or start a new run"
         )
@@ -630,6 +631,12 @@ def _keep_freed_memory() -> None:
     MB); by default glibc unmaps each and the next step page-faults them back in, ~10% of a
     cached step of the paper's Multi-input Net on 2 cores. Peak memory is unchanged. A no-op
     where the C library is not glibc.
+
+    Process-wide and for good: `train` cannot put it back, since glibc has no call that reads
+    the setting it replaces (and setting it at all ends glibc's own adjusting of the
+    thresholds). A process that trains and then needs its freed memory handed back can call
+    ``mallopt`` itself (``M_TRIM_THRESHOLD``, ``M_MMAP_THRESHOLD``; glibc's defaults are
+    128 KiB).
     """
     import ctypes
     import ctypes.util
@@ -694,6 +701,24 @@ def train(
 ) -> TrainResult:
     """Train a model on the dataset at ``data``, writing the run to ``out``.
 
+    The caller's torch settings come back as they were when it returns or raises: the torch
+    random number generators (the run seeds its own from ``train.seed``: the CPU's, and on
+    CUDA its device's), the thread count (``train.threads``) and cuDNN's autotuner flag. One
+    setting stays for the rest of the process: glibc is told to serve allocations under 1 GiB
+    from its heap and to keep up to 1 GiB of freed memory there for reuse, rather than hand it
+    back to the system at once (every step frees and reallocates the same large buffers,
+    which would otherwise be unmapped and page-faulted back in: ~10% of a step on 2 cores;
+    `_keep_freed_memory`). glibc cannot say what the setting was before, so it is not put
+    back. NumPy's and Python's global generators are neither seeded nor drawn from.
+
+    Example:
+        >>> from lookfeel import RunConfig, load_config, load_model
+        >>> from lookfeel.train import train
+        >>> config = load_config(RunConfig, "configs/tiny.yaml", ["train.steps=200"])
+        >>> result = train(config, "my_fabrics/", "runs/first")  # resume=True continues it
+        >>> result.validation["touch_to_depth_top1"]  # held-out fabrics, as in metrics.jsonl
+        >>> loaded = load_model(result.best_checkpoint or result.last_checkpoint)
+
     Args:
         config: the run's configuration.
         data: a dataset folder in the lookfeel layout.
@@ -709,6 +734,7 @@ def train(
     Raises:
         DatasetError: the data cannot serve this run (every problem listed).
         ConfigError: a config key is wrong, or ``resume`` with a different config.
+        DeviceError: ``train.device=cuda`` where this PyTorch or machine has no CUDA.
         TrainingDiverged: the loss or the weights became NaN or infinite (the message names
             the steps and the last finite checkpoint, which is kept).
     """
@@ -718,34 +744,67 @@ def train(
     # Images smaller than the backbone takes are refused here, before any data is read, not
     # after the data are loaded; each backbone class knows its own minimum.
     config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
-    if config.model.members > 1:
-        return _train_members(config, Path(data), run_dir, resume, on_step, loader)
-    last = run_dir / "checkpoints" / "last.pt"
-    state: dict[str, Any] | None = None
-    if resume:
-        if not last.exists():
-            raise ConfigError(f"--resume: no checkpoint at {last} to resume from")
-        state = read_checkpoint(last)
-        config = _check_resume_config(state["config"], config, last)
-    elif last.exists():
-        raise ConfigError(
-            f"{run_dir} already holds a run ({last}); pass --resume to continue it, "
-            "or choose another --out"
-        )
-    t = config.train
-    dist = Distributed.from_env(t.device)
-    # _train turns cuDNN's autotuner on for its fixed shapes on CUDA; what runs after (an
-    # evaluation's batches of every size, the caller's own code) gets the caller's setting back.
+    with _callers_torch_state():
+        if config.model.members > 1:
+            return _train_members(config, Path(data), run_dir, resume, on_step, loader)
+        last = run_dir / "checkpoints" / "last.pt"
+        state: dict[str, Any] | None = None
+        if resume:
+            if not last.exists():
+                raise ConfigError(f"{_RESUME}: no checkpoint at {last} to resume from")
+            state = read_checkpoint(last)
+            config = _check_resume_config(state["config"], config, last)
+        elif last.exists():
+            raise ConfigError(f"{run_dir} already holds a run ({last}); {_ELSEWHERE}")
+        dist = Distributed.from_env(config.train.device)
+        try:
+            with _callers_cuda_rng(dist.device):
+                result = _train(config, Path(data), run_dir, state, dist, on_step, loader)
+        except BaseException:
+            dist.close()  # no barrier: the other processes may be gone
+            raise
+        dist.close(sync=True)
+        return result
+
+
+_RESUME = "--resume (resume=True)"
+"""How the CLI flag and the Python argument that resume a run are named in errors."""
+_ELSEWHERE = f"pass {_RESUME} to continue it, or choose another --out (out=...)"
+"""What an error about a run already in the out directory suggests."""
+
+
+@contextmanager
+def _callers_torch_state() -> Iterator[None]:
+    """Give the caller back the process-wide torch settings a run changes: the CPU random
+    generator's state (the run seeds it, draws its initial weights and dropout from it), the
+    thread count (``train.threads``) and cuDNN's autotuner flag (on CUDA the run turns it on
+    for its fixed shapes; an evaluation's batches of every size, the caller's own code, get
+    the caller's setting back)."""
+    rng = torch.get_rng_state()
+    threads = torch.get_num_threads()
     benchmark = torch.backends.cudnn.benchmark
     try:
-        result = _train(config, Path(data), run_dir, state, dist, on_step, loader)
-    except BaseException:
-        dist.close()  # no barrier: the other processes may be gone
-        raise
+        yield
     finally:
+        torch.set_rng_state(rng)
+        if torch.get_num_threads() != threads:
+            torch.set_num_threads(threads)
         torch.backends.cudnn.benchmark = benchmark
-    dist.close(sync=True)
-    return result
+
+
+@contextmanager
+def _callers_cuda_rng(device: torch.device) -> Iterator[None]:
+    """On a CUDA ``device``, give the caller back its random generator's state (the run seeds
+    it: dropout on the GPU draws from it). Nothing on another device: the run then touches no
+    CUDA generator."""
+    if device.type != "cuda":
+        yield
+        return
+    rng = torch.cuda.get_rng_state(device)
+    try:
+        yield
+    finally:
+        torch.cuda.set_rng_state(rng, device)
 
 
 def run_started(out: str | Path) -> bool:
@@ -780,11 +839,9 @@ def _train_members(
     the other (a finished member is kept on resume), then one checkpoint holding them all."""
     n = config.model.members
     if run_started(run_dir) and not resume:
-        raise ConfigError(
-            f"{run_dir} already holds a run; pass --resume to continue it, or choose another --out"
-        )
+        raise ConfigError(f"{run_dir} already holds a run; {_ELSEWHERE}")
     if resume and not run_started(run_dir):
-        raise ConfigError(f"--resume: no run in {run_dir} to resume from")
+        raise ConfigError(f"{_RESUME}: no run in {run_dir} to resume from")
     loader = loader if loader is not None else ImageLoader(config.data)  # decoded once for all
     paths = []
     for k in range(n):
@@ -905,7 +962,13 @@ def _train(
     loader.preload(ds.items(), views=not cached)
     loader.preload([it for v in val_items.values() for it in v])
 
-    torch.manual_seed(t.seed)
+    # The generators the run draws from, and no other (`torch.manual_seed` would also seed
+    # every CUDA device, or queue that for when CUDA starts, on a CPU run): the CPU's (initial
+    # weights; dropout on the CPU) and the training device's (dropout on a GPU).
+    torch.default_generator.manual_seed(t.seed)
+    if device.type == "cuda":
+        with torch.cuda.device(device):
+            torch.cuda.manual_seed(t.seed)
     # A resumed run's weights all come from its checkpoint: its pretrained file is not read.
     model = create_model(
         config.model,
