@@ -293,3 +293,10 @@ def test_a_query_embedding_must_be_one_finite_vector_of_the_library_s_width(matc
     for shape in [(dim // 2,), (2, dim)]:
         with pytest.raises(LibraryError, match=rf"has shape \({shape[0]}, ?.*expected \({dim},\)"):
             matcher.match_embedding(np.zeros(shape, np.float32), Modality.DEPTH, ["q"])
+
+
+def test_a_device_this_machine_lacks_is_one_line(matcher: Matcher):
+    from lookfeel.devices import DeviceError
+
+    with pytest.raises(DeviceError, match="^device 'tpu': not a device torch knows"):
+        Matcher(matcher.library, device="tpu")

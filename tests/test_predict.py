@@ -57,3 +57,15 @@ def test_errors_name_the_cli_flag_and_the_python_argument(run, heads: LoadedMode
         predict_files(heads, [photo])
     with pytest.raises(PredictError, match=r"^--together \(together\) pools touch presses"):
         predict_files(heads, [photo, photo], Modality.COLOR, together=True)
+
+
+def test_a_checkpoint_path_is_loaded_and_a_device_checked_first(run, heads: LoadedModel):
+    from lookfeel.devices import DeviceError
+
+    data, _ = run
+    photo = data / "color/F0003_2.png"
+    [want] = predict_files(heads, photo, "color")
+    for path in (heads.path, str(heads.path)):  # as `evaluate_checkpoint` takes it
+        assert predict_files(path, photo, "color") == [want]
+    with pytest.raises(DeviceError, match="^device 'tpu': not a device torch knows"):
+        predict_files(heads, photo, "color", device="tpu")

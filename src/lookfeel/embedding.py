@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from lookfeel.data import Catalog, ImageLoader, ImageStore, Item
 from lookfeel.data.images import stack_views
+from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder, add_press_axis, autocast, eval_mode, to_channels_last
@@ -116,7 +117,7 @@ def embed_items(
     """
     if not items:
         return np.zeros((0, model.embed_dim), np.float32)
-    dev = torch.device(device)
+    dev = resolve_device(device)
     modality = items[0].modality
     stager = _Stager(dev)
     if store is not None and any(loader.pools_views(it) for it in items):
@@ -276,7 +277,7 @@ def embed_catalog(
         if not items:
             continue
         ready = None
-        if torch.device(device).type == "cuda":  # the GPU embeds while the cores decode
+        if resolve_device(device).type == "cuda":  # the GPU embeds while the cores decode
             ready = loader.preload_stream(items)
         else:  # the same cores would do both: decoding first is 5% faster on 2 cores
             loader.preload(items)

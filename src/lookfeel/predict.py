@@ -13,6 +13,7 @@ still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -21,10 +22,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lookfeel.checkpoint import LoadedModel
+from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.data.files import ImageError
 from lookfeel.data.layout import IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
+from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
 from lookfeel.index.match import class_value
 from lookfeel.index.query import (
@@ -115,7 +117,7 @@ def _heads(loaded: LoadedModel) -> None:
 
 @torch.inference_mode()
 def predict_files(
-    loaded: LoadedModel,
+    loaded: LoadedModel | str | os.PathLike[str],
     paths: QueryFiles,
     modality: Modality | str | None = None,
     *,
@@ -125,7 +127,8 @@ def predict_files(
     """Predict the properties of each query file (or of all of them as one object).
 
     Args:
-        loaded: a checkpoint's model (`lookfeel.checkpoint.load_model`).
+        loaded: a checkpoint's model (`lookfeel.checkpoint.load_model`), or a checkpoint's
+            path, loaded onto ``device``.
         paths: query files: videos or images of one modality; a single path (``str`` or
             `~pathlib.Path`) is one file.
         modality: what the files show, a `Modality` or its name (``"touch"``); default:
@@ -145,10 +148,15 @@ def predict_files(
         PredictError: the model has no heads, lacks the modality, the files mix modalities, or
             no file is given.
         ModalityError: ``modality`` names no modality.
+        DeviceError: ``device`` is none this machine can use.
+        CheckpointError: ``loaded`` is a path that holds no usable checkpoint.
         ImageError: naming a file that cannot be read (video errors other than a missing press
             included), or a still touch image for a model trained on press videos (checked
             for every file before any is decoded).
     """
+    device = resolve_device(device)  # a device this machine lacks: one line
+    if not isinstance(loaded, LoadedModel):
+        loaded = load_model(loaded, device)
     _heads(loaded)
     if modality is not None:
         modality = Modality.of(modality)

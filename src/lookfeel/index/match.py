@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES
+from lookfeel.devices import resolve_device
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import (
@@ -186,8 +187,8 @@ class Matcher:
 
     def __init__(self, library: Library, device: torch.device | str = "cpu") -> None:
         self.library = library
-        self.device = torch.device(device)
-        loaded = library.load_model(device)
+        self.device = resolve_device(device)  # a device this machine lacks: one line
+        loaded = library.load_model(self.device)
         self.model = loaded.model
         self.touch_input = loaded.touch_input
         """What the model's touch branch was trained on (`LoadedModel.touch_input`): a touch

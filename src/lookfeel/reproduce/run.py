@@ -451,8 +451,8 @@ def reproduce(
     if budget == "paper" and pretrained is None:
         raise ConfigError(
             "budget 'paper' trains the paper's AlexNets with fc6 frozen, which needs the ImageNet "
-            "weights: pass --pretrained PATH (torchvision's alexnet-owt-7be5be79.pth); "
-            "without them use --budget small"
+            "weights: pass --pretrained PATH (pretrained=PATH; torchvision's "
+            "alexnet-owt-7be5be79.pth); without them use --budget small (budget='small')"
         )
     if seeds < 1:
         raise ConfigError(f"seeds must be >= 1, got {seeds}")
