@@ -262,3 +262,53 @@ def test_python_m_lookfeel_shows_a_training_warning_as_one_line(tiny_dataset: Pa
         "photos themselves"
     ]
     assert "UserWarning" not in done.stderr
+
+
+def test_pretrained_is_a_path_not_yaml_saved_absolute_and_named_in_its_errors(
+    tiny_dataset: Path, tmp_path: Path, monkeypatch, capsys
+):
+    """`train --pretrained PATH` sets model.pretrained to the path as typed, not read as YAML
+    (``: `` and a leading ``*`` are a file name's characters), made absolute in the run's
+    config.yaml (which then runs from any folder); an error about it names --pretrained, not a
+    ``--set model.pretrained=...`` the user never typed."""
+    import torch
+
+    from lookfeel.models import create_backbone
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "w").mkdir()
+    torch.save(create_backbone("resnet18").state_dict(), tmp_path / "w" / "a: b.pth")
+    config = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"  # compact CNNs
+    args = ["train", "--config", str(config), "--data", str(tiny_dataset), "--out"]
+    assert main([*args, "r0", "--pretrained", "*r18.pth"]) == 1
+    err = capsys.readouterr().err
+    assert "--pretrained '*r18.pth': model.pretrained: backbone 'compact' has no" in err
+    assert "--set" not in err and "YAML" not in err
+    resnet = ["model.backbone=resnet18", "model.width=null", "train.views=[touch,touch]"]
+    resnet += ["train.steps=1", "train.batch_size=4", "train.val_every=0"]
+    sets = [x for s in resnet for x in ("--set", s)]
+    assert main([*args, "run", *sets, "--pretrained", "w/a: b.pth"]) == 0
+    saved = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    assert saved["model"]["pretrained"] == str(Path.cwd() / "w" / "a: b.pth")
+
+
+def test_reproduce_names_its_pretrained_file_by_its_absolute_path(
+    tmp_path: Path, monkeypatch, capsys
+):
+    """Every run `reproduce` trains saves the weights file's absolute path in its config.yaml,
+    as `train --pretrained` does, so a run's config runs from any folder."""
+    import lookfeel.reproduce
+    from lookfeel.config import ConfigError
+
+    given: dict[str, object] = {}
+
+    def reproduce(data: Path, out: Path, **kwargs: object) -> None:
+        given.update(kwargs)
+        raise ConfigError("stopped here")
+
+    monkeypatch.setattr(lookfeel.reproduce, "reproduce", reproduce)
+    monkeypatch.chdir(tmp_path)
+    argv = ["reproduce", "--data", "d", "--out", "o", "--budget", "paper"]
+    assert main([*argv, "--pretrained", "w/alexnet.pth"]) == 1
+    assert "stopped here" in capsys.readouterr().err
+    assert given["pretrained"] == str(Path.cwd() / "w" / "alexnet.pth")

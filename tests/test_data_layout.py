@@ -238,3 +238,40 @@ def test_labels_csv_that_is_a_folder_is_an_error_not_skipped(tiny_dataset: Path)
     ]
     assert catalog.skipped == ()
     assert catalog.label_columns == () and catalog.ids == [1, 2, 3, 4, 5, 6]
+
+
+def test_webm_and_m4v_presses_are_read_and_other_video_formats_say_so(tmp_path: Path):
+    """WebM (a Matroska subset, VP8/VP9 inside) and .m4v (MP4) are videos as .mkv and .mp4
+    are: scanned, and their press found. A video format lookfeel does not read (.wmv) is
+    skipped with a reason that says so and names those it reads, not as "not a video"."""
+    import av
+
+    from lookfeel.data.video import read_press
+
+    from ._video import PRESS, object_press, write_video
+
+    vp = next((c for c in ("libvpx-vp9", "libvpx") if c in av.codecs_available), None)
+    if vp is None:
+        pytest.skip("this FFmpeg build has no VP8/VP9 encoder")
+    videos = tmp_path / "rec" / "videos"
+    videos.mkdir(parents=True)
+    (tmp_path / "rec" / "labels.csv").write_text("object,hardness\ncork,0\nfelt,1\n")
+    frames = object_press(1, PRESS, 16)
+    webm = write_video(videos / "cork_0.webm", frames, vp)
+    m4v = write_video(videos / "felt_0.m4v", frames)
+    (videos / "felt_1.wmv").write_bytes(b"0&\xb2u\x8ef\xcf\x11" + bytes(32))  # an ASF header
+    catalog = scan(tmp_path / "rec")
+    assert catalog.problems == ()
+    assert sorted(it.path.name for it in catalog.items(Modality.TOUCH)) == [
+        "cork_0.webm",
+        "felt_0.m4v",
+    ]
+    for path in (webm, m4v):
+        span = read_press(path).span
+        assert (span.start, span.peak, span.end) == (5, 7, 10)
+    [(name, why)] = [(p.path.name, p.message) for p in catalog.skipped if p.path]
+    assert name == "felt_1.wmv"
+    assert why == (
+        "a video format lookfeel does not read (.wmv); convert it to one it reads "
+        "(.mov, .mp4, .avi, .mkv, .webm, .m4v)"
+    )

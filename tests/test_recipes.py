@@ -10,7 +10,7 @@ import yaml
 from lookfeel.cli import main
 from lookfeel.cli._args import run_config_source
 from lookfeel.config import ConfigError, RunConfig, load_config
-from lookfeel.config.recipes import default_recipe
+from lookfeel.config.recipes import default_recipe, recipe_path
 from lookfeel.modality import Modality
 
 D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
@@ -104,3 +104,29 @@ def test_the_cross_modal_recipe_trains_on_data_without_labels(tiny_dataset: Path
     _, saved = _train_quickly(tiny_dataset, tmp_path / "run")
     assert saved["train"]["views"] == ["depth", "color", "touch"]
     assert saved["model"]["num_properties"] == 0  # no labels, so no property head
+
+
+def test_a_chosen_recipe_keeps_the_class_heads_the_labels_have(tmp_path: Path, capsys):
+    """physiclear.yaml names PhysiCLeAR's hardness, roughness, bumpiness and material; chosen
+    for a user's touch recordings labelled with hardness and material, it trains those two and
+    says so. A --config the user names, or a --set of the heads, is used as written."""
+    from ._tiny import write_recordings
+
+    labels = "object,hardness,material\nsponge,0,foam\ncork,1,wood\nsteel,2,metal\n"
+    data = write_recordings(tmp_path / "digit", {"sponge": 2, "cork": 2, "steel": 2}, labels)
+    path, overrides = run_config_source(_args(data))
+    err = capsys.readouterr().err
+    assert path.name == "physiclear.yaml"
+    assert "class heads: hardness, material (the recipe's roughness, bumpiness are not in " in err
+    assert load_config(RunConfig, path, overrides).model.class_heads == ("hardness", "material")
+
+    path, overrides = run_config_source(_args(data, sets=("model.class_heads=[roughness]",)))
+    assert "class heads" not in capsys.readouterr().err
+    assert load_config(RunConfig, path, overrides).model.class_heads == ("roughness",)
+    path, overrides = run_config_source(_args(data, recipe_path("physiclear.yaml")))
+    assert len(load_config(RunConfig, path, overrides).model.class_heads) == 4
+
+    (data / "labels.csv").unlink()  # no labels at all: no class head
+    path, overrides = run_config_source(_args(data))
+    assert "class heads: none (no labels.csv for the recipe's hardness, " in capsys.readouterr().err
+    assert load_config(RunConfig, path, overrides).model.class_heads == ()

@@ -218,3 +218,16 @@ def test_runs_side_by_side_in_workers_give_the_numbers_of_one_process(
     for name in ("cross_modal", "cross_modal_depth_touch"):  # trained in the workers
         record = json.loads((tmp_path / "side" / "runs" / name / "seed0" / "eval.json").read_text())
         assert record["threads"] == 1
+
+
+def test_the_weights_file_is_a_path_not_yaml(tmp_path: Path, monkeypatch):
+    """Under the paper budget every run names the weights file by its absolute path, as given
+    (a name with ``: `` would be a YAML mapping)."""
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.reproduce.run import EXPERIMENTS, config_dir, experiment_overrides
+
+    monkeypatch.chdir(tmp_path)
+    exp = EXPERIMENTS[0]
+    overrides = experiment_overrides(exp, "paper", [], [], pretrained="w/a: b.pth")
+    config = load_config(RunConfig, config_dir() / f"{exp.name}.yaml", overrides)
+    assert config.model.pretrained == str(tmp_path / "w" / "a: b.pth")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import shlex
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
@@ -18,6 +19,8 @@ from typing import TYPE_CHECKING
 from lookfeel.modality import Modality, parse_modalities
 
 if TYPE_CHECKING:
+    from lookfeel.config._core import Override
+
     Subparsers = argparse._SubParsersAction[argparse.ArgumentParser]
 else:  # generic only in typeshed
     Subparsers = argparse._SubParsersAction
@@ -174,9 +177,33 @@ def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:
     add_set(parser, "override a config key, e.g. --set train.steps=100 (repeatable)")
 
 
+def path_flag(key: str, flag: str, path: Path) -> Override:
+    """The config override a path-valued flag (``--pretrained PATH``) makes: ``key`` set to the
+    path made absolute (a run's config.yaml then names the file from any folder), taken as it
+    is rather than parsed as YAML (a path may hold ``: `` or begin ``*``), and an error about
+    ``key`` naming the flag as typed (``--pretrained 'w/a: b.pth': model.pretrained: ...``)."""
+    from lookfeel.config._core import Override
+
+    return Override(key, os.path.abspath(path), f"{flag} {shlex.quote(str(path))}")
+
+
+def _sets_key(sets: list[str], key: str) -> bool:
+    """Whether one of the ``--set`` overrides gives ``key`` (``model.class_heads``) or a
+    mapping above it (``model={...}``)."""
+    parts = key.split(".")
+    above = {".".join(parts[: i + 1]) for i in range(len(parts))}
+    return any(s.partition("=")[0].strip() in above for s in sets)
+
+
 def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     """The config file and overrides of a training run: ``--config`` as given, or (without it)
     the shipped recipe for what ``--data`` holds (`lookfeel.config.recipes`), said on stderr.
+
+    A recipe chosen so keeps only the class heads whose columns the folder's labels.csv has
+    (`fit_class_heads`: physiclear.yaml's hardness, roughness, bumpiness and material on a
+    dataset labelled with hardness and material alone trains those two), unless ``--set``
+    names ``model.class_heads``. A ``--config`` the user named is used as written, where a
+    class head's missing column is an error.
 
     Raises:
         ConfigError: no recipe fits the folder's senses.
@@ -184,12 +211,16 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     """
     if args.config is not None:
         return args.config, list(args.set)
-    from lookfeel.config.recipes import default_recipe
+    from lookfeel.config.recipes import default_recipe, fit_class_heads
     from lookfeel.data.layout import scan
 
     catalog = scan(args.data, check_headers=False)
     held = {m for fabric in catalog.fabrics for m, items in fabric.items.items() if items}
     recipe = default_recipe(held, args.data)
+    if not _sets_key(args.set, "model.class_heads"):
+        has_labels = (Path(args.data) / "labels.csv").is_file()
+        columns = [*catalog.label_columns, *catalog.text_columns] if has_labels else None
+        recipe = fit_class_heads(recipe, columns)
     print(f"No --config: configs/{recipe.name} ({recipe.reason})", file=sys.stderr)
     return recipe.path, [*recipe.overrides, *args.set]
 

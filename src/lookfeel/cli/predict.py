@@ -1,14 +1,14 @@
 """``lookfeel predict``: what an input feels like, each property with its probability.
 
-Read a trained model's property heads on query files: touch videos (.mov, .mp4, .avi, .mkv),
-touch frames, depth maps or photos. Each file is one query; --together pools the files as presses of
-one object (the Multi-input Net's max over presses). A video that holds no press (too short, no
-contact) is answered with an "error" and no properties, and a warning; the others are still
-predicted (the exit status is 1 only when nothing could be; one input is answered alike). A
-model trained on press videos refuses a still touch image: it read each press as its change from
-the frames before contact, which a still image lacks. A class head (model.class_heads, e.g.
-hardness 0/1/2 or material) answers with its most likely class in the label column's own terms
-and that class's probability; a property-regression head answers in the column's units.
+Read a trained model's property heads on query files: touch videos (.mov, .mp4, .m4v, .avi, .mkv,
+.webm), touch frames, depth maps or photos. Each file is one query; --together pools the files as
+presses of one object (the Multi-input Net's max over presses). A video that holds no press (too
+short, no contact) is answered with an "error" and no properties, and a warning; the others are
+still predicted (the exit status is 1 only when nothing could be; one input is answered alike). A
+model trained on press videos refuses a still touch image: it read each press as its change from the
+frames before contact, which a still image lacks. A class head (model.class_heads, e.g. hardness
+0/1/2 or material) answers with its most likely class in the label column's own terms and that
+class's probability; a property-regression head answers in the column's units.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ modalities the data lacks are skipped with the reason. Re-running resumes finish
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_data_out, add_set
@@ -26,7 +27,12 @@ def add_parser(subparsers: Subparsers) -> None:
         "%(choices)s (default small; see above)",
     )
     rep.add_argument("--seeds", type=int, default=1, help="training seeds per experiment")
-    rep.add_argument("--pretrained", type=Path, default=None, help="ImageNet AlexNet weights")
+    rep.add_argument(
+        "--pretrained",
+        type=Path,
+        default=None,
+        help="ImageNet AlexNet weights (the runs' config.yaml names the file's absolute path)",
+    )
     rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
     rep.add_argument(
@@ -48,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         budget=args.budget,
         seeds=args.seeds,
-        pretrained=args.pretrained,
+        # Absolute: each run's config.yaml then names the file from any folder.
+        pretrained=None if args.pretrained is None else os.path.abspath(args.pretrained),
         only=args.only or (),
         n_boot=args.n_boot,
         overrides=args.set,

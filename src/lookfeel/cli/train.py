@@ -14,8 +14,18 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from lookfeel.cli._args import Subparsers, add_command, add_run_config, run_config_source
+from lookfeel.cli._args import (
+    Subparsers,
+    add_command,
+    add_run_config,
+    path_flag,
+    run_config_source,
+)
+
+if TYPE_CHECKING:
+    from lookfeel.config._core import Override
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -27,8 +37,9 @@ def add_parser(subparsers: Subparsers) -> None:
         "--pretrained",
         type=Path,
         default=None,
-        help="local ImageNet weights file for the backbone (torchvision's AlexNet layout); "
-        "never downloaded",
+        help="local ImageNet weights file for the backbone (torchvision's AlexNet or ResNet-18 "
+        "layout); never downloaded. Sets model.pretrained to the file's absolute path, so the "
+        "run's config.yaml names it from any folder",
     )
 
 
@@ -42,9 +53,10 @@ def run(args: argparse.Namespace) -> int:
         path, overrides = saved, list(args.set)  # a resumed run keeps its own recipe
     else:
         path, overrides = run_config_source(args)
+    given: list[str | Override] = [*overrides]
     if args.pretrained is not None:
-        overrides.append(f"model.pretrained={args.pretrained}")
-    config = load_config(RunConfig, path, overrides)
+        given.append(path_flag("model.pretrained", "--pretrained", args.pretrained))
+    config = load_config(RunConfig, path, given)
     result = train(config, args.data, args.out, resume=args.resume)
     if int(os.environ.get("RANK", "0")) != 0:
         return 0  # under torchrun one process reports (they trained one run)

@@ -30,6 +30,7 @@ from lookfeel.modality import Pair
 
 __all__ = [
     "ConfigError",
+    "Override",
     "apply_overrides",
     "check_choices",
     "from_dict",
@@ -44,6 +45,25 @@ T = TypeVar("T")
 
 class ConfigError(LookfeelError):
     """A configuration key or value is wrong; the message names the dotted key."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Override:
+    """An override whose value is taken as it is, not parsed as YAML: what a command-line flag
+    such as ``lookfeel train --pretrained PATH`` sets. A path is any text (``/w/a: b.pth`` or
+    ``*r18.pth`` would be a mapping or a broken alias as YAML), and an error about the key
+    names the flag the user typed, not a ``--set`` they never wrote.
+
+    Attributes:
+        key: the dotted key (``model.pretrained``).
+        value: its value, as the config field takes it (a string for a path).
+        given: what the user typed, which an error about ``key`` begins with
+            (``--pretrained 'w/a: b.pth'``).
+    """
+
+    key: str
+    value: Any
+    given: str
 
 
 # --------------------------------------------------------------------------------------------
@@ -259,8 +279,9 @@ def to_dict(obj: Any) -> Any:
     return obj
 
 
-def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
-    """Apply ``key.sub=value`` overrides to a nested plain dict (values parsed as YAML).
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str | Override]) -> dict[str, Any]:
+    """Apply ``key.sub=value`` overrides (values parsed as YAML) and `Override` values (taken as
+    they are) to a nested plain dict, in order.
 
     Returns a new dict; ``data`` is not modified.
 
@@ -271,20 +292,27 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str,
 
     out = copy.deepcopy(data)
     for item in overrides:
-        if "=" not in item:
+        if isinstance(item, Override):
+            key, shown = item.key, item.given
+        elif "=" not in item:
             raise ConfigError(f"override {item!r}: expected key=value, e.g. data.image_size=64")
-        key, _, raw = item.partition("=")
+        else:
+            key, shown = item.partition("=")[0], repr(item)
         parts = key.strip().split(".")
         if not all(parts):
-            raise ConfigError(f"override {item!r}: empty key part")
+            raise ConfigError(f"override {shown}: empty key part")
         node = out
         for i, p in enumerate(parts[:-1]):
             nxt = node.setdefault(p, {})
             if nxt is None:
                 nxt = node[p] = {}
             if not isinstance(nxt, dict):
-                raise ConfigError(f"override {item!r}: {'.'.join(parts[: i + 1])} is not a mapping")
+                raise ConfigError(f"override {shown}: {'.'.join(parts[: i + 1])} is not a mapping")
             node = nxt
+        if isinstance(item, Override):
+            node[parts[-1]] = copy.deepcopy(item.value)
+            continue
+        raw = item.partition("=")[2]
         try:
             node[parts[-1]] = yaml.safe_load(raw) if raw.strip() else None
         except yaml.YAMLError as e:
@@ -305,9 +333,12 @@ def _yaml_problem(e: yaml.YAMLError) -> str:
 
 
 def load_config(
-    cls: type[T], path: str | os.PathLike[str] | None = None, overrides: Sequence[str] = ()
+    cls: type[T],
+    path: str | os.PathLike[str] | None = None,
+    overrides: Sequence[str | Override] = (),
 ) -> T:
-    """Defaults, then the YAML file at ``path`` (if any), then dotted ``overrides``.
+    """Defaults, then the YAML file at ``path`` (if any), then dotted ``overrides``
+    (``key=value`` text parsed as YAML, or an `Override` taken as it is).
 
     Raises:
         ConfigError: naming the file and key when the YAML is unreadable or wrong.
@@ -331,14 +362,17 @@ def load_config(
         return from_dict(cls, data)
     except ConfigError as e:
         message = str(e)
-        # A value given with --set is blamed on it, not on the file it overrode.
+        # A value given with --set (or a flag) is blamed on it, not on the file it overrode.
         for given in reversed(overrides):
-            key = given.partition("=")[0].strip()
+            if isinstance(given, Override):
+                key, shown = given.key.strip(), given.given
+            else:
+                key, shown = given.partition("=")[0].strip(), f"--set {given}"
             named = message.startswith((f"{key}:", f"{key}.", f"{key}[")) or message.startswith(
                 f"unknown key {key}"
             )
             if named:
-                raise ConfigError(f"--set {given}: {message}") from None
+                raise ConfigError(f"{shown}: {message}") from None
         if path is not None:
             raise ConfigError(f"{path}: {message}") from None
         raise

@@ -168,7 +168,7 @@ class DataConfig:
     video press has its own options, ``video_*``); the last index listed is the frame shown
     wherever one image of the press is displayed."""
     video_frame: float | None = None
-    """Which frame of a press video (a touch item recorded as .mov/.mp4/.avi) is "the" image:
+    """Which frame of a press video (a touch item recorded as a video) is "the" image:
     ``None`` the deepest contact; a number in [0, 1] that position across the contact span
     (0 its first frame, 1 its last). The press is found automatically (`lookfeel.data.video`)."""
     video_frames: int = 1

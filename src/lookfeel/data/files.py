@@ -15,8 +15,9 @@ from pathlib import Path
 
 from lookfeel.errors import LookfeelError
 
-VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv")
-"""File suffixes read as videos (lower-case; the match ignores case)."""
+VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv", ".webm", ".m4v")
+"""File suffixes read as videos (lower-case; the match ignores case): QuickTime and MP4 (``.m4v``
+is MP4), AVI, Matroska and WebM (a Matroska subset; VP8, VP9 or AV1 inside)."""
 
 __all__ = ["DEFAULT_MAX_PIXELS", "ImageError", "file_kind", "read_image_file"]
 

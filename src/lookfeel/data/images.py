@@ -7,10 +7,10 @@
 - Touch: one frame of a press (the second-to-last by default, as the authors' code); a 960x720
   GelSight frame is cropped to its central 720x720 first; smaller sensors' frames (GelSight
   Mini, DIGIT) are kept whole. Output (3, S, S) in [0, 1]. A touch item may also be a press
-  video (.mov, .mp4, .avi, .mkv): its press is found and one frame taken (the deepest contact
-  or ``video_frame``) or the mean of ``video_frames`` across the contact span, by default as
-  its difference from the no-contact frames (`lookfeel.data.video.read_press`), then cropped
-  and resized like a touch image.
+  video (`lookfeel.data.files.VIDEO_SUFFIXES`: .mov, .mp4, .mkv ...): its press is found and
+  one frame taken (the deepest contact or ``video_frame``) or the mean of ``video_frames``
+  across the contact span, by default as its difference from the no-contact frames
+  (`lookfeel.data.video.read_press`), then cropped and resized like a touch image.
 
 Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
 (a FIFO, device or folder named like an image is refused at once, never waited on), and its

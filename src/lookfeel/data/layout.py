@@ -47,6 +47,15 @@ __all__ = [
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
+_OTHER_VIDEO_SUFFIXES = frozenset(
+    {".wmv", ".asf", ".flv", ".f4v", ".3gp", ".3g2", ".mpg", ".mpeg", ".m2v", ".ogv", ".mts"}
+    | {".m2ts", ".ts", ".vob", ".mxf", ".dv", ".qt", ".rm", ".rmvb", ".divx", ".y4m", ".h264"}
+    | {".264", ".h265", ".hevc", ".mjpeg", ".mjpg"}
+)
+"""Suffixes of videos that lookfeel does not read (not `VIDEO_SUFFIXES`): skipped with a reason
+that says so and names the ones it reads, so a press recorded as ``.wmv`` is converted, not
+wondered about."""
+
 FOLDER_ALIASES: dict[Modality, tuple[str, ...]] = {
     Modality.DEPTH: ("depth", "kinect_depth_new", "kinect_depth"),
     Modality.COLOR: ("color", "canon_resize", "canon"),
@@ -79,7 +88,8 @@ def sniff_video(head: bytes) -> bool:
 
 
 def _video_header_problem(path: Path) -> str | None:
-    """A cheap check that a video file is a container FFmpeg reads (QuickTime/MP4, AVI, MKV)."""
+    """A cheap check that a video file is a container FFmpeg reads (QuickTime/MP4, AVI,
+    Matroska/WebM)."""
     try:
         with path.open("rb") as f:
             head = f.read(16)
@@ -406,13 +416,17 @@ def scan(
             if path.name.startswith(".") or not (
                 is_video or (suffix in IMAGE_SUFFIXES and not in_videos)
             ):
+                reads = ", ".join(VIDEO_SUFFIXES)
                 what = (
                     "a hidden file (its name begins with a dot)"
                     if path.name.startswith(".")
-                    else "not a video (" + ", ".join(VIDEO_SUFFIXES) + ")"
+                    else f"a video format lookfeel does not read ({suffix}); convert it to one "
+                    f"it reads ({reads})"
+                    if modality is Modality.TOUCH and suffix in _OTHER_VIDEO_SUFFIXES
+                    else f"not a video ({reads})"
                     if in_videos
                     else "not an image (.png, .jpg, .jpeg)"
-                    + (" or a video" if modality is Modality.TOUCH else "")
+                    + (f" or a video ({reads})" if modality is Modality.TOUCH else "")
                 )
                 skipped.append(Problem(path, what, "skip"))
                 continue

@@ -1,6 +1,7 @@
 """Tactile videos in: decode a GelSight Mini / DIGIT recording and find its press.
 
-A person presses a sensor and gets a ``.mov``, ``.mp4`` or ``.avi``, not a folder of frames.
+A person presses a sensor and gets a ``.mov``, ``.mp4`` or ``.mkv``, not a folder of frames
+(`lookfeel.data.files.VIDEO_SUFFIXES` lists the suffixes read).
 This module decodes such a file with PyAV (FFmpeg's bindings; no OpenCV), finds the press in
 it, and returns the frames the model needs:
 

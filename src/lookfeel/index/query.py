@@ -1,13 +1,13 @@
 """Query images: decoded and preprocessed exactly as in training, checked with clear errors.
 
 A query is one or more image files of one modality. Depth is a 16-bit PNG in millimetres,
-colour an 8-bit RGB photo, touch a press's video (.mov, .mp4, .avi: its frame of deepest
-contact is found as in training) or one GelSight frame per press (the frame you would use for
-training: by default the second-to-last of a press; for a model that reads several frames of
-a press together, ``data.touch_frames``, any one of them, the others read from beside it).
-Preprocessing is the run's `DataConfig`
-through `lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training
-uses. No image is cached, so a path reused for different content is always read afresh.
+colour an 8-bit RGB photo, touch a press's video (`VIDEO_SUFFIXES`: .mov, .mp4 ...; its frame
+of deepest contact is found as in training) or one GelSight frame per press (the frame you
+would use for training: by default the second-to-last of a press; for a model that reads
+several frames of a press together, ``data.touch_frames``, any one of them, the others read
+from beside it). Preprocessing is the run's `DataConfig` through
+`lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training uses. No
+image is cached, so a path reused for different content is always read afresh.
 
 A touch query must be what the model's touch branch was trained on (the checkpoint's
 ``touch_input``, `lookfeel.checkpoint.LoadedModel.touch_input`): a model trained on press

@@ -36,6 +36,7 @@ import torch
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.config._core import Override
 from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
@@ -403,15 +404,16 @@ def experiment_overrides(
     vision: Sequence[str],
     overrides: Sequence[str] = (),
     pretrained: str | os.PathLike[str] | None = None,
-) -> list[str]:
+) -> list[str | Override]:
     """The overrides `reproduce` trains ``exp`` with, on its config under ``configs/paper/``:
     the budget's, the split (``split`` for the runs of Tables 1-3, ``vision`` for Table 4's:
     `split_overrides`), the weights file under the paper budget, then ``overrides``, which
-    win."""
-    run = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
+    win. The weights file's path is taken as it is (not parsed as YAML), absolute."""
+    run: list[str | Override] = [*BUDGETS[budget], "train.progress=false", "train.val_every=0"]
     run += vision if exp.table == "vision" else split
     if pretrained is not None and budget == "paper":
-        run.append(f"model.pretrained={pretrained}")
+        path = os.path.abspath(pretrained)
+        run.append(Override("model.pretrained", path, f"--pretrained {path}"))
     return [*run, *overrides]
 
 

@@ -44,6 +44,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
+from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.images import declared_size
 from lookfeel.data.layout import sniff_video
 from lookfeel.errors import LookfeelError
@@ -62,6 +63,9 @@ from lookfeel.index import (
 from lookfeel.modality import Modality
 
 __all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
+
+_VIDEOS = ", ".join(VIDEO_SUFFIXES)
+"""The press videos an upload may be: ``.mov, .mp4, ...``."""
 
 SECURITY_HEADERS = {
     "X-Content-Type-Options": "nosniff",
@@ -576,7 +580,7 @@ def create_app(
         files: Annotated[
             list[UploadFile],
             File(
-                description="PNG or JPEG images, or touch videos (.mov, .mp4, .avi, .mkv); several "
+                description=f"PNG or JPEG images, or touch videos ({_VIDEOS}); several "
                 "touch files are one query's presses"
             ),
         ],
@@ -608,9 +612,7 @@ def create_app(
                 raise HTTPException(
                     415,
                     f"{name}: not a PNG or JPEG image"
-                    + (
-                        " or a video (.mov, .mp4, .avi, .mkv)" if modality is Modality.TOUCH else ""
-                    ),
+                    + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else ""),
                 )
             size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:
