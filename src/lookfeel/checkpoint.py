@@ -23,6 +23,7 @@ import torch
 
 from lookfeel.atomic import atomic_write
 from lookfeel.config import ConfigError, RunConfig, from_dict
+from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError, load_problem
@@ -164,14 +165,17 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
     the synthetic world, then training on real data).
 
     Every parameter and buffer whose name and shape match is copied; the rest (a head of
-    another size, a branch the other run lacks) keep their fresh initialisation.
+    another size, a branch the other run lacks) keep their fresh initialisation. A branch
+    both have must take at least half of its tensors from the checkpoint: fewer means another
+    backbone or width (3 of a branch's 84 tensors, say), whose few matching names would start
+    the run from a mix that no run trained.
 
     Returns:
         The names of the tensors that were not copied.
 
     Raises:
-        CheckpointError: the file is not a checkpoint, its weights hold NaN or infinity, or
-            no tensor of it fits this model.
+        CheckpointError: the file is not a checkpoint, its weights hold NaN or infinity, no
+            tensor of it fits this model, or fewer than half of a shared branch's do.
     """
     source = read_checkpoint(path)["model"]
     _refuse_non_finite(path, source)
@@ -182,6 +186,18 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
             f"{path}: no weight fits this model (its branches or backbone differ: the "
             f"checkpoint has e.g. {', '.join(list(source)[:3])})"
         )
+    for branch in model.branches:
+        prefix = f"branches.{branch}."
+        mine = [k for k in own if k.startswith(prefix)]
+        if not any(k.startswith(prefix) for k in source):
+            continue  # a branch the other run lacks starts fresh
+        copied = sum(k in fits for k in mine)
+        if 2 * copied < len(mine):
+            raise CheckpointError(
+                f"{path}: only {copied} of this model's {len(mine)} {branch} branch tensors fit "
+                "its weights (another model.backbone or model.width?); model.init_from starts "
+                "a run from one of the same architecture"
+            )
     model.load_state_dict(fits, strict=False)
     return [k for k in own if k not in fits]
 
@@ -210,7 +226,10 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
     device = resolve_device(device)
     state = read_checkpoint(path)
     try:
-        config = from_dict(RunConfig, state["config"])
+        # The loss plays no part here: a run trained with a loss this process has not
+        # registered (a user's own module) loads, with a warning.
+        with unregistered_loss_kinds_allowed():
+            config = from_dict(RunConfig, state["config"])
     except ConfigError as e:
         raise CheckpointError(f"{path}: its config does not load: {e}") from None
     modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]

@@ -3,18 +3,64 @@
 from __future__ import annotations
 
 import math
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
 
-__all__ = ["Distance", "LossConfig", "LossKind"]
+__all__ = [
+    "Distance",
+    "LossConfig",
+    "loss_kinds",
+    "register_loss_kind",
+    "unregistered_loss_kinds_allowed",
+]
 
-LossKind = Literal["contrastive", "infonce", "triplet"]
-"""The objectives between slots that `lookfeel.losses.create_loss` builds."""
+_LOSS_KINDS: dict[str, None] = dict.fromkeys(("contrastive", "infonce", "triplet"))
+"""The values ``loss.kind`` accepts: the built-in objectives, then those
+`lookfeel.losses.register_loss` adds (`lookfeel.losses.PAIR_LOSSES` holds their builders; a
+test keeps the two in step). Declared here, without torch, so that a config loads before
+`lookfeel.losses` is imported."""
+
 Distance = Literal["euclidean", "mean_squared"]
 """Distances between two embeddings for the contrastive and triplet objectives."""
+
+_LENIENT: ContextVar[bool] = ContextVar("lookfeel_unregistered_loss_kinds", default=False)
+
+
+def register_loss_kind(name: str) -> None:
+    """Let `LossConfig` accept ``kind=name`` (called by `lookfeel.losses.register_loss`;
+    register a loss through that, which also records how to build it)."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a loss name must be a non-empty string, got {name!r}")
+    _LOSS_KINDS[name] = None
+
+
+def loss_kinds() -> tuple[str, ...]:
+    """The names ``loss.kind`` accepts, sorted."""
+    return tuple(sorted(_LOSS_KINDS))
+
+
+@contextmanager
+def unregistered_loss_kinds_allowed() -> Iterator[None]:
+    """Within this block a `LossConfig` takes a ``kind`` this process has not registered, with
+    a warning instead of a `ConfigError`.
+
+    For reading a trained run's record (a checkpoint's config): evaluating, embedding or
+    indexing it never builds the loss, so a checkpoint trained with a loss of a user's own
+    module loads without that module. Training and resuming read their config outside it and
+    refuse the name.
+    """
+    token = _LENIENT.set(True)
+    try:
+        yield
+    finally:
+        _LENIENT.reset(token)
 
 
 @dataclass(frozen=True)
@@ -25,10 +71,11 @@ class LossConfig:
     their sum.
     """
 
-    kind: LossKind = "contrastive"
+    kind: str = "contrastive"
     """The objective between slots: ``contrastive`` (the paper's equation 2 on the tuple
-    distance D3), ``infonce`` (multi-positive InfoNCE over every slot pair) or ``triplet``
-    (batch-hard triplet over every slot pair)."""
+    distance D3), ``infonce`` (multi-positive InfoNCE over every slot pair), ``triplet``
+    (batch-hard triplet over every slot pair), or one registered with
+    `lookfeel.losses.register_loss` (`loss_kinds`)."""
     margin: float = 2.0
     """Contrastive margin m: pairs of different fabrics are pushed until their distance reaches
     it (paper: 2; the authors' code also used 1 with ``mean_squared``)."""
@@ -68,6 +115,19 @@ class LossConfig:
     fabrics, so every label weighs alike."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.kind, str):
+            raise ConfigError(f"loss.kind: expected a name, got {self.kind!r}")
+        if self.kind not in _LOSS_KINDS:  # first, as the first field
+            if not _LENIENT.get():
+                raise ConfigError(
+                    f"loss.kind: {self.kind!r} is not one of {', '.join(loss_kinds())}"
+                )
+            warnings.warn(
+                f"loss.kind: {self.kind!r} is not registered in this process "
+                "(lookfeel.losses.register_loss); the model loads without it, since only "
+                "training uses the loss",
+                stacklevel=2,
+            )
         check_choices(self, "loss")
         for key, value in (
             ("margin", self.margin),

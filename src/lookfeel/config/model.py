@@ -10,38 +10,109 @@ from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
 
 __all__ = [
-    "BACKBONE_DEFAULT_FREEZE",
-    "BACKBONE_FREEZE_POINTS",
-    "BackboneName",
+    "BackboneSpec",
     "ModelConfig",
     "Precision",
+    "backbone_names",
+    "backbone_spec",
+    "register_backbone_spec",
 ]
-
-BackboneName = Literal["alexnet", "compact", "resnet18"]
-"""The built-in backbones (`lookfeel.models.list_backbones`; a test keeps the three in step)."""
 
 Precision = Literal["auto", "fp32"]
 """How a network computes on CUDA (`ModelConfig.precision`)."""
 
-BACKBONE_FREEZE_POINTS: dict[str, tuple[str, ...]] = {
-    "alexnet": ("none", "to_conv5", "to_fc6", "all"),
-    "compact": ("none", "to_block4", "all"),
-    "resnet18": ("none", "to_layer2", "to_layer3", "all"),
-}
-"""The built-in backbones and where each can be cut into a frozen trunk and a trainable head:
-``none`` trains everything, ``to_X`` freezes up to and including layer ``X``, ``all`` freezes the
-whole backbone (only a projection and the heads train). `lookfeel.models.list_backbones` lists the
-same names; a test keeps the two in step."""
 
-BACKBONE_DEFAULT_FREEZE: dict[str, str] = {
-    "alexnet": "to_fc6",
-    "compact": "none",
-    "resnet18": "none",
-}
-"""Freeze point used when ``model.freeze`` is unset. AlexNet: the paper's (section 4.2: "parameters
-of AlexNet before fc7 will be fixed")."""
+@dataclass(frozen=True)
+class BackboneSpec:
+    """What the config needs to know of a backbone to check a `ModelConfig` (no torch needed).
 
-_PRETRAINABLE = ("alexnet", "resnet18")
+    `lookfeel.models.register_backbone` records one for every backbone class it registers,
+    from the class's attributes, so a backbone is declared once: its class. The built-in ones
+    are also declared below, so that a config loads before `lookfeel.models` (and torch) is
+    imported; registering their classes checks that the two agree.
+    """
+
+    name: str
+    """The value of ``model.backbone`` that selects it."""
+    freeze_points: tuple[str, ...]
+    """Where it can be cut into a frozen trunk and a trainable head (``model.freeze``):
+    ``none`` trains everything, ``to_X`` freezes up to and including layer ``X``, ``all``
+    freezes the whole backbone (only a projection and the heads train)."""
+    default_freeze: str = "none"
+    """The freeze point used when ``model.freeze`` is unset."""
+    loads_pretrained: bool = False
+    """Whether it loads a local weights file in torchvision's layout (``model.pretrained``)."""
+    takes_width: bool = True
+    """Whether ``model.width`` means something to it."""
+    pretrained_width: int | None = None
+    """The ``model.width`` its pretrained weights need (``None``: any)."""
+
+    def __post_init__(self) -> None:
+        if not self.freeze_points:
+            raise ValueError(f"backbone {self.name!r}: it needs at least one freeze point")
+        if self.default_freeze not in self.freeze_points:
+            raise ValueError(
+                f"backbone {self.name!r}: default freeze {self.default_freeze!r} is not one of "
+                f"its freeze points {', '.join(self.freeze_points)}"
+            )
+
+
+_BACKBONE_SPECS: dict[str, BackboneSpec] = {
+    spec.name: spec
+    for spec in (
+        # AlexNet's default: the paper's (section 4.2: "parameters of AlexNet before fc7 will
+        # be fixed").
+        BackboneSpec(
+            "alexnet",
+            ("none", "to_conv5", "to_fc6", "all"),
+            default_freeze="to_fc6",
+            loads_pretrained=True,
+            takes_width=False,
+        ),
+        BackboneSpec("compact", ("none", "to_block4", "all")),
+        BackboneSpec(
+            "resnet18",
+            ("none", "to_layer2", "to_layer3", "all"),
+            loads_pretrained=True,
+            pretrained_width=64,
+        ),
+    )
+}
+"""Name -> spec of every backbone a `ModelConfig` accepts: the built-in ones, then those
+`lookfeel.models.register_backbone` adds (`lookfeel.models.BACKBONES` holds their classes; a
+test keeps the two in step)."""
+
+
+def register_backbone_spec(spec: BackboneSpec) -> None:
+    """Let `ModelConfig` accept ``spec.name`` (called by `lookfeel.models.register_backbone`;
+    register a backbone through that, which also records its class).
+
+    Raises:
+        ValueError: another spec is registered under that name.
+    """
+    known = _BACKBONE_SPECS.get(spec.name)
+    if known is not None and known != spec:
+        raise ValueError(
+            f"backbone {spec.name!r} is already registered as {known}; its class says {spec}"
+        )
+    _BACKBONE_SPECS[spec.name] = spec
+
+
+def backbone_names() -> tuple[str, ...]:
+    """The names ``model.backbone`` accepts, sorted."""
+    return tuple(sorted(_BACKBONE_SPECS))
+
+
+def backbone_spec(name: str) -> BackboneSpec:
+    """The spec of backbone ``name``.
+
+    Raises:
+        ConfigError: no backbone of that name is registered (naming those that are).
+    """
+    spec = _BACKBONE_SPECS.get(name)
+    if spec is None:
+        raise ConfigError(f"model.backbone: {name!r} is not one of {', '.join(backbone_names())}")
+    return spec
 
 
 @dataclass(frozen=True)
@@ -54,10 +125,11 @@ class ModelConfig:
     ``press_pool``; the SNN is a model of one modality fed two slots of it.
     """
 
-    backbone: BackboneName = "alexnet"
+    backbone: str = "alexnet"
     """Backbone of every branch: ``alexnet`` (the paper's; torchvision's layout, 227 px inputs,
-    at least 63 px), ``compact`` (a small CNN for 64-112 px inputs on a CPU) or ``resnet18``
-    (torchvision's layout)."""
+    at least 63 px), ``compact`` (a small CNN for 64-112 px inputs on a CPU), ``resnet18``
+    (torchvision's layout), or one registered with `lookfeel.models.register_backbone`
+    (`backbone_names`)."""
     pretrained: str | None = None
     """Path to a local torchvision state dict to start from (``alexnet-owt-7be5be79.pth`` for
     ``alexnet``, ``resnet18-f37072fd.pth`` for ``resnet18``). Weights are never downloaded;
@@ -67,8 +139,9 @@ class ModelConfig:
     whose name and shape match is copied (e.g. a depth branch pre-trained on the synthetic
     world, then trained on real depth); the rest start fresh. Applied after ``pretrained``."""
     freeze: str | None = None
-    """Where the frozen trunk ends (see `BACKBONE_FREEZE_POINTS`); ``None`` takes the backbone's
-    default (`BACKBONE_DEFAULT_FREEZE`: ``to_fc6`` for AlexNet as the paper, else ``none``).
+    """Where the frozen trunk ends (the backbone's `BackboneSpec.freeze_points`: ``none``,
+    ``to_X`` up to and including layer ``X``, ``all``); ``None`` takes the backbone's default
+    (`BackboneSpec.default_freeze`: ``to_fc6`` for AlexNet as the paper, else ``none``).
     A frozen trunk always runs in eval mode (no dropout, fixed BatchNorm statistics), so its
     output per image can be cached."""
     depth_stem: Literal["replicate", "sum"] = "replicate"
@@ -137,21 +210,27 @@ class ModelConfig:
     @property
     def resolved_freeze(self) -> str:
         """``freeze``, or the backbone's default freeze point when it is ``None``."""
-        return self.freeze if self.freeze is not None else BACKBONE_DEFAULT_FREEZE[self.backbone]
+        if self.freeze is not None:
+            return self.freeze
+        return backbone_spec(self.backbone).default_freeze
 
     def __post_init__(self) -> None:
+        if not isinstance(self.backbone, str):
+            raise ConfigError(f"model.backbone: expected a name, got {self.backbone!r}")
+        spec = backbone_spec(self.backbone)  # first, as the first field
         check_choices(self, "model")
-        points = BACKBONE_FREEZE_POINTS[self.backbone]
+        points = spec.freeze_points
         if self.freeze is not None and self.freeze not in points:
             raise ConfigError(
                 f"model.freeze: {self.freeze!r} is not a freeze point of backbone "
                 f"{self.backbone!r}; one of {', '.join(points)}"
             )
         if self.pretrained is not None:
-            if self.backbone not in _PRETRAINABLE:
+            if not spec.loads_pretrained:
+                able = [n for n in backbone_names() if _BACKBONE_SPECS[n].loads_pretrained]
                 raise ConfigError(
                     f"model.pretrained: backbone {self.backbone!r} has no pretrained weights; "
-                    f"only {', '.join(_PRETRAINABLE)} load a torchvision file"
+                    f"only {', '.join(able)} load a torchvision file"
                 )
             if not self.pretrained.strip():
                 raise ConfigError("model.pretrained: empty path; use null for random weights")
@@ -163,13 +242,17 @@ class ModelConfig:
             if not 0.0 <= p < 1.0:
                 raise ConfigError(f"model.branch_dropout.{name.value}: must be in [0, 1), got {p}")
         if self.width is not None:
-            if self.backbone == "alexnet":
-                raise ConfigError("model.width: alexnet has a fixed width; leave width unset")
+            if not spec.takes_width:
+                raise ConfigError(
+                    f"model.width: {self.backbone} has a fixed width; leave width unset"
+                )
             if self.width < 1:
                 raise ConfigError(f"model.width: must be >= 1, got {self.width}")
-            if self.pretrained is not None and self.width != 64:
+            need = spec.pretrained_width
+            if self.pretrained is not None and need is not None and self.width != need:
                 raise ConfigError(
-                    f"model.width: pretrained resnet18 weights need width 64, got {self.width}"
+                    f"model.width: pretrained {self.backbone} weights need width {need}, "
+                    f"got {self.width}"
                 )
         if self.embed_dim is not None and self.embed_dim < 1:
             raise ConfigError(f"model.embed_dim: must be >= 1 or null, got {self.embed_dim}")

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, from_dict
+from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.labels import is_rank_column
 from lookfeel.errors import LookfeelError, load_problem
@@ -315,7 +316,8 @@ class Library:
         self.tables = tables
         self._searches = searches
         self.checkpoint = checkpoint
-        self.config = from_dict(RunConfig, manifest["config"])
+        with unregistered_loss_kinds_allowed():  # matching never builds the run's loss
+            self.config = from_dict(RunConfig, manifest["config"])
         self.backend: str = manifest["backend"]
         self.label_columns: tuple[str, ...] = tuple(manifest["label_columns"])
         self.text_columns: tuple[str, ...] = tuple(manifest.get("text_columns", ()))

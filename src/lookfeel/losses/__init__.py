@@ -3,11 +3,19 @@ the auxiliary cluster and property terms; `create_loss` combines them into one d
 
 Each loss is a pure function tested on its own, wrapped by a thin module that chooses the slot
 pairs and names the terms (``depth_touch_loss``); `CombinedLoss` adds ``cluster_loss``,
-``property_loss`` and the total ``"loss"``.
+``property_loss`` and the total ``"loss"``. `register_loss` adds an objective of one's own
+(``loss.kind``).
 """
 
+from lookfeel.losses._pairwise import FabricPairLoss
 from lookfeel.losses.cluster import UNKNOWN_CLUSTER, masked_cross_entropy
-from lookfeel.losses.combined import CombinedLoss, create_loss
+from lookfeel.losses.combined import (
+    PAIR_LOSSES,
+    CombinedLoss,
+    LossError,
+    create_loss,
+    register_loss,
+)
 from lookfeel.losses.contrastive import (
     ContrastiveD3Loss,
     contrastive_d3,
@@ -25,10 +33,13 @@ from lookfeel.losses.property import masked_mse
 from lookfeel.losses.triplet import BatchHardTripletLoss, batch_hard_triplet
 
 __all__ = [
+    "PAIR_LOSSES",
     "UNKNOWN_CLUSTER",
     "BatchHardTripletLoss",
     "CombinedLoss",
     "ContrastiveD3Loss",
+    "FabricPairLoss",
+    "LossError",
     "MultiPositiveInfoNCE",
     "batch_hard_triplet",
     "contrastive_d3",
@@ -40,6 +51,7 @@ __all__ = [
     "multi_positive_info_nce",
     "pairwise_euclidean",
     "pairwise_mean_squared",
+    "register_loss",
     "tuple_distance",
     "tuple_label",
 ]

@@ -1,18 +1,20 @@
 """The loss the trainer calls: the pairwise objective plus the auxiliary terms, as one dict.
 
 The trainer knows nothing of which objective or how many modalities: it logs every term and
-back-propagates ``"loss"`` (open_clip's task layer).
+back-propagates ``"loss"`` (open_clip's task layer). The objectives between slots are looked up
+by ``loss.kind`` in `PAIR_LOSSES`; `register_loss` adds one of a user's own.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import get_args
+from typing import get_args, overload
 
 from torch import Tensor, nn
 
 from lookfeel.config._core import ConfigError
-from lookfeel.config.loss import Distance, LossConfig, LossKind
+from lookfeel.config.loss import Distance, LossConfig, register_loss_kind
+from lookfeel.errors import LookfeelError
 from lookfeel.losses._naming import embeddings_of, head_output, term_name
 from lookfeel.losses.cluster import masked_cross_entropy
 from lookfeel.losses.contrastive import ContrastiveD3Loss
@@ -26,7 +28,31 @@ from lookfeel.losses.infonce import MultiPositiveInfoNCE
 from lookfeel.losses.property import masked_mse
 from lookfeel.losses.triplet import BatchHardTripletLoss
 
-__all__ = ["CombinedLoss", "create_loss"]
+__all__ = ["PAIR_LOSSES", "CombinedLoss", "LossError", "create_loss", "register_loss"]
+
+
+class LossError(LookfeelError):
+    """A loss gave something the trainer cannot use (a term that is not a scalar tensor, or
+    no dict of named terms); the message names the loss and the term."""
+
+
+def _check_terms(terms: object, source: str) -> Mapping[str, Tensor]:
+    """``terms`` if it is a dict of 0-dim tensors (a shape check: nothing is read from the
+    device), else `LossError` naming ``source`` and the first term that is not."""
+    if not isinstance(terms, Mapping):
+        raise LossError(
+            f"{source} returned a {type(terms).__name__}; a loss returns a dict of named terms, "
+            'e.g. {"depth_touch_loss": value}'
+        )
+    for name, value in terms.items():
+        if not isinstance(value, Tensor):
+            raise LossError(f"{source}: term {name!r} is a {type(value).__name__}, not a tensor")
+        if value.dim() != 0:
+            raise LossError(
+                f"{source}: term {name!r} has shape {tuple(value.shape)}; every term must be a "
+                "scalar (a 0-dim tensor): reduce it, e.g. with .mean()"
+            )
+    return terms
 
 
 class CombinedLoss(nn.Module):
@@ -114,10 +140,14 @@ class CombinedLoss(nn.Module):
 
         Raises:
             ValueError: targets given for a head the outputs lack, or nothing to optimise.
+            LossError: the pairwise objective gave a term that is not a scalar tensor.
         """
         terms: dict[str, Tensor] = {}
         if self.pair_weight > 0:
-            pair_terms = self.pair_loss(embeddings_of(outputs), y=y, fabric=fabric)
+            pair_terms = _check_terms(
+                self.pair_loss(embeddings_of(outputs), y=y, fabric=fabric),
+                f"the loss {type(self.pair_loss).__name__}",
+            )
             factor = self._pair_factor(list(pair_terms))
             for name, value in pair_terms.items():
                 if factor[name] > 0:
@@ -142,6 +172,7 @@ class CombinedLoss(nn.Module):
             terms["class_loss"] = self.class_weight * sum(parts[1:], parts[0])
         if not terms:
             raise ValueError("no loss term applies: every weight is 0 or its targets are missing")
+        _check_terms(terms, "the combined loss")
         values = list(terms.values())
         terms["loss"] = sum(values[1:], values[0])
         return terms
@@ -170,13 +201,58 @@ def _triplet(config: LossConfig) -> nn.Module:
     return BatchHardTripletLoss(config.triplet_margin, _DISTANCES[config.distance][1])
 
 
-_PAIR_LOSSES: dict[str, Callable[[LossConfig], nn.Module]] = {
-    "contrastive": _contrastive,
-    "infonce": _infonce,
-    "triplet": _triplet,
-}
-"""`LossConfig.kind` -> the pairwise objective it names (a test keeps this and `LossKind` in
+PAIR_LOSSES: dict[str, Callable[[LossConfig], nn.Module]] = {}
+"""`LossConfig.kind` -> a function of the `LossConfig` that builds the objective between slots
+it names (`register_loss` adds to it; a test keeps it and `lookfeel.config.loss.loss_kinds` in
 step)."""
+
+_LossBuilder = Callable[[LossConfig], nn.Module]
+
+
+@overload
+def register_loss(name: str) -> Callable[[_LossBuilder], _LossBuilder]: ...
+@overload
+def register_loss(name: str, build: _LossBuilder) -> _LossBuilder: ...
+def register_loss(
+    name: str, build: _LossBuilder | None = None
+) -> _LossBuilder | Callable[[_LossBuilder], _LossBuilder]:
+    """Register an objective between slots under ``name``, for ``loss.kind`` and `create_loss`.
+
+    Registering the same function again (a module imported twice) changes nothing.
+
+    Args:
+        name: the value of ``loss.kind`` that selects it.
+        build: ``build(config: LossConfig) -> nn.Module``; the module is called as
+            ``module(embeddings, y=..., fabric=...)`` with slot -> (B, D) embeddings and returns
+            a dict of named scalar terms (`lookfeel.losses.FabricPairLoss` gives one term per
+            slot pair). Without it, a decorator: ``@register_loss("mine")``.
+
+    Returns:
+        ``build`` (or the decorator).
+
+    Raises:
+        TypeError: ``build`` is not callable.
+        ValueError: another function is registered under ``name``.
+    """
+    if build is None:
+        return lambda b: register_loss(name, b)
+    if not callable(build):
+        raise TypeError(f"loss {name!r}: expected a function of the LossConfig, got {build!r}")
+    known = PAIR_LOSSES.get(name)
+    if known is not None and _where(known) != _where(build):
+        raise ValueError(f"loss {name!r} is already registered ({_where(known)})")
+    register_loss_kind(name)
+    PAIR_LOSSES[name] = build
+    return build
+
+
+def _where(fn: object) -> str:
+    return f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', repr(fn))}"
+
+
+register_loss("contrastive", _contrastive)
+register_loss("infonce", _infonce)
+register_loss("triplet", _triplet)
 
 
 def create_loss(config: LossConfig, class_sizes: tuple[int, ...] = ()) -> CombinedLoss:
@@ -193,16 +269,17 @@ def create_loss(config: LossConfig, class_sizes: tuple[int, ...] = ()) -> Combin
 
     Raises:
         ValueError: a ``kind`` or ``distance`` with nothing built for it (a `LossConfig` checks
-            its choices, so only one forced past that check gets here).
+            its choices, so only one forced past that check, or read from a checkpoint whose
+            loss this process has not registered, gets here).
     """
     for what, value, known, allowed in (
-        ("kind", config.kind, _PAIR_LOSSES, get_args(LossKind)),
+        ("kind", config.kind, PAIR_LOSSES, tuple(sorted(PAIR_LOSSES))),
         ("distance", config.distance, _DISTANCES, get_args(Distance)),
     ):
         if value not in known:
             raise ValueError(f"loss.{what}: {value!r} is not one of {', '.join(allowed)}")
     return CombinedLoss(
-        _PAIR_LOSSES[config.kind](config),
+        PAIR_LOSSES[config.kind](config),
         pair_weight=config.pair_weight,
         cluster_weight=config.cluster_weight,
         property_weight=config.property_weight,

@@ -9,7 +9,7 @@ Example:
 """
 
 from lookfeel.models.alexnet import AlexNet
-from lookfeel.models.backbone import Backbone, ModelInputError
+from lookfeel.models.backbone import Backbone, BackboneError, ModelInputError
 from lookfeel.models.branch import CLASSES, CLUSTER, PROPERTY, Branch, BranchEnsemble
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.embedder import Embedder, create_model, head_key
@@ -26,7 +26,12 @@ from lookfeel.models.pretrained import (
     load_pretrained,
     read_state_dict,
 )
-from lookfeel.models.registry import BACKBONES, create_backbone, list_backbones
+from lookfeel.models.registry import (
+    BACKBONES,
+    create_backbone,
+    list_backbones,
+    register_backbone,
+)
 from lookfeel.models.resnet import ResNet18
 
 __all__ = [
@@ -36,6 +41,7 @@ __all__ = [
     "PROPERTY",
     "AlexNet",
     "Backbone",
+    "BackboneError",
     "Branch",
     "BranchEnsemble",
     "CompactCNN",
@@ -54,5 +60,6 @@ __all__ = [
     "list_backbones",
     "load_pretrained",
     "read_state_dict",
+    "register_backbone",
     "to_channels_last",
 ]

@@ -45,6 +45,9 @@ class AlexNet(Backbone):
 
     name = "alexnet"
     freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_conv5": 2, "to_fc6": 3, "all": 4}
+    default_freeze = "to_fc6"
+    loads_pretrained = True
+    takes_width = False
     min_size = 63  # three stride-2 max pools after a stride-4 conv need 63 px
 
     def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
@@ -82,4 +85,6 @@ class AlexNet(Backbone):
             self.classifier[0:3],  # fc6: -> (N, 4096)
             self.classifier[3:6],  # fc7: -> (N, 4096), the embedding E
         ]
-        self._set_stages(stages, freeze or "to_fc6", embed_dim=4096, unused=[self.classifier[6]])
+        self._set_stages(
+            stages, freeze or self.default_freeze, embed_dim=4096, unused=[self.classifier[6]]
+        )

@@ -18,7 +18,14 @@ from torch import Tensor, nn
 
 from lookfeel.errors import LookfeelError
 
-__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "INPUT_RANGE", "Backbone", "ModelInputError"]
+__all__ = [
+    "IMAGENET_MEAN",
+    "IMAGENET_STD",
+    "INPUT_RANGE",
+    "Backbone",
+    "BackboneError",
+    "ModelInputError",
+]
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -34,6 +41,12 @@ class ModelInputError(LookfeelError):
     plainly outside [0, 1]; the message says what was given."""
 
 
+class BackboneError(LookfeelError):
+    """A backbone class that breaks the `Backbone` contract (a stage that is not one of its
+    submodules, no `Backbone._set_stages` call, an embedding of another shape than
+    (N, embed_dim)); the message names the class and what is wrong."""
+
+
 class Backbone(nn.Module):
     """Base class: input checks, ImageNet normalisation, the trunk/head split and freezing.
 
@@ -41,9 +54,18 @@ class Backbone(nn.Module):
     their layers in `_build` (keeping torchvision's attribute names where one exists, so
     state-dict keys match its files), which ends by calling `_set_stages`.
 
+    A backbone of one's own is registered with `lookfeel.models.register_backbone`, which
+    reads the class attributes below (those with a default may be left out); a config then
+    selects it with ``model.backbone``.
+
     Attributes:
         name: registry name (``alexnet``, ``compact``, ``resnet18``).
-        freeze_points: freeze point name -> number of stages in the trunk.
+        freeze_points: freeze point name -> number of stages in the trunk (``none``: 0).
+        default_freeze: the freeze point used when ``model.freeze`` is unset.
+        loads_pretrained: whether a local weights file in its layout can be loaded
+            (``model.pretrained``, `lookfeel.models.load_pretrained`).
+        takes_width: whether ``model.width`` means something to it.
+        pretrained_width: the ``model.width`` pretrained weights need (``None``: any).
         embed_dim: size D of the embedding `forward` returns.
         in_channels: channels of the input images (1 for depth, 3 for colour and touch, 3 per
             frame for touch frames stacked).
@@ -52,6 +74,10 @@ class Backbone(nn.Module):
 
     name: ClassVar[str]
     freeze_points: ClassVar[dict[str, int]]
+    default_freeze: ClassVar[str] = "none"
+    loads_pretrained: ClassVar[bool] = False
+    takes_width: ClassVar[bool] = True
+    pretrained_width: ClassVar[int | None] = None
     min_size: ClassVar[int] = 1
 
     def __init__(
@@ -97,8 +123,21 @@ class Backbone(nn.Module):
         self.embed_dim = 0
         self.freeze = "none"
         self._stages: list[nn.Module] = []
+        self._unused: list[nn.Module] = []
         self._cut = 0
         self._build(freeze, dropout, width)
+        if not self._stages:
+            raise BackboneError(
+                f"{self._who()}: _build did not call self._set_stages(stages, freeze, "
+                "embed_dim), so the backbone has no layers"
+            )
+
+    def _who(self) -> str:
+        """How messages name this backbone: ``tinyvit (mymodule.TinyViT)``."""
+        cls = type(self)
+        name = getattr(cls, "name", None)
+        where = f"{cls.__module__}.{cls.__qualname__}"
+        return f"{name} ({where})" if name else where
 
     def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:
         """Build the layers and call `_set_stages` (each subclass says what its arguments mean)."""
@@ -113,12 +152,25 @@ class Backbone(nn.Module):
     ) -> None:
         """Record the stages, cut them at ``freeze`` and freeze the trunk's parameters.
 
+        Every stage's parameters and buffers must belong to the backbone: assign each layer
+        as an attribute (``self.conv = nn.Conv2d(...)``, or a container such as
+        ``nn.Sequential``) before listing it here. A layer created inside the list only would
+        be neither optimised nor saved, so it is refused. A stage may be a new container of
+        such layers (``nn.Sequential(self.conv1, self.bn1)``) or a layer without parameters
+        (``nn.Flatten(1)``).
+
         Args:
             stages: the layers in order; their composition maps a normalised image to (N, D).
             freeze: a key of `freeze_points`.
             embed_dim: D.
             unused: layers kept only for state-dict compatibility (ImageNet classifiers);
-                their parameters are frozen since no output depends on them.
+                their parameters are frozen since no output depends on them, and a pretrained
+                file may lack them or hold them in another shape (`apply_state_dict`).
+
+        Raises:
+            BackboneError: a stage that is not a module, or holds a parameter or buffer that
+                is not registered in the backbone; no stages; an ``embed_dim`` below 1.
+            ValueError: ``freeze`` is not one of `freeze_points`.
         """
         if freeze not in self.freeze_points:
             valid = ", ".join(self.freeze_points)
@@ -126,14 +178,51 @@ class Backbone(nn.Module):
         # A plain list, not a ModuleList: the stages are already registered under their
         # torchvision names, and registering them twice would duplicate state-dict keys.
         self._stages = list(stages)
+        self._check_stages(embed_dim)
         self._cut = self.freeze_points[freeze]
         self.freeze = freeze
         self.embed_dim = embed_dim
         for stage in self._stages[: self._cut]:
             stage.requires_grad_(False)
-        for module in unused:
+        self._unused = list(unused)
+        for module in self._unused:
             module.requires_grad_(False)
         self.train(self.training)
+
+    def _check_stages(self, embed_dim: int) -> None:
+        """Refuse stages whose weights the backbone does not hold (see `_set_stages`)."""
+        if not self._stages:
+            raise BackboneError(f"{self._who()}: _set_stages got no stages")
+        if not isinstance(embed_dim, int) or embed_dim < 1:
+            raise BackboneError(f"{self._who()}: embed_dim must be an int >= 1, got {embed_dim!r}")
+        own = {id(t) for t in (*self.parameters(), *self.buffers())}
+        for i, stage in enumerate(self._stages):
+            if not isinstance(stage, nn.Module):
+                raise BackboneError(
+                    f"{self._who()}: stage {i} is a {type(stage).__name__}, not an nn.Module"
+                )
+            stray = [
+                n
+                for n, t in (*stage.named_parameters(), *stage.named_buffers())
+                if id(t) not in own
+            ]
+            if stray:
+                raise BackboneError(
+                    f"{self._who()}: stage {i} ({type(stage).__name__}) holds "
+                    f"{', '.join(stray[:3])}{' ...' if len(stray) > 3 else ''} outside the "
+                    "backbone's registered layers, so it would be neither trained nor saved: "
+                    "assign the layer as an attribute (self.name = ...) before _set_stages"
+                )
+
+    def unused_keys(self) -> set[str]:
+        """State-dict keys of the layers no output depends on (``unused`` of `_set_stages`:
+        e.g. ResNet-18's ImageNet classifier ``fc.weight``, ``fc.bias``)."""
+        unused = {id(m) for m in self._unused}
+        keys: set[str] = set()
+        for prefix, module in self.named_modules():
+            if id(module) in unused:
+                keys.update(f"{prefix}.{k}" if prefix else k for k in module.state_dict())
+        return keys
 
     def train(self, mode: bool = True) -> Backbone:
         """Set train or eval mode; the frozen trunk stays in eval mode either way."""
@@ -208,9 +297,20 @@ class Backbone(nn.Module):
 
         Returns:
             (N, D) embeddings.
+
+        Raises:
+            BackboneError: the stages gave another shape than (N, embed_dim) (a shape check
+                only: nothing is read from the device; skipped while tracing or compiling).
         """
+        n = features.shape[0]
         for stage in self._stages[self._cut :]:
             features = stage(features)
+        if not _tracing() and (features.dim() != 2 or tuple(features.shape) != (n, self.embed_dim)):
+            raise BackboneError(
+                f"{self._who()}: returned embeddings of shape {tuple(features.shape)} for "
+                f"{n} inputs; expected ({n}, {self.embed_dim}), (N, embed_dim) as declared in "
+                "_set_stages (pool or flatten the last stage's output to (N, D))"
+            )
         return features
 
     def forward(self, x: Tensor) -> Tensor:

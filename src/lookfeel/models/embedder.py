@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping, Sequence
 import torch
 from torch import Tensor, nn
 
-from lookfeel.config.model import ModelConfig, Precision
+from lookfeel.config.model import ModelConfig, Precision, backbone_spec
 from lookfeel.modality import Modality, slot_modality
 from lookfeel.models.backbone import ModelInputError
 from lookfeel.models.branch import Branch, BranchEnsemble
@@ -216,21 +216,30 @@ def create_model(
     if load_weights and config.pretrained is not None:
         state = read_state_dict(config.pretrained)  # once, shared by every branch
     elif load_weights and freeze != "none":
-        warnings.warn(
-            f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers "
-            "because model.pretrained is not set: set model.pretrained (ModelConfig(pretrained="
-            "PATH), or `lookfeel train --pretrained PATH`) to a local file of weights for "
-            f"{config.backbone} in torchvision's layout ("
-            + ("e.g. alexnet-owt-7be5be79.pth; " if config.backbone == "alexnet" else "")
-            + "lookfeel never downloads), or set model.freeze=none",
-            stacklevel=2,
-        )
+        warnings.warn(_random_frozen_layers(config, freeze), stacklevel=2)
     branches: dict[Modality, Branch] = {}
     for m in mods:
         channels = touch_channels if m is Modality.TOUCH else _CHANNELS[m]
         members = [_branch(config, m, channels, freeze, state) for _ in range(config.members)]
         branches[m] = members[0] if len(members) == 1 else BranchEnsemble(members)
     return Embedder(branches, config)
+
+
+def _random_frozen_layers(config: ModelConfig, freeze: str) -> str:
+    """The warning for a frozen trunk that no weights file fills: what to set instead."""
+    said = f"model.freeze={freeze} freezes randomly initialised {config.backbone} layers"
+    if not backbone_spec(config.backbone).loads_pretrained:
+        return (
+            f"{said}, which stay random ({config.backbone} loads no pretrained weights): set "
+            "model.freeze=none to train them"
+        )
+    return (
+        f"{said} because model.pretrained is not set: set model.pretrained (ModelConfig("
+        "pretrained=PATH), or `lookfeel train --pretrained PATH`) to a local file of weights "
+        f"for {config.backbone} in torchvision's layout ("
+        + ("e.g. alexnet-owt-7be5be79.pth; " if config.backbone == "alexnet" else "")
+        + "lookfeel never downloads), or set model.freeze=none"
+    )
 
 
 def _branch(

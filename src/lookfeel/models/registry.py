@@ -1,23 +1,117 @@
-"""The backbone registry: a plain dict from name to class (timm's factory, without decorators)."""
+"""The backbone registry: name -> class, the one place a backbone is declared.
+
+`register_backbone` records a class in `BACKBONES` and tells the config layer what it needs to
+check a `ModelConfig` (`lookfeel.config.model.BackboneSpec`: freeze points, default freeze
+point, whether it loads pretrained weights), read from the class's attributes. The config
+layer imports no torch, so it cannot ask the classes themselves; this is how it learns of a
+user's backbone. A backbone of one's own, registered from one's own module imported before
+`lookfeel.cli.main` or `lookfeel.load_config`, trains through ``model.backbone: <name>``::
+
+    from lookfeel.models import Backbone, register_backbone
+
+    @register_backbone("tiny")
+    class Tiny(Backbone):
+        freeze_points = {"none": 0}
+        ...
+"""
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, overload
 
+from lookfeel.config.model import BackboneSpec, register_backbone_spec
 from lookfeel.models.alexnet import AlexNet
 from lookfeel.models.backbone import Backbone
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.resnet import ResNet18
 
-__all__ = ["BACKBONES", "create_backbone", "list_backbones"]
+__all__ = ["BACKBONES", "create_backbone", "list_backbones", "register_backbone"]
 
-BACKBONES: dict[str, type[Backbone]] = {
-    AlexNet.name: AlexNet,
-    CompactCNN.name: CompactCNN,
-    ResNet18.name: ResNet18,
-}
-"""Name -> backbone class. Every class takes ``in_channels``, ``stem``, ``freeze``, ``dropout``
-and ``width`` keywords."""
+
+class _Backbones(dict[str, type[Backbone]]):
+    """`BACKBONES`: a dict whose ``BACKBONES[name] = cls`` registers (`register_backbone`), as
+    earlier versions of this page told users to register a backbone."""
+
+    def __setitem__(self, name: str, cls: type[Backbone]) -> None:
+        register_backbone(name, cls)
+
+
+BACKBONES: dict[str, type[Backbone]] = _Backbones()
+"""Name -> backbone class (`register_backbone` adds to it). Every class takes
+``in_channels``, ``stem``, ``freeze``, ``dropout`` and ``width`` keywords."""
+
+
+def _spec(name: str, cls: type[Backbone]) -> BackboneSpec:
+    """What the config checks of ``cls``, from its attributes."""
+    points = getattr(cls, "freeze_points", None)
+    if not isinstance(points, dict) or not points:
+        raise TypeError(
+            f"backbone {name!r}: {cls.__qualname__}.freeze_points must be a dict of freeze "
+            'point -> stages in the trunk, e.g. {"none": 0}'
+        )
+    try:
+        return BackboneSpec(
+            name,
+            tuple(points),
+            default_freeze=cls.default_freeze,
+            loads_pretrained=cls.loads_pretrained,
+            takes_width=cls.takes_width,
+            pretrained_width=cls.pretrained_width,
+        )
+    except ValueError as e:
+        raise TypeError(f"{cls.__qualname__}: {e}") from None
+
+
+@overload
+def register_backbone(name: str) -> Callable[[type[Backbone]], type[Backbone]]: ...
+@overload
+def register_backbone(name: str, cls: type[Backbone]) -> type[Backbone]: ...
+def register_backbone(
+    name: str, cls: type[Backbone] | None = None
+) -> type[Backbone] | Callable[[type[Backbone]], type[Backbone]]:
+    """Register a `Backbone` subclass under ``name``, for `create_backbone` and the config.
+
+    Reads the class's ``freeze_points`` and, where set, ``default_freeze``,
+    ``loads_pretrained``, ``takes_width``, ``pretrained_width`` and ``min_size``. Registering
+    the same class again (a module imported twice) changes nothing.
+
+    Args:
+        name: the value of ``model.backbone`` that selects it; also set as the class's
+            ``name`` when it has none.
+        cls: the class; without it, a decorator: ``@register_backbone("tiny")``.
+
+    Returns:
+        ``cls`` (or the decorator).
+
+    Raises:
+        TypeError: ``cls`` is not a `Backbone` subclass, or its attributes are inconsistent.
+        ValueError: another class is registered under ``name``, or ``cls`` is named otherwise.
+    """
+    if cls is None:
+        return lambda c: register_backbone(name, c)
+    if not (isinstance(cls, type) and issubclass(cls, Backbone)):
+        raise TypeError(f"backbone {name!r}: expected a Backbone subclass, got {cls!r}")
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a backbone name must be a non-empty string, got {name!r}")
+    known = dict.get(BACKBONES, name)
+    if known is not None and _where(known) != _where(cls):
+        raise ValueError(f"backbone {name!r} is already registered ({_where(known)})")
+    own = cls.__dict__.get("name")
+    if own is not None and own != name:
+        raise ValueError(f"backbone {name!r}: {cls.__qualname__} is named {own!r}")
+    register_backbone_spec(_spec(name, cls))
+    cls.name = name
+    dict.__setitem__(BACKBONES, name, cls)
+    return cls
+
+
+def _where(cls: type) -> str:
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+for _cls in (AlexNet, CompactCNN, ResNet18):
+    register_backbone(_cls.name, _cls)
 
 
 def list_backbones() -> list[str]:

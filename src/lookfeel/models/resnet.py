@@ -53,6 +53,8 @@ class ResNet18(Backbone):
 
     name = "resnet18"
     freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_layer2": 3, "to_layer3": 4, "all": 6}
+    loads_pretrained = True
+    pretrained_width = 64
     min_size = 32
 
     def _build(self, freeze: str | None, dropout: float, width: int | None) -> None:

@@ -12,7 +12,7 @@ are kept as they are: nothing non-finite is ever written over them.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from lookfeel.errors import LookfeelError
@@ -33,6 +33,7 @@ def diverged(
     lr: float,
     kept: Mapping[Path, int],
     checkpoint_every: int,
+    terms: Sequence[str] = (),
 ) -> TrainingDiverged:
     """The error that stops a diverged run.
 
@@ -44,11 +45,13 @@ def diverged(
         lr: the run's ``train.lr``.
         kept: the checkpoints on disk that hold finite weights, with their steps.
         checkpoint_every: ``train.checkpoint_every``, named when nothing was kept.
+        terms: the loss terms that were not finite, when known (``depth_touch_loss``): a
+            loss of one's own that gives NaN is told apart from a learning rate too high.
 
     Returns:
         A `TrainingDiverged` whose message reads, for example, ``train: the loss became NaN
-        between steps 6 and 10 (train.lr=1e+08 too high?); the last finite checkpoint is kept
-        at run/checkpoints/last.pt (step 5)``.
+        between steps 6 and 10, in its term depth_touch_loss (train.lr=1e+08 too high?); the
+        last finite checkpoint is kept at run/checkpoints/last.pt (step 5)``.
     """
     became = "NaN" if math.isnan(value) else "infinite"
     when = f"at step {step}" if first >= step else f"between steps {first} and {step}"
@@ -57,6 +60,9 @@ def diverged(
         tail = f"the last finite checkpoint is kept at {path} (step {at})"
     else:
         tail = f"no checkpoint was written before it (train.checkpoint_every={checkpoint_every})"
+    where = ""
+    if terms:
+        where = f", in its term{'s' if len(terms) > 1 else ''} {', '.join(terms)}"
     return TrainingDiverged(
-        f"train: the {what} became {became} {when} (train.lr={lr:g} too high?); {tail}"
+        f"train: the {what} became {became} {when}{where} (train.lr={lr:g} too high?); {tail}"
     )

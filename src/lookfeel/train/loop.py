@@ -29,7 +29,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -980,8 +980,9 @@ def _train(
         fresh = init_from_checkpoint(model, config.model.init_from)
         if fresh:
             warnings.warn(
-                f"model.init_from: {len(fresh)} tensors of this model are not in "
-                f"{config.model.init_from} and start fresh (e.g. {', '.join(fresh[:3])})",
+                f"model.init_from: copied {len(model.state_dict()) - len(fresh)} of "
+                f"{len(model.state_dict())} tensors from {config.model.init_from}; "
+                f"{len(fresh)} start fresh (e.g. {', '.join(fresh[:3])})",
                 stacklevel=3,
             )
     model = model.to(device)
@@ -1118,11 +1119,11 @@ def _train(
         kept[last] = start_step
     checked = start_step
 
-    def stop(what: str, value: float, done: int) -> TrainingDiverged:
+    def stop(what: str, value: float, done: int, terms: Sequence[str] = ()) -> TrainingDiverged:
         if progress is not None:
             progress.close()
         log.close()
-        return diverged(what, value, checked + 1, done, t.lr, kept, t.checkpoint_every)
+        return diverged(what, value, checked + 1, done, t.lr, kept, t.checkpoint_every, terms)
 
     def save(path: Path, done: int) -> None:
         """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
@@ -1153,6 +1154,7 @@ def _train(
         )
         is_save = bool(t.checkpoint_every and done % t.checkpoint_every == 0) or done == t.steps
         loss: float | None = None
+        read: Mapping[str, Tensor | float] = {}  # the terms read with the loss
         if is_log:
             means = dist.mean_values({k: float(v) / window_steps for k, v in sums.items()})
             elapsed = time.perf_counter() - window_start
@@ -1160,13 +1162,15 @@ def _train(
             record["lr"] = scheduler.get_last_lr()[0]
             record["steps_per_s"] = window_steps / elapsed if elapsed > 0 else None
             log.write(record)
-            sums, window_start, window_steps = {}, time.perf_counter(), 0
+            read, sums, window_start, window_steps = means, {}, time.perf_counter(), 0
             loss = means["loss"]
         elif is_val or is_save:  # the device syncs here anyway
             loss = dist.mean_values({"loss": float(sums["loss"])})["loss"]
+            read = sums
         if loss is not None:
-            if not math.isfinite(loss):
-                raise stop("loss", loss, done)
+            if not math.isfinite(loss):  # name the terms (read now: the run stops anyway)
+                bad = [k for k, v in read.items() if k != "loss" and not math.isfinite(float(v))]
+                raise stop("loss", loss, done, bad)
             checked = done
         if is_val:
             if dist.is_main:
