@@ -231,3 +231,61 @@ def test_the_weights_file_is_a_path_not_yaml(tmp_path: Path, monkeypatch):
     overrides = experiment_overrides(exp, "paper", [], [], pretrained="w/a: b.pth")
     config = load_config(RunConfig, config_dir() / f"{exp.name}.yaml", overrides)
     assert config.model.pretrained == str(tmp_path / "w" / "a: b.pth")
+
+
+def test_the_report_says_what_it_measured(tmp_path: Path):
+    """QA: the evidence printed ">" between numbers in the wrong order, NaN cells read "nan",
+    Table 4 gave one chance for both sides and no interval, and the verdicts were defined only
+    in the README."""
+    from lookfeel.reproduce.report import write_reproduction_report
+    from lookfeel.reproduce.result import ReproduceResult
+
+    def model(td: float, tt: float) -> dict:
+        return {"metrics": {"touch_to_depth_top1": td, "touch_to_touch_top1": tt}}
+
+    nan = float("nan")
+    novel = {"top1": 0.7, "top3": 0.99, "chance": 1 / 6, "top1_ci_low": 0.5, "top1_ci_high": 0.9}
+    results = {
+        "multi_input": model(0.30, nan),  # one group of presses per fabric: nothing to find
+        "auxiliary": model(0.20, 0.5),
+        "cross_modal": model(0.10, 0.5),
+        "flat": model(0.12, 0.5),
+        "snn_depth": {"seen": {"top1": nan, "top3": nan, "chance": 0.1}, "novel": novel,
+                      "test_fabrics": 6},
+    }  # fmt: skip
+    result = ReproduceResult(tmp_path, tmp_path / "report.md", results, {}, findings(results))
+    meta = {"data": "w", "budget": "tiny", "seeds": 1, "split": "paper", "minutes": 1.0}
+    write_reproduction_report(result, meta)
+    report = result.report.read_text()
+    order = result.findings["model_order"]["detail"]
+    assert order == (
+        "in the paper's order: multi_input 0.300, auxiliary 0.200, cross_modal 0.100, flat 0.120"
+    )
+    assert "| touch_to_touch | - (" not in report and "| n/a (" in report and "nan" not in report
+    assert "| snn_depth | n/a (0.482) | n/a (0.660) | 0.700 [0.50, 0.90] (0.554) |" in report
+    assert "(top-1 chance 0.100); novel: 6 fabrics never trained on" in report
+    assert "(top-1 chance 0.167)" in report
+    assert "It **holds** when every comparison goes the paper's way" in report
+
+
+def test_above_chance_is_the_papers_first_finding():
+    """Section 5.1: "all the networks can predict the matching images better than average
+    chance", checked on every cell of Figure 7 beyond its interval."""
+
+    def model(lo: float, hi: float) -> dict:
+        m = {}
+        for pair in ("touch_to_depth", "touch_to_color"):
+            m |= {f"{pair}_top1": (lo + hi) / 2, f"{pair}_top1_ci_low": lo}
+            m |= {f"{pair}_top1_ci_high": hi, f"{pair}_top1_chance": 0.1}
+        return {"metrics": m}
+
+    results = {m: model(0.2, 0.4) for m in ("flat", "cross_modal", "auxiliary", "multi_input")}
+    f = findings(results)
+    assert next(iter(f)) == "above_chance" and f["above_chance"]["verdict"] == "holds"
+    assert f["above_chance"]["detail"] == "8 of 8 cells above chance beyond their interval"
+    results["flat"] = model(0.05, 0.2)  # its interval holds chance
+    f = findings(results)["above_chance"]
+    assert f["verdict"] == "within noise"
+    assert "6 of 8 cells above chance" in f["detail"]
+    assert "not: flat touch_to_depth 0.125 (chance 0.100)" in f["detail"]
+    assert findings({})["above_chance"]["verdict"] == "not tested"

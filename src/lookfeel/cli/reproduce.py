@@ -1,6 +1,6 @@
 """``lookfeel reproduce``: every experiment of the paper on a dataset, reported beside its numbers.
 
-Train and evaluate the paper's experiments (Figure 5, Tables 1-4) on a dataset and write
+Train and evaluate the paper's experiments (Figure 7, Tables 1-4) on a dataset and write
 DIR/report.md and DIR/results.json. Budgets: tiny (seconds per run), small (minutes per run,
 compact CNN at 64 px), paper (the paper's AlexNet configs; needs --pretrained). Runs whose
 modalities the data lacks are skipped with the reason. Re-running resumes finished runs.

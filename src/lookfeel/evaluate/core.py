@@ -600,14 +600,14 @@ def evaluate_embeddings(
     For each ordered pair, same-modality pairs included (a query's own item, or for a pooled
     touch query its own presses, is never a candidate), one distance matrix gives:
 
-    - pick k of n (section 5.1, Figure 5, Tables 1-2): exact expectation ``top{k}``, the
+    - pick k of n (section 5.1, Figure 7, Tables 1-2): exact expectation ``top{k}``, the
       paper's sampled protocol ``top{k}_sampled`` (15 queries x 10 draws per fabric) and, with
       ``config.released_variant``, the released code's ``top{k}_released``;
     - ``map``, ``recall{k}``, ``median_rank`` over the whole gallery;
     - ``_chance`` beside each, ``_ci_low``/``_ci_high`` from a bootstrap over the test fabrics;
     - calibration of ``P ∝ exp(-c D^2)`` (section 5.2): ``c`` (fitted on ``reference`` when
       given, else the paper's 0.085), ``fabric_accuracy`` (most probable gallery fabric is the
-      query's), ``confidence``, ``ece``, ``nll``, with chance; confusion matrices (Figure 7)
+      query's), ``confidence``, ``ece``, ``nll``, with chance; confusion matrices (Figure 8)
       for the figure pairs.
 
     With ``reference`` (and `EvalConfig.cross_map`), every pair of two modalities is also
@@ -626,7 +626,7 @@ def evaluate_embeddings(
         embedded: the test items' embeddings per modality (touch: one row per press).
         config: the protocol; default `EvalConfig()` with ``presses`` 1 when unset.
         clusters: fabric id -> cluster, to order confusion matrices and build the cluster
-            matrix (Figure 7b); None or all-None: fabrics in id order, no cluster matrix.
+            matrix (Figure 8b); None or all-None: fabrics in id order, no cluster matrix.
         labels: fabric id -> label values (NaN: unknown), for the probes; must cover the
             reference fabrics too.
         label_names: a name per label column (default ``"0"``, ``"1"``, ...).

@@ -5,7 +5,7 @@ Which items are "test" (``split``):
 - ``val``: the run's held-out items, from the checkpoint's split (the fabrics in
   ``split["val"]``; for a ``seen`` run, its held-out 20% of each training fabric's items). The
   run's training items are the reference: c and the property probes are fitted on them.
-- ``train``: the run's training items (the paper's Figure 7b shows these); no reference.
+- ``train``: the run's training items (the paper's Figure 8b shows these); no reference.
 - ``novel``: a ``seen`` run's held-out fabrics (Table 4's novel fabrics); reference: training.
 - ``paper``: the paper's 18 test fabrics (labels.csv's ``paper_split``, else the built-in list);
   reference: the paper's training fabrics. The shared real data holds the test fabrics back.

@@ -143,7 +143,7 @@ def _section_pick(result: EvalResult) -> list[str]:
     cfg, m = result.config, result.metrics
     k0 = cfg.ks[0]
     lines = [
-        f"## Pick 1 of {cfg.n} (paper section 5.1, Figure 5, Tables 1-2)",
+        f"## Pick 1 of {cfg.n} (paper section 5.1, Figure 7, Tables 1-2)",
         "",
         f"A query is shown {cfg.n} candidates of the gallery modality: one item of its own "
         f"fabric and one of each of {cfg.n - 1} other fabrics drawn at random. *Exact* is the "
@@ -600,7 +600,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     """Write ``metrics.json``, ``report.md`` and the figures under ``out_dir/figures/``.
 
     Figures: accuracy against presses (``presses.png``); per figure pair a reliability
-    diagram, fabric- and cluster-level confusion matrices ordered by cluster (Figure 7) and
+    diagram, fabric- and cluster-level confusion matrices ordered by cluster (Figure 8) and
     pick examples (Figure 6); touch queries at a glance (``glance.png``: nearest drapes and
     photos, what each feels like against the truth). Images are read with the run's
     preprocessing; a figure whose files cannot be read is skipped with a note.

@@ -43,9 +43,9 @@ class CalibrationResult:
         confidence: mean probability of the most probable fabric.
         nll: mean ``-log P(own fabric)``.
         n_fabrics: gallery fabrics the probabilities spread over.
-        confusion: fabric-level confusion, fabrics ordered by cluster (Figure 7), for the figure
+        confusion: fabric-level confusion, fabrics ordered by cluster (Figure 8), for the figure
             pairs only.
-        cluster_confusion: cluster-level confusion (Figure 7b), when clusters are known.
+        cluster_confusion: cluster-level confusion (Figure 8b), when clusters are known.
     """
 
     pair: Pair

@@ -1,4 +1,4 @@
-"""Fabric and cluster confusion matrices of match probabilities (paper section 5.2, Figure 7).
+"""Fabric and cluster confusion matrices of match probabilities (paper section 5.2, Figure 8).
 
 Entry (a, b) of the fabric matrix is the mean, over the query items of fabric a, of the
 probability (`fabric_probabilities`, ``P ∝ exp(-c D^2)``) given to gallery fabric b: the
@@ -40,7 +40,7 @@ def confusion_matrix(
     exclude_self: ArrayLike | None = None,
     order: Sequence[Hashable] | ArrayLike | None = None,
 ) -> Confusion:
-    """Fabric-level confusion: rows query fabrics, columns gallery fabrics (paper Figure 7).
+    """Fabric-level confusion: rows query fabrics, columns gallery fabrics (paper Figure 8).
 
     Args:
         dist: (Q, G) distances.
@@ -88,7 +88,7 @@ def cluster_confusion_matrix(
     c: float = PAPER_C,
     exclude_self: ArrayLike | None = None,
 ) -> Confusion:
-    """Cluster-level confusion (Figure 7b): probability mass per gallery cluster.
+    """Cluster-level confusion (Figure 8b): probability mass per gallery cluster.
 
     Entry (A, B) is the mean, over query items whose fabric is in cluster A, of the summed
     probability of the gallery fabrics in cluster B.
@@ -124,7 +124,7 @@ def order_by_cluster(
 ) -> NDArray[np.generic]:
     """Fabric ids ordered by cluster, then by ``key`` (e.g. a property) or id within a cluster.
 
-    Puts fabrics that humans group together next to each other, as in the paper's Figure 7,
+    Puts fabrics that humans group together next to each other, as in the paper's Figure 8,
     so confusion between similar fabrics shows as bright blocks near the diagonal.
     """
     f = np.unique(np.asarray(fabrics).reshape(-1))

@@ -15,7 +15,7 @@ benchmarks all score here, so "pick 1 of 10 for a pair of modalities" means one 
 
 Metric names of `PairScore.metrics`:
 
-- ``top{k}``: exact pick-k-of-n (`pick_k_of_n_exact`, the paper's Figure 5 and Tables 1-2),
+- ``top{k}``: exact pick-k-of-n (`pick_k_of_n_exact`, the paper's Figure 7 and Tables 1-2),
   ``top{k}_chance``; ``top{k}_sampled`` and ``top{k}_sampled_se`` the paper's sampled
   protocol; ``top{k}_released`` and ``top{k}_released_se`` the released code's variant;
 - ``map``, ``recall{k}``, ``median_rank`` over the whole gallery (`gallery_metrics`), each with

@@ -3,7 +3,7 @@
 Built on the Agg canvas without pyplot (no global state); `save_figure` writes a PNG of
 exactly ``figsize * 100`` pixels, atomically, and the same arrays give the same bytes.
 
-- `confusion_figure`: fabric or cluster confusion, groups outlined (paper Figure 7).
+- `confusion_figure`: fabric or cluster confusion, groups outlined (paper Figure 8).
 - `glance_figure`: a touch query, its nearest drapes and photos, what it feels like vs truth.
 - `pick_examples_figure`: a query and its candidates by distance, the true one green (Figure 6).
 - `presses_figure`: accuracy against pooled touch presses (the Multi-input Net).

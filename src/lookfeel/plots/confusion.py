@@ -1,4 +1,4 @@
-"""Confusion matrices between fabrics or clusters (paper Figure 7)."""
+"""Confusion matrices between fabrics or clusters (paper Figure 8)."""
 
 from __future__ import annotations
 

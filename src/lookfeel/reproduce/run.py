@@ -72,14 +72,14 @@ class Experiment:
     name: str
     cites: str
     table: str
-    """``models`` (Figure 5, Tables 1-2), ``augmentation`` (Table 3) or ``vision`` (Table 4)."""
+    """``models`` (Figure 7, Tables 1-2), ``augmentation`` (Table 3) or ``vision`` (Table 4)."""
 
 
 EXPERIMENTS = (
-    Experiment("flat", "Figure 5, Tables 1-2 (Flat)", "models"),
-    Experiment("cross_modal", "Figure 5, Tables 1-2 (Cross-mdl)", "models"),
-    Experiment("auxiliary", "Figure 5, Tables 1-2 (Auxiliary)", "models"),
-    Experiment("multi_input", "Figure 5, Tables 1-2 (Multi-in)", "models"),
+    Experiment("flat", "Figure 7, Tables 1-2 (Flat)", "models"),
+    Experiment("cross_modal", "Figure 7, Tables 1-2 (Cross-mdl)", "models"),
+    Experiment("auxiliary", "Figure 7, Tables 1-2 (Auxiliary)", "models"),
+    Experiment("multi_input", "Figure 7, Tables 1-2 (Multi-in)", "models"),
     Experiment("cross_modal_aug", "Table 3 (Cross-mdl with aug)", "augmentation"),
     Experiment("multi_input_aug", "Table 3 (Multi-in with aug)", "augmentation"),
     Experiment("snn_depth", "Table 4 (SNN, only depth)", "vision"),
