@@ -92,14 +92,14 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     rows, sides = [], []
     for m in MODEL_COLUMNS:
         for pair in ("touch_to_depth", "touch_to_color"):
-            v = _top1_interval(results, m, pair)
+            cell = _top1_interval(results, m, pair)
             chance = results.get(m, {}).get("metrics", {}).get(f"{pair}_top1_chance")
-            if v is None or chance is None or v[0] != v[0]:
+            if cell is None or chance is None or cell[0] != cell[0]:
                 continue
-            side = _side(v, (chance, chance, chance))
+            side = _side(cell, (chance, chance, chance))
             sides.append(side)
             if side <= 0:  # the cells that do not clear chance beyond their interval
-                rows.append(f"{m} {pair} {v[0]:.3f} (chance {chance:.3f})")
+                rows.append(f"{m} {pair} {cell[0]:.3f} (chance {chance:.3f})")
     detail = (
         f"{len(sides) - len(rows)} of {len(sides)} cells above chance beyond their interval"
         + (f"; not: {', '.join(rows)}" if rows else "")
