@@ -812,3 +812,19 @@ def test_a_split_the_run_did_not_hold_out_is_refused_before_any_video_is_decoded
     assert evaluate_cli(ckpt, data, tmp_path / "out", "--split", "val") == 1
     [line] = capsys.readouterr().err.strip().splitlines()
     assert "train.split=none" in line and "use --split all" in line
+
+
+def test_the_report_says_how_presses_were_pooled():
+    """QA: the report said "element-wise max" for a checkpoint whose model pools its presses
+    before its projection, where the embeddings file's max-pooling gives other numbers."""
+    from lookfeel.config import EvalConfig
+    from lookfeel.evaluate import EvalResult
+    from lookfeel.evaluate.report import _pooled_by
+
+    def said(info: dict) -> str:
+        return _pooled_by(EvalResult({}, EvalConfig(), (), {}, {}, {}, {}, info=info))
+
+    assert said({"pool_exact": False}).startswith("by the model's own press pooling")
+    assert said({"pool_exact": True}) == "by element-wise max of their embeddings"
+    file = {"pool_exact": False, "embeddings_file": "e.npz"}  # an npz can only max-pool
+    assert said(file) == "by element-wise max of their embeddings"

@@ -39,7 +39,9 @@ def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
     assert re.search(row, report)  # not run: the paper's number alone; run: ours beside it
     assert f"({TABLE_4['snn_depth']['novel_top1']:.3f})" in report
     assert result.findings["model_order"]["verdict"] == "not tested"
-    saved = json.loads((out / "results.json").read_text())
+    text = (out / "results.json").read_text()
+    assert "NaN" not in text and "null" in text  # a number not measured is JSON's null
+    saved = json.loads(text)
     assert saved["meta"]["budget"] == "tiny" and saved["meta"]["overrides"] == FAST
     evals = sorted(out.glob("runs/*/seed0/eval.json"))
     assert len(evals) == 2

@@ -9,6 +9,7 @@ import re
 import statistics
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -186,6 +187,37 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
         return [{k: v for k, v in json.loads(x).items() if k not in timing} for x in lines]
 
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
+
+
+def test_a_resume_may_cache_and_decode_otherwise_and_is_told_of_other_threads(
+    data: Path, tmp_path: Path
+):
+    """QA: a run resumed on another number of CPU threads ended silently away from the
+    unbroken run, while a resume with another cache folder, decoding or progress bar (the same
+    numbers) was refused as a changed config."""
+    threads = torch.get_num_threads()
+    cfg = _config("train.threads=1")
+    unbroken = _unbroken_and_killed(cfg, data, tmp_path)
+    assert torch.load(tmp_path / "broken/checkpoints/last.pt", weights_only=True)["threads"] == 1
+    same = _config(
+        "train.threads=1",
+        f"data.cache_dir={tmp_path / 'cache'}",
+        "data.decode=processes",
+        "data.workers=1",
+        "train.progress=false",
+    )
+    stale = tmp_path / "broken/checkpoints/.last.pt.k1ll3d.tmp"  # a kill mid-write leaves it
+    stale.write_bytes(b"half a checkpoint")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the same thread count: no word
+        resumed = train(same, data, tmp_path / "broken", resume=True)
+    assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
+    assert not stale.exists()
+    assert torch.get_num_threads() == threads  # given back
+    more = _config("train.threads=2", "train.steps=24")
+    with pytest.warns(UserWarning, match=r"trained on 1 CPU thread\(s\) and resumes on 2: .*"
+                      r"train.threads=1"):  # fmt: skip
+        train(more, data, tmp_path / "broken", resume=True)
 
 
 def test_a_run_resumes_without_its_pretrained_file_or_named_from_elsewhere(

@@ -16,7 +16,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO
 
-__all__ = ["atomic_write", "atomic_write_bytes", "atomic_write_text", "current_umask", "file_mode"]
+__all__ = [
+    "atomic_write",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "current_umask",
+    "file_mode",
+    "remove_stale_temps",
+]
 
 _UMASK_LOCK = threading.Lock()
 
@@ -39,6 +46,22 @@ def current_umask() -> int:
 def file_mode() -> int:
     """Mode of a new file under the current umask: ``0o666 & ~umask``."""
     return 0o666 & ~current_umask()
+
+
+def remove_stale_temps(path: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temp files `atomic_write` left beside ``path`` when its process was killed
+    mid-write (``.{name}.*.tmp``; a normal end, or an exception, removes its own). Call it
+    only where no other process may be writing ``path`` now (a run's own checkpoints).
+
+    Returns:
+        The files removed.
+    """
+    p = Path(path)
+    gone = []
+    for tmp in p.parent.glob(f".{p.name}.*.tmp"):
+        tmp.unlink(missing_ok=True)
+        gone.append(tmp)
+    return gone
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object]) -> Path:

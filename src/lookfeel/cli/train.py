@@ -5,7 +5,7 @@ for what the folder holds (a synthetic world or other data with two or more sens
 configs/synth_cross.yaml, which connects them; touch alone: configs/physiclear.yaml; depth
 alone: configs/real_depth.yaml). Writes RUN/config.yaml, RUN/split.json,
 RUN/metrics.jsonl and RUN/checkpoints/last.pt, and best.pt (the checkpoint that validated
-best) where the run validates (not with train.split=none or train.val_every=0). Runs on many
+best) where the run holds out fabrics to validate on (not with train.split=none). Runs on many
 processes under `torchrun --nproc_per_node N -m lookfeel train ...`.
 """
 

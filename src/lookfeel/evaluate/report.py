@@ -325,7 +325,7 @@ def _section_presses(result: EvalResult, figure: str | None) -> list[str]:
     lines = [
         "## Touch queries: accuracy against presses (Multi-input Net)",
         "",
-        f"Each touch query pools P presses of one fabric by element-wise max; exact top-{k} of "
+        f"Each touch query pools P presses of one fabric {_pooled_by(result)}; exact top-{k} of "
         f"{n_eff} against each gallery (single items; a touch gallery leaves out the query's "
         f"own presses). The main `touch_to_*` keys use P = {result.config.presses}.",
         "",
@@ -447,6 +447,16 @@ def _image(loader: ImageLoader, result: EvalResult, m: Modality, row: int) -> ND
     img = loader.array(loader.frame_path(item), m)
     # Stacked touch frames (H, W, 3k): the last frame's colours; depth (H, W) as it is.
     return img[..., -3:] if img.ndim == 3 else img
+
+
+def _pooled_by(result: EvalResult) -> str:
+    """How a multi-press touch query was pooled: by the model itself where it pools before a
+    projection or normalisation (a checkpoint scored), else by the element-wise max of the
+    presses' embeddings (the same where the model pools its final embedding)."""
+    info = result.info
+    if not info.get("pool_exact", True) and "embeddings_file" not in info:
+        return "by the model's own press pooling (inside the network, before its projection)"
+    return "by element-wise max of their embeddings"
 
 
 def _wrap(text: str, width: int = 17) -> str:
@@ -576,7 +586,7 @@ def _provenance(result: EvalResult) -> list[str]:
             ", ".join(f"{m} {n}" + (" presses" if m == "touch" else "") for m, n in items.items()),
         ]
     )
-    rows.append(["touch query", f"{cfg.presses} press(es), pooled by element-wise max"])
+    rows.append(["touch query", f"{cfg.presses} press(es), pooled {_pooled_by(result)}"])
     if (cfg.presses or 1) > 1:
         rows.append(
             [

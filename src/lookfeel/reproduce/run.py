@@ -20,6 +20,7 @@ it stopped.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 import warnings
@@ -505,21 +506,28 @@ def reproduce(
         "split": "paper" if has_paper_test else f"stratified, {n_val} held-out fabrics",
         "minutes": round((time.perf_counter() - started) / 60, 1),
     }
-    atomic_write_text(
-        out / "results.json",
-        json.dumps(
-            {
-                "meta": meta,
-                "results": result.results,
-                "skipped": result.skipped,
-                "findings": result.findings,
-            },
-            indent=1,
-        )
-        + "\n",
-    )
+    everything = {
+        "meta": meta,
+        "results": result.results,
+        "skipped": result.skipped,
+        "findings": result.findings,
+    }
+    # A number that could not be measured (NaN) is null: JSON has no NaN.
+    text = json.dumps(_finite_or_null(everything), indent=1, allow_nan=False)
+    atomic_write_text(out / "results.json", text + "\n")
     write_reproduction_report(result, meta)
     return result
+
+
+def _finite_or_null(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float, at any depth, replaced by None."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_null(v) for v in obj]
+    return obj
 
 
 def headline(results: Mapping[str, Any]) -> list[str]:

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from lookfeel.atomic import atomic_write_text
+from lookfeel.atomic import atomic_write_text, remove_stale_temps
 from lookfeel.checkpoint import (
     init_from_checkpoint,
     non_finite_tensors,
@@ -557,13 +557,26 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
-    """The saved config, with a longer ``train.steps`` allowed; any other change is an error.
+    """The saved config, with a longer ``train.steps`` allowed, and where images are cached or
+    how they are decoded (``data.cache_dir``, ``data.decode``, ``data.workers``: the same
+    numbers), ``train.progress`` and ``train.threads`` taken from ``given``; any other change
+    is an error (a thread count other than the run's is warned of when the run resumes).
     What the run resolved from its labels counts as given where the config leaves it to the
     labels (`as_trained`). ``model.pretrained`` may differ (the same file named from another
     folder, or no longer there): a resumed run takes every weight from its checkpoint."""
     old = from_dict(RunConfig, saved)
     a, b = _flatten(to_dict(old)), _flatten(to_dict(as_trained(given, old)))
-    free = ("train.steps", "model.pretrained")
+    # What cannot change a number: where images are cached, how they are decoded and by how
+    # many workers (bit for bit the same, checked), and the progress bar.
+    free = (
+        "train.steps",
+        "model.pretrained",
+        "train.progress",
+        "train.threads",
+        "data.cache_dir",
+        "data.decode",
+        "data.workers",
+    )
     changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in free)
     if changed:
         raise ConfigError(
@@ -571,7 +584,34 @@ def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) ->
             + ", ".join(f"{k} ({a.get(k)!r} -> {b.get(k)!r})" for k in changed[:6])
             + "; resume with the run's own config.yaml or start a new run"
         )
-    return replace(old, train=replace(old.train, steps=given.train.steps))
+    data = replace(
+        old.data,
+        cache_dir=given.data.cache_dir,
+        decode=given.data.decode,
+        workers=given.data.workers,
+    )
+    train = replace(
+        old.train,
+        steps=given.train.steps,
+        progress=given.train.progress,
+        threads=given.train.threads,  # `_check_resume_threads` warns when the count differs
+    )
+    return replace(old, data=data, train=train)
+
+
+def _check_resume_threads(state: Mapping[str, Any], device: torch.device, path: Path) -> None:
+    """Warn when a CPU run resumes on another number of threads than it trained on: its sums
+    round otherwise from there, so it no longer ends where an unbroken run would (the
+    numbers of a whole run differ by thread count alike)."""
+    saved, now = state.get("threads"), torch.get_num_threads()
+    if device.type != "cpu" or saved is None or saved == now:
+        return
+    warnings.warn(
+        f"{path}: the run trained on {saved} CPU thread(s) and resumes on {now}: from here it "
+        f"rounds otherwise and will not end where an unbroken run would; for that, resume "
+        f"with train.threads={saved} (--set train.threads={saved}) or OMP_NUM_THREADS={saved}",
+        stacklevel=3,
+    )
 
 
 def _trim_log(path: Path, step: int) -> None:
@@ -751,7 +791,10 @@ def train(
         state: dict[str, Any] | None = None
         if resume:
             if not last.exists():
-                raise ConfigError(f"{_RESUME}: no checkpoint at {last} to resume from")
+                raise ConfigError(
+                    f"{_RESUME}: no checkpoint at {last} to resume from (the run stopped before "
+                    "its first one): start it again without --resume"
+                )
             state = read_checkpoint(last)
             config = _check_resume_config(state["config"], config, last)
         elif last.exists():
@@ -841,7 +884,9 @@ def _train_members(
     if run_started(run_dir) and not resume:
         raise ConfigError(f"{run_dir} already holds a run; {_ELSEWHERE}")
     if resume and not run_started(run_dir):
-        raise ConfigError(f"{_RESUME}: no run in {run_dir} to resume from")
+        raise ConfigError(
+            f"{_RESUME}: no run in {run_dir} to resume from: start it without --resume"
+        )
     loader = loader if loader is not None else ImageLoader(config.data)  # decoded once for all
     paths = []
     for k in range(n):
@@ -925,6 +970,9 @@ def _train(
 ) -> TrainResult:
     t = config.train
     last = run_dir / "checkpoints" / "last.pt"
+    if dist.is_main:  # what a kill mid-write left (one process writes a run's checkpoints)
+        for name in ("last.pt", "best.pt"):
+            remove_stale_temps(last.parent / name)
     if t.batch_size % dist.world:
         raise ConfigError(
             f"train.batch_size={t.batch_size} must divide evenly over {dist.world} processes"
@@ -1050,6 +1098,7 @@ def _train(
         else:
             _trim_log(log.path, start_step)
     if state is not None:  # after every set-up draw: dropout resumes exactly
+        _check_resume_threads(state, device, last)
         torch.set_rng_state(state["rng"])
         if device.type == "cuda" and state.get("cuda_rng") is not None:
             torch.cuda.set_rng_state(state["cuda_rng"], device)
@@ -1098,6 +1147,7 @@ def _train(
             "loss": loss_fn.state_dict(),
             "rng": torch.get_rng_state(),
             "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
+            "threads": torch.get_num_threads(),  # a CPU run's sums round by its thread count
             "best": best,
         }
 
