@@ -291,3 +291,24 @@ def test_above_chance_is_the_papers_first_finding():
     assert "6 of 8 cells above chance" in f["detail"]
     assert "not: flat touch_to_depth 0.125 (chance 0.100)" in f["detail"]
     assert findings({})["above_chance"]["verdict"] == "not tested"
+
+
+def test_depth_over_colour_reads_both_ways_and_within_over_across():
+    """Section 5.1: touch matches depth better than colour as the query (Figure 7) and as the
+    candidates (Table 1); matching within a modality (Table 2) is much higher than across."""
+
+    def model(**top1: float) -> dict:
+        return {"metrics": {f"{pair}_top1": v for pair, v in top1.items()}}
+
+    across = {"touch_to_depth": 0.4, "touch_to_color": 0.3, "depth_to_touch": 0.4}
+    results = {"cross_modal": model(**across, color_to_touch=0.5, depth_to_depth=0.8)}
+    f = findings(results)
+    # As the query depth wins, as the candidates colour does: against the paper.
+    assert f["depth_beats_color"]["verdict"] == "does not hold"
+    assert f["depth_beats_color"]["detail"] == (
+        "cross_modal touch_to_depth 0.400 vs touch_to_color 0.300; "
+        "cross_modal depth_to_touch 0.400 vs color_to_touch 0.500"
+    )
+    assert f["within_beats_across"]["verdict"] == "holds"
+    assert f["within_beats_across"]["detail"] == "cross_modal: within 0.800 vs across 0.400 (means)"
+    assert findings({})["within_beats_across"]["verdict"] == "not tested"

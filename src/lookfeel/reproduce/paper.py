@@ -111,6 +111,7 @@ PAPER_FINDINGS = {
     "above_chance": "every network matches touch to depth and colour above chance (section 5.1)",
     "model_order": "Multi-input > Auxiliary > Cross-modal > Flat on touch-to-depth (Figure 7)",
     "depth_beats_color": "touch matches depth better than colour (Figure 7, Table 1)",
+    "within_beats_across": "matching within one modality is much higher than across (Tables 1-2)",
     "augmentation_helps_color": "colour augmentation improves the pairs with colour (Table 3)",
     "touch_helps_depth": "joint training with touch improves depth-to-depth (Table 4)",
 }

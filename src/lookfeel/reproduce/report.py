@@ -117,14 +117,32 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         out["model_order"] = _verdict(None, "", f"not run: {', '.join(missing)}")
     rows = []
     sides = []
-    for m in MODEL_COLUMNS:
-        d = _top1_interval(results, m, "touch_to_depth")
-        c = _top1_interval(results, m, "touch_to_color")
-        if d is not None and c is not None:
-            sides.append(_side(d, c))
-            rows.append(f"{m}: depth {d[0]:.3f} vs colour {c[0]:.3f}")
+    for m in MODEL_COLUMNS:  # Figure 7: touch as the query; Table 1: touch as the candidates
+        for with_depth, with_color in (
+            ("touch_to_depth", "touch_to_color"),
+            ("depth_to_touch", "color_to_touch"),
+        ):
+            d = _top1_interval(results, m, with_depth)
+            c = _top1_interval(results, m, with_color)
+            if d is not None and c is not None:
+                sides.append(_side(d, c))
+                rows.append(f"{m} {with_depth} {d[0]:.3f} vs {with_color} {c[0]:.3f}")
     out["depth_beats_color"] = _verdict(
         sides, "; ".join(rows), "no model with touch, depth and colour"
+    )
+    rows, sides = [], []
+    across = ("touch_to_depth", "touch_to_color", *TABLE_1)
+    for m in MODEL_COLUMNS:
+        within = [_top1_interval(results, m, p) for p in TABLE_2]
+        other = [_top1_interval(results, m, p) for p in across]
+        inside = [x for x in within if x is not None and x[0] == x[0]]
+        between = [x for x in other if x is not None and x[0] == x[0]]
+        if inside and between:
+            mw, ma = _mean_interval(inside), _mean_interval(between)
+            sides.append(_side(mw, ma))
+            rows.append(f"{m}: within {mw[0]:.3f} vs across {ma[0]:.3f} (means)")
+    out["within_beats_across"] = _verdict(
+        sides, "; ".join(rows), "no model scored within and across modalities"
     )
     rows, sides = [], []
     for base in ("cross_modal", "multi_input"):
@@ -134,8 +152,12 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             ma = _mean_interval([x for x in a if x is not None])
             mb = _mean_interval([x for x in b if x is not None])
             sides.append(_side(mb, ma))
+            up = sum(
+                y[0] > x[0] for x, y in zip(a, b, strict=True) if x is not None and y is not None
+            )
             rows.append(
-                f"{base}: {ma[0]:.3f} -> {mb[0]:.3f} with augmentation (mean of the colour pairs)"
+                f"{base}: {ma[0]:.3f} -> {mb[0]:.3f} with augmentation (mean of the colour pairs; "
+                f"{up} of {len(a)} up, the paper: all)"
             )
     out["augmentation_helps_color"] = _verdict(sides, "; ".join(rows), "augmentation runs not run")
     snn, joint = results.get("snn_depth", {}), results.get("cross_modal_depth_touch", {})
