@@ -3,6 +3,9 @@ wording of its errors."""
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -50,11 +53,12 @@ def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, heads: Loa
         predict_files(heads, [])
 
 
-def test_errors_name_the_cli_flag_and_the_python_argument(run, heads: LoadedModel):
+def test_errors_name_the_cli_flag_and_the_python_argument(run, heads: LoadedModel, tmp_path: Path):
     data, _ = run
     photo = str(data / "color/F0003_2.png")
+    loose = shutil.copy(photo, tmp_path / "F0003_2.png")  # no folder says what it shows
     with pytest.raises(PredictError, match=r"F0003_2.png: say which .* --modality \(modality\)"):
-        predict_files(heads, [photo])
+        predict_files(heads, [loose])
     with pytest.raises(PredictError, match=r"^--together \(together\) pools touch presses"):
         predict_files(heads, [photo, photo], Modality.COLOR, together=True)
 
@@ -69,3 +73,27 @@ def test_a_checkpoint_path_is_loaded_and_a_device_checked_first(run, heads: Load
         assert predict_files(path, photo, "color") == [want]
     with pytest.raises(DeviceError, match="^device 'tpu': not a device torch knows"):
         predict_files(heads, photo, "color", device="tpu")
+
+
+def test_the_modality_is_guessed_from_the_layouts_folder_or_a_depth_png(
+    run, heads: LoadedModel, tmp_path: Path
+):
+    """QA: a file of the dataset's own touch/ folder needed --modality with a model of three
+    senses, and the docstring's "a 16-bit PNG is depth" was not done."""
+    from lookfeel.predict import guess_modality
+
+    data, _ = run
+    have = list(heads.model.modalities)
+    assert len(have) == 3
+    for folder, m in (
+        ("touch", Modality.TOUCH),
+        ("color", Modality.COLOR),
+        ("depth", Modality.DEPTH),
+    ):
+        some = sorted((data / folder).iterdir())[0]
+        assert guess_modality(some, have) is m
+    depth = shutil.copy(sorted((data / "depth").iterdir())[0], tmp_path / "drape.png")
+    assert guess_modality(Path(depth), have) is Modality.DEPTH  # 16-bit greyscale, anywhere
+    photo = shutil.copy(data / "color/F0003_2.png", tmp_path / "photo.png")
+    with pytest.raises(PredictError, match="say which modality"):
+        guess_modality(Path(photo), have)  # 8-bit RGB outside the layout: it does not say

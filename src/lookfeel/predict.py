@@ -24,7 +24,7 @@ import torch
 
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.data.files import ImageError
-from lookfeel.data.layout import IMAGE_SUFFIXES
+from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
@@ -83,8 +83,10 @@ class Prediction:
 
 
 def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality:
-    """The modality of a query file: a video is touch; an image is the model's only image
-    modality; a 16-bit PNG is depth.
+    """The modality of a query file, among the model's: a video is touch; an image in a
+    folder of the dataset layout (``depth/``, ``color/``, ``touch/`` and their aliases,
+    `lookfeel.data.layout.FOLDER_ALIASES`) is that folder's; a 16-bit greyscale PNG is depth;
+    else an image is the model's only image modality.
 
     Raises:
         PredictError: the file's kind does not say, and the model has several modalities.
@@ -97,11 +99,32 @@ def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality
             f"{path}: not an image ({', '.join(IMAGE_SUFFIXES)}) or a video "
             f"({', '.join(VIDEO_SUFFIXES)})"
         )
+    folder = path.parent.name.lower()
+    for m, names in FOLDER_ALIASES.items():
+        if folder in names and m in model_modalities:
+            return m
+    if Modality.DEPTH in model_modalities and suffix == ".png" and _is_16_bit_grey(path):
+        return Modality.DEPTH
     if len(model_modalities) == 1:
         return model_modalities[0]
     raise PredictError(
         f"{path}: say which modality the image shows with --modality (modality); the model "
         f"has {', '.join(m.value for m in model_modalities)}"
+    )
+
+
+def _is_16_bit_grey(path: Path) -> bool:
+    """Whether a PNG's header declares 16-bit greyscale (a depth map), read from its first 26
+    bytes; False for anything unreadable."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(26)
+    except OSError:
+        return False
+    return (
+        head.startswith(b"\x89PNG\r\n\x1a\n")
+        and head[12:16] == b"IHDR"
+        and head[24:26] == b"\x10\x00"
     )
 
 

@@ -38,7 +38,8 @@ def add_parser(subparsers: Subparsers) -> None:
         "--modality",
         choices=[m.value for m in Modality],
         default=None,
-        help="what they show (default: a video is touch; an image, the model's only image "
+        help="what they show (default: a video is touch; an image in a depth/, color/ or "
+        "touch/ folder, that folder's; a 16-bit PNG, depth; else the model's only image "
         "modality; else this is needed)",
     )
     mt.add_argument("--top", type=number(int, 1), default=5, help="fabrics to list (5)")

@@ -32,8 +32,8 @@ def add_parser(subparsers: Subparsers) -> None:
         "--modality",
         choices=[m.value for m in Modality],
         default=None,
-        help="what the files show (default: a video is touch; an image is the model's only "
-        "modality, or a 16-bit PNG depth)",
+        help="what the files show (default: a video is touch; an image in a depth/, color/ or "
+        "touch/ folder, that folder's; a 16-bit PNG, depth; else the model's only modality)",
     )
     pr.add_argument(
         "--together", action="store_true", help="the files are presses of one object: pool them"
