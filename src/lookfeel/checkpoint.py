@@ -217,11 +217,11 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
 
     Example:
         >>> from lookfeel.checkpoint import load_model
-        >>> from lookfeel.data.images import load_image
+        >>> from lookfeel.index.query import load_query_image, query_batch
         >>> loaded = load_model("run/checkpoints/best.pt")
-        >>> x = torch.from_numpy(load_image("photo.png", "color", loaded.config.data))
+        >>> x = load_query_image("photo.png", "color", loaded.config.data)  # floats in [0, 1]
         >>> with torch.no_grad():
-        ...     emb = loaded.model({"color": x[None]})["color"]  # (1, D); floats in [0, 1]
+        ...     emb = loaded.model({"color": query_batch([x], "color")})["color"]  # (1, D)
     """
     device = resolve_device(device)
     state = read_checkpoint(path)

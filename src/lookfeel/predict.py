@@ -24,6 +24,7 @@ import torch
 
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.data.files import ImageError
+from lookfeel.data.images import png_header
 from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
@@ -118,14 +119,10 @@ def _is_16_bit_grey(path: Path) -> bool:
     bytes; False for anything unreadable."""
     try:
         with path.open("rb") as f:
-            head = f.read(26)
+            header = png_header(f.read(26))
     except OSError:
         return False
-    return (
-        head.startswith(b"\x89PNG\r\n\x1a\n")
-        and head[12:16] == b"IHDR"
-        and head[24:26] == b"\x10\x00"
-    )
+    return header is not None and header[2:] == (16, 0)
 
 
 def _heads(loaded: LoadedModel) -> None:

@@ -65,6 +65,7 @@ __all__ = [
     "file_kind",
     "fill_holes",
     "open_rgb",
+    "png_header",
     "preprocess_depth",
     "preprocess_rgb",
     "read_image_file",
@@ -85,6 +86,20 @@ _JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """JPEG start-of-frame markers (SOF0-SOF15 less DHT, JPG and DAC): where its size is declared."""
 
 
+def png_header(data: bytes) -> tuple[int, int, int, int] | None:
+    """Width, height, bit depth and colour type (0: greyscale, 2: RGB, ...) a PNG declares in
+    its header chunk, from its first 26 bytes (nothing decoded); None if ``data`` does not
+    begin with one. A 16-bit greyscale PNG (``(w, h, 16, 0)``) is how depth maps are stored."""
+    if not data.startswith(_MAGIC[0]) or len(data) < 26 or data[12:16] != b"IHDR":
+        return None
+    return (
+        int.from_bytes(data[16:20], "big"),
+        int.from_bytes(data[20:24], "big"),
+        data[24],
+        data[25],
+    )
+
+
 def declared_size(data: bytes) -> tuple[int, int] | None:
     """Width and height a PNG or JPEG declares in its header, read from the bytes alone
     (nothing decoded, no Pillow): None for another format or a header too damaged to say.
@@ -93,10 +108,11 @@ def declared_size(data: bytes) -> tuple[int, int] | None:
     refuses) an image beyond its own `PIL.Image.MAX_IMAGE_PIXELS` as it opens it, and silencing
     that warning needs ``warnings.catch_warnings``, which swaps the process's warning filters
     and so is not safe in the decoding threads (two threads' filters can outlive both)."""
+    png = png_header(data)
+    if png is not None:
+        return png[0], png[1]
     if data.startswith(_MAGIC[0]):
-        if len(data) < 24 or data[12:16] != b"IHDR":
-            return None
-        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+        return None  # a PNG whose header is cut or damaged
     if not data.startswith(b"\xff\xd8"):
         return None
     i = 2

@@ -182,9 +182,7 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
 def _cell(results: Mapping[str, Any], model: str, pair: str, paper: float | None) -> str:
     m = results.get(model, {}).get("metrics")
     ours = "-" if m is None or f"{pair}_top1" not in m else _number(m[f"{pair}_top1"])
-    if ours == NOT_SCORED:
-        pass  # no interval to show
-    elif m is not None and f"{pair}_top1_ci_low" in m:
+    if ours != NOT_SCORED and m is not None and f"{pair}_top1_ci_low" in m:
         ours += f" [{m[f'{pair}_top1_ci_low']:.2f}, {m[f'{pair}_top1_ci_high']:.2f}]"
     spread = results.get(model, {}).get("spread", {}).get(f"{pair}_top1")
     if spread and results.get(model, {}).get("seeds", 1) > 1:
