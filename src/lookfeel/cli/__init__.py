@@ -25,8 +25,10 @@ is the command's purpose, then its ``--help`` description. ``_args`` holds what 
 share, and `Choices` reads an option's values (splits, budgets, ...) from the module that defines
 them. A handler imports the library when it runs, so that ``lookfeel --help`` and each command
 load only what they use. An error a user can cause is a `LookfeelError`: handlers let it through,
-and `main` prints ``lookfeel: <message>`` and returns 1. The console script (`run`) shows each
-warning as one line too, ``lookfeel: warning: <message>``, once.
+and `main` prints ``lookfeel: <message>`` and returns 1. Before a command runs, `main` imports
+the user's plugin modules (``--plugin MODULE``, ``LOOKFEEL_PLUGINS``, entry points:
+`lookfeel.plugins`), which register backbones and losses of their own. The console script
+(`run`) shows each warning as one line too, ``lookfeel: warning: <message>``, once.
 """
 
 from __future__ import annotations
@@ -96,6 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"lookfeel {__version__}")
+    parser.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (your own backbone or loss); repeatable",  # LOOKFEEL_PLUGINS
+    )
     # The description lists the commands with their purpose; argparse's own list would repeat
     # them without the actions of `data` and `index`.
     subparsers = parser.add_subparsers(
@@ -114,6 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _load_plugins(args.plugin)
         status: int = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
     except LookfeelError as e:
@@ -134,6 +144,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"lookfeel: {e.filename}: {e.strerror or e}", file=sys.stderr)
         return 1
     return status
+
+
+def _load_plugins(modules: Sequence[str]) -> None:
+    """Add the ``--plugin`` modules to ``LOOKFEEL_PLUGINS`` in this process's environment, which
+    the processes it starts inherit (reproduce's workers, a run's decoders), then import every
+    plugin (`lookfeel.plugins.load_plugins`). The current folder is not added to ``sys.path``:
+    the module is found as Python finds any (``PYTHONPATH``, an installed package, and the
+    current folder under ``python -m lookfeel``)."""
+    from lookfeel.plugins import ENV_VAR, load_plugins, plugin_modules
+
+    if modules:
+        names = plugin_modules()
+        names += [m for m in plugin_modules(",".join(modules)) if m not in names]
+        os.environ[ENV_VAR] = ",".join(names)
+    load_plugins()
 
 
 def _one_line_warnings() -> None:

@@ -120,7 +120,8 @@ class LossConfig:
         if self.kind not in _LOSS_KINDS:  # first, as the first field
             if not _LENIENT.get():
                 raise ConfigError(
-                    f"loss.kind: {self.kind!r} is not one of {', '.join(loss_kinds())}"
+                    f"loss.kind: {self.kind!r} is not one of {', '.join(loss_kinds())} (one of "
+                    "your own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
                 )
             warnings.warn(
                 f"loss.kind: {self.kind!r} is not registered in this process "

@@ -111,7 +111,10 @@ def backbone_spec(name: str) -> BackboneSpec:
     """
     spec = _BACKBONE_SPECS.get(name)
     if spec is None:
-        raise ConfigError(f"model.backbone: {name!r} is not one of {', '.join(backbone_names())}")
+        raise ConfigError(
+            f"model.backbone: {name!r} is not one of {', '.join(backbone_names())} (one of "
+            "your own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
+        )
     return spec
 
 

@@ -5,7 +5,8 @@ check a `ModelConfig` (`lookfeel.config.model.BackboneSpec`: freeze points, defa
 point, whether it loads pretrained weights), read from the class's attributes. The config
 layer imports no torch, so it cannot ask the classes themselves; this is how it learns of a
 user's backbone. A backbone of one's own, registered from one's own module imported before
-`lookfeel.cli.main` or `lookfeel.load_config`, trains through ``model.backbone: <name>``::
+`lookfeel.load_config` (for the ``lookfeel`` command and the processes it starts: a plugin,
+`lookfeel.plugins`), trains through ``model.backbone: <name>``::
 
     from lookfeel.models import Backbone, register_backbone
 

@@ -50,6 +50,7 @@ from lookfeel.metrics import (
     score_pairs,
 )
 from lookfeel.modality import Modality, Pair
+from lookfeel.plugins import load_plugins
 from lookfeel.processes import available_cores, die_with_parent
 from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
@@ -364,9 +365,13 @@ def _run_jobs(
 
 
 def _start_worker(parent: int, threads: int) -> None:
-    """Initializer of a reproduction worker: die with ``parent``, use ``threads`` threads."""
+    """Initializer of a reproduction worker: die with ``parent``, use ``threads`` threads, and
+    import the user's plugins (`load_plugins`: ``LOOKFEEL_PLUGINS``, inherited from the parent,
+    and entry points), so that a config naming their own backbone or loss trains here too (a
+    spawned worker runs none of the parent's imports)."""
     die_with_parent(parent)
     torch.set_num_threads(threads)
+    load_plugins()
 
 
 _CATALOGS: dict[Path, Catalog] = {}

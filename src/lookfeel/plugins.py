@@ -1,0 +1,170 @@
+"""Plugins: a user's own modules that register backbones or losses, loaded in every process.
+
+A backbone or loss of one's own is registered by importing the module that defines it
+(`lookfeel.models.register_backbone`, `lookfeel.losses.register_loss`). Importing it in a
+script before calling lookfeel works in that process only: the processes lookfeel starts
+afresh (``lookfeel reproduce --workers N`` trains in spawned workers, ``torchrun`` starts
+every rank anew) never see that import. `load_plugins` imports such modules in whichever
+process calls it, from two places that every new process finds again:
+
+- the environment variable ``LOOKFEEL_PLUGINS``: module names separated by commas
+  (``LOOKFEEL_PLUGINS=my_ext,lab.backbones``), inherited by every process started from this
+  one. ``lookfeel --plugin my_ext ...`` adds to it. A module is found on ``sys.path``: for
+  the ``lookfeel`` command, put its folder on ``PYTHONPATH`` (``python -m lookfeel`` also
+  finds one in the current folder);
+- the entry points of group ``lookfeel.plugins`` that installed packages declare, in their
+  ``pyproject.toml``::
+
+      [project.entry-points."lookfeel.plugins"]
+      my_ext = "my_ext"              # a module: importing it is the work
+      other = "my_pkg.setup:register"  # a function: called with no arguments
+
+`lookfeel.cli.main` calls it before any command runs, and so does each of ``reproduce``'s
+worker processes when it starts. A plugin that cannot be imported is a `PluginError` naming
+where it was asked for. This module imports no torch (the plugins themselves may).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import os
+import re
+import types
+from collections.abc import Iterable
+from typing import Any
+
+from lookfeel.errors import LookfeelError, error_line
+
+__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "PluginError", "load_plugins", "plugin_modules"]
+
+ENV_VAR = "LOOKFEEL_PLUGINS"
+"""The environment variable naming plugin modules, separated by commas."""
+
+ENTRY_POINT_GROUP = "lookfeel.plugins"
+"""The entry-point group whose entries `load_plugins` loads."""
+
+_MODULE_NAME = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*\Z")
+
+_loaded_modules: set[str] = set()
+"""The modules of ``LOOKFEEL_PLUGINS`` this process has imported."""
+_entry_points_loaded = False
+"""Whether this process has loaded the ``lookfeel.plugins`` entry points."""
+
+
+class PluginError(LookfeelError):
+    """A plugin module cannot be imported, or an entry point cannot be loaded or run."""
+
+
+def plugin_modules(value: str | None = None) -> list[str]:
+    """The module names in ``value`` (default: ``LOOKFEEL_PLUGINS``), in order, each once;
+    spaces and empty entries are ignored."""
+    if value is None:
+        value = os.environ.get(ENV_VAR, "")
+    names: list[str] = []
+    for part in value.split(","):
+        name = part.strip()
+        if name and name not in names:
+            names.append(name)
+    return names
+
+
+def load_plugins() -> None:
+    """Import every module named in ``LOOKFEEL_PLUGINS``, then load every entry point of group
+    ``lookfeel.plugins`` (a module is imported; a function is called with no arguments).
+
+    It does the work once per process: a second call imports only modules added to
+    ``LOOKFEEL_PLUGINS`` since (``lookfeel --plugin`` adds to it), and loads no entry point
+    again.
+
+    Raises:
+        PluginError: a module cannot be imported (its own error in one line, and where in it
+            when the module itself failed), or an entry point cannot be loaded or run.
+    """
+    global _entry_points_loaded
+    for name in plugin_modules():
+        if name not in _loaded_modules:
+            _import(name)
+            _loaded_modules.add(name)
+    if not _entry_points_loaded:
+        for ep in _entry_points():
+            _load_entry_point(ep)
+        _entry_points_loaded = True
+
+
+def _reset() -> None:
+    """Forget what `load_plugins` has done in this process (for tests)."""
+    global _entry_points_loaded
+    _loaded_modules.clear()
+    _entry_points_loaded = False
+
+
+def _import(name: str) -> None:
+    """Import plugin module ``name`` from ``LOOKFEEL_PLUGINS``, or say in one line why not."""
+    where = f"{ENV_VAR}: "
+    if not _MODULE_NAME.match(name) or name.endswith(".py"):
+        raise PluginError(
+            f"{where}{name!r} is not a module name (e.g. my_ext or lab.backbones, not a file); "
+            "put its folder on PYTHONPATH and name the module"
+        )
+    try:
+        importlib.import_module(name)
+    except Exception as e:
+        missing = isinstance(e, ModuleNotFoundError) and _is_itself(name, e.name)
+        hint = "; is its folder on PYTHONPATH?" if missing else ""
+        raise PluginError(f"{where}cannot import {name!r} ({_why(e, not missing)}){hint}") from e
+
+
+def _is_itself(name: str, missing: str | None) -> bool:
+    """Whether the module found missing is ``name`` or a package above it (not a module that
+    ``name`` itself imports)."""
+    return missing is not None and (name == missing or name.startswith(missing + "."))
+
+
+def _entry_points() -> Iterable[importlib.metadata.EntryPoint]:
+    """The installed entry points of `ENTRY_POINT_GROUP`, each once."""
+    seen: set[tuple[str, str]] = set()
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if (ep.name, ep.value) not in seen:  # a package found twice on sys.path
+            seen.add((ep.name, ep.value))
+            yield ep
+
+
+def _load_entry_point(ep: importlib.metadata.EntryPoint) -> None:
+    """Load entry point ``ep`` (import its module; call its object when it is a function)."""
+    package = getattr(getattr(ep, "dist", None), "name", None)
+    where = f"entry point {ep.name!r} ({ENTRY_POINT_GROUP})"
+    where += f" of package {package}: " if package else ": "
+    try:
+        obj: Any = ep.load()
+    except Exception as e:
+        raise PluginError(f"{where}cannot load {ep.value!r} ({_why(e, True)})") from e
+    if isinstance(obj, types.ModuleType) or not callable(obj):
+        return  # importing it was the work
+    try:
+        obj()
+    except Exception as e:
+        raise PluginError(f"{where}{ep.value}() failed ({_why(e, True)})") from e
+
+
+def _why(e: BaseException, locate: bool) -> str:
+    """``e`` in one line; with ``locate``, the file and line of the plugin's code it was raised
+    at (the innermost frame outside the import machinery and this module), so that a bug in a
+    plugin can be found without its traceback."""
+    if not locate:
+        return str(e)  # "No module named 'x'" says it all
+    text = error_line(e)
+    if isinstance(e, SyntaxError) and e.filename:
+        return f"{text}, at {e.filename}:{e.lineno}"
+    at = None
+    tb = e.__traceback__
+    while tb is not None:
+        filename = tb.tb_frame.f_code.co_filename
+        if not (filename.startswith("<frozen") or filename in _MACHINERY):
+            at = f"{filename}:{tb.tb_lineno}"
+        tb = tb.tb_next
+    return f"{text}, at {at}" if at else text
+
+
+_MACHINERY = {__file__, importlib.__file__, importlib.metadata.__file__}
+"""Files whose frames are the import machinery, not a plugin's code."""

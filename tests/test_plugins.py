@@ -1,0 +1,249 @@
+"""Plugins: a user's own module named in LOOKFEEL_PLUGINS, by ``lookfeel --plugin`` or by an
+entry point registers its backbone and loss in this process and in the processes lookfeel
+spawns (reproduce's workers)."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import sys
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+
+import pytest
+import yaml
+
+from lookfeel import plugins
+from lookfeel.cli import main
+from lookfeel.config import ConfigError, LossConfig, ModelConfig
+from lookfeel.config.model import backbone_names
+from lookfeel.plugins import PluginError, load_plugins
+
+from ._registry import restored_registries
+
+_ENTRY_POINTS = importlib.metadata.entry_points
+"""The real look-up of installed entry points (the `plugin` fixture hides the installed ones)."""
+
+TINY_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "tiny.yaml"
+
+PLUGIN = '''\
+"""A user's module: a backbone and a loss of their own (docs/ARCHITECTURE.md's example)."""
+import torch
+from torch import nn
+
+from lookfeel.losses import FabricPairLoss, register_loss
+from lookfeel.models import Backbone, register_backbone
+
+CALLS = []
+
+
+@register_backbone("{name}")
+class TinyConv(Backbone):
+    freeze_points = {{"none": 0, "to_conv": 1, "all": 2}}
+    min_size = 8
+
+    def _build(self, freeze, dropout, width):
+        w = width or 16
+        self.conv = nn.Sequential(nn.Conv2d(self.stem_channels, w, 3, 2, 1), nn.ReLU())
+        self.pool = nn.Sequential(nn.AdaptiveAvgPool2d(1), nn.Flatten(1))
+        self._set_stages([self.conv, self.pool], freeze or "none", embed_dim=w)
+
+
+class MeanDistance(FabricPairLoss):
+    loss_name = "the mean distance"
+
+    def pair_term(self, ea, eb, fa, fb):
+        return torch.cdist(ea, eb).mean()
+
+
+register_loss("{name}_loss", lambda config: MeanDistance())
+
+
+def setup():
+    CALLS.append(1)
+'''
+
+
+@pytest.fixture
+def plugin(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[str], str]]:
+    """``plugin(name)`` writes module ``name`` (registering backbone ``name`` and loss
+    ``name_loss``) into a folder on sys.path and returns its name. LOOKFEEL_PLUGINS starts
+    empty; afterwards the registries, sys.modules and `load_plugins`' memory are as before."""
+    folder = tmp_path / "plugins"
+    folder.mkdir()
+    monkeypatch.syspath_prepend(str(folder))
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", "")  # restored (or removed) after the test
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda **kw: [])
+    written: list[str] = []
+
+    def write(name: str) -> str:
+        (folder / f"{name}.py").write_text(PLUGIN.format(name=name))
+        written.append(name)
+        return name
+
+    plugins._reset()
+    try:
+        with restored_registries():
+            yield write
+    finally:
+        plugins._reset()
+        for name in written:
+            sys.modules.pop(name, None)
+
+
+def test_a_module_of_lookfeel_plugins_registers_its_backbone_and_loss(plugin, monkeypatch):
+    name = plugin("lfplug_known")
+    with pytest.raises(ConfigError) as e:
+        ModelConfig(backbone=name)
+    assert str(e.value) == (
+        "model.backbone: 'lfplug_known' is not one of alexnet, compact, resnet18 (one of your "
+        "own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
+    )
+    with pytest.raises(ConfigError, match=r"contrastive, infonce, triplet \(one of your own: na"):
+        LossConfig(kind=f"{name}_loss")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", f" ,{name} , ")  # spaces and empty entries ignored
+    load_plugins()
+    assert ModelConfig(backbone=name).backbone == name
+    assert LossConfig(kind=f"{name}_loss").kind == f"{name}_loss"
+
+    from lookfeel.models import create_backbone
+
+    assert type(create_backbone(name)).__name__ == "TinyConv"
+
+
+def test_load_plugins_imports_each_module_once(plugin, monkeypatch):
+    first, second = plugin("lfplug_once_a"), plugin("lfplug_once_b")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", first)
+    load_plugins()
+    assert first in sys.modules
+    del sys.modules[first]
+    load_plugins()  # done already: not imported again
+    assert first not in sys.modules
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", f"{first},{second}")
+    load_plugins()  # a module added since is imported
+    assert first not in sys.modules and second in sys.modules
+    assert second in backbone_names()
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (
+            "lfplug_nowhere",
+            "LOOKFEEL_PLUGINS: cannot import 'lfplug_nowhere' (No module named 'lfplug_nowhere');"
+            " is its folder on PYTHONPATH?",
+        ),
+        (
+            "lfplug_nowhere.backbones",
+            "LOOKFEEL_PLUGINS: cannot import 'lfplug_nowhere.backbones' (No module named "
+            "'lfplug_nowhere'); is its folder on PYTHONPATH?",
+        ),
+        (
+            "plugins/lfplug.py",
+            "LOOKFEEL_PLUGINS: 'plugins/lfplug.py' is not a module name (e.g. my_ext or "
+            "lab.backbones, not a file); put its folder on PYTHONPATH and name the module",
+        ),
+    ],
+)
+def test_a_module_that_cannot_be_imported_is_one_line(plugin, monkeypatch, value, message):
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", value)
+    with pytest.raises(PluginError) as e:
+        load_plugins()
+    assert str(e.value) == message
+
+
+def test_a_plugin_that_fails_is_named_with_its_line(plugin, tmp_path: Path, monkeypatch):
+    name = plugin("lfplug_broken")
+    path = tmp_path / "plugins" / f"{name}.py"
+    path.write_text("import os\n\nraise RuntimeError('no GPU here. Details follow')\n")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
+    with pytest.raises(PluginError) as e:
+        load_plugins()
+    assert str(e.value) == (
+        f"LOOKFEEL_PLUGINS: cannot import 'lfplug_broken' (RuntimeError: no GPU here, at {path}:3)"
+    )
+
+
+def test_the_plugin_option_trains_a_backbone_of_ones_own(
+    plugin, tiny_dataset: Path, tmp_path: Path, monkeypatch, capsys
+):
+    name = plugin("lfplug_cli")
+    out = tmp_path / "run"
+    sets = [f"model.backbone={name}", f"loss.kind={name}_loss", "train.steps=1"]
+    sets += ["train.val_every=0", "train.checkpoint_every=0", "train.views=[depth,touch]"]
+    args = ["train", "--config", str(TINY_CONFIG), "--data", str(tiny_dataset), "--out", str(out)]
+    assert main(["--plugin", name, *args, *(x for s in sets for x in ("--set", s))]) == 0
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert (saved["model"]["backbone"], saved["loss"]["kind"]) == (name, f"{name}_loss")
+    assert os.environ["LOOKFEEL_PLUGINS"] == name  # what worker processes inherit
+
+
+def test_a_bad_plugin_option_prints_one_line_and_exits_1(
+    plugin, tmp_path: Path, monkeypatch, capsys
+):
+    good = plugin("lfplug_good")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", good)
+    args = ["--plugin", "lfplug_nowhere", "--plugin", good, "data", "info", str(tmp_path)]
+    assert main(args) == 1
+    assert capsys.readouterr().err == (
+        "lookfeel: LOOKFEEL_PLUGINS: cannot import 'lfplug_nowhere' (No module named "
+        "'lfplug_nowhere'); is its folder on PYTHONPATH?\n"
+    )
+    assert os.environ["LOOKFEEL_PLUGINS"] == f"{good},lfplug_nowhere"
+    assert good in backbone_names()  # the variable's own module came first
+
+
+def _install(folder: Path, package: str, entry_points: str) -> None:
+    """Make ``folder`` (on sys.path) hold an installed package's metadata declaring
+    ``entry_points`` (the lines of its ``[lookfeel.plugins]`` group), as pip would write it
+    from ``[project.entry-points."lookfeel.plugins"]`` in its pyproject.toml."""
+    info = folder / f"{package.replace('-', '_')}-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {package}\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(f"[lookfeel.plugins]\n{entry_points}\n")
+
+
+def test_entry_points_are_loaded_once_modules_imported_functions_called(
+    plugin, tmp_path: Path, monkeypatch
+):
+    mod_name, fn_name = plugin("lfplug_ep_module"), plugin("lfplug_ep_function")
+    _install(tmp_path / "plugins", "lab-ext", f"mine = {mod_name}\nsetup = {fn_name}:setup")
+    asked: list[str] = []
+
+    def entry_points(*, group: str) -> object:
+        asked.append(group)
+        return _ENTRY_POINTS(group=group)
+
+    monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
+    load_plugins()
+    load_plugins()
+    assert asked == ["lookfeel.plugins"]
+    assert mod_name in backbone_names() and fn_name in backbone_names()
+    assert sys.modules[fn_name].CALLS == [1]  # called once
+
+
+def test_an_entry_point_that_fails_names_its_package(plugin, tmp_path: Path, monkeypatch):
+    _install(tmp_path / "plugins", "lab-ext", "gone = lfplug_gone:setup")
+    monkeypatch.setattr(importlib.metadata, "entry_points", _ENTRY_POINTS)
+    with pytest.raises(PluginError) as e:
+        load_plugins()
+    assert str(e.value) == (
+        "entry point 'gone' (lookfeel.plugins) of package lab-ext: cannot load "
+        "'lfplug_gone:setup' (ModuleNotFoundError: No module named 'lfplug_gone')"
+    )
+
+
+def test_a_spawned_reproduce_worker_loads_the_plugins(plugin, monkeypatch):
+    """`lookfeel reproduce --workers N` trains in spawned processes, which run none of the
+    parent's imports: its worker's start-up loads LOOKFEEL_PLUGINS (inherited) itself."""
+    from lookfeel.reproduce.run import _start_worker
+
+    name = plugin("lfplug_spawned")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
+    with ProcessPoolExecutor(
+        1, mp_context=get_context("spawn"), initializer=_start_worker, initargs=(os.getpid(), 1)
+    ) as pool:
+        assert name in pool.submit(backbone_names).result(timeout=120)
+    assert name not in backbone_names()  # the worker's own doing, not this process's
