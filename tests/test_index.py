@@ -99,6 +99,24 @@ def test_threshold_accepts_at_most_the_target_share():
     assert threshold_for(np.zeros(0), 0.05) == 0.0
 
 
+def test_threshold_lies_in_the_gap_to_the_known_matches():
+    # Absent-fabric scores that all underflowed to 0 (fabrics far apart): the smallest
+    # threshold would accept any query above 0, e.g. P = 1e-10 beside P(unknown) = 1.
+    absent = np.zeros(20)
+    known = np.array([0.97, 0.9, 0.8])
+    t = threshold_for(absent, 0.05, known)
+    assert t == pytest.approx(0.4) and t > 1e-10 and (known >= t).all()
+    # Overlapping scores: the same known matches accepted, the threshold between the highest
+    # rejected absent score (0.3) and the lowest accepted known one (0.5).
+    absent = np.array([0.6, 0.3, 0.2, 0.1, 0.1, 0.05, 0.0, 0.0, 0.0, 0.0])
+    known = np.array([0.9, 0.5, 0.25, 0.2])
+    t = threshold_for(absent, 0.1, known)
+    assert t == pytest.approx(0.4) and (absent >= t).sum() == 1
+    assert (known >= t).sum() == (known >= threshold_for(absent, 0.1)).sum() == 2
+    # No known match above the smallest threshold: it stays the smallest.
+    assert threshold_for(absent, 0.1, np.array([0.25])) == threshold_for(absent, 0.1)
+
+
 def test_unknown_logit_is_the_maximum_likelihood_split():
     # Symmetric evidence: known matches at L = +1, absent at L = -1, so a = 0 and P = 1/2 at 0.
     a = fit_unknown_logit(np.ones(10), -np.ones(10))

@@ -24,9 +24,11 @@ regression on ``logsumexp(-c D^2)``, so it is a far item, not a low softmax peak
 unknown; both kinds of match are equally many, a prior of one half).
 
 **Threshold.** A query is reported as a known fabric when its best fabric probability is at least
-``threshold``: the smallest value at which at most ``target_false_accept`` (default 5%) of the
-absent-fabric matches are accepted. ``true_accept`` is the share of known-fabric matches still
-accepted, ``accepted_top1`` their accuracy: what that false-accept rate costs.
+``threshold``: a value at which at most ``target_false_accept`` (default 5%) of the
+absent-fabric matches are accepted, halfway between the highest absent-fabric match it rejects
+and the lowest known-fabric match it accepts (`threshold_for`). ``true_accept`` is the share of
+known-fabric matches still accepted, ``accepted_top1`` their accuracy: what that false-accept
+rate costs.
 
 Touch queries are single presses here; a pooled multi-press query (the Multi-input Net) is
 usually matched more confidently, so the threshold is conservative for it.
@@ -251,11 +253,22 @@ def fit_unknown_logit(lse_known: NDArray[np.float64], lse_absent: NDArray[np.flo
     return float(res.x)
 
 
-def threshold_for(absent_best: NDArray[np.float64], target: float) -> float:
-    """The smallest threshold accepting at most ``target`` of the absent-fabric scores.
+def threshold_for(
+    absent_best: NDArray[np.float64],
+    target: float,
+    known_best: NDArray[np.float64] | None = None,
+) -> float:
+    """A threshold accepting at most ``target`` of the absent-fabric scores.
 
     A query is accepted when its score is ``>= threshold``; with n scores at most
-    ``floor(target * n)`` are accepted.
+    ``floor(target * n)`` are accepted. Without ``known_best``: the smallest such threshold.
+    With the known-fabric scores, it is moved up into the middle of the empty gap above the
+    highest rejected absent score, halfway to the lowest known score that the smallest
+    threshold accepts: the same known matches are accepted, and a query scored between the
+    two (an image unlike any the library was calibrated on) is not taken for a known fabric
+    by a hair's margin. Where the absent scores all underflow to 0 (a library whose fabrics
+    lie far apart), the smallest threshold would accept any score above 0, even a best fabric
+    at P = 1e-10 beside P(unknown) = 1.
     """
     n = len(absent_best)
     if n == 0:
@@ -264,7 +277,15 @@ def threshold_for(absent_best: NDArray[np.float64], target: float) -> float:
     if allowed >= n:
         return 0.0
     s = np.sort(absent_best)[::-1]
-    return float(np.nextafter(s[allowed], np.inf))
+    rejected = float(s[allowed])
+    smallest = float(np.nextafter(rejected, np.inf))
+    if known_best is None:
+        return smallest
+    above = known_best[known_best >= smallest]
+    if not len(above):
+        return smallest
+    lowest_known = float(above.min())
+    return max(smallest, min(0.5 * (rejected + lowest_known), lowest_known))
 
 
 def calibrate_pair(
@@ -361,7 +382,7 @@ def calibrate_pair(
         unknown_logit = fit_unknown_logit(lse_known, lse_absent)
         open_best = best * (1.0 - unknown_probability(lse_known, unknown_logit))
         absent_open = absent_closed * (1.0 - unknown_probability(lse_absent, unknown_logit))
-    threshold = threshold_for(absent_open, target_false_accept)
+    threshold = threshold_for(absent_open, target_false_accept, open_best)
     accepted = open_best >= threshold
     return PairCalibration(
         query=query,
