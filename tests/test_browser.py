@@ -166,6 +166,10 @@ def test_upload_shows_ranked_fabrics_and_their_images(browser: Browser, tmp_path
     build_library(ckpt, data, tmp_path / "lib", shard_size=64)
     with background_server(create_app(Library.open(tmp_path / "lib"))) as url:
         browser.navigate(url + "/")
+        browser.eval(  # what the server's Content-Security-Policy blocks from here on
+            "window.blocked = []; document.addEventListener('securitypolicyviolation',"
+            " (e) => window.blocked.push(e.violatedDirective + ' ' + e.blockedURI))"
+        )
         assert browser.wait_for("document.querySelector('#pick').options.length") == 18
         assert "6 fabrics" in browser.eval("document.querySelector('#library').textContent")
 
@@ -184,6 +188,15 @@ def test_upload_shows_ranked_fabrics_and_their_images(browser: Browser, tmp_path
         assert images == 15  # 5 fabrics x (depth, colour, touch)
         props = browser.eval("document.querySelector('.props').textContent")
         assert props.startswith("Predicted properties: thickness_mm ")
+        # Each probability bar is as wide as its P (an inline style the CSP blocks: all full).
+        shown = browser.eval(
+            "[...document.querySelectorAll('.fabric')].map(f => [f.querySelector('.p')"
+            ".textContent.slice(4), f.querySelector('.bar div').getBoundingClientRect().width"
+            " / f.querySelector('.bar').getBoundingClientRect().width])"
+        )
+        assert len(shown) == 5 and min(w for _, w in shown) < 0.9
+        assert all(abs(float(p) - w) < 0.01 for p, w in shown), shown
+        assert browser.eval("window.blocked") == []
         png = browser.screenshot()
         assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000
         (tmp_path / "serve.png").write_bytes(png)

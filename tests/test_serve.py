@@ -180,7 +180,7 @@ def test_bad_uploads_get_clear_4xx(run, server):
         assert response.status_code == status, response.text
         assert message in response.json()["detail"]
     r = post({"modality": "smell"}, [_file(depth)])
-    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "modality"]
+    assert r.status_code == 422 and r.json()["detail"].startswith("modality: ")
     r = post({"modality": "depth"}, None)
     assert r.status_code == 422
     big = httpx.post(
@@ -289,3 +289,175 @@ def test_a_model_reading_several_frames_of_a_press_takes_no_touch_upload(run, tm
         assert r.status_code == 422 and "data.touch_frames" in r.json()["detail"]
         r = httpx.post(url + "/api/match/item", json={"item": "touch:0", "top": 2})
         assert r.status_code == 200
+
+
+# ---- the page under its CSP; errors in one shape; press videos --------------------------------
+
+
+def test_the_page_sets_bar_widths_as_its_csp_allows(server):
+    """``default-src 'self'`` blocks inline styles and scripts: a ``style`` attribute would be
+    dropped (every probability bar drawn full width); a width set through ``element.style``
+    is allowed."""
+    url, _ = server
+    page = httpx.get(url + "/")
+    assert "default-src 'self'" in page.headers["content-security-policy"]
+    html = page.text
+    assert not re.search(r"\sstyle\s*=|<style", html, re.I)  # no inline style
+    assert not re.search(r"\son\w+\s*=", html, re.I)  # no inline event handler
+    assert all("src=" in tag for tag in re.findall(r"<script[^>]*>", html))  # no inline script
+    js = httpx.get(url + "/static/app.js").text
+    assert re.search(r"\.style\.width\s*=", js)
+    assert not re.search(r"\bstyle\s*:|setAttribute\(\s*[\"']style|\.cssText|style=", js)
+
+
+def test_the_file_picker_takes_what_the_server_takes(server):
+    from lookfeel.data.files import VIDEO_SUFFIXES
+    from lookfeel.data.layout import IMAGE_SUFFIXES
+
+    url, _ = server
+    (accept,) = re.findall(r'<input id="files"[^>]*accept="([^"]+)"', httpx.get(url + "/").text)
+    suffixes = {a for a in accept.split(",") if a.startswith(".")}
+    assert suffixes == {*IMAGE_SUFFIXES, *VIDEO_SUFFIXES}
+
+
+def test_every_error_is_one_line_naming_the_field(server):
+    """A bad field is answered as the app's own checks are (422, ``detail`` one line naming
+    the field and what is wrong), not with pydantic's list of objects."""
+    url, _ = server
+    png = ("files", ("a.png", _png_header(4, 4), "image/png"))
+    cases = [
+        (httpx.post(url + "/api/match", files=[png]), "modality: field required"),
+        (httpx.post(url + "/api/match", data={"modality": "smell"}, files=[png]),
+         "modality: input should be 'depth', 'color' or 'touch'; got 'smell'"),
+        (httpx.post(url + "/api/match", data={"modality": "depth", "top": "abc"}, files=[png]),
+         "top: input should be a valid integer, unable to parse string as an integer; "
+         "got 'abc'"),
+        (httpx.post(url + "/api/match", data={"modality": "depth"}), "files: field required"),
+        (httpx.post(url + "/api/match/item", json={"item": "depth:0", "top": 0}),
+         "top: input should be greater than or equal to 1; got 0"),
+        (httpx.post(url + "/api/match/item", json={"top": 2}), "item: field required"),
+        (httpx.post(url + "/api/match/item", json={"item": "depth:0", "gallery": "smell"}),
+         "gallery: input should be 'depth', 'color' or 'touch'; got 'smell'"),
+        (httpx.post(url + "/api/match/item", content=b"{", headers={"content-type":
+                                                                     "application/json"}),
+         "request body: not valid JSON"),
+        (httpx.get(url + "/api/fabrics", params={"per_modality": "x"}),
+         "per_modality: input should be a valid integer"),
+    ]  # fmt: skip
+    for response, message in cases:
+        assert response.status_code == 422, response.text
+        detail = response.json()["detail"]
+        assert isinstance(detail, str) and "\n" not in detail
+        assert detail.startswith(message), detail
+
+
+def test_an_error_cuts_the_values_it_echoes(server):
+    url, _ = server
+    long_id = "depth:" + "9" * 100_000
+    for response in (
+        httpx.post(url + "/api/match/item", json={"item": long_id}),
+        httpx.post(url + "/api/match/item", json={"item": "smell" * 20_000 + ":1"}),
+        httpx.get(url + "/api/items/" + "x" * 5_000),
+        httpx.get(url + "/static/" + "y" * 5_000),
+    ):
+        assert response.status_code == 404, response.text[:200]
+        detail = response.json()["detail"]
+        assert len(response.content) < 400 and detail.count("...") == 1, detail
+    r = httpx.post(url + "/api/match/item", json={"item": long_id})
+    assert r.json()["detail"] == f"item id '{long_id[:79]}... is not <modality>:<row>"
+    r = httpx.post(url + "/api/match/item", json={"item": "depth:0", "top": "7" * 5_000})
+    assert r.status_code == 422 and len(r.content) < 400, r.text[:200]
+
+
+def test_an_image_of_another_format_is_refused_saying_which_are_taken(server):
+    url, _ = server
+    gif, webp = io.BytesIO(), io.BytesIO()
+    Image.new("RGB", (8, 8)).save(gif, format="GIF")
+    Image.new("RGB", (8, 8)).save(webp, format="WEBP")
+    for name, blob, kind in (("a.gif", gif, "GIF"), ("b.webp", webp, "WebP")):
+        files = [("files", (name, blob.getvalue(), "image/" + kind.lower()))]
+        r = httpx.post(url + "/api/match", data={"modality": "color"}, files=files)
+        assert r.status_code == 415
+        assert r.json()["detail"] == (
+            f"{name}: not a PNG or JPEG image (a {kind} image: save it as PNG or JPEG)"
+        )
+
+
+def _video_library(run: tuple[Path, Path], root: Path) -> Path:
+    """A library of four objects' press videos (two presses each) under the tiny model, which
+    was trained on still frames and reads a press video too; its data under ``root/data``."""
+    pytest.importorskip("av")
+    from ._video import PRESS, object_press, write_video
+
+    _, ckpt = run
+    data = root / "data"
+    (data / "videos").mkdir(parents=True)
+    rows = ["object,hardness"]
+    for k, name in enumerate(("cork", "pad", "sponge", "spoon")):
+        rows.append(f"{name},{k % 3}")
+        for n in range(2):
+            write_video(data / "videos" / f"{name}_{n}.mov", object_press(k, PRESS, 14, 10 * k + n))
+    (data / "labels.csv").write_text("\n".join(rows) + "\n")
+    build_library(ckpt, data, root / "lib", shard_size=64)
+    return root / "lib"
+
+
+def test_a_press_video_item_shows_its_deepest_frame_as_recorded(run, tmp_path: Path):
+    from lookfeel.data.video import read_press
+
+    from ._video import PRESS
+
+    library = Library.open(_video_library(run, tmp_path))
+    with background_server(create_app(library, ServeConfig())) as url:
+        item = library.item("touch:0")
+        assert item.image.endswith(".mov")
+        r = httpx.get(url + "/api/items/touch:0/image")
+        assert r.status_code == 200, r.text
+        assert r.headers["content-type"] == "image/png"
+        shown = np.asarray(Image.open(io.BytesIO(r.content)))
+        press = read_press(item.image, subtract_reference=False)
+        assert press.indices == (max(PRESS, key=PRESS.__getitem__),)  # the deepest
+        assert np.array_equal(shown, press.images[0])  # raw, as recorded
+        # A video that can no longer be read: 410, naming the item; what was shown is cached.
+        for row in (0, 1):
+            Path(library.item(f"touch:{row}").image).write_bytes(b"not a video at all")
+        assert httpx.get(url + "/api/items/touch:0/image").content == r.content
+        r = httpx.get(url + "/api/items/touch:1/image")
+        assert r.status_code == 410
+        assert r.json()["detail"].startswith("item touch:1: its file can no longer be read (")
+
+
+def test_a_pooled_upload_leaves_out_a_video_without_a_press_as_match_does(run, tmp_path: Path):
+    import warnings
+
+    from ._video import object_press, write_video
+
+    lib = _video_library(run, tmp_path)
+    pressed = tmp_path / "data" / "videos" / "spoon_1.mov"
+    static = write_video(tmp_path / "static.mov", object_press(3, {}, t=14))  # never pressed
+    matcher = Matcher(Library.open(lib))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (expected,) = matcher.match_files([pressed, static], Modality.TOUCH, top=3)
+    (warned,) = [str(w.message) for w in caught if "left out" in str(w.message)]
+    assert warned.startswith(f"{static}: no contact found")
+
+    def upload(*paths: Path) -> httpx.Response:
+        files = [("files", (p.name, p.read_bytes(), "video/quicktime")) for p in paths]
+        return httpx.post(url + "/api/match", data={"modality": "touch", "top": "3"}, files=files)
+
+    with background_server(create_app(Library.open(lib), ServeConfig(), matcher)) as url:
+        r = upload(pressed, static)
+        assert r.status_code == 200, r.text
+        body = r.json()
+        assert body["warnings"] == [warned.replace(str(static), "static.mov")]
+        [res] = body["results"]
+        assert res["query"] == ["spoon_1.mov"] and res["presses"] == 1
+        assert [(f["fabric_id"], f["probability"]) for f in res["fabrics"]] == [
+            (f.fabric_id, f.probability) for f in expected.fabrics
+        ]
+        assert upload(pressed).json()["warnings"] == []
+        for query in ((static,), (static, static)):  # no press left: the first one's error
+            r = upload(*query)
+            assert r.status_code == 422
+            assert r.json()["detail"].startswith("static.mov: no contact found")

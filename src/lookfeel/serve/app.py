@@ -6,16 +6,20 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
 - ``GET /api/library``: what the library holds and how it is calibrated.
 - ``GET /api/fabrics``: every fabric with its labels and a few item ids per modality.
 - ``GET /api/items/{item_id}``: one item's metadata; ``/api/items/{item_id}/image`` its image
-  as a PNG thumbnail. Items are named by id (``depth:12``); the file is looked up in the
-  library, so no request ever names a path on disk.
+  as a PNG thumbnail (a press video: its frame of deepest contact, as recorded). Items are
+  named by id (``depth:12``); the file is looked up in the library, so no request ever names a
+  path on disk.
 - ``POST /api/match``: multipart upload, ``modality`` and one or more ``files`` (several touch
-  files are the presses of one query, pooled as the Multi-input Net).
+  files are the presses of one query, pooled as the Multi-input Net; of several, a press video
+  without a press is left out, as ``lookfeel match`` leaves it out, and ``warnings`` says so).
 - ``POST /api/match/item``: match a library item as a query (itself left out).
 
 Uploads are limited in size and number and must be PNG or JPEG by content; an image declaring
 more than ``max_pixels`` pixels is refused (413) from its header, before anything is decoded (a
 0.4 MB PNG can declare 13000 x 13000). A bad upload gets a 4xx with a message naming the file
-and no path of the server's disk. Every response carries ``X-Content-Type-Options: nosniff``, a
+and no path of the server's disk. Every error is a JSON object whose ``detail`` is one line of
+text (a bad field's name and what is wrong with it included), with any value it echoes cut to
+`MAX_ECHO` characters. Every response carries ``X-Content-Type-Options: nosniff``, a
 ``Content-Security-Policy`` allowing only this server's own scripts and styles, and
 ``X-Frame-Options: DENY``. The model runs in a thread pool, at most
 ``max_concurrency`` queries at a time (a semaphore); beyond ``max_waiting`` waiting queries
@@ -36,17 +40,20 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import FastAPI, File, Form, HTTPException, UploadFile
+from fastapi import FastAPI, File, Form, HTTPException, Request, UploadFile
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from PIL import Image
 from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from lookfeel.data import ImageError, decode_depth, decode_rgb, depth_to_unit
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.images import declared_size
 from lookfeel.data.layout import sniff_video
+from lookfeel.data.video import NoPressError, is_video, read_press
 from lookfeel.errors import LookfeelError
 from lookfeel.index import (
     FabricMatch,
@@ -84,6 +91,80 @@ _ABS_PATH = re.compile(r"(?<![\w.])(?:[A-Za-z]:)?[/\\](?:[^\s'\":,/\\]+[/\\])+([
 def public_message(text: str) -> str:
     """An error message fit for a client: every absolute path cut to its file name."""
     return _ABS_PATH.sub(r"\1", text)
+
+
+MAX_ECHO = 80
+"""The most characters of a client's value (an item id, a file name) an error echoes."""
+MAX_DETAIL = 1000
+"""The most characters of an error's ``detail`` (a long message is cut, ending in ``...``)."""
+_LONG_WORD = re.compile(rf"\S{{{MAX_ECHO + 1},}}")
+
+
+def _clip(text: str, limit: int = MAX_ECHO) -> str:
+    """``text`` cut to its first ``limit`` characters and ``...`` when longer."""
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def _one_line(detail: object) -> str:
+    """An error's ``detail`` as the client gets it: one line, every run of more than
+    `MAX_ECHO` characters without a space (an echoed id or file name) cut to `MAX_ECHO` and
+    ``...``, and at most `MAX_DETAIL` characters in all: a 3 MB item id must not come back as
+    a 3 MB answer."""
+    text = " ".join(str(detail).split())
+    return _clip(_LONG_WORD.sub(lambda m: _clip(m.group()), text), MAX_DETAIL)
+
+
+_WHERE = {"body": "request body", "query": "query", "path": "path", "header": "header"}
+
+
+def _validation_message(errors: Any) -> str:
+    """One line for FastAPI's validation errors: each field by name (``top``, ``modality``,
+    ``item``) and what is wrong with it, with the value given (cut to `MAX_ECHO`).
+
+    Example: ``modality: input should be 'depth', 'color' or 'touch'; got 'smell'``.
+    """
+    parts = []
+    for err in errors:
+        loc = [str(x) for x in err.get("loc", ())]
+        kind = err.get("type", "")
+        if kind == "json_invalid":
+            why = (err.get("ctx") or {}).get("error", "")
+            parts.append("request body: not valid JSON" + (f" ({why})" if why else ""))
+            continue
+        field = ".".join(loc[1:]) if len(loc) > 1 else _WHERE.get(loc[0] if loc else "", "request")
+        msg = str(err.get("msg", "is not valid"))
+        msg = msg[:1].lower() + msg[1:]
+        got = ""
+        if kind != "missing" and "input" in err:
+            got = f"; got {_clip(repr(err['input']))}"
+        parts.append(f"{field}: {msg}{got}")
+    return _one_line("; ".join(parts) or "the request is not valid")
+
+
+_OTHER_IMAGES = {
+    b"GIF87a": "GIF",
+    b"GIF89a": "GIF",
+    b"BM": "BMP",
+    b"II*\x00": "TIFF",
+    b"MM\x00*": "TIFF",
+    b"\x00\x00\x00\x0cjP  ": "JPEG 2000",
+}
+
+
+def _image_kind(head: bytes) -> str | None:
+    """The name of an image format this server does not take (GIF, WebP, ...) from a file's
+    first bytes, else None."""
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        return "WebP"
+    if head[4:12] in (b"ftypavif", b"ftypheic", b"ftypheix", b"ftypmif1"):
+        return "AVIF/HEIF"
+    return next((name for magic, name in _OTHER_IMAGES.items() if head.startswith(magic)), None)
+
+
+def _no_press(e: ImageError) -> bool:
+    """Whether an upload's error is that its video holds no press (`NoPressError`), also when
+    `load_query_bytes` re-raised it as a plain `ImageError` naming the client's file."""
+    return isinstance(e, NoPressError) or isinstance(e.__context__, NoPressError)
 
 
 MAX_PER_MODALITY = 50
@@ -281,6 +362,12 @@ class MatchResponse(BaseModel):
     """One result per query: per depth/colour file, or one for all touch presses."""
 
     results: list[MatchResult]
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what was left out of the query, one line each: of several touch files, "
+        "a press video without a press (as `lookfeel match` warns); its result's `query` "
+        "lists the files used",
+    )
 
 
 class ItemQuery(BaseModel):
@@ -319,12 +406,20 @@ def _item_info(item: LibraryItem) -> ItemInfo:
 
 
 def _thumbnail(item: LibraryItem, library: Library, size: int) -> bytes:
-    """The item's image as a PNG no larger than ``size``; depth mapped to grey as training."""
+    """The item's image as a PNG no larger than ``size``; depth mapped to grey as training; a
+    press video shown by its frame of deepest contact, as recorded (not the difference from
+    the untouched sensor a model may read).
+
+    Raises:
+        ImageError: the file cannot be read (a video: `lookfeel.data.video.VideoError`).
+    """
     path = Path(item.image)
     if item.modality is Modality.DEPTH:
         cfg = library.config.data
         unit = depth_to_unit(decode_depth(path), cfg.depth_min_mm, cfg.depth_range_mm)
         im = Image.fromarray((unit * 255.0 + 0.5).astype(np.uint8))
+    elif is_video(path):
+        im = Image.fromarray(read_press(path, frames=1, subtract_reference=False).images[0])
     else:
         im = Image.fromarray(decode_rgb(path))
     im.thumbnail((size, size))
@@ -450,6 +545,19 @@ def create_app(
     app.add_middleware(_BodyLimit, limit=max_body)
     app.add_middleware(_SecurityHeaders)
 
+    @app.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, exc: StarletteHTTPException) -> Response:
+        """Every error as ``{"detail": "one line"}``, echoed values cut (`_one_line`)."""
+        return JSONResponse(
+            {"detail": _one_line(exc.detail)}, status_code=exc.status_code, headers=exc.headers
+        )
+
+    @app.exception_handler(RequestValidationError)
+    async def invalid_request(request: Request, exc: RequestValidationError) -> Response:
+        """A missing or malformed field: 422 naming it (`_validation_message`), as the app's
+        own checks answer, not pydantic's list of objects."""
+        return JSONResponse({"detail": _validation_message(exc.errors())}, status_code=422)
+
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def page() -> Response:
         body, mime = static["index.html"]
@@ -458,7 +566,7 @@ def create_app(
     @app.get("/static/{name}", include_in_schema=False)
     def static_file(name: str) -> Response:
         if name not in static:
-            raise HTTPException(404, f"no static file {name!r}")
+            raise HTTPException(404, f"no static file {_clip(name)!r}")
         body, mime = static[name]
         return Response(body, media_type=mime, headers={"Cache-Control": "no-cache"})
 
@@ -532,10 +640,15 @@ def create_app(
     @app.get(
         "/api/items/{item_id}/image",
         response_class=Response,
-        responses={200: {"content": {"image/png": {}}}},
+        responses={
+            200: {"content": {"image/png": {}}},
+            404: {"description": "no such item"},
+            410: {"description": "the item's file can no longer be read"},
+        },
     )
     async def item_image(item_id: str) -> Response:
-        """The item's image as a PNG thumbnail (depth shown as grey, near = dark)."""
+        """The item's image as a PNG thumbnail (depth shown as grey, near = dark; a press
+        video as its frame of deepest contact, as recorded)."""
         item = lookup(item_id)
         png = thumbnails.get(item.id)
         if png is None:
@@ -571,7 +684,11 @@ def create_app(
         responses={
             413: {"description": "a file or the request is too large"},
             415: {"description": "a file is not a PNG or JPEG image (or, for touch, a video)"},
-            422: {"description": "a file cannot be decoded as this modality, or bad fields"},
+            422: {
+                "description": "a file cannot be decoded as this modality (touch: no video "
+                "holds a press; one without among others is left out, named in `warnings`), "
+                "or a bad field"
+            },
             503: {"description": "too many queries waiting"},
         },
     )
@@ -609,10 +726,12 @@ def create_app(
                 blobs.append((name, data))  # a press video: its frames are checked on decoding
                 continue
             if sniff_type(data[:16]) is None:
+                other = _image_kind(data[:16])
                 raise HTTPException(
                     415,
                     f"{name}: not a PNG or JPEG image"
-                    + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else ""),
+                    + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else "")
+                    + (f" (a {other} image: save it as PNG or JPEG)" if other else ""),
                 )
             size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:
@@ -627,29 +746,49 @@ def create_app(
                 )
             blobs.append((name, data))
 
-        def work() -> list[MatchResult]:
-            images = [
-                load_query_bytes(
-                    d, n, modality, match.data_config, cfg.max_pixels, trained_on=match.touch_input
-                )
-                for n, d in blobs
-            ]
+        def work() -> tuple[list[MatchResult], list[str]]:
+            # As `lookfeel match` reads files (`load_query_files`): of several touch presses,
+            # a video without a press is left out with a warning; the only one, or every one,
+            # is an error (the first one's).
+            images, names, missed = [], [], []
+            for n, d in blobs:
+                try:
+                    images.append(
+                        load_query_bytes(
+                            d,
+                            n,
+                            modality,
+                            match.data_config,
+                            cfg.max_pixels,
+                            trained_on=match.touch_input,
+                        )
+                    )
+                    names.append(n)
+                except ImageError as e:
+                    if not _no_press(e):
+                        raise
+                    missed.append(e)
+            if not images:
+                raise missed[0]
             x = query_batch(images, modality)
             emb = match.embed(x, modality)
-            names = [n for n, _ in blobs]
             groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
-            return [
+            results = [
                 match.match_embedding(e, modality, g, top=top, gallery=gallery)
                 for e, g in zip(emb, groups, strict=True)
             ]
+            return results, [f"{e}: left out of the pooled query" for e in missed]
 
         try:
-            results = await run_model(work)
+            results, warnings = await run_model(work)
         except ImageError as e:
             raise HTTPException(422, public_message(str(e))) from None
         except LibraryError as e:
             raise HTTPException(422, public_message(str(e))) from None
-        return MatchResponse(results=[_public(r) for r in results])
+        return MatchResponse(
+            results=[_public(r) for r in results],
+            warnings=[public_message(w) for w in warnings],
+        )
 
     @app.post("/api/match/item", response_model=MatchResponse)
     async def match_library_item(query: ItemQuery) -> MatchResponse:

@@ -1,4 +1,6 @@
 // The lookfeel page: upload (or pick) an image, show the ranked fabrics. No libraries.
+// The server's Content-Security-Policy refuses inline styles and scripts: never set a `style`
+// attribute (el() refuses one); set a property of `element.style` instead (bar() does).
 "use strict";
 
 const $ = (sel) => document.querySelector(sel);
@@ -8,6 +10,7 @@ let info = null;
 function el(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs)) {
+    if (k === "style") throw new Error("inline styles are blocked by the page's CSP: use element.style");
     if (k === "class") e.className = v; else e.setAttribute(k, v);
   }
   for (const c of children) e.append(c instanceof Node ? c : document.createTextNode(String(c)));
@@ -79,6 +82,14 @@ function showPreview() {
   }
 }
 
+// A probability bar: its width set through the CSSOM, which the CSP allows (a `style`
+// attribute it would block, leaving every bar full width).
+function bar(probability) {
+  const fill = el("div");
+  fill.style.width = `${(100 * probability).toFixed(1)}%`;
+  return el("div", { class: "bar" }, fill);
+}
+
 function renderResult(res) {
   const box = el("div", { class: "result" });
   const what = res.presses > 1 ? `${res.presses} presses` : res.query.join(", ");
@@ -89,7 +100,7 @@ function renderResult(res) {
     const left = el("div", {},
       el("h3", {}, `#${f.rank} ${title(f)}`),
       el("div", { class: "p" }, `P = ${fmt(f.probability)}`),
-      el("div", { class: "bar" }, el("div", { style: `width:${(100 * f.probability).toFixed(1)}%` })),
+      bar(f.probability),
       el("div", { class: "meta" }, `D = ${fmt(f.distance)}` + (f.cluster !== null ? ` · cluster ${f.cluster}` : "")),
       el("div", { class: "meta" }, labels(f)));
     const views = el("div", { class: "views" });
@@ -109,8 +120,10 @@ function show(data) {
   const results = $("#results");
   results.replaceChildren(...data.results.map(renderResult));
   const first = data.results[0];
-  if (data.results.every((r) => r.known)) status(first.message, "known");
-  else status(first.message.charAt(0).toUpperCase() + first.message.slice(1), "unknown");
+  // Files left out of a pooled query (a press video without a press), as `lookfeel match` warns.
+  const notes = (data.warnings || []).map((w) => ` Note: ${w}.`).join("");
+  if (data.results.every((r) => r.known)) status(first.message + notes, "known");
+  else status(first.message.charAt(0).toUpperCase() + first.message.slice(1) + notes, "unknown");
 }
 
 async function submit(url, options) {
