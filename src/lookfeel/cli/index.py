@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, add_forward, add_json
+from lookfeel.modality import PressKind
 
 if TYPE_CHECKING:
     from lookfeel.index import PairCalibration
@@ -26,8 +27,12 @@ def add_parser(subparsers: Subparsers) -> None:
         help="embed every item of a dataset into a library, calibrated; resumable",
         description=(
             "Embed every item of every modality of DATA with the model of CHECKPOINT into the "
-            "library folder OUT (shards, manifest; written atomically). A killed build continues "
-            "when run again with the same arguments. Calibrates c of P ∝ exp(-c D²) and an "
+            "library folder OUT (shards, manifest; written atomically). A library at OUT stays "
+            "as it is, usable, until the new one is complete: the build writes OUT.building/ "
+            "and then swaps it in. A killed build continues from there when run again with the "
+            "same arguments; a rebuild reuses the shards whose files did not change. A finished "
+            "library of another checkpoint or dataset folder is replaced only with --replace. "
+            "One build at a time per OUT (OUT.lock). Calibrates c of P ∝ exp(-c D²) and an "
             "'unknown' threshold on held-out fabrics (leave fabrics out). When 10 or more "
             "fabrics have two modalities, fits a cross-modal map between them on the library's "
             "fabrics, and matches the pair through it when calibration (the map refitted "
@@ -47,7 +52,10 @@ def add_parser(subparsers: Subparsers) -> None:
     ib.add_argument("--shard-size", type=int, default=2048, help="items per shard (2048)")
     add_forward(ib, device=False)
     ib.add_argument(
-        "--kinds", default=None, help="touch press kinds, e.g. fold,flat (default: the run's)"
+        "--kinds",
+        type=_kinds,
+        default=None,
+        help="touch press kinds, e.g. fold,flat (default: the run's)",
     )
     ib.add_argument(
         "--false-accept",
@@ -70,6 +78,13 @@ def add_parser(subparsers: Subparsers) -> None:
         help="never match through a cross-modal map (by default one is fitted on the library's "
         "fabrics, and a pair uses it when calibration finds it better)",
     )
+    ib.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace the finished library at --out even though it was built from another "
+        "checkpoint (by content) or dataset folder; it stays usable until the new one is "
+        "complete (without --replace such a build is refused)",
+    )
     ib.add_argument("--quiet", action="store_true", help="no line per shard")
     ib.set_defaults(func=run_build)
 
@@ -79,14 +94,25 @@ def add_parser(subparsers: Subparsers) -> None:
     ii.set_defaults(func=run_info)
 
 
+def _kinds(text: str) -> list[PressKind]:
+    """``"fold,flat"`` -> the press kinds (an argparse type: a bad name is one usage line
+    naming ``--kinds`` and the kinds there are)."""
+    names = [k.strip() for k in text.split(",") if k.strip()]
+    allowed = ", ".join(k.value for k in PressKind)
+    if not names:
+        raise argparse.ArgumentTypeError(f"no press kind given (choose from {allowed})")
+    for name in names:
+        if name not in {k.value for k in PressKind}:
+            raise argparse.ArgumentTypeError(
+                f"{name!r} is not a press kind (choose from {allowed})"
+            )
+    return [PressKind(name) for name in names]
+
+
 def run_build(args: argparse.Namespace) -> int:
     """Build (or finish) the library; print its items and each pair's calibration."""
     from lookfeel.index import build_library
-    from lookfeel.modality import PressKind
 
-    kinds = None
-    if args.kinds:
-        kinds = [PressKind(k.strip()) for k in args.kinds.split(",") if k.strip()]
     result = build_library(
         args.checkpoint,
         args.data,
@@ -94,12 +120,13 @@ def run_build(args: argparse.Namespace) -> int:
         backend=args.backend,
         shard_size=args.shard_size,
         batch_size=args.batch_size,
-        kinds=kinds,
+        kinds=args.kinds,
         target_false_accept=args.false_accept,
         folds=args.folds,
         seed=args.seed,
         calibration_queries=args.calibration_queries,
         cross_map=args.cross_map,
+        replace=args.replace,
         progress=not args.quiet,
     )
     items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())
@@ -137,6 +164,7 @@ def _how(p: PairCalibration) -> str:
 def run_info(args: argparse.Namespace) -> int:
     """Print what a library holds, its model and its calibration (or all of it as JSON)."""
     from lookfeel.index import Library
+    from lookfeel.index.library import work_folder
 
     library = Library.open(args.library)
     summary = library.summary()
@@ -163,4 +191,12 @@ def run_info(args: argparse.Namespace) -> int:
         )
     for note in cal.notes:
         print(f"    note: {note}")
+    root = library.root.resolve() if library.root.is_symlink() else library.root
+    work = work_folder(root)  # a build writes beside the folder a link names
+    if work.is_dir():
+        print(
+            f"  note: a rebuild is running or was stopped in {work}; this library is used until "
+            "it is complete (`lookfeel index build` again finishes it; removing the folder "
+            "discards it)"
+        )
     return 0

@@ -6,6 +6,17 @@ arguments, embeds only what is missing, and rebuilding after adding a few files 
 the shards whose files changed. Memory is bounded by one shard's preprocessed images (a fresh
 `ImageLoader` per shard) plus the embeddings.
 
+Nothing finished is lost: the build writes into the work folder ``OUT.building/``
+(`lookfeel.index.library.work_folder`), where a killed build resumes, and only a complete
+library replaces the one at ``OUT``, swapped in by two renames (the old one aside to
+``OUT.replaced/``, the new one in, then the old one removed; a build killed between them is
+finished by the next). A shard the finished library already holds (same key) is hard-linked
+into the work folder, not embedded again, so a rebuild with unchanged inputs gives the same
+files, byte for byte. A finished library built from another checkpoint (by content) or another
+dataset folder is replaced only with ``replace=True`` (``--replace``). While it runs a build
+holds ``OUT.lock`` (``fcntl.flock``, released by the system when the process ends, however it
+ends), so a second build to the same ``OUT`` is refused, naming the first one's PID.
+
 When `MIN_MAP_FABRICS` or more of the library's fabrics have two modalities, a cross-modal map
 between them is fitted on the library's own fabrics (`lookfeel.metrics.cross_map`: the fabrics
 pair the two embedding spaces, no labels needed), and calibration keeps, per pair, whichever
@@ -15,11 +26,14 @@ without each fold's fabrics, `lookfeel.index.calibrate`).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import shutil
 import time
-from collections.abc import Callable, Sequence
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -28,7 +42,7 @@ import numpy as np
 import torch
 
 from lookfeel.atomic import atomic_write_bytes, atomic_write_text
-from lookfeel.checkpoint import load_model
+from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import to_dict
 from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
@@ -41,8 +55,12 @@ from lookfeel.index.library import (
     LIBRARY_VERSION,
     MANIFEST,
     LibraryError,
+    aside_folder,
     file_sha256,
+    lock_file,
+    manifest_status,
     read_shard,
+    work_folder,
     write_cross_maps,
     write_shard,
 )
@@ -125,22 +143,232 @@ def _plan(
 
 
 def _check_out(out: Path) -> None:
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise LibraryError(f"{out}: exists and is not a folder")
-    manifest = out / MANIFEST
-    if manifest.is_file():
-        try:
-            fmt = json.loads(manifest.read_text(encoding="utf-8")).get("format")
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
-            fmt = None
-        if fmt == LIBRARY_FORMAT:
-            return
-    if any(out.iterdir()):
+    """Refuse an ``out`` that is a file, or a folder holding anything but a lookfeel library,
+    and a work folder beside it that is not a build's."""
+    if out.exists():
+        if not out.is_dir():
+            raise LibraryError(f"{out}: exists and is not a folder")
+        if manifest_status(out) is None and any(out.iterdir()):
+            raise LibraryError(
+                f"{out}: folder exists and is not a lookfeel library; choose a new or empty folder"
+            )
+    work = work_folder(out)
+    if work.exists() and not _ours(work):
         raise LibraryError(
-            f"{out}: folder exists and is not a lookfeel library; choose a new or empty folder"
+            f"{work}: in the way of building {out} there (lookfeel's work folder for it), and "
+            "not a library build; move it away or choose another --out"
         )
+
+
+def _check_not_here(out: Path) -> None:
+    """Refuse an ``out`` that is the current folder or holds it: the swap would leave the
+    shell in the old library's removed folder."""
+    try:
+        here = Path.cwd().resolve()
+    except OSError:  # the current folder is gone: it is not ``out``
+        return
+    folder = out.resolve()
+    if folder == here or folder in here.parents:
+        raise LibraryError(
+            f"{out}: is the current folder or holds it, which a build swaps for the new library "
+            f"when complete; run it from another folder (cd {folder.parent}; --out {folder.name})"
+        )
+
+
+def _ours(folder: Path) -> bool:
+    """Whether ``folder`` is a library or a build's work folder (it has a lookfeel library
+    manifest), or holds nothing but temp files a killed write left."""
+    if not folder.is_dir():
+        return False
+    if manifest_status(folder) is not None:
+        return True
+    return all(p.name.startswith(".") and p.name.endswith(".tmp") for p in folder.iterdir())
+
+
+@contextlib.contextmanager
+def _build_lock(out: Path) -> Iterator[None]:
+    """Hold ``OUT.lock`` (`lock_file`) exclusively while building ``out``; the system releases
+    it when the process ends, however it ends. The lock file holds the builder's PID and is
+    removed on a normal end (a file left by a killed build is taken over).
+
+    Raises:
+        LibraryError: another process holds the lock, naming ``out`` and that process's PID.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not on Linux or macOS: no lock
+        yield
+        return
+    path = lock_file(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            raise LibraryError(
+                f"{out}: another `lookfeel index build` is writing this library (PID {pid}, "
+                f"lock {path}); wait for it to end, or stop it"
+            ) from None
+        try:  # its last holder may have removed the file between our open and our lock
+            same = os.path.samestat(os.fstat(fd), os.stat(path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
+        yield
+    finally:
+        path.unlink(missing_ok=True)  # while still held: no other build holds this file
+        os.close(fd)
+
+
+def _move(src: Path, dst: Path) -> None:
+    """Rename ``src`` to ``dst`` (one step of the swap) and make the rename durable."""
+    os.rename(src, dst)
+    with contextlib.suppress(OSError):  # a folder cannot be opened to fsync everywhere
+        fd = os.open(dst.parent, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _remove_library(folder: Path) -> None:
+    """Remove a library folder, its manifest last: what a killed removal leaves is still
+    recognised as a library (`_ours`), and removed by the next build."""
+    manifest = folder / MANIFEST
+    for child in folder.iterdir():
+        if child == manifest:
+            continue
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+    manifest.unlink(missing_ok=True)
+    folder.rmdir()
+
+
+def _swap_in(work: Path, out: Path) -> None:
+    """Put the complete library in ``work`` at ``out``: the library there (if any) renamed
+    aside, the new one renamed in, the old one removed (module docstring)."""
+    if out.exists():
+        aside = aside_folder(out)
+        _move(out, aside)
+        _move(work, out)
+        _remove_library(aside)
+    else:
+        _move(work, out)
+
+
+def _finish_swap(out: Path) -> None:
+    """Finish a swap that a killed build left (`_swap_in`): where the previous library still
+    lies aside, either the new one is in place (remove the old), or it is complete in the work
+    folder (move it in), or neither (put the old one back)."""
+    aside = aside_folder(out)
+    if not aside.exists():
+        return
+    if not _ours(aside):
+        raise LibraryError(
+            f"{aside}: in the way of building {out} there (where the previous library waits "
+            "while a new one is moved in), and not a lookfeel library; move it away"
+        )
+    work = work_folder(out)
+    if out.exists():
+        _remove_library(aside)
+    elif manifest_status(work) == "complete":
+        _move(work, out)
+        _remove_library(aside)
+    else:
+        _move(aside, out)
+
+
+def _finished(out: Path) -> dict[str, Any] | None:
+    """The manifest of the complete library at ``out``; None when there is none."""
+    if manifest_status(out) != "complete":
+        return None
+    manifest = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
+    return manifest if isinstance(manifest, dict) else None
+
+
+def _origin(manifest: dict[str, Any]) -> tuple[str, str, str]:
+    """(checkpoint path, its SHA-256, data folder) a library manifest records ("?" if not)."""
+    ck = manifest.get("checkpoint")
+    ck = ck if isinstance(ck, dict) else {}
+    return str(ck.get("path", "?")), str(ck.get("sha256", "?")), str(manifest.get("data_root"))
+
+
+def _check_replace(
+    out: Path, checkpoint: Path, checkpoint_sha: str, data_root: Path, allowed: bool
+) -> None:
+    """Refuse to replace a finished library built from another checkpoint (by content) or
+    another dataset folder, unless ``allowed``; then warn what is replaced."""
+    old = _finished(out)
+    if old is None:
+        return
+    old_ck, old_sha, old_data = _origin(old)
+    was, now = [], []
+    if old_sha != checkpoint_sha:
+        was.append(f"checkpoint {old_ck} (sha256 {old_sha[:12]})")
+        now.append(f"checkpoint {checkpoint} (sha256 {checkpoint_sha[:12]})")
+    if old_data != str(data_root):
+        was.append(f"data {old_data}")
+        now.append(f"data {data_root}")
+    if not was:
+        return
+    if not allowed:
+        raise LibraryError(
+            f"{out}: holds a finished library built from {' on '.join(was)}; this build is "
+            f"from {' on '.join(now)}: pass --replace (replace=True) to replace it once the new "
+            "one is complete, or choose another --out"
+        )
+    warnings.warn(
+        f"{out}: replacing the library built from {old_ck} on {old_data} with one from "
+        f"{checkpoint} on {data_root} once it is complete",
+        stacklevel=3,
+    )
+
+
+def _known_shards(*folders: Path) -> dict[str, Path]:
+    """Shard key -> its file, for every shard the manifests in ``folders`` list (the work
+    folder first: a later folder never overrides a key)."""
+    found: dict[str, Path] = {}
+    for folder in folders:
+        try:
+            manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+            for entry in manifest["modalities"].values():
+                for shard in entry["shards"]:
+                    found.setdefault(str(shard["key"]), folder / str(shard["file"]))
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            continue  # no manifest, or not one listing shards: nothing to reuse there
+    return found
+
+
+def _link(src: Path, dst: Path) -> None:
+    """Give ``dst`` the content of ``src``: a hard link (shards are never modified in place:
+    a write replaces the file), or a copy where links are refused; atomic."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.with_name(f".{dst.name}.{os.getpid()}.link.tmp")
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(src, tmp)
+    except OSError:
+        shutil.copyfile(src, tmp)
+    os.replace(tmp, dst)
+
+
+def _remove_temps(work: Path) -> None:
+    """Remove the temp files a killed write left in the work folder (no other build writes
+    there: the caller holds the lock)."""
+    for folder in (work, work / "shards"):
+        if folder.is_dir():
+            for tmp in folder.glob(".*.tmp"):
+                tmp.unlink(missing_ok=True)
 
 
 def _library_maps(
@@ -180,6 +408,7 @@ def build_library(
     seed: int = 0,
     calibration_queries: int = 1000,
     cross_map: bool = True,
+    replace: bool = False,
     device: torch.device | str = "cpu",
     on_shard: Callable[[str, int], None] | None = None,
     progress: bool = False,
@@ -190,7 +419,9 @@ def build_library(
         checkpoint: a trained model's checkpoint (`lookfeel train` writes them); its config's
             data settings preprocess every image exactly as in training.
         data: the dataset folder (the lookfeel layout).
-        out: the library folder: new, empty, or a library to resume or update.
+        out: the library folder: new, empty, or a library to update. A library there stays
+            as it is until the new one is complete (module docstring); a build killed before
+            that resumes when run again with the same arguments.
         backend: ``auto`` (faiss from `AUTO_FAISS_MIN_ROWS` items in a modality, else numpy),
             ``numpy`` (exact) or ``faiss`` (HNSW, approximate).
         shard_size: items per shard (and per resumable unit of work).
@@ -201,12 +432,16 @@ def build_library(
             (`lookfeel.index.calibrate`).
         cross_map: fit cross-modal maps on the library's own fabrics and match a pair through
             its map when calibration finds that better (module doc).
+        replace: replace a finished library at ``out`` built from another checkpoint (by
+            content) or dataset folder; without it such a build is refused before any work.
         device: where to embed.
         on_shard: called as ``on_shard(file, rows)`` after each shard is written.
         progress: print a line per shard.
 
     Raises:
-        LibraryError: ``out`` is another kind of folder, or the dataset has nothing to embed.
+        LibraryError: ``out`` is another kind of folder, holds a library of another checkpoint
+            or dataset (without ``replace``), another build is writing it, or the dataset has
+            nothing to embed.
         DatasetError: the dataset has errors (`lookfeel data check` lists them).
         CheckpointError: the checkpoint cannot be read.
     """
@@ -231,12 +466,67 @@ def build_library(
         choose_backend(backend, 0)  # validate before any work
     except ValueError as e:
         raise LibraryError(str(e)) from None
-    _check_out(out)
-    ck = Path(checkpoint).resolve()
-    loaded = load_model(ck, device)
-    checkpoint_sha = file_sha256(ck)
+    if out.is_symlink():  # swap the folder it names, keeping the link
+        out = out.resolve()
+    _check_not_here(out)
+    with _build_lock(out):
+        _finish_swap(out)
+        _check_out(out)
+        work = work_folder(out)
+        ck = Path(checkpoint).resolve()
+        loaded = load_model(ck, device)
+        checkpoint_sha = file_sha256(ck)
+        _check_replace(out, ck, checkpoint_sha, Path(data).resolve(), replace)
+        result = _build(
+            started,
+            loaded,
+            ck,
+            checkpoint_sha,
+            Path(data),
+            out,
+            work,
+            backend=backend,
+            shard_size=shard_size,
+            batch_size=batch_size,
+            kinds=kinds,
+            cross_map=cross_map,
+            device=device,
+            on_shard=on_shard,
+            progress=progress,
+            calibration_settings=dict(
+                target_false_accept=target_false_accept,
+                folds=folds,
+                seed=seed,
+                max_queries=calibration_queries,
+            ),
+        )
+        _swap_in(work, out)
+    return result
+
+
+def _build(
+    started: float,
+    loaded: LoadedModel,
+    ck: Path,
+    checkpoint_sha: str,
+    data: Path,
+    out: Path,
+    work: Path,
+    *,
+    backend: str,
+    shard_size: int,
+    batch_size: int,
+    kinds: Sequence[PressKind] | None,
+    cross_map: bool,
+    device: torch.device | str,
+    on_shard: Callable[[str, int], None] | None,
+    progress: bool,
+    calibration_settings: dict[str, Any],
+) -> BuildResult:
+    """Build the complete library for ``out`` in ``work`` (`build_library`, which holds the
+    lock and swaps it in); reuse the shards either already holds."""
     config = loaded.config
-    catalog = scan(Path(data), require=())
+    catalog = scan(data, require=())
     if catalog.errors:
         raise DatasetError(catalog.errors, catalog.root)
     kinds = tuple(kinds) if kinds else config.data.touch_kinds
@@ -271,15 +561,17 @@ def build_library(
             for m, its in items.items()
         },
     }
-    out.mkdir(parents=True, exist_ok=True)
-    _write_manifest(out, manifest)
+    known = _known_shards(work, out)  # before this build's manifest replaces the work folder's
+    work.mkdir(parents=True, exist_ok=True)
+    _remove_temps(work)
+    _write_manifest(work, manifest)
 
     embedded = reused = 0
     parts: dict[Modality, list[dict[str, Any]]] = {m: [] for m in items}
     for n, shard in enumerate(shards):
-        path = out / shard.file
-        arrays = read_shard(path, shard.key)
-        if arrays is not None and len(arrays["embeddings"]) == len(shard.items):
+        path = work / shard.file
+        arrays = _reuse(shard, path, known.get(shard.key))
+        if arrays is not None:
             reused += 1
         else:
             loader.preload(shard.items)  # videos were decoded by drop_unpressed already
@@ -307,7 +599,7 @@ def build_library(
             print(f"  shard {n + 1}/{len(shards)} {shard.file} ({len(shard.items)} items)")
 
     keep = {s.file for s in shards}
-    for stale in (out / "shards").glob("*.npz"):
+    for stale in (work / "shards").glob("*.npz"):
         if f"shards/{stale.name}" not in keep:
             stale.unlink()
 
@@ -320,30 +612,22 @@ def build_library(
     }
     maps, map_note = _library_maps(tables) if cross_map else ({}, None)
     if maps:
-        write_cross_maps(out / CROSS_MAPS, maps)
+        write_cross_maps(work / CROSS_MAPS, maps)
         manifest["cross_maps"] = {"file": CROSS_MAPS, "pairs": [str(p) for p in maps]}
     else:
-        (out / CROSS_MAPS).unlink(missing_ok=True)
+        (work / CROSS_MAPS).unlink(missing_ok=True)
         manifest.pop("cross_maps", None)
-    calibration = calibrate(
-        tables,
-        target_false_accept=target_false_accept,
-        folds=folds,
-        seed=seed,
-        max_queries=calibration_queries,
-        map_pairs=list(maps),
-        map_items=tables,
-    )
+    calibration = calibrate(tables, map_pairs=list(maps), map_items=tables, **calibration_settings)
     if map_note:
         calibration.notes.append(map_note)
     resolved = choose_backend(backend, max(len(e) for e, _ in tables.values()))
+    for old_index in work.glob("index-*.faiss"):
+        old_index.unlink()  # another build's (another backend, or modalities)
     for m, (emb, _) in tables.items():
-        index_file = out / f"index-{m.value}.faiss"
         if resolved == "faiss":
+            index_file = work / f"index-{m.value}.faiss"
             atomic_write_bytes(index_file, FaissSearch.build(emb).to_bytes())
             manifest["modalities"][m.value]["faiss"] = index_file.name
-        else:
-            index_file.unlink(missing_ok=True)
 
     present = {int(f) for _, fids in tables.values() for f in np.unique(fids)}
     manifest.update(
@@ -365,7 +649,7 @@ def build_library(
         ],
         calibration=calibration.to_dict(),
     )
-    _write_manifest(out, manifest)
+    _write_manifest(work, manifest)
     return BuildResult(
         root=out,
         items={m: len(its) for m, its in items.items()},
@@ -375,3 +659,18 @@ def build_library(
         calibration=calibration,
         seconds=time.perf_counter() - started,
     )
+
+
+def _reuse(shard: _Shard, path: Path, known: Path | None) -> dict[str, Any] | None:
+    """The arrays of ``shard`` when the work folder holds it at ``path``, or it is ``known``
+    elsewhere (a finished library's shard, linked to ``path``); None: embed it."""
+    arrays = read_shard(path, shard.key)
+    if arrays is not None and len(arrays["embeddings"]) == len(shard.items):
+        return arrays
+    if known is None or known == path:
+        return None
+    arrays = read_shard(known, shard.key)
+    if arrays is None or len(arrays["embeddings"]) != len(shard.items):
+        return None
+    _link(known, path)
+    return arrays

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from scipy import sparse
 from scipy.optimize import minimize_scalar
 
+from lookfeel.errors import LookfeelError
 from lookfeel.metrics import (
     expected_calibration_error,
     fit_temperature,
@@ -66,6 +67,7 @@ from lookfeel.modality import Modality, Pair
 
 __all__ = [
     "Calibration",
+    "CalibrationError",
     "Distances",
     "PairCalibration",
     "calibrate",
@@ -85,6 +87,11 @@ Distances = Callable[[NDArray[np.floating], NDArray[np.floating]], NDArray[np.fl
 def pair_key(query: Modality, gallery: Modality) -> Pair:
     """``touch_to_depth``: the project's ``query_to_gallery`` naming (a `Pair`)."""
     return Pair(query, gallery)
+
+
+class CalibrationError(LookfeelError):
+    """A calibration read back from a library's manifest has a missing, unknown or wrongly typed
+    value; the message names its key (``calibration.pairs.color_to_color.c``)."""
 
 
 @dataclass(frozen=True)
@@ -147,11 +154,46 @@ class PairCalibration:
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> PairCalibration:
-        values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in d.items()}
-        if d.get("unknown_logit") is None:
-            values["unknown_logit"] = -math.inf
-        values["query"], values["gallery"] = Modality(d["query"]), Modality(d["gallery"])
+    def from_dict(cls, d: object, where: str = "calibration.pair") -> PairCalibration:
+        """Read back what `to_dict` wrote, checking every value's type (None: NaN, and for
+        ``unknown_logit`` minus infinity; ``mapped`` and ``top1_unmapped`` may be absent, as
+        in a library of version 1).
+
+        Args:
+            d: the pair's mapping, as read from a manifest.
+            where: its key there, to name a bad value by (``calibration.pairs.touch_to_depth``).
+
+        Raises:
+            CalibrationError: naming the key and the value that is missing, unknown or wrong.
+        """
+        d = _mapping(d, where)
+        names = [f.name for f in fields(cls)]
+        unknown = [k for k in d if k not in names]
+        if unknown:
+            raise CalibrationError(f"{where}: unknown key {unknown[0]!r}")
+        optional = {"mapped", "top1_unmapped"}
+        missing = [k for k in names if k not in d and k not in optional]
+        if missing:
+            raise CalibrationError(f"{where}.{missing[0]}: missing")
+        values: dict[str, Any] = {}
+        for name in names:
+            if name not in d:
+                continue
+            key, v = f"{where}.{name}", d[name]
+            if name in ("query", "gallery"):
+                values[name] = _modality(v, key)
+            elif name in ("c_at_edge", "mapped"):
+                if not isinstance(v, bool):
+                    raise CalibrationError(f"{key} is {v!r}, not true or false")
+                values[name] = v
+            elif name in ("n_present", "n_absent", "fabrics"):
+                values[name] = _count(v, key)
+            elif name in ("c", "threshold"):  # used to match: finite, >= 0
+                values[name] = _number(v, key, low=0.0)
+            elif name == "unknown_logit":
+                values[name] = -math.inf if v is None else _number(v, key)
+            else:
+                values[name] = math.nan if v is None else _number(v, key)
         return cls(**values)
 
 
@@ -198,16 +240,86 @@ class Calibration:
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> Calibration:
+    def from_dict(cls, d: object, where: str = "calibration") -> Calibration:
+        """Read back what `to_dict` wrote (a library manifest's ``calibration``), checking every
+        value's type, and that each query modality's default gallery is a calibrated pair.
+
+        Raises:
+            CalibrationError: naming the key (``calibration.pairs.color_to_color.c``) and what
+                is wrong with its value.
+        """
+        d = _mapping(d, where)
+        settings = ("target_false_accept", "folds", "seed", "max_queries")
+        for name in ("pairs", "default_gallery", *settings):
+            if name not in d:
+                raise CalibrationError(f"{where}.{name}: missing")
+        pairs = {}
+        for k, p in _mapping(d["pairs"], f"{where}.pairs").items():
+            pc = PairCalibration.from_dict(p, f"{where}.pairs.{k}")
+            if pc.key != k:
+                raise CalibrationError(
+                    f"{where}.pairs.{k}: its query and gallery are those of {pc.key}"
+                )
+            pairs[k] = pc
+        default = {}
+        for q, g in _mapping(d["default_gallery"], f"{where}.default_gallery").items():
+            key = f"{where}.default_gallery.{q}"
+            query, gallery = _modality(q, key), _modality(g, key)
+            if pair_key(query, gallery) not in pairs:
+                raise CalibrationError(f"{key}: {pair_key(query, gallery)} is not calibrated")
+            default[query] = gallery
+        notes = d.get("notes", [])
+        if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
+            raise CalibrationError(f"{where}.notes is {notes!r}, not a list of text")
         return cls(
-            pairs={k: PairCalibration.from_dict(p) for k, p in d["pairs"].items()},
-            default_gallery={Modality(q): Modality(g) for q, g in d["default_gallery"].items()},
-            target_false_accept=float(d["target_false_accept"]),
-            folds=int(d["folds"]),
-            seed=int(d["seed"]),
-            max_queries=int(d["max_queries"]),
-            notes=list(d.get("notes", [])),
+            pairs=pairs,
+            default_gallery=default,
+            target_false_accept=_number(d["target_false_accept"], f"{where}.target_false_accept"),
+            folds=_count(d["folds"], f"{where}.folds"),
+            seed=_count(d["seed"], f"{where}.seed"),
+            max_queries=_count(d["max_queries"], f"{where}.max_queries"),
+            notes=list(notes),
         )
+
+
+def _mapping(value: object, key: str) -> Mapping[str, Any]:
+    """``value`` when it is a mapping with text keys (a JSON object)."""
+    if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
+        raise CalibrationError(f"{key} is {_short(value)}, not a mapping")
+    return value
+
+
+def _number(value: object, key: str, low: float | None = None) -> float:
+    """``value`` as a float when it is a number (not true/false), at least ``low`` if given
+    (and then finite)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CalibrationError(f"{key} is {_short(value)}, not a number")
+    x = float(value)
+    if low is not None and not (math.isfinite(x) and x >= low):
+        raise CalibrationError(f"{key} is {value!r}, not a number >= {low:g}")
+    return x
+
+
+def _count(value: object, key: str) -> int:
+    """``value`` when it is a whole number >= 0 (not true/false)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise CalibrationError(f"{key} is {_short(value)}, not a whole number >= 0")
+    return value
+
+
+def _modality(value: object, key: str) -> Modality:
+    """``value`` as a `Modality` when it names one."""
+    try:
+        return Modality(value)
+    except ValueError:
+        names = ", ".join(m.value for m in Modality)
+        raise CalibrationError(f"{key} is {_short(value)}, not a modality ({names})") from None
+
+
+def _short(value: object) -> str:
+    """A value as a person reads it in one line: its repr, cut at 40 characters."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _fabric_sum(p: NDArray[np.float64], onehot: sparse.csr_matrix) -> NDArray[np.float64]:

@@ -16,6 +16,13 @@ preprocessing and the chunk's files (path, size, modification time), so a build 
 continues where it stopped and an unchanged shard is never embedded twice. The manifest is
 written first with status ``building`` and last with ``complete``; only a complete library opens.
 
+A finished library is never modified in place. `lookfeel index build` writes into a work folder
+beside it, ``LIB.building/`` (`work_folder`: also what a killed build resumes from), and swaps
+it in when it is complete: the old library is renamed to ``LIB.replaced/`` (`aside_folder`),
+the new one to ``LIB``, then the old one is removed. ``LIB.lock`` (`lock_file`) is held while
+a build runs. A build killed between the two renames leaves both libraries whole; the next build
+finishes the swap, and `Library.open` says what to do until then.
+
 The library refers to its checkpoint by path and SHA-256 (queries are embedded with that model);
 `Library.load_model` refuses a checkpoint that has changed since the build.
 
@@ -47,7 +54,7 @@ from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.labels import is_rank_column
 from lookfeel.errors import LookfeelError, load_problem
-from lookfeel.index.calibrate import Calibration
+from lookfeel.index.calibrate import Calibration, CalibrationError
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
 from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
@@ -62,9 +69,13 @@ __all__ = [
     "LibraryError",
     "LibraryItem",
     "ModalityTable",
+    "aside_folder",
     "file_sha256",
+    "lock_file",
+    "manifest_status",
     "read_cross_maps",
     "read_shard",
+    "work_folder",
     "write_cross_maps",
     "write_shard",
 ]
@@ -78,6 +89,30 @@ CROSS_MAPS = "cross_maps.npz"
 
 class LibraryError(LookfeelError):
     """A library cannot be built, opened or queried; the message names the file or value."""
+
+
+def _beside(root: Path, suffix: str) -> Path:
+    """``root`` with ``suffix`` added to its name (``.`` and ``..`` by the folder's own name)."""
+    if root.name in ("", ".."):
+        root = Path(os.path.abspath(root))
+    return root.with_name(root.name + suffix)
+
+
+def work_folder(root: Path) -> Path:
+    """``LIB.building``: where `lookfeel index build` writes a library before it is complete
+    (and what a killed build resumes from), beside ``root``."""
+    return _beside(root, ".building")
+
+
+def aside_folder(root: Path) -> Path:
+    """``LIB.replaced``: where the previous library waits while a finished rebuild is moved in,
+    beside ``root``; removed once the new one is in place."""
+    return _beside(root, ".replaced")
+
+
+def lock_file(root: Path) -> Path:
+    """``LIB.lock``: the lock a build holds while it writes ``root`` (or its work folder)."""
+    return _beside(root, ".lock")
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
@@ -482,6 +517,11 @@ class Library:
             return cls._open(root, manifest, checkpoint)
         except LibraryError:
             raise
+        except CalibrationError as e:
+            raise LibraryError(
+                f"{root / MANIFEST}: {e}; the manifest is damaged: rebuild with "
+                "`lookfeel index build`"
+            ) from None
         except KeyError as e:
             raise LibraryError(
                 f"{root / MANIFEST}: no {e.args[0]!r} entry; the manifest is damaged or from "
@@ -563,8 +603,12 @@ def read_manifest(root: Path) -> dict[str, Any]:
         LibraryError: naming the file.
     """
     path = root / MANIFEST
+    if root.exists() and not root.is_dir():
+        raise LibraryError(
+            f"{root}: is a file, not a library folder (give the folder that holds {MANIFEST})"
+        )
     if not root.is_dir():
-        raise LibraryError(f"{root}: library folder not found")
+        raise LibraryError(_not_found(root))
     try:
         manifest = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -578,3 +622,39 @@ def read_manifest(root: Path) -> dict[str, Any]:
             f"{path}: written by a newer lookfeel (library version {manifest['version']}); upgrade"
         )
     return manifest
+
+
+def manifest_status(root: Path) -> str | None:
+    """The ``status`` of the lookfeel library manifest in ``root`` (``building``, ``complete``),
+    or None when there is none, or it is not a lookfeel library's."""
+    try:
+        manifest = json.loads((root / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    if not isinstance(manifest, dict) or manifest.get("format") != LIBRARY_FORMAT:
+        return None
+    status = manifest.get("status")
+    return status if isinstance(status, str) else None
+
+
+def _not_found(root: Path) -> str:
+    """Why there is no library at ``root``, and what to do when a build left one beside it
+    (module docstring: the work folder, the previous library set aside)."""
+    work, aside = work_folder(root), aside_folder(root)
+    if aside.is_dir() and manifest_status(work) == "complete":
+        return (
+            f"{root}: not found: a rebuild was stopped while moving the new library in (it is "
+            f"complete in {work}, the previous one in {aside}); run `lookfeel index build` again "
+            f"with the same arguments to finish, or rename {work} to {root}"
+        )
+    if aside.is_dir():
+        return (
+            f"{root}: not found: the previous library is in {aside} (a rebuild was stopped "
+            f"while replacing it); rename it to {root}"
+        )
+    if work.is_dir():
+        return (
+            f"{root}: the library build did not finish; run `lookfeel index build` again with "
+            f"the same arguments to resume it (its work so far is in {work})"
+        )
+    return f"{root}: library folder not found"
