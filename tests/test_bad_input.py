@@ -611,16 +611,20 @@ def test_a_file_that_is_not_a_checkpoint_is_one_line_with_its_reason(
     cut.write_bytes(ckpt.read_bytes()[:100])
     foreign = tmp_path / "foreign.pt"
     torch.save({"config": _Foreign(), "model": {}}, foreign)
+    npz = tmp_path / "rand.npz"  # a zip archive too, not torch's
+    np.savez(npz, a=np.zeros(3))
     for path, reason in (
         (text, "it begins as neither a zip archive nor a pickle"),
-        (cut, "failed reading zip archive"),
+        (cut, "(a damaged PyTorch checkpoint: its zip archive cannot be read, as when cut short)"),
         (foreign, "Unsupported global"),
+        (npz, "(not a PyTorch checkpoint file: a zip archive, but not one torch.save writes"),
     ):
         assert main(["predict", "--checkpoint", str(path), str(tmp_path / "q.png")]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1, err
         assert f"{path.name}: not a readable checkpoint" in err[0] and reason in err[0]
         assert "weights_only" not in err[0]  # torch's advice to run the file's code: never
+        assert "enforce fail" not in err[0] and "Reader" not in err[0]  # torch's internals
 
 
 def test_predict_names_a_missing_file_before_asking_what_it_shows(

@@ -126,11 +126,14 @@ def test_wrong_files_are_named(run, matcher: Matcher, tmp_path: Path):
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(eight_bit)
     text = tmp_path / "notes.png"
     text.write_text("not an image")
+    Image.open(data / "color/F0003_2.png").save(tmp_path / "photo.webp")  # PIL reads it; not we
     cases = [
         (tmp_path / "missing.png", Modality.DEPTH, "missing.png: file not found"),
         (eight_bit, Modality.DEPTH, "eight_bit.png: depth image is mode L; expected 16-bit"),
-        (text, Modality.COLOR, "notes.png: cannot decode image"),
+        (text, Modality.COLOR, r"notes.png: not a PNG or JPEG image \(.png, .jpg, .jpeg\): it"),
+        (tmp_path / "photo.webp", Modality.COLOR, "photo.webp: is a WebP image, not a PNG or JP"),
         (tmp_path, Modality.COLOR, "is a folder, not an image file"),
+        (data / "touch", Modality.TOUCH, "touch: is a folder, not a press: give a press's video"),
         (data / "depth/F0001_Depth_New_000000.png", Modality.TOUCH, "16-bit or float"),
     ]
     for path, modality, message in cases:
@@ -140,7 +143,7 @@ def test_wrong_files_are_named(run, matcher: Matcher, tmp_path: Path):
         matcher.match_files([data / "depth/F0001_Depth_New_000000.png"], Modality.DEPTH, top=0)
 
 
-def test_a_library_without_a_modality_says_so(run, tmp_path: Path):
+def test_a_library_without_a_modality_says_so(run, tmp_path: Path, capsys):
     data, ckpt = run
     no_color = shutil.copytree(data, tmp_path / "data")
     shutil.rmtree(no_color / "color")
@@ -157,6 +160,15 @@ def test_a_library_without_a_modality_says_so(run, tmp_path: Path):
         m.match_files([query], Modality.COLOR, gallery=Modality.TOUCH)  # no colour to calibrate
     [r] = m.match_files([data / "touch/F0002_fold_02_200.png"], Modality.TOUCH, top=2)
     assert set(r.fabrics[0].nearest) == {"depth", "touch"}
+    # `lookfeel match` without --modality: a photo's folder says colour, which it lacks (it
+    # used to ask which modality the photo shows, or take it for the only other sense).
+    photo = str(data / "color/F0003_2.png")
+    assert main(["match", "--index", str(tmp_path / "lib"), photo]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"lookfeel: {photo}: an image in a color/ folder shows color, which the library does "
+        "not take (it takes depth, touch); give --modality depth or touch to read it as one of "
+        "those anyway"
+    )
 
 
 def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
@@ -250,7 +262,8 @@ def test_a_model_trained_on_still_frames_takes_frames_and_videos(
     assert len(r.fabrics) == 2 and r.fabrics[0].name is None  # a numbered fabric: no name
     pytest.importorskip("av")
     video = write_video(tmp_path / "press.mov", object_press(1, PRESS, t=14))
-    [r] = matcher.match_files([video], Modality.TOUCH, top=2)  # read as a press video is read
+    with pytest.warns(UserWarning, match=r"press.mov: this model was trained on still GelSight"):
+        [r] = matcher.match_files([video], Modality.TOUCH, top=2)  # read as a press video is read
     assert r.query == [str(video)] and len(r.fabrics) == 2
 
 

@@ -3,6 +3,7 @@ wording of its errors."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -57,7 +58,10 @@ def test_errors_name_the_cli_flag_and_the_python_argument(run, heads: LoadedMode
     data, _ = run
     photo = str(data / "color/F0003_2.png")
     loose = shutil.copy(photo, tmp_path / "F0003_2.png")  # no folder says what it shows
-    with pytest.raises(PredictError, match=r"F0003_2.png: say which .* --modality \(modality\)"):
+    with pytest.raises(
+        PredictError,
+        match=r"F0003_2.png: cannot tell .*: say which with --modality depth, color or",
+    ):
         predict_files(heads, [loose])
     with pytest.raises(PredictError, match=r"^--together \(together\) pools touch presses"):
         predict_files(heads, [photo, photo], Modality.COLOR, together=True)
@@ -95,5 +99,75 @@ def test_the_modality_is_guessed_from_the_layouts_folder_or_a_depth_png(
     depth = shutil.copy(sorted((data / "depth").iterdir())[0], tmp_path / "drape.png")
     assert guess_modality(Path(depth), have) is Modality.DEPTH  # 16-bit greyscale, anywhere
     photo = shutil.copy(data / "color/F0003_2.png", tmp_path / "photo.png")
-    with pytest.raises(PredictError, match="say which modality"):
+    with pytest.raises(PredictError, match="cannot tell which modality"):
         guess_modality(Path(photo), have)  # 8-bit RGB outside the layout: it does not say
+
+
+def test_the_files_folder_decides_its_modality_even_when_the_model_lacks_it(run, tmp_path: Path):
+    """QA: with a touch-only model a photo in color/ was read as touch, and a depth map in
+    depth/ refused as a still touch image; a folder was "a still image", a GIF "not an image"
+    only when the modality was guessed."""
+    from lookfeel.data import ImageError
+    from lookfeel.predict import guess_modality
+
+    data, _ = run
+    touch, both = [Modality.TOUCH], [Modality.DEPTH, Modality.TOUCH]
+    with pytest.raises(
+        PredictError,
+        match=r"F0003_2.png: an image in a color/ folder shows color, which the library does not "
+        r"take \(it takes touch\); give --modality touch to read it as touch anyway$",
+    ):
+        guess_modality(data / "color/F0003_2.png", touch, "the library")
+    drape = shutil.copy(data / "depth/F0001_Depth_New_000000.png", tmp_path / "drape.png")
+    with pytest.raises(PredictError, match=r"16-bit greyscale PNG is a depth map, which the model"):
+        guess_modality(Path(drape), touch)
+    with pytest.raises(PredictError, match=r"--modality depth or touch to read it as one of those"):
+        guess_modality(data / "color/F0003_2.png", both)
+    video = tmp_path / "press.mov"
+    video.write_bytes(b"")
+    no_touch = (
+        r"press.mov: a video is a touch press, which the model does not take \(it takes depth\)$"
+    )
+    with pytest.raises(PredictError, match=no_touch):  # no --modality: a video is nothing else
+        guess_modality(video, [Modality.DEPTH])
+    with pytest.raises(ImageError, match=r"touch: is a folder, not an image or video file"):
+        guess_modality(data / "touch", both)
+    with pytest.raises(ImageError, match=r"p.gif: not a PNG or JPEG image \(.png, .jpg, .jpeg\)"):
+        guess_modality(tmp_path / "p.gif", both)
+    assert guess_modality(data / "touch/F0004_fold_02_400.png", touch) is Modality.TOUCH
+
+
+def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
+    run, heads: LoadedModel, tmp_path: Path
+):
+    """One list of query images (PNG and JPEG, by content) in the CLI and the server; a folder
+    given as touch is a folder, not "a still image"."""
+    from PIL import Image
+
+    from lookfeel.data import ImageError
+
+    data, _ = run
+    photo = Image.open(data / "color/F0003_2.png")
+    for name, kind in (("p.gif", "GIF"), ("p.webp", "WebP"), ("gif.png", "GIF")):
+        photo.save(tmp_path / name, format="GIF" if kind == "GIF" else "WEBP")
+        with pytest.raises(ImageError, match=rf"{name}: is a {kind} image, not a PNG or JPEG"):
+            predict_files(heads, tmp_path / name, "color")
+    folder = r"touch: is a folder, not a press: give a press's video or its frame files$"
+    with pytest.raises(ImageError, match=folder):
+        predict_files(heads, data / "touch", "touch")
+
+
+def test_a_still_frame_model_warns_of_a_press_video(run, heads: LoadedModel, tmp_path: Path):
+    """A model trained on still frames takes a video (as documented), with a warning: the video
+    is read as a difference image, which it never saw."""
+    pytest.importorskip("av")
+    from lookfeel.checkpoint import TOUCH_FRAMES
+    from lookfeel.index.query import VIDEO_FOR_STILL_MODEL
+
+    from ._video import PRESS, object_press, write_video
+
+    assert heads.touch_input == TOUCH_FRAMES
+    video = write_video(tmp_path / "press.mov", object_press(1, PRESS, t=14))
+    with pytest.warns(UserWarning, match=rf"press.mov: {re.escape(VIDEO_FOR_STILL_MODEL)}"):
+        [answer] = predict_files(heads, video)
+    assert answer.modality == "touch" and answer.error is None and answer.properties

@@ -722,11 +722,19 @@ def test_the_still_frame_check_spares_raw_frame_and_frame_trained_models(tmp_pat
     diff, raw = DataConfig(image_size=32), DataConfig(image_size=32, video_reference="none")
     with pytest.raises(ImageError, match=r"^a\.png: this model was trained on press videos"):
         check_touch_query("a.png", False, TOUCH_VIDEOS, diff)
-    check_touch_query("a.mov", True, TOUCH_VIDEOS, diff)
-    check_touch_query("a.png", False, TOUCH_VIDEOS, raw)  # trained on raw frames: a frame is one
-    for trained_on in (TOUCH_FRAMES, TOUCH_BOTH, None):
-        check_touch_query("a.png", False, trained_on, diff)
-        check_touch_query("a.mov", True, trained_on, diff)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing refused, nothing said
+        check_touch_query("a.mov", True, TOUCH_VIDEOS, diff)
+        # trained on raw frames: a frame is one
+        check_touch_query("a.png", False, TOUCH_VIDEOS, raw)
+        for trained_on in (TOUCH_FRAMES, TOUCH_BOTH, None):
+            check_touch_query("a.png", False, trained_on, diff)
+        for trained_on in (TOUCH_BOTH, None):
+            check_touch_query("a.mov", True, trained_on, diff)
+        check_touch_query("a.mov", True, TOUCH_FRAMES, raw)  # its raw frame: as a still one
+    # A still-frame model takes a video, read as a difference image it never saw: a warning.
+    with pytest.warns(UserWarning, match=r"^a\.mov: this model was trained on still GelSight"):
+        check_touch_query("a.mov", True, TOUCH_FRAMES, diff)
     # an upload is a video by its content, whatever its name says
     png = tmp_path / "x.png"
     Image = pytest.importorskip("PIL.Image")
@@ -825,7 +833,7 @@ def test_match_takes_a_video_as_touch_without_being_told(
     assert main(["match", "--index", str(lib), press, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)[0]["query_modality"] == "touch"
     assert main(["match", "--index", str(lib), str(recordings / "labels.csv")]) == 1
-    assert "not an image" in capsys.readouterr().err  # what the file shows cannot be told
+    assert "not a PNG or JPEG image" in capsys.readouterr().err  # what it shows cannot be told
 
 
 def test_a_library_of_named_objects_names_them_and_their_words(

@@ -211,8 +211,19 @@ def test_a_press_while_the_light_changes_is_still_a_press(tmp_path: Path):
 
 def test_a_press_from_the_first_frame_has_no_reference():
     frames = press_frames({i: 1.0 - 0.08 * i for i in range(12)})
-    with pytest.raises(VideoError, match="(no contact|first frame)"):
+    with pytest.raises(VideoError, match="(no contact|first frame)") as e:
         detect_press(frames, Path("early.mov"))
+    assert "no untouched frames at its start to compare against" in str(e.value)
+
+
+def test_a_press_held_from_the_first_frame_is_said_to_leave_nothing_to_compare_against():
+    """QA: a video pressed from its first frame and held said only "no contact found", as if
+    nothing were pressed: its first frames, the reference, are pressed too."""
+    frames = press_frames({i: 0.9 for i in range(T)})
+    with pytest.raises(NoPressError, match=r"^held.mov: no contact found: .* or the gel was pre"):
+        detect_press(frames, Path("held.mov"))
+    with pytest.raises(NoPressError, match="no untouched frames at its start to compare against"):
+        detect_press(press_frames({}), Path("still.mov"))  # never pressed: it says both
 
 
 def test_a_too_short_video_is_refused(tmp_path: Path):

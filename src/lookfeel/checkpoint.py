@@ -14,6 +14,7 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
 from __future__ import annotations
 
 import os
+import zipfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -94,7 +95,7 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
     try:
         state = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many types for a damaged or foreign file
-        raise CheckpointError(f"{p}: not a readable checkpoint ({load_problem(e, p)})") from None
+        raise CheckpointError(f"{p}: not a readable checkpoint ({_unreadable(e, p)})") from None
     if not isinstance(state, dict) or "config" not in state or "model" not in state:
         raise CheckpointError(f"{p}: not a lookfeel checkpoint (no config and model inside)")
     if state.get("version", 0) > CHECKPOINT_VERSION:
@@ -102,6 +103,26 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
             f"{p}: written by a newer lookfeel (checkpoint version {state['version']}); upgrade"
         )
     return state
+
+
+def _unreadable(e: Exception, p: Path) -> str:
+    """Why torch could not read ``p``, for a person: a zip archive that ``torch.save`` did not
+    write (an ``.npz``) or one cut short is said in words, not as torch's internal error
+    (``[enforce fail at inline_container.cc:180]``, ``PytorchStreamReader failed ...``)."""
+    text = str(e)
+    if "inline_container" not in text and "PytorchStreamReader" not in text:
+        return load_problem(e, p)
+    try:
+        with zipfile.ZipFile(p) as z:
+            names = z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return "a damaged PyTorch checkpoint: its zip archive cannot be read, as when cut short"
+    if not any(n.endswith("/data.pkl") for n in names):
+        return (
+            "not a PyTorch checkpoint file: a zip archive, but not one torch.save writes, such "
+            "as an .npz of NumPy arrays"
+        )
+    return "a damaged PyTorch checkpoint: a file inside its zip archive cannot be read"
 
 
 @dataclass(frozen=True)

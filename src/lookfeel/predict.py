@@ -8,7 +8,9 @@ columns' own units. Several presses of one object can be pooled into one query, 
 Multi-input Net pools presses (``together=True``).
 
 A touch query must be what the model was trained on: a model trained on press videos refuses a
-still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file.
+still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file; a model
+trained on still frames takes a press video with a warning. Without a modality given, each
+file's own kind says what it shows (`guess_modality`); one the model lacks is refused.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
 from lookfeel.index.match import class_value
 from lookfeel.index.query import (
+    QUERY_IMAGES,
     QueryFiles,
     check_touch_files,
     load_query_files,
@@ -83,34 +86,67 @@ class Prediction:
     error: str | None = None
 
 
-def guess_modality(path: Path, model_modalities: Sequence[Modality]) -> Modality:
-    """The modality of a query file, among the model's: a video is touch; an image in a
-    folder of the dataset layout (``depth/``, ``color/``, ``touch/`` and their aliases,
+def guess_modality(
+    path: Path, model_modalities: Sequence[Modality], holder: str = "the model"
+) -> Modality:
+    """The modality of a query file: a video is touch; an image in a folder of the dataset
+    layout (``depth/``, ``color/``, ``touch/`` and their aliases,
     `lookfeel.data.layout.FOLDER_ALIASES`) is that folder's; a 16-bit greyscale PNG is depth;
-    else an image is the model's only image modality.
+    else an image is the model's only modality.
+
+    What the file itself says (its suffix, folder or PNG header) decides first, whatever the
+    model has: a photo in ``color/`` is not read as touch because the model has touch only; it
+    is refused, naming what the model has and ``--modality``, which reads it so anyway.
+
+    Args:
+        path: the query file.
+        model_modalities: the modalities queries may be of: the model's (``lookfeel
+            match``: those of the library's model that the library holds).
+        holder: what has ``model_modalities``, as errors name it (``"the library"``).
 
     Raises:
-        PredictError: the file's kind does not say, and the model has several modalities.
+        PredictError: the file does not say and the model has several modalities; or it says
+            one the model lacks.
+        ImageError: the path is a folder, or neither an image (`QUERY_IMAGES`) nor a video by
+            its suffix.
     """
+    if path.is_dir():
+        raise ImageError(path, "is a folder, not an image or video file: give the files in it")
     suffix = path.suffix.lower()
-    if suffix in VIDEO_SUFFIXES:
-        return Modality.TOUCH
-    if suffix not in IMAGE_SUFFIXES:
-        raise PredictError(
-            f"{path}: not an image ({', '.join(IMAGE_SUFFIXES)}) or a video "
-            f"({', '.join(VIDEO_SUFFIXES)})"
-        )
+    names = [m.value for m in model_modalities]
+    have = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else "".join(names)
     folder = path.parent.name.lower()
-    for m, names in FOLDER_ALIASES.items():
-        if folder in names and m in model_modalities:
-            return m
-    if Modality.DEPTH in model_modalities and suffix == ".png" and _is_16_bit_grey(path):
-        return Modality.DEPTH
-    if len(model_modalities) == 1:
+    by_folder = next((m for m, aliases in FOLDER_ALIASES.items() if folder in aliases), None)
+    if suffix in VIDEO_SUFFIXES:
+        modality, why = Modality.TOUCH, "a video is a touch press"
+    elif suffix not in IMAGE_SUFFIXES:
+        videos = ", ".join(VIDEO_SUFFIXES)
+        raise ImageError(path, f"not {QUERY_IMAGES} or a press video ({videos})")
+    elif by_folder is not None:
+        modality, why = (
+            by_folder,
+            f"an image in a {path.parent.name}/ folder shows {by_folder.value}",
+        )
+    elif suffix == ".png" and _is_16_bit_grey(path):
+        modality, why = Modality.DEPTH, "a 16-bit greyscale PNG is a depth map"
+    elif len(model_modalities) == 1:
         return model_modalities[0]
+    else:
+        raise PredictError(
+            f"{path}: cannot tell which modality the image shows (it is in no depth/, color/ "
+            f"or touch/ folder, and not a 16-bit depth PNG): say which with --modality {have}"
+        )
+    if modality in model_modalities:
+        return modality
+    force = (
+        ""
+        if suffix in VIDEO_SUFFIXES  # a video is read as nothing else
+        else f"; give --modality {have} to read it as "
+        + (have if len(names) == 1 else "one of those")
+        + " anyway"
+    )
     raise PredictError(
-        f"{path}: say which modality the image shows with --modality (modality); the model "
-        f"has {', '.join(m.value for m in model_modalities)}"
+        f"{path}: {why}, which {holder} does not take (it takes {', '.join(names)}){force}"
     )
 
 

@@ -39,8 +39,9 @@ def add_parser(subparsers: Subparsers) -> None:
         choices=[m.value for m in Modality],
         default=None,
         help="what they show (default: a video is touch; an image in a depth/, color/ or "
-        "touch/ folder, that folder's; a 16-bit PNG, depth; else the model's only image "
-        "modality; else this is needed)",
+        "touch/ folder, that folder's; a 16-bit PNG, depth; else the library's only modality; "
+        "else this is needed). A modality so guessed that the library lacks is refused: give "
+        "this to read the file as another. Images are PNG or JPEG",
     )
     mt.add_argument("--top", type=number(int, 1), default=5, help="fabrics to list (5)")
     mt.add_argument(
@@ -72,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         modality = Modality(args.modality)
     else:  # as `predict` guesses it, among the senses the library holds
         have = [m for m in matcher.model.modalities if m in matcher.library.tables]
-        guessed = {guess_modality(p, have) for p in args.images}
+        guessed = {guess_modality(p, have, "the library") for p in args.images}
         if len(guessed) > 1:
             raise LookfeelError(
                 "the query files show "

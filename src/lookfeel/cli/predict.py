@@ -6,9 +6,12 @@ presses of one object (the Multi-input Net's max over presses). A video that hol
 short, no contact) is answered with an "error" and no properties, and a warning; the others are
 still predicted (the exit status is 1 only when nothing could be; one input is answered alike). A
 model trained on press videos refuses a still touch image: it read each press as its change from the
-frames before contact, which a still image lacks. A class head (model.class_heads, e.g. hardness
-0/1/2 or material) answers with its most likely class in the label column's own terms and that
-class's probability; a property-regression head answers in the column's units.
+frames before contact, which a still image lacks (a model trained on still frames takes a video
+with a warning). A class head (model.class_heads, e.g. hardness 0/1/2 or material) answers with
+its most likely class in the label column's own terms and that class's probability; a
+property-regression head answers in the column's units, a column of ranks without a class head
+too (softness_rank 0.93: a number between ranks, as the head regressed it, where `match` gives
+the likeliest fabrics' rank). Images are PNG or JPEG (.png, .jpg, .jpeg), as `serve` takes them.
 """
 
 from __future__ import annotations
@@ -33,7 +36,9 @@ def add_parser(subparsers: Subparsers) -> None:
         choices=[m.value for m in Modality],
         default=None,
         help="what the files show (default: a video is touch; an image in a depth/, color/ or "
-        "touch/ folder, that folder's; a 16-bit PNG, depth; else the model's only modality)",
+        "touch/ folder, that folder's; a 16-bit PNG, depth; else the model's only modality). "
+        "A modality so guessed that the model lacks is refused: give this to read the file as "
+        "another",
     )
     pr.add_argument(
         "--together", action="store_true", help="the files are presses of one object: pool them"

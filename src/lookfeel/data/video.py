@@ -580,8 +580,10 @@ def detect_press(
     if contrast < need:
         raise NoPressError(
             p,
-            f"no contact found: the frames change by at most {contrast:.2f} grey levels over "
-            f"the untouched sensor (noise {noise:.2f}); a press needs {need:.2f}",
+            f"no contact found: the frames change by at most {contrast:.2f} grey levels from "
+            f"its first frames (noise {noise:.2f}; a press needs {need:.2f}): nothing was "
+            "pressed, or the gel was pressed from the first frame, leaving no untouched frames "
+            "at its start to compare against (record from before the press)",
         )
     thr = floor + contact_fraction * contrast
     start = peak
@@ -592,7 +594,9 @@ def detect_press(
         end += 1
     if start == 0:
         raise NoPressError(
-            p, "contact from the first frame: no no-contact frames to take as the reference"
+            p,
+            "contact from the first frame: no untouched frames at its start to compare against "
+            "(record from before the press)",
         )
     left, shift = _light_change(np.median(grey[:first], axis=0), grey[peak])
     if left - floor <= _LIGHT_SHARE * contrast:

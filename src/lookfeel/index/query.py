@@ -1,20 +1,22 @@
 """Query images: decoded and preprocessed exactly as in training, checked with clear errors.
 
-A query is one or more image files of one modality. Depth is a 16-bit PNG in millimetres,
-colour an 8-bit RGB photo, touch a press's video (`VIDEO_SUFFIXES`: .mov, .mp4 ...; its frame
-of deepest contact is found as in training) or one GelSight frame per press (the frame you
-would use for training: by default the second-to-last of a press; for a model that reads
-several frames of a press together, ``data.touch_frames``, any one of them, the others read
-from beside it). Preprocessing is the run's `DataConfig` through
-`lookfeel.data.images.preprocess_depth` / `preprocess_rgb`, the functions training uses. No
-image is cached, so a path reused for different content is always read afresh.
+A query is one or more image files of one modality, each image a PNG or JPEG (`QUERY_IMAGES`,
+as ``lookfeel serve`` takes them). Depth is a 16-bit PNG in millimetres, colour an 8-bit RGB
+photo, touch a press's video (`VIDEO_SUFFIXES`: .mov, .mp4 ...; its frame of deepest contact is
+found as in training) or one GelSight frame per press (the frame you would use for training: by
+default the second-to-last of a press; for a model that reads several frames of a press
+together, ``data.touch_frames``, any one of them, the others read from beside it).
+Preprocessing is the run's `DataConfig` through `lookfeel.data.images.preprocess_depth` /
+`preprocess_rgb`, the functions training uses. No image is cached, so a path reused for
+different content is always read afresh.
 
 A touch query must be what the model's touch branch was trained on (the checkpoint's
 ``touch_input``, `lookfeel.checkpoint.LoadedModel.touch_input`): a model trained on press
 videos read as their change from the no-contact frames (``data.video_reference: subtract``)
 refuses a still frame, which has no such frames (`check_touch_query`). A model trained on still
-frames takes a video too, read as `lookfeel.data.video` reads one; a checkpoint from before the
-record is not checked.
+frames takes a video too, read as `lookfeel.data.video` reads one, with a warning where that
+read is such a difference, which the model never saw; a checkpoint from before the record is not
+checked.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lookfeel.checkpoint import TOUCH_VIDEOS
+from lookfeel.checkpoint import TOUCH_FRAMES, TOUCH_VIDEOS
 from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth
 from lookfeel.data.images import (
@@ -42,14 +44,16 @@ from lookfeel.data.images import (
     stack_views,
     to_tensor,
 )
-from lookfeel.data.layout import VIDEO_SUFFIXES, sniff_video
+from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES, sniff_video
 from lookfeel.data.video import NoPressError
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
 
 __all__ = [
     "IMAGE_TYPES",
+    "QUERY_IMAGES",
     "STILL_TOUCH_REFUSED",
+    "VIDEO_FOR_STILL_MODEL",
     "check_touch_files",
     "check_touch_query",
     "load_query_bytes",
@@ -96,11 +100,42 @@ def sniff_type(head: bytes) -> str | None:
     return None
 
 
+QUERY_IMAGES = f"a PNG or JPEG image ({', '.join(IMAGE_SUFFIXES)})"
+"""The images a query may be, in every command: `IMAGE_TYPES` by content (as ``lookfeel serve``
+checks an upload), `lookfeel.data.layout.IMAGE_SUFFIXES` by name (as the dataset layout reads
+files); a GIF or WebP is refused alike by the CLI and the server."""
+
+_OTHER_IMAGES = (
+    (b"GIF8", "a GIF"),
+    (b"II*\x00", "a TIFF"),
+    (b"MM\x00*", "a TIFF"),
+    (b"BM", "a BMP"),
+)
+
+
+def _not_a_query_image(head: bytes) -> str:
+    """Why a file beginning with ``head`` is no query image (not PNG or JPEG), naming its kind
+    where its first bytes tell it."""
+    kind = next((k for magic, k in _OTHER_IMAGES if head.startswith(magic)), None)
+    if head.startswith(b"RIFF") and head[8:12] == b"WEBP":
+        kind = "a WebP"
+    if kind is None:
+        return f"not {QUERY_IMAGES}: it does not begin as one"
+    return f"is {kind} image, not {QUERY_IMAGES}: convert it"
+
+
 STILL_TOUCH_REFUSED = (
     "this model was trained on press videos, each read as its change from the frames before "
     "contact; a still image has none: give the press's video"
 )
 """Why a still touch image is refused for a model trained on press videos (`check_touch_query`)."""
+
+VIDEO_FOR_STILL_MODEL = (
+    "this model was trained on still GelSight frames, and a press video is read as its change "
+    "from the frames before contact (data.video_reference: subtract), which it never saw: its "
+    "answer may mean little; give a still frame of the press"
+)
+"""Why a press video for a model trained on still frames is warned about (`check_touch_query`)."""
 
 
 def check_touch_query(
@@ -113,7 +148,9 @@ def check_touch_query(
     a still image has no no-contact frame, so its answer would be confident and meaningless.
     A model trained with ``video_reference: none`` read raw frames, and one trained on still
     frames (or both kinds), or from a checkpoint that does not say (``trained_on`` None), is
-    not refused anything.
+    not refused anything. A model trained on still frames only takes a press video with a
+    warning where the video is read as a difference image (`VIDEO_FOR_STILL_MODEL`): it never
+    saw one, and its answer may mean little.
 
     Args:
         name: the query's file (or an upload's name), named in the error.
@@ -124,14 +161,25 @@ def check_touch_query(
     Raises:
         ImageError: naming the file, when it is a still image and the model needs a video.
     """
-    if trained_on == TOUCH_VIDEOS and not video and config.video_reference == "subtract":
+    subtract = config.video_reference == "subtract"
+    if trained_on == TOUCH_VIDEOS and not video and subtract:
         raise ImageError(Path(name), STILL_TOUCH_REFUSED)
+    if trained_on == TOUCH_FRAMES and video and subtract:
+        warnings.warn(f"{name}: {VIDEO_FOR_STILL_MODEL}", stacklevel=3)
 
 
 def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataConfig) -> None:
     """`check_touch_query` of every file of a touch query (a video by its suffix), before any
-    of them is decoded."""
+    of them is decoded; a folder is refused as one (a press is a video or frame files).
+
+    Raises:
+        ImageError: naming a folder, or a still image the model does not take.
+    """
     for p in _paths(paths):
+        if Path(p).is_dir():
+            videos_only = trained_on == TOUCH_VIDEOS and config.video_reference == "subtract"
+            give = "the press's video" if videos_only else "a press's video or its frame files"
+            raise ImageError(Path(p), f"is a folder, not a press: give {give}")
         check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
 
 
@@ -166,8 +214,10 @@ def load_query_image(
         video with ``data.video_embed: views``, its (V, 3, S, S) views.
 
     Raises:
-        ImageError: naming the file when it is missing, not a regular file, not an image, too
-            large, or the wrong kind (e.g. an 8-bit PNG given as depth).
+        ImageError: naming the file when it is missing, not a regular file, not a PNG or
+            JPEG image by its content (`QUERY_IMAGES`: a GIF or WebP is refused, as ``lookfeel
+            serve`` refuses it), too large, or the wrong kind (e.g. an 8-bit PNG given as
+            depth).
         ModalityError: ``modality`` names no modality.
     """
     path = Path(path)
@@ -180,7 +230,10 @@ def load_query_image(
         # A press recorded as a video: its frame(s) chosen and preprocessed as in training
         # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
         return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
-    return _preprocess(path, read_image_file(path), modality, config, max_pixels)
+    data = read_image_file(path)
+    if sniff_type(data[:16]) is None:  # as `lookfeel serve` refuses an upload (415)
+        raise ImageError(path, _not_a_query_image(data[:16]))
+    return _preprocess(path, data, modality, config, max_pixels)
 
 
 def load_query_files(
