@@ -312,3 +312,18 @@ def test_reproduce_names_its_pretrained_file_by_its_absolute_path(
     assert main([*argv, "--pretrained", "w/alexnet.pth"]) == 1
     assert "stopped here" in capsys.readouterr().err
     assert given["pretrained"] == str(Path.cwd() / "w" / "alexnet.pth")
+
+
+def test_embed_says_which_touch_presses_the_run_leaves_out(tmp_path: Path):
+    from lookfeel.cli.embed import _kinds_left_out
+
+    from ._tiny import write_tiny_dataset
+
+    data = write_tiny_dataset(tmp_path / "d", fabrics=2, fold_presses=2, flat_presses=3)
+    # 2 fabrics x 3 flat presses of 3 frames each: the press, not the frame, is counted.
+    assert _kinds_left_out(data, ["fold"]) == (
+        "touch: fold presses only (the run's data.touch_kinds); 6 flat presses of the dataset "
+        "left out"
+    )
+    assert _kinds_left_out(data, ["fold", "flat"]) is None
+    assert _kinds_left_out(data, None) is None

@@ -78,6 +78,19 @@ def test_strict_errors_name_the_key(data, message):
         from_dict(DataConfig, data)
 
 
+def test_touch_frames_null_means_none_as_the_empty_list_does(tmp_path: Path):
+    """QA: ``--set data.touch_frames=null`` was refused (expected an integer, got None) while
+    ``[]`` said the same: no frames stacked, the one frame ``touch_frame``."""
+    stacked = load_config(RunConfig, None, ["data.touch_frames=[0,1,2]"])
+    for none in ("null", "[]", ""):
+        sets = ["data.touch_frames=[0,1,2]", f"data.touch_frames={none}"]
+        cfg = load_config(RunConfig, None, sets)
+        assert cfg.data.touch_frames == () and cfg.data.touch_frame_indices == (-2,)
+        assert cfg == load_config(RunConfig) != stacked
+    save_config(load_config(RunConfig, None, ["data.touch_frames=null"]), tmp_path / "c.yaml")
+    assert "touch_frames: []" in (tmp_path / "c.yaml").read_text()
+
+
 def test_file_errors_name_the_file(tmp_path: Path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("# notes\n\n```bash\n")

@@ -1,10 +1,15 @@
+import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from lookfeel.cli import main
+from lookfeel.config import RunConfig, load_config
 from lookfeel.data import (
     PAPER_TEST_IDS,
+    SplitError,
     kmeans_clusters,
     paper_split,
     scan,
@@ -12,23 +17,106 @@ from lookfeel.data import (
     stratified_fabric_folds,
     stratified_fabric_split,
 )
-from lookfeel.data.catalog import Catalog, Fabric
+from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.modality import Modality
+from lookfeel.train import select_split
 
 from ._tiny import write_tiny_dataset
+
+TINY = Path(__file__).resolve().parents[1] / "src" / "lookfeel" / "configs" / "tiny.yaml"
 
 
 def _catalog(n: int, clusters: int) -> Catalog:
     return Catalog(Path("."), tuple(Fabric(i, cluster=i % clusters) for i in range(1, n + 1)))
 
 
+def _authors_catalog(n: int) -> Catalog:
+    """Fabrics 1..n with one drape each in GelFabric's own depth folder, no labels."""
+    depth = Path("kinect_depth_new")
+    return Catalog(
+        Path("."),
+        tuple(
+            Fabric(i, items={Modality.DEPTH: (Item(Modality.DEPTH, i, (depth / f"F{i}_0.png",)),)})
+            for i in range(1, n + 1)
+        ),
+    )
+
+
 def test_paper_split_from_column_or_builtin(tiny_dataset: Path):
     catalog = scan(tiny_dataset)
     assert paper_split(catalog).train == (1, 2, 3, 4, 5, 6)
     assert paper_split(catalog).test == ()
-    builtin = paper_split(_catalog(119, 8))
-    assert builtin.test == PAPER_TEST_IDS
+    assert paper_split(catalog).source == "labels"
+    with pytest.warns(UserWarning, match=r"built-in list .* 3, 7, 16, .*, 97; 107 excluded; a "):
+        builtin = paper_split(_authors_catalog(119))
+    assert builtin.test == PAPER_TEST_IDS and builtin.source == "builtin"
     assert len(builtin.train) == 100 and 107 not in builtin.train
+
+
+def _numbered(root: Path, test: tuple[int, ...] | None) -> Path:
+    """8 fabrics in depth/, color/, touch/ with a user's own labels: a ``paper_split`` column
+    marking ``test`` held out, or (None) no such column."""
+    data = write_tiny_dataset(root, fabrics=8, drapes=2, fold_presses=1, flat_presses=0, frames=1)
+    if test is None:
+        rows = [f"{f},{0.7 * f:.2f},{f % 3}\n" for f in range(1, 9)]
+        (data / "labels.csv").write_text("fabric_id,bend_score,softness_rank\n" + "".join(rows))
+    else:
+        rows = [f"{f},{0.7 * f:.2f},{'test' if f in test else 'train'}\n" for f in range(1, 9)]
+        (data / "labels.csv").write_text("fabric_id,bend_score,paper_split\n" + "".join(rows))
+    return data
+
+
+def test_a_numbered_dataset_without_a_paper_split_column_holds_out_no_fabric(tmp_path: Path):
+    """QA: GelFabric's built-in test ids (3, 7, ...) were held back from any numbered dataset
+    whose labels.csv had no paper_split column: fabrics 3 and 7 silently in neither side."""
+    catalog = scan(_numbered(tmp_path / "rig", test=None))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing is said: nothing is held back
+        paper = paper_split(catalog)
+    assert (paper.train, paper.test, paper.source) == (tuple(range(1, 9)), (), None)
+    config = load_config(RunConfig, TINY, ["train.split=stratified", "train.val_fabrics=2"])
+    train, val, info = select_split(catalog, config)
+    assert val is not None and len(val.ids) == 2
+    assert sorted(train.ids + val.ids) == list(range(1, 9))  # fabrics 3 and 7 included
+    assert sorted(info["train"] + info["val"]) == list(range(1, 9))
+    too_many = load_config(RunConfig, TINY, ["train.split=stratified", "train.val_fabrics=18"])
+    with pytest.raises(SplitError, match=r"hold out 18 of 8 fabrics: .*\(train.val_fabrics\)$"):
+        select_split(catalog, too_many)  # and no word of paper_split=test fabrics
+    with pytest.raises(Exception, match="no fabric of this dataset is marked paper_split=test"):
+        select_split(catalog, load_config(RunConfig, TINY, ["train.split=paper"]))
+
+
+def test_a_paper_split_column_still_holds_out_its_test_fabrics(tmp_path: Path):
+    catalog = scan(_numbered(tmp_path / "rig", test=(3, 7)))
+    paper = paper_split(catalog)
+    assert (paper.train, paper.test, paper.source) == ((1, 2, 4, 5, 6, 8), (3, 7), "labels")
+    _, val, info = select_split(catalog, load_config(RunConfig, TINY, ["train.split=paper"]))
+    assert val is not None and info["val"] == [3, 7]
+    config = load_config(RunConfig, TINY, ["train.split=stratified", "train.val_fabrics=2"])
+    train, val, _ = select_split(catalog, config)
+    assert val is not None and not {3, 7} & set(train.ids + val.ids)  # never trained on
+    with pytest.raises(SplitError, match=r"\(2 more fabric\(s\) marked paper_split=test in "):
+        select_split(catalog, load_config(RunConfig, TINY, ["train.val_fabrics=18"]))
+    seen = load_config(RunConfig, TINY, ["train.split=seen"])
+    assert select_split(catalog, seen)[2]["novel"] == [3, 7]  # Table 4's novel fabrics
+
+
+def test_gelfabric_in_its_authors_folders_keeps_the_built_in_list_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    data = _numbered(tmp_path / "gf", test=None)
+    shutil.move(data / "depth", data / "kinect_depth_new")  # as the authors released it
+    (data / "labels.csv").unlink()
+    catalog = scan(data)
+    with pytest.warns(UserWarning, match=r"has no labels.csv: .* never trained on: 3, 7;"):
+        paper = paper_split(catalog)
+    assert (paper.test, paper.source) == ((3, 7), "builtin")
+    with pytest.warns(UserWarning), pytest.raises(SplitError, match="built-in test list"):
+        select_split(catalog, load_config(RunConfig, TINY, ["train.val_fabrics=18"]))
+    # `data info` shows the split training makes, and why.
+    with pytest.warns(UserWarning, match="built-in list"):
+        assert main(["data", "info", str(data)]) == 0
+    assert "paper split  train 6, test 2" in capsys.readouterr().out
 
 
 def test_stratified_split_is_disjoint_even_and_seeded():

@@ -11,7 +11,11 @@ from lookfeel.cli import main
 from lookfeel.cli._args import run_config_source
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config.recipes import default_recipe, recipe_path
+from lookfeel.data import ImageLoader, scan
 from lookfeel.modality import Modality
+from lookfeel.train import select_split
+
+from ._tiny import write_tiny_dataset
 
 D, C, T = Modality.DEPTH, Modality.COLOR, Modality.TOUCH
 
@@ -130,3 +134,55 @@ def test_a_chosen_recipe_keeps_the_class_heads_the_labels_have(tmp_path: Path, c
     path, overrides = run_config_source(_args(data))
     assert "class heads: none (no labels.csv for the recipe's hardness, " in capsys.readouterr().err
     assert load_config(RunConfig, path, overrides).model.class_heads == ()
+
+
+def _rig(root: Path, fabrics: int = 8) -> Path:
+    """A user's own rig in the GelFabric layout: depth and colour drapes, and touch presses
+    recorded as videos in touch/ (``F0001_fold_101.mp4``), labels.csv without paper_split."""
+    from ._video import PRESS, object_press, write_video
+
+    data = write_tiny_dataset(root, fabrics, drapes=2, fold_presses=0, flat_presses=0)
+    (data / "touch").mkdir()
+    for f in range(1, fabrics + 1):
+        for p, kind in enumerate(("fold", "fold", "flat")):
+            frames = object_press(f, PRESS, 14, seed=p)
+            write_video(data / "touch" / f"F{f:04d}_{kind}_{100 * f + p}.mp4", frames)
+    rows = [f"{f},{0.7 * f:.2f},{f % 3}\n" for f in range(1, fabrics + 1)]
+    (data / "labels.csv").write_text("fabric_id,bend_score,softness_rank\n" + "".join(rows))
+    return data
+
+
+def test_the_recipe_chosen_for_a_small_rig_with_touch_videos_loads_and_splits(
+    tmp_path: Path, capsys
+):
+    """QA: the cross-modal recipe chosen for 8 fabrics whose presses are videos stacked frame
+    images of a press (data.touch_frames) and asked for 5 folds of 18 fabrics."""
+    data = _rig(tmp_path / "rig")
+    path, overrides = run_config_source(_args(data))
+    err = capsys.readouterr().err
+    assert path.name == "synth_cross.yaml"
+    assert "touch videos read as physiclear.yaml does" in err
+    assert "8 fabrics to train on, fewer than the recipe's 5 folds of 18" in err
+    config = load_config(RunConfig, path, overrides)
+    physiclear = load_config(RunConfig, recipe_path("physiclear.yaml")).data
+    assert config.data.touch_frames == () and config.data.color_reprints == 0
+    assert (config.data.video_views, config.data.video_embed) == (
+        physiclear.video_views,
+        physiclear.video_embed,
+    )
+    catalog = scan(data)
+    loader = ImageLoader(config.data)
+    for m in (Modality.DEPTH, Modality.COLOR, Modality.TOUCH):
+        item = catalog.items(m)[0]
+        assert loader.load(item).shape[-1] == config.data.size_of(m)
+        assert (len(loader.views(item)) > 1) == (m is Modality.TOUCH)  # frames of the press
+    train, val, info = select_split(catalog, config)  # fold 0 of folds dealing all 8
+    assert val is not None and sorted(train.ids + val.ids) == list(range(1, 9))
+    assert (info["kind"], info["fold_size"]) == ("fold", None)
+    # Frame images (a synthetic world's) keep the recipe's stacked frames; 2 fabrics, 2 folds.
+    world = write_tiny_dataset(tmp_path / "world", fabrics=2, drapes=1, flat_presses=0)
+    path, overrides = run_config_source(_args(world))
+    assert "touch videos" not in capsys.readouterr().err
+    config = load_config(RunConfig, path, overrides)
+    assert config.data.touch_frames == (0, 1, 2)
+    assert (config.train.folds, config.train.fold_size) == (2, None)

@@ -7,15 +7,18 @@ for that command where it differs.
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import importlib
 import os
 import shlex
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, parse_modalities
 
 if TYPE_CHECKING:
@@ -155,6 +158,98 @@ def out_file(text: str) -> Path:
     return path
 
 
+class OutError(LookfeelError):
+    """An ``--out`` that would write into what the user made: the dataset folder, a file the
+    command did not write, or a folder that holds something else. Raised before any work."""
+
+
+def check_out_beside_data(out: Path, data: Path | None) -> None:
+    """Refuse an ``--out`` that is the ``--data`` dataset folder or lies inside it (symbolic
+    links followed): lookfeel never writes into a dataset.
+
+    Raises:
+        OutError: naming both paths.
+    """
+    if data is None:
+        return
+    real_out, real_data = Path(os.path.realpath(out)), Path(os.path.realpath(data))
+    if real_out == real_data or real_out.is_relative_to(real_data):
+        raise OutError(
+            f"--out {out} lies inside the dataset folder {data} (--data); lookfeel writes "
+            "nothing into a dataset: choose an --out outside it"
+        )
+
+
+def check_out_folder(out: Path, data: Path | None, holds: Sequence[str], what: str) -> None:
+    """Before a command writes the folder ``out``: refuse it inside ``--data``
+    (`check_out_beside_data`), and refuse a folder that already holds files unless it holds
+    this command's own output, one of the names or patterns ``holds`` (a run's
+    ``config.yaml``, ``checkpoints`` ...: what a rerun or ``--resume`` continues), as
+    ``index build`` refuses a folder that is not a library. Names beginning with a dot are not
+    counted (a temp file of an atomic write; lookfeel writes no other).
+
+    Args:
+        out: the ``--out`` folder (need not exist).
+        data: the ``--data`` dataset folder, or None where the command has none.
+        holds: names or glob patterns of what the command writes in ``out``.
+        what: what the folder should then be, for the message (``"a lookfeel run"``).
+
+    Raises:
+        OutError: in one line naming the folder and what it lacks.
+    """
+    check_out_beside_data(out, data)
+    if not out.is_dir():
+        return
+    names = [p.name for p in out.iterdir() if not p.name.startswith(".")]
+    if not names or any(fnmatch.fnmatch(n, pattern) for n in names for pattern in holds):
+        return
+    marks = ", ".join(holds)
+    raise OutError(
+        f"--out {out}: the folder holds files and is not {what} (none of {marks}); nothing "
+        "in it is changed: choose a new or empty folder"
+    )
+
+
+EMBEDDINGS_KEYS = ("meta.npy", "embeddings_*.npy")
+"""What every ``.npz`` that ``lookfeel embed`` writes holds (zip entries): an existing file is
+replaced only when it holds both (see `check_embeddings_out`)."""
+
+
+def _written_by_embed(path: Path) -> bool:
+    """Whether ``path`` is an ``.npz`` (zip) holding every entry of `EMBEDDINGS_KEYS`."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False
+    return all(any(fnmatch.fnmatch(n, key) for n in names) for key in EMBEDDINGS_KEYS)
+
+
+def check_embeddings_out(out: Path, data: Path | None) -> None:
+    """Before ``lookfeel embed`` writes the file ``out``: refuse it inside ``--data``
+    (`check_out_beside_data`); refuse an existing file unless it is an embeddings file that
+    lookfeel wrote (an ``.npz`` holding ``meta`` and an ``embeddings_<modality>`` array: a
+    rerun replaces its own output, never a user's CSV, photo or other archive); and refuse a
+    name that does not end in ``.npz`` (the file is an npz archive whatever it is named).
+
+    Raises:
+        OutError: in one line naming the file and suggesting another.
+    """
+    check_out_beside_data(out, data)
+    npz = out.suffix.lower() == ".npz"
+    other = out.with_name(f"{out.stem}-embeddings.npz") if npz else out.with_suffix(".npz")
+    if out.exists() and not _written_by_embed(out):
+        raise OutError(
+            f"--out {out}: the file exists and is not an embeddings file lookfeel wrote (an "
+            f".npz holding meta and embeddings_<modality>); it is kept: choose another --out, "
+            f"e.g. {other}"
+        )
+    if not npz:
+        raise OutError(
+            f"--out {out}: an embeddings file is an .npz archive; name it so, e.g. {other}"
+        )
+
+
 def add_data_out(parser: argparse.ArgumentParser, out_help: str, file: bool = False) -> None:
     """The required ``--data`` (a dataset folder) and ``--out`` (what the command writes: a
     folder, or with ``file`` one file)."""
@@ -199,11 +294,12 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     """The config file and overrides of a training run: ``--config`` as given, or (without it)
     the shipped recipe for what ``--data`` holds (`lookfeel.config.recipes`), said on stderr.
 
-    A recipe chosen so keeps only the class heads whose columns the folder's labels.csv has
-    (`fit_class_heads`: physiclear.yaml's hardness, roughness, bumpiness and material on a
-    dataset labelled with hardness and material alone trains those two), unless ``--set``
-    names ``model.class_heads``. A ``--config`` the user named is used as written, where a
-    class head's missing column is an error.
+    A recipe chosen so is fitted to the folder's data (`fit_dataset`: touch videos, no
+    reprints/, fewer fabrics than its folds) and keeps only the class heads whose columns the
+    folder's labels.csv has (`fit_class_heads`: physiclear.yaml's hardness, roughness,
+    bumpiness and material on a dataset labelled with hardness and material alone trains
+    those two), unless ``--set`` names ``model.class_heads``. A ``--config`` the user named
+    is used as written, where a class head's missing column is an error.
 
     Raises:
         ConfigError: no recipe fits the folder's senses.
@@ -211,12 +307,12 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     """
     if args.config is not None:
         return args.config, list(args.set)
-    from lookfeel.config.recipes import default_recipe, fit_class_heads
+    from lookfeel.config.recipes import default_recipe, fit_class_heads, fit_dataset
     from lookfeel.data.layout import scan
 
     catalog = scan(args.data, check_headers=False)
     held = {m for fabric in catalog.fabrics for m, items in fabric.items.items() if items}
-    recipe = default_recipe(held, args.data)
+    recipe = fit_dataset(default_recipe(held, args.data), catalog)
     if not _sets_key(args.set, "model.class_heads"):
         has_labels = (Path(args.data) / "labels.csv").is_file()
         columns = [*catalog.label_columns, *catalog.text_columns] if has_labels else None

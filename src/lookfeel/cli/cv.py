@@ -22,7 +22,17 @@ from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_command, add_run_config, run_config_source
+from lookfeel.cli._args import (
+    Subparsers,
+    add_command,
+    add_run_config,
+    check_out_folder,
+    run_config_source,
+)
+
+CV_FILES = ("cv.json", "cv.md", "seed*-fold*")
+"""What a cross-validation folder holds (its runs first): an existing, non-empty --out must
+hold one (a rerun keeps its finished runs)."""
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -103,6 +113,7 @@ def _seed_list(text: str) -> list[int]:
 
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
+    check_out_folder(args.out, args.data, CV_FILES, "a cross-validation folder")
     from lookfeel.config import RunConfig, load_config
     from lookfeel.crossval import cross_validate, format_cv_summary
     from lookfeel.models import BACKBONES

@@ -18,14 +18,21 @@ from lookfeel.cli._args import (
     add_command,
     add_data_out,
     add_forward,
+    check_embeddings_out,
 )
+from lookfeel.modality import Modality
 
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``embed``."""
     emb = add_command(subparsers, "embed", __doc__, run)
     emb.add_argument("--checkpoint", type=Path, required=True, help="a run's checkpoint (.pt)")
-    add_data_out(emb, "the .npz file to write", file=True)
+    add_data_out(
+        emb,
+        "the .npz file to write; an existing file is replaced only if it is one lookfeel "
+        "embed wrote, and never inside --data",
+        file=True,
+    )
     add_choice(
         emb,
         "--split",
@@ -42,6 +49,7 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Embed and save, then say how many items of each modality went where."""
+    check_embeddings_out(args.out, args.data)  # before any work
     from lookfeel.evaluate import embed_checkpoint, save_embeddings
 
     emb = embed_checkpoint(
@@ -58,4 +66,30 @@ def run(args: argparse.Namespace) -> int:
     if emb.reference:
         ref = ", ".join(f"{m.value} {len(e.embeddings)}" for m, e in emb.reference.items())
         print(f"  with the reference (training) items: {ref}")
+    note = _kinds_left_out(args.data, emb.meta.get("data_config", {}).get("touch_kinds"))
+    if Modality.TOUCH in emb.embedded and note:
+        print(f"  {note}")
     return 0
+
+
+def _kinds_left_out(data: Path, kinds: object) -> str | None:
+    """A line saying which touch presses of ``data`` the run's press kinds (``kinds``, from
+    the checkpoint's ``data.touch_kinds``) leave out, e.g. ``touch: fold presses only (the
+    run's data.touch_kinds); 8 flat presses of the dataset left out``; None when none is."""
+    from lookfeel.data.layout import scan
+
+    if not isinstance(kinds, (list, tuple)) or not kinds:
+        return None
+    wanted = {str(k) for k in kinds}
+    left: dict[str, int] = {}
+    for it in scan(data, check_headers=False).items(Modality.TOUCH):
+        if it.kind is not None and it.kind.value not in wanted:
+            left[it.kind.value] = left.get(it.kind.value, 0) + 1
+    if not left:
+        return None
+    taken = "/".join(sorted(wanted))
+    others = ", ".join(f"{n} {k}" for k, n in sorted(left.items()))
+    return (
+        f"touch: {taken} presses only (the run's data.touch_kinds); {others} presses of the "
+        "dataset left out"
+    )

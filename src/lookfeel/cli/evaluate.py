@@ -28,8 +28,13 @@ from lookfeel.cli._args import (
     add_command,
     add_forward,
     add_set,
+    check_out_folder,
     out_folder,
 )
+
+REPORT_FILES = ("metrics.json",)
+"""What an evaluation report folder holds: an existing, non-empty --out must hold it (a report
+written again)."""
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -81,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
         write_report,
     )
 
+    check_out_folder(args.out, args.data, REPORT_FILES, "a lookfeel evaluation report")
     overrides = list(args.set)
     if args.released_variant:
         overrides.append("released_variant=true")

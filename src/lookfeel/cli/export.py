@@ -11,7 +11,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, out_folder
+from lookfeel.cli._args import (
+    Choices,
+    Subparsers,
+    add_choice,
+    add_command,
+    check_out_folder,
+    out_folder,
+)
+from lookfeel.modality import Modality
+
+EXPORT_FILES = ("export.json", *(f"{m.value}.onnx" for m in Modality))
+"""What an export folder holds (the branches first): an existing, non-empty --out must hold
+one (an export written again)."""
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -57,6 +69,7 @@ def _opset(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Export every branch and print each file with its input, output and check."""
+    check_out_folder(args.out, None, EXPORT_FILES, "a lookfeel export")  # before any work
     from lookfeel.export import export_onnx
 
     exported = export_onnx(args.checkpoint, args.out, opset=args.opset)

@@ -9,7 +9,15 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_data_out, add_forward, add_json
+from lookfeel.cli._args import (
+    Choices,
+    Subparsers,
+    add_choice,
+    add_data_out,
+    add_forward,
+    add_json,
+    check_out_beside_data,
+)
 from lookfeel.modality import PressKind
 
 if TYPE_CHECKING:
@@ -111,6 +119,7 @@ def _kinds(text: str) -> list[PressKind]:
 
 def run_build(args: argparse.Namespace) -> int:
     """Build (or finish) the library; print its items and each pair's calibration."""
+    check_out_beside_data(args.out, args.data)  # before any work: never into the dataset
     from lookfeel.index import build_library
 
     result = build_library(

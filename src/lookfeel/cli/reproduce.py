@@ -12,7 +12,19 @@ import argparse
 import os
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_data_out, add_set
+from lookfeel.cli._args import (
+    Choices,
+    Subparsers,
+    add_choice,
+    add_command,
+    add_data_out,
+    add_set,
+    check_out_folder,
+)
+
+REPRODUCE_FILES = ("results.json", "runs")
+"""What a reproduce folder holds (its runs first): an existing, non-empty --out must hold one
+(a rerun resumes its finished runs)."""
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -47,6 +59,7 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Reproduce, then print the headline numbers, the paper's findings checked, the report."""
+    check_out_folder(args.out, args.data, REPRODUCE_FILES, "a lookfeel reproduce folder")
     from lookfeel.reproduce import headline, reproduce
 
     result = reproduce(

@@ -20,6 +20,7 @@ from lookfeel.cli._args import (
     Subparsers,
     add_command,
     add_run_config,
+    check_out_folder,
     path_flag,
     run_config_source,
 )
@@ -43,8 +44,14 @@ def add_parser(subparsers: Subparsers) -> None:
     )
 
 
+RUN_FILES = ("config.yaml", "checkpoints", "members")
+"""What a run folder holds (an ensemble's members first): an existing, non-empty --out must
+hold one (a run to resume, or one ``train`` then refuses to write over without --resume)."""
+
+
 def run(args: argparse.Namespace) -> int:
     """Train, then print where the run is and its validation numbers."""
+    check_out_folder(args.out, args.data, RUN_FILES, "a lookfeel run")  # before any work
     from lookfeel.config import RunConfig, load_config
     from lookfeel.train import train
 

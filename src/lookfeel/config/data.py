@@ -159,14 +159,15 @@ class DataConfig:
     """Which frame of a press is "the" image: an index into its ordered frames; negative
     counts from the end (authors' code: -2, the second-to-last). Clamped for short presses.
     Unused when ``touch_frames`` is set."""
-    touch_frames: tuple[int, ...] = ()
+    touch_frames: tuple[int, ...] | None = ()
     """Several frames of a press read together, stacked as channels in this order (3 per
     frame), e.g. ``[0, -1]``: the first frame, at the lightest force, and the last, at peak
     force, so the network sees how the contact changes as the force rises (a fold's
     flattening follows its stiffness and thickness). Indices as ``touch_frame``'s; empty
-    (the default): the one frame ``touch_frame``. For presses stored as frame images (a
-    video press has its own options, ``video_*``); the last index listed is the frame shown
-    wherever one image of the press is displayed."""
+    (the default; ``null`` says the same and is stored as empty): the one frame
+    ``touch_frame``. For presses stored as frame images (a video press has its own options,
+    ``video_*``); the last index listed is the frame shown wherever one image of the press is
+    displayed."""
     video_frame: float | None = None
     """Which frame of a press video (a touch item recorded as a video) is "the" image:
     ``None`` the deepest contact; a number in [0, 1] that position across the contact span
@@ -312,13 +313,15 @@ class DataConfig:
             raise ConfigError(
                 f"data.depth_post_at: must be [x, y] fractions in [0, 1], got {self.depth_post_at}"
             )
-        if len(self.touch_frames) > MAX_TOUCH_FRAMES:
+        if self.touch_frames is None:  # null: none stacked, as the empty list says
+            object.__setattr__(self, "touch_frames", ())
+        frames = self.touch_frames or ()
+        if len(frames) > MAX_TOUCH_FRAMES:
             raise ConfigError(
-                f"data.touch_frames: at most {MAX_TOUCH_FRAMES} frames, got "
-                f"{len(self.touch_frames)}"
+                f"data.touch_frames: at most {MAX_TOUCH_FRAMES} frames, got {len(frames)}"
             )
         touch_aug = [a for m, a in self.augment.items() if Modality(m) is Modality.TOUCH]
-        if len(self.touch_frames) > 1 and any(a.permute_channels for a in touch_aug):
+        if len(frames) > 1 and any(a.permute_channels for a in touch_aug):
             raise ConfigError(
                 "data.augment.touch.permute_channels: would mix the frames that "
                 "data.touch_frames stacks as channels; set one"

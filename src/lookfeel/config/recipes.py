@@ -10,8 +10,10 @@ recipe for the data they are given:
 - touch alone (GelSight presses or videos, as ``physiclear``): ``configs/physiclear.yaml``;
 - depth alone (Kinect drapes, as GelFabric's): ``configs/real_depth.yaml``, the leak-free recipe.
 
-Colour photos alone have no shipped recipe: name one with ``--config``. A recipe chosen so keeps
-only the class heads whose columns the dataset's labels.csv has (`fit_class_heads`).
+Colour photos alone have no shipped recipe: name one with ``--config``. A recipe chosen so is
+fitted to the dataset: it keeps only the class heads whose columns the dataset's labels.csv has
+(`fit_class_heads`), reads touch presses recorded as videos as physiclear.yaml does, and deals
+a small dataset's fabrics into its folds (`fit_dataset`).
 """
 
 from __future__ import annotations
@@ -21,13 +23,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from lookfeel.config._core import ConfigError, apply_overrides
-from lookfeel.modality import Modality
+from lookfeel.modality import REPRINTS, Modality
 
-__all__ = ["Recipe", "default_recipe", "fit_class_heads", "recipe_path"]
+if TYPE_CHECKING:
+    from lookfeel.data.catalog import Catalog
+
+__all__ = ["Recipe", "default_recipe", "fit_class_heads", "fit_dataset", "recipe_path"]
 
 
 @dataclass(frozen=True)
@@ -94,6 +100,82 @@ def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) 
     )
 
 
+def _resolved(recipe: Recipe) -> dict[str, Any]:
+    """The recipe's config file with its overrides applied, as plain data."""
+    return apply_overrides(yaml.safe_load(recipe.path.read_text()) or {}, recipe.overrides)
+
+
+def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
+    """``recipe`` with the overrides that let it run on ``catalog``, the reason saying which.
+
+    A shipped recipe is written for the data it was tuned on; chosen for a user's data it is
+    changed where that data differs (a config the user names is used as written):
+
+    - touch presses recorded as videos (``touch/F0001_fold_1502.mp4``) where the recipe stacks
+      a press's frame images (synth_cross.yaml's ``data.touch_frames``: a synthetic press's
+      three frames): one image a press, read as configs/physiclear.yaml reads its videos
+      (``data.touch_frames=[]`` and physiclear.yaml's ``data.video_*`` settings the recipe does
+      not set: training views across the contact span, evaluation averaging them);
+    - no ``reprints/`` folder where the recipe trains on re-printed photos
+      (``data.color_reprints``, a synthetic world's): the photos themselves, said once here
+      rather than warned at every run;
+    - fewer fabrics than the recipe's folds test (synth_cross.yaml: 5 folds of 18, chosen from
+      a paper-size world's 100 training fabrics; ``lookfeel train`` trains fold 0, ``cv`` all):
+      folds that deal every fabric (``train.fold_size=null``), and with fewer fabrics than
+      folds one fabric a fold (``train.folds``). The paper split's test fabrics, never trained
+      on, are not counted. A single fabric is left to the split's own error.
+
+    Returns:
+        ``recipe`` itself when nothing needs changing, else a copy with the overrides added.
+    """
+    from lookfeel.data.files import VIDEO_SUFFIXES
+    from lookfeel.data.splits import paper_split
+
+    data = _resolved(recipe)
+    d, t = data.get("data") or {}, data.get("train") or {}
+    views = {str(v) for v in t.get("views") or ()}
+    overrides: list[str] = []
+    said: list[str] = []
+    touch = catalog.items(Modality.TOUCH) if Modality.TOUCH.value in views else []
+    if any(it.path.suffix.lower() in VIDEO_SUFFIXES for it in touch):
+        settings = ["data.touch_frames=[]"] if d.get("touch_frames") else []
+        reads = yaml.safe_load(recipe_path("physiclear.yaml").read_text())["data"]
+        settings += [
+            f"data.{k}={v if isinstance(v, str) else json.dumps(v)}"
+            for k, v in reads.items()
+            if k.startswith("video_") and k not in d
+        ]
+        if settings:
+            overrides += settings
+            said.append(f"touch videos read as physiclear.yaml does ({', '.join(settings)})")
+    if (
+        Modality.COLOR.value in views
+        and d.get("color_reprints")
+        and not (catalog.root / REPRINTS).is_dir()
+    ):
+        overrides.append("data.color_reprints=0")
+        said.append(f"no {REPRINTS}/ folder: trained on the photos (data.color_reprints=0)")
+    folds, size = int(t.get("folds", 5)), t.get("fold_size")
+    if t.get("split") == "fold" and size is not None:
+        n = len(paper_split(catalog).train) or len(catalog.ids)
+        if 2 <= n < folds * int(size):
+            overrides.append("train.fold_size=null")
+            if n < folds:
+                overrides.append(f"train.folds={n}")
+            said.append(
+                f"{n} fabrics to train on, fewer than the recipe's {folds} folds of {size}: "
+                f"{min(folds, n)} folds dealing them all (train.fold_size=null"
+                + (f", train.folds={n})" if n < folds else ")")
+            )
+    if not overrides:
+        return recipe
+    return replace(
+        recipe,
+        overrides=(*recipe.overrides, *overrides),
+        reason="; ".join([recipe.reason, *said]),
+    )
+
+
 def fit_class_heads(recipe: Recipe, columns: Sequence[str] | None) -> Recipe:
     """``recipe`` keeping only the class heads (``model.class_heads``) whose columns the dataset
     has, with the reason saying which it kept and which it left.
@@ -114,7 +196,7 @@ def fit_class_heads(recipe: Recipe, columns: Sequence[str] | None) -> Recipe:
         ``recipe`` itself when it names no class head missing from ``columns``; else a copy
         with a ``model.class_heads`` override of those that are (possibly none).
     """
-    data = apply_overrides(yaml.safe_load(recipe.path.read_text()) or {}, recipe.overrides)
+    data = _resolved(recipe)
     named = [str(c) for c in (data.get("model") or {}).get("class_heads") or ()]
     have = set(columns or ())
     kept = [c for c in named if c in have]

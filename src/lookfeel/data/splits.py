@@ -8,18 +8,22 @@ import warnings
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from lookfeel.data.catalog import PHYSICAL_LABELS, Catalog, Item
+from lookfeel.data.layout import FOLDER_ALIASES
 from lookfeel.data.problems import DatasetError
 from lookfeel.errors import LookfeelError
 
 __all__ = [
+    "AUTHORS_FOLDERS",
     "PAPER_EXCLUDED_IDS",
     "PAPER_TEST_IDS",
     "FabricSplit",
     "SplitError",
+    "is_authors_gelfabric",
     "kmeans_clusters",
     "paper_split",
     "seen_fabric_split",
@@ -31,6 +35,15 @@ PAPER_TEST_IDS = (3, 7, 16, 24, 30, 35, 39, 42, 43, 44, 52, 56, 70, 71, 75, 78, 
 """The paper's 18 test fabrics, "selected evenly from the 8 clusters" (section 5)."""
 PAPER_EXCLUDED_IDS = (107,)
 """Fabric 107, which the authors' code always excludes."""
+AUTHORS_FOLDERS = frozenset(
+    name
+    for names in FOLDER_ALIASES.values()
+    for name in names
+    if name not in ("depth", "color", "touch", "videos")
+)
+"""GelFabric's own folder names, as its authors released it (``kinect_depth_new``, ``canon``,
+``image_fold`` ...; ``image_rand*`` too): a dataset read through one of them is GelFabric, and
+its paper split without a ``paper_split`` column is the built-in list."""
 
 
 class SplitError(LookfeelError):
@@ -40,10 +53,19 @@ class SplitError(LookfeelError):
 
 @dataclass(frozen=True)
 class FabricSplit:
-    """Fabric ids on each side of a fabric-disjoint split."""
+    """Fabric ids on each side of a fabric-disjoint split.
+
+    Attributes:
+        train: the training side.
+        test: the held-out side.
+        source: for `paper_split`, where its test fabrics came from: ``"labels"`` (labels.csv's
+            ``paper_split`` column) or ``"builtin"`` (`PAPER_TEST_IDS`, on GelFabric as its
+            authors released it); None for any other split, and for data with no paper split.
+    """
 
     train: tuple[int, ...]
     test: tuple[int, ...]
+    source: Literal["labels", "builtin"] | None = None
 
     def __post_init__(self) -> None:
         both = set(self.train) & set(self.test)
@@ -51,26 +73,64 @@ class FabricSplit:
             raise ValueError(f"fabric(s) {sorted(both)} are on both sides of the split")
 
 
+def is_authors_gelfabric(catalog: Catalog) -> bool:
+    """Whether ``catalog`` was read through GelFabric's own folder names (`AUTHORS_FOLDERS`):
+    GelFabric as its authors released it, whose test fabrics the built-in list names."""
+    for f in catalog.fabrics:
+        for items in f.items.values():
+            folder = items[0].path.parent.name.lower() if items else ""
+            if folder in AUTHORS_FOLDERS or folder.startswith("image_rand"):
+                return True
+    return False
+
+
 def paper_split(catalog: Catalog) -> FabricSplit:
     """The paper's 100/18 split of the fabrics present in ``catalog``.
 
-    Uses the ``paper_split`` column of labels.csv when any fabric has it, else the built-in
-    list of the 18 test ids (fabric 107 excluded either way). Test fabrics absent from the data
-    (as in the shared real data, which holds them back) simply do not appear. A dataset of
-    named objects without the column has no paper split: every object is on the train side.
+    Where the test fabrics come from:
+
+    - the ``paper_split`` column of labels.csv, when any fabric has it (the shared GelFabric
+      data, a ``lookfeel synth`` world): ``train`` fabrics train, ``test`` ones are held out,
+      ``excluded`` ones are on neither side;
+    - else, for GelFabric as its authors released it (read through their folder names,
+      `is_authors_gelfabric`), the built-in list of the 18 test ids (`PAPER_TEST_IDS`), fabric
+      107 excluded, with a warning naming the fabrics held out;
+    - else none: every fabric is on the train side. A dataset of your own (numbered fabrics
+      in depth/, color/, touch/, or named objects in videos/) is never split by GelFabric's ids;
+      mark fabrics ``paper_split=test`` in labels.csv to hold them out so.
+
+    Test fabrics absent from the data (as in the shared real data, which holds them back)
+    simply do not appear. ``source`` of the result says which of the first two applied.
+
+    Warns:
+        UserWarning: the built-in list holds fabrics back (the second case).
     """
     labelled = {f.id: f.paper_split for f in catalog.fabrics if f.paper_split is not None}
-    if not labelled and any(f.name is not None for f in catalog.fabrics):
-        # Named objects (``videos/<object>_<n>.mov``) are numbered by name: GelFabric's test
-        # ids mean nothing there.
-        return FabricSplit(tuple(catalog.ids), ())
     if labelled:
         train = tuple(i for i in catalog.ids if labelled.get(i) == "train")
         test = tuple(i for i in catalog.ids if labelled.get(i) == "test")
-    else:
-        train = tuple(i for i in catalog.ids if i not in PAPER_TEST_IDS + PAPER_EXCLUDED_IDS)
-        test = tuple(i for i in catalog.ids if i in PAPER_TEST_IDS)
-    return FabricSplit(train, test)
+        return FabricSplit(train, test, "labels")
+    if not is_authors_gelfabric(catalog):
+        return FabricSplit(tuple(catalog.ids), ())
+    train = tuple(i for i in catalog.ids if i not in PAPER_TEST_IDS + PAPER_EXCLUDED_IDS)
+    test = tuple(i for i in catalog.ids if i in PAPER_TEST_IDS)
+    dropped = [i for i in catalog.ids if i in PAPER_EXCLUDED_IDS]
+    if test or dropped:
+        held = ", ".join(map(str, test)) or "none"
+        also = f"; {', '.join(map(str, dropped))} excluded" if dropped else ""
+        lacks = (
+            "its labels.csv has no paper_split column"
+            if (catalog.root / "labels.csv").exists()
+            else "it has no labels.csv"
+        )
+        warnings.warn(
+            f"{catalog.root} is GelFabric in its authors' folders and {lacks}: the paper's test "
+            f"fabrics on the built-in list are held out, never trained on: {held}{also}; a "
+            "paper_split column in labels.csv (train, test or excluded per fabric) chooses them "
+            "instead",
+            stacklevel=2,
+        )
+    return FabricSplit(train, test, "builtin")
 
 
 def _by_cluster(
@@ -91,6 +151,7 @@ def stratified_fabric_split(
     seed: int = 0,
     excluded: int = 0,
     warn: bool = True,
+    excluded_by: Literal["labels", "builtin"] = "labels",
 ) -> FabricSplit:
     """A fabric-disjoint split with test fabrics spread evenly over clusters (as the paper).
 
@@ -106,6 +167,8 @@ def stratified_fabric_split(
         seed: random seed.
         excluded: how many fabrics the caller kept out of ``fabric_ids`` beforehand (the
             paper's test fabrics); errors say so, since the user counts every fabric.
+        excluded_by: who held those back (`FabricSplit.source` of the paper split): labels.csv's
+            ``paper_split`` column, or GelFabric's built-in list; errors name it.
         warn: warn when fewer fabrics are left to train on than are held out (off where the
             held-out side is not what trains, e.g. choosing cross-validation's tested fabrics).
 
@@ -122,11 +185,11 @@ def stratified_fabric_split(
         if n < 2:
             raise SplitError(
                 f"{n} fabric(s) cannot be split into training and held-out fabrics; a "
-                f"fabric-disjoint split needs at least 2{_left_out(excluded)}"
+                f"fabric-disjoint split needs at least 2{_left_out(excluded, excluded_by)}"
             )
         raise SplitError(
             f"cannot hold out {k} of {n} fabrics: n_test must be between 1 and {n - 1} "
-            f"(train.val_fabrics){_left_out(excluded)}"
+            f"(train.val_fabrics){_left_out(excluded, excluded_by)}"
         )
     groups = _by_cluster(ids, clusters)
     sizes = {c: len(g) for c, g in groups.items()}
@@ -157,19 +220,22 @@ def stratified_fabric_split(
     if warn and n - k < k:
         warnings.warn(
             f"holding out {k} of {n} fabrics leaves {n - k} to train on"
-            f"{_left_out(excluded)}; lower train.val_fabrics to train on more",
+            f"{_left_out(excluded, excluded_by)}; lower train.val_fabrics to train on more",
             stacklevel=2,
         )
     return FabricSplit(tuple(i for i in ids if i not in test_set), tuple(sorted(test_set)))
 
 
-def _left_out(excluded: int) -> str:
+def _left_out(excluded: int, by: Literal["labels", "builtin"]) -> str:
+    """What an error adds about the ``excluded`` paper test fabrics a caller left out."""
     if not excluded:
         return ""
-    return (
-        f" ({excluded} more fabric(s) marked paper_split=test in labels.csv are never trained "
-        "on and are not counted)"
+    held_by = (
+        "on the paper's built-in test list (GelFabric in its authors' folders)"
+        if by == "builtin"
+        else "marked paper_split=test in labels.csv"
     )
+    return f" ({excluded} more fabric(s) {held_by} are never trained on and are not counted)"
 
 
 def stratified_fabric_folds(
@@ -179,6 +245,7 @@ def stratified_fabric_folds(
     seed: int = 0,
     fold_size: int | None = None,
     excluded: int = 0,
+    excluded_by: Literal["labels", "builtin"] = "labels",
 ) -> list[FabricSplit]:
     """K fabric-disjoint folds, each cluster's fabrics dealt evenly across the folds.
 
@@ -188,7 +255,7 @@ def stratified_fabric_folds(
     chooses a test set; e.g. 5 folds of 18 of 100 fabrics, as the paper's 18 test fabrics), the
     rest are on the training side of every fold.
 
-    ``excluded`` is as in `stratified_fabric_split`.
+    ``excluded`` and ``excluded_by`` are as in `stratified_fabric_split`.
 
     Raises:
         SplitError: too few fabrics for ``n_folds`` (of ``fold_size``).
@@ -207,7 +274,7 @@ def stratified_fabric_folds(
                 f"{n_folds} folds of {fold_size} fabrics need {n_folds * fold_size} training "
                 f"fabrics (train.folds x train.fold_size, cv's --folds x --fold-size); there "
                 f"are {len(ids)}"
-                + _left_out(excluded)
+                + _left_out(excluded, excluded_by)
                 + (
                     f"; train.fold_size={len(ids) // n_folds} (--fold-size {len(ids) // n_folds}) "
                     "fits"

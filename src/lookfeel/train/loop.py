@@ -105,7 +105,12 @@ class TrainResult:
 def select_split(
     catalog: Catalog, config: RunConfig
 ) -> tuple[Catalog, Catalog | None, dict[str, Any]]:
-    """The training and validation catalogs of a run, and a record of the split for split.json."""
+    """The training and validation catalogs of a run, and a record of the split for split.json.
+
+    The paper's test fabrics (`paper_split`: labels.csv's ``paper_split=test``, or GelFabric's
+    built-in list on the authors' own folders) are never trained on; every other split is made
+    of the rest. A dataset without a paper split (a user's own) splits all its fabrics.
+    """
     t = config.train
     if t.split == "none":
         return catalog, None, {"kind": "none", "train": catalog.ids, "val": []}
@@ -126,10 +131,15 @@ def select_split(
         return train, val, info | {"novel": novel, "val_items": val_items}
     if t.split == "paper":
         if not paper.test:
+            why = (
+                "none of the paper's test fabrics is in this dataset (the shared real data "
+                "holds them back)"
+                if paper.source is not None
+                else "no fabric of this dataset is marked paper_split=test in labels.csv"
+            )
             raise DatasetError(
-                "train.split=paper: none of the paper's test fabrics is in this dataset (the "
-                "shared real data holds them back); use train.split=stratified to hold out "
-                "training fabrics",
+                f"train.split=paper: {why}; use train.split=stratified to hold out training "
+                "fabrics",
                 catalog.root,
             )
         return (
@@ -146,12 +156,18 @@ def select_split(
             seed=t.split_seed,
             fold_size=t.fold_size,
             excluded=len(paper.test),
+            excluded_by=paper.source or "labels",
         )[t.fold]
         info = {"kind": "fold", "fold": t.fold, "folds": t.folds, "fold_size": t.fold_size}
         info["seed"] = t.split_seed
     else:
         split = stratified_fabric_split(
-            pool, clusters, n_test=t.val_fabrics, seed=t.split_seed, excluded=len(paper.test)
+            pool,
+            clusters,
+            n_test=t.val_fabrics,
+            seed=t.split_seed,
+            excluded=len(paper.test),
+            excluded_by=paper.source or "labels",
         )
         info = {"kind": "stratified", "seed": t.split_seed}
     info |= {"train": list(split.train), "val": list(split.test)}
@@ -1128,6 +1144,14 @@ def _train(
         else None
     )
 
+    # The ranks each column of ranks holds (hardness 0/1/2): `predict` reads the property
+    # head's number for one as the nearest rank.
+    rank_columns = {
+        c: sorted({int(f.labels[c]) for f in catalog.fabrics if c in f.labels})
+        for c in catalog.rank_columns
+        if c in catalog.label_columns
+    }
+
     def checkpoint_state(step: int) -> dict[str, Any]:
         return {
             "step": step,
@@ -1140,6 +1164,7 @@ def _train(
                 c: [float(ds.label_mean[i]), float(ds.label_std[i])]
                 for i, c in enumerate(catalog.label_columns)
             },
+            "rank_columns": rank_columns,
             "split": split_info,
             "model": model.state_dict(),
             "optimizer": optimizer.state_dict(),
