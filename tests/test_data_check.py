@@ -160,3 +160,80 @@ def test_synthetic_depth_reads_as_millimetres(tmp_path: Path):
     assert len(files) == 12
     for path in files:
         assert _depth_unit_problem(path, decode_depth(path)) is None, path
+
+
+def test_depth_beyond_the_mapped_range_is_one_warning_naming_the_keys(tiny_dataset: Path):
+    """Depth 0.8 m further than the range mapped to 0..1 (800-1,300 mm by default) reads as
+    millimetres, yet every pixel saturates: one warning for the dataset, not per file. A room
+    beyond the range (70% of the pixels at 1.6 m) while the cloth lies inside is no warning."""
+    paths = sorted((tiny_dataset / "depth").glob("*.png"))
+    for path in paths:
+        d = np.asarray(Image.open(path)).astype(np.int64)
+        d[:17] = 1600
+        _write_depth_mm(path, d)
+    assert check_dataset(tiny_dataset).problems == ()
+    for path in paths:
+        d = np.asarray(Image.open(path)).astype(np.int64)
+        _write_depth_mm(path, np.where(d > 0, d + 800, 0))
+    (warning,) = check_dataset(tiny_dataset).warnings
+    assert warning.path == tiny_dataset / "depth"
+    assert warning.message.startswith("only 0% of the valid depth pixels lie between 800 and ")
+    assert "data.depth_min_mm 800, data.depth_range_mm 500: the defaults" in warning.message
+    assert "median is 2,400 mm (5th-95th percentile 1,780-2,400)" in warning.message
+    assert "data.depth_input: registered" in warning.message
+
+
+def test_image_files_lookfeel_does_not_read_are_errors_saying_what_to_convert_to(
+    tiny_dataset: Path, capsys
+):
+    """A depth map as a float TIFF (metres) was skipped and `data check` said OK; a press kept
+    as a folder of frames likewise. Both are errors now, one line per folder."""
+    depth = tiny_dataset / "depth"
+    for path in sorted(depth.glob("F0001_*.png")):
+        Image.fromarray(np.asarray(Image.open(path)).astype(np.float32) / 1000).save(
+            path.with_suffix(".tif")
+        )
+        path.unlink()
+    press = tiny_dataset / "touch" / "F0002_fold_200"
+    press.mkdir()
+    for frame in sorted((tiny_dataset / "touch").glob("F0002_fold_*_200.png")):
+        frame.rename(press / frame.name.replace("F0002_fold_", "").replace("_200", ""))
+    (depth / "old").mkdir()  # a copy set aside: still only skipped
+    (depth / "old" / "F0003_Depth_New_000000.png").write_bytes(b"")
+    catalog = check_dataset(tiny_dataset)
+    errors = {p.path: p.message for p in catalog.errors}
+    tif = depth / "F0001_Depth_New_000000.tif"
+    assert set(errors) == {tif, press, depth}  # depth: fabric 1 has no depth item left
+    assert errors[tif] == (
+        "lookfeel does not read .tif files (and 2 more .tif in depth/): depth must be a 16-bit "
+        "greyscale PNG in millimetres (0 = no reading); convert each (the scan skips these "
+        "files, so runs read no depth from them)"
+    )
+    assert errors[press].startswith(
+        "a subfolder of touch/ holding images (e.g. 01.png), which are not read (the layout is "
+        "flat): put each frame in touch/ itself, named F<id>_<kind>_<frame>_<press>.png (here "
+        "F0002_fold_01_200.png"
+    )
+    assert "or the press as one video in touch/ (F0002_fold_200.mp4)" in errors[press]
+    assert [p.path for p in catalog.skipped] == [depth / "old"]
+    assert main(["data", "check", str(tiny_dataset), "--no-leakage"]) == 1
+    out = capsys.readouterr().out
+    assert "SKIPPED" in out and ".tif" not in out.split("SKIPPED")[1]
+
+
+def test_frames_of_another_shape_are_a_warning_naming_the_turned_one(tiny_dataset: Path):
+    """A portrait press among landscape ones is resized to the same square: stretched
+    differently, and most likely turned. Sizes of one shape are resized alike: no warning."""
+    touch = tiny_dataset / "touch"
+    for frame in sorted(touch.glob("F0003_flat_*_301.png")):
+        write_rgb(frame, 3, 0, size=(24, 32))
+    for frame in sorted(touch.glob("F0004_flat_*_401.png")):
+        write_rgb(frame, 4, 0, size=(64, 48))  # larger, same shape
+    (warning,) = check_dataset(tiny_dataset).warnings
+    assert warning.path == touch / "F0003_flat_01_301.png"
+    assert warning.message.startswith(
+        "touch frames come in 3 sizes of different shape: 32x24 (28 presses), 24x32 (1 press), "
+        "64x48 (1 press); each is resized to the network's one square input (data.image_size)"
+    )
+    assert "(this one is portrait among landscape ones: most likely turned)" in warning.message
+    assert warning.message.endswith("record them alike, or turn or crop them to 32x24")

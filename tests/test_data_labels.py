@@ -148,3 +148,76 @@ def test_half_ranks_and_measurements_are_numbers_without_a_warning(tmp_path: Pat
     assert [(p.line, p.severity, p.message[:45]) for p in problems] == [
         (6, "warning", "column 'hardness': fabric 5 has '-1', where t")
     ]
+
+
+# ---- a spreadsheet's other separators, and classes spelt two ways ---------------------------
+
+
+@pytest.mark.parametrize(
+    ("content", "why"),
+    [
+        (
+            b"fabric_id;density;material\n1;0.5;wool\n2;0.7;silk\n3;0.2;wool\n4;0.9;silk\n",
+            "separated by semicolons (;), not commas: lookfeel reads comma-separated files; "
+            "save it as CSV with commas; no label was read",
+        ),
+        (
+            b"fabric_id;density;material\n1;0,5;wool\n2;0,7;silk\n3;0,2;wool\n4;0,9;silk\n",
+            "separated by semicolons (;), not commas: lookfeel reads comma-separated files; "
+            "save it as CSV with commas and a full stop as the decimal mark (it has '0,5'); "
+            "no label was read",
+        ),
+        (
+            b"fabric_id\tdensity\tmaterial\n1\t0.5\twool\n2\t0.7\tsilk\n3\t0.2\twool\n4\t1\tx\n",
+            "separated by tabs, not commas",
+        ),
+        (
+            "fabric_id\tdensity\n1\t0.5\n2\t0.7\n3\t0.2\n4\t0.9\n".encode("utf-16"),
+            'saved as UTF-16 text, separated by tabs (a spreadsheet\'s "Unicode text"): '
+            'lookfeel reads UTF-8 files separated by commas; save it as "CSV UTF-8 (comma '
+            'delimited)"; no label was read',
+        ),
+    ],
+    ids=["semicolons", "decimal-commas", "tabs", "utf-16"],
+)
+def test_a_labels_file_with_another_separator_is_one_error_and_no_cascade(
+    tmp_path: Path, content: bytes, why: str
+):
+    """A European spreadsheet's labels.csv was one error about the header and one more per
+    fabric ("has no row in labels.csv"): now one line saying how to save it."""
+    root = write_tiny_dataset(
+        tmp_path / "t", fabrics=4, drapes=1, fold_presses=1, flat_presses=0, frames=1,
+        labels=False,
+    )  # fmt: skip
+    (root / "labels.csv").write_bytes(content)
+    catalog = scan(root)
+    (error,) = catalog.errors
+    assert (error.path, error.line) == (root / "labels.csv", 1)
+    assert why in error.message
+    assert catalog.label_columns == () and all(not f.labels for f in catalog.fabrics)
+
+
+def test_classes_spelt_in_two_cases_are_a_warning_naming_both(tmp_path: Path):
+    """``Cotton`` and ``cotton`` silently made two classes."""
+    table, problems = _read(
+        tmp_path,
+        "fabric_id,material,weave\n1,cotton,plain\n2,Cotton ,plain\n3,wool,Plain\n4,COTTON,x\n",
+    )
+    assert table.text_columns == ("material", "weave")
+    assert [(p.line, p.severity, p.message) for p in problems] == [
+        (
+            2,
+            "warning",
+            "column 'material': 'cotton' (fabric 1, line 2) and 'Cotton' (fabric 2, line 3) and "
+            "'COTTON' (fabric 4, line 5) differ only in case or spacing, so they are 3 classes; "
+            "write them alike if they are one",
+        ),
+        (
+            2,
+            "warning",
+            "column 'weave': 'plain' (fabric 1, line 2) and 'Plain' (fabric 3, line 4) differ "
+            "only in case or spacing, so they are 2 classes; write them alike if they are one",
+        ),
+    ]
+    _, problems = _read(tmp_path, "fabric_id,material\n1,cotton\n2,wool\n3,cotton\n")
+    assert problems == []

@@ -312,3 +312,54 @@ def test_position_names_the_depth_images_whose_floor_the_cloth_hides(tmp_path):
     # Every floor in view: nothing to say.
     clean = position_leakage(scan(_write_posts(tmp_path / "clean", moved=False)), n_boot=50)
     assert not isinstance(clean, str) and clean.no_floor == ()
+
+
+def _write_presses(root: Path, sessions: bool, fabrics: int = 6, presses: int = 3) -> Path:
+    """Press videos ``touch/F<id>_fold_<press>.mp4``: each fabric's texture pressed in. With
+    ``sessions``, each fabric was recorded in its own session, whose sensor light is a few grey
+    levels off the others' (PhysiCLeAR's drift); without, one light for all. Fabric 1's last
+    video holds no press."""
+    from ._video import PRESS, object_press, write_video
+
+    rng = np.random.default_rng(5)
+    light = rng.permutation(np.arange(-15, 15, 5))[:fabrics] if sessions else np.zeros(fabrics)
+    (root / "touch").mkdir(parents=True)
+    for f in range(1, fabrics + 1):
+        for p in range(presses):
+            depth = {} if (f, p) == (1, presses - 1) else PRESS
+            frames = object_press(f, depth, 16, seed=10 * f + p).astype(np.float32)
+            frames = np.clip(frames + light[f - 1], 0, 255).astype(np.uint8)
+            write_video(root / "touch" / f"F{f:04d}_fold_{100 * f + p}.mp4", frames)
+    return root
+
+
+def test_press_videos_are_scored_with_their_no_contact_frame_as_the_background(tmp_path, capsys):
+    """Press videos were not scored at all ("cannot decode"): the sensor's light before the
+    press is their background, and a light that differs per session is a leak."""
+    from lookfeel.cli import main
+
+    leaky = _write_presses(tmp_path / "sessions", sessions=True)
+    report = leakage_report(scan(leaky), n_boot=100)
+    assert report.skipped == {}
+    (touch,) = report.modalities
+    assert touch.press_videos and touch.mask_source == "no-contact"
+    assert touch.n_items == 17 and touch.left_out == 1 and touch.n_fabrics == 6
+    assert touch.background_fraction == 1.0 and touch.pooled_shape == (48, 64)
+    assert touch.background_top1 > 0.9 and touch.leak
+    assert touch.whole_top1 > 0.5 and touch.input_top1 > 0.5  # the texture is in the press
+    text = format_leakage(report)
+    assert "17 press videos of 6 fabrics (1 with no press left out" in text
+    assert "LEAK: the sensor with nothing touching it identifies the fabric" in text
+    (problem,) = leakage_problems(report)
+    assert problem.path == leaky / "touch" and "no-contact frame" in problem.message
+
+    one_light = _write_presses(tmp_path / "one_light", sessions=False)
+    (touch,) = leakage_report(scan(one_light), n_boot=100).modalities
+    assert touch.background_top1 < 0.4 and not touch.leak  # chance is 1/6
+    assert touch.input_top1 > 0.5
+    assert main(["data", "check", str(leaky)]) == 0
+    out = capsys.readouterr().out
+    assert f"WARNING  {leaky / 'touch'}: touch: the no-contact frame" in out
+    assert main(["data", "leakage", str(one_light), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)["modalities"]["touch"]
+    assert d["press_videos"] is True and d["leak"] is False and d["input_top1"] > 0.5

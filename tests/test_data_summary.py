@@ -76,7 +76,7 @@ def test_problems_row_says_it_covers_names_and_headers_only(tmp_path: Path, caps
             "not a text CSV in UTF-8 (byte 25",
         ),
         (b"", "labels file is empty"),
-        (b"object;hardness\nsponge;0\ncork;1\n", "no 'fabric_id' or 'object' column"),
+        (b"object;hardness\nsponge;0\ncork;1\n", "separated by semicolons (;), not commas"),
     ],
     ids=["latin1", "empty", "semicolons"],
 )
@@ -120,3 +120,20 @@ def test_numbered_fabrics_get_no_object_names(tiny_dataset: Path):
     s = scan(tiny_dataset).summary()
     assert s["labelled_without_images"] == [50]
     assert "object_names" not in s and "labelled_without_images_names" not in s
+
+
+def test_labels_row_counts_fabrics_with_a_dataset_s_own_numeric_columns(tmp_path: Path, capsys):
+    """``bend_score`` on every fabric was reported as "0 fabrics with physical labels": only
+    the paper's four columns were counted. Any numeric column counts; the paper's four alone
+    keep their name."""
+    root = write_tiny_dataset(
+        tmp_path / "own", fabrics=3, drapes=1, fold_presses=1, flat_presses=0, frames=1,
+        labels=False,
+    )  # fmt: skip
+    labels = "fabric_id,bend_score,material\n1,0.8,wool\n2,1.5,silk\n3,,x\n"
+    (root / "labels.csv").write_text(labels)
+    (labels,) = [line for line in _info(root, capsys).splitlines() if "bend_score" in line]
+    assert labels.endswith("bend_score; 2 fabrics with numeric labels")
+    paper = write_tiny_dataset(tmp_path / "paper", fabrics=3, drapes=1, fold_presses=0)
+    out = _info(paper, capsys)
+    assert "thickness_mm, density, stiffness, stretchiness; 3 fabrics with physical labels" in out

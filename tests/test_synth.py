@@ -247,7 +247,7 @@ def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"labels\.csv:2: column 'thickness_mm'"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
     bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
-    with pytest.raises(ValueError, match=r"labels\.csv: not a text CSV in UTF-8 \(byte 0"):
+    with pytest.raises(ValueError, match=r"labels\.csv:1: saved as UTF-16 text \(a spreadsheet"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
 
 

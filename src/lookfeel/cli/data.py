@@ -30,9 +30,11 @@ def add_parser(subparsers: Subparsers) -> None:
             "Decode every file of a dataset and report all problems at once, each with its "
             "path: undecodable or truncated files, depth that is not 16-bit, touch names that "
             "do not parse, fabrics missing from labels.csv (or labelled without images, a "
-            "warning), fabrics lacking a modality, depth maps whose values do not read as "
-            "millimetres (a warning). Exit 1 on errors, 0 when clean. Nothing under ROOT is "
-            "modified."
+            "warning), fabrics lacking a modality, image files lookfeel does not read (.tif, "
+            ".npy ...) and press frames in subfolders, depth maps whose values do not read as "
+            "millimetres or lie mostly outside data.depth_min_mm..+data.depth_range_mm (by "
+            "their defaults), frames of more than one shape, and background leaks (warnings). "
+            "Exit 1 on errors, 0 when clean. Nothing under ROOT is modified."
         ),
     )
     check.add_argument("root", type=Path, help="dataset folder")
@@ -61,7 +63,10 @@ def add_parser(subparsers: Subparsers) -> None:
             "fabrics. Background = pixels that stay still across the modality's images: within "
             "--tolerance of their per-pixel median (depth 20 mm, colour/touch 12 levels) in at "
             "least --static-fraction of them (cloth moves by centimetres between drapes, the "
-            "room by millimetres), or the white pixels of a --mask image. A background whose "
+            "room by millimetres), or the white pixels of a --mask image; for press videos, "
+            "the no-contact frame (the sensor's own light before the press), scored beside the "
+            "raw pressed frame and lookfeel's input (that frame minus the no-contact one). A "
+            "background whose "
             "interval lies above 2x chance is reported as a LEAK: a model can learn the capture "
             "session instead of the material. With --position, depth images are also "
             "registered (the room fitted, the drape found) and scored by where the drape lies "
@@ -122,16 +127,24 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run_info(args: argparse.Namespace) -> int:
     """Print a dataset's summary (or its JSON), with the errors ``data check`` reports of the
-    dataset as a whole (empty, or a single fabric) that the scan alone does not."""
+    dataset as a whole (empty, or a single fabric) that the scan alone does not, and the paper
+    split that training makes (labels.csv's ``paper_split`` column, or on GelFabric in its
+    authors' folders the built-in list, `lookfeel.data.paper_split`)."""
     from dataclasses import replace
 
-    from lookfeel.data import scan
+    from lookfeel.data import paper_split, scan
     from lookfeel.data.check import size_problems
     from lookfeel.data.summary import format_summary
 
     catalog = scan(args.root)
     whole = size_problems(catalog.root, catalog.fabrics)
     catalog = replace(catalog, problems=(*catalog.problems, *whole))
+    paper = paper_split(catalog)  # warns when GelFabric's built-in list holds fabrics out
+    if paper.source == "builtin":
+        # Its "paper split" line shows the split training makes, as labels.csv's column would.
+        sides = {i: "train" for i in paper.train} | {i: "test" for i in paper.test}
+        fabrics = (replace(f, paper_split=sides.get(f.id, "excluded")) for f in catalog.fabrics)
+        catalog = replace(catalog, fabrics=tuple(fabrics))
     if args.json:
         print(json.dumps(catalog.summary(), indent=2))
     else:

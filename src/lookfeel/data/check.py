@@ -2,22 +2,31 @@
 
 from __future__ import annotations
 
+import math
 import re
+from collections import Counter, defaultdict
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from lookfeel.data.catalog import Catalog, Fabric
-from lookfeel.data.images import ImageError, decode_depth, decode_rgb
-from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES, scan
+from lookfeel.config import DataConfig
+from lookfeel.data.catalog import Catalog, Fabric, Item
+from lookfeel.data.images import GELSIGHT_SIZE, ImageError, decode_depth, decode_rgb
+from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES, VIDEO_SUFFIXES, scan
 from lookfeel.data.problems import Problem
 from lookfeel.data.video import NoPressError, is_video, read_press
 from lookfeel.modality import Modality
 
-__all__ = ["PLAUSIBLE_DEPTH_MM", "check_dataset", "size_problems"]
+__all__ = [
+    "MIN_IN_RANGE",
+    "PLAUSIBLE_DEPTH_MM",
+    "UNREAD_IMAGE_SUFFIXES",
+    "check_dataset",
+    "size_problems",
+]
 
 
 PLAUSIBLE_DEPTH_MM = (200, 8000)
@@ -27,6 +36,38 @@ Depth cameras see from about 250-500 mm (Azure Kinect, Kinect v2, RealSense D435
 (Kinect v2 reports at most 8 m), and a drape is captured at about 1 m (GelFabric's Kinect
 depth: medians 999-1089 mm; the synthetic world's likewise). A camera writing centimetres puts a
 scene 1 m away at 100, one writing 0.1 mm units puts a scene 1 m away at 10,000: both outside."""
+
+
+MIN_IN_RANGE = 0.2
+"""Share of a dataset's valid depth pixels that must lie inside the range raw depth is mapped
+from (``data.depth_min_mm`` to ``+ data.depth_range_mm``), else ``data check`` warns: the rest
+become 0 or 1, and an image with almost nothing inside is a constant. GelFabric has 77% inside
+(800-1300 mm); a room behind the cloth that lies beyond the range may leave less (a drape at
+1.15 m before a wall at 1.6 m: 29%), which is harmless while the cloth lies inside; depth
+shifted by 0.8 m has none."""
+
+UNREAD_IMAGE_SUFFIXES = frozenset(
+    {".tif", ".tiff", ".bmp", ".gif", ".webp", ".exr", ".hdr", ".pfm", ".pgm", ".ppm"}
+    | {".pnm", ".jp2", ".heic", ".heif", ".dng", ".npy", ".npz"}
+)
+"""Suffixes of images (and arrays) that lookfeel does not read: one in a modality folder is an
+error of ``data check`` saying what to convert it to (the scan lists it as skipped)."""
+
+_CONVERT = {
+    Modality.DEPTH: "a 16-bit greyscale PNG in millimetres (0 = no reading)",
+    Modality.COLOR: "an 8-bit RGB PNG or JPEG",
+    Modality.TOUCH: "8-bit RGB PNG or JPEG frames, or a press video",
+}
+
+
+@dataclass(frozen=True)
+class _Decoded:
+    """What decoding one file found: a problem, its frame size (w, h), and for depth the
+    counts of its valid pixels (inside the mapped range, in all) and a sample of them."""
+
+    problem: Problem | None = None
+    size: tuple[int, int] | None = None
+    depth: tuple[int, int, np.ndarray] | None = None
 
 
 def _depth_unit_problem(path: Path, depth: np.ndarray) -> Problem | None:
@@ -47,22 +88,37 @@ def _depth_unit_problem(path: Path, depth: np.ndarray) -> Problem | None:
     )
 
 
-def _decode_problem(path: Path, modality: Modality) -> Problem | None:
+def _depth_sample(depth: np.ndarray, low: float, high: float) -> tuple[int, int, np.ndarray]:
+    """(valid pixels inside [low, high], valid pixels, about 2,000 of them evenly spaced)."""
+    valid = depth[depth > 0]
+    inside = int(np.count_nonzero((valid >= low) & (valid <= high)))
+    step = max(1, valid.size // 2000)
+    return inside, int(valid.size), valid[::step]
+
+
+def _decode_problem(path: Path, modality: Modality) -> _Decoded:
+    config = DataConfig()
     try:
         if modality is Modality.TOUCH and is_video(path):
-            read_press(path)  # decodes every frame and finds the press
-        elif modality is Modality.DEPTH:
+            press = read_press(path)  # decodes every frame and finds the press
+            h, w = press.images.shape[1:3]
+            return _Decoded(size=(w, h))
+        if modality is Modality.DEPTH:
             d = decode_depth(path)
+            size = (d.shape[1], d.shape[0])
             if not d.any():
-                return Problem(path, "depth image has no valid pixel (all 0)", "warning")
-            return _depth_unit_problem(path, d)
-        else:
-            decode_rgb(path)
+                return _Decoded(Problem(path, "depth image has no valid pixel (all 0)", "warning"))
+            unit = _depth_unit_problem(path, d)
+            if unit is not None:
+                return _Decoded(unit, size)
+            low = config.depth_min_mm
+            return _Decoded(None, size, _depth_sample(d, low, low + config.depth_range_mm))
+        rgb = decode_rgb(path)
+        return _Decoded(size=(rgb.shape[1], rgb.shape[0]))
     except NoPressError as e:
-        return Problem(path, f"{e.reason}; runs leave this recording out", "warning")
+        return _Decoded(Problem(path, f"{e.reason}; runs leave this recording out", "warning"))
     except ImageError as e:
-        return Problem(path, e.reason)
-    return None
+        return _Decoded(Problem(path, e.reason))
 
 
 def check_dataset(
@@ -99,11 +155,12 @@ def check_dataset(
     ]
     if workers > 1 and len(jobs) > 16:
         with ThreadPoolExecutor(workers) as pool:
-            found = list(pool.map(lambda j: _decode_problem(*j), jobs))
+            decoded = list(pool.map(lambda j: _decode_problem(*j), jobs))
     else:
-        found = [_decode_problem(*j) for j in jobs]
-    new = [p for p in found if p is not None]
+        decoded = [_decode_problem(*j) for j in jobs]
+    new = [d.problem for d in decoded if d.problem is not None]
     bad = {p.path for p in new if p.severity == "error"}
+    sizes = {j[0]: d.size for j, d in zip(jobs, decoded, strict=True) if d.size is not None}
     fabrics = []
     for f in catalog.fabrics:
         items = {
@@ -113,8 +170,187 @@ def check_dataset(
         fabrics.append(replace(f, items={m: its for m, its in items.items() if its}))
     usable = tuple(f for f in fabrics if f.items)
     new.extend(size_problems(catalog.root, usable))
+    new.extend(_range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
+    new.extend(_shape_problems(usable, sizes))
+    unread, skipped = _unread_problems(catalog)
+    new.extend(unread)
     problems = sorted([*catalog.problems, *new], key=lambda p: (str(p.path), p.line or 0))
-    return replace(catalog, fabrics=usable, problems=tuple(problems))
+    return replace(catalog, fabrics=usable, problems=tuple(problems), skipped=skipped)
+
+
+def _range_problems(root: Path, samples: Sequence[tuple[int, int, np.ndarray]]) -> list[Problem]:
+    """One warning when fewer than `MIN_IN_RANGE` of the depth maps' valid pixels lie inside
+    the range raw depth input maps to [0, 1], by `DataConfig`'s defaults (``data check`` reads
+    no run config); files whose values do not read as millimetres are left to their own
+    warning."""
+    inside = sum(s[0] for s in samples)
+    total = sum(s[1] for s in samples)
+    if not total or inside >= MIN_IN_RANGE * total:
+        return []
+    c = DataConfig()
+    low, high = c.depth_min_mm, c.depth_min_mm + c.depth_range_mm
+    p5, p50, p95 = np.percentile(np.concatenate([s[2] for s in samples]), [5, 50, 95])
+    return [
+        Problem(
+            root / Modality.DEPTH.value,
+            f"only {inside / total:.0%} of the valid depth pixels lie between "
+            f"{low:,.0f} and {high:,.0f} mm, the range raw depth input maps to 0..1 "
+            f"(data.depth_min_mm {low:g}, data.depth_range_mm {c.depth_range_mm:g}: the "
+            "defaults; this check reads no run config): the rest become 0 or 1, so the network "
+            f"sees an almost constant image; the depth maps' median is {p50:,.0f} mm (5th-95th "
+            f"percentile {p5:,.0f}-{p95:,.0f}): set data.depth_min_mm and data.depth_range_mm "
+            "so the cloth lies inside (data.depth_input: registered maps heights above the "
+            "floor instead and does not use depth_min_mm)",
+            "warning",
+        )
+    ]
+
+
+def _shape(size: tuple[int, int], modality: Modality) -> tuple[int, int]:
+    """The shape whose aspect is resized to the square input: 960x720 GelSight frames are
+    cropped to their central square first (``data.touch_crop: auto``)."""
+    return (1, 1) if modality is Modality.TOUCH and size == GELSIGHT_SIZE else size
+
+
+def _shape_problems(fabrics: Sequence[Fabric], sizes: dict[Path, tuple[int, int]]) -> list[Problem]:
+    """One warning per modality whose images (or press videos) come in more than one aspect
+    ratio: each is resized to one square input, so each aspect is stretched differently (a
+    portrait frame among landscape ones is most likely rotated). Sizes of one aspect are
+    resized alike and not reported."""
+    by_size: dict[Modality, dict[tuple[int, int], list[Item]]] = defaultdict(dict)
+    for f in fabrics:
+        for m, its in f.items.items():
+            for it in its:
+                size = sizes.get(it.frames[0])
+                if size is not None:
+                    by_size[m].setdefault(size, []).append(it)
+    out = []
+    for m, groups in by_size.items():
+        common = max(groups, key=lambda k: len(groups[k]))
+        cw, ch = _shape(common, m)
+        odd = [
+            k
+            for k in groups
+            if abs(math.log((_shape(k, m)[0] / _shape(k, m)[1]) / (cw / ch))) > 0.03
+        ]
+        if not odd:
+            continue
+        noun = "press" if m is Modality.TOUCH else "image"
+        listed = ", ".join(
+            f"{w}x{h} ({n} {noun + ('es' if noun == 'press' else 's') if n != 1 else noun})"
+            for (w, h), n in Counter({k: len(v) for k, v in groups.items()}).most_common()
+        )
+        first = groups[odd[0]][0].frames[0]
+        ow, oh = _shape(odd[0], m)
+        turned = (ow > oh) != (cw > ch) and ow != oh and cw != ch
+        what = "frames" if m is Modality.TOUCH else "images"
+        out.append(
+            Problem(
+                first,
+                f"{m.value} {what} come in {len(groups)} sizes of different shape: {listed}; "
+                "each is resized to the network's one square input (data.image_size), so each "
+                "shape is stretched differently"
+                + (
+                    f" (this one is {'portrait' if oh > ow else 'landscape'} among "
+                    f"{'landscape' if oh > ow else 'portrait'} ones: most likely turned)"
+                    if turned
+                    else ""
+                )
+                + f"; record them alike, or turn or crop them to {common[0]}x{common[1]}",
+                "warning",
+            )
+        )
+    return out
+
+
+def _modality_folder(path: Path, root: Path) -> Modality | None:
+    """The modality of the layout folder ``path`` lies directly in, if it lies in one."""
+    if path.parent.parent != root:
+        return None
+    low = path.parent.name.lower()
+    for m, names in FOLDER_ALIASES.items():
+        if low in names or (m is Modality.TOUCH and low.startswith("image_rand")):
+            return m
+    return None
+
+
+def _holds_images(folder: Path) -> bool:
+    """Whether ``folder`` directly holds an image file (one lookfeel reads or not)."""
+    suffixes = {*IMAGE_SUFFIXES, *UNREAD_IMAGE_SUFFIXES}
+    return any(q.suffix.lower() in suffixes and q.is_file() for q in folder.iterdir())
+
+
+_PRESS_FOLDER = re.compile(r"^F0*(\d+)_(?:(fold|flat|rand)_)?([A-Za-z0-9-]+)$", re.IGNORECASE)
+
+
+def _unread_problems(catalog: Catalog) -> tuple[list[Problem], tuple[Problem, ...]]:
+    """Errors for what the scan skipped but was meant as data, and the skips left.
+
+    Files in a modality folder whose suffix is an image format lookfeel does not read
+    (`UNREAD_IMAGE_SUFFIXES`: a float TIFF of depth in metres) are one error per folder and
+    suffix, saying what to convert them to; subfolders of a modality folder that hold a press's
+    frames (named ``F<id>_<kind>_<press>``), or that hold the only images of a folder from
+    which nothing was read, are one error per folder, saying the layout expected. A ``.jpg``
+    in ``depth/`` is an error of the scan already; these are the same mistake."""
+    root = catalog.root
+    read_from = {it.path.parent for f in catalog.fabrics for its in f.items.values() for it in its}
+    files: dict[tuple[Path, str], list[Path]] = defaultdict(list)
+    folders: dict[Path, list[Path]] = defaultdict(list)
+    left = []
+    for p in catalog.skipped:
+        path = p.path
+        m = None if path is None else _modality_folder(path, root)
+        if path is None or m is None:
+            left.append(p)
+        elif not path.is_dir() and path.suffix.lower() in UNREAD_IMAGE_SUFFIXES:
+            files[(path.parent, path.suffix.lower())].append(path)
+        elif (
+            path.is_dir()
+            and (_PRESS_FOLDER.match(path.name) or path.parent not in read_from)
+            and _holds_images(path)
+        ):
+            folders[path.parent].append(path)
+        else:
+            left.append(p)
+    out = []
+    for (folder, suffix), paths in files.items():
+        m = _modality_folder(paths[0], root)
+        assert m is not None
+        more = f" (and {len(paths) - 1} more {suffix} in {folder.name}/)" if len(paths) > 1 else ""
+        out.append(
+            Problem(
+                paths[0],
+                f"lookfeel does not read {suffix} files{more}: {m.value} must be "
+                f"{_CONVERT[m]}; convert {'each' if more else 'it'} (the scan skips these "
+                f"files, so runs read no {m.value} from them)",
+            )
+        )
+    for folder, subs in folders.items():
+        m = _modality_folder(subs[0], root)
+        assert m is not None
+        more = f" (and {len(subs) - 1} more subfolders)" if len(subs) > 1 else ""
+        suffixes = {*IMAGE_SUFFIXES, *UNREAD_IMAGE_SUFFIXES}
+        example = min(q.name for q in subs[0].iterdir() if q.suffix.lower() in suffixes)
+        press = _PRESS_FOLDER.match(subs[0].name)
+        if m is Modality.TOUCH and press is not None:
+            fid, kind, name = int(press.group(1)), press.group(2) or "fold", press.group(3)
+            frames = "touch" if folder.name.lower() == "videos" else folder.name
+            how = (
+                f"put each frame in {frames}/ itself, named F<id>_<kind>_<frame>_<press>.png "
+                f"(here F{fid:04d}_{kind}_01_{name}.png, F{fid:04d}_{kind}_02_{name}.png ... in "
+                f"frame order), or the press as one video in {folder.name}/ "
+                f"(F{fid:04d}_{kind}_{name}.mp4)"
+            )
+        else:
+            how = f"put its files in {folder.name}/ itself, named F<id>_... (e.g. F0012_1.png)"
+        out.append(
+            Problem(
+                subs[0],
+                f"a subfolder of {folder.name}/{more} holding images (e.g. {example}), which "
+                f"are not read (the layout is flat): {how}",
+            )
+        )
+    return out, tuple(left)
 
 
 def size_problems(root: Path, fabrics: Sequence[Fabric]) -> list[Problem]:

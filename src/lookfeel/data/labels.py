@@ -139,6 +139,8 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         why = f"cannot read labels file: {e.strerror or e}"
         return LabelTable(path, (), None, {}), [Problem(path, why)]
     except UnicodeDecodeError as e:
+        if (utf16 := _utf16_table(path)) is not None:
+            return utf16
         why = f"not a text CSV in UTF-8 (byte {e.start}: {e.reason}); save it as UTF-8"
         return LabelTable(path, (), None, {}), [Problem(path, why)]
     reader = csv.reader(text.splitlines())
@@ -147,6 +149,13 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         return LabelTable(path, (), None, {}), [Problem(path, "labels file is empty")]
     header = [h.strip() for h in header]
     key = next((k for k in KEY_COLUMNS if k in header), None)
+    if key is None and (other := _other_separator(text)) is not None:
+        sep, key = other
+        why = (
+            f"separated by {_SEPARATORS[sep]}, not commas: lookfeel reads comma-separated "
+            "files; save it as CSV with commas"
+        )
+        return _keys_only(path, text, sep, key, why)
     if key is None:
         return LabelTable(path, (), None, {}), [
             Problem(
@@ -284,8 +293,104 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     # stretchiness is 0, 0.5 or 1, and a world of 20 fabrics may well hold one 0.5.
     maybe = [c for c in numeric if c not in ranks and c not in PHYSICAL_LABELS]
     problems.extend(_broken_ranks(path, maybe, every))
+    problems.extend(_case_variants(path, text_cols, every))
     table = LabelTable(path, numeric, cluster_column, rows, text_cols, key, named, ranks)
     return table, problems
+
+
+_SEPARATORS = {";": "semicolons (;)", "\t": "tabs"}
+_DECIMAL_COMMA = re.compile(r"^-?\d+,\d+$")
+
+
+def _other_separator(text: str, seps: Iterable[str] = _SEPARATORS) -> tuple[str, str] | None:
+    """``(separator, key column)`` when the header, split by a semicolon or a tab instead of
+    a comma, has a key column (`KEY_COLUMNS`): a file saved by a spreadsheet set to another
+    separator (a European Excel writes ``;``, its "Unicode text" tabs). None otherwise."""
+    first = text.splitlines()[0] if text else ""
+    for sep in seps:
+        cells = [c.strip() for c in next(csv.reader([first], delimiter=sep), [])]
+        key = next((k for k in KEY_COLUMNS if k in cells), None)
+        if key is not None:
+            return sep, key
+    return None
+
+
+def _utf16_table(path: Path) -> tuple[LabelTable, list[Problem]] | None:
+    """A labels.csv saved as UTF-16 (it begins with a UTF-16 byte-order mark: Excel's "Unicode
+    text"), read for its keys alone with an error saying how to save it; None when the file
+    is not UTF-16 text with a key column."""
+    try:
+        data = path.read_bytes()
+        if not data.startswith((b"\xff\xfe", b"\xfe\xff")):
+            return None
+        text = data.decode("utf-16")
+    except (OSError, UnicodeDecodeError):
+        return None
+    found = _other_separator(text, (",", *_SEPARATORS))
+    if found is None:
+        return None
+    sep, key = found
+    how = "" if sep == "," else f", separated by {_SEPARATORS[sep]}"
+    why = (
+        f'saved as UTF-16 text{how} (a spreadsheet\'s "Unicode text"): lookfeel reads UTF-8 '
+        'files separated by commas; save it as "CSV UTF-8 (comma delimited)"'
+    )
+    return _keys_only(path, text, sep, key, why)
+
+
+def _keys_only(
+    path: Path, text: str, sep: str, key: str, why: str
+) -> tuple[LabelTable, list[Problem]]:
+    """A labels.csv that cannot be read as it was saved (``why``: one error, at line 1), read
+    with ``sep`` for its keys alone (no label is read), so that the scan does not also report
+    every fabric as missing from it."""
+    records = list(csv.reader(text.splitlines(), delimiter=sep))
+    header = [h.strip() for h in records[0]]
+    i = header.index(key)
+    rows: dict[int, LabelRow] = {}
+    named: dict[str, LabelRow] = {}
+    for lineno, r in enumerate(records[1:], start=2):
+        raw = r[i].strip() if i < len(r) else ""
+        if key == "object" and raw and raw.lower() not in _MISSING:
+            named.setdefault(raw, LabelRow(0, lineno, name=raw))
+        elif key == "fabric_id" and (fid := parse_fabric_id(raw)) is not None:
+            rows.setdefault(fid, LabelRow(fid, lineno))
+    cells = (c.strip() for r in records[1:] for c in r)
+    decimal = next((c for c in cells if _DECIMAL_COMMA.match(c)), None)
+    if decimal is not None:
+        why += f" and a full stop as the decimal mark (it has {decimal!r})"
+    table = LabelTable(path, (), None, rows, key=key, named=named)
+    return table, [Problem(path, f"{why}; no label was read", line=1)]
+
+
+def _case_variants(path: Path, columns: Iterable[str], rows: list[LabelRow]) -> list[Problem]:
+    """A warning per text column (classes) holding spellings that differ only in case
+    or spacing (``Cotton`` and ``cotton``): each spelling is its own class."""
+    out = []
+    for col in columns:
+        seen: dict[str, dict[str, LabelRow]] = {}
+        for r in sorted(rows, key=lambda r: r.line):
+            if col in r.text:
+                key = " ".join(r.text[col].split()).casefold()
+                seen.setdefault(key, {}).setdefault(r.text[col], r)
+        for spellings in seen.values():
+            if len(spellings) < 2:
+                continue
+            named = [f"{s!r} ({_who(r)}, line {r.line})" for s, r in spellings.items()]
+            out.append(
+                Problem(
+                    path,
+                    f"column {col!r}: {' and '.join(named)} differ only in case or spacing, so "
+                    f"they are {len(spellings)} classes; write them alike if they are one",
+                    "warning",
+                    next(iter(spellings.values())).line,
+                )
+            )
+    return out
+
+
+def _who(r: LabelRow) -> str:
+    return f"object {r.name!r}" if r.name is not None else f"fabric {r.fabric_id}"
 
 
 def _broken_ranks(path: Path, columns: Iterable[str], rows: list[LabelRow]) -> list[Problem]:

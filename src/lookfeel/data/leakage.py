@@ -27,6 +27,17 @@ instead of the material. `leakage_report` measures this, per image modality, for
    pick 1 of 10 from two numbers per image, by their distance in pixels: the image position of
    the drape's top, where the post holds it (`Registration.post_uv`), or the drape's centroid.
    ``data.depth_post_at`` removes the cue from a model's input.
+5. **Press videos** (touch). A GelSight's own light (its gel, LEDs and camera, which drift
+   between recording sessions) is the background of a press: the **no-contact frame** (the
+   mean of the video's frames before contact, `lookfeel.data.video.detect_press`), the sensor
+   with nothing touching it, is scored as the background, whole. The whole image is the
+   pressed frame as `read_press` picks it with `DataConfig`'s defaults (the deepest contact),
+   raw; a third score is the image the models get by default, the pressed frame minus the
+   no-contact frame (``data.video_reference: subtract``), which removes most of the light.
+   On PhysiCLeAR the no-contact frame alone scores 0.86 (chance 0.10; docs/results/
+   real-touch.md, where ``lookfeel cv``'s untouched control is the run's own check). Videos
+   with no press are left out, as runs leave them; each video is decoded once (about 0.07 s
+   for a 5 s GelSight Mini press, two at a time with ``workers=2``).
 """
 
 from __future__ import annotations
@@ -48,6 +59,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Catalog, Item
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
 from lookfeel.data.problems import Problem
+from lookfeel.data.video import NoPressError, difference_image, is_video, read_press
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics.bootstrap import bootstrap_ci
 from lookfeel.metrics.distances import pairwise_distances
@@ -103,6 +115,14 @@ class ModalityLeakage:
         background_top1, background_ci95: the same on background pixels only (NaN without any).
         chance: top-1 of random guessing (1 / candidates).
         leak: whether the background's interval lies above ``factor`` x chance.
+        press_videos: touch given as press videos (point 5 of the module doc): the whole image
+            is the pressed frame, the background the no-contact frame.
+        input_top1, input_ci95: press videos: the same of the image lookfeel's models get by
+            default, the pressed frame minus the no-contact frame (``data.video_reference:
+            subtract``); NaN otherwise.
+        left_out: press videos in which no press was found (runs leave them out too).
+        folder: the folder the first item lies in (``depth/``, ``videos/`` ...), which a
+            warning names; None: ``<root>/<modality>``.
     """
 
     modality: Modality
@@ -118,6 +138,11 @@ class ModalityLeakage:
     background_ci95: tuple[float, float]
     chance: float
     leak: bool
+    press_videos: bool = False
+    input_top1: float = math.nan
+    input_ci95: tuple[float, float] = (math.nan, math.nan)
+    left_out: int = 0
+    folder: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -413,6 +438,110 @@ def _too_few(fabric: NDArray[np.int64]) -> str | None:
     return None
 
 
+def _press_arrays(
+    path: Path, config: DataConfig
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """(pressed, input, no-contact) (H, W, 3) float32 images of one press video (module doc,
+    point 5), in 8-bit levels: the frame(s) ``config`` picks, raw (their mean for several);
+    their difference from the no-contact frame as the models get it; the no-contact frame."""
+    press = read_press(
+        path,
+        frames=config.video_frames,
+        position=config.video_frame,
+        subtract_reference=False,
+        gain=config.video_gain,
+    )
+    diff = [difference_image(f, press.reference, config.video_gain) for f in press.images]
+    return (
+        press.images.astype(np.float32).mean(axis=0),
+        np.mean(np.stack(diff), axis=0, dtype=np.float32),
+        press.reference.astype(np.float32),
+    )
+
+
+def _score_videos(
+    items: Sequence[Item],
+    mask: Path | None,
+    pool: int | None,
+    factor: float,
+    seed: int,
+    n_boot: int,
+    workers: int,
+) -> ModalityLeakage | str:
+    """`_score_modality` for press videos (module doc, point 5)."""
+    config = DataConfig()
+    if pool is not None and pool < 1:
+        raise LookfeelError(f"pool must be >= 1; got {pool}")
+    shape = (0, 0)  # every press is resized to the first one's frame size, then pooled by k
+    k = 1
+
+    def one(it: Item) -> tuple[NDArray[np.float32], ...] | None:
+        try:
+            arrays = _press_arrays(it.path, config)
+        except NoPressError:
+            return None  # runs leave it out: `lookfeel.data.drop_unpressed`
+        return tuple(_pool(_resize(a, shape), k) for a in arrays)
+
+    got: list[tuple[NDArray[np.float32], ...] | None] = []
+    rest = list(items)
+    try:
+        while rest and shape == (0, 0):  # the first press found sets the size and pooling
+            it = rest.pop(0)
+            try:
+                arrays = _press_arrays(it.path, config)
+            except NoPressError:
+                got.append(None)
+                continue
+            shape = (int(arrays[0].shape[0]), int(arrays[0].shape[1]))
+            k = auto_pool(shape) if pool is None else int(pool)
+            got.append(tuple(_pool(a, k) for a in arrays))
+        if workers > 1 and len(rest) > 16:
+            with ThreadPoolExecutor(workers) as ex:  # decoding releases the GIL
+                got += list(ex.map(one, rest))
+        else:
+            got += [one(it) for it in rest]
+    except ImageError as e:
+        return f"cannot decode {e.path}: {e.reason}"
+    kept = [(it, g) for it, g in zip(items, got, strict=True) if g is not None]
+    fabric = np.array([it.fabric_id for it, _ in kept], dtype=np.int64)
+    too_few = _too_few(fabric)
+    if too_few:
+        return f"{too_few} (press videos with a press: {len(kept)} of {len(items)})"
+    pressed, model_input, untouched = (np.stack([g[i] for _, g in kept]) for i in range(3))
+    n, h, w, c = pressed.shape
+    if mask is not None:
+        bg = read_mask(mask, shape, k)[:h, :w]
+        source = str(mask)
+    else:
+        bg = np.ones((h, w), dtype=bool)
+        source = "no-contact"
+    sel = np.repeat(bg.reshape(-1), c)
+    with np.errstate(all="ignore"):
+        whole, whole_ci, chance = _top1(pressed.reshape(n, -1), fabric, seed, n_boot)
+        given, given_ci, _ = _top1(model_input.reshape(n, -1), fabric, seed, n_boot)
+        back, back_ci, _ = _top1(untouched.reshape(n, -1)[:, sel], fabric, seed, n_boot)
+    return ModalityLeakage(
+        modality=Modality.TOUCH,
+        n_items=n,
+        n_fabrics=len(np.unique(fabric)),
+        pooled_shape=(h, w),
+        pool=k,
+        mask_source=source,
+        background_fraction=float(bg.mean()),
+        whole_top1=whole,
+        whole_ci95=whole_ci,
+        background_top1=back,
+        background_ci95=back_ci,
+        chance=chance,
+        leak=bool(not math.isnan(back_ci[0]) and back_ci[0] > factor * chance),
+        press_videos=True,
+        input_top1=given,
+        input_ci95=given_ci,
+        left_out=len(items) - n,
+        folder=str(items[0].path.parent),
+    )
+
+
 def _score_modality(
     catalog: Catalog,
     modality: Modality,
@@ -426,6 +555,9 @@ def _score_modality(
     workers: int,
 ) -> ModalityLeakage | str:
     items = catalog.items(modality)
+    videos = [it for it in items if modality is Modality.TOUCH and is_video(it.path)]
+    if videos:
+        return _score_videos(videos, mask, pool, factor, seed, n_boot, workers)
     fabric = np.array([it.fabric_id for it in items], dtype=np.int64)
     too_few = _too_few(fabric)
     if too_few:
@@ -467,6 +599,7 @@ def _score_modality(
         background_ci95=back_ci,
         chance=chance,
         leak=leak,
+        folder=str(items[0].path.parent),
     )
 
 
@@ -619,6 +752,13 @@ def leakage_report(
             skipped[m.value] = res
         else:
             done.append(res)
+        if m is Modality.TOUCH:
+            frames = [it for it in catalog.items(m) if not is_video(it.path)]
+            if frames and len(frames) < len(catalog.items(m)):
+                skipped["touch frames"] = (
+                    f"{len(frames)} presses given as frame images beside press videos: only "
+                    "the videos are scored"
+                )
     pos = None
     if position:
         got = position_leakage(
@@ -648,17 +788,43 @@ def _ci(ci: tuple[float, float]) -> str:
 
 
 def _source(m: ModalityLeakage) -> str:
-    return "pixels still across images" if m.mask_source == "static" else f"mask {m.mask_source}"
+    if m.mask_source == "static":
+        return "pixels still across images"
+    if m.mask_source == "no-contact":
+        return "the no-contact frame: the sensor's own light before the press"
+    return f"mask {m.mask_source}"
 
 
-def _tolerance(report: LeakageReport) -> str:
+def _background_rule(report: LeakageReport) -> str:
+    """How the background was found: the still-pixel rule's settings, and for press videos
+    their no-contact frame."""
     units = {"depth": " mm"}
-    return ", ".join(f"{k} {v:g}{units.get(k, ' levels')}" for k, v in report.tolerance.items())
+    videos = {m.modality.value for m in report.modalities if m.press_videos}
+    tol = [(k, v) for k, v in report.tolerance.items() if k not in videos]
+    rules = []
+    if tol:
+        within = ", ".join(f"{k} {v:g}{units.get(k, ' levels')}" for k, v in tol)
+        rules.append(
+            f"pixels within {within} of their median in >= {report.static_fraction:.0%} of "
+            "images, or a mask"
+        )
+    if videos:
+        rules.append("press videos: their no-contact frame")
+    return "; ".join(rules) or "none scored"
 
 
 def _verdict(m: ModalityLeakage, factor: float) -> str:
     if m.background_fraction == 0.0:
         return "no background pixel found (nothing is still across images): nothing to check"
+    if m.leak and m.press_videos:
+        return (
+            f"LEAK: the sensor with nothing touching it identifies the fabric at "
+            f"{m.background_top1:.2f} top-1, {m.background_top1 / m.chance:.1f}x chance "
+            f"(interval above {factor:g}x chance): its light differs between recording "
+            "sessions, and a model of raw frames can learn the session instead of the touch; "
+            "lookfeel's input subtracts the no-contact frame (data.video_reference: subtract), "
+            f"which leaves {m.input_top1:.2f}, and `lookfeel cv` scores its untouched control"
+        )
     if m.leak:
         return (
             f"LEAK: the background alone identifies the fabric at {m.background_top1:.2f} top-1, "
@@ -668,24 +834,41 @@ def _verdict(m: ModalityLeakage, factor: float) -> str:
     return f"no leak found: background top-1 is not far above chance ({factor:g}x)"
 
 
+def _modality_lines(m: ModalityLeakage, factor: float) -> list[str]:
+    """The table of one modality: whole image, background only, chance, verdict."""
+    pooled = f"pooled {m.pool}x{m.pool} to {m.pooled_shape[0]}x{m.pooled_shape[1]}"
+    if not m.press_videos:
+        return [
+            f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} fabrics, {pooled}, "
+            f"background {m.background_fraction:.0%} of the image ({_source(m)})",
+            f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
+            f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
+            f"  chance            {m.chance:.3f}",
+            f"  {_verdict(m, factor)}",
+        ]
+    left = f" ({m.left_out} with no press left out, as runs leave them)" if m.left_out else ""
+    part = "" if m.mask_source == "no-contact" else f" ({m.background_fraction:.0%} of it)"
+    return [
+        f"{m.modality.value}: {m.n_items} press videos of {m.n_fabrics} fabrics{left}, {pooled}; "
+        f"background: the no-contact frame, the sensor's own light before the press{part}",
+        f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}   the pressed frame, raw",
+        f"  lookfeel's input  {m.input_top1:.3f} {_ci(m.input_ci95)}   the pressed frame minus "
+        "the no-contact frame",
+        f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}   the no-contact "
+        "frame" + ("" if m.mask_source == "no-contact" else f", {_source(m)}"),
+        f"  chance            {m.chance:.3f}",
+        f"  {_verdict(m, factor)}",
+    ]
+
+
 def format_leakage(report: LeakageReport) -> str:
     """The report as text: a table per modality and a verdict line for each."""
     lines = [
         f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over fabrics] from raw pixels",
-        f"(background: pixels within {_tolerance(report)} of their median in "
-        f">= {report.static_fraction:.0%} of images, or a mask; {report.seconds:.1f} s)",
+        f"(background: {_background_rule(report)}; {report.seconds:.1f} s)",
     ]
     for m in report.modalities:
-        lines += [
-            "",
-            f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} fabrics, pooled "
-            f"{m.pool}x{m.pool} to {m.pooled_shape[0]}x{m.pooled_shape[1]}, background "
-            f"{m.background_fraction:.0%} of the image ({_source(m)})",
-            f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
-            f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
-            f"  chance            {m.chance:.3f}",
-            f"  {_verdict(m, report.factor)}",
-        ]
+        lines += ["", *_modality_lines(m, report.factor)]
     if report.position is not None:
         lines += _position_lines(report.position, report.factor)
     for name, why in report.skipped.items():
@@ -748,15 +931,29 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
         found.append(
             Problem(Path(pos.no_floor[0]), f"{_no_floor(pos)}; this one among them", "warning")
         )
-    return found + [
-        Problem(
-            report.root / m.modality.value,
-            f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
-            f"{_source(m)}) identifies the fabric at pick-1-of-10 top-1 "
-            f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
-            "a model can learn the capture session, not the material "
-            "(see `lookfeel data leakage`)",
+    return found + [_leak_problem(report.root, m) for m in report.leaks]
+
+
+def _leak_problem(root: Path, m: ModalityLeakage) -> Problem:
+    folder = Path(m.folder) if m.folder is not None else root / m.modality.value
+    if m.press_videos:
+        return Problem(
+            folder,
+            f"{m.modality.value}: the no-contact frame of each press video (the sensor's own "
+            f"light, nothing touching it) identifies the fabric at pick-1-of-10 top-1 "
+            f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: a "
+            "model of raw frames can learn the recording session, not the touch; lookfeel's "
+            "input subtracts that frame (data.video_reference: subtract), which leaves "
+            f"{m.input_top1:.2f} (see `lookfeel data leakage`; `lookfeel cv` scores the "
+            "untouched control)",
             "warning",
         )
-        for m in report.leaks
-    ]
+    return Problem(
+        folder,
+        f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
+        f"{_source(m)}) identifies the fabric at pick-1-of-10 top-1 "
+        f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
+        "a model can learn the capture session, not the material "
+        "(see `lookfeel data leakage`)",
+        "warning",
+    )

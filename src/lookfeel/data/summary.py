@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from lookfeel.data.catalog import Catalog
+from lookfeel.data.labels import PHYSICAL_LABELS
 from lookfeel.modality import REPRINTS, Modality
 
 __all__ = ["format_summary"]
@@ -59,7 +60,11 @@ def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
     if named:
         n = sum(bool(f.labels or f.text_labels) for f in catalog.fabrics)
         return f"{what}; {n} objects labelled"
-    return f"{what}; {s['fabrics_with_physical_labels']} fabrics with physical labels"
+    # Any numeric column counts (a dataset's own, such as bend_score); the paper's four keep
+    # their name.
+    n = sum(bool(f.labels) for f in catalog.fabrics)
+    kind = "physical" if cols and set(cols) <= set(PHYSICAL_LABELS) else "numeric"
+    return f"{what}; {n} fabrics with {kind} labels"
 
 
 def format_summary(catalog: Catalog) -> str:
