@@ -171,3 +171,28 @@ def test_a_still_frame_model_warns_of_a_press_video(run, heads: LoadedModel, tmp
     with pytest.warns(UserWarning, match=rf"press.mov: {re.escape(VIDEO_FOR_STILL_MODEL)}"):
         [answer] = predict_files(heads, video)
     assert answer.modality == "touch" and answer.error is None and answer.properties
+
+
+def test_a_column_of_ranks_without_a_class_head_is_answered_as_its_nearest_rank(
+    run, tmp_path: Path
+):
+    # The tiny labels: stiffness is fabric id % 5 (ranks 0-4), thickness_mm 0.5 x id (numbers).
+    data, _ = run
+    config = load_config(
+        RunConfig,
+        TINY,
+        ["model.num_properties=auto", "train.steps=2", "train.split=none", "train.val_every=0"],
+    )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        result = train(config, data, tmp_path / "run")
+    finally:
+        torch.set_num_threads(threads)
+    loaded = load_model(result.last_checkpoint)
+    assert loaded.rank_columns == {"stiffness": (0, 1, 2, 3, 4), "stretchiness": (0, 1)}
+    [p] = predict_files(loaded, [data / "color/F0003_2.png"], "color")
+    stiff, thick = p.properties["stiffness"], p.properties["thickness_mm"]
+    assert isinstance(stiff.number, float) and stiff.probability is None
+    assert stiff.value == min(range(5), key=lambda r: (abs(r - stiff.number), r))
+    assert isinstance(thick.value, float) and thick.number is None

@@ -8,7 +8,8 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     touch_input (what the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or
     `TOUCH_BOTH`; absent in checkpoints from before it was recorded, and for a model without
     a touch branch), data_fingerprint (the dataset trained on, `Catalog.fingerprint`; absent
-    before it was recorded)
+    before it was recorded), rank_columns (label column -> the ranks its training data held,
+    for the columns of ranks; absent before session 50)
 """
 
 from __future__ import annotations
@@ -148,6 +149,11 @@ class LoadedModel:
     """What the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or `TOUCH_BOTH`;
     None in checkpoints from before it was recorded (queries are then not checked against
     it) and for a model without a touch branch."""
+    rank_columns: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    """The label columns of ranks (``hardness`` 0/1/2: `lookfeel.data.labels.is_rank_column`)
+    and the ranks the training data held, sorted: a property head's number for one is read
+    as the nearest of them (`lookfeel.predict`). Empty in checkpoints from before session 50,
+    whose ranks are then answered as numbers."""
 
 
 def non_finite_tensors(tensors: Mapping[str, Any]) -> list[str]:
@@ -274,6 +280,10 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         },
         split=dict(state.get("split", {})),
         touch_input=_touch_input(path, state.get("touch_input")),
+        rank_columns={
+            str(c): tuple(int(r) for r in ranks)
+            for c, ranks in (state.get("rank_columns") or {}).items()
+        },
         data_fingerprint=state.get("data_fingerprint"),
     )
 

@@ -56,14 +56,18 @@ class PropertyValue:
 
     Attributes:
         value: the class in the label column's own terms (the rank ``2``, the word ``"metal"``)
-            or a regressed number.
+            or a regressed number. A column of ranks without a class head: the rank nearest
+            the property head's number (``number``), among the ranks the training data held.
         probability: the class's probability (class heads); None for a regressed number.
         probabilities: every class's probability, in the head's class order.
+        number: for a rank read from the property head, the number it regressed (``0.93``
+            for the rank ``1``); None otherwise.
     """
 
     value: int | float | str
     probability: float | None = None
     probabilities: dict[str, float] = field(default_factory=dict)
+    number: float | None = None
 
 
 @dataclass(frozen=True)
@@ -298,5 +302,11 @@ def _read_heads(
             if col in props:
                 continue  # a class head answers in the column's own terms already
             mean, std = stats.get(col, (0.0, 1.0))
-            props[col] = PropertyValue(value=round(mean + std * float(v), 4))
+            number = round(mean + std * float(v), 4)
+            ranks = loaded.rank_columns.get(col)
+            if ranks:  # a column of ranks: answered in its own terms, the number beside
+                rank = min(ranks, key=lambda r: (abs(r - number), r))
+                props[col] = PropertyValue(value=rank, number=number)
+            else:
+                props[col] = PropertyValue(value=number)
     return props

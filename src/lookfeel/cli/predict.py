@@ -6,12 +6,12 @@ presses of one object (the Multi-input Net's max over presses). A video that hol
 short, no contact) is answered with an "error" and no properties, and a warning; the others are
 still predicted (the exit status is 1 only when nothing could be; one input is answered alike). A
 model trained on press videos refuses a still touch image: it read each press as its change from the
-frames before contact, which a still image lacks (a model trained on still frames takes a video
-with a warning). A class head (model.class_heads, e.g. hardness 0/1/2 or material) answers with
-its most likely class in the label column's own terms and that class's probability; a
-property-regression head answers in the column's units, a column of ranks without a class head
-too (softness_rank 0.93: a number between ranks, as the head regressed it, where `match` gives
-the likeliest fabrics' rank). Images are PNG or JPEG (.png, .jpg, .jpeg), as `serve` takes them.
+frames before contact, which a still image lacks (a model trained on still frames takes a video with
+a warning). A class head (model.class_heads, e.g. hardness 0/1/2 or material) answers with its most
+likely class in the label column's own terms and that class's probability; a property-regression
+head answers in the column's units, and a column of ranks without a class head with the rank nearest
+its number, the number beside (softness_rank 1 (0.93)). Images are PNG or JPEG (.png, .jpg, .jpeg),
+as `serve` takes them.
 """
 
 from __future__ import annotations
@@ -56,6 +56,8 @@ def _line(p: object) -> str:
     parts = []
     for col, v in p.properties.items():
         prob = f" ({v.probability:.0%})" if v.probability is not None else ""
+        if v.number is not None:
+            prob = f" ({v.number:g})"  # a rank read from the property head's number
         parts.append(f"{col} {v.value}{prob}")
     name = p.path if len(p.paths) == 1 else f"{p.path} (+{len(p.paths) - 1} presses)"
     return f"{name}: " + ", ".join(parts)
