@@ -1,5 +1,6 @@
 """`lookfeel data leakage`: a planted session fingerprint is found, a clean set is not."""
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -352,6 +353,12 @@ def test_press_videos_are_scored_with_their_no_contact_frame_as_the_background(t
     assert "LEAK: the sensor with nothing touching it identifies the fabric" in text
     (problem,) = leakage_problems(report)
     assert problem.path == leaky / "touch" and "no-contact frame" in problem.message
+    assert report.noun == "fabric"  # numbered fabrics; data naming its objects says objects
+    objects = dataclasses.replace(report, noun="object")
+    text = format_leakage(objects)
+    assert "[95% over objects]" in text and "17 press videos of 6 objects" in text
+    assert "identifies the object at" in text and "fabric" not in text
+    assert "identifies the object at" in leakage_problems(objects)[0].message
 
     one_light = _write_presses(tmp_path / "one_light", sessions=False)
     (touch,) = leakage_report(scan(one_light), n_boot=100).modalities

@@ -208,6 +208,8 @@ class LeakageReport:
         skipped: modalities not scored, and why (too few fabrics or images).
         tolerance, static_fraction, factor: the settings used (tolerance per modality).
         seconds: how long the check took.
+        noun: what the dataset's ids name: ``fabric``, or ``object`` for data that names its
+            objects (``videos/<object>_<n>.mov``), as the report's words say.
     """
 
     root: Path
@@ -218,6 +220,7 @@ class LeakageReport:
     factor: float = 2.0
     seconds: float = 0.0
     position: PositionLeakage | None = None
+    noun: str = "fabric"
 
     @property
     def leaks(self) -> tuple[ModalityLeakage, ...]:
@@ -235,6 +238,7 @@ class LeakageReport:
             "static_fraction": self.static_fraction,
             "factor": self.factor,
             "seconds": round(self.seconds, 3),
+            "noun": self.noun,
         }
 
 
@@ -777,6 +781,7 @@ def leakage_report(
         factor=factor,
         seconds=time.perf_counter() - start,
         position=pos,
+        noun="object" if any(f.name is not None for f in catalog.fabrics) else "fabric",
     )
 
 
@@ -813,12 +818,12 @@ def _background_rule(report: LeakageReport) -> str:
     return "; ".join(rules) or "none scored"
 
 
-def _verdict(m: ModalityLeakage, factor: float) -> str:
+def _verdict(m: ModalityLeakage, factor: float, noun: str = "fabric") -> str:
     if m.background_fraction == 0.0:
         return "no background pixel found (nothing is still across images): nothing to check"
     if m.leak and m.press_videos:
         return (
-            f"LEAK: the sensor with nothing touching it identifies the fabric at "
+            f"LEAK: the sensor with nothing touching it identifies the {noun} at "
             f"{m.background_top1:.2f} top-1, {m.background_top1 / m.chance:.1f}x chance "
             f"(interval above {factor:g}x chance): its light differs between recording "
             "sessions, and a model of raw frames can learn the session instead of the touch; "
@@ -827,29 +832,29 @@ def _verdict(m: ModalityLeakage, factor: float) -> str:
         )
     if m.leak:
         return (
-            f"LEAK: the background alone identifies the fabric at {m.background_top1:.2f} top-1, "
+            f"LEAK: the background alone identifies the {noun} at {m.background_top1:.2f} top-1, "
             f"{m.background_top1 / m.chance:.1f}x chance (interval above {factor:g}x chance); "
             "a model can learn the capture session instead of the material"
         )
     return f"no leak found: background top-1 is not far above chance ({factor:g}x)"
 
 
-def _modality_lines(m: ModalityLeakage, factor: float) -> list[str]:
+def _modality_lines(m: ModalityLeakage, factor: float, noun: str = "fabric") -> list[str]:
     """The table of one modality: whole image, background only, chance, verdict."""
     pooled = f"pooled {m.pool}x{m.pool} to {m.pooled_shape[0]}x{m.pooled_shape[1]}"
     if not m.press_videos:
         return [
-            f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} fabrics, {pooled}, "
+            f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} {noun}s, {pooled}, "
             f"background {m.background_fraction:.0%} of the image ({_source(m)})",
             f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
             f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
             f"  chance            {m.chance:.3f}",
-            f"  {_verdict(m, factor)}",
+            f"  {_verdict(m, factor, noun)}",
         ]
     left = f" ({m.left_out} with no press left out, as runs leave them)" if m.left_out else ""
     part = "" if m.mask_source == "no-contact" else f" ({m.background_fraction:.0%} of it)"
     return [
-        f"{m.modality.value}: {m.n_items} press videos of {m.n_fabrics} fabrics{left}, {pooled}; "
+        f"{m.modality.value}: {m.n_items} press videos of {m.n_fabrics} {noun}s{left}, {pooled}; "
         f"background: the no-contact frame, the sensor's own light before the press{part}",
         f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}   the pressed frame, raw",
         f"  lookfeel's input  {m.input_top1:.3f} {_ci(m.input_ci95)}   the pressed frame minus "
@@ -857,18 +862,19 @@ def _modality_lines(m: ModalityLeakage, factor: float) -> list[str]:
         f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}   the no-contact "
         "frame" + ("" if m.mask_source == "no-contact" else f", {_source(m)}"),
         f"  chance            {m.chance:.3f}",
-        f"  {_verdict(m, factor)}",
+        f"  {_verdict(m, factor, noun)}",
     ]
 
 
 def format_leakage(report: LeakageReport) -> str:
     """The report as text: a table per modality and a verdict line for each."""
     lines = [
-        f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over fabrics] from raw pixels",
+        f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over {report.noun}s] from raw "
+        "pixels",
         f"(background: {_background_rule(report)}; {report.seconds:.1f} s)",
     ]
     for m in report.modalities:
-        lines += ["", *_modality_lines(m, report.factor)]
+        lines += ["", *_modality_lines(m, report.factor, report.noun)]
     if report.position is not None:
         lines += _position_lines(report.position, report.factor)
     for name, why in report.skipped.items():
@@ -931,16 +937,16 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
         found.append(
             Problem(Path(pos.no_floor[0]), f"{_no_floor(pos)}; this one among them", "warning")
         )
-    return found + [_leak_problem(report.root, m) for m in report.leaks]
+    return found + [_leak_problem(report.root, m, report.noun) for m in report.leaks]
 
 
-def _leak_problem(root: Path, m: ModalityLeakage) -> Problem:
+def _leak_problem(root: Path, m: ModalityLeakage, noun: str = "fabric") -> Problem:
     folder = Path(m.folder) if m.folder is not None else root / m.modality.value
     if m.press_videos:
         return Problem(
             folder,
             f"{m.modality.value}: the no-contact frame of each press video (the sensor's own "
-            f"light, nothing touching it) identifies the fabric at pick-1-of-10 top-1 "
+            f"light, nothing touching it) identifies the {noun} at pick-1-of-10 top-1 "
             f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: a "
             "model of raw frames can learn the recording session, not the touch; lookfeel's "
             "input subtracts that frame (data.video_reference: subtract), which leaves "
@@ -951,7 +957,7 @@ def _leak_problem(root: Path, m: ModalityLeakage) -> Problem:
     return Problem(
         folder,
         f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
-        f"{_source(m)}) identifies the fabric at pick-1-of-10 top-1 "
+        f"{_source(m)}) identifies the {noun} at pick-1-of-10 top-1 "
         f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
         "a model can learn the capture session, not the material "
         "(see `lookfeel data leakage`)",
