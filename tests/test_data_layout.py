@@ -275,3 +275,22 @@ def test_webm_and_m4v_presses_are_read_and_other_video_formats_say_so(tmp_path: 
         "a video format lookfeel does not read (.wmv); convert it to one it reads "
         "(.mov, .mp4, .avi, .mkv, .webm, .m4v)"
     )
+
+
+def test_a_missing_item_names_the_files_of_its_folder_that_were_skipped(tmp_path: Path):
+    # Every depth map saved as .tif: "fabric 1 has no depth item" alone hid why.
+    root = write_tiny_dataset(tmp_path / "d", fabrics=2, drapes=2)
+    for png in (root / "depth").iterdir():
+        png.rename(png.with_suffix(".tif"))
+    (root / "depth" / ".DS_Store").write_bytes(b"")  # hidden files are no reason
+    errors = [p.message for p in scan(root, require=[Modality.DEPTH]).errors]
+    assert errors == [
+        f"fabric {i} has no depth item; 4 file(s) of its folder were skipped, e.g. "
+        "F0001_Depth_New_000000.tif: not an image (.png, .jpg, .jpeg) (see `lookfeel data check`)"
+        for i in (1, 2)
+    ]
+    # A folder with nothing skipped says what it said.
+    (root / "color" / "F0002_1.png").unlink()
+    (root / "color" / "F0002_2.png").unlink()
+    said = [p.message for p in scan(root).problems if "no color item" in p.message]
+    assert said == ["fabric 2 has no color item (other fabrics have; a run that uses it cannot)"]

@@ -554,9 +554,23 @@ def scan(
     present = {m for by_mod in items.values() for m, its in by_mod.items() if its}
     needed = [m for m in Modality if m in present] if require is None else list(require)
     for m in needed:
+        folder = used_single.get(m) or root / m.value
+        # Files of this modality's folders that were skipped (a .tif depth map, a subfolder
+        # of frames) are the likely reason an item is missing: name them.
+        passed = [
+            q
+            for q in skipped
+            if q.path.parent in {f for f, mod, _ in kept if mod is m}
+            and not q.path.name.startswith(".")
+        ]
+        why = (
+            f"; {len(passed)} file(s) of its folder were skipped, e.g. {passed[0].path.name}: "
+            f"{passed[0].message} (see `lookfeel data check`)"
+            if passed
+            else ""
+        )
         for fid in sorted(items):
             if not items[fid].get(m):
-                folder = used_single.get(m) or root / m.value
                 who = f"object {id_names[fid]!r}" if fid in id_names else f"fabric {fid}"
                 problems.append(
                     Problem(
@@ -566,7 +580,8 @@ def scan(
                             " (other fabrics have; a run that uses it cannot)"
                             if require is None
                             else ""
-                        ),
+                        )
+                        + why,
                     )
                 )
     if require is not None and not items:
