@@ -557,15 +557,17 @@ def scan(
         folder = used_single.get(m) or root / m.value
         # Files of this modality's folders that were skipped (a .tif depth map, a subfolder
         # of frames) are the likely reason an item is missing: name them.
+        its_folders = {f for f, mod, _ in kept if mod is m}
         passed = [
-            q
+            (q.path, q.message)
             for q in skipped
-            if q.path.parent in {f for f, mod, _ in kept if mod is m}
+            if q.path is not None
+            and q.path.parent in its_folders
             and not q.path.name.startswith(".")
         ]
         why = (
-            f"; {len(passed)} file(s) of its folder were skipped, e.g. {passed[0].path.name}: "
-            f"{passed[0].message} (see `lookfeel data check`)"
+            f"; {len(passed)} file(s) of its folder were skipped, e.g. {passed[0][0].name}: "
+            f"{passed[0][1]} (see `lookfeel data check`)"
             if passed
             else ""
         )
