@@ -39,10 +39,22 @@ def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
     assert re.search(row, report)  # not run: the paper's number alone; run: ours beside it
     assert f"({TABLE_4['snn_depth']['novel_top1']:.3f})" in report
     assert result.findings["model_order"]["verdict"] == "not tested"
+    snn = result.results["snn_depth"]  # 3 novel fabrics: top-3 of 3 candidates is always 1
+    assert snn["novel"]["n_effective"] == 3 and snn["novel"]["top3_chance"] == 1.0
+    assert "top-3 of 3 candidates is always 1" in report
+    assert snn["not_scored"] == {  # one of 5 depth images per fabric held out
+        "seen": "no seen fabric has two depth images in the held-out fifth of its images, one "
+        "to query and one to find"
+    }
+    held = result.results["cross_modal"]["test_fabric_ids"]
+    assert len(held) == 3 and snn["test_fabric_ids"] == held and snn["seen_fabrics"] == 7
+    assert f"Tables 1-3 score on 3 fabrics ({', '.join(map(str, held))}) held out" in report
+    assert "the data marks no fabric paper_split=test" in report
     text = (out / "results.json").read_text()
     assert "NaN" not in text and "null" in text  # a number not measured is JSON's null
     saved = json.loads(text)
     assert saved["meta"]["budget"] == "tiny" and saved["meta"]["overrides"] == FAST
+    assert saved["meta"]["paper_test_fabrics"] == 0
     evals = sorted(out.glob("runs/*/seed0/eval.json"))
     assert len(evals) == 2
     stamps = [p.stat().st_mtime_ns for p in evals]
@@ -79,8 +91,58 @@ def test_runs_pooling_more_presses_than_a_fabric_has_are_skipped_with_reasons(tm
     assert result.skipped == {"multi_input": reason, "multi_input_aug": reason}
     assert not result.results and not (tmp_path / "o" / "runs").exists()  # nothing trained
     assert f"skip multi_input: {reason}" in lines
-    assert f"- `multi_input`: {reason}" in result.report.read_text()
+    report = result.report.read_text()
+    assert f"- `multi_input`: {reason}" in report
+    assert "**No run was made**" in report and "held-out fabrics" not in report
     assert json.loads((tmp_path / "o" / "results.json").read_text())["skipped"] == result.skipped
+
+
+def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Path, tmp_path):
+    """QA: Table 2's Multi-input touch to touch read "n/a (0.935)" with no reason: each of
+    the fixture's fabrics has 4 fold presses, one touch input of 3, so no second to find."""
+    out = tmp_path / "out"
+    args = dict(budget="tiny", n_boot=20, overrides=FAST, log=lambda s: None)
+    result = reproduce(data, out, only=["multi_input"], **args)
+    why = (
+        "each touch input pools 3 fold presses of one fabric, and no held-out fabric has 6 to "
+        "make a second input for a query to find"
+    )
+    assert result.results["multi_input"]["not_scored"] == {"touch_to_touch": why}
+    report = result.report.read_text()
+    assert "| n/a^1 (0.935) |" in report and f"- ^1 multi_input touch_to_touch: {why}." in report
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["results"]["multi_input"]["not_scored"] == {"touch_to_touch": why}
+
+
+def test_one_item_per_held_out_fabric_is_not_scored_with_its_reason(monkeypatch):
+    """QA: a world of one depth image per fabric leaves depth to depth nothing to find; the
+    pair is NaN with its reason, not a number or a crash."""
+    import numpy as np
+
+    import lookfeel.reproduce.run as run
+    from lookfeel.config import RunConfig, load_config
+    from lookfeel.embedding import EmbeddedItems
+    from lookfeel.modality import Modality
+
+    def embedded(model, catalog, loader, modalities=None):
+        rng = np.random.default_rng(0)
+        depth = rng.normal(size=(4, 8)).astype(np.float32)  # one image of each of 4 fabrics
+        color = rng.normal(size=(8, 8)).astype(np.float32)  # two of each
+        return {
+            Modality.DEPTH: EmbeddedItems(Modality.DEPTH, depth, np.arange(4), ()),
+            Modality.COLOR: EmbeddedItems(Modality.COLOR, color, np.arange(8) // 2, ()),
+        }
+
+    monkeypatch.setattr(run, "embed_catalog", embedded)
+    config = load_config(
+        RunConfig, run.config_dir() / "cross_modal.yaml", list(run.BUDGETS["tiny"])
+    )
+    metrics, why = run._score(None, None, config, n_boot=0, seed=0)
+    assert why == {
+        "depth_to_depth": "no held-out fabric has a second depth item for a query to find"
+    }
+    assert metrics["depth_to_depth_top1"] != metrics["depth_to_depth_top1"]  # NaN
+    assert 0 <= metrics["color_to_color_top1"] <= 1 and 0 <= metrics["depth_to_color_top1"] <= 1
 
 
 def test_held_out_fabrics_without_enough_presses_are_named():
@@ -263,11 +325,136 @@ def test_the_report_says_what_it_measured(tmp_path: Path):
     assert order == (
         "in the paper's order: multi_input 0.300, auxiliary 0.200, cross_modal 0.100, flat 0.120"
     )
-    assert "| touch_to_touch | - (" not in report and "| n/a (" in report and "nan" not in report
-    assert "| snn_depth | n/a (0.482) | n/a (0.660) | 0.700 [0.50, 0.90] (0.554) |" in report
-    assert "(top-1 chance 0.100); novel: 6 fabrics never trained on" in report
-    assert "(top-1 chance 0.167)" in report
+    assert "| touch_to_touch | - (" not in report and "| n/a^1 (" in report and "nan" not in report
+    assert "| snn_depth | n/a^1 (0.482) | n/a^1 (0.660) | 0.700 [0.50, 0.90] (0.554) |" in report
+    assert "| chance | 0.100 | 0.300 | 0.167 | 0.500 |" in report  # each side's, top-1 and top-3
     assert "It **holds** when every comparison goes the paper's way" in report
+
+
+def _report(tmp_path: Path, results: dict, meta: dict, skipped: dict | None = None) -> str:
+    """The report of hand-made results (``meta``: beside the data, budget, seeds, minutes)."""
+    from lookfeel.reproduce.report import write_reproduction_report
+    from lookfeel.reproduce.result import ReproduceResult
+
+    result = ReproduceResult(
+        tmp_path, tmp_path / "report.md", results, skipped or {}, findings(results)
+    )
+    write_reproduction_report(
+        result, {"data": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0} | meta
+    )
+    return result.report.read_text()
+
+
+def test_cells_without_a_number_say_why_and_top_k_of_k_is_not_a_score(tmp_path: Path):
+    """QA: Table 2's Multi-input touch to touch read "n/a (0.935)" with no reason (the only
+    legend, under Table 4, gave another), and Table 4 showed novel top-3 "1.000" over 2 novel
+    fabrics, where top-3 of 2 is 1 whatever the model, with no chance for either side."""
+    nan = float("nan")
+    why = "each touch input pools 3 fold presses of one fabric, and no held-out fabric has 6"
+    depth = "no held-out fabric has a second depth item for a query to find"
+    novel = {
+        "top1": 0.64,
+        "top3": 1.0,
+        "chance": 0.5,
+        "top3_chance": 1.0,
+        "n_effective": 2.0,
+        "n_queries": 6.0,
+        "n_fabrics": 2.0,
+        "top1_ci_low": 0.56,
+        "top1_ci_high": 0.72,
+    }
+    seen = {
+        "top1": nan,
+        "top3": nan,
+        "chance": 0.1,
+        "top3_chance": 0.3,
+        "n_effective": 10.0,
+        "n_queries": 0.0,
+        "n_fabrics": 0.0,
+    }
+    results = {
+        "multi_input": {
+            "metrics": {"touch_to_touch_top1": nan, "depth_to_depth_top1": nan},
+            "not_scored": {"touch_to_touch": why, "depth_to_depth": depth},
+        },
+        "flat": {"metrics": {"depth_to_depth_top1": nan}, "not_scored": {"depth_to_depth": depth}},
+        "snn_depth": {"seen": seen, "novel": novel, "test_fabrics": 2,
+                      "not_scored": {"seen": "no seen fabric has two depth images"}},
+    }  # fmt: skip
+    report = _report(tmp_path, results, {"split": "paper", "paper_test_fabrics": 2})
+    table_2 = report[report.index("## Table 2") : report.index("## Table 3")]
+    assert "| depth_to_depth | n/a^1 (0.603) | - (0.626) | - (0.622) | n/a^1 (0.646) |" in table_2
+    assert "| touch_to_touch | - (0.802) | - (0.767) | - (0.809) | n/a^2 (0.935) |" in table_2
+    assert f"- ^1 flat depth_to_depth, multi_input depth_to_depth: {depth}." in table_2
+    assert f"- ^2 multi_input touch_to_touch: {why}." in table_2
+    table_4 = report[report.index("## Table 4") :]
+    assert (
+        "| snn_depth | n/a^1 (0.482) | n/a^1 (0.660) | 0.640 [0.56, 0.72] (0.554) | n/a^2 (0.729) |"
+        in table_4
+    )
+    assert "| chance | 0.100 | 0.300 | 0.500 | 1.000 |" in table_4
+    assert "| fabrics / queries | 0 / 0 | 0 / 0 | 2 / 6 | 2 / 6 |" in table_4
+    assert "- ^1 snn_depth seen: no seen fabric has two depth images." in table_4
+    assert "- ^2 snn_depth novel top-3: top-3 of 2 candidates is always 1" in table_4
+    assert "1.000 (" not in report and "fewer than two held-out items per fabric" not in report
+
+
+def test_the_report_says_which_fabrics_each_table_scores_and_how_many(tmp_path: Path):
+    """QA: over 4 held-out fabrics a cell read 0.019 [0.00, 0.04] with chance 0.250, while the
+    report said "over 18 test fabrics an interval is about 0.15 wide" and showed no counts; its
+    header did not say that the data's 2 paper_split=test fabrics went unused by Tables 1-3,
+    nor that Table 4's novel side scored those 2, not Tables 1-3's 4."""
+
+    def cell(v: float, lo: float, hi: float, fabrics: int, queries: int) -> dict:
+        p = "touch_to_color_top1"
+        counts = {"touch_to_color_n_fabrics": fabrics, "touch_to_color_n_queries": queries}
+        return {p: v, f"{p}_ci_low": lo, f"{p}_ci_high": hi, f"{p}_chance": 0.25} | counts
+
+    held = {"test_fabrics": 4, "test_fabric_ids": [4, 7, 12, 13]}
+    results = {
+        "cross_modal": {"metrics": cell(0.3, 0.1, 0.5, 4, 12), **held},
+        "multi_input_aug": {"metrics": cell(0.019, 0.0, 0.04, 4, 4), **held},
+        "snn_depth": {
+            "novel": {"top1": 0.6, "top1_ci_low": 0.5, "top1_ci_high": 0.7, "chance": 0.5},
+            "test_fabrics": 2, "test_fabric_ids": [5, 9], "seen_fabrics": 12,
+        },
+    }  # fmt: skip
+    meta = {"split": "stratified, 4 held-out fabrics", "paper_test_fabrics": 2}
+    report = _report(tmp_path, results, meta)
+    assert (
+        "- Tables 1-3 score on 4 fabrics (4, 7, 12, 13) held out of the training fabrics "
+        "(cluster-stratified); the data's 2 paper_split=test fabrics are not used there "
+        "(neither trained on nor scored): the paper's split needs at least 10"
+    ) in report
+    assert (
+        "- Table 4 scores its novel side on the data's 2 fabrics (5, 9) marked "
+        "paper_split=test, not the 4 that Tables 1-3 score on; its seen side on the held-out "
+        "fifth of the depth images of each of the 12 fabrics it trains on."
+    ) in report
+    assert (
+        "| touch_to_color | 0.300 [0.10, 0.50] (0.395) | - (0.436) | - (0.430) "
+        "| 0.019 [0.00, 0.04] (0.494) | 0.250 | 4 / 4-12 |"
+    ) in report  # Table 3, with the fabrics and queries behind its numbers
+    assert "18 test fabrics" not in report
+    assert (
+        "here they rest on 4 test fabrics (Tables 1-3) and 2 (Table 4's novel side) and are on "
+        "average 0.21 wide"  # (0.4 + 0.04 + 0.2) / 3
+    ) in report
+    assert "under 10, they and the verdicts below say little" in report
+    assert "below 10 test fabrics they say little" in report
+
+    for run in ("cross_modal", "multi_input_aug"):
+        results[run] |= {"test_fabrics": 18, "test_fabric_ids": list(range(101, 119))}
+    del results["snn_depth"]
+    report = _report(tmp_path, results, {"split": "paper", "paper_test_fabrics": 18})
+    assert "- Tables 1-3 score on the data's 18 fabrics (101, " in report
+    assert "marked paper_split=test (the paper's split)." in report
+    assert "here they rest on 18 test fabrics (Tables 1-3) and are on average" in report
+    assert "say little" not in report
+
+    report = _report(tmp_path, {}, meta, skipped={"flat": "needs touch"})
+    assert "**No run was made**: every experiment asked for was skipped" in report
+    assert "Tables 1-3 score" not in report and "stratified" not in report
 
 
 def test_above_chance_is_the_papers_first_finding():

@@ -179,30 +179,93 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _cell(results: Mapping[str, Any], model: str, pair: str, paper: float | None) -> str:
-    m = results.get(model, {}).get("metrics")
-    ours = "-" if m is None or f"{pair}_top1" not in m else _number(m[f"{pair}_top1"])
-    if ours != NOT_SCORED and m is not None and f"{pair}_top1_ci_low" in m:
-        ours += f" [{m[f'{pair}_top1_ci_low']:.2f}, {m[f'{pair}_top1_ci_high']:.2f}]"
-    spread = results.get(model, {}).get("spread", {}).get(f"{pair}_top1")
-    if spread and results.get(model, {}).get("seeds", 1) > 1:
-        ours += f" ±{spread:.3f}"
+NOT_SCORED = "n/a"
+"""A cell without a number, marked with a note (``n/a^1``) that says why under its table: no
+query had an item of its own fabric to find (the Multi-input Net's touch to touch with one
+group of presses per fabric), or a top-k that is 1 whatever the model (k candidates or fewer)."""
+
+_UNMEASURED = "no query had an item of its own fabric to find"
+"""Why a number is NaN when its run recorded no reason (an ``eval.json`` from before reasons)."""
+
+MIN_FABRICS = 10
+"""Below this many test fabrics the report says its intervals say little. Pick 1 of 10 offers
+10 fabrics a draw (the paper's split needs 10 of its test fabrics for it), and a bootstrap over
+fewer fabrics can only resample those few, so an interval can come out far narrower than the
+uncertainty: over 4 fabrics one cell read 0.019 [0.00, 0.04] with chance at 0.250."""
+
+_TABLE_3_COLUMNS = ("cross_modal", "cross_modal_aug", "multi_input", "multi_input_aug")
+_SCORED_ON_HELD_OUT = (*MODEL_COLUMNS, "cross_modal_aug", "multi_input_aug")
+"""The runs of Tables 1-3, all scored on the same held-out fabrics."""
+
+
+class _Notes:
+    """The notes under one table: each distinct reason a cell is n/a, numbered in order."""
+
+    def __init__(self) -> None:
+        self.cells: dict[str, list[str]] = {}
+        """reason -> the cells it explains (``"multi_input touch_to_touch"``)."""
+
+    def mark(self, reason: str, cell: str) -> str:
+        """``n/a`` with the number of ``reason``'s note (``n/a^1``), ``cell`` listed there."""
+        cells = self.cells.setdefault(reason, [])
+        if cell not in cells:
+            cells.append(cell)
+        return f"{NOT_SCORED}^{list(self.cells).index(reason) + 1}"
+
+    def lines(self) -> list[str]:
+        """The notes, one list item each: which cells, and why."""
+        out = [""] if self.cells else []
+        for i, (reason, cells) in enumerate(self.cells.items(), 1):
+            out.append(f"- ^{i} {', '.join(cells)}: {reason}.")
+        return out
+
+
+def _cell(
+    results: Mapping[str, Any], model: str, pair: str, paper: float | None, notes: _Notes
+) -> str:
+    row = results.get(model, {})
+    m = row.get("metrics")
+    if m is None or f"{pair}_top1" not in m:
+        ours = "-"
+    elif m[f"{pair}_top1"] != m[f"{pair}_top1"]:  # NaN: not scored, with its reason
+        ours = notes.mark(row.get("not_scored", {}).get(pair, _UNMEASURED), f"{model} {pair}")
+    else:
+        ours = f"{m[f'{pair}_top1']:.3f}"
+        if f"{pair}_top1_ci_low" in m:
+            ours += f" [{m[f'{pair}_top1_ci_low']:.2f}, {m[f'{pair}_top1_ci_high']:.2f}]"
+        spread = row.get("spread", {}).get(f"{pair}_top1")
+        if spread and row.get("seeds", 1) > 1:
+            ours += f" ±{spread:.3f}"
     return ours + (f" ({paper:.3f})" if paper is not None else "")
 
 
-NOT_SCORED = "n/a"
-"""A cell whose number could not be measured (NaN: no query had an item of its own fabric to
-find, e.g. the Multi-input Net's touch to touch with one group of presses per fabric)."""
+def _span(values: list[int]) -> str:
+    """``4`` or ``4-12``: the range of some counts."""
+    lo, hi = min(values), max(values)
+    return str(lo) if lo == hi else f"{lo}-{hi}"
 
 
-def _number(v: float) -> str:
-    return NOT_SCORED if v != v else f"{v:.3f}"
+def _counts(results: Mapping[str, Any], columns: tuple[str, ...], pair: str) -> str:
+    """``fabrics / queries`` behind a row's numbers (their ranges over the columns)."""
+    fabrics, queries = [], []
+    for model in columns:
+        m = results.get(model, {}).get("metrics", {})
+        top1 = m.get(f"{pair}_top1")
+        if top1 is None or top1 != top1 or f"{pair}_n_queries" not in m:
+            continue
+        fabrics.append(int(m[f"{pair}_n_fabrics"]))
+        queries.append(int(m[f"{pair}_n_queries"]))
+    return f"{_span(fabrics)} / {_span(queries)}" if fabrics else "-"
 
 
 def _table(
     results: Mapping[str, Any], table: Mapping[str, Mapping[str, float]], columns: tuple[str, ...]
 ) -> list[str]:
-    lines = ["| pair | " + " | ".join(columns) + " | chance |", "|---" * (len(columns) + 2) + "|"]
+    lines = [
+        "| pair | " + " | ".join(columns) + " | chance | fabrics / queries |",
+        "|---" * (len(columns) + 3) + "|",
+    ]
+    notes = _Notes()
     for pair, paper in table.items():
         chance = next(
             (
@@ -212,35 +275,213 @@ def _table(
             ),
             None,
         )
-        cells = [_cell(results, m, pair, paper.get(m)) for m in columns]
-        lines.append(
-            f"| {pair} | "
-            + " | ".join(cells)
-            + f" | {'-' if chance is None else f'{chance:.3f}'} |"
+        cells = [_cell(results, m, pair, paper.get(m), notes) for m in columns]
+        cells.append("-" if chance is None else f"{chance:.3f}")
+        cells.append(_counts(results, columns, pair))
+        lines.append(f"| {pair} | " + " | ".join(cells) + " |")
+    return lines + notes.lines()
+
+
+def _fabrics(run: Mapping[str, Any]) -> str:
+    """``4 fabrics (4, 7, 12, 13)``: a run's test fabrics, listed when there are 20 or fewer."""
+    n, ids = run.get("test_fabrics"), run.get("test_fabric_ids")
+    text = f"{n} fabric{'' if n == 1 else 's'}"
+    return text + (f" ({', '.join(map(str, ids))})" if ids and len(ids) <= 20 else "")
+
+
+def _where_scored(result: ReproduceResult, meta: Mapping[str, Any]) -> list[str]:
+    """The paragraph on which fabrics each table scores (or that no run was made)."""
+    r = result.results
+    if not r:
+        why = (
+            "every experiment asked for was skipped (see Skipped below), so there are no numbers "
+            "of ours, only the paper's"
+            if result.skipped
+            else "no experiment was asked for"
         )
-    return lines
+        return [f"**No run was made**: {why}.", ""]
+    paper_test = meta.get("paper_test_fabrics")
+    lines = []
+    held = next((r[n] for n in _SCORED_ON_HELD_OUT if "test_fabrics" in r.get(n, {})), None)
+    if held is not None:
+        if meta.get("split") == "paper":
+            text = f"the data's {_fabrics(held)} marked paper_split=test (the paper's split)"
+        else:
+            text = f"{_fabrics(held)} held out of the training fabrics (cluster-stratified)"
+            if paper_test:
+                text += (
+                    f"; the data's {paper_test} paper_split=test "
+                    f"fabric{'' if paper_test == 1 else 's'} are not used there (neither trained "
+                    f"on nor scored): the paper's split needs at least {MIN_FABRICS}, the "
+                    "candidates of pick 1 of 10"
+                )
+            elif paper_test == 0:
+                text += "; the data marks no fabric paper_split=test"
+        lines.append(f"- Tables 1-3 score on {text}.")
+    vision = next((r[n] for n in TABLE_4 if "test_fabrics" in r.get(n, {})), None)
+    if vision is not None:
+        if paper_test is None:  # a report without the split's facts
+            novel = (
+                f"{_fabrics(vision)} never trained on, the data's paper_split=test fabrics "
+                "where it marks any, else held-out training fabrics"
+            )
+        elif paper_test:
+            novel = f"the data's {_fabrics(vision)} marked paper_split=test"
+        else:
+            novel = f"{_fabrics(vision)} held out of the training fabrics"
+        if held is not None and held.get("test_fabric_ids") is not None:
+            same = held.get("test_fabric_ids") == vision.get("test_fabric_ids")
+            novel += (
+                ", the same as Tables 1-3's"
+                if same
+                else f", not the {held['test_fabrics']} that Tables 1-3 score on"
+            )
+        seen = vision.get("seen_fabrics")
+        trains = f"each of the {seen} fabrics it trains on" if seen else "each fabric it trains on"
+        lines.append(
+            f"- Table 4 scores its novel side on {novel}; its seen side on the held-out fifth "
+            f"of the depth images of {trains}."
+        )
+    return ["Test fabrics, never trained on:", "", *lines, ""] if lines else []
+
+
+def _few_fabrics(results: Mapping[str, Any]) -> tuple[str, bool]:
+    """How many test fabrics the intervals rest on (``4 test fabrics (Tables 1-3) and 2
+    (Table 4's novel side)``), and whether any is under `MIN_FABRICS`."""
+    parts = []
+    held = next(
+        (results[n] for n in _SCORED_ON_HELD_OUT if "test_fabrics" in results.get(n, {})), None
+    )
+    if held is not None:
+        parts.append((held["test_fabrics"], "Tables 1-3"))
+    vision = next((results[n] for n in TABLE_4 if "test_fabrics" in results.get(n, {})), None)
+    if vision is not None and any("novel" in results.get(n, {}) for n in TABLE_4):
+        parts.append((vision["test_fabrics"], "Table 4's novel side"))
+    text = " and ".join(
+        f"{n}{' test fabrics' if i == 0 else ''} ({where})" for i, (n, where) in enumerate(parts)
+    )
+    return text, any(n < MIN_FABRICS for n, _ in parts)
+
+
+def _mean_width(results: Mapping[str, Any]) -> float | None:
+    """The mean width of the top-1 intervals in the tables (None: none recorded)."""
+    widths = []
+    for row in results.values():
+        m = row.get("metrics", {})
+        cells = [(m, key.removesuffix("_ci_low")) for key in m if key.endswith("_top1_ci_low")]
+        cells += [(row[s], "top1") for s in ("seen", "novel") if s in row]
+        for table, key in cells:
+            low, high = table.get(f"{key}_ci_low"), table.get(f"{key}_ci_high")
+            if low is not None and high is not None and low == low and high == high:
+                widths.append(float(high) - float(low))
+    return sum(widths) / len(widths) if widths else None
+
+
+def _intervals_note(results: Mapping[str, Any]) -> str:
+    """What the intervals rest on, in the sentence defining the verdicts."""
+    where, few = _few_fabrics(results)
+    width = _mean_width(results)
+    if not where:
+        return "so a gap smaller than the intervals cannot be decided either way"
+    text = f"here they rest on {where}" + (
+        f" and are on average {width:.2f} wide" if width is not None else ""
+    )
+    text += ", so a smaller gap cannot be decided either way"
+    if few:
+        text += (
+            f"; below {MIN_FABRICS} test fabrics they say little, as the bootstrap can only "
+            "resample the few fabrics there are: an interval may be far narrower than the "
+            "uncertainty, so read no verdict here as evidence"
+        )
+    return text
+
+
+def _table_4(results: Mapping[str, Any]) -> list[str]:
+    """Table 4 (depth to depth, seen and novel fabrics), its chance and counts, and notes."""
+    lines = [
+        "| model | seen top-1 | seen top-3 | novel top-1 | novel top-3 |",
+        "|---|---|---|---|---|",
+    ]
+    notes = _Notes()
+    for name, paper in TABLE_4.items():
+        row = results.get(name, {})
+        cells = []
+        for side in ("seen", "novel"):
+            got = row.get(side, {})
+            for k in (1, 3):
+                ours = got.get(f"top{k}")
+                n_eff = _candidates(got)
+                if ours is None:
+                    cell = "-"
+                elif ours != ours:
+                    why = row.get("not_scored", {}).get(side, _UNMEASURED)
+                    cell = notes.mark(why, f"{name} {side}")
+                elif n_eff is not None and k >= n_eff:
+                    why = (
+                        f"top-{k} of {n_eff} candidates is always 1 (the {side} side has "
+                        f"{n_eff} fabrics to offer, the paper 10)"
+                    )
+                    cell = notes.mark(why, f"{name} {side} top-{k}")
+                else:
+                    cell = f"{ours:.3f}"
+                    if k == 1 and "top1_ci_low" in got:
+                        cell += f" [{got['top1_ci_low']:.2f}, {got['top1_ci_high']:.2f}]"
+                cells.append(cell + f" ({paper[f'{side}_top{k}']:.3f})")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    chance, counts = [], []
+    for side in ("seen", "novel"):
+        got = next((results[n][side] for n in TABLE_4 if side in results.get(n, {})), {})
+        n_eff = _candidates(got)
+        for k in (1, 3):
+            chance.append("-" if n_eff is None else f"{min(k, n_eff) / n_eff:.3f}")
+        queries = [
+            f"{int(r[side]['n_fabrics'])} / {int(r[side]['n_queries'])}"
+            for r in (results.get(n, {}) for n in TABLE_4)
+            if "n_queries" in r.get(side, {})
+        ]
+        counts += [queries[0] if queries else "-"] * 2
+    lines.append("| chance | " + " | ".join(chance) + " |")
+    lines.append("| fabrics / queries | " + " | ".join(counts) + " |")
+    return lines + notes.lines()
+
+
+def _candidates(side: Mapping[str, Any]) -> int | None:
+    """Candidates a draw offers on one side of Table 4 (``n_effective``, else 1 / chance)."""
+    if "n_effective" in side:
+        return int(side["n_effective"])
+    chance = side.get("chance")
+    return round(1 / chance) if chance else None
 
 
 def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) -> None:
-    """Write ``report.md``: tables with ours and (the paper's) numbers, findings, skipped runs."""
+    """Write ``report.md``: which fabrics each table scores on, tables with ours and (the
+    paper's) numbers and notes on the cells without one, findings, skipped runs."""
     r = result.results
+    where, few = _few_fabrics(r)
     lines = [
         "# Reproducing *Connecting Look and Feel* (CVPR 2017)",
         "",
         f"Data: `{meta['data']}`; budget: **{meta['budget']}**; seeds: {meta['seeds']}; "
-        f"test fabrics (Tables 1-3): {meta['split']}; {meta['minutes']} min.",
+        f"{meta['minutes']} min.",
         "",
+        *_where_scored(result, meta),
         "Each cell: our top-1 accuracy of pick 1 of 10 (exact expectation over the draw), its 95% "
         "bootstrap interval over test fabrics (first seed), the spread over seeds when there are "
-        "several, and (the paper's number). Query modality first: `touch_to_depth` is a GelSight "
-        "press matched against depth images. Touch inputs carry the model's number of presses "
-        "(3 for the Multi-input Net).",
+        "several, and (the paper's number); `fabrics / queries`: the test fabrics and queries "
+        f"behind a row's numbers; {NOT_SCORED}^k: no number, note k under the table says why. "
+        "Query modality first: `touch_to_depth` is a GelSight press matched against depth "
+        "images. Touch inputs carry the model's number of presses (3 for the Multi-input Net).",
         "",
         "## Findings",
         "",
-        "| finding (paper) | here | evidence |",
-        "|---|---|---|",
     ]
+    if few:
+        lines += [
+            f"**The intervals rest on {where}: under {MIN_FABRICS}, they and the verdicts below "
+            "say little.**",
+            "",
+        ]
+    lines += ["| finding (paper) | here | evidence |", "|---|---|---|"]
     for f in result.findings.values():
         lines.append(f"| {f['claim']} | **{f['verdict']}** | {f['detail']} |")
     lines += [
@@ -248,8 +489,7 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
         f"A finding is one or more comparisons of two of our numbers. It **{HOLDS}** when every "
         "comparison goes the paper's way with the two 95% intervals (over test fabrics) apart, "
         f"**{NOT_HOLD}** when one goes the other way with them apart, and is **{NOISE}** when "
-        "the intervals overlap (over 18 test fabrics an interval is about 0.15 wide, so a "
-        f"smaller gap cannot be decided either way; **{UNTESTED}**: its runs were skipped). "
+        f"the intervals overlap ({_intervals_note(r)}; **{UNTESTED}**: its runs were skipped). "
         "The paper's numbers are from real fabrics, AlexNets with ImageNet weights and 25,000 "
         "steps; a short run on a synthetic world is not expected to reach them, only to show "
         "whether their order holds.",
@@ -260,48 +500,14 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
     lines += ["", "## Table 2: matching within a modality", ""]
     lines += _table(r, TABLE_2, MODEL_COLUMNS)
     lines += ["", "## Table 3: colour augmentation", ""]
-    lines += _table(
-        r, TABLE_3, ("cross_modal", "cross_modal_aug", "multi_input", "multi_input_aug")
-    )
-    lines += [
-        "",
-        "## Table 4: touch helps vision (depth to depth)",
-        "",
-        "| model | seen top-1 | seen top-3 | novel top-1 | novel top-3 |",
-        "|---|---|---|---|---|",
-    ]
-    for name, paper in TABLE_4.items():
-        row = r.get(name, {})
-        cells = []
-        for side in ("seen", "novel"):
-            got = row.get(side, {})
-            for k in ("top1", "top3"):
-                ours = got.get(k)
-                cell = "-" if ours is None else _number(ours)
-                if k == "top1" and "top1_ci_low" in got and cell != NOT_SCORED:
-                    cell += f" [{got['top1_ci_low']:.2f}, {got['top1_ci_high']:.2f}]"
-                cells.append(cell + f" ({paper[f'{side}_{k}']:.3f})")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    sides = {
-        s: row[s]["chance"]
-        for row in (r.get(n, {}) for n in TABLE_4)
-        for s in ("seen", "novel")
-        if s in row and "chance" in row[s]
-    }
-    novel_fabrics = next(
-        (r[n]["test_fabrics"] for n in TABLE_4 if "test_fabrics" in r.get(n, {})), None
-    )
-    if sides:
+    lines += _table(r, TABLE_3, _TABLE_3_COLUMNS)
+    lines += ["", "## Table 4: touch helps vision (depth to depth)", ""]
+    lines += _table_4(r)
+    if any(s in r.get(n, {}) for n in TABLE_4 for s in ("seen", "novel")):
         lines += [
             "",
-            "Seen: the held-out fifth of each training fabric's depth images"
-            + (f" (top-1 chance {sides['seen']:.3f})" if "seen" in sides else "")
-            + "; novel: "
-            + (f"{novel_fabrics} fabrics" if novel_fabrics is not None else "fabrics")
-            + " never trained on, the data's paper_split=test fabrics where it marks any, else "
-            "held-out training fabrics"
-            + (f" (top-1 chance {sides['novel']:.3f})" if "novel" in sides else "")
-            + f". {NOT_SCORED}: fewer than two held-out items per fabric.",
+            "Seen: the held-out fifth of the depth images of each fabric the run trains on; "
+            "novel: fabrics it never trains on (which ones: see Test fabrics above).",
         ]
     if result.skipped:
         lines += ["", "## Skipped", ""]

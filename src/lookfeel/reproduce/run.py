@@ -14,7 +14,8 @@ cluster head, three pooled presses, colour augmentation and the modalities of ea
 the data cannot serve (modalities or touch presses it lacks, or fewer presses a fabric than the
 run pools into one touch input) are listed as skipped with the reason, before any training.
 Each finished run writes ``runs/<name>/seed<k>/eval.json``; a killed reproduction resumes where
-it stopped.
+it stopped. A number the held-out data cannot give (no query has an item of its own fabric to
+find) is NaN, with the reason under ``not_scored`` (the report shows it as n/a with a note).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from lookfeel.config._core import Override
 from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
+from lookfeel.evaluate.core import no_query_scored
 from lookfeel.metrics import (
     EXACT_PICK,
     ScoringProtocol,
@@ -165,10 +167,26 @@ def _pooled(
     return groups.emb, groups.fabric
 
 
+def _why_not_scored(pair: Pair, config: RunConfig) -> str:
+    """Why no query of ``pair`` could be scored on the held-out fabrics (one sentence).
+
+    Touch inputs pool ``data.presses`` presses of a fabric, as queries and as candidates alike
+    (`_pooled`), so touch to touch needs two such inputs of one fabric: twice the presses."""
+    presses = config.data.presses
+    kinds = "/".join(k.value for k in config.data.touch_kinds)
+    if pair.same and pair.query is Modality.TOUCH and presses > 1:
+        return (
+            f"each touch input pools {presses} {kinds} presses of one fabric, and no held-out "
+            f"fabric has {2 * presses} to make a second input for a query to find"
+        )
+    return no_query_scored(pair, 1, fabrics="held-out")
+
+
 def _score(
     model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int
-) -> dict[str, float]:
-    """All pairs of pick 1 of 10 (exact and sampled), gallery metrics and intervals."""
+) -> tuple[dict[str, float], dict[str, str]]:
+    """All pairs of pick 1 of 10 (exact and sampled), gallery metrics and intervals; and why,
+    by pair name, each pair none of whose queries could be scored (its numbers are NaN)."""
     loader = ImageLoader(config.data)
     emb = embed_catalog(model, catalog, loader)
     vectors: dict[Modality, np.ndarray] = {}
@@ -180,18 +198,27 @@ def _score(
     protocol = ScoringProtocol(n_boot=n_boot, seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: n_effective is in the result
-        return flat_metrics(score_pairs(vectors, fabrics, protocol))
+        scores = score_pairs(vectors, fabrics, protocol)
+    why = {str(p): _why_not_scored(p, config) for p, s in scores.items() if not s.pick.n_queries}
+    return flat_metrics(scores), why
 
 
 _DEPTH_TO_DEPTH = Pair(Modality.DEPTH, Modality.DEPTH)
 
 
 def _depth_pick(
-    model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int
-) -> dict[str, float]:
-    """Exact pick 1 of 10 of depth against depth (Table 4): top-1 with its 95% interval over
-    the fabrics (``n_boot`` resamples; none when 0), and top-3."""
+    model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int, side: str
+) -> tuple[dict[str, float], str | None]:
+    """Exact pick 1 of 10 of depth against depth (Table 4) on one ``side`` (``seen`` or
+    ``novel``): top-1 with its 95% interval over the fabrics (``n_boot`` resamples; none when
+    0), top-3, their chance levels, the candidates per draw (``n_effective``), the queries and
+    their fabrics; and why, when no query could be scored (the numbers are then NaN)."""
+    where = " in the held-out fifth of its images" if side == "seen" else ""
+    why = f"no {side} fabric has two depth images{where}, one to query and one to find"
     emb = embed_catalog(model, catalog, ImageLoader(config.data), modalities=[Modality.DEPTH])
+    if Modality.DEPTH not in emb:  # not one depth image on this side
+        nan = float("nan")
+        return {"top1": nan, "top3": nan, "n_queries": 0.0, "n_fabrics": 0.0}, why
     d = emb[Modality.DEPTH]
     protocol = replace(EXACT_PICK, n_boot=n_boot, seed=seed)
     with warnings.catch_warnings():
@@ -204,9 +231,11 @@ def _depth_pick(
         )
     m = scores[_DEPTH_TO_DEPTH].metrics
     out = {"top1": m["top1"], "top3": m["top3"], "chance": m["top1_chance"]}
+    out |= {"top3_chance": m["top3_chance"], "n_effective": m["n_effective"]}
+    out |= {"n_queries": m["n_queries"], "n_fabrics": m["n_fabrics"]}
     if "top1_ci_low" in m:
         out |= {"top1_ci_low": m["top1_ci_low"], "top1_ci_high": m["top1_ci_high"]}
-    return out
+    return out, (why if not m["n_queries"] else None)
 
 
 def _run_one(
@@ -231,21 +260,30 @@ def _run_one(
         "seed": config.train.seed,
         "split": split["kind"],
     }
+    not_scored: dict[str, str] = {}
     if exp.table == "vision":
         seen_paths = set(split.get("val_items", []))
         seen = catalog.with_items(
             it for m in catalog.modalities for it in catalog.items(m) if str(it.path) in seen_paths
         )
         seed = config.train.seed
-        record["seen"] = _depth_pick(loaded.model, seen, loaded.config, n_boot, seed)
+        sides = {"seen": seen}
         if split.get("novel"):
-            record["novel"] = _depth_pick(
-                loaded.model, catalog.subset(split["novel"]), loaded.config, n_boot, seed
-            )
+            sides["novel"] = catalog.subset(split["novel"])
+        for side, part in sides.items():
+            record[side], why = _depth_pick(loaded.model, part, loaded.config, n_boot, seed, side)
+            if why is not None:
+                not_scored[side] = why
+        record["seen_fabrics"] = len(split["val"])
     else:
         held_out = catalog.subset(split["val"])
-        record["metrics"] = _score(loaded.model, held_out, loaded.config, n_boot, config.train.seed)
-    record["test_fabrics"] = len(split.get("novel") or split["val"])
+        record["metrics"], not_scored = _score(
+            loaded.model, held_out, loaded.config, n_boot, config.train.seed
+        )
+    record["not_scored"] = not_scored
+    test_ids = split.get("novel") or split["val"]
+    record["test_fabrics"] = len(test_ids)
+    record["test_fabric_ids"] = sorted(int(i) for i in test_ids)
     record["seconds"] = round(time.perf_counter() - started, 1)
     record["threads"] = torch.get_num_threads()
     atomic_write_text(done, json.dumps(record, indent=1) + "\n")
@@ -259,7 +297,8 @@ def _over_seeds(tables: Sequence[Mapping[str, float]], stat: str) -> dict[str, f
 
 def _aggregate(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """Mean over seeds of every number (and its spread with several seeds); the intervals are
-    the first seed's bootstrap over test fabrics."""
+    the first seed's bootstrap over test fabrics; ``not_scored``: why each number that is NaN
+    in any seed is (every seed's reasons, by pair name or Table 4 side)."""
     out: dict[str, Any] = {"seeds": len(records)}
     for part in ("metrics", "seen", "novel"):
         if part not in records[0]:
@@ -270,7 +309,10 @@ def _aggregate(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
             std = _over_seeds(tables, "std")
             name = "spread" if part == "metrics" else f"{part}_spread"
             out[name] = {k: v for k, v in std.items() if part != "metrics" or "_top" in k}
-    out["test_fabrics"] = records[0].get("test_fabrics")
+    out["not_scored"] = {k: v for r in records for k, v in r.get("not_scored", {}).items()}
+    for key in ("test_fabrics", "test_fabric_ids", "seen_fabrics"):
+        if key in records[0]:
+            out[key] = records[0][key]
     return out
 
 
@@ -509,6 +551,7 @@ def reproduce(
         "seeds": seeds,
         "overrides": list(overrides),
         "split": "paper" if has_paper_test else f"stratified, {n_val} held-out fabrics",
+        "paper_test_fabrics": len(paper.test),
         "minutes": round((time.perf_counter() - started) / 60, 1),
     }
     everything = {
