@@ -768,13 +768,13 @@ def test_the_report_names_the_objects_the_data_names_and_numbers_the_rest(
             assert list(confusion_axes) == [
                 [name_of[int(f)] for f in ids] for ids in (con.rows, con.cols)
             ]
-            shown = ", ".join(OBJECTS)
+            shown, unit = ", ".join(OBJECTS), "objects"
         else:  # numbered fabrics: their ids, as before
             assert list(confusion_axes) == [
                 [str(int(f)) for f in ids] for ids in (con.rows, con.cols)
             ]
-            shown = ", ".join(str(i) for i in range(1, 11))
-        assert f"| test fabrics | 10: {shown} |" in report
+            shown, unit = ", ".join(str(i) for i in range(1, 11)), "fabrics"
+        assert f"| test {unit} | 10: {shown} |" in report
 
 
 def test_a_split_the_run_did_not_hold_out_is_refused_before_any_video_is_decoded(
@@ -828,3 +828,206 @@ def test_the_report_says_how_presses_were_pooled():
     assert said({"pool_exact": True}) == "by element-wise max of their embeddings"
     file = {"pool_exact": False, "embeddings_file": "e.npz"}  # an npz can only max-pool
     assert said(file) == "by element-wise max of their embeddings"
+
+
+# ------------------------------------------------------------------------------------------
+# Beside the model: raw pixels and the controls, scored as `lookfeel cv` scores them, and what
+# the numbers rest on.
+
+
+def _row(section: str, start: str) -> list[str]:
+    """The cells of the first table row of ``section`` that starts with ``start``."""
+    line = next(x for x in section.splitlines() if x.startswith(start))
+    return [c.strip() for c in line.strip("|").split("|")]
+
+
+def _section(report: str, heading: str) -> str:
+    return report.split(f"## {heading}")[1].split("\n## ")[0]
+
+
+@pytest.mark.filterwarnings("ignore:pick 10")
+def test_the_background_control_pools_touch_as_the_scores_and_raw_pixels_join_each_sense(
+    run: tuple[Path, Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """QA: with touch queries pooling presses (tiny.yaml's 2; the paper's Multi-input Net 3)
+    the background control skipped every pair with touch ("its touch pools 2 presses"), while
+    `lookfeel cv` scored it; raw pixels stood beside depth to depth only; the control's table
+    showed raw pixels without their interval. Now touch pools the same presses under the
+    control as in the main scores (with nothing swapped the control scores exactly them), and
+    raw pixels of every pair of one sense stand beside it, as cv's, with intervals."""
+    from lookfeel.data import ImageLoader
+    from lookfeel.embedding import raw_pixels
+    from lookfeel.evaluate import summary_lines
+    from lookfeel.evaluate.core import exact_protocol
+    from lookfeel.metrics import QuerySet
+
+    data, _, ckpt = run  # the model pools its presses itself (a projection follows)
+    cfg = dataclasses.replace(FAST, n_boot=50, max_presses=2)
+    r = evaluate_checkpoint(ckpt, data, "val", cfg)
+    m = r.metrics
+    assert r.config.presses == 2 and not any("skipped" in n for n in r.notes)
+    for key in ("touch_to_depth_top1_swapped", "depth_to_touch_top1_swapped"):
+        assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
+    # Raw pixels of each sense against itself, as cv: a pooled touch query the mean of its
+    # presses' pixels; none across senses.
+    loader = ImageLoader(load_model(ckpt).config.data)
+    protocol = exact_protocol(r.config)
+    for mod in (D, C, T):
+        pair, e = Pair(mod, mod), r.embedded[mod]
+        pix = raw_pixels(e.items, loader)
+        queries = {}
+        if mod is T:
+            q = r.pooled_queries[T]
+            assert q.members.shape[1] == 2
+            queries = {T: QuerySet(pix[q.members].mean(axis=1), q.fabric, q.members)}
+        want = score_pairs({mod: pix}, {mod: e.fabric_ids}, protocol, [pair], queries=queries)
+        for k in ("top1", "top1_ci_low", "top1_ci_high", "top3"):
+            assert m[f"{pair}_raw_pixels_{k}"] == want[pair].metrics[k], (pair, k)
+    assert not [
+        k
+        for k in m
+        if "raw_pixels" in k and not k.startswith(("depth_to_d", "color_to_c", "touch_to_t"))
+    ]
+    assert "raw pixels" in next(x for x in summary_lines(r) if "touch_to_touch" in x)
+
+    report = write_report(r, tmp_path / "r").report.read_text()
+    pick = _row(_section(report, "Pick"), "| color → color |")
+    lo, hi = m["color_to_color_raw_pixels_top1_ci_low"], m["color_to_color_raw_pixels_top1_ci_high"]
+    assert f"{m['color_to_color_raw_pixels_top1']:.3f} ({lo:.3f} – {hi:.3f}" in pick[3]
+    control = _section(report, "Background control")
+    header = _row(control, "| pair |")
+    for pair in ("depth → depth", "touch → depth"):
+        cells = dict(zip(header, _row(control, f"| {pair} | top-1 |"), strict=True))
+        assert " – " in cells["model, background swapped"], pair
+    cells = dict(zip(header, _row(control, "| depth → depth | top-1 |"), strict=True))
+    for name, key in (("raw pixels", ""), ("raw pixels, background swapped", "_swapped")):
+        key = f"depth_to_depth_raw_pixels_top1{key}"
+        lo, hi = m[f"{key}_ci_low"], m[f"{key}_ci_high"]
+        assert cells[name].startswith(f"{m[key]:.3f} ({lo:.3f} – {hi:.3f}"), name
+
+    class NoSwap:  # every image with its own background: the control must score as the main
+        has_room_control = False
+
+        def __init__(self, config: object, seed: int) -> None:
+            self.config = config
+
+        def loader(self, items: object) -> ImageLoader:
+            return ImageLoader(self.config)  # type: ignore[arg-type]
+
+    from lookfeel.evaluate import controls
+
+    monkeypatch.setattr(controls, "BackgroundControl", NoSwap)
+    for space in ("embedding", "labels"):
+        same = evaluate_checkpoint(ckpt, data, "val", dataclasses.replace(cfg, space=space))
+        s = same.metrics
+        pairs = [p for p in same.pairs if D in (p.query, p.gallery)]
+        assert len(pairs) == 5
+        for pair in pairs:
+            for key in (f"{pair}_top1", f"{pair}_top1_mapped", f"{pair}_raw_pixels_top1"):
+                if key in s:
+                    assert s[f"{key}_swapped"] == s[key], (space, key)
+
+
+@pytest.fixture(scope="module")
+def press_videos(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Six objects pressed three times each (press videos), and tiny.yaml trained on their
+    touch for 2 steps with 3 objects held out; its touch queries pool 2 presses."""
+    pytest.importorskip("av")
+    from ._video import PRESS, object_press, write_video
+
+    root = tmp_path_factory.mktemp("press_videos")
+    data = root / "data"
+    (data / "videos").mkdir(parents=True)
+    names = OBJECTS[:6]
+    (data / "labels.csv").write_text(
+        "object,hardness\n" + "".join(f"{n},{k % 3}\n" for k, n in enumerate(names))
+    )
+    for k, name in enumerate(names):
+        for i in range(3):
+            frames = object_press(k, PRESS, t=14, seed=10 * k + i)
+            write_video(data / "videos" / f"{name}_{i}.mov", frames)
+    steps = ["train.views=[touch, touch]", "train.steps=2", "train.val_every=0"]
+    cfg = load_config(RunConfig, TINY, [*steps, "train.val_fabrics=3"])
+    return data, train(cfg, data, root / "run").last_checkpoint
+
+
+def test_press_videos_get_the_untouched_control_as_cv_scores_it(
+    press_videos: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """QA: `lookfeel evaluate` on press videos showed the model against chance only; cv puts
+    the untouched control beside it (every press replaced by a moment of its video without
+    contact: the sensor's light identifies a session). Now evaluate does too, pooled touch
+    queries pooling the same presses' moments (with the presses themselves in their place,
+    the control scores exactly what the main scores did), with raw pixels, in metrics.json,
+    report.md and the printed lines."""
+    from lookfeel.data import ImageLoader
+    from lookfeel.data.touch_control import UntouchedControl
+    from lookfeel.evaluate import summary_lines
+
+    data, ckpt = press_videos
+    cfg = dataclasses.replace(FAST, n_boot=50, max_presses=2)
+    r = evaluate_checkpoint(ckpt, data, "val", cfg)
+    m = r.metrics
+    assert r.config.presses == 2  # pooled: the model's own pooling of the presses' moments
+    keys = ["touch_to_touch_top1_untouched", "touch_to_touch_raw_pixels_top1_untouched"]
+    for key in ["touch_to_touch_raw_pixels_top1", *keys]:
+        assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
+    lines = summary_lines(r)
+    assert lines[0] == "Evaluated the run's held-out objects (3):"
+    assert f"untouched {m['touch_to_touch_top1_untouched']:.3f}" in lines[1]
+    files = write_report(r, tmp_path / "r")
+    assert keys[0] in json.loads(files.metrics.read_text())
+    section = _section(files.report.read_text(), "Untouched control")
+    cells = dict(
+        zip(_row(section, "| pair |"), _row(section, "| touch → touch | top-1 |"), strict=True)
+    )
+    lo, hi = m[f"{keys[0]}_ci_low"], m[f"{keys[0]}_ci_high"]
+    assert cells["model, untouched"].startswith(f"{m[keys[0]]:.3f} ({lo:.3f} – {hi:.3f}")
+    assert cells["raw pixels, untouched"].startswith(f"{m[keys[1]]:.3f} (")
+
+    def pressed(self: UntouchedControl, items: object) -> ImageLoader:
+        return ImageLoader(self.config)
+
+    monkeypatch.setattr(UntouchedControl, "loader", pressed)
+    same = evaluate_checkpoint(ckpt, data, "val", cfg).metrics
+    for key in ("touch_to_touch_top1", "touch_to_touch_top3", "touch_to_touch_raw_pixels_top1"):
+        assert same[f"{key}_untouched"] == same[key], key
+
+
+def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_rests_on(
+    tmp_path: Path,
+):
+    """QA: on 2 held-out fabrics the report said "10 candidates ... 9 other fabrics" and
+    printed ``0.583 [0.583, 0.583]`` as if it were tight. Now it says how many candidates each
+    pick offered, beside each pair the queries and fabrics its numbers rest on, and under
+    FEW_FABRICS (5) that the interval says little; data that names its objects says
+    "objects"."""
+    from lookfeel.evaluate import summary_lines
+
+    few = evaluate_embeddings(_world(n_fabrics=3, noise=0.5)[0], FAST)
+    t2d = next(x for x in summary_lines(few) if "touch_to_depth" in x)
+    assert "(18 queries, 3 fabrics: too few for the interval to say much)" in t2d
+    report = write_report(few, tmp_path / "few").report.read_text()
+    pick = _section(report, "Pick")
+    assert pick.startswith(" 1 of 3 (")
+    assert "A query is shown 3 candidates" in pick and "each of the 2 other test fabrics" in pick
+    assert "9 other" not in report and "10 candidates" not in report
+    row = _row(pick, "| touch → depth |")
+    assert row[2].endswith("†") and row[-1] == "18 / 3"
+    rule = "† Over 3 test fabrics only: an interval resamples the test fabrics, so over fewer"
+    assert f"{rule} than 5 it cannot reach past their own scores" in pick
+    assert "| queries / test fabrics / candidates per pick | 18 / 3 / 3 |" in pick
+
+    many = evaluate_embeddings(_world(n_fabrics=12, noise=0.5)[0], FAST)
+    t2d = next(x for x in summary_lines(many) if "touch_to_depth" in x)
+    assert "(72 queries, 12 fabrics)  chance" in t2d
+    pick = _section(write_report(many, tmp_path / "many").report.read_text(), "Pick")
+    assert pick.startswith(" 1 of 10 (") and "†" not in pick
+    assert "one item of its own fabric and one of each of 9 other fabrics drawn at" in pick
+
+    named = dataclasses.replace(many, names={i: f"thing{i}" for i in range(1, 13)})
+    report = write_report(named, tmp_path / "named").report.read_text()
+    pick = _section(report, "Pick").split("\n### ")[0]
+    assert "one item of its own object and one of each of 9 other objects drawn" in pick
+    assert "| queries / objects |" in pick and "fabric" not in pick
+    assert "| test objects | 12: thing1, " in report

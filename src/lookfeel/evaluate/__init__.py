@@ -16,7 +16,11 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
 - calibration: ``c``, ``c_fitted``, ``fabric_accuracy`` (+ ``_chance``), ``confidence``,
   ``ece``, ``nll`` (+ ``_chance``);
 - ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
-- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``.
+- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``;
+- beside them (`lookfeel.evaluate.controls`, as ``lookfeel cv``): ``{q}_to_{q}_raw_pixels_top{k}``
+  (raw pixels, pairs of one modality), ``{pair}_top{k}_swapped``/``_room`` (the background
+  control, pairs with depth) and ``{pair}_top{k}_untouched`` (the untouched control, pairs
+  with touch from press videos), each with ``_ci_low``/``_ci_high``.
 """
 
 from lookfeel.embedding import PressPooler

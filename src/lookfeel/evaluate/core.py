@@ -903,4 +903,5 @@ def evaluate_embeddings(
         glance=tuple(glance),
         cross_maps=maps,
         not_scored=not_scored,
+        pooled_queries=dict(galleries),
     )

@@ -11,19 +11,19 @@ Which items are "test" (``split``):
   reference: the paper's training fabrics. The shared real data holds the test fabrics back.
 - ``all``: every item of the dataset; no reference (the paper's c, no probes).
 
-For a model with a depth branch, `evaluate_checkpoint` also runs the **background control**
-(``EvalConfig.background_control``, on by default): each test depth image's background is
-replaced by another fabric's, the cloth kept (`lookfeel.data.background_swap`), the images
-are embedded again and every pair with depth is scored again by the exact pick, beside the
-raw-pixel nearest neighbour on the same images (depth to depth). Keys:
-``{pair}_top{k}_swapped`` (+ ``_ci_low``/``_ci_high``), ``depth_to_depth_raw_pixels_top{k}``
-and ``depth_to_depth_raw_pixels_top{k}_swapped``. For registered depth also the **room
-control** (`BackgroundControl.room_loader`: each test depth image registered in the room fitted
-on its partner's own image, no refit of a composite), keys ``..._room``. Touch queries are
-single presses there (pairs whose touch pools several presses are skipped, with a note).
-Pairs scored through a cross-modal map (``{pair}_top{k}_mapped``, `EvalConfig.cross_map`) are
-scored through the same map under each control too (``{pair}_top{k}_mapped_swapped``,
-``..._mapped_room``).
+Beside the model's scores, `evaluate_checkpoint` scores the same queries on **raw pixels** (every
+same-modality pair, ``{pair}_raw_pixels_top{k}``) and, as `lookfeel cv` does, under the controls
+that expose a shortcut (`lookfeel.evaluate.controls`): for a model with a depth branch the
+**background control** (``EvalConfig.background_control``, on by default): each test depth
+image's background replaced by another fabric's, the cloth kept, every pair with depth scored
+again (``{pair}_top{k}_swapped``, raw pixels ``depth_to_depth_raw_pixels_top{k}_swapped``; for
+registered depth also the room control, ``..._room``); for touch recorded as press videos the
+**untouched control** (always): each press replaced by a moment of its video without contact,
+every pair with touch scored again (``{pair}_top{k}_untouched``, raw pixels
+``touch_to_touch_raw_pixels_top{k}_untouched``). Touch queries pool the same presses there as
+in the main scores. Pairs scored through a cross-modal map are scored through the same map
+under each control too (``{pair}_top{k}_mapped_swapped``, ``..._mapped_untouched``).
+`evaluate_embedding_file` scores raw pixels too when it is given the dataset.
 """
 
 from __future__ import annotations
@@ -36,31 +36,28 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from torch import nn
 
 from lookfeel.checkpoint import CheckpointError, LoadedModel, load_model
 from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
-from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.recordings import drop_unpressed
+from lookfeel.data.touch_control import UntouchedControl
 from lookfeel.embedding import (
     EmbeddedItems,
     EmbeddingError,
     PressPooler,
     embed_catalog,
-    embed_items,
     press_pooler,
-    raw_pixels,
 )
 from lookfeel.errors import LookfeelError
-from lookfeel.metrics import score_distances, score_pairs
-from lookfeel.metrics.label_space import fit_label_spaces
-from lookfeel.modality import Modality, Pair
+from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
+from lookfeel.modality import Modality
 from lookfeel.models import BranchEnsemble, Embedder
 
-from .core import evaluate_embeddings, exact_protocol, keep_pick
+from .controls import background_control, raw_pixel_baseline, untouched_control
+from .core import evaluate_embeddings
 from .embeddings_file import EmbeddingSet, load_embeddings
 from .result import EvalResult
 
@@ -112,8 +109,9 @@ def _select(
         raise ValueError(f"split must be one of {', '.join(SPLITS)}; got {split!r}")
     s = loaded.split
     kind = s.get("kind", "")
+    unit = "objects" if any(f.name is not None for f in catalog.fabrics) else "fabrics"
     if split == "all":
-        return catalog, None, "every item of the dataset (training fabrics included)"
+        return catalog, None, f"every item of the dataset (training {unit} included)"
     if split in ("val", "train", "novel") and loaded.data_fingerprint not in (
         None,
         catalog.fingerprint(),
@@ -157,11 +155,11 @@ def _select(
             return (
                 pool.with_items(val),
                 pool.with_items(train),
-                f"the run's held-out items of its {len(pool.fabrics)} training fabrics (seen)",
+                f"the run's held-out items of its {len(pool.fabrics)} training {unit} (seen)",
             )
         return pool.with_items(train), None, "the run's training items"
     if split == "train":
-        return catalog.subset(train_ids), None, f"the run's training fabrics ({len(train_ids)})"
+        return catalog.subset(train_ids), None, f"the run's training {unit} ({len(train_ids)})"
     key = "novel" if split == "novel" else "val"
     ids = [int(i) for i in s.get(key, [])]
     if not ids:
@@ -183,7 +181,7 @@ def _select(
             it for m in ref.modalities for it in ref.items(m) if _item_key(it.path) not in held
         )
     what = "held-out novel" if split == "novel" else "held-out"
-    return catalog.subset(ids), ref, f"the run's {what} fabrics ({len(ids)})"
+    return catalog.subset(ids), ref, f"the run's {what} {unit} ({len(ids)})"
 
 
 def _load(checkpoint: str | os.PathLike[str] | LoadedModel, device: str) -> LoadedModel:
@@ -387,71 +385,38 @@ def evaluate_checkpoint(
         exact = bool(emb.meta["pool_exact"])
         pool = None if exact else press_pooler(loaded.model, loader, batch_size, device)
         result = _evaluate_set(emb, config, catalog, pool, loaded.config.data, [])
-        if not result.config.background_control or Modality.DEPTH not in emb.embedded:
-            return result
-        extra, notes = _background_control(loaded, emb, result, loader, batch_size, device, catalog)
+        extra = raw_pixel_baseline(result, loader)
+        notes: list[str] = []
+        spaces = _label_spaces(emb, catalog, result.config)
+        model, data = loaded.model, loaded.config.data
+        if result.config.background_control and Modality.DEPTH in emb.embedded:
+            more, why = background_control(
+                model, data, emb.embedded, result, batch_size, device, spaces
+            )
+            extra, notes = extra | more, notes + why
+        more, why = untouched_control(
+            model, data, emb.embedded, result, exact, batch_size, device, spaces
+        )
+        extra, notes = extra | more, notes + why
     return replace(result, metrics={**result.metrics, **extra}, notes=result.notes + tuple(notes))
 
 
-def _background_control(
-    loaded: LoadedModel,
-    emb: EmbeddingSet,
-    result: EvalResult,
-    loader: ImageLoader,
-    batch_size: int,
-    device: str,
-    catalog: Catalog,
-) -> tuple[dict[str, float], list[str]]:
-    """The background control's metrics (module doc) and notes on what was skipped; in label
-    space (``eval.space: labels``) the swapped embeddings are mapped as the others were."""
-    cfg = result.config
-    pairs = [p for p in result.pairs if Modality.DEPTH in (p.query, p.gallery)]
-    touch = Modality.TOUCH
-    pooled = [p for p in pairs if touch in (p.query, p.gallery) and (cfg.presses or 1) > 1]
-    notes = [
-        f"background control of {p} skipped: its touch pools {cfg.presses} presses" for p in pooled
-    ]
-    pairs = [p for p in pairs if p not in pooled]
-    depth = emb.embedded[Modality.DEPTH]
-    control = BackgroundControl(loaded.config.data, cfg.seed)
-    items = list(depth.items)
-    variants: dict[str, ImageLoader] = {}
-    try:
-        variants["_swapped"] = control.loader(items)
-        if control.has_room_control:
-            variants["_room"] = control.room_loader(items)
-    except LookfeelError as e:
-        return {}, [*notes, f"background control skipped: {e}"]
-    fab = {m: np.asarray(e.fabric_ids, dtype=np.int64) for m, e in emb.embedded.items()}
-    vecs = {m: np.asarray(e.embeddings) for m, e in emb.embedded.items()}
-    spaces = None
-    if cfg.space == "labels" and emb.reference is not None:
-        _, labels, names, _ = _clusters_and_labels(catalog)
-        spaces = fit_label_spaces(
-            {m: (emb.reference[m].embeddings, emb.reference[m].fabric_ids) for m in vecs},
-            labels or {},
-            names,
-        )
-    protocol = exact_protocol(cfg)
-    out: dict[str, float] = {}
-    for name, ld in variants.items():
-        vecs_v = vecs | {Modality.DEPTH: embed_items(loaded.model, items, ld, batch_size, device)}
-        if spaces is not None:
-            vecs_v = {m: spaces[m].project(v) for m, v in vecs_v.items()}
-        for pair, score in score_pairs(vecs_v, fab, protocol, pairs).items():
-            keep_pick(out, score.metrics, cfg.ks, f"{pair}_top{{k}}{name}{{suffix}}")
-        for pair, cmap in result.cross_maps.items():
-            if pair in pairs:  # pairs with depth, touch single presses
-                dist = cmap.distances(vecs_v[pair.query], vecs_v[pair.gallery])
-                scored = score_distances(dist, fab[pair.query], fab[pair.gallery], protocol)
-                keep_pick(out, scored.metrics, cfg.ks, f"{pair}_top{{k}}_mapped{name}{{suffix}}")
-    d2d = Pair(Modality.DEPTH, Modality.DEPTH)
-    if d2d in pairs:  # raw pixels of the same images, as they are and altered
-        for name, ld in {"": loader, **variants}.items():
-            pix = {Modality.DEPTH: raw_pixels(items, ld)}
-            score = score_pairs(pix, {Modality.DEPTH: fab[Modality.DEPTH]}, protocol, [d2d])[d2d]
-            keep_pick(out, score.metrics, cfg.ks, f"{d2d}_raw_pixels_top{{k}}{name}{{suffix}}")
-    return out, notes
+def _label_spaces(
+    emb: EmbeddingSet, catalog: Catalog, config: EvalConfig
+) -> dict[Modality, LabelSpace] | None:
+    """In label space (``eval.space: labels``), the maps onto the labels the pairs were scored
+    through (fitted on the reference items, as `lookfeel.evaluate.core.project_to_labels`
+    fits them), for the controls' embeddings; else None."""
+    if config.space != "labels" or emb.reference is None:
+        return None
+    names = list(catalog.label_columns)
+    labels = catalog.label_matrix(names) if names else {}
+    ref = emb.reference
+    return fit_label_spaces(
+        {m: (ref[m].embeddings, ref[m].fabric_ids) for m in emb.embedded if m in ref},
+        labels,
+        names,
+    )
 
 
 def evaluate_embedding_file(
@@ -484,4 +449,21 @@ def evaluate_embedding_file(
     if "data_config" in emb.meta:
         data_config = from_dict(DataConfig, emb.meta["data_config"])
     meta: dict[str, Any] = {**emb.meta, "embeddings_file": str(path)}
-    return _evaluate_set(replace(emb, meta=meta), config, catalog, None, data_config, notes)
+    result = _evaluate_set(replace(emb, meta=meta), config, catalog, None, data_config, notes)
+    touch = emb.embedded[Modality.TOUCH].items if Modality.TOUCH in emb.embedded else ()
+    after = []
+    if Modality.DEPTH in emb.embedded or UntouchedControl.applies(touch):
+        after.append(
+            "no background or untouched control: each embeds altered images, which needs the "
+            "model (lookfeel evaluate --checkpoint)"
+        )
+    pixels: dict[str, float] = {}
+    if catalog is None or data_config is None:
+        why = "the dataset (--data)" if catalog is None else "the run's preprocessing"
+        after.append(f"no raw-pixel baseline: it reads the images, and needs {why}")
+    else:
+        try:
+            pixels = raw_pixel_baseline(result, ImageLoader(data_config))
+        except LookfeelError as e:
+            after.append(f"no raw-pixel baseline: {e}")
+    return replace(result, metrics={**result.metrics, **pixels}, notes=(*result.notes, *after))

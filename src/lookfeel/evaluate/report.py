@@ -6,6 +6,7 @@ import json
 import math
 import os
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +35,13 @@ from .result import CalibrationResult, EvalResult, GlanceExample, PickExample, P
 __all__ = ["ReportFiles", "summary_lines", "write_metrics", "write_report"]
 
 _ARROW = "→"
+
+FEW_FABRICS = 5
+"""An interval over fewer test fabrics (or objects) than this says little, and the report says
+so: the bootstrap resamples only those few, so it cannot reach past their own scores (two
+fabrics that score alike give an interval of width 0) and tells nothing of how another fabric
+would fare. Such intervals are marked `FEW_MARK`."""
+FEW_MARK = "†"
 
 
 @dataclass(frozen=True)
@@ -70,6 +78,50 @@ def _ci(m: dict[str, float], key: str, digits: int = 3) -> str:
     return f"{lo:.{digits}f} – {hi:.{digits}f}"
 
 
+def _n_fabrics(result: EvalResult, pair: Pair) -> int | None:
+    """The test fabrics (objects) whose queries ``pair`` scored; None when unknown."""
+    v = result.metrics.get(f"{pair}_n_fabrics")
+    return int(v) if v is not None and math.isfinite(v) else None
+
+
+def _few(result: EvalResult, pair: Pair) -> bool:
+    """Whether ``pair``'s intervals rest on fewer than `FEW_FABRICS` test fabrics."""
+    n = _n_fabrics(result, pair)
+    return n is not None and n < FEW_FABRICS
+
+
+def _pci(result: EvalResult, pair: Pair, key: str, digits: int = 3) -> str:
+    """`_ci` of ``key``, marked `FEW_MARK` when ``pair``'s queries come from too few fabrics."""
+    text = _ci(result.metrics, key, digits)
+    return f"{text} {FEW_MARK}" if text != "–" and _few(result, pair) else text
+
+
+def _with_ci(result: EvalResult, pair: Pair, key: str) -> str:
+    """``0.583 (0.500 – 0.667)``: a value and its interval; ``–`` when there is none."""
+    m = result.metrics
+    if key not in m:
+        return "–"
+    ci = _pci(result, pair, key)
+    return _f(m[key]) if ci == "–" else f"{_f(m[key])} ({ci})"
+
+
+def _few_lines(result: EvalResult, pairs: Sequence[Pair]) -> list[str]:
+    """The rule of `FEW_FABRICS`, stated under a table whose intervals it marks."""
+    counts = sorted({n for p in pairs if (n := _n_fabrics(result, p)) is not None})
+    few = [n for n in counts if n < FEW_FABRICS]
+    if not few:
+        return []
+    unit = result.unit
+    over = " or ".join(str(n) for n in few)
+    return [
+        f"{FEW_MARK} Over {over} test {unit}s only: an interval resamples the test {unit}s, "
+        f"so over fewer than {FEW_FABRICS} it cannot reach past their own scores (two that "
+        f"score alike give an interval of width 0) and says little of another {unit}; hold "
+        f"out {FEW_FABRICS} or more (or cross-validate, `lookfeel cv`) for one that does.",
+        "",
+    ]
+
+
 def _pretty(pair: Pair) -> str:
     return f"{pair.query.value} {_ARROW} {pair.gallery.value}"
 
@@ -80,23 +132,41 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
     return [*out, ""]
 
 
+def _n_effective(result: EvalResult, pair: Pair) -> int:
+    """Candidates each pick of ``pair`` offered (fewer than the protocol's n when fewer test
+    fabrics were there to offer)."""
+    v = result.metrics.get(f"{pair}_n_effective")
+    return int(v) if v is not None and math.isfinite(v) else result.config.n
+
+
 def _pair_rows(result: EvalResult, pair: Pair) -> list[list[str]]:
     m, cfg = result.metrics, result.config
     p = f"{pair}_"
     rows = []
-    n_eff = int(m.get(f"{p}n_effective", cfg.n))
+    n_eff = _n_effective(result, pair)
     for k in cfg.ks:
         key = f"{p}top{k}"
+        chance = _f(m.get(f"{key}_chance"))
         rows.append(
-            [f"top-{k} of {n_eff} (exact)", _f(m.get(key)), _ci(m, key), _f(m.get(f"{key}_chance"))]
+            [f"top-{k} of {n_eff} (exact)", _f(m.get(key)), _pci(result, pair, key), chance]
         )
+        raw = f"{p}raw_pixels_top{k}"
+        if raw in m:
+            rows.append(
+                [
+                    f"top-{k} of {n_eff}, raw pixels (exact)",
+                    _f(m[raw]),
+                    _pci(result, pair, raw),
+                    chance,
+                ]
+            )
         if f"{key}_sampled" in m:
             rows.append(
                 [
                     f"top-{k} of {n_eff} (sampled, paper)",
                     f"{_f(m.get(f'{key}_sampled'))} ± {_f(m.get(f'{key}_sampled_se'))} (se)",
                     "",
-                    _f(m.get(f"{key}_chance")),
+                    chance,
                 ]
             )
         if f"{key}_released" in m:
@@ -105,32 +175,34 @@ def _pair_rows(result: EvalResult, pair: Pair) -> list[list[str]]:
                     f"top-{k} of {n_eff} (released code's variant)",
                     f"{_f(m.get(f'{key}_released'))} ± {_f(m.get(f'{key}_released_se'))} (se)",
                     "",
-                    "≈ " + _f(m.get(f"{key}_chance")),
+                    "≈ " + chance,
                 ]
             )
     rows.append(
         [
             "mAP (whole gallery)",
             _f(m.get(f"{p}map")),
-            _ci(m, f"{p}map"),
+            _pci(result, pair, f"{p}map"),
             _f(m.get(f"{p}map_chance")),
         ]
     )
     for k in cfg.recall_ks:
         key = f"{p}recall{k}"
-        rows.append([f"recall@{k}", _f(m.get(key)), _ci(m, key), _f(m.get(f"{key}_chance"))])
+        rows.append(
+            [f"recall@{k}", _f(m.get(key)), _pci(result, pair, key), _f(m.get(f"{key}_chance"))]
+        )
     key = f"{p}median_rank"
     rows.append(
         [
             "median rank of the first true item",
             _f(m.get(key), 1),
-            _ci(m, key, 1),
+            _pci(result, pair, key, 1),
             _f(m.get(f"{key}_chance"), 1),
         ]
     )
     rows.append(
         [
-            "queries / test fabrics / candidates per pick",
+            f"queries / test {result.unit}s / candidates per pick",
             f"{_f(m.get(f'{p}n_queries'), 0)} / {_f(m.get(f'{p}n_fabrics'), 0)} / {n_eff}",
             "",
             "",
@@ -139,21 +211,53 @@ def _pair_rows(result: EvalResult, pair: Pair) -> list[list[str]]:
     return rows
 
 
+def _pick_text(result: EvalResult) -> tuple[str, str]:
+    """The pick section's heading and what it did: the candidates each pick actually offered
+    (every test fabric when there are fewer than the protocol's n), named as the data names
+    what it tells apart (fabrics, or objects)."""
+    cfg, unit = result.config, result.unit
+    scored = [p for p in result.pairs if p not in result.not_scored] or list(result.pairs)
+    used = sorted({_n_effective(result, p) for p in scored})
+    n = used[0] if len(used) == 1 else None
+    heading = f"Pick 1 of {n}" if n is not None else f"Pick 1 of {used[0]} to {used[-1]}"
+    if n == cfg.n:
+        offered = (
+            f"A query is shown {n} candidates of the gallery modality: one item of its own "
+            f"{unit} and one of each of {n - 1} other {unit}s drawn at random."
+        )
+    elif n is not None:
+        others = f"the other test {unit}" if n == 2 else f"each of the {n - 1} other test {unit}s"
+        offered = (
+            f"A query is shown {n} candidates of the gallery modality: one item of its own "
+            f"{unit} and one of {others} (the protocol's pick 1 of {cfg.n} needs {cfg.n} test "
+            f"{unit}s; with {n}, every one is offered and chance top-1 is 1/{n})."
+        )
+    else:
+        offered = (
+            f"A query is shown one item of its own {unit} and one of each of up to {cfg.n - 1} "
+            f"other {unit}s drawn at random: as many candidates as the gallery has test "
+            f"{unit}s, up to {cfg.n} (each pair's are in its table below)."
+        )
+    across = any(not p.same for p in result.pairs)
+    text = (
+        f"{offered} *Exact* is the expectation of this draw computed from the whole distance "
+        f"matrix; *sampled* is the paper's protocol ({cfg.queries_per_fabric} queries per "
+        f"{unit}, {cfg.repeats} draws each, seed {cfg.seed}). *Raw pixels*: the same queries "
+        "matched on the preprocessed images themselves (the network's input; a pooled touch "
+        "query the mean of its presses' pixels), for pairs of one modality"
+        + (" (no pixel of a drape corresponds to one of a press)" if across else "")
+        + f". Intervals: {100 * (1 - cfg.alpha):.0f}% "
+        f"percentile bootstrap over test {unit}s ({cfg.n_boot} resamples). Same-modality pairs "
+        "never offer the query's own item."
+    )
+    return heading, text
+
+
 def _section_pick(result: EvalResult) -> list[str]:
     cfg, m = result.config, result.metrics
     k0 = cfg.ks[0]
-    lines = [
-        f"## Pick 1 of {cfg.n} (paper section 5.1, Figure 7, Tables 1-2)",
-        "",
-        f"A query is shown {cfg.n} candidates of the gallery modality: one item of its own "
-        f"fabric and one of each of {cfg.n - 1} other fabrics drawn at random. *Exact* is the "
-        "expectation of this draw computed from the whole distance matrix; *sampled* is the "
-        f"paper's protocol ({cfg.queries_per_fabric} queries per fabric, {cfg.repeats} draws "
-        f"each, seed {cfg.seed}). Intervals: {100 * (1 - cfg.alpha):.0f}% percentile bootstrap "
-        f"over test fabrics ({cfg.n_boot} resamples). Same-modality pairs never offer the "
-        "query's own item.",
-        "",
-    ]
+    heading, text = _pick_text(result)
+    lines = [f"## {heading} (paper section 5.1, Figure 7, Tables 1-2)", "", text, ""]
     rows = []
     for pair in result.pairs:
         p = f"{pair}_top{k0}"
@@ -161,12 +265,14 @@ def _section_pick(result: EvalResult) -> list[str]:
             [
                 _pretty(pair),
                 "not scored" if pair in result.not_scored else _f(m.get(p)),
-                _ci(m, p),
+                _pci(result, pair, p),
+                _with_ci(result, pair, f"{pair}_raw_pixels_top{k0}"),
                 _f(m.get(f"{p}_sampled")),
                 _f(m.get(f"{pair}_top{cfg.ks[-1]}")) if len(cfg.ks) > 1 else "–",
                 _f(m.get(f"{p}_chance")),
                 _f(m.get(f"{pair}_map")),
                 _f(m.get(f"{pair}_map_chance")),
+                f"{_f(m.get(f'{pair}_n_queries'), 0)} / {_f(m.get(f'{pair}_n_fabrics'), 0)}",
             ]
         )
     top_last = f"top-{cfg.ks[-1]}" if len(cfg.ks) > 1 else "–"
@@ -175,14 +281,17 @@ def _section_pick(result: EvalResult) -> list[str]:
             "pair",
             f"top-{k0}",
             "95% interval",
+            f"raw pixels top-{k0} (95% interval)",
             f"top-{k0} sampled",
             top_last,
             f"chance top-{k0}",
             "mAP",
             "chance mAP",
+            f"queries / {result.unit}s",
         ],
         rows,
     )
+    lines += _few_lines(result, result.pairs)
     for pair, why in result.not_scored.items():
         lines += [f"Not scored: {_pretty(pair)}: {why}.", ""]
     for pair in result.pairs:
@@ -194,82 +303,124 @@ def _section_pick(result: EvalResult) -> list[str]:
     return lines
 
 
+def _bracket(m: dict[str, float], key: str) -> str:
+    """``0.583 [0.500, 0.667]``, or the value alone when it has no interval."""
+    v, lo, hi = m[key], m.get(f"{key}_ci_low"), m.get(f"{key}_ci_high")
+    if lo is None or hi is None:
+        return _f(v)
+    return f"{_f(v)} [{_f(lo)}, {_f(hi)}]"
+
+
 def summary_lines(result: EvalResult) -> list[str]:
-    """What `lookfeel evaluate` prints: each pair's first top-k with its interval and chance,
-    beside the background control and the cross-modal map where they ran; a pair none of
-    whose queries could be scored says why instead (`EvalResult.not_scored`)."""
+    """What `lookfeel evaluate` prints: each pair's first top-k with its interval, the queries
+    and test fabrics it rests on (an interval over fewer than `FEW_FABRICS` said to say
+    little) and chance, beside raw pixels, the background and untouched controls and the
+    cross-modal map where they ran; a pair none of whose queries could be scored says why
+    instead (`EvalResult.not_scored`)."""
     m, k = result.metrics, result.config.ks[0]
-    nan = float("nan")
+    unit = result.unit
     lines = [f"Evaluated {result.info.get('split_description', 'the embeddings')}:"]
     for pair in result.pairs:
         if pair in result.not_scored:
             lines.append(f"  {pair!s:<16} not scored: {result.not_scored[pair]}")
             continue
-        v, lo, hi = (m.get(f"{pair}_top{k}{s}", nan) for s in ("", "_ci_low", "_ci_high"))
-        chance = m.get(f"{pair}_top{k}_chance", nan)
-        swapped = m.get(f"{pair}_top{k}_swapped")
-        control = "" if swapped is None else f"  background swapped {swapped:.3f}"
-        room = m.get(f"{pair}_top{k}_room")
-        control += "" if room is None else f", in another fabric's room {room:.3f}"
-        mapped = m.get(f"{pair}_top{k}_mapped")
-        control += "" if mapped is None else f"  through the cross-modal map {mapped:.3f}"
-        lines.append(
-            f"  {pair!s:<16} top-{k} {v:.3f} [{lo:.3f}, {hi:.3f}]  chance {chance:.3f}{control}"
+        key = f"{pair}_top{k}"
+        n_q, n_f = m.get(f"{pair}_n_queries"), _n_fabrics(result, pair)
+        basis = f"{_f(n_q, 0)} queries, {n_f} {unit}{'s' if n_f != 1 else ''}"
+        if _few(result, pair):
+            basis += ": too few for the interval to say much"
+        text = (
+            f"top-{k} {_bracket(m, key)} ({basis})  chance {m.get(f'{key}_chance', math.nan):.3f}"
         )
+        if f"{pair}_raw_pixels_top{k}" in m:
+            text += f"  raw pixels {_bracket(m, f'{pair}_raw_pixels_top{k}')}"
+        controls = [
+            ("_swapped", "background swapped"),
+            ("_room", "in another fabric's room"),
+            ("_untouched", "untouched"),
+            ("_mapped", "through the cross-modal map"),
+        ]
+        for name, said in controls:
+            if f"{key}{name}" in m:
+                text += f"  {said} {m[f'{key}{name}']:.3f}"
+        lines.append(f"  {pair!s:<16} {text}")
     return lines
 
 
 def _section_control(result: EvalResult) -> list[str]:
     """The background control beside the scores as they are (when it ran), and the room
-    control (registered depth) when it ran too."""
+    control (registered depth) when it ran too; model and raw pixels, each with its
+    interval."""
     m, ks = result.metrics, result.config.ks
     pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_swapped" in m]
     if not pairs:
         return []
     room = any(f"{p}_top{ks[0]}_room" in m for p in pairs)
+    unit = result.unit
     lines = [
         "## Background control",
         "",
-        "The same queries with every test depth image's background (room, wall, floor) "
-        "replaced by another fabric's, the cloth kept. A model that reads the cloth, not the "
-        "capture session, scores the same; raw pixels show how much the room alone carries.",
+        f"The same queries with every test depth image's background (room, wall, floor) "
+        f"replaced by another {unit}'s, the cloth kept; touch queries pool the same presses "
+        "as above. A model that reads the cloth, not the capture session, scores the same; "
+        "raw pixels show how much the room alone carries.",
         "",
     ]
     if room:
         lines[-1:-1] = [
             "",
             "Registered depth also gets the room control: each test depth image registered, "
-            "as it was taken, in the room fitted on that other fabric's own image (no room "
+            f"as it was taken, in the room fitted on that other {unit}'s own image (no room "
             "refitted on a composite image).",
         ]
-    names = ["_swapped", "_room"] if room else ["_swapped"]
+    names = ["", "_swapped", "_room"] if room else ["", "_swapped"]
     rows = []
     for pair in pairs:
         for k in ks:
-            model = [
-                f"{_f(m.get(f'{pair}_top{k}{n}'))} ({_ci(m, f'{pair}_top{k}{n}')})" for n in names
-            ]
-            raw = [_f(m.get(f"{pair}_raw_pixels_top{k}{n}")) for n in names]
-            rows.append(
-                [
-                    _pretty(pair),
-                    f"top-{k}",
-                    f"{_f(m.get(f'{pair}_top{k}'))} ({_ci(m, f'{pair}_top{k}')})",
-                    *model,
-                    _f(m.get(f"{pair}_raw_pixels_top{k}")),
-                    *raw,
-                ]
-            )
+            model = [_with_ci(result, pair, f"{pair}_top{k}{n}") for n in names]
+            raw = [_with_ci(result, pair, f"{pair}_raw_pixels_top{k}{n}") for n in names]
+            chance = _f(m.get(f"{pair}_top{k}_chance"))
+            rows.append([_pretty(pair), f"top-{k}", *model, *raw, chance])
     headers = ["pair", "metric", "model (95% interval)", "model, background swapped"]
     headers += ["model, in another fabric's room"] if room else []
     headers += ["raw pixels", "raw pixels, background swapped"]
     headers += ["raw pixels, in another fabric's room"] if room else []
-    return lines + _table(headers, rows)
+    return lines + _table([*headers, "chance"], rows) + _few_lines(result, pairs)
+
+
+def _section_untouched(result: EvalResult) -> list[str]:
+    """The untouched control (press videos) beside the scores as they are, when it ran."""
+    m, ks = result.metrics, result.config.ks
+    pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_untouched" in m]
+    if not pairs:
+        return []
+    lines = [
+        "## Untouched control",
+        "",
+        "The same queries with every press replaced by a moment of its own video without "
+        "contact, preprocessed alike (`lookfeel.data.touch_control`); a pooled touch query "
+        "pools the same presses' moments. The sensor's own light and drift identify a "
+        "recording session: a model that reads the contact, not the session, falls to chance "
+        "here; raw pixels show how much the session alone carries.",
+        "",
+    ]
+    rows = []
+    for pair in pairs:
+        for k in ks:
+            model = [_with_ci(result, pair, f"{pair}_top{k}{n}") for n in ("", "_untouched")]
+            raw = [
+                _with_ci(result, pair, f"{pair}_raw_pixels_top{k}{n}") for n in ("", "_untouched")
+            ]
+            chance = _f(m.get(f"{pair}_top{k}_chance"))
+            rows.append([_pretty(pair), f"top-{k}", *model, *raw, chance])
+    headers = ["pair", "metric", "model (95% interval)", "model, untouched"]
+    headers += ["raw pixels", "raw pixels, untouched", "chance"]
+    return lines + _table(headers, rows) + _few_lines(result, pairs)
 
 
 def _section_mapped(result: EvalResult) -> list[str]:
     """Matching through the cross-modal map beside the embedding's own distances (when it ran),
-    and under the background controls when they ran."""
+    and under the background and untouched controls when they ran."""
     m, ks = result.metrics, result.config.ks
     pairs = [p for p in result.pairs if f"{p}_top{ks[0]}_mapped" in m]
     if not pairs:
@@ -286,10 +437,13 @@ def _section_mapped(result: EvalResult) -> list[str]:
         "through its map when that does better in calibration.",
         "",
     ]
+    named = (
+        ("_swapped", "background swapped"),
+        ("_room", "in another's room"),
+        ("_untouched", "untouched"),
+    )
     controls = [
-        (n, title)
-        for n, title in (("_swapped", "background swapped"), ("_room", "in another's room"))
-        if any(f"{p}_top{ks[0]}_mapped{n}" in m for p in pairs)
+        (n, title) for n, title in named if any(f"{p}_top{ks[0]}_mapped{n}" in m for p in pairs)
     ]
     rows = []
     for pair in pairs:
@@ -299,15 +453,15 @@ def _section_mapped(result: EvalResult) -> list[str]:
                 [
                     _pretty(pair),
                     f"top-{k}",
-                    f"{_f(m.get(key))} ({_ci(m, key)})",
-                    f"{_f(m.get(f'{key}_mapped'))} ({_ci(m, f'{key}_mapped')})",
-                    *[_f(m.get(f"{key}_mapped{n}")) for n, _ in controls],
+                    _with_ci(result, pair, key),
+                    _with_ci(result, pair, f"{key}_mapped"),
+                    *[_with_ci(result, pair, f"{key}_mapped{n}") for n, _ in controls],
                     _f(m.get(f"{key}_chance")),
                 ]
             )
     headers = ["pair", "metric", "embedding (95% interval)", "cross-modal map (95% interval)"]
     headers += [f"map, {title}" for _, title in controls]
-    return lines + _table([*headers, "chance"], rows)
+    return lines + _table([*headers, "chance"], rows) + _few_lines(result, pairs)
 
 
 def _curve_n_effective(result: EvalResult, curve: PressCurve) -> int:
@@ -578,7 +732,7 @@ def _provenance(result: EvalResult) -> list[str]:
         rows.append(["split", f"{info['split']}: {info.get('split_description', '')}"])
     fabrics = info.get("fabrics", [])
     shown = ", ".join(result.names.get(int(f), str(f)) for f in fabrics)  # names, else ids
-    rows.append(["test fabrics", f"{len(fabrics)}: {shown}"])
+    rows.append([f"test {result.unit}s", f"{len(fabrics)}: {shown}"])
     items = info.get("items", {})
     rows.append(
         [
@@ -757,6 +911,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     lines += glance_lines
     lines += _section_pick(result)
     lines += _section_control(result)
+    lines += _section_untouched(result)
     lines += _section_mapped(result)
     lines += _section_presses(result, presses_png)
     lines += _section_calibration(result, cal_figures)

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig, EvalConfig
 from lookfeel.embedding import EmbeddedItems
-from lookfeel.metrics import Confusion, ReliabilityCurve
+from lookfeel.metrics import Confusion, QuerySet, ReliabilityCurve
 from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
@@ -173,6 +173,11 @@ class EvalResult:
             (``videos/<name>_<n>.mov``, `lookfeel.data.Fabric.name`); empty for numbered
             fabrics (GelFabric) or when the dataset is unknown. The report shows these names
             in place of the ids (`fabric_label`).
+        pooled_queries: the pooled queries of a modality (touch queries of ``config.presses``
+            presses, in the space the pairs were scored in), as every pair scored them: as
+            queries, and as the candidates of another modality's queries. The controls
+            (`lookfeel.evaluate.controls`) score the same groups of presses. Empty when no
+            query pools presses.
     """
 
     metrics: dict[str, float]
@@ -190,6 +195,13 @@ class EvalResult:
     cross_maps: dict[Pair, CrossMap] = field(default_factory=dict)
     not_scored: dict[Pair, str] = field(default_factory=dict)
     names: dict[int, str] = field(default_factory=dict)
+    pooled_queries: dict[Modality, QuerySet] = field(default_factory=dict)
+
+    @property
+    def unit(self) -> str:
+        """What the report calls one of the things told apart: ``"object"`` for data that
+        names its objects (`names`), ``"fabric"`` otherwise."""
+        return "object" if self.names else "fabric"
 
     def fabric_label(self, fabric_id: int) -> str:
         """How the report names a fabric: ``sponge`` for a named object, ``F12`` otherwise."""
