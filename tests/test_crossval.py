@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -531,8 +532,9 @@ def _hand_made_run(fold: int, pairs: dict[str, dict[str, list]]) -> dict:
     return {"fold": fold, "pairs": out, "properties": {}}
 
 
-def _report(results: list[dict], **extra) -> tuple[dict, str]:
-    """`_summarise` and `format_cv_summary` of hand-made runs, numpy's warnings as errors."""
+def _report(results: list[dict], summarise: dict | None = None, **extra) -> tuple[dict, str]:
+    """`_summarise` (with ``summarise``'s keyword arguments) and `format_cv_summary` of
+    hand-made runs, numpy's warnings as errors."""
     import warnings
 
     from lookfeel.crossval import _summarise, format_cv_summary
@@ -542,7 +544,11 @@ def _report(results: list[dict], **extra) -> tuple[dict, str]:
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         summary = _summarise(
-            results, pairs, 20, why=lambda p: no_query_scored(p, 3, option="--presses ")
+            results,
+            pairs,
+            20,
+            why=lambda p: no_query_scored(p, 3, option="--presses "),
+            **(summarise or {}),
         )
         summary |= {"folds": [0, 1], "seeds": [0], "fold_size": 4, "presses": 3} | extra
         return summary, format_cv_summary(summary)
@@ -570,7 +576,9 @@ def test_a_pair_no_query_of_which_was_scored_says_why_and_warns_nothing():
     assert summary["pairs"]["touch_to_depth"]["model_top1"]["mean"] == pytest.approx(0.5)
     d2d = summary["pairs"]["depth_to_depth"]["model_top1"]  # scored in fold 0 only
     assert d2d["mean"] == 1.0 and np.isnan(d2d["per_run"][1])
-    assert "| touch_to_touch | not scored | - | - | - | 0.250 / 0.750 |" in md
+    assert "| touch_to_touch | not scored | - | - | - | n/a |" in md  # no chance to beat
+    # A number only some runs scored says on how many it rests.
+    assert "| depth_to_depth | 1.000 [1.000, 1.000] (1 of 2 runs) |" in md
     assert f"Not scored: touch to touch: {t2t['not_scored']}." in md
     assert "touch to touch picks among the single presses outside the query (none is left" in md
     assert "nan" not in md
@@ -647,3 +655,162 @@ def test_impossible_folds_or_presses_are_refused_before_anything_is_printed_or_w
     with pytest.raises(ConfigError, match=r"has more than 3\); use --presses 3 or fewer"):
         cross_validate(touch, data, tmp_path / "cv", presses=4, log=logs.append)
     assert logs == [] and not (tmp_path / "cv").exists()
+
+
+def _strict_json(path: Path) -> dict:
+    """``path`` read as strict JSON: a bare NaN or Infinity (Python's own extension) fails."""
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{path} holds {constant}, which strict JSON parsers refuse")
+
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_cv_md_says_which_fabrics_were_held_out_and_json_is_strict(tmp_path: Path):
+    """QA: a constant label printed ``nan`` in cv.md and a bare NaN in cv.json, and the first
+    line said "every fabric held out once" for ``--only-folds 0`` and left out the fabrics kept
+    for the paper's test without a word. Now: ``n/a`` with the reason, null in every JSON cv
+    writes, and the first line counts what was held out, not run, only trained on, unused."""
+    data = write_tiny_dataset(tmp_path / "data", fabrics=8, drapes=2)
+    labels = data / "labels.csv"
+    rows = [line.split(",") for line in labels.read_text().splitlines()]
+    for row in rows[1:]:
+        row[5] = "1"  # stretchiness: every fabric 1
+    rows[-1][6] = "test"  # fabric 8: the paper's test, never used by cv
+    labels.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
+    summary = _strict_json(tmp_path / "cv" / "cv.json")
+    _strict_json(tmp_path / "cv" / "seed0-fold0" / "result.json")
+    probe = summary["properties"]["depth"]["model"]["stretchiness"]
+    assert probe["r2"] is None and probe["not_scored"] == "every value 1"
+    assert (probe["runs"], probe["runs_total"]) == (0, 1)
+    assert summary["properties"]["depth"]["model"]["thickness_mm"]["runs"] == 1
+    md = (tmp_path / "cv" / "cv.md").read_text()
+    assert "nan" not in md.lower()
+    assert "| stretchiness | n/a: every value 1 | n/a | n/a | n/a | 0 of 1 (0) |" in md
+    assert md.startswith(
+        "Fabric-disjoint cross-validation: 1 run (folds [0], seeds [0]; 3 of the 8 fabrics held "
+        "out, each once, 3 per fold; fold 1 of 2 not run (--only-folds): 3 fabrics not held "
+        "out; 1 fabric in no fold, only trained on (2 folds of train.fold_size=3); 1 fabric "
+        "never used, neither trained on nor held out (F0008): 1 marked paper_split=test in "
+        "labels.csv"
+    )
+    assert summary["coverage"]["never_used"]["items"] == ["F0008"]
+    # 3 held out a fold: top-3 among 3 is always right, so it is n/a, and said so.
+    assert "| depth_to_depth |" in md and "Top-3 is n/a for depth to depth" in md
+
+
+def test_folds_holding_out_one_item_are_refused_before_anything_is_trained(
+    data: Path, tmp_path: Path
+):
+    """QA: 3 objects in 3 folds ran, every score 1.000 and chance 1.000 (one held-out object
+    finds itself among itself). Now a fold must hold out 2: refused in one line naming the
+    flag and the counts, before any line is logged or the folder made; objects are objects."""
+    from lookfeel.crossval import _fold_plan
+    from lookfeel.data import SplitError
+
+    from ._tiny import write_recordings
+
+    logs: list[str] = []
+    config = load_config(RunConfig, TINY, [*OVERRIDES, "train.fold_size=null", "train.folds=4"])
+    with pytest.raises(SplitError, match=r"^--folds 4 \(train.folds\) of the 7 fabrics of .* "
+                       r"leaves 1 held out in some fold; .*: use --folds 3 or fewer$"):  # fmt: skip
+        cross_validate(config, data, tmp_path / "cv", log=logs.append)
+    one = load_config(RunConfig, TINY, [*OVERRIDES, "train.fold_size=1"])
+    with pytest.raises(SplitError, match=r"^--fold-size 1 \(train.fold_size\): .* use "
+                       "--fold-size 2 or more"):  # fmt: skip
+        cross_validate(one, data, tmp_path / "cv", log=logs.append)
+    assert logs == [] and not (tmp_path / "cv").exists()
+    labels = "object,hardness\n" + "".join(f"{n},{i % 3}\n" for i, n in enumerate("abcde"))
+    five = scan(write_recordings(tmp_path / "five", dict.fromkeys("abcde", 2), labels))
+    three_folds = load_config(RunConfig, TINY, ["train.folds=3"])
+    with pytest.raises(SplitError, match=r"--folds 3 \(train.folds\) of the 5 objects of "):
+        _fold_plan(five, three_folds, [0])
+    assert _fold_plan(five, load_config(RunConfig, TINY, ["train.folds=2"]), [0])["noun"] == (
+        "object"
+    )
+    three = scan(write_recordings(tmp_path / "three", dict.fromkeys("abc", 2), labels))
+    with pytest.raises(SplitError, match=r"has 3 objects to hold out; cross-validation needs "
+                       "at least 4"):  # fmt: skip
+        _fold_plan(three, three_folds, [0])
+
+
+def test_cv_md_says_on_how_many_runs_each_number_rests():
+    """QA (4 of 12 objects labelled, 6 folds): a probe from the one fold with 2 labelled
+    held-out objects stood as "mean ± std over runs", a column of one value printed nan, and
+    the label-space table vanished because one fold had none, without a word. Now each probe
+    row counts its runs and held-out objects, a Spearman over 2 is n/a (it is ±1), a label no
+    run could score says why, and a section a run lacked says which run and why."""
+    nan = float("nan")
+
+    def probe(r2: float, spearman: float, n_test: int) -> dict:
+        return {"r2": r2, "spearman": spearman, "mae": nan, "n_train": 3.0, "n_test": n_test}
+
+    runs = []
+    for fold in range(3):
+        both = {"model": [[1.0, 1.0], [0.0, 1.0]]}
+        if fold != 1:  # fold 1 had too few labelled training objects for a label space
+            both["model_labels"] = [[1.0, 1.0], [1.0, 1.0]]
+        run = _hand_made_run(fold, {"touch_to_touch": both})
+        table = {
+            "hardness": probe(0.5, 1.0, 2) if fold == 0 else probe(nan, nan, fold - 1),
+            "roughness": probe(0.1 * fold, 0.5, 4),
+            "bumpiness": probe(nan, nan, 4),
+        }
+        run["properties"] = {"touch": {"model": table, "raw_pixels": table}}
+        runs.append(run)
+    values = {"hardness": [0.0, 1.0, 2.0], "roughness": [0.0, 1.0], "bumpiness": [0.0] * 4}
+    summary, md = _report(runs, {"label_values": values, "noun": "object"})
+    rows = {line.split(" | ")[0][2:]: line for line in md.splitlines() if line.startswith("| ")}
+    assert rows["hardness"] == (
+        "| hardness | 0.50 (1 of 3 runs) | n/a: at most 2 labelled held-out objects a fold: "
+        "their Spearman is ±1 whatever the probe predicts | 0.50 (1 of 3 runs) | n/a | 1 of 3 (2) |"
+    )
+    assert rows["roughness"] == (
+        "| roughness | 0.10 ± 0.10 | 0.50 ± 0.00 | 0.10 ± 0.10 | 0.50 ± 0.00 | 3 of 3 (12) |"
+    )
+    assert rows["bumpiness"] == "| bumpiness | n/a: every value 0 | n/a | n/a | n/a | 0 of 3 (0) |"
+    assert "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman | runs " in md
+    one_fold = _report(runs, {"noun": "object"})[1]  # without the values: from the runs
+    assert "| bumpiness | n/a: the held-out values are alike within each fold |" in one_fold
+    assert summary["pairs"]["touch_to_touch"]["missing_in"] == {"model_labels": ["fold 1"]}
+    assert "Matching in label space: not shown for pairs some run could not score (touch to " \
+        "touch: fold 1: no label column had 3 or more labelled training objects" in md  # fmt: skip
+    assert "| touch_to_touch | model top-1 | label space" not in md
+    assert md.startswith("Object-disjoint cross-validation") and "fabric" not in md
+
+
+def test_a_temperature_at_the_search_edge_is_marked_not_fitted():
+    """QA: "temperature 15455.50" printed as if fitted, from a head that knows nothing; and
+    "right" differed from the classes table's accuracy with no word of why. Now it is n/a at
+    the search edge, left out of what to put in model.class_temperature, and the table says
+    how each is averaged; a head's fitted temperature is still given."""
+    from lookfeel.crossval import _calibration, _calibration_lines
+    from lookfeel.metrics.classes import logit_temperature, softmax
+
+    rng = np.random.default_rng(2)
+    u = rng.normal(0, 1.5, (300, 3))
+    truth = (rng.random(300)[:, None] > softmax(u).cumsum(1)).sum(1)
+    guess = rng.integers(0, 3, 300)  # classes unrelated to the logits: no temperature fits
+    assert logit_temperature(u, guess).at_edge and not logit_temperature(3 * u, truth).at_edge
+    sure = [{"truth": t.tolist(), "logits": (3 * u[i::2]).tolist()} for i, t in
+            enumerate((truth[0::2], truth[1::2]))]  # fmt: skip
+    blind = [{"truth": guess[i::2].tolist(), "logits": u[i::2].tolist()} for i in range(2)]
+    c_sure, c_blind = _calibration(sure), _calibration(blind)
+    assert c_blind["temperature_search_edge"] > 100 and math.isnan(c_blind["temperature"])
+    assert c_blind["cross_fitted_at_edge"] == 2
+    assert c_sure["temperature"] == pytest.approx(3.0, rel=0.3)
+    assert math.isnan(c_sure["temperature_search_edge"])
+    lines = _calibration_lines(
+        "touch", {"hardness": {"calibration": c_sure}, "material": {"calibration": c_blind}}
+    )
+    text = "\n".join(lines)
+    (row,) = [line for line in lines if line.startswith("| material |")]
+    assert row.endswith("| n/a: at the search edge (" + f"{c_blind['temperature_search_edge']:.3g}"
+                        + "): not fitted |")  # fmt: skip
+    assert "(at the search edge in 2 of 2 runs)" in row
+    assert "Not fitted: material:" in text
+    assert f"`model.class_temperature: {{hardness: {c_sure['temperature']:.2f}}}`" in text
+    assert "right is over them all, where the classes table averages each run's" in text
+    assert "held-out presses" in text and "presss" not in text

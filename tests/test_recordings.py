@@ -459,7 +459,8 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
     assert hardness["model_pooled"]["queries"] == 12  # one per object and seed
     report = (tmp_path / "cv" / "cv.md").read_text()
     assert "Untouched control" in report and "| hardness |" in report
-    assert "every fabric held out once" in report
+    assert "every object held out once" in report  # objects are objects (QA)
+    assert report.startswith("Object-disjoint cross-validation") and "presss" not in report
 
     # Scored again (--tta): the finished runs, whose configs now name their classes, are kept.
     capsys.readouterr()

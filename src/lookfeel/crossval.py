@@ -2,8 +2,10 @@
 each fold held out, and put the model beside the raw-pixel baseline and chance.
 
 The folds are ``train.folds`` cluster-stratified folds of ``train.fold_size`` fabrics (5 of 18:
-five test sets chosen as the paper chose its 18). Each run trains on the other fabrics, is scored
-by its *last* checkpoint (no choice is made on the held-out fabrics), and reports, per pair:
+five test sets chosen as the paper chose its 18); each must hold out at least 2 fabrics (or
+objects: `MIN_HELD_OUT`), else cv refuses before training. Each run trains on the other
+fabrics, is scored by its *last* checkpoint (no choice is made on the held-out fabrics), and
+reports, per pair:
 
 - pick 1 of 10 among the held-out fabrics (exact expectation), top-1 and top-3; touch pools
   ``presses`` presses of one fabric when that is above 1 (the Multi-input Net: default the
@@ -52,6 +54,9 @@ press's class is read from the heads, one press at a time and with every press o
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training
 majority class: accuracy (95% interval resampling held-out objects) and macro-F1.
 
+What cv writes is strict JSON: a number no run could score is ``null`` (`_finite_or_null`), and
+``cv.md`` says ``n/a`` and why.
+
 Every run lives in ``OUT/seed{S}-fold{F}/`` and its scores in ``result.json`` there; a rerun
 skips finished runs and resumes an interrupted one, so a killed cross-validation loses at most
 the steps since a run's last checkpoint.
@@ -74,7 +79,15 @@ from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError, to_dict
-from lookfeel.data import Catalog, ImageLoader, Item, scan
+from lookfeel.data import (
+    Catalog,
+    ImageLoader,
+    Item,
+    SplitError,
+    paper_split,
+    scan,
+    stratified_fabric_folds,
+)
 from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.images import stack_views
 from lookfeel.data.leakage import room_pixels
@@ -96,14 +109,14 @@ from lookfeel.metrics import (
 from lookfeel.metrics.calibration import expected_calibration_error
 from lookfeel.metrics.classes import (
     accuracy,
-    fit_logit_temperature,
     knn_classes,
+    logit_temperature,
     macro_f1,
     majority_class,
     softmax,
 )
 from lookfeel.metrics.cross_map import HUB_NEIGHBOURS, CrossMap, fit_cross_maps
-from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
+from lookfeel.metrics.label_space import MIN_FABRICS, LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, Pair
 from lookfeel.train import run_started, select_split, train
 from lookfeel.train.loop import as_trained
@@ -138,6 +151,135 @@ CONTROL_SEED = 0
 def _run_config(config: RunConfig, fold: int, seed: int) -> RunConfig:
     t = dataclasses.replace(config.train, split="fold", fold=fold, seed=seed)
     return dataclasses.replace(config, train=t)
+
+
+def _finite_or_null(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float, at any depth, replaced by None: what cv writes
+    as JSON is strict JSON (``null``, never a bare ``NaN`` that strict parsers refuse), as
+    `lookfeel reproduce`'s results.json."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_null(v) for v in obj]
+    return obj
+
+
+def _write_json(path: Path, data: Any, indent: int | None = None) -> None:
+    """``data`` as strict JSON (`_finite_or_null`), written atomically."""
+    text = json.dumps(_finite_or_null(data), indent=indent, allow_nan=False)
+    atomic_write_text(path, text + "\n")
+
+
+def _noun(catalog: Catalog) -> str:
+    """What the data's items are called: ``object`` where the data names them (videos/
+    sponge_0.mov), else ``fabric`` (as `lookfeel data info` says)."""
+    return "object" if any(f.name is not None for f in catalog.fabrics) else "fabric"
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 object``, ``3 objects``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+MIN_HELD_OUT = 2
+"""Fabrics (objects) a fold must hold out: among one, pick 1 of 10 and every probe is moot."""
+
+
+def _fold_plan(catalog: Catalog, config: RunConfig, fold_list: Sequence[int]) -> dict[str, Any]:
+    """Which fabrics (or objects) the folds hold out, checked before anything is trained: the
+    same folds `lookfeel.train.select_split` makes, of the fabrics not kept for the paper's
+    test (`paper_split`). Returns what ``cv.md``'s first line reports (``coverage`` in
+    ``cv.json``): the held-out items of the folds run, the folds not run, the fabrics that no
+    fold holds out (a ``train.fold_size``) and those never used, with why.
+
+    Raises:
+        SplitError: fewer than 2 folds, or a fold holding out fewer than `MIN_HELD_OUT` (one
+            line naming ``--folds`` / ``--fold-size`` and how many there are), or folds too
+            big for the fabrics (`stratified_fabric_folds`).
+    """
+    t = config.train
+    noun = _noun(catalog)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # select_split says it, once, right after
+        paper = paper_split(catalog)
+    pool = list(paper.train) or catalog.ids
+    never = [i for i in catalog.ids if i not in set(pool)]
+    n = len(pool)
+    kept = (
+        ""
+        if not never
+        else f" ({_count(len(never), noun)} more, kept for the paper's test, never used)"
+    )
+    if t.folds < 2:
+        raise SplitError(
+            f"--folds {t.folds} (train.folds): cross-validation needs at least 2 folds"
+        )
+    if n < 2 * MIN_HELD_OUT:
+        raise SplitError(
+            f"{catalog.root} has {_count(n, noun)} to hold out{kept}; cross-validation needs at "
+            f"least {2 * MIN_HELD_OUT}: 2 folds of {MIN_HELD_OUT} (a fold holding out one "
+            f"{noun} finds it among itself alone, always right)"
+        )
+    if t.fold_size is not None and t.fold_size < MIN_HELD_OUT:
+        raise SplitError(
+            f"--fold-size {t.fold_size} (train.fold_size): a fold must hold out at least "
+            f"{MIN_HELD_OUT} {noun}s to be scored (among one, pick 1 of 10 is always right); "
+            f"use --fold-size {MIN_HELD_OUT} or more (at most {n // t.folds} for {t.folds} folds "
+            f"of the {n} {noun}s)"
+        )
+    if t.fold_size is not None and t.folds * t.fold_size > n and n // t.folds < MIN_HELD_OUT:
+        raise SplitError(  # `stratified_fabric_folds` would suggest a size of 1 or 0
+            f"--folds {t.folds} of --fold-size {t.fold_size} (train.folds, train.fold_size) hold "
+            f"out {t.folds * t.fold_size} {noun}s; {catalog.root} has {n}{kept}: use --folds "
+            f"{n // MIN_HELD_OUT} or fewer with --fold-size {MIN_HELD_OUT}"
+        )
+    if t.fold_size is None and n // t.folds < MIN_HELD_OUT:
+        raise SplitError(
+            f"--folds {t.folds} (train.folds) of the {n} {noun}s of {catalog.root}{kept} "
+            f"leaves {n // t.folds} held out in some fold; a fold must hold out at least "
+            f"{MIN_HELD_OUT} to be scored (among one, pick 1 of 10 is always right): use "
+            f"--folds {n // MIN_HELD_OUT} or fewer"
+        )
+    folds = stratified_fabric_folds(
+        pool,
+        catalog.clusters(),
+        t.folds,
+        seed=t.split_seed,
+        fold_size=t.fold_size,
+        excluded=len(paper.test),
+        excluded_by=paper.source or "labels",
+    )
+    names = {f.id: f.display_name for f in catalog.fabrics}
+    tested = [sorted(folds[f].test) for f in fold_list]
+    not_run = [f for f in range(t.folds) if f not in fold_list]
+    if paper.source == "builtin":
+        why = "GelFabric's built-in list of the paper's test fabrics (and fabric 107, excluded)"
+    else:
+        marks = [catalog.fabric(i).paper_split for i in never]
+        why = ", ".join(
+            f"{marks.count(k)} marked paper_split={k}" if k else f"{marks.count(k)} unmarked"
+            for k in dict.fromkeys(marks)
+        )
+        why += " in labels.csv (cv holds out and trains on the paper_split=train ones only)"
+    return {
+        "noun": noun,
+        "items": len(catalog.ids),
+        "held_out": sorted({i for test in tested for i in test}),
+        "fold_sizes": [len(test) for test in tested],
+        "folds_total": t.folds,
+        "not_run": {
+            "folds": not_run,
+            "items": sorted({i for f in not_run for i in folds[f].test}),
+        },
+        "train_only": sorted(set(pool) - {i for f in folds for i in f.test}),
+        "never_used": {
+            "ids": never,
+            "items": [names[i] for i in never],
+            "why": why if never else None,
+        },
+    }
 
 
 _NO_EFFECT = ("checkpoint_every", "log_every", "progress")
@@ -666,14 +808,26 @@ def _summarise(
     control: bool = True,
     names: Mapping[int, str] | None = None,
     why: Callable[[Pair], str] | None = None,
+    label_values: Mapping[str, Sequence[float]] | None = None,
+    noun: str = "fabric",
 ) -> dict[str, Any]:
     """The runs' scores pooled: per pair and method the mean over runs with a 95% interval
     resampling held-out items, each item's own top-1 (`_per_item`; ``names`` maps fabric ids
-    to what the report calls them), the property probes and the classes. A pair no query of
-    which was scored in any run (none had an item of its own fabric to find) gets, instead of
-    numbers, ``not_scored``: ``why(pair)`` (default `no_query_scored` of single presses)."""
+    to what the report calls them), the property probes (`_summarise_probes`; ``label_values``:
+    each label's known values over the data) and the classes. A pair no query of which was
+    scored in any run (none had an item of its own fabric to find) gets, instead of numbers,
+    ``not_scored``: ``why(pair)`` (default `no_query_scored` of single presses). A method only
+    some runs scored (label space where a fold had too few labelled training items) is left
+    out, and ``missing_in`` names the runs without it. ``noun``: what the items are (fabric,
+    object)."""
     summary: dict[str, Any] = {"runs": len(results), "pairs": {}, "properties": {}}
+    summary["noun"] = noun
     summary["background_control"] = _control_status(results, control)
+    seeds = {r.get("seed") for r in results}
+    run_names = [
+        f"fold {r.get('fold', i)}" + (f" seed {r['seed']}" if len(seeds) > 1 else "")
+        for i, r in enumerate(results)
+    ]
     for pair in pairs:
         entry: dict[str, Any] = {}
         groups = np.concatenate([r["pairs"][pair]["query_fabric"] for r in results])
@@ -699,23 +853,106 @@ def _summarise(
             entry[f"chance_top{k}"] = float(
                 np.mean([r["pairs"][pair]["chance"][j] for r in results])
             )
+        missing = {
+            method: [
+                n for n, r in zip(run_names, results, strict=True) if method not in r["pairs"][pair]
+            ]
+            for method in _METHODS
+            if any(method in r["pairs"][pair] for r in results)
+        }
+        missing = {k: v for k, v in missing.items() if v}
+        if missing and "not_scored" not in entry:
+            entry["missing_in"] = missing
         entry["per_item"] = _per_item(results, pair, names)
         summary["pairs"][pair] = entry
-    for m, per in results[0]["properties"].items():  # none when no run had training fabrics
-        summary["properties"][m] = {}
-        for method in per:
-            if not all(method in r["properties"][m] for r in results):
-                continue
-            table: dict[str, dict[str, float]] = {}
-            for label in per[method]:
-                for score in ("r2", "spearman"):
-                    vals = [r["properties"][m][method][label][score] for r in results]
-                    s = mean_and_spread(vals)
-                    table.setdefault(label, {})[score] = s["mean"]
-                    table[label][f"{score}_std"] = s["std"]
-            summary["properties"][m][method] = table
+    summary["properties"] = _summarise_probes(results, label_values, noun)
     summary["classes"] = _summarise_classes(results, n_boot)
     return summary
+
+
+MIN_SPEARMAN = 3
+"""Held-out items below which a run's Spearman is left out: over two it is +1 or -1 whatever
+the probe predicts."""
+
+
+def _summarise_probes(
+    results: list[dict], label_values: Mapping[str, Sequence[float]] | None, noun: str
+) -> dict[str, Any]:
+    """The property probes over runs: per modality, method (model, raw pixels, room) and label,
+    R² and Spearman's mean and std over the runs that could score them, how many did
+    (``runs``, ``spearman_runs``, of ``runs_total``) and on how many labelled held-out items in
+    all (``held_out``); where no run could, ``not_scored`` (or ``spearman_not_scored``) says why
+    (`_probe_reason`). A run's Spearman over fewer than `MIN_SPEARMAN` items is left out."""
+    out: dict[str, Any] = {}
+    for m, per in results[0]["properties"].items():  # none when no run had training fabrics
+        out[m] = {}
+        for method in per:
+            if not all(method in r["properties"].get(m, {}) for r in results):
+                continue
+            table: dict[str, dict[str, Any]] = {}
+            for label in per[method]:
+                cells = [r["properties"][m][method][label] for r in results]
+                n_test = np.array([_num(c.get("n_test")) for c in cells])
+                r2 = np.array([_num(c["r2"]) for c in cells])
+                few = n_test < MIN_SPEARMAN  # NaN (unknown) compares False: kept
+                sp = np.array(
+                    [
+                        math.nan if f else _num(c["spearman"])
+                        for c, f in zip(cells, few, strict=True)
+                    ]
+                )
+                row: dict[str, Any] = {}
+                for score, vals in (("r2", r2), ("spearman", sp)):
+                    spread = mean_and_spread(vals)
+                    row[score] = spread["mean"]
+                    row[f"{score}_std"] = spread["std"]
+                scored = ~np.isnan(r2)
+                row["runs"] = int(scored.sum())
+                row["spearman_runs"] = int((~np.isnan(sp)).sum())
+                row["runs_total"] = len(results)
+                row["held_out"] = int(np.nansum(n_test[scored])) if scored.any() else 0
+                if not scored.any():
+                    row["not_scored"] = _probe_reason(label, cells, label_values, noun)
+                elif not row["spearman_runs"]:
+                    row["spearman_not_scored"] = (
+                        f"at most {MIN_SPEARMAN - 1} labelled held-out {noun}s a fold: "
+                        "their Spearman is ±1 whatever the probe predicts"
+                        if few[scored].all()
+                        else "the probe predicted one value"
+                    )
+                table[label] = row
+            out[m][method] = table
+    return out
+
+
+def _num(x: Any) -> float:
+    """A score as a float: NaN for None (a NaN that went through result.json) or missing."""
+    return math.nan if x is None else float(x)
+
+
+def _probe_reason(
+    label: str,
+    cells: Sequence[Mapping[str, Any]],
+    label_values: Mapping[str, Sequence[float]] | None,
+    noun: str,
+) -> str:
+    """Why no run's probe scored ``label``: ``cells``, each run's `property_probe` scores of
+    it; ``label_values``: the label's known values over the data (None: not known here)."""
+    known = label_values.get(label) if label_values is not None else None
+    if known is not None and not known:
+        return f"no {noun} labelled"
+    if known is not None and len(set(known)) == 1:
+        return f"every value {known[0]:g}"
+    n_test = [_num(c.get("n_test")) for c in cells]
+    n_train = [_num(c.get("n_train")) for c in cells]
+    most = max((n for n in n_test if not math.isnan(n)), default=math.nan)
+    if most == 0:
+        return f"no labelled held-out {noun} in any fold"
+    if most == 1:
+        return f"at most 1 labelled held-out {noun} a fold"
+    if max((n for n in n_train if not math.isnan(n)), default=2) < 2:
+        return f"fewer than 2 labelled training {noun}s in every fold"
+    return "the held-out values are alike within each fold"
 
 
 CLASS_METHODS = ("model", "model_pooled", "probe", "raw_pixels", "majority")
@@ -732,11 +969,15 @@ def _calibration(
     """How far a class head's probability can be trusted on held-out objects, every run's
     held-out presses pooled: the mean probability of the predicted class (``confidence``)
     beside how often it is right (``accuracy``), their expected calibration error (``ece``),
-    the temperature that fits them best (``temperature``: what a user would apply), and the
+    the temperature that fits them best (``temperature``: what a user would apply; NaN, with
+    the edge in ``temperature_search_edge``, where the likelihood is best at the search's
+    edge and no temperature was fitted: `lookfeel.metrics.classes.LogitTemperature`), and the
     same confidence and error under a temperature fitted on the runs of *other folds*
     (``*_cross_fitted``: an honest estimate of what the temperature buys, fitted on other
-    objects than those it is applied to; NaN when every run is of one fold). ``folds``: each
-    run's fold (default: every run its own)."""
+    objects than those it is applied to; NaN when every run is of one fold; applied even at
+    the edge, ``cross_fitted_at_edge`` runs of ``cross_fitted_runs``). ``accuracy`` is over
+    every held-out press of every run at once, where the classes table's is the mean over
+    runs of each run's. ``folds``: each run's fold (default: every run its own)."""
 
     def known(r: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
         t = np.asarray(r["truth"], dtype=np.int64)
@@ -747,30 +988,36 @@ def _calibration(
     z = np.concatenate([p[0] for p in parts])
     t = np.concatenate([p[1] for p in parts])
     nan = float("nan")
-    keys = ("confidence", "accuracy", "ece", "temperature")
+    keys = ("confidence", "accuracy", "ece", "temperature", "temperature_search_edge")
     out = dict.fromkeys((*keys, "confidence_cross_fitted", "ece_cross_fitted"), nan)
     if not len(t):  # no held-out press of a known class
         return out
     hit = (z.argmax(1) == t).astype(np.float64)
     conf = softmax(z).max(1)
+    fit = logit_temperature(z, t)
     out |= {
         "confidence": float(conf.mean()),
         "accuracy": float(hit.mean()),
         "ece": expected_calibration_error(conf, hit, CALIBRATION_BINS),
-        "temperature": fit_logit_temperature(z, t),
+        "temperature": nan if fit.at_edge else fit.value,
+        "temperature_search_edge": fit.value if fit.at_edge else nan,
     }
     fold_of = list(range(len(parts))) if folds is None else list(folds)
     if len(set(fold_of)) > 1:
         crossed = []
+        edges = 0
         for i, (zi, _) in enumerate(parts):
             others = [p for j, p in enumerate(parts) if fold_of[j] != fold_of[i]]
-            temp = fit_logit_temperature(
+            temp = logit_temperature(
                 np.concatenate([p[0] for p in others]), np.concatenate([p[1] for p in others])
             )
-            crossed.append(softmax(zi, temp).max(1) if len(zi) else np.zeros(0))
+            edges += temp.at_edge
+            crossed.append(softmax(zi, temp.value).max(1) if len(zi) else np.zeros(0))
         c = np.concatenate(crossed)
         out["confidence_cross_fitted"] = float(c.mean())
         out["ece_cross_fitted"] = expected_calibration_error(c, hit, CALIBRATION_BINS)
+        out["cross_fitted_at_edge"] = float(edges)
+        out["cross_fitted_runs"] = float(len(parts))
     return out
 
 
@@ -796,7 +1043,8 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                 )
                 groups = np.concatenate([np.asarray(r[g_key]) for r in runs])
                 low, high = bootstrap_ci(hits, groups, n_boot=n_boot, seed=0)
-                acc = mean_and_spread([accuracy(t, p) for t, p in zip(truth, pred, strict=True)])
+                per_run = [accuracy(t, p) for t, p in zip(truth, pred, strict=True)]
+                acc = mean_and_spread(per_run)
                 f1 = mean_and_spread(
                     [
                         macro_f1(t, p, len(first["classes"]))
@@ -806,6 +1054,7 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                 entry[method] = {
                     "accuracy": acc["mean"],
                     "accuracy_std": acc["std"],
+                    "per_run": per_run,
                     "ci95": [float(low), float(high)],
                     "macro_f1": f1["mean"],
                     "macro_f1_std": f1["std"],
@@ -826,14 +1075,47 @@ def _scored_mean(values: np.ndarray) -> float:
 
 
 def _fmt(x: dict[str, Any]) -> str:
+    """``mean [low, high]``, with ``(k of n runs)`` where only k of the n runs scored it
+    (``per_run`` NaN elsewhere); ``n/a`` where none did."""
+    if x["mean"] is None or math.isnan(x["mean"]):
+        return "n/a"
     lo, hi = x["ci95"]
-    return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]"
+    return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]" + _of_runs(x.get("per_run"))
 
 
-def _pm(scores: dict[str, float], name: str) -> str:
-    """``mean ± std`` over runs (just the mean for one run)."""
+def _of_runs(per_run: Sequence[float | None] | None) -> str:
+    """`` (k of n runs)`` where only k of a number's n runs scored it, else nothing."""
+    if not per_run:
+        return ""
+    k = sum(v is not None and not math.isnan(v) for v in per_run)
+    return "" if k == len(per_run) else f" ({k} of {len(per_run)} runs)"
+
+
+def _pm(scores: dict[str, Any], name: str) -> str:
+    """``mean ± std`` over runs (just the mean for one run; ``n/a`` for none), with ``(k of
+    n runs)`` where fewer runs than the row's scored it."""
+    mean = scores[name]
+    if mean is None or math.isnan(mean):
+        return "n/a"
     std = scores[f"{name}_std"]
-    return f"{scores[name]:.2f}" + ("" if math.isnan(std) else f" ± {std:.2f}")
+    text = f"{mean:.2f}" + ("" if std is None or math.isnan(std) else f" ± {std:.2f}")
+    k, n = scores.get(f"{name}_runs" if name != "r2" else "runs"), scores.get("runs_total")
+    return text + (f" ({k} of {n} runs)" if k is not None and n and k < n else "")
+
+
+def _plural(noun: str) -> str:
+    """``presses``, ``images``, ``objects``."""
+    return noun + ("es" if noun.endswith(("s", "sh", "ch", "x")) else "s")
+
+
+def _na_top3(summary: dict[str, Any]) -> list[str]:
+    """The pairs whose top-3 says nothing: every fold held out 3 or fewer items to pick among
+    (chance top-3 is 1), so every query's top-3 is right."""
+    return [
+        p
+        for p, e in summary["pairs"].items()
+        if e.get("chance_top3", 0.0) >= 1.0 - 1e-9 and "not_scored" not in e
+    ]
 
 
 def _pair_table(
@@ -841,22 +1123,56 @@ def _pair_table(
     intro: str,
     columns: tuple[tuple[str, str], ...],
     chance: bool = True,
+    name: str = "",
 ) -> list[str]:
     """A table of every pair scored with ``columns[1]``'s key: one cell per (header, key)
-    column (``-`` where a pair lacks it; a column no such pair has is left out), then chance;
-    nothing when no pair has it."""
-    rows = [(p, e) for p, e in summary["pairs"].items() if columns[1][1] in e]
-    if not rows:
-        return []
-    columns = tuple(c for c in columns if any(c[1] in e for _, e in rows))
-    headers = [h for h, _ in columns] + (["chance"] if chance else [])
-    lines = ["", intro, "", f"| pair | {' | '.join(headers)} |", "|---" * (len(headers) + 1) + "|"]
-    for pair, e in rows:
-        cells = [_fmt(e[k]) if k in e else "-" for _, k in columns]
-        if chance:
-            cells.append(f"{e['chance_top1']:.3f}")
-        lines.append(f"| {pair} | {' | '.join(cells)} |")
+    column (``-`` where a pair lacks it; a column no such pair has is left out; top-3 ``n/a``
+    where it says nothing, `_na_top3`), then chance; nothing when no pair has it. Where some
+    runs lacked that key's method (``missing_in``), a line says which, and that the table
+    (``name``) leaves such pairs out."""
+    key = columns[1][1]
+    rows = [(p, e) for p, e in summary["pairs"].items() if key in e]
+    method = key.rsplit("_top", 1)[0]
+    lacking = [
+        (p, e["missing_in"][method])
+        for p, e in summary["pairs"].items()
+        if method in e.get("missing_in", {})
+    ]
+    lines: list[str] = []
+    if rows:
+        columns = tuple(c for c in columns if any(c[1] in e for _, e in rows))
+        headers = [h for h, _ in columns] + (["chance"] if chance else [])
+        lines = ["", intro, "", f"| pair | {' | '.join(headers)} |"]
+        lines.append("|---" * (len(headers) + 1) + "|")
+        na3 = _na_top3(summary)
+        for pair, e in rows:
+            cells = [
+                "-" if k not in e else "n/a" if pair in na3 and k.endswith("_top3") else _fmt(e[k])
+                for _, k in columns
+            ]
+            if chance:
+                cells.append(f"{e['chance_top1']:.3f}")
+            lines.append(f"| {pair} | {' | '.join(cells)} |")
+    if lacking and name:
+        why = _MISSING_WHY.get(method, "").format(noun=summary.get("noun", "fabric"))
+        said = "; ".join(f"{p.replace('_', ' ')}: {', '.join(runs)}" for p, runs in lacking)
+        lines += [
+            "",
+            f"{name}: not shown for pairs some run could not score ({said}"
+            + (f": {why}" if why else "")
+            + "); a pair is shown only when every run scored it.",
+        ]
     return lines
+
+
+_MISSING_WHY = {
+    "model_labels": (
+        f"no label column had {MIN_FABRICS} or more labelled training {{noun}}s with differing "
+        "values"
+    ),
+    "model_mapped": "no cross-modal map could be fitted on the training {noun}s",
+}
+"""Why a run has no scores of a method (`_pair_table`'s line); ``{noun}``: fabric, object."""
 
 
 def _has(summary: dict[str, Any], key: str) -> bool:
@@ -891,7 +1207,7 @@ def _control_lines(summary: dict[str, Any]) -> list[str]:
         ("raw pixels top-1, background swapped", "raw_pixels_swapped_top1"),
         ("raw pixels top-1, in another fabric's room", "raw_pixels_room_top1"),
     )
-    return _pair_table(summary, intro, columns, chance=False)
+    return _pair_table(summary, intro, columns, chance=False, name="Background control")
 
 
 def _label_space_lines(summary: dict[str, Any]) -> list[str]:
@@ -907,8 +1223,8 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
     intro = (
         "Matching in label space (`lookfeel.metrics.label_space`): the same queries, each "
         "modality's embeddings mapped onto the labels' normal scores by a ridge fitted on the "
-        "run's training fabrics only, and a query matched to the gallery item whose predicted "
-        "labels are nearest"
+        f"run's training {_plural(summary.get('noun', 'fabric'))} only, and a query matched to "
+        "the gallery item whose predicted labels are nearest"
     )
     if _has(summary, "model_labels_swapped_top1"):  # the background control ran
         room = _has(summary, "model_labels_room_top1")
@@ -917,7 +1233,7 @@ def _label_space_lines(summary: dict[str, Any]) -> list[str]:
             f"; for pairs with depth also with every depth image's background swapped{also}, "
             "as in the background control below"
         )
-    return _pair_table(summary, intro + ".", columns)
+    return _pair_table(summary, intro + ".", columns, name="Matching in label space")
 
 
 def _mapped_lines(summary: dict[str, Any]) -> list[str]:
@@ -930,14 +1246,16 @@ def _mapped_lines(summary: dict[str, Any]) -> list[str]:
         ("label space top-1", "model_labels_top1"),
         ("cross-modal map top-3", "model_mapped_top3"),
     )
+    nouns = _plural(summary.get("noun", "fabric"))
     return _pair_table(
         summary,
         "Matching through a cross-modal map (`lookfeel.metrics.cross_map`; no labels used): "
         "the same queries, the query modality's embeddings carried into the gallery "
-        "modality's and back by linear maps fitted on the run's training fabrics only, a query "
-        "matched to the gallery item nearest by both routes, each gallery item's distance "
-        "lowered by its crowding among the training fabrics (the hub correction).",
+        f"modality's and back by linear maps fitted on the run's training {nouns} only, a "
+        "query matched to the gallery item nearest by both routes, each gallery item's "
+        f"distance lowered by its crowding among the training {nouns} (the hub correction).",
         columns,
+        name="Matching through a cross-modal map",
     )
 
 
@@ -954,6 +1272,7 @@ def _untouched_lines(summary: dict[str, Any]) -> list[str]:
             ("raw pixels top-1", "raw_pixels_top1"),
             ("raw pixels top-1, untouched", "raw_pixels_untouched_top1"),
         ),
+        name="Untouched control",
     )
 
 
@@ -997,10 +1316,50 @@ def _per_item_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _coverage_text(summary: dict[str, Any]) -> str:
+    """What cv.md's first line says the folds held out: every fabric (object) once, or how
+    many of how many, which folds were not run, and which were never used and why
+    (``coverage``, `_fold_plan`); without it (a summary made elsewhere), the fold size."""
+    noun = summary.get("noun", "fabric")
+    cov = summary.get("coverage")
+    if cov is None:
+        size = summary["fold_size"]
+        return f"every {noun} held out once" if size is None else f"{size} {noun}s per fold"
+    sizes = cov["fold_sizes"]
+    lo, hi = min(sizes), max(sizes)
+    per = f"{lo} per fold" if lo == hi else f"{lo} to {hi} per fold"
+    held, total = len(cov["held_out"]), cov["items"]
+    if held == total:
+        text = f"every {noun} held out once, {per}"
+    else:
+        text = f"{held} of the {_count(total, noun)} held out, each once, {per}"
+    not_run = cov["not_run"]
+    if not_run["folds"]:
+        folds = ", ".join(map(str, not_run["folds"]))
+        text += (
+            f"; fold{'s' if len(not_run['folds']) > 1 else ''} {folds} of "
+            f"{cov['folds_total']} not run (--only-folds): "
+            f"{_count(len(not_run['items']), noun)} not held out"
+        )
+    if cov["train_only"]:
+        text += (
+            f"; {_count(len(cov['train_only']), noun)} in no fold, only trained on "
+            f"({cov['folds_total']} folds of train.fold_size={summary['fold_size']})"
+        )
+    never = cov["never_used"]
+    if never["items"]:
+        shown = ", ".join(never["items"][:10]) + (", ..." if len(never["items"]) > 10 else "")
+        text += (
+            f"; {_count(len(never['items']), noun)} never used, neither trained on nor held "
+            f"out ({shown}): {never['why']}"
+        )
+    return text
+
+
 def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
-    size = summary["fold_size"]
-    per_fold = "every fabric held out once" if size is None else f"{size} fabrics per fold"
+    noun = summary.get("noun", "fabric")
+    nouns = _plural(noun)
     fewer = any(e.get("chance_top1", 0.0) > 0.1 + 1e-9 for e in summary["pairs"].values())
     runs = summary["runs"]
     touch_pair = summary["pairs"].get("touch_to_touch", {})
@@ -1010,13 +1369,13 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             " (none is left here: see below)" if "not_scored" in touch_pair else ""
         )
     lines = [
-        f"Fabric-disjoint cross-validation: {runs} run{'' if runs == 1 else 's'} "
-        f"(folds {summary['folds']}, seeds {summary['seeds']}, {per_fold}). "
-        "Pick 1 of 10 among each fold's held-out fabrics"
+        f"{noun.capitalize()}-disjoint cross-validation: {runs} run{'' if runs == 1 else 's'} "
+        f"(folds {summary['folds']}, seeds {summary['seeds']}; {_coverage_text(summary)}). "
+        f"Pick 1 of 10 among each fold's held-out {nouns}"
         + (" (1 of all of them where a fold holds fewer than 10: see chance)" if fewer else "")
-        + "; mean over runs [95% interval, resampling held-out fabrics]."
+        + f"; mean over runs [95% interval, resampling held-out {nouns}]."
         + (
-            f" Touch pools {summary['presses']} presses of one fabric, as a query and as the "
+            f" Touch pools {summary['presses']} presses of one {noun}, as a query and as the "
             f"candidates of another sense's queries (the Multi-input Net's protocol){same_touch}."
             if summary.get("presses", 1) > 1
             else ""
@@ -1025,22 +1384,32 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         "| pair | model top-1 | model top-3 | raw pixels top-1 | raw pixels top-3 | chance |",
         "|---|---|---|---|---|---|",
     ]
+    na3 = _na_top3(summary)
     for pair, e in summary["pairs"].items():
         if "not_scored" in e:
-            lines.append(
-                f"| {pair} | not scored | - | - | - "
-                f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
-            )
+            lines.append(f"| {pair} | not scored | - | - | - | n/a |")
             continue
+        top3 = {
+            k: "n/a" if pair in na3 else _fmt(e[k])
+            for k in e
+            if k.endswith("_top3") and k != "chance_top3"
+        }
         raw = (
-            (_fmt(e["raw_pixels_top1"]), _fmt(e["raw_pixels_top3"]))
+            (_fmt(e["raw_pixels_top1"]), top3["raw_pixels_top3"])
             if "raw_pixels_top1" in e
             else ("-", "-")
         )
         lines.append(
-            f"| {pair} | {_fmt(e['model_top1'])} | {_fmt(e['model_top3'])} | {raw[0]} | {raw[1]} "
+            f"| {pair} | {_fmt(e['model_top1'])} | {top3['model_top3']} | {raw[0]} | {raw[1]} "
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
+    if na3:
+        lines += [
+            "",
+            f"Top-3 is n/a for {', '.join(p.replace('_', ' ') for p in na3)}: no fold held out "
+            f"more than 3 {nouns} to pick among, so every query's top-3 is right (chance "
+            "1.000); read top-1.",
+        ]
     unscored = [(p, e["not_scored"]) for p, e in summary["pairs"].items() if "not_scored" in e]
     if unscored:
         lines += [""] + [f"Not scored: {pair.replace('_', ' ')}: {why}." for pair, why in unscored]
@@ -1052,43 +1421,26 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     for m, per in summary["properties"].items():
         if not per.get("model"):
             continue
-        lines += [
-            "",
-            f"Physical properties from {m} (ridge probe on fabric-mean embeddings, fitted on "
-            "each fold's training fabrics" + ("; mean ± std over runs):" if runs > 1 else "):"),
-            "",
-            "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |"
-            + (" room alone R² | room alone Spearman |" if "room" in per else ""),
-            "|---|---|---|---|---|" + ("---|---|" if "room" in per else ""),
-        ]
-        methods = [k for k in ("model", "raw_pixels", "room") if k in per]
-        for label in per["model"]:
-            cells = [_pm(per[k][label], score) for k in methods for score in ("r2", "spearman")]
-            lines.append(f"| {label} | {' | '.join(cells)} |")
-        if "room" in per:
-            lines += [
-                "",
-                "Room alone: the same probe on each raw depth image's background pixels (no "
-                "cloth; `lookfeel data leakage`'s rule). Where it scores, the background "
-                "follows the labels (as it does when each fabric was captured in its own "
-                "session and the sessions follow the labels): read the model's probe against "
-                "it, not against zero.",
-            ]
+        lines += _probe_lines(m, per, runs, nouns)
     for m, per in summary.get("classes", {}).items():
         unit = "press" if m == Modality.TOUCH.value else "image"
         lines += [
             "",
-            f"Classes from {m}: accuracy [95% interval, resampling held-out objects] / macro-F1. "
-            f"model: the class head on one {unit}; pooled: every {unit} of an object at once; "
-            "probe: 5-NN on the training embeddings; raw pixels: 5-NN on training pixels; "
-            "majority: the training majority class.",
+            f"Classes from {m}: accuracy [95% interval, resampling held-out {nouns}] / macro-F1, "
+            f"each the mean over runs of the run's accuracy over its held-out {_plural(unit)} "
+            f"(n/a where no held-out {noun} is labelled). model: the class head on one {unit}; "
+            f"pooled: every {unit} of one {noun} at once; probe: 5-NN on the training embeddings; "
+            "raw pixels: 5-NN on training pixels; majority: the training majority class.",
             "",
             "| label | model | pooled | probe | raw pixels | majority | chance |",
             "|---|---|---|---|---|---|---|",
         ]
         for col, e in per.items():
             cells = [
-                f"{_fmt({'mean': e[k]['accuracy'], 'ci95': e[k]['ci95']})} / {e[k]['macro_f1']:.2f}"
+                "n/a"
+                if e[k]["accuracy"] is None or math.isnan(e[k]["accuracy"])
+                else f"{_fmt({'mean': e[k]['accuracy'], 'ci95': e[k]['ci95']})} / "
+                f"{e[k]['macro_f1']:.2f}{_of_runs(e[k].get('per_run'))}"
                 for k in CLASS_METHODS
             ]
             lines.append(f"| {col} | {' | '.join(cells)} | {e['chance']:.2f} |")
@@ -1096,18 +1448,67 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _probe_lines(modality: str, per: dict[str, Any], runs: int, nouns: str) -> list[str]:
+    """The property probes' table of one modality (`_summarise_probes`): ``n/a: why`` where no
+    run could score a label, and on how many runs and held-out items each row rests."""
+    counted = any("runs" in row for row in per["model"].values())
+    lines = [
+        "",
+        f"Physical properties from {modality} (ridge probe on {nouns[:-1]}-mean embeddings, "
+        f"fitted on each fold's training {nouns}"
+        + (
+            f"; mean ± std over the runs that could score each label, "
+            f"with a fold's Spearman over fewer than {MIN_SPEARMAN} {nouns} left out):"
+            if runs > 1
+            else "):"
+        ),
+        "",
+        "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman |"
+        + (" room alone R² | room alone Spearman |" if "room" in per else "")
+        + (f" runs (held-out {nouns}) |" if counted else ""),
+        "|---|---|---|---|---|"
+        + ("---|---|" if "room" in per else "")
+        + ("---|" if counted else ""),
+    ]
+    methods = [k for k in ("model", "raw_pixels", "room") if k in per]
+    for label, row in per["model"].items():
+        cells = [_pm(per[k][label], score) for k in methods for score in ("r2", "spearman")]
+        why = row.get("not_scored")
+        if why:
+            cells[0] = f"n/a: {why}"
+        elif row.get("spearman_not_scored"):
+            cells[1] = f"n/a: {row['spearman_not_scored']}"
+        if counted:
+            cells.append(f"{row['runs']} of {row['runs_total']} ({row['held_out']})")
+        lines.append(f"| {label} | {' | '.join(cells)} |")
+    if "room" in per:
+        lines += [
+            "",
+            "Room alone: the same probe on each raw depth image's background pixels (no "
+            "cloth; `lookfeel data leakage`'s rule). Where it scores, the background "
+            "follows the labels (as it does when each fabric was captured in its own "
+            "session and the sessions follow the labels): read the model's probe against "
+            "it, not against zero.",
+        ]
+    return lines
+
+
 def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
-    """The class heads' calibration table (`_calibration`), when the runs kept their logits."""
+    """The class heads' calibration table (`_calibration`), when the runs kept their logits;
+    a temperature at the search's edge is marked not fitted and left out of the line that
+    says what to put in ``model.class_temperature``."""
     cols = [(col, e["calibration"]) for col, e in per.items() if "calibration" in e]
     if not cols:
         return []
     unit = "press" if modality == Modality.TOUCH.value else "image"
+    units = _plural(unit)
     lines = [
         "",
         f"How far the class heads' probabilities from {modality} can be trusted (one {unit}, "
-        f"every run's held-out {unit}s): the mean probability of the predicted class beside "
-        f"how often it is right, and their expected calibration error ({CALIBRATION_BINS} "
-        f"bins); then a temperature fitted on the other folds' held-out {unit}s applied to "
+        f"every run's held-out {units} at once: right is over them all, where the classes "
+        "table averages each run's accuracy): the mean probability of the predicted class "
+        f"beside how often it is right, and their expected calibration error ({CALIBRATION_BINS} "
+        f"bins); then a temperature fitted on the other folds' held-out {units} applied to "
         "each run's (- where there are none), and the temperature fitted on them all "
         "(`model.class_temperature` applies one in `predict`).",
         "",
@@ -1115,14 +1516,40 @@ def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:
         "| error, other folds' temperature | temperature |",
         "|---|---|---|---|---|---|---|",
     ]
+    fitted, edge = [], []
     for col, c in cols:
         cells = [
             c["confidence"], c["accuracy"], c["ece"], c["confidence_cross_fitted"],
             c["ece_cross_fitted"],
         ]  # fmt: skip
-        text = ["-" if math.isnan(v) else f"{v:.3f}" for v in cells]
-        temp = "-" if math.isnan(c["temperature"]) else f"{c['temperature']:.2f}"
+        text = ["-" if v is None or math.isnan(v) else f"{v:.3f}" for v in cells]
+        at_edge, crossed = c.get("cross_fitted_at_edge") or 0, c.get("cross_fitted_runs")
+        if at_edge and text[3] != "-":
+            text[3] += f" (at the search edge in {int(at_edge)} of {int(crossed or 0)} runs)"
+        t, t_edge = c["temperature"], c.get("temperature_search_edge")
+        if t is not None and not math.isnan(t):
+            temp = f"{t:.2f}"
+            fitted.append(f"{col}: {t:.2f}")
+        elif t_edge is not None and not math.isnan(t_edge):
+            temp = f"n/a: at the search edge ({t_edge:.3g}): not fitted"
+            edge.append(col)
+        else:
+            temp = "-"
         lines.append(f"| {col} | {' | '.join(text)} | {temp} |")
+    if edge:
+        lines += [
+            "",
+            f"Not fitted: {', '.join(edge)}: the likelihood is best at the edge of the "
+            f"temperature search (too few or too certain classes: a head no better than a "
+            f"guess on these {units} wants an infinite temperature, one never wrong a zero one); "
+            "such a value calibrates nothing: leave it out of `model.class_temperature`.",
+        ]
+    if fitted:
+        lines += [
+            "",
+            f"`model.class_temperature: {{{', '.join(fitted)}}}` applies the fitted "
+            "temperatures in `predict`.",
+        ]
     return lines
 
 
@@ -1161,6 +1588,11 @@ def cross_validate(
 
     Returns:
         The summary that ``cv.json`` holds.
+
+    Raises:
+        SplitError: folds that hold out fewer than 2 fabrics (objects), or more than there are
+            (`_fold_plan`), before anything is written or trained.
+        ConfigError: a fold out of range, no seed, or more presses than a fabric has.
     """
     out = Path(out)
     t = config.train
@@ -1177,6 +1609,8 @@ def cross_validate(
     loader = ImageLoader(config.data)  # runs differ only in train keys: one decode for all
     catalog = drop_unpressed(scan(data, require=config.train.modalities, strict=True), loader)
     # The folds and the touch queries checked before anything is printed, written or trained.
+    coverage = _fold_plan(catalog, config, fold_list)
+    noun = coverage["noun"]
     select_split(catalog, _run_config(config, fold_list[0], seeds[0]))
     kinds = [k.value for k in config.data.touch_kinds]
     if presses > 1 and Modality.TOUCH in _modalities(pairs):
@@ -1206,6 +1640,7 @@ def cross_validate(
             # How the maps score (session 22 added the hub correction): a result scored
             # otherwise is scored again from its checkpoint, never silently kept.
             key["cross_map_hubs"] = HUB_NEIGHBOURS
+            key = _finite_or_null(key)  # as result.json holds it
             if presses > 1:
                 key["presses"] = presses
                 key["pooled_gallery"] = True  # session 23: touch candidates pooled too
@@ -1234,7 +1669,8 @@ def cross_validate(
                     )
                 # Trained before, scored differently (e.g. --tta): score again, keep the time.
                 log(f"seed {seed} fold {fold}: trained before, scoring again")
-                seconds = float(saved["train_seconds"]) if saved else math.nan
+                kept = saved.get("train_seconds") if saved else None
+                seconds = math.nan if kept is None else float(kept)
             else:
                 started = time.perf_counter()
                 started_before = run_started(run_dir)
@@ -1246,7 +1682,7 @@ def cross_validate(
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             res["data"] = data_id
             res = _with_room(res, run_dir, room)
-            atomic_write_text(result_path, json.dumps(res) + "\n")
+            _write_json(result_path, res)
             first = res["pairs"][pairs[0]]
             top1 = _scored_mean(np.asarray(first["model"], np.float64)[:, 0])
             extra = "".join(
@@ -1270,7 +1706,15 @@ def cross_validate(
     def why(pair: Pair) -> str:
         return no_query_scored(pair, presses, fabrics="held-out", kinds=kinds, option="--presses ")
 
-    summary = _summarise(results, pairs, n_boot, control is not None, names, why) | {
+    values = catalog.label_matrix(catalog.label_columns)
+    used = [v for i, v in values.items() if i not in set(coverage["never_used"]["ids"])]
+    label_values = {
+        col: [v[j] for v in used if not math.isnan(v[j])]
+        for j, col in enumerate(catalog.label_columns)
+    }
+    summary = _summarise(
+        results, pairs, n_boot, control is not None, names, why, label_values, noun
+    ) | {
         "folds": fold_list,
         "seeds": list(seeds),
         "fold_size": t.fold_size,
@@ -1278,7 +1722,8 @@ def cross_validate(
         "presses": presses,
         "train_seconds": mean_and_spread([r["train_seconds"] for r in results]),
         "config": to_dict(config),
+        "coverage": coverage,
     }
-    atomic_write_text(out / SUMMARY, json.dumps(summary, indent=1) + "\n")
+    _write_json(out / SUMMARY, summary, indent=1)
     atomic_write_text(out / REPORT, format_cv_summary(summary))
     return summary

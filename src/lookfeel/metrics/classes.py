@@ -9,15 +9,18 @@ nothing of models. A query's class is its object's, so intervals resample object
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "UNKNOWN",
+    "LogitTemperature",
     "accuracy",
     "fit_logit_temperature",
     "knn_classes",
+    "logit_temperature",
     "macro_f1",
     "majority_class",
     "softmax",
@@ -67,7 +70,27 @@ def softmax(logits: ArrayLike, temperature: float = 1.0) -> NDArray[np.float64]:
     return np.asarray(_softmax(np.asarray(logits, np.float64) / temperature, axis=-1))
 
 
-def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
+@dataclass(frozen=True)
+class LogitTemperature:
+    """A class head's temperature (`logit_temperature`) and whether it was fitted.
+
+    Attributes:
+        value: the temperature T of softmax(logits / T); the search's edge when ``at_edge``.
+        at_edge: the likelihood was best at the edge of the search (about 1e-4 or 1e4 times
+            the logits' scale): no temperature was fitted. A head no better than a guess on
+            these rows wants T -> infinity (every class alike), one never wrong wants T -> 0;
+            with few rows or classes either is common. Such a value is no calibration to use.
+    """
+
+    value: float
+    at_edge: bool = False
+
+
+_EDGE = "fit_temperature: the likelihood is best at the search"
+"""The start of `lookfeel.metrics.calibration.fit_temperature`'s warning of an edge."""
+
+
+def logit_temperature(logits: ArrayLike, truth: ArrayLike) -> LogitTemperature:
     """The temperature T under which softmax(logits / T) gives the known classes of ``truth``
     the highest likelihood (temperature scaling, Guo et al. 2017): T > 1 softens a head that is
     surer than it is right, T < 1 sharpens one that is less sure. The predicted class is the
@@ -77,7 +100,7 @@ def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
     at squared distance ``max(logits) - logits`` from its row: ``exp(-c D^2)`` is then
     ``softmax(c logits)``, so T = 1 / c. Where the likelihood is best at the search's edge (a
     head that knows nothing wants T -> infinity, one never wrong T -> 0) the edge is returned,
-    silently: the temperature itself then says so.
+    without a warning, marked ``at_edge``: it was not fitted.
 
     Args:
         logits: (N, K) a class head's outputs.
@@ -90,11 +113,24 @@ def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
     keep = t != UNKNOWN
     z, t = z[keep], t[keep]
     if not t.size:
-        return 1.0
+        return LogitTemperature(1.0)
     dist = np.sqrt(z.max(axis=1, keepdims=True) - z)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", "fit_temperature: the likelihood is best at the search")
-        return 1.0 / fit_temperature(dist, t, np.arange(z.shape[1]))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        c = fit_temperature(dist, t, np.arange(z.shape[1]))
+    edge = False
+    for w in caught:
+        if str(w.message).startswith(_EDGE):
+            edge = True
+        else:  # any other warning is the caller's to see
+            warnings.warn(w.message, w.category, stacklevel=2)
+    return LogitTemperature(1.0 / c, edge)
+
+
+def fit_logit_temperature(logits: ArrayLike, truth: ArrayLike) -> float:
+    """`logit_temperature`'s value: the fitted temperature, or, silently, the search's edge
+    (`logit_temperature` says which)."""
+    return logit_temperature(logits, truth).value
 
 
 def majority_class(train_classes: ArrayLike, n_classes: int) -> int:
