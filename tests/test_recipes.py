@@ -162,7 +162,8 @@ def test_the_recipe_chosen_for_a_small_rig_with_touch_videos_loads_and_splits(
     err = capsys.readouterr().err
     assert path.name == "synth_cross.yaml"
     assert "touch videos read as physiclear.yaml does" in err
-    assert "8 fabrics to train on, fewer than the recipe's 5 folds of 18" in err
+    # 4 folds of 2: cv refuses a fold that holds out fewer than 2.
+    assert "8 fabrics to train on, fewer than the recipe's 5 folds of 18: 4 folds" in err
     config = load_config(RunConfig, path, overrides)
     physiclear = load_config(RunConfig, recipe_path("physiclear.yaml")).data
     assert config.data.touch_frames == () and config.data.color_reprints == 0
@@ -178,6 +179,7 @@ def test_the_recipe_chosen_for_a_small_rig_with_touch_videos_loads_and_splits(
         assert (len(loader.views(item)) > 1) == (m is Modality.TOUCH)  # frames of the press
     train, val, info = select_split(catalog, config)  # fold 0 of folds dealing all 8
     assert val is not None and sorted(train.ids + val.ids) == list(range(1, 9))
+    assert (config.train.folds, len(val.ids)) == (4, 2)
     assert (info["kind"], info["fold_size"]) == ("fold", None)
     # Frame images (a synthetic world's) keep the recipe's stacked frames; 2 fabrics, 2 folds.
     world = write_tiny_dataset(tmp_path / "world", fabrics=2, drapes=1, flat_presses=0)

@@ -121,8 +121,9 @@ def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
       rather than warned at every run;
     - fewer fabrics than the recipe's folds test (synth_cross.yaml: 5 folds of 18, chosen from
       a paper-size world's 100 training fabrics; ``lookfeel train`` trains fold 0, ``cv`` all):
-      folds that deal every fabric (``train.fold_size=null``), and with fewer fabrics than
-      folds one fabric a fold (``train.folds``). The paper split's test fabrics, never trained
+      folds that deal every fabric (``train.fold_size=null``), and with fewer than two fabrics
+      a fold, fewer folds (``train.folds``: at least 2 held out in each, as ``cv`` needs, and
+      never fewer than 2 folds). The paper split's test fabrics, never trained
       on, are not counted. A single fabric is left to the split's own error.
 
     Returns:
@@ -159,13 +160,16 @@ def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
     if t.get("split") == "fold" and size is not None:
         n = len(paper_split(catalog).train) or len(catalog.ids)
         if 2 <= n < folds * int(size):
+            # Each fold holds out at least 2 (pick 1 of 2 at least; `cv` refuses fewer), but
+            # never fewer than 2 folds.
+            fewer = max(2, min(folds, n // 2))
             overrides.append("train.fold_size=null")
-            if n < folds:
-                overrides.append(f"train.folds={n}")
+            if fewer != folds:
+                overrides.append(f"train.folds={fewer}")
             said.append(
                 f"{n} fabrics to train on, fewer than the recipe's {folds} folds of {size}: "
-                f"{min(folds, n)} folds dealing them all (train.fold_size=null"
-                + (f", train.folds={n})" if n < folds else ")")
+                f"{fewer} folds dealing them all (train.fold_size=null"
+                + (f", train.folds={fewer})" if fewer != folds else ")")
             )
     if not overrides:
         return recipe
