@@ -18,7 +18,7 @@ from lookfeel.cli import main
 from lookfeel.index import Library, LibraryError, Matcher, build_library
 from lookfeel.index import build as build_module
 from lookfeel.index.calibrate import Calibration, CalibrationError
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, PressKind
 
 from ._library import tiny_library
 
@@ -178,6 +178,11 @@ def test_one_build_at_a_time_per_library(run, tmp_path: Path):
     assert _beside(out) == []  # the lock is gone with its build
     (tmp_path / "lib.lock").write_text("99999\n")  # left by a killed build: not held
     build_library(ckpt, data, out, shard_size=64)
+    # A file of the user's by that name is in the way, never removed (QA).
+    (tmp_path / "lib.lock").write_text("my notes\n")
+    with pytest.raises(LibraryError, match=r"lib.lock is in the way of the build's lock"):
+        build_library(ckpt, data, out, shard_size=64)
+    assert (tmp_path / "lib.lock").read_text() == "my notes\n"
 
 
 def test_unknown_press_kinds_are_one_usage_line(run, tmp_path: Path, capsys):
@@ -261,3 +266,10 @@ def test_a_link_to_a_library_keeps_pointing_at_the_rebuilt_one(run, library: Pat
     build_library(ckpt, data, link, shard_size=8)
     assert link.is_symlink() and Library.open(link).root == link
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lib", "real"]
+
+
+def test_press_kinds_the_data_lacks_leave_touch_out_with_a_warning(run, tmp_path: Path):
+    data, ckpt = run  # fold and flat presses, no rand ones
+    with pytest.warns(UserWarning, match=r"no rand presses: touch is left out of the library"):
+        build_library(ckpt, data, tmp_path / "lib", kinds=[PressKind.RAND])
+    assert "touch" not in Library.open(tmp_path / "lib").modalities

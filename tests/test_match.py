@@ -179,7 +179,7 @@ def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
     out = capsys.readouterr().out
     assert out.startswith("Query touch (3 presses: F0005_fold_02_500.png, F0005_fold_02_501")
     assert "rank  fabric       P        D  depth" in out
-    assert "properties (the 5 likeliest fabrics weighted by P)" in out  # 5, not --top's 2
+    assert "properties (the 5 likeliest fabrics weighted by P" in out  # 5, not --top's 2
     depth = str(data / "depth/F0004_Depth_New_000001.png")
     args = ["match", "--index", lib, "--modality", "depth", depth, "--top", "3"]
     assert main([*args, "--property-fabrics", "1", "--json"]) == 0
@@ -245,6 +245,13 @@ def test_property_estimates_drop_the_weights_rounding_noise_and_name_classes(
     assert line == (
         "  properties (the 5 likeliest fabrics weighted by P): thickness_mm 0 ± 0, "
         "density 0.2 ± 0, stiffness 2 (100%), stretchiness 0 (100%)"
+    )
+    # No known fabric: the shares are of the nearest fabrics, not a finding (QA: "100%" beside
+    # P = 0.000 read as certainty).
+    unknown = format_match(replace(r, known=False, properties=list(by_name.values())))
+    assert unknown.splitlines()[-1].startswith(
+        "  properties (the 5 likeliest fabrics weighted by P; no known fabric: the nearest "
+        "ones', a guess): thickness_mm 0 ± 0"
     )
 
 

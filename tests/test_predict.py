@@ -132,8 +132,13 @@ def test_the_files_folder_decides_its_modality_even_when_the_model_lacks_it(run,
         guess_modality(video, [Modality.DEPTH])
     with pytest.raises(ImageError, match=r"touch: is a folder, not an image or video file"):
         guess_modality(data / "touch", both)
+    gif = tmp_path / "p.gif"
+    gif.write_bytes(b"GIF89a")
     with pytest.raises(ImageError, match=r"p.gif: not a PNG or JPEG image \(.png, .jpg, .jpeg\)"):
-        guess_modality(tmp_path / "p.gif", both)
+        guess_modality(gif, both)
+    # A file that is not there is said so, not read as its folder's modality (QA).
+    with pytest.raises(ImageError, match=r"nothere.jpg: file not found$"):
+        guess_modality(data / "color/nothere.jpg", touch)
     assert guess_modality(data / "touch/F0004_fold_02_400.png", touch) is Modality.TOUCH
 
 

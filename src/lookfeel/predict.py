@@ -111,11 +111,13 @@ def guess_modality(
     Raises:
         PredictError: the file does not say and the model has several modalities; or it says
             one the model lacks.
-        ImageError: the path is a folder, or neither an image (`QUERY_IMAGES`) nor a video by
-            its suffix.
+        ImageError: the path is a folder or does not exist, or is neither an image
+            (`QUERY_IMAGES`) nor a video by its suffix.
     """
     if path.is_dir():
         raise ImageError(path, "is a folder, not an image or video file: give the files in it")
+    if not path.exists():  # before its folder is read as a modality the model may lack
+        raise ImageError(path, "file not found")
     suffix = path.suffix.lower()
     names = [m.value for m in model_modalities]
     have = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else "".join(names)

@@ -189,10 +189,12 @@ def _ours(folder: Path) -> bool:
 def _build_lock(out: Path) -> Iterator[None]:
     """Hold ``OUT.lock`` (`lock_file`) exclusively while building ``out``; the system releases
     it when the process ends, however it ends. The lock file holds the builder's PID and is
-    removed on a normal end (a file left by a killed build is taken over).
+    removed on a normal end (a file left by a killed build is taken over; any other file of
+    that name is refused, never removed).
 
     Raises:
-        LibraryError: another process holds the lock, naming ``out`` and that process's PID.
+        LibraryError: another process holds the lock, naming ``out`` and that process's PID;
+            or ``OUT.lock`` is a file of the user's (not a PID) or a folder.
     """
     try:
         import fcntl
@@ -201,6 +203,13 @@ def _build_lock(out: Path) -> Iterator[None]:
         return
     path = lock_file(out)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists() or path.is_symlink():  # a lock holds a PID, or nothing yet
+        held = path.read_bytes()[:64] if path.is_file() and not path.is_symlink() else None
+        if held is None or not (held.strip().isdigit() or not held.strip()):
+            raise LibraryError(
+                f"{out}: {path} is in the way of the build's lock and is not one (a lock "
+                "holds a process id); it is kept: move it, or choose another --out"
+            )
     while True:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
@@ -531,6 +540,14 @@ def _build(
         raise DatasetError(catalog.errors, catalog.root)
     kinds = tuple(kinds) if kinds else config.data.touch_kinds
     items = {m: catalog.items(m, kinds) for m in loaded.model.modalities}
+    other = catalog.items(Modality.TOUCH) if Modality.TOUCH in loaded.model.modalities else []
+    if other and not items.get(Modality.TOUCH):
+        found = sorted({it.kind.value for it in other if it.kind is not None})
+        warnings.warn(
+            f"{catalog.root}: no {'/'.join(k.value for k in kinds)} presses: touch is left out "
+            f"of the library (the data holds {', '.join(found)} presses; --kinds chooses)",
+            stacklevel=2,
+        )
     items = {m: its for m, its in items.items() if its}
     if not items:
         have = ", ".join(m.value for m in loaded.model.modalities)

@@ -645,7 +645,8 @@ def format_match(result: MatchResult, width: int = 48) -> str:
     named = any(f.name is not None for f in result.fabrics)
     col = max([6, *(len(n) for n in names)]) if named else 6
     align = "<" if named else ">"
-    header = f"  {'rank':>4}  {'fabric':{align}{col}}  {'P':>6}  {'D':>7}  " + "  ".join(
+    noun = "object" if named else "fabric"
+    header = f"  {'rank':>4}  {noun:{align}{col}}  {'P':>6}  {'D':>7}  " + "  ".join(
         f"{m:<{width}}" for m in mods
     )
     lines.append(header.rstrip())
@@ -663,8 +664,11 @@ def format_match(result: MatchResult, width: int = 48) -> str:
     props = [_property(p) for p in result.properties if p.mean is not None or p.value is not None]
     if props:
         k = result.property_fabrics
-        likeliest = "the likeliest fabric" if k == 1 else f"the {k} likeliest fabrics"
-        lines.append(f"  properties ({likeliest} weighted by P): " + ", ".join(props))
+        likeliest = f"the likeliest {noun}" if k == 1 else f"the {k} likeliest {noun}s"
+        # With no known fabric the weights are the nearest fabrics' shares of a small P: what
+        # those feel like, not a finding about the query.
+        guess = "" if result.known else f"; no known {noun}: the nearest ones', a guess"
+        lines.append(f"  properties ({likeliest} weighted by P{guess}): " + ", ".join(props))
     return "\n".join(lines)
 
 
