@@ -237,3 +237,39 @@ def test_frames_of_another_shape_are_a_warning_naming_the_turned_one(tiny_datase
     )
     assert "(this one is portrait among landscape ones: most likely turned)" in warning.message
     assert warning.message.endswith("record them alike, or turn or crop them to 32x24")
+
+
+def test_a_constant_column_and_classes_of_one_fabric_are_a_warning_per_column(
+    tiny_dataset: Path,
+):
+    """Every hardness 1, and silk and linen on one fabric each: `data check` said 0 warnings,
+    yet no class head or probe can learn and score these on held-out fabrics. A column of
+    all-different words (descriptions) and a varied number column are no warning."""
+    labels = tiny_dataset / "labels.csv"
+    labels.write_text(
+        "fabric_id,material,hardness,density,thickness_mm,note\n"
+        "1,cotton,1,0.25,0.5,first\n2,cotton,1,0.25,0.6,second\n3,wool,1,0.25,0.7,third\n"
+        "4,wool,1,0.25,0.8,fourth\n5,silk,1,0.25,0.9,fifth\n6,linen,1,,1.0,sixth\n"
+    )
+    catalog = check_dataset(tiny_dataset)
+    assert catalog.errors == ()
+    assert [(p.path, p.severity) for p in catalog.warnings] == [(labels, "warning")] * 3
+    nothing = (
+        "so there is nothing to tell apart: a class head (model.class_heads) refuses it, and a "
+        "probe can neither learn nor score it on held-out fabrics; add fabrics that differ, or "
+        "leave the column out"
+    )
+    assert [p.message for p in catalog.warnings] == [
+        f"column 'hardness' is constant: every fabric with a value has '1' (6 of 6), {nothing}",
+        f"column 'density' is constant: every fabric with a value has '0.25' (5 of 6), {nothing}",
+        "column 'material': 2 class(es) of one fabric each, 'linen' (F0006), 'silk' (F0005): on "
+        "whichever side of a split that fabric falls, its class is either never trained on or "
+        "has no held-out fabric, so a class head (model.class_heads) or probe cannot learn and "
+        "score it on held-out fabrics; label more fabrics of these classes, or merge them into "
+        "others",
+    ]
+    labels.write_text(
+        "fabric_id,material,hardness,note\n1,cotton,1,a\n2,cotton,2,b\n3,wool,1,c\n"
+        "4,wool,2,d\n5,silk,0,e\n6,silk,1,f\n"
+    )
+    assert check_dataset(tiny_dataset).problems == ()

@@ -172,6 +172,7 @@ def check_dataset(
     new.extend(size_problems(catalog.root, usable))
     new.extend(_range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
     new.extend(_shape_problems(usable, sizes))
+    new.extend(_class_problems(catalog, usable))
     unread, skipped = _unread_problems(catalog)
     new.extend(unread)
     problems = sorted([*catalog.problems, *new], key=lambda p: (str(p.path), p.line or 0))
@@ -204,6 +205,69 @@ def _range_problems(root: Path, samples: Sequence[tuple[int, int, np.ndarray]]) 
             "warning",
         )
     ]
+
+
+_MAX_NAMED = 8
+"""Classes named in full by `_class_problems` before the rest are counted."""
+
+
+def _class_problems(catalog: Catalog, fabrics: Sequence[Fabric]) -> list[Problem]:
+    """A warning per label column that held-out fabrics cannot be scored on, counting only the
+    usable ``fabrics`` (those with images):
+
+    - a column whose every known value is the same (every hardness 1): nothing to tell apart,
+      so a class head (``model.class_heads``) refuses it and a probe learns nothing from it;
+    - a text column of classes (some class shared by two fabrics: a column of all-different
+      words is descriptions) with classes of one fabric (metal on one object only): held out,
+      that fabric's class was never trained on; trained on, it has no held-out fabric, so a
+      class head or probe can neither learn nor be scored on it across fabrics.
+
+    A rank (hardness 0/1/2) held by one fabric is no warning: ranks are numbers too, which the
+    property head regresses, and a scale's end held by one fabric is common (the tests' tiny
+    datasets have one)."""
+    path = catalog.root / "labels.csv"
+    noun = "object" if any(f.name is not None for f in fabrics) else "fabric"
+    out = []
+    for col in (*catalog.label_columns, *catalog.text_columns):
+        members: dict[str, list[Fabric]] = defaultdict(list)
+        for f in fabrics:
+            k = f.class_of(col)
+            if k is not None:
+                members[k].append(f)
+        known = sum(len(v) for v in members.values())
+        if known >= 2 and len(members) == 1:
+            (value,) = members
+            out.append(
+                Problem(
+                    path,
+                    f"column {col!r} is constant: every {noun} with a value has {value!r} "
+                    f"({known} of {len(fabrics)}), so there is nothing to tell apart: a class "
+                    "head (model.class_heads) refuses it, and a probe can neither learn nor "
+                    f"score it on held-out {noun}s; add {noun}s that differ, or leave the "
+                    "column out",
+                    "warning",
+                )
+            )
+            continue
+        if col not in catalog.text_columns or max(map(len, members.values()), default=0) < 2:
+            continue  # numbers, or all-different words (descriptions)
+        single = sorted((k, v[0]) for k, v in members.items() if len(v) == 1)
+        if not single:
+            continue
+        named = ", ".join(f"{k!r} ({f.display_name})" for k, f in single[:_MAX_NAMED])
+        more = f" and {len(single) - _MAX_NAMED} more" if len(single) > _MAX_NAMED else ""
+        out.append(
+            Problem(
+                path,
+                f"column {col!r}: {len(single)} class(es) of one {noun} each, {named}{more}: "
+                f"on whichever side of a split that {noun} falls, its class is either never "
+                f"trained on or has no held-out {noun}, so a class head (model.class_heads) or "
+                f"probe cannot learn and score it on held-out {noun}s; label more {noun}s of "
+                "these classes, or merge them into others",
+                "warning",
+            )
+        )
+    return out
 
 
 def _shape(size: tuple[int, int], modality: Modality) -> tuple[int, int]:

@@ -94,8 +94,10 @@ class TrainResult:
     steps: int
     last_checkpoint: Path
     best_checkpoint: Path | None
-    validation: dict[str, float]
-    """The last validation's metrics (empty without validation)."""
+    validation: dict[str, float | str]
+    """The last validation's metrics (empty without validation): ``{pair}_top1``, ``_top3``
+    and ``_chance`` per scored pair, ``{pair}_not_scored`` (the reason) per pair that held-out
+    items cannot score (`lookfeel.train.validate.validate`)."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -638,6 +640,24 @@ def _trim_log(path: Path, step: int) -> None:
         line for line in path.read_text().splitlines() if line and json.loads(line)["step"] <= step
     ]
     atomic_write_text(path, "".join(line + "\n" for line in keep))
+
+
+def _say_unscored(val: Mapping[str, Any], key: str) -> bool:
+    """Warn, in one line, of the pairs a validation could not score and why (fewer than two
+    held-out items per fabric), and when the pair that picks ``best.pt`` (``key``: its top-1)
+    is one of them, that ``best.pt`` is not written: the run's checkpoint is ``last.pt``, as
+    with ``train.split=none``. Returns whether there was anything to say."""
+    unscored = {
+        k.removesuffix("_not_scored"): v for k, v in val.items() if k.endswith("_not_scored")
+    }
+    if not unscored:
+        return False
+    text = "; ".join(f"{pair} not scored: {why}" for pair, why in unscored.items())
+    primary = key.removesuffix("_top1")
+    if primary in unscored:
+        text += f"; best.pt is not written ({primary} picks it): use last.pt"
+    warnings.warn(f"validation: {text}", stacklevel=4)
+    return True
 
 
 class _Log:
@@ -1183,8 +1203,8 @@ def _train(
         progress = tqdm(
             total=t.steps, initial=start_step, desc="train", unit="step", dynamic_ncols=True
         )
-    primary = t.val_pairs[0] if t.val_pairs else None
-    last_val: dict[str, float] = {}
+    last_val: dict[str, Any] = {}
+    said_unscored = False
     sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
     window_start, window_steps = time.perf_counter(), 0
     # Checkpoints on disk with finite weights (what a diverged run keeps), and the last step
@@ -1256,14 +1276,16 @@ def _train(
                         )
                     except EmbeddingError:  # a finite loss, but held-out items overflow
                         raise stop("validation embeddings", math.nan, done) from None
-                key = f"{primary or last_val['primary_pair']}_top1"
+                key = f"{last_val.get('primary_pair')}_top1"
                 log.write(
                     {
                         "step": done,
                         **{f"val/{k}": v for k, v in last_val.items() if k != "primary_pair"},
                     }
                 )
-                if last_val[key] > best:
+                if not said_unscored:  # the same pairs at every validation: say it once
+                    said_unscored = _say_unscored(last_val, key)
+                if key in last_val and last_val[key] > best:
                     best = last_val[key]
                     save(run_dir / "checkpoints" / "best.pt", done)
             dist.barrier()

@@ -16,7 +16,7 @@ from lookfeel.modality import Modality, Pair
 from lookfeel.models import Embedder, add_press_axis, eval_mode
 from lookfeel.train.features import FeatureTable
 
-__all__ = ["MAIN_PAIR", "default_pairs", "validate"]
+__all__ = ["FEWER_THAN_TWO", "MAIN_PAIR", "default_pairs", "not_scored_reason", "validate"]
 
 MAIN_PAIR = Pair(Modality.TOUCH, Modality.DEPTH)
 """The paper's main task: a GelSight press matched against depth images."""
@@ -42,6 +42,23 @@ def _embed_cached(
     return check_finite(torch.cat(out).numpy(), items)
 
 
+FEWER_THAN_TWO = "fewer than two held-out items per fabric"
+"""The short reason every unscored pair's reason ends with (`lookfeel reproduce`'s legend)."""
+
+
+def not_scored_reason(pair: Pair, have: Sequence[Modality]) -> str:
+    """Why no query of ``pair`` could be scored on the held-out items (``have``: the
+    modalities that have any): the pair needs two items of a fabric (one the query, one its
+    own fabric's candidate), within a modality or across two."""
+    q, g = pair.query.value, pair.gallery.value
+    missing = [m.value for m in dict.fromkeys((pair.query, pair.gallery)) if m not in have]
+    if missing:
+        return f"no held-out {' or '.join(missing)} item ({FEWER_THAN_TWO})"
+    if pair.same:
+        return f"no held-out fabric has a second {q} item for a query to find ({FEWER_THAN_TWO})"
+    return f"no held-out fabric with a {q} item has a {g} item for it to find ({FEWER_THAN_TWO})"
+
+
 def validate(
     model: Embedder,
     items: Mapping[Modality, list[Item]],
@@ -56,13 +73,19 @@ def validate(
     Same-modality pairs never offer a query its own item; with fewer than 10 fabrics the
     candidates offered shrink, and ``chance`` says so (`lookfeel.metrics.EXACT_PICK`).
 
+    A pair none of whose queries has an item of its own fabric to find (one depth image per
+    held-out fabric for depth to depth; no held-out item of a modality at all, as
+    ``train.split=seen`` leaves a fabric with one item) is not scored: it has no numbers, only
+    ``{pair}_not_scored``, the reason.
+
     Args:
-        pairs: the pairs to score (``query_to_gallery``); default `default_pairs`. Pairs whose
-            modalities have no validation items are left out.
+        pairs: the pairs to score (``query_to_gallery``); default `default_pairs` of the
+            modalities of ``items``.
 
     Returns:
-        ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per pair, and ``primary_pair``
-        (the first pair's name: what ``best.pt`` is chosen by).
+        ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per scored pair,
+        ``{pair}_not_scored`` (why, in words) per pair not scored, and ``primary_pair`` (the
+        first pair's name: what ``best.pt`` is chosen by).
 
     Raises:
         EmbeddingError: the model embeds some item as NaN or infinity (a diverged run).
@@ -78,13 +101,17 @@ def validate(
             else:
                 emb[m] = embed_items(model, its, loader, batch_size, device)
             fab[m] = np.array([it.fabric_id for it in its])
-    wanted = [Pair.parse(p) for p in pairs] or default_pairs([m for m in items if m in emb])
-    out: dict[str, Any] = {"primary_pair": str(wanted[0])}
+    wanted = [Pair.parse(p) for p in pairs] or default_pairs(list(items))
+    out: dict[str, Any] = {"primary_pair": str(wanted[0])} if wanted else {}
     present = [p for p in wanted if p.query in emb and p.gallery in emb]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # fewer than 10 fabrics: chance says so
-        scores = score_pairs(emb, fab, EXACT_PICK, present)
-    for pair, s in scores.items():
+        scores = score_pairs(emb, fab, EXACT_PICK, present) if present else {}
+    for pair in wanted:
+        s = scores.get(pair)
+        if s is None or s.pick.n_queries == 0:
+            out[f"{pair}_not_scored"] = not_scored_reason(pair, list(emb))
+            continue
         out[f"{pair}_top1"] = s.metrics["top1"]
         out[f"{pair}_top3"] = s.metrics["top3"]
         out[f"{pair}_chance"] = s.metrics["top1_chance"]
