@@ -499,3 +499,20 @@ def test_depth_over_colour_reads_both_ways_and_within_over_across():
     assert f["within_beats_across"]["verdict"] == "holds"
     assert f["within_beats_across"]["detail"] == "cross_modal: within 0.800 vs across 0.400 (means)"
     assert findings({})["within_beats_across"]["verdict"] == "not tested"
+
+
+def test_the_headline_says_n_a_for_a_cell_that_could_not_be_scored():
+    from lookfeel.reproduce.run import headline
+
+    lines = headline(
+        {
+            "flat": {"metrics": {"touch_to_depth_top1": 0.25, "touch_to_depth_top1_chance": 0.1}},
+            "snn_depth": {"novel": {"top1": float("nan")}},
+            "cross_modal_depth_touch": {"novel": {"top1": None}},
+        }
+    )
+    assert lines == [
+        "flat         touch->depth top-1 0.250 (chance 0.100)",
+        "snn_depth    depth->depth top-1 on novel fabrics n/a",
+        "cross_modal_depth_touch depth->depth top-1 on novel fabrics n/a",
+    ]

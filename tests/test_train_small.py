@@ -67,6 +67,10 @@ def test_a_same_modality_pair_of_one_item_per_fabric_is_not_scored_not_nan(
         assert main([*args, "--set", "train.steps=4"]) == 0
     printed = capsys.readouterr().out
     assert "nan" not in printed and "val touch_to_depth_top1" in printed
+    assert (
+        "  val depth_to_depth_top1      not scored: no held-out fabric has a second depth "
+        f"item for a query to find ({SAME})"
+    ) in printed.splitlines()
     (said,) = [str(w.message) for w in caught if "not scored" in str(w.message)]
     assert said == (
         f"validation: depth_to_depth not scored: no held-out fabric has a second depth item for "

@@ -71,8 +71,15 @@ def run(args: argparse.Namespace) -> int:
     print(f"  last checkpoint: {result.last_checkpoint}")
     if result.best_checkpoint is not None:
         print(f"  best checkpoint: {result.best_checkpoint}")
-    for key in sorted(k for k in result.validation if k.endswith("_top1")):
-        v = result.validation[key]
-        chance = result.validation.get(key.replace("_top1", "_chance"))
-        print(f"  val {key:<24} {v:.3f}" + (f"  (chance {chance:.3f})" if chance else ""))
+    val = result.validation
+    keys = {k.removesuffix("_top1") for k in val if k.endswith("_top1")}
+    keys |= {k.removesuffix("_not_scored") for k in val if k.endswith("_not_scored")}
+    for pair in sorted(keys):
+        key, v = f"{pair}_top1", val.get(f"{pair}_top1")
+        if not isinstance(v, float):  # a pair with no query to score: why, never NaN
+            print(f"  val {key:<24} not scored: {val.get(f'{pair}_not_scored', 'no query')}")
+            continue
+        chance = val.get(f"{pair}_chance")
+        shown = f"  (chance {chance:.3f})" if isinstance(chance, float) and chance else ""
+        print(f"  val {key:<24} {v:.3f}{shown}")
     return 0

@@ -581,15 +581,19 @@ def _finite_or_null(obj: Any) -> Any:
 def headline(results: Mapping[str, Any]) -> list[str]:
     """A few lines of the most telling numbers, for the terminal."""
     lines = []
+
+    def number(v: Any) -> str:  # a cell that could not be scored is n/a, never "nan"
+        return f"{v:.3f}" if isinstance(v, (int, float)) and math.isfinite(v) else "n/a"
+
     for name in ("multi_input", "cross_modal", "flat"):
         r = results.get(name, {}).get("metrics")
         if r and "touch_to_depth_top1" in r:
             lines.append(
-                f"{name:<12} touch->depth top-1 {r['touch_to_depth_top1']:.3f} "
-                f"(chance {r.get('touch_to_depth_top1_chance', float('nan')):.3f})"
+                f"{name:<12} touch->depth top-1 {number(r['touch_to_depth_top1'])} "
+                f"(chance {number(r.get('touch_to_depth_top1_chance'))})"
             )
     for name in ("snn_depth", "cross_modal_depth_touch"):
         r = results.get(name, {}).get("novel")
         if r:
-            lines.append(f"{name:<12} depth->depth top-1 on novel fabrics {r['top1']:.3f}")
+            lines.append(f"{name:<12} depth->depth top-1 on novel fabrics {number(r['top1'])}")
     return lines
