@@ -865,7 +865,7 @@ def test_a_library_of_named_objects_names_them_and_their_words(
     assert "  match: spoon: the query is library item touch:" in out
     rows = out.splitlines()
     header = next(i for i, line in enumerate(rows) if line.lstrip().startswith("rank"))
-    assert rows[header].split()[:4] == ["rank", "fabric", "P", "D"]
+    assert rows[header].split()[:4] == ["rank", "object", "P", "D"]
     assert rows[header + 1].split()[:2] == ["1", "spoon"]
     props = rows[-1]
     assert re.search(
