@@ -30,7 +30,7 @@ from lookfeel.evaluate import (
 )
 from lookfeel.evaluate.core import press_queries
 from lookfeel.metrics import PAPER_C, ScoringProtocol, score_pairs
-from lookfeel.modality import Modality, Pair
+from lookfeel.modality import Modality, Pair, PressKind
 from lookfeel.train import train
 
 from ._library import evaluate_cli
@@ -381,6 +381,62 @@ def test_report_files(tmp_path: Path):
         assert im.size == (650, 450)
 
 
+def test_a_report_written_again_removes_only_the_figures_the_last_one_wrote(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """QA: `lookfeel evaluate --out DIR` run twice kept the first run's figures that the second
+    did not draw, so figures/ and report.md disagreed. Now the figures the last report listed
+    that this one does not write are removed; a file the user put there stays, and so does
+    one outside the folder that a tampered list names. A report killed midway has listed every
+    figure it began, so the next one removes them too."""
+    import lookfeel.evaluate.report as report_module
+    from lookfeel.evaluate.report import FIGURES_MANIFEST
+
+    clusters = {i: i % 3 for i in range(1, 13)}
+    out = tmp_path / "eval"
+    figures = out / "figures"
+    touch, _ = _world(noise=0.6, seed=2)
+    first = write_report(evaluate_embeddings(touch, FAST, clusters), out)
+    assert "presses.png" in {p.name for p in first.figures}
+    mine = figures / "mine.png"
+    mine.write_bytes(b"the user's own")
+    (out / "outside.png").write_bytes(b"not a figure")
+    listed = json.loads((figures / FIGURES_MANIFEST).read_text())
+    assert listed["figures"] == sorted(p.name for p in first.figures)
+    listed["figures"] += ["../outside.png", "/etc/passwd"]
+    (figures / FIGURES_MANIFEST).write_text(json.dumps(listed))
+
+    looks, _ = _world(per={D: 4, C: 4}, noise=0.6, seed=2)  # no touch: no presses.png
+    config = dataclasses.replace(FAST, figure_pairs=(Pair(C, D),))
+    second = write_report(evaluate_embeddings(looks, config, clusters), out)
+    drawn = {p.name for p in second.figures}
+    assert drawn and drawn.isdisjoint(p.name for p in first.figures)
+    assert {p.name for p in figures.iterdir()} == drawn | {"mine.png", FIGURES_MANIFEST}
+    assert mine.read_bytes() == b"the user's own"
+    assert (out / "outside.png").read_bytes() == b"not a figure"
+    report = (out / "report.md").read_text()
+    assert all(f"(figures/{name})" in report for name in drawn)
+    assert json.loads((figures / FIGURES_MANIFEST).read_text())["figures"] == sorted(drawn)
+
+    # Killed while writing its second figure: both names are listed already.
+    real, calls = report_module.save_figure, []
+
+    def dies_second(fig: object, path: Path) -> Path:
+        calls.append(Path(path).name)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(fig, path)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(report_module, "save_figure", dies_second)
+    with pytest.raises(KeyboardInterrupt):
+        write_report(evaluate_embeddings(touch, FAST, clusters), out)
+    monkeypatch.setattr(report_module, "save_figure", real)
+    listed_now = set(json.loads((figures / FIGURES_MANIFEST).read_text())["figures"])
+    assert set(calls) <= listed_now
+    write_report(evaluate_embeddings(looks, config, clusters), out)
+    assert {p.name for p in figures.iterdir()} == drawn | {"mine.png", FIGURES_MANIFEST}
+
+
 def test_embeddings_file_round_trip(tmp_path: Path):
     embedded, _ = _world(noise=0.2)
     reference, _ = _world(noise=0.2, seed=1, first_id=101)
@@ -493,6 +549,52 @@ def test_checkpoint_splits(run: tuple[Path, Path, Path]):
         evaluate_checkpoint(loaded, data, "novel", cfg)
     emb = embed_checkpoint(loaded, data, "all")
     assert emb.reference is None and emb.meta["split"] == "all"
+
+
+def test_split_all_says_what_of_the_dataset_the_model_leaves_out(
+    run: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `lookfeel embed --split all` said "every item of the dataset", then that the run's
+    press kinds left presses out. Now the description says so itself, once (evaluate prints and
+    reports the same description); a dataset nothing of which is left out keeps the plain
+    words."""
+    from lookfeel.evaluate import summary_lines
+    from lookfeel.evaluate.from_checkpoint import _left_out
+
+    data, ckpt, _ = run  # trained on fold presses (data.touch_kinds' default)
+    loaded = load_model(ckpt)
+    plain = "every item of the dataset (training fabrics included)"
+    assert embed_checkpoint(loaded, data, "all").meta["split_description"] == plain
+    other = write_tiny_dataset(
+        tmp_path / "other", fabrics=3, drapes=1, fold_presses=2, flat_presses=2
+    )
+    npz = tmp_path / "e.npz"
+    argv = ["embed", "--checkpoint", str(ckpt), "--data", str(other), "--out", str(npz)]
+    assert main(argv) == 0
+    said = (
+        "every item of the dataset the model embeds (training fabrics included; left out: "
+        "6 flat presses (the run's data.touch_kinds: fold))"
+    )
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"Embedded depth 3, color 3, touch 6 ({said}) into {npz}"
+    assert not any("left out" in line for line in lines[1:])  # named once
+    cfg = dataclasses.replace(
+        FAST, n_boot=0, sampled=False, max_presses=1, background_control=False
+    )
+    result = evaluate_checkpoint(loaded, other, "all", cfg)
+    assert summary_lines(result)[0] == f"Evaluated {said}:"
+    assert f"| split | all: {said} |" in write_report(result, tmp_path / "r").report.read_text()
+    # A modality the model does not embed, and videos that hold no press, are named too.
+    catalog = scan(other)
+    pressed = catalog.with_items(
+        it for m in catalog.modalities for it in catalog.items(m) if it.press != "101"
+    )
+    assert _left_out(catalog, pressed, [T], (PressKind.FOLD,)) == [
+        "3 depth images (the model does not embed depth)",
+        "3 color images (the model does not embed color)",
+        "6 flat presses (the run's data.touch_kinds: fold)",
+        "1 touch video with no press",
+    ]
 
 
 def test_a_seen_run_evaluates_its_held_out_items(run: tuple[Path, Path, Path], tmp_path: Path):

@@ -66,8 +66,9 @@ def run(args: argparse.Namespace) -> int:
     if emb.reference:
         ref = ", ".join(f"{m.value} {len(e.embeddings)}" for m, e in emb.reference.items())
         print(f"  with the reference (training) items: {ref}")
+    # --split all: the description above already names what of the dataset is left out.
     note = _kinds_left_out(args.data, emb.meta.get("data_config", {}).get("touch_kinds"))
-    if Modality.TOUCH in emb.embedded and note:
+    if Modality.TOUCH in emb.embedded and note and args.split != "all":
         print(f"  {note}")
     return 0
 

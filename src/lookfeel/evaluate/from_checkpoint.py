@@ -9,7 +9,8 @@ Which items are "test" (``split``):
 - ``novel``: a ``seen`` run's held-out fabrics (Table 4's novel fabrics); reference: training.
 - ``paper``: the paper's 18 test fabrics (labels.csv's ``paper_split``, else the built-in list);
   reference: the paper's training fabrics. The shared real data holds the test fabrics back.
-- ``all``: every item of the dataset; no reference (the paper's c, no probes).
+- ``all``: every item of the dataset that the model embeds (its modalities, the run's press
+  kinds; the description names what is left out); no reference (the paper's c, no probes).
 
 Beside the model's scores, `evaluate_checkpoint` scores the same queries on **raw pixels** (every
 same-modality pair, ``{pair}_raw_pixels_top{k}``) and, as `lookfeel cv` does, under the controls
@@ -53,7 +54,7 @@ from lookfeel.embedding import (
 )
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, PressKind
 from lookfeel.models import BranchEnsemble, Embedder
 
 from .controls import background_control, raw_pixel_baseline, untouched_control
@@ -101,6 +102,53 @@ def _item_key(path: str | Path) -> tuple[str, str]:
     return p.parent.name, p.name
 
 
+def _unit(catalog: Catalog) -> str:
+    return "objects" if any(f.name is not None for f in catalog.fabrics) else "fabrics"
+
+
+def _every_item(catalog: Catalog, left_out: list[str]) -> str:
+    """What ``--split all`` embeds: every item of the dataset, or, when the model leaves some
+    out (`_left_out`), every item it embeds, naming what it leaves out."""
+    unit = _unit(catalog)
+    if not left_out:
+        return f"every item of the dataset (training {unit} included)"
+    return (
+        f"every item of the dataset the model embeds (training {unit} included; left out: "
+        f"{'; '.join(left_out)})"
+    )
+
+
+def _left_out(
+    catalog: Catalog, kept: Catalog, modalities: list[Modality], kinds: tuple[PressKind, ...]
+) -> list[str]:
+    """What of ``catalog`` is not embedded, one phrase a reason: the modalities the model does
+    not embed, touch presses of no kind in the run's ``data.touch_kinds`` (as
+    `embed_catalog` takes them) and, of the rest, videos that hold no press (dropped from
+    ``kept``)."""
+    out = []
+    for m in catalog.modalities:
+        if m not in modalities:
+            n = len(catalog.items(m))
+            what = "presses" if m is Modality.TOUCH else "images"
+            out.append(f"{n} {m.value} {what} (the model does not embed {m.value})")
+    if Modality.TOUCH not in modalities:
+        return out
+    taken = set(catalog.items(Modality.TOUCH, kinds))
+    other: dict[str, int] = {}
+    for it in catalog.items(Modality.TOUCH):
+        if it not in taken and it.kind is not None:
+            other[it.kind.value] = other.get(it.kind.value, 0) + 1
+    if other:
+        counts = ", ".join(f"{n} {k}" for k, n in sorted(other.items()))
+        run_kinds = "/".join(sorted(k.value for k in kinds))
+        out.append(f"{counts} presses (the run's data.touch_kinds: {run_kinds})")
+    pressed = set(kept.items(Modality.TOUCH))
+    unpressed = sum(1 for it in taken if it not in pressed)
+    if unpressed:
+        out.append(f"{unpressed} touch video{'s' if unpressed != 1 else ''} with no press")
+    return out
+
+
 def _select(
     loaded: LoadedModel, catalog: Catalog, split: str
 ) -> tuple[Catalog, Catalog | None, str]:
@@ -109,9 +157,9 @@ def _select(
         raise ValueError(f"split must be one of {', '.join(SPLITS)}; got {split!r}")
     s = loaded.split
     kind = s.get("kind", "")
-    unit = "objects" if any(f.name is not None for f in catalog.fabrics) else "fabrics"
+    unit = _unit(catalog)
     if split == "all":
-        return catalog, None, f"every item of the dataset (training {unit} included)"
+        return catalog, None, _every_item(catalog, [])
     if split in ("val", "train", "novel") and loaded.data_fingerprint not in (
         None,
         catalog.fingerprint(),
@@ -237,7 +285,11 @@ def _embed(
             catalog.root,
         )
     loader = ImageLoader(loaded.config.data)
+    selected = test
     test, ref = _drop_unpressed(catalog, test, ref if reference else None, loader)
+    if split == "all":  # say so when "every item" is not every item of the dataset
+        left = _left_out(selected, test, mods, tuple(loaded.config.data.touch_kinds))
+        description = _every_item(catalog, left)
 
     def run(cat: Catalog) -> dict[Modality, EmbeddedItems]:
         return embed_catalog(

@@ -760,6 +760,42 @@ def _provenance(result: EvalResult) -> list[str]:
     return ["# lookfeel evaluation", "", *_table(["", ""], rows)]
 
 
+FIGURES_MANIFEST = ".lookfeel-figures.json"
+"""Beside the figures (``out_dir/figures/``): the names of the figures `write_report` wrote
+there, so that a report written again into the folder removes those of the last one it does
+not draw again (and never a file it did not write)."""
+
+_FIGURE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*\.png$")
+
+
+def _listed_figures(fig_dir: Path) -> set[str]:
+    """The figure names `FIGURES_MANIFEST` lists: plain ``.png`` names only (nothing outside
+    the folder); none when it is missing or unreadable."""
+    try:
+        data = json.loads((fig_dir / FIGURES_MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return set()
+    names = data.get("figures") if isinstance(data, dict) else None
+    if not isinstance(names, list):
+        return set()
+    return {n for n in names if isinstance(n, str) and _FIGURE_NAME.match(n)}
+
+
+def _list_figures(fig_dir: Path, names: set[str]) -> None:
+    text = json.dumps({"written_by": "lookfeel evaluate", "figures": sorted(names)}, indent=1)
+    atomic_write_text(fig_dir / FIGURES_MANIFEST, text + "\n")
+
+
+def _remove_stale_figures(fig_dir: Path, listed: set[str], written: set[str]) -> None:
+    """Remove the figures a previous report wrote (``listed``) that this one did not, then
+    list this one's alone."""
+    for name in sorted(listed - written):
+        p = fig_dir / name
+        if p.is_file() and not p.is_symlink():
+            p.unlink(missing_ok=True)
+    _list_figures(fig_dir, written)
+
+
 def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportFiles:
     """Write ``metrics.json``, ``report.md`` and the figures under ``out_dir/figures/``.
 
@@ -769,6 +805,11 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     photos, what each feels like against the truth). Images are read with the run's
     preprocessing; a figure whose files cannot be read is skipped with a note.
 
+    Written again into the same folder, the figures of the last report that this one does
+    not draw are removed (they are listed in ``figures/`` `FIGURES_MANIFEST`), so that
+    ``figures/`` and ``report.md`` agree; any other file there is left alone. Every name is
+    listed before its figure is written: a report killed midway leaves none unlisted.
+
     Returns:
         `ReportFiles` with every path written.
     """
@@ -776,8 +817,12 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     fig_dir = out / "figures"
     written: list[Path] = []
     notes = list(result.notes)
+    listed = _listed_figures(fig_dir)  # the last report's figures (and this one's so far)
 
     def save(fig: Figure, name: str) -> str:
+        if name not in listed:
+            listed.add(name)
+            _list_figures(fig_dir, listed)
         written.append(save_figure(fig, fig_dir / name))
         return f"figures/{name}"
 
@@ -921,4 +966,6 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     if notes:
         lines += ["## Notes", "", *(f"- {n}" for n in notes), ""]
     report = atomic_write_text(out / "report.md", "\n".join(lines))
+    if listed:  # this report's figures, or the last one's
+        _remove_stale_figures(fig_dir, listed, {p.name for p in written})
     return ReportFiles(metrics_path, report, tuple(written))
