@@ -2,6 +2,7 @@
 
 import argparse
 import shutil
+import warnings
 from pathlib import Path
 
 import pytest
@@ -188,3 +189,111 @@ def test_the_recipe_chosen_for_a_small_rig_with_touch_videos_loads_and_splits(
     config = load_config(RunConfig, path, overrides)
     assert config.data.touch_frames == (0, 1, 2)
     assert (config.train.folds, config.train.fold_size) == (2, None)
+
+
+def test_the_reason_says_the_users_folds_not_the_recipes(tmp_path: Path, capsys):
+    """QA: `cv --folds 3` (a train.folds=3 after the recipe's) on 8 fabrics ran 3 folds while
+    the chooser's line claimed its own 4 (train.folds=4). The user's folds and fold size are
+    kept and said as theirs; too many folds for 2 held out each are said in the same line."""
+    data = write_tiny_dataset(tmp_path / "eight", 8, drapes=1, fold_presses=2, flat_presses=0)
+    path, overrides = run_config_source(_args(data, sets=("train.folds=3",)))
+    err = capsys.readouterr().err
+    assert "your 3 folds dealing them all (train.fold_size=null)" in err
+    assert "train.folds=4" not in err and "4 folds" not in err
+    config = load_config(RunConfig, path, overrides)
+    assert (config.train.folds, config.train.fold_size) == (3, None)
+
+    path, overrides = run_config_source(_args(data, sets=("train.folds=6",)))
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    assert "your train.folds=6 leaves 1 of the 8 fabrics held out in some fold" in err
+    assert "use train.folds=4 or fewer" in err
+    assert load_config(RunConfig, path, overrides).train.folds == 6
+
+    # The user's fold size: the recipe's folds made to fit it, said so.
+    path, overrides = run_config_source(_args(data, sets=("train.fold_size=2",)))
+    err = capsys.readouterr().err
+    assert "too few for the recipe's 5 folds of your 2 (train.fold_size): 4 folds" in err
+    config = load_config(RunConfig, path, overrides)
+    assert (config.train.folds, config.train.fold_size) == (4, 2)
+
+
+def test_cv_folds_reach_the_recipe_chooser(tmp_path: Path, capsys):
+    data = write_tiny_dataset(tmp_path / "eight", 8, drapes=1, fold_presses=2, flat_presses=0)
+    assert main(["cv", "--data", str(data), "--out", str(tmp_path / "cv"), "--folds", "6"]) == 1
+    err = capsys.readouterr().err
+    chosen, refused = err.splitlines()  # the recipe's line, then cv's own refusal
+    assert "your 6 folds dealing them all" in chosen and "4 folds dealing" not in chosen
+    assert "your train.folds=6 leaves 1 of the 8 fabrics held out" in chosen
+    assert refused.startswith("lookfeel: --folds 6 (train.folds) of the 8 fabrics")
+
+
+def _depth_as_tif(data: Path) -> None:
+    """Every depth map saved as a TIFF, a format the scan skips."""
+    from PIL import Image
+
+    for png in sorted((data / "depth").glob("*.png")):
+        Image.open(png).save(png.with_suffix(".tif"))
+        png.unlink()
+
+
+def test_train_says_a_sense_whose_every_file_was_skipped(
+    tiny_dataset: Path, tmp_path: Path, capsys
+):
+    """QA: all depth maps were .tif (skipped by the scan): the recipe chosen for the folder
+    trained colour and touch without a word of depth. It warns in one line; a config whose
+    views use depth is refused in one line, not one per fabric."""
+    _depth_as_tif(tiny_dataset)
+    with pytest.warns(UserWarning) as caught:
+        _, saved = _train_quickly(tiny_dataset, tmp_path / "run")
+    assert saved["train"]["views"] == ["color", "touch"]
+    said = [str(w.message) for w in caught if "depth" in str(w.message)]
+    assert len(said) == 1
+    assert "all 18 depth file(s) of depth/ were skipped or unreadable (e.g. F0001_" in said[0]
+    assert "so this run trains without depth" in said[0]
+
+    capsys.readouterr()
+    argv = ["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "named")]
+    assert main([*argv, "--config", str(recipe_path("synth_cross.yaml"))]) == 1
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    assert "the run's train.views use depth, but all 18 depth file(s)" in err
+    assert "leave depth out of train.views" in err
+    assert not (tmp_path / "named").exists()
+
+
+def test_train_says_a_damaged_sense_in_one_line(tiny_dataset: Path, tmp_path: Path, capsys):
+    """The chooser reads names only, so damaged depth PNGs still choose depth: the run is
+    refused in one line naming the sense, not a line per file and per fabric."""
+    for png in (tiny_dataset / "depth").glob("*.png"):
+        png.write_bytes(b"not a png")
+    argv = ["train", "--data", str(tiny_dataset), "--out", str(tmp_path / "run")]
+    assert main(argv) == 1
+    refused = capsys.readouterr().err.splitlines()[1:]  # after the recipe's own line
+    assert len(refused) == 1
+    assert "depth must be a 16-bit greyscale PNG" in refused[0]
+    assert "move depth/ aside to train without depth" in refused[0]
+
+
+def test_train_warns_of_depth_outside_the_mapped_range_as_data_check_does(
+    tiny_dataset: Path, tmp_path: Path
+):
+    import numpy as np
+    from PIL import Image
+
+    from lookfeel.data import check_dataset
+
+    for png in (tiny_dataset / "depth").glob("*.png"):
+        far = np.asarray(Image.open(png)).astype(np.uint16) + 2000  # ~3 m: past 800-1300 mm
+        Image.fromarray(far).save(png)
+    checked = [p for p in check_dataset(tiny_dataset).warnings if "valid depth pixels" in p.message]
+    assert len(checked) == 1
+    with pytest.warns(UserWarning) as caught:
+        _train_quickly(tiny_dataset, tmp_path / "run")
+    said = [str(w.message) for w in caught if "valid depth pixels" in str(w.message)]
+    assert said == [str(checked[0])]
+    # A run that maps its own range is not warned by the check's defaults.
+    with warnings.catch_warnings(record=True) as caught2:
+        warnings.simplefilter("always")
+        _train_quickly(tiny_dataset, tmp_path / "own", "data.depth_min_mm=2800")
+    assert not [w for w in caught2 if "valid depth pixels" in str(w.message)]

@@ -520,12 +520,12 @@ def test_config_rejects_bad_video_settings(kw, msg):
 
 
 def test_data_check_decodes_a_video_and_finds_its_press(videos, tmp_path: Path):
-    from lookfeel.data.check import _decode_problem
+    from lookfeel.data.check import decode_problem
 
-    decoded = _decode_problem(videos[".mp4"], Modality.TOUCH)
+    decoded = decode_problem(videos[".mp4"], Modality.TOUCH)
     assert decoded.problem is None and decoded.size == (64, 48)
     still = write_video(tmp_path / "still.mov", press_frames({}))
-    problem = _decode_problem(still, Modality.TOUCH).problem
+    problem = decode_problem(still, Modality.TOUCH).problem
     assert problem is not None and problem.path == still
     # a recording with no press is a warning: runs leave it out (lookfeel.data.drop_unpressed)
     assert problem.severity == "warning" and problem.message.startswith("no contact found")

@@ -312,7 +312,7 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
 
     catalog = scan(args.data, check_headers=False)
     held = {m for fabric in catalog.fabrics for m, items in fabric.items.items() if items}
-    recipe = fit_dataset(default_recipe(held, args.data), catalog)
+    recipe = fit_dataset(default_recipe(held, args.data), catalog, args.set)
     if not _sets_key(args.set, "model.class_heads"):
         has_labels = (Path(args.data) / "labels.csv").is_file()
         columns = [*catalog.label_columns, *catalog.text_columns] if has_labels else None

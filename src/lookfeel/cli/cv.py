@@ -114,18 +114,23 @@ def _seed_list(text: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
     check_out_folder(args.out, args.data, CV_FILES, "a cross-validation folder")
+    from lookfeel.cli.train import check_senses
     from lookfeel.config import RunConfig, load_config
     from lookfeel.crossval import cross_validate, format_cv_summary
     from lookfeel.models import BACKBONES
 
-    path, overrides = run_config_source(args)
+    # --folds and --fold-size are the user's overrides, last: the recipe chosen without
+    # --config is fitted around them, and its reason says the folds that run.
+    sets = list(args.set)
     if args.folds is not None:
-        overrides.append(f"train.folds={args.folds}")
+        sets.append(f"train.folds={args.folds}")
     if args.fold_size is not None:
-        overrides.append(f"train.fold_size={args.fold_size}")
+        sets.append(f"train.fold_size={args.fold_size}")
+    path, overrides = run_config_source(argparse.Namespace(**{**vars(args), "set": sets}))
     config = load_config(RunConfig, path, overrides)
     # Before the folds are made and the first run starts (each run checks again, in `train`).
     config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
+    check_senses(config, args.data, chosen=args.config is None)
     summary = cross_validate(
         config,
         args.data,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,7 +27,9 @@ from lookfeel.cli._args import (
 )
 
 if TYPE_CHECKING:
+    from lookfeel.config import RunConfig
     from lookfeel.config._core import Override
+    from lookfeel.data.catalog import Catalog
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -53,17 +56,23 @@ def run(args: argparse.Namespace) -> int:
     """Train, then print where the run is and its validation numbers."""
     check_out_folder(args.out, args.data, RUN_FILES, "a lookfeel run")  # before any work
     from lookfeel.config import RunConfig, load_config
+    from lookfeel.models import BACKBONES
     from lookfeel.train import train
 
     saved = args.out / "config.yaml"
+    chosen = False  # whether the recipe was chosen for what --data holds
     if args.config is None and args.resume and saved.is_file():
         path, overrides = saved, list(args.set)  # a resumed run keeps its own recipe
     else:
         path, overrides = run_config_source(args)
+        chosen = args.config is None
     given: list[str | Override] = [*overrides]
     if args.pretrained is not None:
         given.append(path_flag("model.pretrained", "--pretrained", args.pretrained))
     config = load_config(RunConfig, path, given)
+    # As `train` does first: images smaller than the backbone takes, before any data is read.
+    config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
+    check_senses(config, args.data, chosen=chosen)
     result = train(config, args.data, args.out, resume=args.resume)
     if int(os.environ.get("RANK", "0")) != 0:
         return 0  # under torchrun one process reports (they trained one run)
@@ -83,3 +92,80 @@ def run(args: argparse.Namespace) -> int:
         shown = f"  (chance {chance:.3f})" if isinstance(chance, float) and chance else ""
         print(f"  val {key:<24} {v:.3f}{shown}")
     return 0
+
+
+DEPTH_RANGE_SAMPLE = 200
+"""Depth maps decoded for the range warning before a run (evenly spaced over the dataset's):
+enough for the share of pixels inside the mapped range, a few seconds at most."""
+
+
+def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
+    """What to say of ``data`` before a run of ``config`` trains on it, once (rank 0 under
+    torchrun):
+
+    - a sense whose files the scan read none of (every one skipped or unreadable,
+      `lookfeel.config.recipes.unread_senses`): an error in one line where the run's
+      ``train.views`` use it, else, where the recipe was ``chosen`` for what the folder holds
+      (no --config), a warning that the run goes without it;
+    - depth that lies mostly outside the range raw depth is mapped from: ``lookfeel data
+      check``'s own warning, where the run maps depth by the defaults that check assumes.
+
+    Raises:
+        DatasetError: a sense the run uses has no readable file.
+    """
+    from lookfeel.config.recipes import unread_senses
+    from lookfeel.data.layout import scan
+    from lookfeel.data.problems import DatasetError, Problem
+
+    catalog = scan(data)  # the headers checked, as the run's own scan does
+    used = set(config.train.modalities)
+    says = int(os.environ.get("RANK", "0")) == 0
+    for sense in unread_senses(catalog):
+        m = sense.modality.value
+        if sense.modality in used:
+            how = (
+                f"move {sense.folder.name}/ aside to train without {m}"
+                if chosen
+                else f"leave {m} out of train.views"
+            )
+            raise DatasetError(
+                [
+                    Problem(
+                        sense.folder,
+                        f"the run's train.views use {m}, but {sense.why}: convert them (see "
+                        f"`lookfeel data check {data}`), or {how}",
+                    )
+                ]
+            )
+        if chosen and says:
+            warnings.warn(
+                f"{sense.folder}: {sense.why}, so this run trains without {m} (see "
+                f"`lookfeel data check {data}`)",
+                stacklevel=2,
+            )
+    if says:
+        _say_depth_range(config, catalog)
+
+
+def _say_depth_range(config: RunConfig, catalog: Catalog) -> None:
+    """``lookfeel data check``'s warning of depth outside the mapped range
+    (`lookfeel.data.check`), from up to `DEPTH_RANGE_SAMPLE` of the depth maps, where the run
+    maps raw depth by the defaults the check assumes (a run that sets its own range, or uses
+    registered depth, is left to it)."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data.check import decode_problem, range_problems
+    from lookfeel.modality import Modality
+
+    c, default = config.data, DataConfig()
+    if (
+        Modality.DEPTH not in config.train.modalities
+        or c.depth_input != "raw"
+        or (c.depth_min_mm, c.depth_range_mm) != (default.depth_min_mm, default.depth_range_mm)
+    ):
+        return
+    paths = [p for it in catalog.items(Modality.DEPTH) for p in it.frames]
+    step = -(-len(paths) // DEPTH_RANGE_SAMPLE) or 1
+    decoded = [decode_problem(p, Modality.DEPTH) for p in paths[::step]]
+    samples = [d.depth for d in decoded if d.depth is not None]
+    for problem in range_problems(catalog.root, samples):
+        warnings.warn(str(problem), stacklevel=3)

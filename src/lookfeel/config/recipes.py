@@ -32,8 +32,17 @@ from lookfeel.modality import REPRINTS, Modality
 
 if TYPE_CHECKING:
     from lookfeel.data.catalog import Catalog
+    from lookfeel.data.problems import Problem
 
-__all__ = ["Recipe", "default_recipe", "fit_class_heads", "fit_dataset", "recipe_path"]
+__all__ = [
+    "Recipe",
+    "UnreadSense",
+    "default_recipe",
+    "fit_class_heads",
+    "fit_dataset",
+    "recipe_path",
+    "unread_senses",
+]
 
 
 @dataclass(frozen=True)
@@ -51,6 +60,57 @@ class Recipe:
     path: Path
     overrides: tuple[str, ...]
     reason: str
+
+
+@dataclass(frozen=True)
+class UnreadSense:
+    """A sense whose folder holds files of which the scan read none (`unread_senses`).
+
+    Attributes:
+        modality: the sense (depth, colour or touch).
+        folder: its folder (``depth/``; the first, for touch's several).
+        files: how many entries of its folders were skipped or refused.
+        first: the first of them, with why (``F0001_1.tif: not an image``).
+    """
+
+    modality: Modality
+    folder: Path
+    files: int
+    first: Problem
+
+    @property
+    def why(self) -> str:
+        """``all 12 depth file(s) of depth/ were skipped or unreadable (e.g. F0001.tif: ...)``."""
+        name = "" if self.first.path is None else f"{self.first.path.name}: "
+        return (
+            f"all {self.files} {self.modality.value} file(s) of {self.folder.name}/ were skipped "
+            f"or unreadable (e.g. {name}{self.first.message})"
+        )
+
+
+def unread_senses(catalog: Catalog) -> list[UnreadSense]:
+    """The senses of which ``catalog`` has no item although their folders hold files: every
+    one skipped (``.tif`` depth maps, a subfolder of frames) or refused (a damaged PNG, with
+    the headers checked), so a run on the folder goes without that sense.
+
+    Hidden files (``.DS_Store``) are not counted."""
+    from lookfeel.data.layout import folder_modality
+
+    found: dict[Modality, list[tuple[Path, Problem]]] = {}
+    refused = [p for p in catalog.problems if p.severity == "error"]
+    for problem in (*catalog.skipped, *refused):
+        path = problem.path
+        if path is None or path.name.startswith(".") or path.parent.parent != catalog.root:
+            continue  # not an entry of a folder of the layout (a whole folder, labels.csv)
+        sense = folder_modality(path.parent.name)
+        if sense is not None and not catalog.items(sense[0]):
+            found.setdefault(sense[0], []).append((path, problem))
+    out = []
+    for m in Modality:
+        if m in found:
+            path, first = min(found[m], key=lambda x: str(x[0]))
+            out.append(UnreadSense(m, path.parent, len(found[m]), first))
+    return out
 
 
 def recipe_path(name: str) -> Path:
@@ -105,7 +165,74 @@ def _resolved(recipe: Recipe) -> dict[str, Any]:
     return apply_overrides(yaml.safe_load(recipe.path.read_text()) or {}, recipe.overrides)
 
 
-def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
+def _gives(given: Sequence[str], key: str) -> bool:
+    """Whether one of the user's overrides ``given`` sets ``key`` (``train.folds``) or a mapping
+    above it (``train={...}``)."""
+    parts = key.split(".")
+    above = {".".join(parts[: i + 1]) for i in range(len(parts))}
+    return any(s.partition("=")[0].strip() in above for s in given)
+
+
+def _mapping(value: Any) -> dict[str, Any]:
+    return value if isinstance(value, dict) else {}
+
+
+def _count(value: Any) -> bool:
+    """Whether ``value`` is a count (an int >= 1, not a bool): else the config's own checks
+    refuse it, and nothing is fitted to it."""
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+def _fit_folds(
+    n: int, folds: int, size: int | None, yours_folds: bool, yours_size: bool
+) -> tuple[list[str], list[str]]:
+    """The fold overrides (and what to say of them) for ``n`` fabrics and the run's ``folds``
+    of ``size`` (the user's, where ``yours_*``, else the recipe's): the user's own numbers are
+    kept and said as theirs, never replaced by the recipe's."""
+    overrides: list[str] = []
+    said: list[str] = []
+    deal = size is not None and not yours_size and n < folds * size
+    final_size = None if deal else size
+    fewer = folds
+    if not yours_folds:
+        # Each fold holds out at least 2 (pick 1 of 2 at least; `cv` refuses fewer), but never
+        # fewer than 2 folds.
+        fewer = max(2, min(folds, n // 2 if final_size is None else n // final_size))
+        if final_size is not None and fewer * final_size > n:
+            fewer = folds  # no count of folds of that size fits: the split's error says so
+    if deal:
+        overrides.append("train.fold_size=null")
+        if fewer != folds:
+            overrides.append(f"train.folds={fewer}")
+        if yours_folds:
+            said.append(
+                f"{n} fabrics to train on, fewer than your {folds} folds (train.folds) of the "
+                f"recipe's {size}: your {folds} folds dealing them all (train.fold_size=null)"
+            )
+        else:
+            said.append(
+                f"{n} fabrics to train on, fewer than the recipe's {folds} folds of {size}: "
+                f"{fewer} folds dealing them all (train.fold_size=null"
+                + (f", train.folds={fewer})" if fewer != folds else ")")
+            )
+    elif fewer != folds:
+        overrides.append(f"train.folds={fewer}")
+        of = "" if final_size is None else f" of your {final_size} (train.fold_size)"
+        said.append(
+            f"{n} fabrics to train on, too few for the recipe's {folds} folds{of}: "
+            f"{fewer} folds (train.folds={fewer})"
+        )
+    if yours_folds and final_size is None and n // folds < 2:
+        use = f": use train.folds={n // 2} or fewer (cv --folds {n // 2})" if n >= 4 else ""
+        said.append(
+            f"your train.folds={folds} leaves {n // folds} of the {n} fabrics held out in some "
+            f"fold, fewer than the 2 a fold must hold out to be scored (`lookfeel cv` refuses "
+            f"it){use}"
+        )
+    return overrides, said
+
+
+def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> Recipe:
     """``recipe`` with the overrides that let it run on ``catalog``, the reason saying which.
 
     A shipped recipe is written for the data it was tuned on; chosen for a user's data it is
@@ -126,15 +253,25 @@ def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
       never fewer than 2 folds). The paper split's test fabrics, never trained
       on, are not counted. A single fabric is left to the split's own error.
 
+    The user's own overrides ``given`` (``--set``, and ``cv``'s ``--folds`` and
+    ``--fold-size`` as ``train.folds=`` and ``train.fold_size=``), applied after the recipe's,
+    are taken as they are: a key they set is neither overridden nor said to be the recipe's
+    choice (``cv --folds 3``: 3 folds, dealing the fabrics when the recipe's size does not fit,
+    and a word when 3 folds would hold out fewer than 2 fabrics in one).
+
     Returns:
-        ``recipe`` itself when nothing needs changing, else a copy with the overrides added.
+        ``recipe`` itself when nothing needs changing or saying, else a copy with the
+        overrides added and the reason extended.
     """
     from lookfeel.data.files import VIDEO_SUFFIXES
     from lookfeel.data.splits import paper_split
 
     data = _resolved(recipe)
-    d, t = data.get("data") or {}, data.get("train") or {}
-    views = {str(v) for v in t.get("views") or ()}
+    d, t = _mapping(data.get("data")), _mapping(data.get("train"))
+    # The run's values: the recipe's with the user's overrides on top.
+    ours = apply_overrides(data, given) if given else data
+    t_run = _mapping(ours.get("train"))
+    views = {str(v) for v in t_run.get("views") or ()}
     overrides: list[str] = []
     said: list[str] = []
     touch = catalog.items(Modality.TOUCH) if Modality.TOUCH.value in views else []
@@ -146,32 +283,27 @@ def fit_dataset(recipe: Recipe, catalog: Catalog) -> Recipe:
             for k, v in reads.items()
             if k.startswith("video_") and k not in d
         ]
+        settings = [s for s in settings if not _gives(given, s.partition("=")[0])]
         if settings:
             overrides += settings
             said.append(f"touch videos read as physiclear.yaml does ({', '.join(settings)})")
     if (
         Modality.COLOR.value in views
         and d.get("color_reprints")
+        and not _gives(given, "data.color_reprints")
         and not (catalog.root / REPRINTS).is_dir()
     ):
         overrides.append("data.color_reprints=0")
         said.append(f"no {REPRINTS}/ folder: trained on the photos (data.color_reprints=0)")
-    folds, size = int(t.get("folds", 5)), t.get("fold_size")
-    if t.get("split") == "fold" and size is not None:
+    folds, size = t_run.get("folds", 5), t_run.get("fold_size")
+    if t.get("split") == "fold" and _count(folds) and (size is None or _count(size)):
         n = len(paper_split(catalog).train) or len(catalog.ids)
-        if 2 <= n < folds * int(size):
-            # Each fold holds out at least 2 (pick 1 of 2 at least; `cv` refuses fewer), but
-            # never fewer than 2 folds.
-            fewer = max(2, min(folds, n // 2))
-            overrides.append("train.fold_size=null")
-            if fewer != folds:
-                overrides.append(f"train.folds={fewer}")
-            said.append(
-                f"{n} fabrics to train on, fewer than the recipe's {folds} folds of {size}: "
-                f"{fewer} folds dealing them all (train.fold_size=null"
-                + (f", train.folds={fewer})" if fewer != folds else ")")
-            )
-    if not overrides:
+        if n >= 2:
+            yours = _gives(given, "train.folds"), _gives(given, "train.fold_size")
+            more, words = _fit_folds(n, folds, size, *yours)
+            overrides += more
+            said += words
+    if not overrides and not said:
         return recipe
     return replace(
         recipe,

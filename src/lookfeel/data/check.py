@@ -25,7 +25,10 @@ __all__ = [
     "PLAUSIBLE_DEPTH_MM",
     "UNREAD_IMAGE_SUFFIXES",
     "check_dataset",
+    "decode_problem",
+    "range_problems",
     "size_problems",
+    "unread_problems",
 ]
 
 
@@ -96,7 +99,7 @@ def _depth_sample(depth: np.ndarray, low: float, high: float) -> tuple[int, int,
     return inside, int(valid.size), valid[::step]
 
 
-def _decode_problem(path: Path, modality: Modality) -> _Decoded:
+def decode_problem(path: Path, modality: Modality) -> _Decoded:
     config = DataConfig()
     try:
         if modality is Modality.TOUCH and is_video(path):
@@ -155,9 +158,9 @@ def check_dataset(
     ]
     if workers > 1 and len(jobs) > 16:
         with ThreadPoolExecutor(workers) as pool:
-            decoded = list(pool.map(lambda j: _decode_problem(*j), jobs))
+            decoded = list(pool.map(lambda j: decode_problem(*j), jobs))
     else:
-        decoded = [_decode_problem(*j) for j in jobs]
+        decoded = [decode_problem(*j) for j in jobs]
     new = [d.problem for d in decoded if d.problem is not None]
     bad = {p.path for p in new if p.severity == "error"}
     sizes = {j[0]: d.size for j, d in zip(jobs, decoded, strict=True) if d.size is not None}
@@ -170,16 +173,16 @@ def check_dataset(
         fabrics.append(replace(f, items={m: its for m, its in items.items() if its}))
     usable = tuple(f for f in fabrics if f.items)
     new.extend(size_problems(catalog.root, usable))
-    new.extend(_range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
+    new.extend(range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
     new.extend(_shape_problems(usable, sizes))
     new.extend(_class_problems(catalog, usable))
-    unread, skipped = _unread_problems(catalog)
+    unread, skipped = unread_problems(catalog)
     new.extend(unread)
     problems = sorted([*catalog.problems, *new], key=lambda p: (str(p.path), p.line or 0))
     return replace(catalog, fabrics=usable, problems=tuple(problems), skipped=skipped)
 
 
-def _range_problems(root: Path, samples: Sequence[tuple[int, int, np.ndarray]]) -> list[Problem]:
+def range_problems(root: Path, samples: Sequence[tuple[int, int, np.ndarray]]) -> list[Problem]:
     """One warning when fewer than `MIN_IN_RANGE` of the depth maps' valid pixels lie inside
     the range raw depth input maps to [0, 1], by `DataConfig`'s defaults (``data check`` reads
     no run config); files whose values do not read as millimetres are left to their own
@@ -347,7 +350,7 @@ def _holds_images(folder: Path) -> bool:
 _PRESS_FOLDER = re.compile(r"^F0*(\d+)_(?:(fold|flat|rand)_)?([A-Za-z0-9-]+)$", re.IGNORECASE)
 
 
-def _unread_problems(catalog: Catalog) -> tuple[list[Problem], tuple[Problem, ...]]:
+def unread_problems(catalog: Catalog) -> tuple[list[Problem], tuple[Problem, ...]]:
     """Errors for what the scan skipped but was meant as data, and the skips left.
 
     Files in a modality folder whose suffix is an image format lookfeel does not read

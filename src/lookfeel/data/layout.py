@@ -39,6 +39,7 @@ __all__ = [
     "FOLDER_ALIASES",
     "IMAGE_SUFFIXES",
     "VIDEO_SUFFIXES",
+    "folder_modality",
     "parse_touch_name",
     "press_frame_files",
     "scan",
@@ -147,7 +148,7 @@ def press_frame_files(path: Path) -> tuple[Path, ...] | None:
     return tuple(p for _, _, p in sorted(frames))
 
 
-def _folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:
+def folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:
     low = name.lower()
     for modality, names in FOLDER_ALIASES.items():
         if low in names:
@@ -374,7 +375,7 @@ def scan(
             continue  # training views of the colour photos (`reprint_path`), not items
         if entry.name in _SYNTH_FILES and (root / SYNTH_MANIFEST).is_file():
             continue  # a `lookfeel synth` world's own record and picture (read above)
-        fm = _folder_modality(entry.name) if entry.is_dir() else None
+        fm = folder_modality(entry.name) if entry.is_dir() else None
         if fm is None:
             skipped.append(
                 Problem(
