@@ -137,3 +137,34 @@ def test_labels_row_counts_fabrics_with_a_dataset_s_own_numeric_columns(tmp_path
     paper = write_tiny_dataset(tmp_path / "paper", fabrics=3, drapes=1, fold_presses=0)
     out = _info(paper, capsys)
     assert "thickness_mm, density, stiffness, stretchiness; 3 fabrics with physical labels" in out
+
+
+def test_info_counts_the_files_check_fails_as_errors_not_as_skipped(tmp_path: Path, capsys):
+    """QA: a 16-bit TIFF beside a fabric's depth PNGs was listed by info under "skipped" with
+    "0 errors", while `data check` failed on it. Info now reports it as check does: an error
+    with check's reason; what check only skips (a text file) stays skipped in both."""
+    import numpy as np
+    from PIL import Image
+
+    root = write_tiny_dataset(tmp_path / "t", fabrics=2, drapes=2)
+    depth = root / "depth"
+    png = depth / "F0001_Depth_New_000000.png"
+    Image.fromarray(np.asarray(Image.open(png))).save(depth / "F0001_extra.tif")
+    (depth / "notes.txt").write_text("taken on Tuesday")
+    out = _info(root, capsys)
+    why = (
+        "lookfeel does not read .tif files: depth must be a 16-bit greyscale PNG in millimetres "
+        "(0 = no reading); convert it (the scan skips these files, so runs read no depth from "
+        "them)"
+    )
+    assert re.search(rf"^  error +depth/F0001_extra\.tif: {re.escape(why)}$", out, re.M)
+    assert re.search(r"^  skipped +1 not in the layout: notes\.txt$", out, re.M)
+    assert re.search(r"^  problems +1 error, 0 warnings in names and headers", out, re.M)
+    s = _info_json(root, capsys)
+    assert (s["errors"], s["skipped"]) == (1, 1)
+    assert main(["data", "check", str(root), "--no-leakage", "--json"]) == 1
+    check = json.loads(capsys.readouterr().out)
+    assert [(e["path"], e["message"]) for e in check["errors"]] == [
+        (str(depth / "F0001_extra.tif"), why)
+    ]
+    assert [p["path"] for p in check["skipped"]] == [str(depth / "notes.txt")]

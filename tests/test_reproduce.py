@@ -112,6 +112,27 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
     assert "| n/a^1 (0.935) |" in report and f"- ^1 multi_input touch_to_touch: {why}." in report
     saved = json.loads((out / "results.json").read_text())
     assert saved["results"]["multi_input"]["not_scored"] == {"touch_to_touch": why}
+    # 3 held-out fabrics: no finding gets a verdict, in the JSON as in the report.
+    tested = [f for f in saved["findings"].values() if f["verdict"] != "not tested"]
+    assert tested and all(f["verdict"] == "too few fabrics" for f in tested)
+    assert all(f["fabrics"] == 3 for f in tested)
+    assert "| **too few fabrics (3)** |" in report and "| **holds** |" not in report
+
+    # An eval.json of an earlier lookfeel recorded no reasons: the resumed report showed a
+    # generic one. It is derived from the run's config.yaml, else said to be unrecorded.
+    done = out / "runs" / "multi_input" / "seed0" / "eval.json"
+    old = json.loads(done.read_text())
+    del old["not_scored"]
+    done.write_text(json.dumps(old))
+    again = reproduce(data, out, only=["multi_input"], **args)
+    assert again.results["multi_input"]["not_scored"] == {"touch_to_touch": why}
+    (done.parent / "config.yaml").unlink()
+    again = reproduce(data, out, only=["multi_input"], **args)
+    assert again.results["multi_input"]["not_scored"] == {}
+    assert (
+        "- ^1 multi_input touch_to_touch: reason not recorded (computed by an earlier "
+        "lookfeel): delete the run's eval.json and rerun to record it."
+    ) in again.report.read_text()
 
 
 def test_one_item_per_held_out_fabric_is_not_scored_with_its_reason(monkeypatch):
@@ -440,7 +461,10 @@ def test_the_report_says_which_fabrics_each_table_scores_and_how_many(tmp_path: 
         "here they rest on 4 test fabrics (Tables 1-3) and 2 (Table 4's novel side) and are on "
         "average 0.21 wide"  # (0.4 + 0.04 + 0.2) / 3
     ) in report
-    assert "under 10, they and the verdicts below say little" in report
+    assert (
+        "under 10, they say little, and the findings that rest on them get no verdict "
+        "(too few fabrics)"
+    ) in report
     assert "below 10 test fabrics they say little" in report
 
     for run in ("cross_modal", "multi_input_aug"):
@@ -516,3 +540,100 @@ def test_the_headline_says_n_a_for_a_cell_that_could_not_be_scored():
         "snn_depth    depth->depth top-1 on novel fabrics n/a",
         "cross_modal_depth_touch depth->depth top-1 on novel fabrics n/a",
     ]
+
+
+def test_an_old_eval_json_s_reasons_are_derived_from_what_is_stored(tmp_path: Path):
+    """Table 4's sides need only their name; a pair needs the run's config.yaml (the presses
+    its touch inputs pool); without it no reason is made up."""
+    from lookfeel.config import RunConfig, load_config, save_config
+    from lookfeel.reproduce.run import BUDGETS, _old_reasons, config_dir
+
+    nan = float("nan")
+    vision = {"seen": {"top1": nan}, "novel": {"top1": 0.4}}
+    assert _old_reasons(vision, tmp_path) == {
+        "seen": "no seen fabric has two depth images in the held-out fifth of its images, one "
+        "to query and one to find"
+    }
+    record = {"metrics": {"touch_to_touch_top1": nan, "depth_to_depth_top1": nan, "x_top1": 0.5}}
+    assert _old_reasons(record, tmp_path) == {}  # no config.yaml: not recorded
+    config = load_config(RunConfig, config_dir() / "multi_input.yaml", list(BUDGETS["tiny"]))
+    save_config(config, tmp_path / "config.yaml")
+    assert _old_reasons(record, tmp_path) == {
+        "touch_to_touch": "each touch input pools 3 fold presses of one fabric, and no held-out "
+        "fabric has 6 to make a second input for a query to find",
+        "depth_to_depth": "no held-out fabric has a second depth item for a query to find",
+    }
+
+
+def test_findings_resting_on_fewer_than_10_fabrics_get_no_verdict(
+    tmp_path: Path, capsys, monkeypatch
+):
+    """QA: over 4 held-out fabrics the findings still read "holds" / "does not hold", with
+    only a warning above them. A finding one of whose intervals is over fewer than 10
+    fabrics now reads "too few fabrics" with the count; at 10 or more nothing changes."""
+    from lookfeel.cli import reproduce as cli
+
+    def model(td: tuple[float, float, float], tc: tuple[float, float, float], n: int) -> dict:
+        m = {}
+        for pair, (v, lo, hi) in (("touch_to_depth", td), ("touch_to_color", tc)):
+            m |= {f"{pair}_top1": v, f"{pair}_top1_ci_low": lo, f"{pair}_top1_ci_high": hi}
+            m |= {f"{pair}_top1_chance": 0.05, f"{pair}_n_fabrics": n}
+        return {"metrics": m, "test_fabrics": n}
+
+    def side(v: float, n: int) -> dict:
+        return {"top1": v, "top1_ci_low": v - 0.02, "top1_ci_high": v + 0.02, "n_fabrics": n}
+
+    def results(n: int, novel: int) -> dict:
+        return {
+            "multi_input": model((0.50, 0.45, 0.55), (0.30, 0.25, 0.35), n),
+            "auxiliary": model((0.40, 0.35, 0.44), (0.20, 0.15, 0.25), n),
+            "cross_modal": model((0.30, 0.26, 0.34), (0.15, 0.12, 0.20), n),
+            "flat": model((0.20, 0.15, 0.25), (0.10, 0.07, 0.13), n),
+            "snn_depth": {"seen": side(0.5, 20), "novel": side(0.4, novel)},
+            "cross_modal_depth_touch": {"seen": side(0.6, 20), "novel": side(0.5, novel)},
+        }
+
+    many = findings(results(10, 10))
+    assert {k: f["verdict"] for k, f in many.items()} == {
+        "above_chance": "holds",
+        "model_order": "holds",
+        "depth_beats_color": "holds",
+        "within_beats_across": "not tested",
+        "augmentation_helps_color": "not tested",
+        "touch_helps_depth": "holds",
+    }
+    assert all("fabrics" not in f for f in many.values())
+    few = findings(results(4, 10))
+    for key in ("above_chance", "model_order", "depth_beats_color"):
+        assert few[key]["verdict"] == "too few fabrics" and few[key]["fabrics"] == 4
+        assert (
+            few[key]["detail"]
+            == many[key]["detail"] + " (an interval here is over 4 fabrics, under 10)"
+        )
+    assert few["touch_helps_depth"]["verdict"] == "holds"  # Table 4 rests on 20 and 10
+    table_4 = findings(results(10, 2))["touch_helps_depth"]
+    assert (table_4["verdict"], table_4["fabrics"]) == ("too few fabrics", 2)
+    # The old records without counts are decided as before.
+    bare = results(10, 10)
+    for row in bare.values():
+        row.pop("test_fabrics", None)
+        for part in (row.get("metrics", {}), row.get("seen", {}), row.get("novel", {})):
+            for key in [k for k in part if "n_fabrics" in k]:
+                del part[key]
+    assert findings(bare)["model_order"]["verdict"] == "holds"
+
+    report = _report(tmp_path, results(4, 10), {"split": "paper", "paper_test_fabrics": 4})
+    assert "| **too few fabrics (4)** |" in report
+    assert "**too few fabrics** (how many): no verdict, as an interval it rests on" in report
+    assert "too few" not in _report(tmp_path, results(10, 10), {"split": "paper"})
+
+    from lookfeel.reproduce.result import ReproduceResult
+
+    done = ReproduceResult(tmp_path, tmp_path / "report.md", results(4, 10), {}, few)
+    monkeypatch.setattr("lookfeel.reproduce.reproduce", lambda *a, **k: done)
+    monkeypatch.setattr(cli, "check_out_folder", lambda *a: None)
+    assert main(["reproduce", "--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "too few fabrics (4): Multi-input > Auxiliary > Cross-modal > Flat" in out
+    # Right-aligned to the longest verdict, "too few fabrics (4)" (19 characters).
+    assert "\n" + " " * 14 + "holds: joint training with touch improves depth-to-depth" in out

@@ -41,6 +41,7 @@ from lookfeel.data.summary import format_summary
 from lookfeel.evaluate import EvalResult, evaluate_checkpoint, write_report
 from lookfeel.modality import Modality, Pair
 from lookfeel.reproduce import BUDGETS, EXPERIMENTS, ReproduceResult, headline, reproduce
+from lookfeel.reproduce.report import verdict_text
 from lookfeel.reproduce.run import config_dir, experiment_overrides, split_overrides
 from lookfeel.synth import SynthConfig, generate
 from lookfeel.synth.world import GENERATOR_VERSION, MANIFEST
@@ -378,7 +379,7 @@ def print_demo_result(result: DemoResult, log: Callable[[str], None] = print) ->
         log(f"  {line}")
     log("Findings of the paper, checked here:")
     for f in result.reproduction.findings.values():
-        log(f"  {f['verdict']:>13}: {f['claim']}")
+        log(f"  {verdict_text(f):>13}: {f['claim']}")
     if result.cross is not None:
         log("")
         log(_cross_title(result.cross))

@@ -126,19 +126,22 @@ def add_parser(subparsers: Subparsers) -> None:
 
 
 def run_info(args: argparse.Namespace) -> int:
-    """Print a dataset's summary (or its JSON), with the errors ``data check`` reports of the
-    dataset as a whole (empty, or a single fabric) that the scan alone does not, and the paper
-    split that training makes (labels.csv's ``paper_split`` column, or on GelFabric in its
-    authors' folders the built-in list, `lookfeel.data.paper_split`)."""
+    """Print a dataset's summary (or its JSON), with the errors ``data check`` reports that the
+    scan alone does not but that need no decoding: of the dataset as a whole (empty, or a
+    single fabric), and of files the scan skipped that were meant as data (a ``.tif`` depth
+    map, a press's frames in a subfolder), which are then errors, not skipped, as in ``data
+    check``; and the paper split that training makes (labels.csv's ``paper_split`` column, or
+    on GelFabric in its authors' folders the built-in list, `lookfeel.data.paper_split`)."""
     from dataclasses import replace
 
     from lookfeel.data import paper_split, scan
-    from lookfeel.data.check import size_problems
+    from lookfeel.data.check import size_problems, unread_problems
     from lookfeel.data.summary import format_summary
 
     catalog = scan(args.root)
     whole = size_problems(catalog.root, catalog.fabrics)
-    catalog = replace(catalog, problems=(*catalog.problems, *whole))
+    unread, skipped = unread_problems(catalog)  # reads names only, as the scan
+    catalog = replace(catalog, problems=(*catalog.problems, *whole, *unread), skipped=skipped)
     paper = paper_split(catalog)  # warns when GelFabric's built-in list holds fabrics out
     if paper.source == "builtin":
         # Its "paper split" line shows the split training makes, as labels.csv's column would.
@@ -148,7 +151,7 @@ def run_info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(catalog.summary(), indent=2))
     else:
-        print(format_summary(catalog))
+        print(format_summary(catalog, shown=unread))
     return 0
 
 

@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     """Reproduce, then print the headline numbers, the paper's findings checked, the report."""
     check_out_folder(args.out, args.data, REPRODUCE_FILES, "a lookfeel reproduce folder")
     from lookfeel.reproduce import headline, reproduce
+    from lookfeel.reproduce.report import verdict_text
 
     result = reproduce(
         args.data,
@@ -77,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
     print()
     for line in headline(result.results):
         print(line)
-    for f in result.findings.values():
-        print(f"{f['verdict']:>13}: {f['claim']}")
+    verdicts = [(verdict_text(f), f["claim"]) for f in result.findings.values()]
+    width = max([13, *(len(v) for v, _ in verdicts)])  # 13: "does not hold"
+    for verdict, claim in verdicts:
+        print(f"{verdict:>{width}}: {claim}")
     print(f"\nReport: {result.report}")
     return 0

@@ -5,9 +5,11 @@ the demo).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from lookfeel.data.catalog import Catalog
 from lookfeel.data.labels import PHYSICAL_LABELS
+from lookfeel.data.problems import Problem
 from lookfeel.modality import REPRINTS, Modality
 
 __all__ = ["format_summary"]
@@ -32,6 +34,14 @@ def _ranges(ids: Sequence[int]) -> str:
 def _count(n: object, word: str) -> str:
     """``1 error``, ``0 errors``."""
     return f"{n} {word}" + ("" if n == 1 else "s")
+
+
+def _relative(problem: Problem, root: Path) -> str:
+    """A problem's path under ``root`` (``depth/F0001_1.tif``), else as it is."""
+    path = problem.path
+    if path is None:
+        return str(root)
+    return str(path.relative_to(root)) if path.is_relative_to(root) else str(path)
 
 
 def _listed(names: Sequence[str], most: int = 6) -> str:
@@ -67,13 +77,14 @@ def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
     return f"{what}; {n} fabrics with {kind} labels"
 
 
-def format_summary(catalog: Catalog) -> str:
+def format_summary(catalog: Catalog, shown: Sequence[Problem] = ()) -> str:
     """A dataset summary a person reads (``lookfeel data info``).
 
     It reports what the scan saw (names and file headers, no pixels), so its problem count
     covers those only; the catalog's errors about the dataset as a whole (an empty dataset,
     one fabric, which ``lookfeel data info`` adds with `lookfeel.data.check.size_problems`)
-    are printed in full.
+    are printed in full, and so is each problem of ``shown`` (``data info``: the errors of
+    ``data check`` for files the scan skipped that were meant as data), with its path.
     """
     s = catalog.summary()
     named = s["named_objects"]
@@ -149,6 +160,7 @@ def format_summary(catalog: Catalog) -> str:
     # Problems of the dataset as a whole (empty, one fabric: `lookfeel.data.check.size_problems`)
     # are the ones a reader must see here; the rest concern single files, counted below.
     rows.extend(("error", p.message) for p in catalog.errors if p.path == catalog.root)
+    rows.extend((p.severity, f"{_relative(p, catalog.root)}: {p.message}") for p in shown)
     # The scan reads names and headers only: say so, or "0 errors" reads as a clean dataset.
     rows.append(
         (

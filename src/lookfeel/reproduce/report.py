@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from lookfeel.atomic import atomic_write_text
@@ -17,7 +17,7 @@ from lookfeel.reproduce.paper import (
 )
 from lookfeel.reproduce.result import ReproduceResult
 
-__all__ = ["findings", "write_reproduction_report"]
+__all__ = ["findings", "verdict_text", "write_reproduction_report"]
 
 _COLOR_PAIRS = ("touch_to_color", "color_to_touch", "depth_to_color", "color_to_depth")
 
@@ -27,6 +27,17 @@ Interval = tuple[float, float, float]
 
 HOLDS, NOT_HOLD, NOISE, UNTESTED = "holds", "does not hold", "within noise", "not tested"
 """The verdicts a finding gets (`findings`)."""
+
+TOO_FEW = "too few fabrics"
+"""What a finding gets instead of a verdict when an interval it rests on is over fewer than
+`MIN_FABRICS` fabrics (`findings`; the count is its ``fabrics``)."""
+
+MIN_FABRICS = 10
+"""Below this many test fabrics an interval over fabrics decides no finding (`TOO_FEW`), and
+the report says its intervals say little. Pick 1 of 10 offers 10 fabrics a draw (the paper's
+split needs 10 of its test fabrics for it), and a bootstrap over fewer fabrics can only
+resample those few, so an interval can come out far narrower than the uncertainty: over 4
+fabrics one cell read 0.019 [0.00, 0.04] with chance at 0.250."""
 
 
 def _interval(table: Mapping[str, Any] | None, key: str) -> Interval | None:
@@ -42,6 +53,30 @@ def _interval(table: Mapping[str, Any] | None, key: str) -> Interval | None:
 
 def _top1_interval(results: Mapping[str, Any], model: str, pair: str) -> Interval | None:
     return _interval(results.get(model, {}).get("metrics"), f"{pair}_top1")
+
+
+def _cell_fabrics(results: Mapping[str, Any], model: str, pair: str) -> int | None:
+    """The fabrics ``model``'s ``pair`` interval is over: those with a query
+    (``pair_n_fabrics``), else the run's test fabrics; None when neither is recorded or the
+    cell is NaN."""
+    row = results.get(model, {})
+    m = row.get("metrics", {})
+    top1 = m.get(f"{pair}_top1")
+    if top1 is None or top1 != top1:
+        return None
+    n = m.get(f"{pair}_n_fabrics", row.get("test_fabrics"))
+    return None if n is None else round(n)
+
+
+def _side_fabrics(results: Mapping[str, Any], model: str, side: str) -> int | None:
+    """The fabrics a Table 4 side's interval is over (`_cell_fabrics`' counterpart): its
+    ``n_fabrics``, else the run's novel (``test_fabrics``) or seen (``seen_fabrics``) ones."""
+    row = results.get(model, {})
+    got = row.get(side, {})
+    if got.get("top1") is None or got["top1"] != got["top1"]:
+        return None
+    n = got.get("n_fabrics", row.get("test_fabrics" if side == "novel" else "seen_fabrics"))
+    return None if n is None else round(n)
 
 
 def _mean_interval(values: list[Interval]) -> Interval:
@@ -68,15 +103,30 @@ def _side(better: Interval, worse: Interval) -> int:
     return 0
 
 
-def _verdict(sides: list[int] | None, detail: str, reason: str = "") -> dict[str, Any]:
-    """The finding's verdict from its comparisons (`_side`, each the paper's way round)."""
+def _verdict(
+    sides: list[int] | None, detail: str, reason: str = "", fabrics: Sequence[int | None] = ()
+) -> dict[str, Any]:
+    """The finding's verdict from its comparisons (`_side`, each the paper's way round);
+    `TOO_FEW` instead when one of the intervals compared is over fewer than `MIN_FABRICS`
+    (``fabrics``: how many each is over, None where not recorded), with the fewest."""
     if not sides:
         return {"verdict": UNTESTED, "detail": reason}
+    counts = [n for n in fabrics if n is not None]
+    if counts and min(counts) < MIN_FABRICS:
+        n = min(counts)
+        why = f"an interval here is over {n} fabric{'' if n == 1 else 's'}, under {MIN_FABRICS}"
+        return {"verdict": TOO_FEW, "detail": f"{detail} ({why})", "fabrics": n}
     if all(s > 0 for s in sides):
         return {"verdict": HOLDS, "detail": detail}
     if any(s < 0 for s in sides):
         return {"verdict": NOT_HOLD, "detail": detail}
     return {"verdict": NOISE, "detail": f"{detail} (95% intervals overlap)"}
+
+
+def verdict_text(finding: Mapping[str, Any]) -> str:
+    """A finding's verdict as printed: ``holds``, ..., ``too few fabrics (4)``."""
+    n = finding.get("fabrics")
+    return f"{finding['verdict']} ({n})" if finding["verdict"] == TOO_FEW else finding["verdict"]
 
 
 def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
@@ -86,10 +136,13 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     decided only when the two numbers' 95% intervals (over test fabrics) do not overlap: the
     finding ``holds`` when every comparison goes the paper's way so, ``does not hold`` when one
     goes the other way so, and is ``within noise`` otherwise. Numbers recorded without an
-    interval are compared as they are.
+    interval are compared as they are. A finding one of whose intervals is over fewer than
+    `MIN_FABRICS` fabrics gets no verdict but `TOO_FEW`, with the count as ``fabrics``: a
+    bootstrap over so few fabrics can come out far narrower than the uncertainty.
     """
     out: dict[str, dict[str, Any]] = {}
     rows, sides = [], []
+    fabrics: list[int | None] = []
     for m in MODEL_COLUMNS:
         for pair in ("touch_to_depth", "touch_to_color"):
             cell = _top1_interval(results, m, pair)
@@ -98,25 +151,28 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
                 continue
             side = _side(cell, (chance, chance, chance))
             sides.append(side)
+            fabrics.append(_cell_fabrics(results, m, pair))
             if side <= 0:  # the cells that do not clear chance beyond their interval
                 rows.append(f"{m} {pair} {cell[0]:.3f} (chance {chance:.3f})")
     detail = (
         f"{len(sides) - len(rows)} of {len(sides)} cells above chance beyond their interval"
         + (f"; not: {', '.join(rows)}" if rows else "")
     )
-    out["above_chance"] = _verdict(sides, detail, "no model with touch and depth or colour")
+    out["above_chance"] = _verdict(
+        sides, detail, "no model with touch and depth or colour", fabrics
+    )
     order = [m for m in ("multi_input", "auxiliary", "cross_modal", "flat")]
     vals = {m: _top1_interval(results, m, "touch_to_depth") for m in order}
     known = {m: v for m, v in vals.items() if v is not None}
     if len(known) == len(order):
         sides = [_side(known[a], known[b]) for a, b in itertools.pairwise(order)]
         detail = "in the paper's order: " + ", ".join(f"{m} {known[m][0]:.3f}" for m in order)
-        out["model_order"] = _verdict(sides, detail)
+        fabrics = [_cell_fabrics(results, m, "touch_to_depth") for m in order]
+        out["model_order"] = _verdict(sides, detail, fabrics=fabrics)
     else:
         missing = [m for m, v in vals.items() if v is None]
         out["model_order"] = _verdict(None, "", f"not run: {', '.join(missing)}")
-    rows = []
-    sides = []
+    rows, sides, fabrics = [], [], []
     for m in MODEL_COLUMNS:  # Figure 7: touch as the query; Table 1: touch as the candidates
         for with_depth, with_color in (
             ("touch_to_depth", "touch_to_color"),
@@ -127,10 +183,11 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             if d is not None and c is not None:
                 sides.append(_side(d, c))
                 rows.append(f"{m} {with_depth} {d[0]:.3f} vs {with_color} {c[0]:.3f}")
+                fabrics += [_cell_fabrics(results, m, p) for p in (with_depth, with_color)]
     out["depth_beats_color"] = _verdict(
-        sides, "; ".join(rows), "no model with touch, depth and colour"
+        sides, "; ".join(rows), "no model with touch, depth and colour", fabrics
     )
-    rows, sides = [], []
+    rows, sides, fabrics = [], [], []
     across = ("touch_to_depth", "touch_to_color", *TABLE_1)
     for m in MODEL_COLUMNS:
         within = [_top1_interval(results, m, p) for p in TABLE_2]
@@ -141,10 +198,11 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             mw, ma = _mean_interval(inside), _mean_interval(between)
             sides.append(_side(mw, ma))
             rows.append(f"{m}: within {mw[0]:.3f} vs across {ma[0]:.3f} (means)")
+            fabrics += [_cell_fabrics(results, m, p) for p in (*TABLE_2, *across)]
     out["within_beats_across"] = _verdict(
-        sides, "; ".join(rows), "no model scored within and across modalities"
+        sides, "; ".join(rows), "no model scored within and across modalities", fabrics
     )
-    rows, sides = [], []
+    rows, sides, fabrics = [], [], []
     for base in ("cross_modal", "multi_input"):
         a = [_top1_interval(results, base, p) for p in _COLOR_PAIRS]
         b = [_top1_interval(results, base + "_aug", p) for p in _COLOR_PAIRS]
@@ -152,6 +210,8 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             ma = _mean_interval([x for x in a if x is not None])
             mb = _mean_interval([x for x in b if x is not None])
             sides.append(_side(mb, ma))
+            runs = (base, base + "_aug")
+            fabrics += [_cell_fabrics(results, r, p) for r in runs for p in _COLOR_PAIRS]
             up = sum(
                 y[0] > x[0] for x, y in zip(a, b, strict=True) if x is not None and y is not None
             )
@@ -159,12 +219,20 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
                 f"{base}: {ma[0]:.3f} -> {mb[0]:.3f} with augmentation (mean of the colour pairs; "
                 f"{up} of {len(a)} up, the paper: all)"
             )
-    out["augmentation_helps_color"] = _verdict(sides, "; ".join(rows), "augmentation runs not run")
+    out["augmentation_helps_color"] = _verdict(
+        sides, "; ".join(rows), "augmentation runs not run", fabrics
+    )
     snn, joint = results.get("snn_depth", {}), results.get("cross_modal_depth_touch", {})
     both = [s for s in ("novel", "seen") if s in snn and s in joint]
     both = [s for s in both if snn[s]["top1"] == snn[s]["top1"]]  # drop NaN (n/a) sides
     pairs = {s: (_interval(joint[s], "top1"), _interval(snn[s], "top1")) for s in both}
     sides = [_side(j, n) for j, n in pairs.values() if j is not None and n is not None]
+    fabrics = [
+        _side_fabrics(results, run, s)
+        for s, (j, n) in pairs.items()
+        if j is not None and n is not None
+        for run in ("snn_depth", "cross_modal_depth_touch")
+    ]
     detail = "; ".join(
         f"{s}: SNN {snn[s]['top1']:.3f} vs joint {joint[s]['top1']:.3f}" for s in both
     )
@@ -173,7 +241,7 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         if "snn_depth" in results and "cross_modal_depth_touch" in results
         else "needs both Table 4 runs (depth and touch data)"
     )
-    out["touch_helps_depth"] = _verdict(sides, detail, reason)
+    out["touch_helps_depth"] = _verdict(sides, detail, reason, fabrics)
     for k, v in out.items():
         v["claim"] = PAPER_FINDINGS[k]
     return out
@@ -184,14 +252,13 @@ NOT_SCORED = "n/a"
 query had an item of its own fabric to find (the Multi-input Net's touch to touch with one
 group of presses per fabric), or a top-k that is 1 whatever the model (k candidates or fewer)."""
 
-_UNMEASURED = "no query had an item of its own fabric to find"
-"""Why a number is NaN when its run recorded no reason (an ``eval.json`` from before reasons)."""
-
-MIN_FABRICS = 10
-"""Below this many test fabrics the report says its intervals say little. Pick 1 of 10 offers
-10 fabrics a draw (the paper's split needs 10 of its test fabrics for it), and a bootstrap over
-fewer fabrics can only resample those few, so an interval can come out far narrower than the
-uncertainty: over 4 fabrics one cell read 0.019 [0.00, 0.04] with chance at 0.250."""
+_UNMEASURED = (
+    "reason not recorded (computed by an earlier lookfeel): delete the run's eval.json and "
+    "rerun to record it"
+)
+"""Why a number is NaN when its run recorded no reason and none could be derived (an
+``eval.json`` from before reasons: `lookfeel.reproduce.run` derives them from the run's
+``config.yaml`` where it can). Deleting ``eval.json`` rescores the finished run."""
 
 _TABLE_3_COLUMNS = ("cross_modal", "cross_modal_aug", "multi_input", "multi_input_aug")
 _SCORED_ON_HELD_OUT = (*MODEL_COLUMNS, "cross_modal_aug", "multi_input_aug")
@@ -391,7 +458,7 @@ def _intervals_note(results: Mapping[str, Any]) -> str:
         text += (
             f"; below {MIN_FABRICS} test fabrics they say little, as the bootstrap can only "
             "resample the few fabrics there are: an interval may be far narrower than the "
-            "uncertainty, so read no verdict here as evidence"
+            "uncertainty"
         )
     return text
 
@@ -477,19 +544,27 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
     ]
     if few:
         lines += [
-            f"**The intervals rest on {where}: under {MIN_FABRICS}, they and the verdicts below "
-            "say little.**",
+            f"**The intervals rest on {where}: under {MIN_FABRICS}, they say little, and the "
+            f"findings that rest on them get no verdict ({TOO_FEW}).**",
             "",
         ]
     lines += ["| finding (paper) | here | evidence |", "|---|---|---|"]
     for f in result.findings.values():
-        lines.append(f"| {f['claim']} | **{f['verdict']}** | {f['detail']} |")
+        lines.append(f"| {f['claim']} | **{verdict_text(f)}** | {f['detail']} |")
+    too_few = any(f["verdict"] == TOO_FEW for f in result.findings.values())
     lines += [
         "",
         f"A finding is one or more comparisons of two of our numbers. It **{HOLDS}** when every "
         "comparison goes the paper's way with the two 95% intervals (over test fabrics) apart, "
         f"**{NOT_HOLD}** when one goes the other way with them apart, and is **{NOISE}** when "
-        f"the intervals overlap ({_intervals_note(r)}; **{UNTESTED}**: its runs were skipped). "
+        f"the intervals overlap ({_intervals_note(r)}; **{UNTESTED}**: its runs were skipped"
+        + (
+            f"; **{TOO_FEW}** (how many): no verdict, as an interval it rests on is over fewer "
+            f"than {MIN_FABRICS} fabrics"
+            if too_few
+            else ""
+        )
+        + "). "
         "The paper's numbers are from real fabrics, AlexNets with ImageNet weights and 25,000 "
         "steps; a short run on a synthetic world is not expected to reach them, only to show "
         "whether their order holds.",

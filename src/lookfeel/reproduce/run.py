@@ -206,6 +206,12 @@ def _score(
 _DEPTH_TO_DEPTH = Pair(Modality.DEPTH, Modality.DEPTH)
 
 
+def _depth_why(side: str) -> str:
+    """Why no query of Table 4's ``side`` (``seen`` or ``novel``) could be scored."""
+    where = " in the held-out fifth of its images" if side == "seen" else ""
+    return f"no {side} fabric has two depth images{where}, one to query and one to find"
+
+
 def _depth_pick(
     model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int, side: str
 ) -> tuple[dict[str, float], str | None]:
@@ -213,8 +219,7 @@ def _depth_pick(
     ``novel``): top-1 with its 95% interval over the fabrics (``n_boot`` resamples; none when
     0), top-3, their chance levels, the candidates per draw (``n_effective``), the queries and
     their fabrics; and why, when no query could be scored (the numbers are then NaN)."""
-    where = " in the held-out fifth of its images" if side == "seen" else ""
-    why = f"no {side} fabric has two depth images{where}, one to query and one to find"
+    why = _depth_why(side)
     emb = embed_catalog(model, catalog, ImageLoader(config.data), modalities=[Modality.DEPTH])
     if Modality.DEPTH not in emb:  # not one depth image on this side
         nan = float("nan")
@@ -248,7 +253,10 @@ def _run_one(
 ) -> dict[str, Any]:
     done = run_dir / "eval.json"
     if done.exists():
-        return dict(json.loads(done.read_text()))
+        saved: dict[str, Any] = dict(json.loads(done.read_text()))
+        if "not_scored" not in saved:  # an earlier lookfeel's: derive its reasons
+            saved["not_scored"] = _old_reasons(saved, run_dir)
+        return saved
     started = time.perf_counter()
     result = train(config, data, run_dir, resume=run_started(run_dir))
     loaded = load_model(
@@ -288,6 +296,27 @@ def _run_one(
     record["threads"] = torch.get_num_threads()
     atomic_write_text(done, json.dumps(record, indent=1) + "\n")
     return record
+
+
+def _old_reasons(record: Mapping[str, Any], run_dir: Path) -> dict[str, str]:
+    """Why each NaN number of an ``eval.json`` that recorded no reasons (an earlier lookfeel's)
+    is NaN, where what is stored tells: a Table 4 side's reason depends on the side alone, a
+    pair's on the run's ``config.yaml`` (the presses its touch inputs pool). Where it does not
+    (no readable config), none: the report says the reason was not recorded."""
+    sides = {s: record[s].get("top1") for s in ("seen", "novel") if s in record}
+    out = {side: _depth_why(side) for side, top1 in sides.items() if top1 != top1}
+    nan = [
+        k.removesuffix("_top1")
+        for k, v in record.get("metrics", {}).items()
+        if k.endswith("_top1") and v != v
+    ]
+    if nan:
+        try:
+            config = load_config(RunConfig, run_dir / "config.yaml")
+            out |= {p: _why_not_scored(Pair.parse(p), config) for p in nan}
+        except (ConfigError, OSError, ValueError):
+            pass  # the report's "not recorded" stands for these
+    return out
 
 
 def _over_seeds(tables: Sequence[Mapping[str, float]], stat: str) -> dict[str, float]:
