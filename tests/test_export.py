@@ -12,8 +12,8 @@ import torch
 
 from lookfeel.checkpoint import load_model, read_checkpoint, save_checkpoint
 from lookfeel.cli import main
-from lookfeel.export import export_onnx
-from lookfeel.modality import Modality
+from lookfeel.export import ExportError, export_onnx
+from lookfeel.modality import Modality, ModalityError
 
 from ._library import tiny_run
 
@@ -70,12 +70,57 @@ def test_export_some_branches(exported, tmp_path: Path):
     assert not (tmp_path / "three" / "color.onnx").exists()
 
 
+def test_modalities_may_be_named_and_a_missing_branch_creates_nothing(exported, tmp_path: Path):
+    """QA: ``modalities=["color"]`` crashed (``'str' object has no attribute 'value'``) after
+    creating an empty output folder; a modality may be given by its name, as elsewhere."""
+    ckpt, _ = exported
+    branches = export_onnx(ckpt, tmp_path / "named", modalities=["color", "depth", "color"])
+    assert [b.modality for b in branches] == [Modality.COLOR, Modality.DEPTH]  # each once
+    assert sorted(p.name for p in (tmp_path / "named").iterdir()) == [
+        "color.onnx", "depth.onnx", "export.json",
+    ]  # fmt: skip
+    [one] = export_onnx(ckpt, tmp_path / "one", modalities="touch", check=False)  # one, as is
+    assert one.modality is Modality.TOUCH
+    # A model without the branch: one line, and no folder left behind.
+    state = read_checkpoint(ckpt)
+    state["modalities"] = ["depth"]
+    state["model"] = {k: v for k, v in state["model"].items() if k.startswith("branches.depth.")}
+    depth_only = save_checkpoint(tmp_path / "depth_only.pt", state)
+    for asked in (["color"], [Modality.COLOR]):
+        with pytest.raises(ExportError) as e:
+            export_onnx(depth_only, tmp_path / "none", modalities=asked)
+        assert str(e.value) == "the model has no color branch (it has: depth)"
+        assert not (tmp_path / "none").exists()
+    # A folder that cannot be made (a file where a folder above it should be): one line.
+    (tmp_path / "afile").write_text("mine\n")
+    under_a_file = tmp_path / "afile" / "sub"
+    with pytest.raises(ExportError) as e:
+        export_onnx(ckpt, under_a_file, modalities=["depth"], check=False)
+    assert str(e.value) == f"{under_a_file}: cannot create the export's folder (Not a directory)"
+
+
+def test_a_bad_modality_or_out_is_one_line_before_the_checkpoint_is_read(tmp_path: Path):
+    missing = tmp_path / "missing.pt"  # never read: the arguments are refused first
+    with pytest.raises(ModalityError, match=r"^unknown modality 'colour'; expected one of"):
+        export_onnx(missing, tmp_path / "out", modalities=["colour"])
+    a_file = tmp_path / "afile"
+    a_file.write_text("mine\n")
+    with pytest.raises(ExportError) as e:
+        export_onnx(missing, a_file)
+    assert str(e.value) == f"{a_file}: exists and is not a folder (the export's output folder)"
+    assert a_file.read_text() == "mine\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
 def test_cli_export(exported, tmp_path: Path, capsys):
     ckpt, _ = exported
     out = tmp_path / "cli"
     assert main(["export", "--checkpoint", str(ckpt), "--format", "onnx", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "touch.onnx: presses (batchxpressesx3x32x32) -> embedding (batch x 16)" in printed
+    assert (
+        "touch.onnx: presses (batch x presses x 3 x 32 x 32) -> embedding (batch x 16)" in printed
+    )
+    assert "depth.onnx: image (batch x 1 x 32 x 32) -> embedding (batch x 16)" in printed
     assert (out / "depth.onnx").is_file()
     assert main(["export", "--checkpoint", str(tmp_path / "none.pt"), "--out", str(out)]) == 1
     assert "checkpoint not found" in capsys.readouterr().err
@@ -169,7 +214,8 @@ def test_an_exporter_failure_is_one_line_naming_the_branch_and_opset(
         "Exporting the operator 'aten::unflatten' to ONNX opset version 12 is not supported\n"
     )
     assert "graph" not in captured.out  # torch's dump of its graph is not shown
-    assert not any(out.iterdir())  # neither depth.onnx nor color.onnx without the touch branch
+    # Neither depth.onnx nor color.onnx without the touch branch, nor the folder.
+    assert not out.exists()
 
 
 def test_an_alexnet_touch_branch_exports_with_dynamic_presses(tmp_path: Path):

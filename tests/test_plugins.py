@@ -17,7 +17,7 @@ import yaml
 
 from lookfeel import plugins
 from lookfeel.cli import main
-from lookfeel.config import ConfigError, LossConfig, ModelConfig
+from lookfeel.config import ConfigError, LossConfig, ModelConfig, RunConfig, load_config
 from lookfeel.config.model import backbone_names
 from lookfeel.plugins import PluginError, load_plugins
 
@@ -99,9 +99,10 @@ def test_a_module_of_lookfeel_plugins_registers_its_backbone_and_loss(plugin, mo
         ModelConfig(backbone=name)
     assert str(e.value) == (
         "model.backbone: 'lfplug_known' is not one of alexnet, compact, resnet18 (one of your "
-        "own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
+        "own: import its module first, or name it in LOOKFEEL_PLUGINS or lookfeel --plugin, "
+        "which lookfeel.plugins.load_plugins() imports)"
     )
-    with pytest.raises(ConfigError, match=r"contrastive, infonce, triplet \(one of your own: na"):
+    with pytest.raises(ConfigError, match=r"contrastive, infonce, triplet \(one of your own: im"):
         LossConfig(kind=f"{name}_loss")
     monkeypatch.setenv("LOOKFEEL_PLUGINS", f" ,{name} , ")  # spaces and empty entries ignored
     load_plugins()
@@ -111,6 +112,79 @@ def test_a_module_of_lookfeel_plugins_registers_its_backbone_and_loss(plugin, mo
     from lookfeel.models import create_backbone
 
     assert type(create_backbone(name)).__name__ == "TinyConv"
+
+
+def test_the_config_loads_the_plugins_when_it_meets_an_unknown_name(plugin, monkeypatch):
+    """QA: a script of one's own (``LOOKFEEL_PLUGINS=my_ext python -c "lookfeel.load_model(...)"``)
+    was refused the backbone that LOOKFEEL_PLUGINS names: only `lookfeel.cli.main` loaded it."""
+    name, other = plugin("lfplug_lazy"), plugin("lfplug_lazy_loss")
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
+    assert name not in sys.modules
+    assert LossConfig(kind=f"{name}_loss").kind == f"{name}_loss"  # the loss alone, first
+    assert name in sys.modules and name in backbone_names()
+    config = load_config(RunConfig, overrides=[f"model.backbone={name}"])
+    assert config.model.backbone == name
+    # Added to the variable later (a script's os.environ): the next unknown name loads it.
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", f"{name},{other}")
+    assert ModelConfig(backbone=other).backbone == other
+    # A name no plugin registers says which plugins were loaded.
+    with pytest.raises(ConfigError) as e:
+        ModelConfig(backbone="lfplug_none")
+    assert str(e.value).endswith(
+        "(one of your own: import its module first, or name it in LOOKFEEL_PLUGINS or lookfeel "
+        "--plugin; the plugins loaded (lfplug_lazy, lfplug_lazy_loss) register no such name)"
+    )
+
+
+def test_the_config_loads_entry_points_once_and_a_bad_plugin_is_its_one_line(
+    plugin, tmp_path: Path, monkeypatch
+):
+    fn_name = plugin("lfplug_lazy_ep")
+    _install(tmp_path / "plugins", "lab-ext", f"setup = {fn_name}:setup")
+    asked: list[str] = []
+
+    def entry_points(*, group: str) -> object:
+        asked.append(group)
+        return _ENTRY_POINTS(group=group)
+
+    monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
+    assert ModelConfig(backbone=fn_name).backbone == fn_name  # "installed, it loads everywhere"
+    for _ in range(2):
+        with pytest.raises(ConfigError, match=r"entry point setup\) register no such name\)$"):
+            ModelConfig(backbone="lfplug_none")
+    assert asked == ["lookfeel.plugins"] and sys.modules[fn_name].CALLS == [1]
+    # A plugin that cannot be imported: the same line as from `load_plugins`, not a config's.
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", "lfplug_nowhere")
+    for load in (
+        lambda: load_config(RunConfig, overrides=["model.backbone=lfplug_none"]),
+        lambda: LossConfig(kind="lfplug_none"),
+    ):
+        with pytest.raises(PluginError) as e:
+            load()
+        assert str(e.value) == (
+            "LOOKFEEL_PLUGINS: cannot import 'lfplug_nowhere' (No module named "
+            "'lfplug_nowhere'); is its folder on PYTHONPATH?"
+        )
+
+
+def test_a_plugin_that_meets_an_unknown_name_while_loading_does_not_load_again(
+    plugin, tmp_path: Path, monkeypatch
+):
+    name = plugin("lfplug_reentrant")
+    path = tmp_path / "plugins" / f"{name}.py"
+    path.write_text(
+        path.read_text()
+        + "\n\ndef check():\n"
+        + "    from lookfeel.config import ConfigError, ModelConfig\n"
+        + "    try:\n"
+        + "        ModelConfig(backbone='lfplug_none')\n"
+        + "    except ConfigError:\n"
+        + "        CALLS.append('refused')\n"
+    )
+    _install(tmp_path / "plugins", "lab-ext", f"check = {name}:check")
+    monkeypatch.setattr(importlib.metadata, "entry_points", _ENTRY_POINTS)
+    load_plugins()  # without a guard: check -> load_plugins -> check ... RecursionError
+    assert sys.modules[name].CALLS == ["refused"]
 
 
 def test_load_plugins_imports_each_module_once(plugin, monkeypatch):
@@ -142,8 +216,13 @@ def test_load_plugins_imports_each_module_once(plugin, monkeypatch):
         ),
         (
             "plugins/lfplug.py",
-            "LOOKFEEL_PLUGINS: 'plugins/lfplug.py' is not a module name (e.g. my_ext or "
-            "lab.backbones, not a file); put its folder on PYTHONPATH and name the module",
+            "LOOKFEEL_PLUGINS: 'plugins/lfplug.py' is a file, not a module name: put its folder "
+            "on PYTHONPATH and name the module (PYTHONPATH=plugins LOOKFEEL_PLUGINS=lfplug)",
+        ),
+        (
+            "lab-ext",
+            "LOOKFEEL_PLUGINS: 'lab-ext' is not a module name (e.g. my_ext or lab.backbones, not "
+            "a file); put its folder on PYTHONPATH and name the module",
         ),
     ],
 )
@@ -174,10 +253,19 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
     sets = [f"model.backbone={name}", f"loss.kind={name}_loss", "train.steps=1"]
     sets += ["train.val_every=0", "train.checkpoint_every=0", "train.views=[depth,touch]"]
     args = ["train", "--config", str(TINY_CONFIG), "--data", str(tiny_dataset), "--out", str(out)]
-    assert main(["--plugin", name, *args, *(x for s in sets for x in ("--set", s))]) == 0
+    with restored_registries():
+        assert main(["--plugin", name, *args, *(x for s in sets for x in ("--set", s))]) == 0
     saved = yaml.safe_load((out / "config.yaml").read_text())
     assert (saved["model"]["backbone"], saved["loss"]["kind"]) == (name, f"{name}_loss")
     assert os.environ["LOOKFEEL_PLUGINS"] == name  # what worker processes inherit
+    # A fresh script with the variable set loads the run's checkpoint: the plugin loads itself.
+    plugins._reset()
+    del sys.modules[name]
+    assert name not in backbone_names()
+    from lookfeel.checkpoint import load_model
+
+    loaded = load_model(out / "checkpoints" / "last.pt")
+    assert type(loaded.model.branch("depth").backbone).__name__ == "TinyConv"
 
 
 def test_a_bad_plugin_option_prints_one_line_and_exits_1(
@@ -188,11 +276,25 @@ def test_a_bad_plugin_option_prints_one_line_and_exits_1(
     args = ["--plugin", "lfplug_nowhere", "--plugin", good, "data", "info", str(tmp_path)]
     assert main(args) == 1
     assert capsys.readouterr().err == (
-        "lookfeel: LOOKFEEL_PLUGINS: cannot import 'lfplug_nowhere' (No module named "
+        "lookfeel: --plugin: cannot import 'lfplug_nowhere' (No module named "
         "'lfplug_nowhere'); is its folder on PYTHONPATH?\n"
     )
     assert os.environ["LOOKFEEL_PLUGINS"] == f"{good},lfplug_nowhere"
     assert good in backbone_names()  # the variable's own module came first
+
+
+def test_a_file_given_to_the_plugin_option_names_the_module_to_give(
+    plugin, tmp_path: Path, monkeypatch, capsys
+):
+    """QA: ``lookfeel --plugin plug/my_ext.py`` blamed LOOKFEEL_PLUGINS, which the user never
+    set."""
+    args = ["--plugin", "plug/my_ext.py", "data", "info", str(tmp_path)]
+    assert main(args) == 1
+    assert capsys.readouterr().err == (
+        "lookfeel: --plugin: 'plug/my_ext.py' is a file, not a module name: put its folder on "
+        "PYTHONPATH and name the module (PYTHONPATH=plug lookfeel --plugin my_ext)\n"
+    )
+    assert os.environ["LOOKFEEL_PLUGINS"] == ""  # nothing added for the workers
 
 
 def _install(folder: Path, package: str, entry_points: str) -> None:

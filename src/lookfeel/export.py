@@ -33,7 +33,7 @@ import os
 import sys
 import tempfile
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -168,7 +168,7 @@ def export_onnx(
     checkpoint: str | os.PathLike[str],
     out: str | os.PathLike[str],
     *,
-    modalities: list[Modality] | None = None,
+    modalities: Sequence[Modality | str] | Modality | str | None = None,
     opset: int = DEFAULT_OPSET,
     check: bool = True,
     atol: float = 1e-4,
@@ -177,8 +177,9 @@ def export_onnx(
 
     Args:
         checkpoint: a lookfeel checkpoint.
-        out: output folder (created).
-        modalities: branches to export; default all.
+        out: output folder (created once every branch has exported and passed its check).
+        modalities: branches to export, each a `Modality` or its name (``"color"``); one
+            alone may be given as it is; default all.
         opset: ONNX opset version, one of `supported_opsets` (13 to 20 with torch 2.13).
         check: compare each file with PyTorch under onnxruntime.
         atol: the largest difference the check accepts.
@@ -188,8 +189,10 @@ def export_onnx(
 
     Raises:
         CheckpointError: the checkpoint cannot be read.
-        ExportError: an opset outside `supported_opsets` (said before the checkpoint is
-            read); naming a modality the model has no branch for; or naming the branch and
+        ModalityError: a name that is no modality (said before the checkpoint is read).
+        ExportError: an opset outside `supported_opsets`, or an ``out`` that is not a folder
+            (both said before the checkpoint is read); naming a modality the model has no
+            branch for (before anything is written); or naming the branch and
             opset, a branch that the exporter cannot write, that onnxruntime cannot run, or
             whose ONNX outputs differ from PyTorch's by more than ``atol`` (no file is written
             then).
@@ -200,15 +203,19 @@ def export_onnx(
             f"opset {opset}: lookfeel's models export to ONNX opsets {opsets[0]} to "
             f"{opsets[-1]} with torch {torch.__version__}"
         )
+    if isinstance(modalities, str):  # one modality (a Modality is a str too)
+        modalities = [modalities]
+    asked = list(dict.fromkeys(Modality.of(m) for m in modalities or ()))
+    out_dir = Path(out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExportError(f"{out_dir}: exists and is not a folder (the export's output folder)")
     loaded = load_model(checkpoint)
     model = loaded.model.eval()
-    wanted = list(modalities) if modalities else list(model.modalities)
+    wanted = asked or list(model.modalities)
     for m in wanted:
         if m not in model.modalities:
             have = ", ".join(x.value for x in model.modalities)
             raise ExportError(f"the model has no {m.value} branch (it has: {have})")
-    out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
     gen = torch.Generator().manual_seed(0)
     graphs: list[tuple[Modality, bytes, str, list[int | str], float | None]] = []
     for m in wanted:
@@ -276,7 +283,13 @@ def export_onnx(
             )
         graphs.append((m, data, name, shape, diff))
     # Written once every branch has exported and passed its check: a failure leaves no
-    # branch files without their export.json.
+    # branch files without their export.json, and no folder it created.
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:  # a file in the way above it, a read-only disk, no permission
+        raise ExportError(
+            f"{out_dir}: cannot create the export's folder ({e.strerror or e})"
+        ) from None
     exported = [
         ExportedBranch(
             m,

@@ -20,8 +20,12 @@ process calls it, from two places that every new process finds again:
       other = "my_pkg.setup:register"  # a function: called with no arguments
 
 `lookfeel.cli.main` calls it before any command runs, and so does each of ``reproduce``'s
-worker processes when it starts. A plugin that cannot be imported is a `PluginError` naming
-where it was asked for. This module imports no torch (the plugins themselves may).
+worker processes when it starts. Library code calls it too, lazily: when the config meets
+a ``model.backbone`` or ``loss.kind`` nobody has registered (``load_config``, ``load_model``,
+``build_library`` in a script of one's own), so a plugin named in either place loads in any
+process without a call of one's own. A plugin that cannot be imported
+is a `PluginError` naming where it was asked for (``--plugin`` for a module that option
+added). This module imports no torch (the plugins themselves may).
 """
 
 from __future__ import annotations
@@ -32,11 +36,20 @@ import os
 import re
 import types
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from lookfeel.errors import LookfeelError, error_line
 
-__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "PluginError", "load_plugins", "plugin_modules"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "ENV_VAR",
+    "PluginError",
+    "add_plugin_modules",
+    "load_plugins",
+    "plugin_modules",
+    "unknown_name_hint",
+]
 
 ENV_VAR = "LOOKFEEL_PLUGINS"
 """The environment variable naming plugin modules, separated by commas."""
@@ -50,6 +63,14 @@ _loaded_modules: set[str] = set()
 """The modules of ``LOOKFEEL_PLUGINS`` this process has imported."""
 _entry_points_loaded = False
 """Whether this process has loaded the ``lookfeel.plugins`` entry points."""
+_entry_point_names: list[str] = []
+"""The names of the entry points this process has loaded (for `unknown_name_hint`)."""
+_from_option: dict[str, str] = {}
+"""Module -> the option that added it to ``LOOKFEEL_PLUGINS`` in this process (``--plugin``):
+an error about it names that option."""
+_loading = False
+"""Whether `load_plugins` is running (a plugin's import that meets an unknown name itself
+must not start it again)."""
 
 
 class PluginError(LookfeelError):
@@ -75,38 +96,103 @@ def load_plugins() -> None:
 
     It does the work once per process: a second call imports only modules added to
     ``LOOKFEEL_PLUGINS`` since (``lookfeel --plugin`` adds to it), and loads no entry point
-    again.
+    again. Besides `lookfeel.cli.main` and ``reproduce``'s workers, the config calls it when
+    it meets a ``model.backbone`` or ``loss.kind`` nobody has registered
+    (`lookfeel.config.model.backbone_spec`, `lookfeel.config.LossConfig`), so a script of
+    one's own that calls lookfeel gets the plugins as the ``lookfeel`` command does.
 
     Raises:
         PluginError: a module cannot be imported (its own error in one line, and where in it
             when the module itself failed), or an entry point cannot be loaded or run.
     """
-    global _entry_points_loaded
-    for name in plugin_modules():
-        if name not in _loaded_modules:
-            _import(name)
-            _loaded_modules.add(name)
-    if not _entry_points_loaded:
-        for ep in _entry_points():
-            _load_entry_point(ep)
-        _entry_points_loaded = True
+    global _entry_points_loaded, _loading
+    if _loading:
+        return  # called again from inside a plugin's import: the outer call does the work
+    _loading = True
+    try:
+        for name in plugin_modules():
+            if name not in _loaded_modules:
+                _import(name)
+                _loaded_modules.add(name)
+        if not _entry_points_loaded:
+            for ep in _entry_points():
+                _load_entry_point(ep)
+                _entry_point_names.append(ep.name)
+            _entry_points_loaded = True
+    finally:
+        _loading = False
+
+
+def unknown_name_hint() -> str:
+    """What to do about a backbone or loss name no plugin registered, for the config's error
+    (called after `load_plugins`): the ways to register one's own, and which
+    plugins were loaded without registering it."""
+    hint = (
+        "one of your own: import its module first, or name it in LOOKFEEL_PLUGINS or "
+        "lookfeel --plugin"
+    )
+    loaded = [m for m in plugin_modules() if m in _loaded_modules]
+    loaded += [f"entry point {n}" for n in _entry_point_names]
+    if loaded:
+        return f"{hint}; the plugins loaded ({', '.join(loaded)}) register no such name"
+    return f"{hint}, which lookfeel.plugins.load_plugins() imports"
+
+
+def add_plugin_modules(names: Iterable[str], option: str = "--plugin") -> None:
+    """Add modules to ``LOOKFEEL_PLUGINS`` in this process's environment (which the processes
+    it starts inherit) for `load_plugins` to import; an error about one of them names
+    ``option``, which the user gave them with.
+
+    Raises:
+        PluginError: a name that is not a module name (a file's path, say), naming ``option``.
+    """
+    names = plugin_modules(",".join(names))
+    for name in names:
+        _check_name(name, option)
+    have = plugin_modules()
+    added = [n for n in names if n not in have]
+    for name in added:
+        _from_option[name] = option
+    if added:
+        os.environ[ENV_VAR] = ",".join(have + added)
 
 
 def _reset() -> None:
     """Forget what `load_plugins` has done in this process (for tests)."""
-    global _entry_points_loaded
+    global _entry_points_loaded, _loading
     _loaded_modules.clear()
+    _entry_point_names.clear()
+    _from_option.clear()
     _entry_points_loaded = False
+    _loading = False
+
+
+def _check_name(name: str, option: str) -> None:
+    """Refuse a ``name`` given with ``option`` that is not a module name, in one line; for
+    the path of a ``.py`` file, say how to name its module instead."""
+    if _MODULE_NAME.match(name) and not name.endswith(".py"):
+        return
+    where = f"{option}: "
+    path = Path(name)
+    if path.suffix == ".py" and path.stem.isidentifier():
+        folder = str(path.parent)
+        named = f"{ENV_VAR}={path.stem}" if option == ENV_VAR else f"lookfeel {option} {path.stem}"
+        raise PluginError(
+            f"{where}{name!r} is a file, not a module name: put its folder on PYTHONPATH and "
+            f"name the module (PYTHONPATH={folder} {named})"
+        )
+    raise PluginError(
+        f"{where}{name!r} is not a module name (e.g. my_ext or lab.backbones, not a file); "
+        "put its folder on PYTHONPATH and name the module"
+    )
 
 
 def _import(name: str) -> None:
-    """Import plugin module ``name`` from ``LOOKFEEL_PLUGINS``, or say in one line why not."""
-    where = f"{ENV_VAR}: "
-    if not _MODULE_NAME.match(name) or name.endswith(".py"):
-        raise PluginError(
-            f"{where}{name!r} is not a module name (e.g. my_ext or lab.backbones, not a file); "
-            "put its folder on PYTHONPATH and name the module"
-        )
+    """Import plugin module ``name`` from ``LOOKFEEL_PLUGINS``, or say in one line why not
+    (blaming the option that added it, when one did)."""
+    option = _from_option.get(name, ENV_VAR)
+    _check_name(name, option)
+    where = f"{option}: "
     try:
         importlib.import_module(name)
     except Exception as e:

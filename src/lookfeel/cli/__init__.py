@@ -149,15 +149,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _load_plugins(modules: Sequence[str]) -> None:
     """Add the ``--plugin`` modules to ``LOOKFEEL_PLUGINS`` in this process's environment, which
     the processes it starts inherit (reproduce's workers, a run's decoders), then import every
-    plugin (`lookfeel.plugins.load_plugins`). The current folder is not added to ``sys.path``:
-    the module is found as Python finds any (``PYTHONPATH``, an installed package, and the
-    current folder under ``python -m lookfeel``)."""
-    from lookfeel.plugins import ENV_VAR, load_plugins, plugin_modules
+    plugin (`lookfeel.plugins.load_plugins`); an error about a ``--plugin`` module names the
+    option. The current folder is not added to ``sys.path``: the module is found as Python
+    finds any (``PYTHONPATH``, an installed package, and the current folder under
+    ``python -m lookfeel``). A ``.py`` file's path is refused with the module name and the
+    ``PYTHONPATH`` to give instead: importing a file by its path would reach this process only
+    (the processes it starts find plugins by module name), and could import a second copy of
+    a module that is also on ``sys.path``."""
+    from lookfeel.plugins import add_plugin_modules, load_plugins
 
-    if modules:
-        names = plugin_modules()
-        names += [m for m in plugin_modules(",".join(modules)) if m not in names]
-        os.environ[ENV_VAR] = ",".join(names)
+    add_plugin_modules(modules, "--plugin")
     load_plugins()
 
 

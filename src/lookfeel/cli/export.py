@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 
     exported = export_onnx(args.checkpoint, args.out, opset=args.opset)
     for branch in exported:
-        shape = "x".join(str(s) for s in branch.input_shape)
+        shape = " x ".join(str(s) for s in branch.input_shape)
         check = (
             f"; max |onnx - torch| = {branch.max_abs_diff:.2g}"
             if branch.max_abs_diff is not None

@@ -27,6 +27,7 @@ import yaml
 from lookfeel.atomic import atomic_write_text
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Pair
+from lookfeel.plugins import PluginError
 
 __all__ = [
     "ConfigError",
@@ -258,7 +259,7 @@ def from_dict(cls: type[T], data: Mapping[str, Any] | None, prefix: str = "") ->
         kwargs[name] = _convert(value, hints[name], key)
     try:
         return cls(**kwargs)
-    except ConfigError:
+    except (ConfigError, PluginError):  # a plugin the config loaded: its own one line
         raise
     except (TypeError, ValueError) as e:
         raise ConfigError(f"{prefix or cls.__name__}: {e}") from None

@@ -75,7 +75,8 @@ class LossConfig:
     """The objective between slots: ``contrastive`` (the paper's equation 2 on the tuple
     distance D3), ``infonce`` (multi-positive InfoNCE over every slot pair), ``triplet``
     (batch-hard triplet over every slot pair), or one registered with
-    `lookfeel.losses.register_loss` (`loss_kinds`)."""
+    `lookfeel.losses.register_loss` (`loss_kinds`; a name nobody has registered loads the
+    user's plugins first, `lookfeel.plugins.load_plugins`)."""
     margin: float = 2.0
     """Contrastive margin m: pairs of different fabrics are pushed until their distance reaches
     it (paper: 2; the authors' code also used 1 with ``mean_squared``)."""
@@ -118,10 +119,15 @@ class LossConfig:
         if not isinstance(self.kind, str):
             raise ConfigError(f"loss.kind: expected a name, got {self.kind!r}")
         if self.kind not in _LOSS_KINDS:  # first, as the first field
+            # A name nobody has registered: the user's plugins may register it.
+            from lookfeel.plugins import load_plugins, unknown_name_hint
+
+            load_plugins()
+        if self.kind not in _LOSS_KINDS:
             if not _LENIENT.get():
                 raise ConfigError(
-                    f"loss.kind: {self.kind!r} is not one of {', '.join(loss_kinds())} (one of "
-                    "your own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
+                    f"loss.kind: {self.kind!r} is not one of {', '.join(loss_kinds())} "
+                    f"({unknown_name_hint()})"
                 )
             warnings.warn(
                 f"loss.kind: {self.kind!r} is not registered in this process "

@@ -106,15 +106,25 @@ def backbone_names() -> tuple[str, ...]:
 def backbone_spec(name: str) -> BackboneSpec:
     """The spec of backbone ``name``.
 
+    A name nobody has registered loads the user's plugins first (`lookfeel.plugins`:
+    ``LOOKFEEL_PLUGINS`` and the installed entry points), which may register it.
+
     Raises:
-        ConfigError: no backbone of that name is registered (naming those that are).
+        ConfigError: no backbone of that name is registered, even after loading the plugins
+            (naming those that are).
+        PluginError: a plugin cannot be imported.
     """
     spec = _BACKBONE_SPECS.get(name)
     if spec is None:
-        raise ConfigError(
-            f"model.backbone: {name!r} is not one of {', '.join(backbone_names())} (one of "
-            "your own: name its module in LOOKFEEL_PLUGINS or lookfeel --plugin)"
-        )
+        from lookfeel.plugins import load_plugins, unknown_name_hint
+
+        load_plugins()
+        spec = _BACKBONE_SPECS.get(name)
+        if spec is None:
+            raise ConfigError(
+                f"model.backbone: {name!r} is not one of {', '.join(backbone_names())} "
+                f"({unknown_name_hint()})"
+            )
     return spec
 
 
@@ -132,7 +142,8 @@ class ModelConfig:
     """Backbone of every branch: ``alexnet`` (the paper's; torchvision's layout, 227 px inputs,
     at least 63 px), ``compact`` (a small CNN for 64-112 px inputs on a CPU), ``resnet18``
     (torchvision's layout), or one registered with `lookfeel.models.register_backbone`
-    (`backbone_names`)."""
+    (`backbone_names`; a name nobody has registered loads the user's plugins first,
+    `lookfeel.plugins.load_plugins`)."""
     pretrained: str | None = None
     """Path to a local torchvision state dict to start from (``alexnet-owt-7be5be79.pth`` for
     ``alexnet``, ``resnet18-f37072fd.pth`` for ``resnet18``). Weights are never downloaded;
