@@ -178,6 +178,61 @@ def test_a_still_frame_model_warns_of_a_press_video(run, heads: LoadedModel, tmp
     assert answer.modality == "touch" and answer.error is None and answer.properties
 
 
+def test_a_frames_stacking_model_refuses_a_press_video_saying_what_to_give(
+    run, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `Matcher.match_files("press.mov", "touch")` (and `predict_files`) with a model that
+    stacks a press's frame images (data.touch_frames) first warned "give a still frame of the
+    press", then failed with "this press is a video", which said nothing of what to do. Now one
+    error, no warning: give the press's frame images, or train on videos."""
+    import warnings
+
+    from lookfeel.cli import main
+    from lookfeel.data import ImageError
+    from lookfeel.index import Library, Matcher, build_library
+
+    data, _ = run
+    sets = ["data.touch_frames=[0,1,2]", "model.class_heads=[stretchiness]", "train.steps=2"]
+    sets += ["train.split=none", "train.val_every=0", "train.checkpoint_every=0"]
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as `tests._library.tiny_run`: faster on a shared CPU
+    try:
+        result = train(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
+    finally:
+        torch.set_num_threads(threads)
+    loaded = load_model(result.last_checkpoint)
+    assert loaded.config.data.stacks_touch_frames
+    lib = tmp_path / "lib"
+    build_library(result.last_checkpoint, data, lib, calibration_queries=20)
+    matcher = Matcher(Library.open(lib))
+    video = tmp_path / "mine" / "press.mov"  # refused by its name, before it is decoded
+    video.parent.mkdir()
+    video.write_bytes(b"not decoded")
+    said = (
+        f"{video}: this model reads frames [0, 1, 2] of each press stacked together, from the "
+        "press's frame images (data.touch_frames), and a video has none: give the press's "
+        "frame images, named F<id>_<kind>_<frame>_<press>.<ext> side by side, or train a "
+        "model on press videos (data.touch_frames=[])"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning before the error
+        warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
+        for call in (
+            lambda: matcher.match_files(str(video), "touch"),
+            lambda: predict_files(loaded, video, "touch"),
+            lambda: predict_files(loaded, [video]),  # a video is touch, unasked
+        ):
+            with pytest.raises(ImageError) as e:
+                call()
+            assert str(e.value) == said
+        frame = data / "touch" / "F0003_fold_02_300.png"  # a press's frame: its others beside
+        [r] = matcher.match_files(frame, "touch", top=2)
+        assert len(r.fabrics) == 2
+    capsys.readouterr()
+    assert main(["match", "--index", str(lib), "--modality", "touch", str(video)]) == 1
+    assert capsys.readouterr().err.strip().splitlines() == [f"lookfeel: {said}"]
+
+
 def test_a_column_of_ranks_without_a_class_head_is_answered_as_its_nearest_rank(
     run, tmp_path: Path
 ):

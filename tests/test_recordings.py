@@ -709,6 +709,87 @@ def test_a_video_model_refuses_a_still_touch_image_by_name(
     assert capsys.readouterr().out.startswith(f"{still}: hardness ")
 
 
+def test_a_video_model_refuses_a_dataset_of_still_presses_as_match_refuses_each(
+    video_model: tuple[Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+):
+    """QA: `index build` and `evaluate --split all` of a model trained on press videos, on a
+    dataset of still GelSight frames, succeeded silently (a library and a score of presses
+    read as the model never read one), while `match` then refused every still press. Build,
+    evaluate and embed refuse it in match's line, before anything is embedded."""
+    import lookfeel.evaluate.from_checkpoint as from_checkpoint
+    import lookfeel.index.build as build
+    from lookfeel.cli import main
+    from lookfeel.index.query import STILL_TOUCH_REFUSED
+
+    from ._tiny import write_tiny_dataset
+
+    def never(*args: object, **kwargs: object) -> None:
+        raise AssertionError("embedded before the presses were checked")
+
+    monkeypatch.setattr(build, "embed_items", never)
+    monkeypatch.setattr(from_checkpoint, "embed_catalog", never)
+    ck, _ = video_model
+    data = write_tiny_dataset(tmp_path / "stills", 2, drapes=1, fold_presses=2, flat_presses=0)
+    first = data / "touch" / "F0001_fold_01_100.png"
+    refused = (
+        f"lookfeel: {first}: {STILL_TOUCH_REFUSED} (all 4 touch presses of {data} are still images)"
+    )
+    capsys.readouterr()
+    common = ["--checkpoint", str(ck), "--data", str(data)]
+    for argv in (
+        ["index", "build", *common, "--out", str(tmp_path / "lib")],
+        ["evaluate", *common, "--split", "all", "--out", str(tmp_path / "eval")],
+        ["embed", *common, "--out", str(tmp_path / "e.npz")],
+    ):
+        assert main(argv) == 1, argv
+        out = capsys.readouterr()
+        assert out.err.strip().splitlines() == [refused] and out.out == "", argv
+    assert not (tmp_path / "lib").exists() and not (tmp_path / "e.npz").exists()
+
+
+def test_a_dataset_s_presses_are_checked_as_a_query_s_once_for_all(tmp_path: Path):
+    """What `check_touch_dataset` (index build, evaluate, embed) refuses and warns of is what
+    `check_touch_input` (match, predict) does of one query, said once for the dataset."""
+    from lookfeel.checkpoint import TOUCH_BOTH, TOUCH_FRAMES, TOUCH_VIDEOS
+    from lookfeel.config import DataConfig
+    from lookfeel.data import ImageError
+    from lookfeel.index.match import check_touch_dataset, check_touch_input
+
+    diff, raw = DataConfig(image_size=32), DataConfig(image_size=32, video_reference="none")
+    stacked = DataConfig(image_size=32, touch_frames=(0, 1, 2))
+    root = tmp_path / "data"
+    stills = [root / "touch" / f"F0001_fold_01_{p}.png" for p in (100, 101, 102)]
+    videos = [root / "touch" / f"F0002_fold_{p}.mov" for p in (200, 201)]
+    with pytest.raises(ImageError, match=r"F0001_fold_01_100\.png: this model was trained on "):
+        check_touch_input(stills, TOUCH_VIDEOS, diff)
+    with pytest.raises(
+        ImageError,
+        match=r"^\S+F0001_fold_01_100\.png: this model was trained on press videos.*\(3 of the "
+        r"5 touch presses of \S+data are still images\)$",
+    ):
+        check_touch_dataset([*videos, *stills], TOUCH_VIDEOS, diff, root)
+    with pytest.raises(ImageError, match=r"F0002_fold_200\.mov: .*\(all 2 touch presses of "):
+        check_touch_dataset(videos, TOUCH_FRAMES, stacked, root)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        check_touch_dataset([*stills, *videos], TOUCH_FRAMES, diff, root)
+    assert [str(w.message).split(":")[0] for w in said] == [
+        f"{videos[0]} (and 1 other press video of {root})"
+    ]
+    assert "trained on still GelSight frames" in str(said[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing refused, nothing said
+        check_touch_dataset(videos, TOUCH_VIDEOS, diff, root)
+        check_touch_dataset(stills, TOUCH_VIDEOS, raw, root)
+        for trained_on in (TOUCH_BOTH, None):
+            check_touch_dataset([*stills, *videos], trained_on, diff, root)
+        check_touch_dataset(stills, TOUCH_FRAMES, stacked, root)
+        check_touch_dataset([], TOUCH_VIDEOS, diff, root)
+
+
 def test_the_still_frame_check_spares_raw_frame_and_frame_trained_models(tmp_path: Path):
     from lookfeel.checkpoint import TOUCH_BOTH, TOUCH_FRAMES, TOUCH_VIDEOS, touch_input_of
     from lookfeel.config import DataConfig

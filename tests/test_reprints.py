@@ -140,3 +140,45 @@ def test_data_info_counts_the_reprints(world: Path, tmp_path: Path) -> None:
     assert "; 24 re-printed renders in reprints/ (training views)" in format_summary(scan(world))
     plain = write_tiny_dataset(tmp_path / "plain", fabrics=2, drapes=1)
     assert "re-printed" not in format_summary(scan(plain))
+
+
+def test_the_recipe_chooser_reads_as_many_reprints_as_every_photo_has(
+    world: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """QA: `lookfeel synth --reprints 1` then `lookfeel train --data world` (no --config) failed
+    on the recipe's 4 renders of a photo (data.color_reprints: 4); the chooser adapted only to
+    a world without reprints/. It reads the renders every photo has (the fewest any has), none
+    with a warning naming a photo that has none, and never a number the user set."""
+    import argparse
+
+    from lookfeel.cli._args import run_config_source
+
+    def chosen(root: Path, *sets: str) -> tuple[int, str]:
+        args = argparse.Namespace(data=root, config=None, set=list(sets))
+        path, overrides = run_config_source(args)
+        assert path.name == "synth_cross.yaml"
+        return load_config(RunConfig, path, overrides).data.color_reprints, capsys.readouterr().err
+
+    root = tmp_path / "one"
+    shutil.copytree(world, root)
+    for second in (root / REPRINTS).glob("*_r2.png"):
+        second.unlink()
+    n, err = chosen(root)
+    assert n == 1 and "reprints/ holds 1 re-printed render of each photo, not the recipe's 4" in err
+    photo = scan(root).items(Modality.COLOR)[0]
+    views = ImageLoader(DataConfig(image_size=16, color_reprints=n)).views(photo)
+    assert len(views) == 2  # the photo, then its one render: training reads them
+    assert chosen(root, "data.color_reprints=3")[0] == 3  # the user's own number is kept
+
+    n, err = chosen(world)  # 2 of each photo (the fewest): the recipe's 4 are not there
+    assert n == 2 and "holds 2 re-printed renders of each photo" in err
+    (root / REPRINTS / "F0002_1_r1.png").unlink()  # of one photo, none
+    with pytest.warns(UserWarning) as said:
+        n, err = chosen(root)
+    assert n == 0 and "trained on the photos (data.color_reprints=0)" in err
+    assert [str(w.message).split(": ")[:2] for w in said] == [
+        [f"{root / REPRINTS}", "holds no re-printed render of F0002_1.png (no F0002_1_r1.png)"]
+    ]
+    shutil.rmtree(root / REPRINTS)
+    n, err = chosen(root)
+    assert n == 0 and "no reprints/ folder: trained on the photos" in err

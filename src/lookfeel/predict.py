@@ -9,7 +9,9 @@ Multi-input Net pools presses (``together=True``).
 
 A touch query must be what the model was trained on: a model trained on press videos refuses a
 still GelSight frame (`lookfeel.index.query.check_touch_query`), naming the file; a model
-trained on still frames takes a press video with a warning. Without a modality given, each
+trained on still frames takes a press video with a warning, unless it stacks a press's frame
+images (``data.touch_frames``), which no video has: it refuses one, saying what to give
+(`lookfeel.index.match.check_touch_input`). Without a modality given, each
 file's own kind says what it shows (`guess_modality`); one the model lacks is refused.
 """
 
@@ -31,11 +33,10 @@ from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
-from lookfeel.index.match import class_value
+from lookfeel.index.match import check_touch_input, class_value
 from lookfeel.index.query import (
     QUERY_IMAGES,
     QueryFiles,
-    check_touch_files,
     load_query_files,
     query_batch,
     query_paths,
@@ -213,8 +214,9 @@ def predict_files(
         DeviceError: ``device`` is none this machine can use.
         CheckpointError: ``loaded`` is a path that holds no usable checkpoint.
         ImageError: naming a file that cannot be read (video errors other than a missing press
-            included), or a still touch image for a model trained on press videos (checked
-            for every file before any is decoded).
+            included), a still touch image for a model trained on press videos, or a press
+            video for a model that stacks frame images (checked for every file before any is
+            decoded: `lookfeel.index.match.check_touch_input`).
     """
     device = resolve_device(device)  # a device this machine lacks: one line
     if not isinstance(loaded, LoadedModel):
@@ -255,7 +257,7 @@ def predict_files(
         )
     data = loaded.config.data
     touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
-    check_touch_files(touch, loaded.touch_input, data)  # every file before any is decoded
+    check_touch_input(touch, loaded.touch_input, data)  # every file before any is decoded
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []

@@ -19,11 +19,13 @@ a small dataset's fabrics into its folds (`fit_dataset`).
 from __future__ import annotations
 
 import json
+import os
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 import yaml
 
@@ -177,7 +179,7 @@ def _mapping(value: Any) -> dict[str, Any]:
     return value if isinstance(value, dict) else {}
 
 
-def _count(value: Any) -> bool:
+def _count(value: Any) -> TypeGuard[int]:
     """Whether ``value`` is a count (an int >= 1, not a bool): else the config's own checks
     refuse it, and nothing is fitted to it."""
     return isinstance(value, int) and not isinstance(value, bool) and value >= 1
@@ -232,6 +234,61 @@ def _fit_folds(
     return overrides, said
 
 
+def _fit_reprints(catalog: Catalog, wants: int) -> tuple[list[str], list[str]]:
+    """The ``data.color_reprints`` override (and what to say of it) for a recipe that reads
+    ``wants`` re-printed renders of each colour photo (`lookfeel.modality.reprint_path`): none
+    where the dataset has them all; else the number every photo has (the fewest any has,
+    counting ``_r1``, ``_r2`` ... in order, as training reads them), 0 with a warning where
+    a photo has none although ``reprints/`` is there."""
+    from lookfeel.modality import reprint_path
+
+    folder = catalog.root / REPRINTS
+    if not folder.is_dir():
+        return ["data.color_reprints=0"], [
+            f"no {REPRINTS}/ folder: trained on the photos (data.color_reprints=0)"
+        ]
+    photos = [it.path for it in catalog.items(Modality.COLOR)]
+    if not photos:
+        return [], []
+    try:
+        names = {e.name for e in os.scandir(folder) if e.is_file()}
+    except OSError:
+        names = set()
+
+    def present(photo: Path) -> int:
+        n = 0
+        while n < wants and reprint_path(photo, n + 1).name in names:
+            n += 1
+        return n
+
+    counts = {p: present(p) for p in photos}
+    have = min(counts.values())
+    if have >= wants:
+        return [], []
+    short = [p for p, n in counts.items() if n == have]
+    setting = f"data.color_reprints={have}"
+    if have == 0:
+        others = len(short) - 1
+        more = f" (nor of {others} other photo{'s' if others > 1 else ''})" if others else ""
+        warnings.warn(
+            f"{folder}: holds no re-printed render of {short[0].name}{more} (no "
+            f"{reprint_path(short[0], 1).name}): training on the photos themselves ({setting}), "
+            f"not on the recipe's {wants} renders of each; make the world with `lookfeel synth "
+            f"--reprints {wants}`, or give --set data.color_reprints=N yourself",
+            stacklevel=3,
+        )
+        return [setting], [f"a photo has no re-printed render: trained on the photos ({setting})"]
+    renders = f"{have} re-printed render{'s' if have > 1 else ''}"
+    if len(short) == len(photos):
+        said = f"{REPRINTS}/ holds {renders} of each photo, not the recipe's {wants}: {setting}"
+    else:
+        said = (
+            f"{REPRINTS}/ holds {renders} of {short[0].name} (the fewest of any photo), not "
+            f"the recipe's {wants}: {setting}"
+        )
+    return [setting], [said]
+
+
 def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> Recipe:
     """``recipe`` with the overrides that let it run on ``catalog``, the reason saying which.
 
@@ -245,7 +302,9 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
       not set: training views across the contact span, evaluation averaging them);
     - no ``reprints/`` folder where the recipe trains on re-printed photos
       (``data.color_reprints``, a synthetic world's): the photos themselves, said once here
-      rather than warned at every run;
+      rather than warned at every run; a ``reprints/`` folder with fewer renders of a photo
+      than the recipe reads (``lookfeel synth --reprints 1``): the number every photo has
+      (the fewest any has), and 0 with a warning naming a photo that has none;
     - fewer fabrics than the recipe's folds test (synth_cross.yaml: 5 folds of 18, chosen from
       a paper-size world's 100 training fabrics; ``lookfeel train`` trains fold 0, ``cv`` all):
       folds that deal every fabric (``train.fold_size=null``), and with fewer than two fabrics
@@ -287,14 +346,11 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
         if settings:
             overrides += settings
             said.append(f"touch videos read as physiclear.yaml does ({', '.join(settings)})")
-    if (
-        Modality.COLOR.value in views
-        and d.get("color_reprints")
-        and not _gives(given, "data.color_reprints")
-        and not (catalog.root / REPRINTS).is_dir()
-    ):
-        overrides.append("data.color_reprints=0")
-        said.append(f"no {REPRINTS}/ folder: trained on the photos (data.color_reprints=0)")
+    wants = d.get("color_reprints")
+    if Modality.COLOR.value in views and _count(wants) and not _gives(given, "data.color_reprints"):
+        more, words = _fit_reprints(catalog, wants)
+        overrides += more
+        said += words
     folds, size = t_run.get("folds", 5), t_run.get("fold_size")
     if t.get("split") == "fold" and _count(folds) and (size is None or _count(size)):
         n = len(paper_split(catalog).train) or len(catalog.ids)

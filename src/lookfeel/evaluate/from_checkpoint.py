@@ -53,6 +53,7 @@ from lookfeel.embedding import (
     press_pooler,
 )
 from lookfeel.errors import LookfeelError
+from lookfeel.index.match import check_touch_dataset
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import BranchEnsemble, Embedder
@@ -284,6 +285,11 @@ def _embed(
             f"dataset has {have}",
             catalog.root,
         )
+    if Modality.TOUCH in mods:  # what `lookfeel match` refuses, before any video is decoded
+        kinds = tuple(loaded.config.data.touch_kinds)
+        parts = [test, ref] if reference and ref is not None else [test]
+        presses = [it.path for c in parts for it in c.items(Modality.TOUCH, kinds)]
+        check_touch_dataset(presses, loaded.touch_input, loaded.config.data, catalog.root)
     loader = ImageLoader(loaded.config.data)
     selected = test
     test, ref = _drop_unpressed(catalog, test, ref if reference else None, loader)
@@ -338,6 +344,8 @@ def embed_checkpoint(
     Raises:
         CheckpointError, DatasetError: naming the file or fabric ids at fault (a checkpoint
             whose model embeds NaN or infinity among them).
+        ImageError: touch presses the model cannot take, as ``lookfeel match`` would refuse
+            each (`lookfeel.index.match.check_touch_dataset`), before any is embedded.
     """
     loaded = _load(checkpoint, device)
     with _naming(loaded):
@@ -429,6 +437,9 @@ def evaluate_checkpoint(
 
     Returns:
         `EvalResult`, with ``info`` naming the checkpoint, step, split and data.
+
+    Raises:
+        ImageError: touch presses the model cannot take, as `embed_checkpoint`.
     """
     loaded = _load(checkpoint, device)
     catalog = _scan(data_root)

@@ -64,6 +64,7 @@ from lookfeel.index.library import (
     write_cross_maps,
     write_shard,
 )
+from lookfeel.index.match import check_touch_dataset
 from lookfeel.index.search import FaissSearch, choose_backend
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.modality import Modality, Pair, PressKind
@@ -453,6 +454,10 @@ def build_library(
             nothing to embed.
         DatasetError: the dataset has errors (`lookfeel data check` lists them).
         CheckpointError: the checkpoint cannot be read.
+        ImageError: touch presses the model cannot take, as ``lookfeel match`` would refuse
+            each (still images for a model trained on press videos, videos for one that
+            stacks frame images: `lookfeel.index.match.check_touch_dataset`), naming the first,
+            before any is embedded.
     """
     started = time.perf_counter()
     out = Path(out)
@@ -552,6 +557,9 @@ def _build(
     if not items:
         have = ", ".join(m.value for m in loaded.model.modalities)
         raise LibraryError(f"{catalog.root}: no items of the model's modalities ({have})")
+    if Modality.TOUCH in items:  # what `lookfeel match` refuses is refused here, before any work
+        presses = [it.path for it in items[Modality.TOUCH]]
+        check_touch_dataset(presses, loaded.touch_input, config.data, catalog.root)
     data_config = replace(config.data, cache_dir=None)
     loader = ImageLoader(data_config)
     catalog = drop_unpressed(catalog, loader)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,11 +42,12 @@ import torch
 from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
-from lookfeel.data.files import VIDEO_SUFFIXES
+from lookfeel.data.files import VIDEO_SUFFIXES, ImageError
 from lookfeel.devices import resolve_device
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import (
+    VIDEO_FOR_STILL_MODEL,
     QueryFiles,
     check_touch_files,
     load_query_files,
@@ -63,8 +65,11 @@ __all__ = [
     "MatchResult",
     "Matcher",
     "PropertyEstimate",
+    "check_touch_dataset",
+    "check_touch_input",
     "class_value",
     "format_match",
+    "stacked_frames_refused",
 ]
 
 IDENTICAL_DISTANCE = 1e-3
@@ -75,6 +80,85 @@ FAISS_CANDIDATES = 2048
 PROPERTY_DIGITS = 4
 """Significant digits of a property estimate, relative to the column's largest value in the
 library (labels are written with 2-3; more would be the weights' rounding noise)."""
+
+
+def stacked_frames_refused(config: DataConfig) -> str:
+    """Why a press video is refused by a model that stacks frame images of a press
+    (``data.touch_frames``), with what to give instead (`check_touch_input`)."""
+    return (
+        f"this model reads frames {list(config.touch_frame_indices)} of each press stacked "
+        "together, from the press's frame images (data.touch_frames), and a video has none: "
+        "give the press's frame images, named F<id>_<kind>_<frame>_<press>.<ext> side by "
+        "side, or train a model on press videos (data.touch_frames=[])"
+    )
+
+
+def _is_video(path: Path) -> bool:
+    return path.suffix.lower() in VIDEO_SUFFIXES
+
+
+def check_touch_input(
+    paths: Sequence[str | Path], trained_on: str | None, config: DataConfig
+) -> None:
+    """Refuse, before any is decoded, the files of a touch query that the model cannot take:
+    for a model that stacks a press's frame images (``data.touch_frames``), a press video or a
+    folder (`stacked_frames_refused`: one error, without the warning a still-frame model gives
+    a video it can read); else as `lookfeel.index.query.check_touch_files` (a still image
+    for a model trained on press videos, a folder; a warning for a video given to a model
+    trained on still frames).
+
+    Raises:
+        ImageError: naming the first file refused.
+    """
+    files = [Path(p) for p in paths]
+    if config.stacks_touch_frames:
+        for p in files:
+            if p.is_dir():
+                raise ImageError(
+                    p,
+                    "is a folder, not a press: give the press's frame images "
+                    "(F<id>_<kind>_<frame>_<press>.<ext>)",
+                )
+            if _is_video(p):
+                raise ImageError(p, stacked_frames_refused(config))
+    check_touch_files(files, trained_on, config)
+
+
+def check_touch_dataset(
+    paths: Sequence[Path], trained_on: str | None, config: DataConfig, root: Path
+) -> None:
+    """`check_touch_input` for the touch presses of a dataset (``paths``: each press's first
+    file) that a library build or an evaluation would embed, before any is decoded: a press
+    that ``lookfeel match`` would refuse is refused here too, naming the first such file and
+    how many of the dataset's presses are alike; the warning for press videos given to a model
+    trained on still frames is given once, for all of them.
+
+    Raises:
+        ImageError: naming the first press the model cannot take.
+    """
+    videos = [p for p in paths if _is_video(p)]
+    stills = [p for p in paths if not _is_video(p)]
+
+    def share(n: int, what: str) -> str:
+        part = "all" if n == len(paths) else f"{n} of the"
+        return f"{part} {len(paths)} touch presses of {root} are {what}"
+
+    if config.stacks_touch_frames and videos:
+        raise ImageError(
+            videos[0],
+            f"{stacked_frames_refused(config)} ({share(len(videos), 'videos')})",
+        )
+    try:
+        check_touch_input(stills[:1], trained_on, config)
+    except ImageError as e:
+        raise ImageError(e.path, f"{e.reason} ({share(len(stills), 'still images')})") from None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_touch_input(videos[:1], trained_on, config)
+    if any(VIDEO_FOR_STILL_MODEL in str(w.message) for w in caught):  # one for all, the first named
+        n = len(videos) - 1
+        also = f" (and {n} other press video{'s' if n > 1 else ''} of {root})" if n else ""
+        warnings.warn(f"{videos[0]}{also}: {VIDEO_FOR_STILL_MODEL}", stacklevel=3)
 
 
 def class_value(name: str) -> int | float | str:
@@ -239,7 +323,7 @@ class Matcher:
         modality = self.check_modality(modality)
         paths = query_paths(paths)
         if modality is Modality.TOUCH:
-            check_touch_files(paths, self.touch_input, self.data_config)
+            check_touch_input(paths, self.touch_input, self.data_config)
         images, used = load_query_files(paths, modality, self.data_config)
         return query_batch(images, modality), used
 
