@@ -370,3 +370,127 @@ def test_press_videos_are_scored_with_their_no_contact_frame_as_the_background(t
     assert main(["data", "leakage", str(one_light), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)["modalities"]["touch"]
     assert d["press_videos"] is True and d["leak"] is False and d["input_top1"] > 0.5
+
+
+# ---- the words: each verdict states its rule; no "nan" in the text, null in the JSON --------
+
+
+def _position(top: tuple[float, float, float], centroid: tuple[float, float, float], leak: bool):
+    from lookfeel.data.leakage import PositionLeakage, PositionScore
+
+    return PositionLeakage(
+        n_items=80,
+        n_fabrics=10,
+        image_px=(200, 200),
+        post_uv=PositionScore(top[0], (top[1], top[2]), 5.2, 6.9),
+        drape_centroid=PositionScore(centroid[0], (centroid[1], centroid[2]), 12.2, 14.5),
+        chance=0.1,
+        leak=leak,
+    )
+
+
+def test_position_verdict_states_the_interval_rule_it_applies(tmp_path: Path):
+    """A QA rig's drape's top scored 0.235 [0.19, 0.30], 2.35x chance 0.1, and the verdict
+    read "position top-1 is not far above chance (2x)", as if 0.235 were not: the rule is the
+    interval's lower end, and the line now says so."""
+    from lookfeel.data.leakage import LeakageReport
+
+    clean = LeakageReport(
+        tmp_path, (), position=_position((0.235, 0.1873, 0.2989), (0.1688, 0.1201, 0.23), False)
+    )
+    text = format_leakage(clean)
+    assert "not far above chance" not in text
+    assert (
+        "  no leak found: the 95% intervals' lower ends of the drape's top and drape's "
+        "centroid, 0.19 and 0.12, are below 2x chance 0.20\n"
+    ) in text + "\n"
+    leak = LeakageReport(
+        tmp_path, (), position=_position((0.40, 0.33, 0.47), (0.169, 0.12, 0.23), True)
+    )
+    text = format_leakage(leak)
+    assert (
+        "  LEAK: where the drape lies identifies the fabric (the drape's top's 95% interval's "
+        "lower end 0.33 is above 2x chance 0.20): the camera or post moved"
+    ) in text
+    assert "centroid's" not in text  # only the cue that leaks is named in the verdict
+    # A lower end that two decimals print as the limit is shown with enough to tell them apart.
+    near = LeakageReport(
+        tmp_path, (), position=_position((0.25, 0.199, 0.3), (0.2, 0.2, 0.3), False)
+    )
+    assert (
+        "no leak found: the drape's top's 95% interval's lower end 0.199 is below 2x chance "
+        "0.200; the drape's centroid's 95% interval's lower end 0.200 is at 2x chance 0.200, "
+        "not above it"
+    ) in format_leakage(near)
+
+
+def test_background_verdicts_state_the_interval_rule_they_apply(leaky: Path, clean: Path):
+    report = leakage_report(scan(clean), n_boot=200)
+    (depth,) = report.modalities
+    lo = depth.background_ci95[0]
+    assert not depth.leak and lo < 0.2
+    text = format_leakage(report)
+    assert (
+        f"  no leak found: the background's 95% interval's lower end {lo:.2f} is below 2x "
+        "chance 0.20"
+    ) in text
+    assert "not far above chance" not in text
+    report = leakage_report(scan(leaky), n_boot=200)
+    (depth,) = report.modalities
+    times = depth.background_top1 / depth.chance
+    assert (
+        f"{times:.1f}x chance (its 95% interval's lower end {depth.background_ci95[0]:.2f} is "
+        "above 2x chance 0.20); a model can learn"
+    ) in format_leakage(report)
+
+
+def test_press_video_verdicts_state_the_interval_rule(tmp_path: Path):
+    report = leakage_report(scan(_write_presses(tmp_path / "one_light", sessions=False)), n_boot=50)
+    (touch,) = report.modalities
+    assert not touch.leak
+    limit = 2 * touch.chance
+    assert (
+        f"  no leak found: the no-contact frame's 95% interval's lower end "
+        f"{touch.background_ci95[0]:.2f} is below 2x chance {limit:.2f}"
+    ) in format_leakage(report)
+
+
+def test_no_background_pixel_reads_n_a_with_why_never_nan_and_json_null(tmp_path: Path):
+    """Colour photos of cloth filling the frame: no pixel holds still, so there is no
+    background to score; the text printed "background only   nan [ n/a ]"."""
+    rng = np.random.default_rng(3)
+    for f in range(1, 5):
+        for k in range(3):
+            path = tmp_path / "rig" / "color" / f"F{f:04d}_{k + 1}.png"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            Image.fromarray(rng.integers(0, 256, (16, 16, 3), dtype=np.uint8)).save(path)
+    report = leakage_report(scan(tmp_path / "rig"), n_boot=50)
+    (color,) = report.modalities
+    assert color.background_fraction == 0.0 and np.isnan(color.background_top1)
+    text = format_leakage(report)
+    assert "nan" not in text.lower()
+    assert "  background only   n/a (no pixel is still across images)\n" in text
+    assert "nothing to check: with no background pixel, there is no background to score" in text
+    # A mask that marks no pixel once pooled says so, not "still".
+    masked = dataclasses.replace(color, mask_source="room.png", pool=4)
+    assert "n/a (mask room.png marks no pixel once pooled 4x4)" in format_leakage(
+        dataclasses.replace(report, modalities=(masked,))
+    )
+    d = json.loads(json.dumps(report.to_dict(), allow_nan=False))  # strict JSON: no NaN
+    entry = d["modalities"]["color"]
+    assert entry["background_top1"] is None and entry["background_ci95"] == [None, None]
+    assert entry["leak"] is False
+    # A position with no score (no image with cloth) reads n/a too, and is null in the JSON.
+    nothing = _position((float("nan"),) * 3, (float("nan"),) * 3, False)
+    nothing = dataclasses.replace(
+        nothing,
+        post_uv=dataclasses.replace(nothing.post_uv, within_fabric_px=float("nan")),
+    )
+    text = format_leakage(dataclasses.replace(report, position=nothing))
+    assert "nan" not in text.lower()
+    assert "drape's top       n/a (no image with a drape's top found)   spread n/a / 6.9" in text
+    assert "the drape's top has no 95% interval" in text
+    d = json.loads(
+        json.dumps(dataclasses.replace(report, position=nothing).to_dict(), allow_nan=False)
+    )
+    assert d["position"]["post_uv"]["top1"] is None

@@ -168,3 +168,44 @@ def test_info_counts_the_files_check_fails_as_errors_not_as_skipped(tmp_path: Pa
         (str(depth / "F0001_extra.tif"), why)
     ]
     assert [p["path"] for p in check["skipped"]] == [str(depth / "notes.txt")]
+
+
+def _split_row(out: str) -> str:
+    (row,) = [line for line in out.splitlines() if line.startswith("  paper split ")]
+    return row
+
+
+def test_paper_split_row_is_always_there_and_says_why_none(tmp_path: Path, capsys):
+    """README: `data info`'s `paper split` line shows which fabrics the paper split holds out.
+    Without a paper_split column the line was missing; it now says none, and why."""
+    root = write_tiny_dataset(tmp_path / "t", fabrics=3, drapes=1, fold_presses=0, labels=False)
+    (root / "labels.csv").write_text("fabric_id,stiffness,material\n1,2,wool\n2,3,silk\n")
+    none = (
+        "none ({why}): no fabric is held out as a test set; a run validates on the fabrics its "
+        "train.split holds out"
+    )
+    assert _split_row(_info(root, capsys)).endswith(
+        none.format(why="labels.csv has no paper_split column")
+    )
+    (root / "labels.csv").write_text("fabric_id , paper_split\n1,\n2,\n")  # a column, empty
+    assert _split_row(_info(root, capsys)).endswith(
+        none.format(why="labels.csv's paper_split column marks no fabric")
+    )
+    (root / "labels.csv").unlink()
+    assert _split_row(_info(root, capsys)).endswith(none.format(why="no labels.csv"))
+    (root / "labels.csv").mkdir()  # there, but not a file: not "no labels.csv"
+    assert _split_row(_info(root, capsys)).endswith(none.format(why="labels.csv cannot be read"))
+    (root / "labels.csv").rmdir()
+    (root / "labels.csv").write_bytes("fabric_id,paper_split\n1,test\n".encode("utf-16"))
+    assert _split_row(_info(root, capsys)).endswith(none.format(why="labels.csv cannot be read"))
+    (root / "labels.csv").write_text("fabric_id,paper_split\n1,train\n2,train\n3,test\n")
+    assert _split_row(_info(root, capsys)) == "  paper split  train 2, test 1"
+    assert _info_json(root, capsys)["paper_split"] == {"train": 2, "test": 1}
+
+
+def test_paper_split_row_of_named_objects_says_objects(tmp_path: Path, capsys):
+    root = write_recordings(tmp_path / "rec", {"sponge": 2, "cork": 2}, "object,hardness\n")
+    assert _split_row(_info(root, capsys)).endswith(
+        "none (labels.csv has no paper_split column): no object is held out as a test set; a "
+        "run validates on the objects its train.split holds out"
+    )

@@ -112,9 +112,10 @@ class ModalityLeakage:
         mask_source: ``"static"`` (the data-driven rule) or the mask file's path.
         background_fraction: share of the (pooled) pixels that are background.
         whole_top1, whole_ci95: pick 1 of 10 top-1 of the whole image and its 95% interval.
-        background_top1, background_ci95: the same on background pixels only (NaN without any).
+        background_top1, background_ci95: the same on background pixels only (NaN without any:
+            ``null`` in `to_dict`, ``n/a`` and why in `format_leakage`).
         chance: top-1 of random guessing (1 / candidates).
-        leak: whether the background's interval lies above ``factor`` x chance.
+        leak: whether the background's interval's lower end lies above ``factor`` x chance.
         press_videos: touch given as press videos (point 5 of the module doc): the whole image
             is the pressed frame, the background the no-contact frame.
         input_top1, input_ci95: press videos: the same of the image lookfeel's models get by
@@ -177,7 +178,7 @@ class PositionLeakage:
         post_uv: the drape's top, where the post holds it.
         drape_centroid: the drape's centroid.
         chance: top-1 of random guessing.
-        leak: whether either interval lies above ``factor`` x chance.
+        leak: whether either interval's lower end lies above ``factor`` x chance.
         no_floor: the depth images in which registration found no floor plane (the cloth
             hides it, or the camera does not see it): their heights are measured from the
             nearest wall instead, so registered depth does not compare them with the rest.
@@ -792,6 +793,60 @@ def _ci(ci: tuple[float, float]) -> str:
     return "[ n/a ]" if math.isnan(ci[0]) else f"[{ci[0]:.2f}, {ci[1]:.2f}]"
 
 
+def _num(x: float, spec: str = ".3f") -> str:
+    """A score as the tables print it; ``n/a`` where there is none (never ``nan``)."""
+    return "n/a" if math.isnan(x) else format(x, spec)
+
+
+def _score(top1: float, ci: tuple[float, float], why: str) -> str:
+    """``0.480 [0.33, 0.64]``, or ``n/a (why)`` where nothing was scored."""
+    return f"n/a ({why})" if math.isnan(top1) else f"{top1:.3f} {_ci(ci)}"
+
+
+def _rule(ends: Sequence[tuple[str, float]], chance: float, factor: float) -> str:
+    """The verdict's rule as it applies: each 95% interval's lower end against ``factor`` x
+    chance (a leak: above it), e.g. ``the background's 95% interval's lower end 0.19 is below
+    2x chance 0.20``.
+
+    ``ends``: (what, lower end) per score, ``what`` as ``background``, ``drape's top``, or
+    ``""`` for ``its``; scores on one side of the rule are said in one clause. Two decimals,
+    or up to four where two would print a lower end and the limit alike though they differ.
+    """
+    limit = factor * chance
+    known = [(what, lo) for what, lo in ends if not math.isnan(lo)]
+    digits = next(
+        (
+            d
+            for d in (2, 3)
+            if all(lo == limit or f"{lo:.{d}f}" != f"{limit:.{d}f}" for _, lo in known)
+        ),
+        4,
+    )
+    sides: dict[str, list[tuple[str, float]]] = {}
+    for what, lo in known:
+        sides.setdefault("above" if lo > limit else "below" if lo < limit else "at", []).append(
+            (what, lo)
+        )
+    clauses = []
+    for side, got in sides.items():
+        rule = f"{side} {factor:g}x chance {limit:.{digits}f}"
+        rule += ", not above it" if side == "at" else ""
+        if len(got) == 1:
+            what, lo = got[0]
+            whose = f"the {what}'s" if what else "its"
+            clauses.append(f"{whose} 95% interval's lower end {lo:.{digits}f} is {rule}")
+        else:
+            names = " and ".join(what for what, _ in got)
+            values = " and ".join(f"{lo:.{digits}f}" for _, lo in got)
+            clauses.append(f"the 95% intervals' lower ends of the {names}, {values}, are {rule}")
+    clauses += [
+        f"{f'the {what}' if what else 'it'} has no 95% interval (too few images scored)"
+        for what, lo in ends
+        if math.isnan(lo)
+    ]
+    return "; ".join(clauses)
+
+
 def _source(m: ModalityLeakage) -> str:
     if m.mask_source == "static":
         return "pixels still across images"
@@ -818,25 +873,34 @@ def _background_rule(report: LeakageReport) -> str:
     return "; ".join(rules) or "none scored"
 
 
+def _no_background(m: ModalityLeakage) -> str:
+    """Why a modality has no background pixel to score."""
+    if m.mask_source == "static":
+        return "no pixel is still across images"
+    return f"mask {m.mask_source} marks no pixel once pooled {m.pool}x{m.pool}"
+
+
 def _verdict(m: ModalityLeakage, factor: float, noun: str = "fabric") -> str:
-    if m.background_fraction == 0.0:
-        return "no background pixel found (nothing is still across images): nothing to check"
+    if m.background_fraction == 0.0 or math.isnan(m.background_top1):
+        return "nothing to check: with no background pixel, there is no background to score"
+    rule = _rule([("", m.background_ci95[0])], m.chance, factor)
     if m.leak and m.press_videos:
         return (
             f"LEAK: the sensor with nothing touching it identifies the {noun} at "
             f"{m.background_top1:.2f} top-1, {m.background_top1 / m.chance:.1f}x chance "
-            f"(interval above {factor:g}x chance): its light differs between recording "
-            "sessions, and a model of raw frames can learn the session instead of the touch; "
-            "lookfeel's input subtracts the no-contact frame (data.video_reference: subtract), "
-            f"which leaves {m.input_top1:.2f}, and `lookfeel cv` scores its untouched control"
+            f"({rule}): its light differs between recording sessions, and a model of raw "
+            "frames can learn the session instead of the touch; lookfeel's input subtracts "
+            f"the no-contact frame (data.video_reference: subtract), which leaves "
+            f"{_num(m.input_top1, '.2f')}, and `lookfeel cv` scores its untouched control"
         )
     if m.leak:
         return (
             f"LEAK: the background alone identifies the {noun} at {m.background_top1:.2f} top-1, "
-            f"{m.background_top1 / m.chance:.1f}x chance (interval above {factor:g}x chance); "
-            "a model can learn the capture session instead of the material"
+            f"{m.background_top1 / m.chance:.1f}x chance ({rule}); a model can learn the "
+            "capture session instead of the material"
         )
-    return f"no leak found: background top-1 is not far above chance ({factor:g}x)"
+    what = "no-contact frame" if m.press_videos else "background"
+    return f"no leak found: {_rule([(what, m.background_ci95[0])], m.chance, factor)}"
 
 
 def _modality_lines(m: ModalityLeakage, factor: float, noun: str = "fabric") -> list[str]:
@@ -846,28 +910,33 @@ def _modality_lines(m: ModalityLeakage, factor: float, noun: str = "fabric") -> 
         return [
             f"{m.modality.value}: {m.n_items} images of {m.n_fabrics} {noun}s, {pooled}, "
             f"background {m.background_fraction:.0%} of the image ({_source(m)})",
-            f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}",
-            f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}",
-            f"  chance            {m.chance:.3f}",
+            f"  whole image       {_score(m.whole_top1, m.whole_ci95, 'nothing scored')}",
+            "  background only   "
+            + _score(m.background_top1, m.background_ci95, _no_background(m)),
+            f"  chance            {_num(m.chance)}",
             f"  {_verdict(m, factor, noun)}",
         ]
     left = f" ({m.left_out} with no press left out, as runs leave them)" if m.left_out else ""
     part = "" if m.mask_source == "no-contact" else f" ({m.background_fraction:.0%} of it)"
+    back = "the no-contact frame" + ("" if m.mask_source == "no-contact" else f", {_source(m)}")
     return [
         f"{m.modality.value}: {m.n_items} press videos of {m.n_fabrics} {noun}s{left}, {pooled}; "
         f"background: the no-contact frame, the sensor's own light before the press{part}",
-        f"  whole image       {m.whole_top1:.3f} {_ci(m.whole_ci95)}   the pressed frame, raw",
-        f"  lookfeel's input  {m.input_top1:.3f} {_ci(m.input_ci95)}   the pressed frame minus "
-        "the no-contact frame",
-        f"  background only   {m.background_top1:.3f} {_ci(m.background_ci95)}   the no-contact "
-        "frame" + ("" if m.mask_source == "no-contact" else f", {_source(m)}"),
-        f"  chance            {m.chance:.3f}",
+        f"  whole image       {_score(m.whole_top1, m.whole_ci95, 'nothing scored')}   the "
+        "pressed frame, raw",
+        f"  lookfeel's input  {_score(m.input_top1, m.input_ci95, 'nothing scored')}   the "
+        "pressed frame minus the no-contact frame",
+        "  background only   "
+        + _score(m.background_top1, m.background_ci95, _no_background(m))
+        + f"   {back}",
+        f"  chance            {_num(m.chance)}",
         f"  {_verdict(m, factor, noun)}",
     ]
 
 
 def format_leakage(report: LeakageReport) -> str:
-    """The report as text: a table per modality and a verdict line for each."""
+    """The report as text: a table per modality and a verdict line for each (never ``nan``:
+    a score that could not be computed reads ``n/a`` and why)."""
     lines = [
         f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over {report.noun}s] from raw "
         "pixels",
@@ -876,33 +945,37 @@ def format_leakage(report: LeakageReport) -> str:
     for m in report.modalities:
         lines += ["", *_modality_lines(m, report.factor, report.noun)]
     if report.position is not None:
-        lines += _position_lines(report.position, report.factor)
+        lines += _position_lines(report.position, report.factor, report.noun)
     for name, why in report.skipped.items():
         lines += ["", f"{name}: not scored: {why}"]
     return "\n".join(lines)
 
 
-def _position_lines(p: PositionLeakage, factor: float) -> list[str]:
+def _position_lines(p: PositionLeakage, factor: float, noun: str = "fabric") -> list[str]:
     h, w = p.image_px
     lines = [
         "",
-        f"depth, where the drape lies: {p.n_items} images of {p.n_fabrics} fabrics registered "
-        f"({w}x{h} px); two numbers per image, spread within a fabric / over all in px",
+        f"depth, where the drape lies: {p.n_items} images of {p.n_fabrics} {noun}s registered "
+        f"({w}x{h} px); two numbers per image, spread within a {noun} / over all in px",
     ]
-    for name, s in (("drape's top", p.post_uv), ("drape's centroid", p.drape_centroid)):
+    cues = (("drape's top", p.post_uv), ("drape's centroid", p.drape_centroid))
+    for name, s in cues:
         lines.append(
-            f"  {name:<18}{s.top1:.3f} {_ci(s.ci95)}   spread {s.within_fabric_px:.1f} / "
-            f"{s.overall_px:.1f}"
+            f"  {name:<18}{_score(s.top1, s.ci95, f'no image with a {name} found')}   spread "
+            f"{_num(s.within_fabric_px, '.1f')} / {_num(s.overall_px, '.1f')}"
         )
-    lines.append(f"  chance            {p.chance:.3f}")
+    lines.append(f"  chance            {_num(p.chance)}")
     if p.leak:
+        limit = factor * p.chance
+        rule = _rule([(n, s.ci95[0]) for n, s in cues if s.ci95[0] > limit], p.chance, factor)
         lines.append(
-            f"  LEAK: where the drape lies identifies the fabric (interval above {factor:g}x "
-            "chance): the camera or post moved between sessions; a model of registered depth "
-            "can read the session from it (data.depth_post_at moves every drape to one place)"
+            f"  LEAK: where the drape lies identifies the {noun} ({rule}"
+            "): the camera or post moved between sessions; a model of registered depth can read "
+            "the session from it (data.depth_post_at moves every drape to one place)"
         )
     else:
-        lines.append(f"  no leak found: position top-1 is not far above chance ({factor:g}x)")
+        ends = [(name, s.ci95[0]) for name, s in cues]
+        lines.append(f"  no leak found: {_rule(ends, p.chance, factor)}")
     if p.no_floor:
         lines.append(f"  {_no_floor(p)}, e.g. {p.no_floor[0]}")
     return lines

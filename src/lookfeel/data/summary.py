@@ -4,6 +4,7 @@ the demo).
 
 from __future__ import annotations
 
+import csv
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -77,6 +78,42 @@ def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
     return f"{what}; {n} fabrics with {kind} labels"
 
 
+def _has_split_column(path: Path) -> bool:
+    """Whether labels.csv's header (its first line) names a ``paper_split`` column."""
+    try:
+        with path.open(encoding="utf-8-sig", errors="replace", newline="") as f:
+            header = next(csv.reader(f), [])
+    except OSError:
+        return False
+    return "paper_split" in (h.strip() for h in header)
+
+
+def _paper_split_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
+    """The ``paper split`` row: how many fabrics each side of the paper split holds (labels.csv's
+    ``paper_split`` column, or GelFabric's built-in list as ``data info`` fills it in), or
+    ``none`` and why: then no fabric is held out as a test set, and a run validates on the
+    fabrics its ``train.split`` holds out."""
+    split = s["paper_split"]
+    assert isinstance(split, dict)
+    if split:
+        return ", ".join(f"{k} {v}" for k, v in split.items())
+    path = catalog.root / "labels.csv"
+    unread = any(p.path == path and p.line in (None, 1) for p in catalog.errors)
+    if not (path.exists() or path.is_symlink()):
+        why = "no labels.csv"
+    elif unread or not path.is_file():
+        why = "labels.csv cannot be read"
+    elif not _has_split_column(path):
+        why = "labels.csv has no paper_split column"
+    else:
+        why = "labels.csv's paper_split column marks no " + ("object" if named else "fabric")
+    things = "objects" if named else "fabrics"
+    return (
+        f"none ({why}): no {things[:-1]} is held out as a test set; a run validates on the "
+        f"{things} its train.split holds out"
+    )
+
+
 def format_summary(catalog: Catalog, shown: Sequence[Problem] = ()) -> str:
     """A dataset summary a person reads (``lookfeel data info``).
 
@@ -141,10 +178,7 @@ def format_summary(catalog: Catalog, shown: Sequence[Problem] = ()) -> str:
         )
     elif not named:
         rows.append(("clusters", "none (add a cluster8 column, or use k-means on labels)"))
-    split = s["paper_split"]
-    assert isinstance(split, dict)
-    if split:
-        rows.append(("paper split", ", ".join(f"{k} {v}" for k, v in split.items())))
+    rows.append(("paper split", _paper_split_line(catalog, s, bool(named))))
     held = s["labelled_without_images"]
     assert isinstance(held, list)
     held_names = s.get("labelled_without_images_names")
