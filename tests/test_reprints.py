@@ -103,6 +103,7 @@ def test_a_missing_reprint_is_one_line_naming_it(world: Path, tmp_path: Path, ca
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "_2_r2.png: missing" in err[0] and "--reprints 2" in err[0]
+    assert "its folder holds 1 " in err[0] and "data.color_reprints=1 or fewer" in err[0]
 
 
 def _weights(run: Path) -> dict[str, torch.Tensor]:

@@ -232,6 +232,10 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
 def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu") -> LoadedModel:
     """Rebuild the trained model from a checkpoint alone, in eval mode.
 
+    The model knows the size of the images it was trained on (``data.image_size``,
+    ``data.color_size``: `lookfeel.models.Embedder.input_sizes`) and refuses images of
+    another size; `lookfeel.index.query.load_query_image` reads a file at that size.
+
     Args:
         path: a checkpoint a run wrote (``RUN/checkpoints/best.pt`` or ``last.pt``).
         device: where the model runs: ``cpu``, ``cuda``, ``cuda:1``, a ``torch.device``, or
@@ -261,7 +265,12 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         raise CheckpointError(f"{path}: its config does not load: {e}") from None
     modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]
     model = create_model(
-        config.model, modalities, load_weights=False, touch_channels=config.data.touch_channels
+        config.model,
+        modalities,
+        load_weights=False,
+        touch_channels=config.data.touch_channels,
+        # Images of another size than trained on are refused (`Embedder.input_sizes`).
+        input_sizes={m: config.data.size_of(m) for m in modalities},
     )
     try:
         model.load_state_dict(state["model"])

@@ -472,6 +472,12 @@ def stack_views(images: Sequence[Any]) -> Any:
     return torch.stack([a if a.ndim == 4 else a.expand(v, *a.shape) for a in images])
 
 
+def _missing_frames(n: int, indices: Sequence[int]) -> int:
+    """How many of a press's frames ``indices`` (negative from the end) a press of ``n``
+    frames lacks: each is read as the nearest frame it has (`Item.frame`)."""
+    return sum(not 0 <= (i if i >= 0 else n + i) < n for i in indices)
+
+
 class ImageLoader:
     """Loads items as network-ready tensors, decoding and preprocessing each file once.
 
@@ -553,8 +559,18 @@ class ImageLoader:
                 "each press, and this file's name does not say its press: expected "
                 "F<id>_<kind>_<frame>_<press>.<ext> beside the press's other frames",
             )
+        indices = self.config.touch_frame_indices
+        missing = _missing_frames(len(frames), indices)
+        if missing and not self._said_short:
+            self._said_short = True
+            warnings.warn(
+                f"{path}: data.touch_frames reads frames {list(indices)} of each press, and "
+                f"this press has {len(frames)} frame{'' if len(frames) == 1 else 's'} in its "
+                f"folder: the nearest frame is read in place of each of the {missing} missing",
+                stacklevel=2,
+            )
         press = Item(Modality.TOUCH, 0, frames)
-        return tuple(press.frame(i) for i in self.config.touch_frame_indices)
+        return tuple(press.frame(i) for i in indices)
 
     def _preprocess_stack(self, path: Path) -> np.ndarray:
         """(S, S, 3F) uint8: the press's frames (``data.touch_frames``) preprocessed and
@@ -735,13 +751,15 @@ class ImageLoader:
     def _read_reprints(self, photo: Path) -> np.ndarray:
         n = self.config.color_reprints
         files = [reprint_path(photo, k) for k in range(1, n + 1)]
-        for f in files:
+        for have, f in enumerate(files):
             if not f.is_file():
+                fewer = f"{have} or fewer, as many as every photo has" if have else "0"
                 raise ImageError(
                     f,
                     f"missing: data.color_reprints = {n} reads {n} re-printed render"
-                    f"{'s' if n > 1 else ''} of {photo.name} (make the world with `lookfeel "
-                    f"synth --reprints {n}`, or train with --set data.color_reprints=0)",
+                    f"{'s' if n > 1 else ''} of {photo.name}, and its folder holds {have} "
+                    f"(make the world with `lookfeel synth --reprints {n}`, or train with "
+                    f"--set data.color_reprints={fewer})",
                 )
         # Read through `_preprocess_file`, not `array`: the renders are not kept twice.
         v = np.stack(

@@ -48,6 +48,7 @@ from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES, sniff_video
 from lookfeel.data.video import NoPressError
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality
+from lookfeel.models.backbone import ModelInputError
 
 __all__ = [
     "IMAGE_TYPES",
@@ -210,8 +211,11 @@ def load_query_image(
     and `lookfeel.index.Matcher.load` do).
 
     Returns:
-        (1, S, S) for depth, (3, S, S) for colour and touch, float32 in [0, 1]; for a press
-        video with ``data.video_embed: views``, its (V, 3, S, S) views.
+        Float32 in [0, 1], S the side the model was trained on (``config.size_of(modality)``):
+        (1, S, S) for depth, (3, S, S) for colour, (C, S, S) for touch with C =
+        ``config.touch_channels``: 3, or 3 per frame where ``data.touch_frames`` reads
+        several frames of a press together (9 for the default synthetic recipe's 3 frames);
+        for a press video with ``data.video_embed: views``, its (V, C, S, S) views.
 
     Raises:
         ImageError: naming the file when it is missing, not a regular file, not a PNG or
@@ -312,15 +316,47 @@ def _video_bytes(data: bytes, name: str, config: DataConfig) -> torch.Tensor:
 
 
 def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> torch.Tensor:
-    """Stack preprocessed images into the model's input for one modality.
+    """Stack preprocessed images (`load_query_image`'s) into the model's input for one
+    modality.
 
     Depth and colour images are separate queries: (N, C, S, S). Touch images are the presses
-    of one query, pooled by the Multi-input Net: (1, P, 3, S, S), or (1, P, V, 3, S, S) when
-    presses come as V views each (a single image among them counts as every view).
+    of one query, pooled by the Multi-input Net: (1, P, C, S, S), or (1, P, V, C, S, S) when
+    presses come as V views each (a single image among them counts as every view); C is 3,
+    or 3 per frame with ``data.touch_frames`` (`lookfeel.config.DataConfig.touch_channels`:
+    9 for the default synthetic recipe).
+
+    Raises:
+        ModelInputError: no image given, an image that is not a (C, S, S) or (V, C, S, S)
+            tensor, or images of different shapes (or numbers of views), naming the first
+            that differs.
+        ModalityError: ``modality`` names no modality.
     """
+    modality = Modality.of(modality)
+    images = list(images)
     if not images:
-        raise ValueError("a query needs at least one image")
-    x = stack_views(list(images))
-    if Modality.of(modality) is Modality.TOUCH:
-        return x.unsqueeze(0)  # (P, 3, S, S) -> (1, P, 3, S, S)
+        raise ModelInputError("query_batch: no image given: a query needs at least one image")
+    for i, a in enumerate(images):
+        if not isinstance(a, torch.Tensor) or a.dim() not in (3, 4):
+            what = tuple(a.shape) if isinstance(a, torch.Tensor) else type(a).__name__
+            raise ModelInputError(
+                f"query_batch: image {i} is {what}; expected a (C, S, S) tensor (or "
+                "(V, C, S, S) views of a press), as load_query_image returns"
+            )
+    first = images[0]
+    for i, a in enumerate(images[1:], 1):
+        if a.shape[-3:] != first.shape[-3:]:
+            raise ModelInputError(
+                f"query_batch: image {i} is {tuple(a.shape)} and image 0 {tuple(first.shape)}: "
+                "every image of a query must have one shape; load_query_image reads each file "
+                "at the model's size"
+            )
+    views = {len(a) for a in images if a.dim() == 4}
+    if len(views) > 1:
+        raise ModelInputError(
+            f"query_batch: presses with different numbers of views {sorted(views)}: a query's "
+            "press videos must be read with one data.video_views"
+        )
+    x = stack_views(images)
+    if modality is Modality.TOUCH:
+        return x.unsqueeze(0)  # (P, C, S, S) -> (1, P, C, S, S)
     return x.contiguous(memory_format=torch.channels_last)

@@ -21,9 +21,19 @@ from lookfeel.models.branch import Branch, BranchEnsemble
 from lookfeel.models.pretrained import apply_state_dict, read_state_dict
 from lookfeel.models.registry import create_backbone
 
-__all__ = ["Embedder", "create_model", "head_key"]
+__all__ = ["Embedder", "SlotError", "create_model", "head_key"]
 
 _CHANNELS = {Modality.DEPTH: 1, Modality.COLOR: 3, Modality.TOUCH: 3}
+
+
+class SlotError(ModelInputError, KeyError):
+    """An input slot the model cannot embed: its name names no modality (``"colour"``), or
+    the model has no branch of its modality; the message names the slot and the branches
+    there are. Also a ``KeyError``, as `Embedder.branch` raised before, but ``str(e)`` is the
+    plain line (a ``KeyError``'s quotes its message)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
 
 
 def head_key(slot: str, head: str) -> str:
@@ -37,16 +47,26 @@ class Embedder(nn.Module):
     Attributes:
         branches: ``nn.ModuleDict`` keyed by modality value (``"depth"``, ``"touch"``).
         config: the `ModelConfig` it was built from, when built by `create_model`.
+        input_sizes: modality value -> the side in pixels of the square images the model was
+            trained on (``DataConfig.size_of``), for the modalities whose size is known: a
+            model loaded from a checkpoint (`lookfeel.checkpoint.load_model`) knows them all
+            and refuses an image of another size, which it would embed far from where the
+            same image at its size lies. Empty (nothing checked) for a model built for
+            training; clear it to embed other sizes on purpose.
     """
 
     def __init__(
-        self, branches: Mapping[Modality, Branch], config: ModelConfig | None = None
+        self,
+        branches: Mapping[Modality, Branch],
+        config: ModelConfig | None = None,
+        input_sizes: Mapping[Modality | str, int] | None = None,
     ) -> None:
         """Assemble branches.
 
         Args:
             branches: modality -> its branch; all must share one embedding size.
             config: kept for checkpoints (a checkpoint alone rebuilds the model).
+            input_sizes: modality -> the side of the images it was trained on (`input_sizes`).
         """
         super().__init__()
         if not branches:
@@ -56,6 +76,9 @@ class Embedder(nn.Module):
             raise ValueError(f"all branches must share one embedding size, got {sorted(dims)}")
         self.branches = nn.ModuleDict({Modality(m).value: b for m, b in branches.items()})
         self.config = config
+        self.input_sizes: dict[str, int] = {
+            Modality.of(m).value: int(s) for m, s in (input_sizes or {}).items()
+        }
 
     @property
     def modalities(self) -> tuple[Modality, ...]:
@@ -79,15 +102,21 @@ class Embedder(nn.Module):
         """The branch that embeds ``slot`` (``"depth.1"`` -> the depth branch).
 
         Raises:
-            KeyError: naming the slot, when no branch embeds its modality.
+            SlotError: naming the slot, when it names no modality or no branch embeds its
+                modality (a `ModelInputError`, and a ``KeyError``).
         """
+        name = str(slot)
+        have = ", ".join(self.branches)
         try:
-            m = slot_modality(slot)
+            m = slot_modality(name)
         except ValueError:
-            raise KeyError(f"slot {slot!r} names no modality") from None
+            valid = ", ".join(m.value for m in Modality)
+            raise SlotError(
+                f"slot {name!r} names no modality: expected {valid} (or a second slot of one, "
+                f"'depth.1'); this model has {have}"
+            ) from None
         if m.value not in self.branches:
-            have = ", ".join(self.branches)
-            raise KeyError(f"slot {slot!r}: this model has no {m.value} branch (it has: {have})")
+            raise SlotError(f"slot {name!r}: this model has no {m.value} branch (it has: {have})")
         b = self.branches[m.value]
         assert isinstance(b, Branch)
         return b
@@ -96,23 +125,54 @@ class Embedder(nn.Module):
         """Parameters that train (frozen trunks and unused ImageNet classifiers excluded)."""
         return [p for p in self.parameters() if p.requires_grad]
 
+    def _inputs(self, inputs: object) -> Mapping[str, Tensor]:
+        """``inputs`` when it is a mapping of slots, else a `ModelInputError` saying so."""
+        if isinstance(inputs, Mapping):
+            return inputs
+        have = ", ".join(self.branches)
+        raise ModelInputError(
+            f"the model takes a dict of slot -> images ({{{next(iter(self.branches))!r}: x}}; "
+            f"its slots: {have}), got a {type(inputs).__name__}"
+        )
+
     def _check(self, slot: str, x: Tensor, views: bool = True) -> None:
+        name = str(slot)
         if not isinstance(x, Tensor):
             raise ModelInputError(
-                f"slot {slot!r}: expected a torch.Tensor, got {type(x).__name__}"
+                f"slot {name!r}: expected a torch.Tensor, got {type(x).__name__}"
                 + (" (torch.from_numpy(a) makes one)" if type(x).__module__ == "numpy" else "")
             )
-        b = self.branch(slot)
+        b = self.branch(name)
         m, c = b.modality, b.in_channels
+        got = tuple(x.shape)
         if m is Modality.TOUCH:
             if x.dim() not in ((5, 6) if views else (5,)) or x.shape[-3] != c:
-                raise ValueError(
-                    f"slot {slot!r}: touch input must be (B, P, {c}, H, W) with a press axis "
+                hint = ""
+                if x.dim() in (3, 4) and x.shape[-3] == c:
+                    hint = " (one press? x[:, None] adds the press axis)"
+                    if x.dim() == 3:
+                        hint = " (one press? x[None, None] adds the batch and press axes)"
+                elif x.dim() in (5, 6) and c > 3 and x.shape[-3] == 3:
+                    hint = (
+                        f" (this model reads {c // 3} frames of each press stacked as channels, "
+                        "data.touch_frames: load_query_image reads a frame with the others)"
+                    )
+                raise ModelInputError(
+                    f"slot {name!r}: touch input must be (B, P, {c}, H, W) with a press axis "
                     f"(P = 1 for one press), or (B, P, V, {c}, H, W) with V views of each "
-                    f"press, got {tuple(x.shape)}"
+                    f"press, got {got}{hint}"
                 )
         elif x.dim() != 4 or x.shape[1] != c:
-            raise ValueError(f"slot {slot!r}: expected (B, {c}, H, W), got {tuple(x.shape)}")
+            hint = " (one image? x[None] adds the batch axis)" if got[:1] == (c,) else ""
+            raise ModelInputError(f"slot {name!r}: expected (B, {c}, H, W), got {got}{hint}")
+        side = self.input_sizes.get(m.value)
+        if side is not None and tuple(x.shape[-2:]) != (side, side):
+            h, w = x.shape[-2:]
+            raise ModelInputError(
+                f"slot {name!r}: this model was trained on {m.value} images of {side}x{side} "
+                f"pixels, got {h}x{w}; lookfeel.index.query.load_query_image(path, "
+                f"{m.value!r}, loaded.config.data) resizes an image to it for you"
+            )
 
     def _per_branch(
         self, inputs: Mapping[str, Tensor], fn: Callable[[Branch, Tensor], Tensor]
@@ -144,7 +204,11 @@ class Embedder(nn.Module):
 
         Returns:
             slot -> (B, *F), or (B, P, *F) for touch; feed back with ``from_trunk=True``.
+
+        Raises:
+            ModelInputError: as `forward`.
         """
+        inputs = self._inputs(inputs)
         for slot, x in inputs.items():
             self._check(slot, x, views=False)
         return self._per_branch(inputs, lambda b, x: b.trunk(x))
@@ -156,8 +220,13 @@ class Embedder(nn.Module):
 
         Args:
             inputs: slot -> images in [0, 1]: depth (B, 1, H, W), colour (B, 3, H, W), touch
-                (B, P, 3, H, W) with any P >= 1, or (B, P, V, 3, H, W) with V views of each
-                press (averaged; `Branch.forward`). With ``from_trunk``, slot -> `trunk` output.
+                (B, P, C, H, W) with any P >= 1, or (B, P, V, C, H, W) with V views of each
+                press (averaged; `Branch.forward`). C is 3, or 3 per frame of a press read
+                together (``data.touch_frames``, as the default synthetic recipe reads 3
+                frames: C = 9; `lookfeel.config.DataConfig.touch_channels`,
+                ``model.branch("touch").in_channels``). H = W = the side the model was trained
+                on, where it knows it (`input_sizes`). With ``from_trunk``, slot -> `trunk`
+                output.
             from_trunk: inputs are (cached) trunk features; only the trainable part runs.
             heads: also return the auxiliary heads' outputs, under ``head_key(slot, "cluster")``
                 ((B, K) logits) and ``head_key(slot, "property")`` ((B, Q)), for the heads the
@@ -165,7 +234,14 @@ class Embedder(nn.Module):
 
         Returns:
             slot -> (B, D) embedding, in the order of ``inputs`` (plus head outputs if asked).
+
+        Raises:
+            ModelInputError: ``inputs`` is not a dict; an image batch of the wrong type, shape
+                or (on the CPU) values; or of another size than the model was trained on
+                (`input_sizes`).
+            SlotError: a slot names no modality, or one the model has no branch for.
         """
+        inputs = self._inputs(inputs)
         if not from_trunk:
             for slot, x in inputs.items():
                 self._check(slot, x)
@@ -185,6 +261,7 @@ def create_model(
     *,
     load_weights: bool = True,
     touch_channels: int = 3,
+    input_sizes: Mapping[Modality | str, int] | None = None,
 ) -> Embedder:
     """Build the joint model: one branch per modality (paper section 4.1, Figure 4).
 
@@ -200,6 +277,9 @@ def create_model(
             checkpoint's state dict will be loaded next (the weights file need not exist then).
         touch_channels: channels of a touch input: 3, or 3 per frame of a press read
             together (`DataConfig.touch_channels`).
+        input_sizes: modality -> the side of the images it was trained on
+            (`Embedder.input_sizes`: images of another size are refused); none checked when
+            not given.
 
     Returns:
         The `Embedder`.
@@ -222,7 +302,7 @@ def create_model(
         channels = touch_channels if m is Modality.TOUCH else _CHANNELS[m]
         members = [_branch(config, m, channels, freeze, state) for _ in range(config.members)]
         branches[m] = members[0] if len(members) == 1 else BranchEnsemble(members)
-    return Embedder(branches, config)
+    return Embedder(branches, config, input_sizes)
 
 
 def _random_frozen_layers(config: ModelConfig, freeze: str) -> str:
