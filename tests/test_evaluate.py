@@ -1133,3 +1133,35 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     assert "one item of its own object and one of each of 9 other objects drawn" in pick
     assert "| queries / objects |" in pick and "fabric" not in pick
     assert "| test objects | 12: thing1, " in report
+
+
+def test_the_press_curve_note_counts_the_presses_of_the_kinds_evaluated():
+    """QA: a rig with 2 flat and 2 fold presses a fabric, evaluated on its fold presses (the
+    run's data.touch_kinds), was told "no fabric has 3 touch presses" although each has 4: the
+    note names the kind it counted and the most a fabric has."""
+    from lookfeel.config import DataConfig
+    from lookfeel.data import Item
+
+    embedded, _ = _world(per={D: 3, T: 2}, noise=0.1)
+    touch = embedded[T]
+    folds = tuple(
+        Item(T, int(f), (Path(f"touch/F{int(f):04d}_fold_{i}.mp4"),), PressKind.FOLD, str(i))
+        for i, f in enumerate(touch.fabric_ids)
+    )
+    kinded = {**embedded, T: dataclasses.replace(touch, items=folds)}
+    r = evaluate_embeddings(kinded, FAST, data_config=DataConfig())
+    said = [n for n in r.notes if "press curve" in n]
+    assert said == [
+        "no fabric has 3 fold touch presses (the kind evaluated: the run's data.touch_kinds; "
+        "2 at most): the press curve stops before 3"
+    ]
+    # Presses of no stated kind (an embeddings file read without its dataset): counted as such.
+    plain = evaluate_embeddings(embedded, FAST)
+    assert [n for n in plain.notes if "press curve" in n] == [
+        "no fabric has 3 touch presses (2 at most): the press curve stops before 3"
+    ]
+    pooled = evaluate_embeddings(kinded, dataclasses.replace(FAST, presses=3))
+    assert any(
+        n.startswith("no fabric has 3 fold touch presses (the kind evaluated; 2 at most) to pool")
+        for n in pooled.notes
+    )

@@ -12,7 +12,7 @@ import torch
 
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig, load_config
-from lookfeel.modality import Modality, ModalityError
+from lookfeel.modality import Modality, ModalityError, PressKind
 from lookfeel.predict import PredictError, predict_files
 from lookfeel.train import train
 
@@ -256,3 +256,46 @@ def test_a_column_of_ranks_without_a_class_head_is_answered_as_its_nearest_rank(
     assert isinstance(stiff.number, float) and stiff.probability is None
     assert stiff.value == min(range(5), key=lambda r: (abs(r - stiff.number), r))
     assert isinstance(thick.value, float) and thick.number is None
+
+
+def test_a_press_of_a_kind_the_model_was_not_trained_on_is_warned_of_once(
+    run, heads: LoadedModel, tmp_path_factory: pytest.TempPathFactory
+):
+    """QA: a flat press given to `predict` and `match` with a model (and library) trained on
+    fold presses only was answered without a word. One line, naming the first such press and
+    counting the rest; presses of the trained kind, or whose name says no kind, are not."""
+    import warnings
+
+    from lookfeel.index import Library, Matcher
+    from lookfeel.index.match import press_kind
+
+    from ._library import tiny_library
+
+    data, _ = run
+    flat = [data / "touch" / f"F000{f}_flat_02_{100 * f}.png" for f in (1, 2, 3)]
+    fold = data / "touch" / "F0001_fold_02_100.png"
+    assert [press_kind(p) for p in (flat[0], fold, "press.mp4", "x/image_flat/a.png")] == [
+        PressKind.FLAT,
+        PressKind.FOLD,
+        None,
+        PressKind.FLAT,
+    ]
+    said = (
+        f"{flat[0]} (and 2 other such presses): a flat press, but the model was trained on fold "
+        "presses only (its data.touch_kinds), so it may answer a flat press less well"
+    )
+    with pytest.warns(UserWarning) as caught:
+        predict_files(heads, flat, "touch")
+    assert [str(w.message) for w in caught if "trained on fold" in str(w.message)] == [said]
+    matcher = Matcher(Library.open(tiny_library(tmp_path_factory, "kinds", 64)))
+    with pytest.warns(UserWarning) as caught:
+        matcher.match_files(flat[:1], "touch")
+    assert [str(w.message) for w in caught if "trained on fold" in str(w.message)] == [
+        f"{flat[0]}: a flat press, but the library's model was trained on fold presses only "
+        "(its data.touch_kinds), so it may answer a flat press less well"
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
+        predict_files(heads, [fold], "touch")
+        matcher.match_files([fold], "touch")

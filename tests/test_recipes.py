@@ -13,7 +13,7 @@ from lookfeel.cli._args import run_config_source
 from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config.recipes import default_recipe, recipe_path
 from lookfeel.data import ImageLoader, scan
-from lookfeel.modality import Modality
+from lookfeel.modality import Modality, PressKind
 from lookfeel.train import select_split
 
 from ._tiny import write_tiny_dataset
@@ -275,25 +275,208 @@ def test_train_says_a_damaged_sense_in_one_line(tiny_dataset: Path, tmp_path: Pa
     assert "move depth/ aside to train without depth" in refused[0]
 
 
-def test_train_warns_of_depth_outside_the_mapped_range_as_data_check_does(
-    tiny_dataset: Path, tmp_path: Path
-):
+def _far(data: Path, mm: int = 2000) -> None:
+    """Every depth map of ``data`` moved ``mm`` further from the camera (its holes kept)."""
     import numpy as np
     from PIL import Image
 
-    from lookfeel.data import check_dataset
+    for png in (data / "depth").glob("*.png"):
+        d = np.asarray(Image.open(png)).astype(np.uint16)
+        Image.fromarray(np.where(d > 0, d + mm, 0).astype(np.uint16)).save(png)
 
-    for png in (tiny_dataset / "depth").glob("*.png"):
-        far = np.asarray(Image.open(png)).astype(np.uint16) + 2000  # ~3 m: past 800-1300 mm
-        Image.fromarray(far).save(png)
-    checked = [p for p in check_dataset(tiny_dataset).warnings if "valid depth pixels" in p.message]
-    assert len(checked) == 1
+
+def _valid_depth(data: Path):
+    import numpy as np
+    from PIL import Image
+
+    maps = [np.asarray(Image.open(p)) for p in sorted((data / "depth").glob("*.png"))]
+    return np.concatenate([m[m > 0] for m in maps])
+
+
+def test_the_chooser_maps_raw_depth_from_a_range_that_holds_it(tiny_dataset: Path, capsys):
+    """QA: a rig's depth from another camera pose (median 1,644 mm) was mapped from the
+    default 800-1,300 mm and trained as a constant image. The chooser maps raw depth from the
+    2nd-98th percentile of a sample of the valid pixels, rounded to 10 mm, and says so; depth
+    the default range holds, or a range the user sets, is left as it is."""
+    import numpy as np
+
+    path, overrides = run_config_source(_args(tiny_dataset))  # 940-1,160 mm: the default
+    assert "depth maps' valid pixels" not in capsys.readouterr().err
+    assert not [o for o in overrides if o.startswith("data.depth_")]
+
+    _far(tiny_dataset)  # ~3 m: past 800-1,300 mm
+    path, overrides = run_config_source(_args(tiny_dataset))
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    c = load_config(RunConfig, path, overrides).data
+    lo, hi = np.percentile(_valid_depth(tiny_dataset), [2, 98])
+    assert c.depth_min_mm % 10 == 0 and c.depth_range_mm % 10 == 0
+    assert c.depth_min_mm <= lo < c.depth_min_mm + 10
+    assert hi <= c.depth_min_mm + c.depth_range_mm < hi + 10
+    low, high = int(c.depth_min_mm), int(c.depth_min_mm + c.depth_range_mm)
+    assert (
+        "0% of the depth maps' valid pixels lie inside the recipe's 800-1,300 mm (their median: "
+        in err
+    )
+    assert (
+        f"raw depth mapped from their 2nd-98th percentile, {low:,}-{high:,} mm "
+        f"(data.depth_min_mm={low}, data.depth_range_mm={high - low})" in err
+    )
+    # The user's own range (or either half of it) is theirs.
+    path, overrides = run_config_source(_args(tiny_dataset, sets=("data.depth_min_mm=5000",)))
+    assert "depth_min_mm=" not in capsys.readouterr().err
+    assert load_config(RunConfig, path, overrides).data.depth_range_mm == 500
+    # Registered depth is not mapped from a range: nothing fitted.
+    path, overrides = run_config_source(_args(tiny_dataset, sets=("data.depth_input=registered",)))
+    assert "depth_min_mm" not in capsys.readouterr().err
+
+
+def test_real_and_synthetic_depth_keep_the_default_range(real_data: Path, tmp_path: Path):
+    """GelFabric's Kinect depth (medians 999-1,089 mm: 77% inside 800-1,300 mm) and a
+    synthetic world's keep the recipe's range, whichever recipe reads them raw."""
+    from lookfeel.config.recipes import fit_dataset
+    from lookfeel.synth import SIZE_PRESETS, SynthConfig, generate
+
+    world = tmp_path / "world"
+    tiny = SynthConfig(
+        fabrics=2, drapes=2, presses_flat=1, presses_fold=1, workers=1, **SIZE_PRESETS["tiny"]
+    )
+    generate(tiny, world, progress=False)
+    for data in (real_data, world):
+        recipe = default_recipe({D, T}, data)  # synth_cross.yaml: raw depth
+        fitted = fit_dataset(recipe, scan(data, check_headers=False))
+        assert not [o for o in fitted.overrides if o.startswith("data.depth_")], data
+        assert "depth maps' valid pixels" not in fitted.reason
+
+
+def test_train_warns_of_depth_outside_the_range_the_run_maps_it_from(
+    tiny_dataset: Path, tmp_path: Path
+):
+    """The warning before a run checks the run's own range (a user's, too), in train's words,
+    and names a range that holds the depth; a chosen recipe's fitted range is not warned of."""
+    _far(tiny_dataset)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _, saved = _train_quickly(tiny_dataset, tmp_path / "fitted")
+    assert saved["data"]["depth_min_mm"] > 2000
+    assert not [w for w in caught if "valid depth pixels" in str(w.message)]
+
     with pytest.warns(UserWarning) as caught:
-        _train_quickly(tiny_dataset, tmp_path / "run")
+        _train_quickly(tiny_dataset, tmp_path / "yours", "data.depth_min_mm=5000")
     said = [str(w.message) for w in caught if "valid depth pixels" in str(w.message)]
-    assert said == [str(checked[0])]
-    # A run that maps its own range is not warned by the check's defaults.
+    assert len(said) == 1 and len(said[0].splitlines()) == 1
+    assert (
+        "only 0% of the valid depth pixels (a sample of 18 depth maps) lie between 5,000 and "
+        in (said[0])
+    )
+    assert (
+        "5,500 mm, the range this run maps raw depth from to 0..1 (data.depth_min_mm 5000, "
+        in (said[0])
+    )
+    assert "reads no run config" not in said[0] and "the defaults" not in said[0]
+    assert f"set data.depth_min_mm={saved['data']['depth_min_mm']:g} and " in said[0]
+    # A run whose own range holds the depth is not warned.
     with warnings.catch_warnings(record=True) as caught2:
         warnings.simplefilter("always")
         _train_quickly(tiny_dataset, tmp_path / "own", "data.depth_min_mm=2800")
     assert not [w for w in caught2 if "valid depth pixels" in str(w.message)]
+
+
+def test_the_chooser_trains_on_the_press_kinds_the_data_holds(tmp_path: Path, capsys):
+    """QA: with flat presses only, `lookfeel train` failed "fabric 1 has no touch (fold
+    presses) item" (the default data.touch_kinds); with both kinds, half the presses went
+    unused without a word."""
+    flat = write_tiny_dataset(tmp_path / "flat", 4, drapes=1, fold_presses=0, flat_presses=2)
+    path, overrides = run_config_source(_args(flat))
+    err = capsys.readouterr().err
+    assert (
+        "touch: 8 flat presses, no fold press (the recipe's data.touch_kinds): trains on those "
+        "(data.touch_kinds=[flat])" in err
+    )
+    assert load_config(RunConfig, path, overrides).data.touch_kinds == (PressKind.FLAT,)
+    _, saved = _train_quickly(flat, tmp_path / "run")
+    assert saved["data"]["touch_kinds"] == ["flat"]
+
+    both = write_tiny_dataset(tmp_path / "both", 4, drapes=1, fold_presses=2, flat_presses=1)
+    path, overrides = run_config_source(_args(both))
+    err = capsys.readouterr().err
+    assert (
+        "trains on the 8 fold presses (the recipe's data.touch_kinds); 4 flat presses left out: "
+        "--set 'data.touch_kinds=[flat,fold]' to use them" in err
+    )
+    assert load_config(RunConfig, path, overrides).data.touch_kinds == (PressKind.FOLD,)
+    path, overrides = run_config_source(_args(both, sets=("data.touch_kinds=[flat,fold]",)))
+    assert "presses" not in capsys.readouterr().err
+    assert set(load_config(RunConfig, path, overrides).data.touch_kinds) == {
+        PressKind.FLAT,
+        PressKind.FOLD,
+    }
+    # A fabric without a press of the recipe's kind: every kind.
+    for press in (both / "touch").glob("F0002_fold_*"):
+        press.unlink()
+    path, overrides = run_config_source(_args(both))
+    assert (
+        "F0002 has no fold press (the recipe's data.touch_kinds): trains on the 4 flat and 6 "
+        "fold presses (data.touch_kinds=[flat,fold])" in capsys.readouterr().err
+    )
+    # Presses of no stated kind (an object's videos/<object>_<n>.mov) are of every kind.
+    from ._tiny import write_recordings
+
+    labels = "object,hardness\nsponge,0\ncork,1\n"
+    videos = write_recordings(tmp_path / "videos", {"sponge": 2, "cork": 2}, labels)
+    path, overrides = run_config_source(_args(videos))
+    assert "touch_kinds" not in capsys.readouterr().err
+    assert not [o for o in overrides if "touch_kinds" in o]
+
+
+def _with_words(data: Path, **columns: list[str]) -> None:
+    """labels.csv of ``data`` with columns of words added, one value a fabric in order."""
+    lines = (data / "labels.csv").read_text().splitlines()
+    names = ",".join(columns)
+    rows = [",".join(v[i] for v in columns.values()) for i in range(len(lines) - 1)]
+    text = [f"{lines[0]},{names}", *(f"{a},{b}" for a, b in zip(lines[1:], rows, strict=True))]
+    (data / "labels.csv").write_text("\n".join(text) + "\n")
+
+
+def test_the_chooser_adds_class_heads_for_columns_of_words(tmp_path: Path, capsys):
+    """QA: the cross-modal recipe left labels.csv's material unused (no class head), so
+    `lookfeel match` answered a material from the library's neighbours while `lookfeel
+    predict` on the same checkpoint answered none. The chooser adds a head for each column of
+    words it can learn, and says why it leaves one out."""
+    from lookfeel.predict import predict_files
+
+    data = write_tiny_dataset(tmp_path / "words", 6, drapes=1, fold_presses=2, flat_presses=0)
+    _with_words(
+        data,
+        material=["wool", "wool", "cotton", "cotton", "silk", "felt"],
+        note=[f"drape {i}" for i in range(6)],
+        maker=["acme", "acme", "acme", "acme", "bolt", "coil"],
+    )
+    path, overrides = run_config_source(_args(data))
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    assert (
+        'class heads for labels.csv\'s words: material (model.class_heads=["material"]), so '
+        "that `lookfeel predict` answers them as `lookfeel match` does" in err
+    )
+    assert (
+        "no class head for labels.csv's note: every fabric has its own word (descriptions, not "
+        "classes)" in err
+    )
+    assert (
+        "no class head for labels.csv's maker: only 1 of its 3 classes is held by 2 fabrics or "
+        "more, too few to learn" in err
+    )
+    assert load_config(RunConfig, path, overrides).model.class_heads == ("material",)
+    out = tmp_path / "run"
+    _, saved = _train_quickly(data, out)
+    assert saved["model"]["classes"] == {"material": ["cotton", "felt", "silk", "wool"]}
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
+        [answer] = predict_files(out / "checkpoints" / "last.pt", data / "color" / "F0001_1.png")
+    assert answer.properties["material"].value in {"cotton", "felt", "silk", "wool"}
+    # The user's own heads (none, here) are theirs; a recipe with heads keeps its own.
+    capsys.readouterr()
+    path, overrides = run_config_source(_args(data, sets=("model.class_heads=[]",)))
+    assert "class head" not in capsys.readouterr().err
+    assert load_config(RunConfig, path, overrides).model.class_heads == ()

@@ -33,7 +33,7 @@ from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
-from lookfeel.index.match import check_touch_input, class_value
+from lookfeel.index.match import check_touch_input, class_value, warn_press_kinds
 from lookfeel.index.query import (
     QUERY_IMAGES,
     QueryFiles,
@@ -258,6 +258,7 @@ def predict_files(
     data = loaded.config.data
     touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
     check_touch_input(touch, loaded.touch_input, data)  # every file before any is decoded
+    warn_press_kinds(touch, data)
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []

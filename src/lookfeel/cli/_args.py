@@ -294,12 +294,14 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     """The config file and overrides of a training run: ``--config`` as given, or (without it)
     the shipped recipe for what ``--data`` holds (`lookfeel.config.recipes`), said on stderr.
 
-    A recipe chosen so is fitted to the folder's data (`fit_dataset`: touch videos, no
-    reprints/, fewer fabrics than its folds) and keeps only the class heads whose columns the
-    folder's labels.csv has (`fit_class_heads`: physiclear.yaml's hardness, roughness,
-    bumpiness and material on a dataset labelled with hardness and material alone trains
-    those two), unless ``--set`` names ``model.class_heads``. A ``--config`` the user named
-    is used as written, where a class head's missing column is an error.
+    A recipe chosen so is fitted to the folder's data (`fit_dataset`: touch videos, the press
+    kinds the data holds, no reprints/, depth outside the range raw depth is mapped from,
+    class heads for labels.csv's columns of words where the recipe has none, fewer fabrics
+    than its folds) and keeps only the class heads whose columns the folder's labels.csv has
+    (`fit_class_heads`: physiclear.yaml's hardness, roughness, bumpiness and material on a
+    dataset labelled with hardness and material alone trains those two); neither touches the
+    class heads when ``--set`` names ``model.class_heads``. A ``--config`` the user named is
+    used as written, where a class head's missing column is an error.
 
     Raises:
         ConfigError: no recipe fits the folder's senses.

@@ -94,11 +94,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-DEPTH_RANGE_SAMPLE = 200
-"""Depth maps decoded for the range warning before a run (evenly spaced over the dataset's):
-enough for the share of pixels inside the mapped range, a few seconds at most."""
-
-
 def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
     """What to say of ``data`` before a run of ``config`` trains on it, once (rank 0 under
     torchrun):
@@ -107,8 +102,9 @@ def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
       `lookfeel.config.recipes.unread_senses`): an error in one line where the run's
       ``train.views`` use it, else, where the recipe was ``chosen`` for what the folder holds
       (no --config), a warning that the run goes without it;
-    - depth that lies mostly outside the range raw depth is mapped from: ``lookfeel data
-      check``'s own warning, where the run maps depth by the defaults that check assumes.
+    - raw depth that lies mostly outside the range the run maps it from (its own
+      ``data.depth_min_mm`` and ``data.depth_range_mm``): a warning in one line with a range
+      that holds it (`_say_depth_range`).
 
     Raises:
         DatasetError: a sense the run uses has no readable file.
@@ -148,24 +144,32 @@ def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
 
 
 def _say_depth_range(config: RunConfig, catalog: Catalog) -> None:
-    """``lookfeel data check``'s warning of depth outside the mapped range
-    (`lookfeel.data.check`), from up to `DEPTH_RANGE_SAMPLE` of the depth maps, where the run
-    maps raw depth by the defaults the check assumes (a run that sets its own range, or uses
-    registered depth, is left to it)."""
-    from lookfeel.config import DataConfig
-    from lookfeel.data.check import decode_problem, range_problems
+    """Warn, in one line, where fewer than `lookfeel.data.check.MIN_IN_RANGE` of the valid
+    pixels of a sample of the depth maps (`lookfeel.config.recipes.depth_samples`) lie inside
+    the range this run maps raw depth from (``data.depth_min_mm`` to ``+ data.depth_range_mm``,
+    the defaults or the user's): the rest become 0 or 1, so the network sees an almost constant
+    image. The warning names the range that covers the sample's 2nd to 98th percentile (the
+    one a recipe chosen for the data maps from). Registered depth is left alone."""
+    from lookfeel.config.recipes import covering_depth_range, depth_in_range, depth_samples
+    from lookfeel.data.check import MIN_IN_RANGE
     from lookfeel.modality import Modality
 
-    c, default = config.data, DataConfig()
-    if (
-        Modality.DEPTH not in config.train.modalities
-        or c.depth_input != "raw"
-        or (c.depth_min_mm, c.depth_range_mm) != (default.depth_min_mm, default.depth_range_mm)
-    ):
+    c = config.data
+    if Modality.DEPTH not in config.train.modalities or c.depth_input != "raw":
         return
-    paths = [p for it in catalog.items(Modality.DEPTH) for p in it.frames]
-    step = -(-len(paths) // DEPTH_RANGE_SAMPLE) or 1
-    decoded = [decode_problem(p, Modality.DEPTH) for p in paths[::step]]
-    samples = [d.depth for d in decoded if d.depth is not None]
-    for problem in range_problems(catalog.root, samples):
-        warnings.warn(str(problem), stacklevel=3)
+    samples = depth_samples(catalog)
+    low, high = c.depth_min_mm, c.depth_min_mm + c.depth_range_mm
+    if not samples or (share := depth_in_range(samples, low, high)) >= MIN_IN_RANGE:
+        return
+    start, width, median = covering_depth_range(samples)
+    maps = f"{len(samples)} depth map{'s' if len(samples) != 1 else ''}"
+    warnings.warn(
+        f"{catalog.root / Modality.DEPTH.value}: only {share:.0%} of the valid depth pixels (a "
+        f"sample of {maps}) lie between {low:,.0f} and {high:,.0f} mm, the range this run maps "
+        f"raw depth from to 0..1 (data.depth_min_mm {low:g}, data.depth_range_mm "
+        f"{c.depth_range_mm:g}): the rest become 0 or 1, so the network sees an almost constant "
+        f"image; the depth maps' median is {median:,.0f} mm: set data.depth_min_mm={start} and "
+        f"data.depth_range_mm={width} (their 2nd-98th percentile) so the cloth lies inside "
+        "(data.depth_input: registered maps heights above the floor instead)",
+        stacklevel=3,
+    )

@@ -12,8 +12,10 @@ recipe for the data they are given:
 
 Colour photos alone have no shipped recipe: name one with ``--config``. A recipe chosen so is
 fitted to the dataset: it keeps only the class heads whose columns the dataset's labels.csv has
-(`fit_class_heads`), reads touch presses recorded as videos as physiclear.yaml does, and deals
-a small dataset's fabrics into its folds (`fit_dataset`).
+(`fit_class_heads`), and (`fit_dataset`) reads touch presses recorded as videos as
+physiclear.yaml does, trains on the press kinds the data holds, maps raw depth from a range
+that holds it, adds class heads for labels.csv's columns of words, and deals a small dataset's
+fabrics into its folds.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from importlib import resources
@@ -33,13 +36,24 @@ from lookfeel.config._core import ConfigError, apply_overrides
 from lookfeel.modality import REPRINTS, Modality
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from lookfeel.data.catalog import Catalog
     from lookfeel.data.problems import Problem
 
+DEPTH_RANGE_SAMPLE = 200
+"""Depth maps decoded (evenly spaced over the dataset's) to tell how much of the depth lies
+inside the range raw depth is mapped from (`depth_samples`): enough for that share and the
+percentiles, well under a second on GelFabric."""
+
 __all__ = [
+    "DEPTH_RANGE_SAMPLE",
     "Recipe",
     "UnreadSense",
+    "covering_depth_range",
     "default_recipe",
+    "depth_in_range",
+    "depth_samples",
     "fit_class_heads",
     "fit_dataset",
     "recipe_path",
@@ -289,6 +303,162 @@ def _fit_reprints(catalog: Catalog, wants: int) -> tuple[list[str], list[str]]:
     return [setting], [said]
 
 
+def _presses(counts: Counter[str], kinds: Sequence[str]) -> str:
+    """``20 fold presses``, ``20 flat and 4 rand presses``."""
+    return " and ".join(f"{counts[k]} {k}" for k in kinds) + " presses"
+
+
+def _fit_touch_kinds(catalog: Catalog, kinds: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The ``data.touch_kinds`` override (and what to say of it) for a recipe that trains on
+    the touch presses of ``kinds`` (its own, or `DataConfig`'s fold): where no press of the
+    dataset is of them (only flat presses), or some fabric has presses of other kinds only,
+    every kind the dataset holds; where the dataset holds other kinds beside them, the recipe's
+    kinds kept, saying how many presses are left out and how to use them. Presses of no stated
+    kind (an object's video in ``videos/``) are of every kind: nothing to fit."""
+    counts = Counter(it.kind.value for it in catalog.items(Modality.TOUCH) if it.kind is not None)
+    want = set(kinds)
+    held = sorted(counts)
+    if not held or want.issuperset(held):
+        return [], []
+    used = [k for k in held if k in want]
+    others = [k for k in held if k not in want]
+    theirs = "/".join(kinds)
+    every = f"data.touch_kinds=[{','.join(held)}]"
+    if not used:
+        return [every], [
+            f"touch: {_presses(counts, held)}, no {theirs} press (the recipe's "
+            f"data.touch_kinds): trains on those ({every})"
+        ]
+    lacking = [
+        f
+        for f in catalog.fabrics
+        if (its := f.items.get(Modality.TOUCH, ()))
+        and all(it.kind is not None and it.kind.value not in want for it in its)
+    ]
+    if lacking:
+        n = len(lacking) - 1
+        nor = f"; nor have {n} other{'s' if n > 1 else ''}" if n else ""
+        return [every], [
+            f"{lacking[0].display_name} has no {theirs} press (the recipe's data.touch_kinds"
+            f"{nor}): trains on the {_presses(counts, held)} ({every})"
+        ]
+    return [], [
+        f"trains on the {_presses(counts, used)} (the recipe's data.touch_kinds); "
+        f"{_presses(counts, others)} left out: --set '{every}' to use them"
+    ]
+
+
+def depth_samples(
+    catalog: Catalog, most: int = DEPTH_RANGE_SAMPLE
+) -> list[tuple[int, int, np.ndarray]]:
+    """Samples of the valid pixels of up to ``most`` of ``catalog``'s depth maps, evenly spaced
+    over them, as ``lookfeel data check`` samples each (`lookfeel.data.check.decode_problem`:
+    pixels inside the default range, valid pixels, about 2,000 of them); maps with no valid
+    pixel, or whose values do not read as millimetres, are left out (``data check`` warns of
+    them)."""
+    from lookfeel.data.check import decode_problem
+
+    paths = [p for it in catalog.items(Modality.DEPTH) for p in it.frames]
+    step = -(-len(paths) // most) or 1
+    decoded = [decode_problem(p, Modality.DEPTH) for p in paths[::step]]
+    return [d.depth for d in decoded if d.depth is not None]
+
+
+def depth_in_range(
+    samples: Sequence[tuple[int, int, np.ndarray]], low: float, high: float
+) -> float:
+    """The share of the valid pixels of the maps ``samples`` (`depth_samples`) that lie within
+    ``low``..``high`` mm: each map's sampled share, weighted by its valid pixels; 1 when there
+    are none."""
+    import numpy as np
+
+    total = sum(s[1] for s in samples)
+    if not total:
+        return 1.0
+    inside = sum(
+        s[1] * float(np.mean((s[2] >= low) & (s[2] <= high))) for s in samples if s[2].size
+    )
+    return inside / total
+
+
+def covering_depth_range(
+    samples: Sequence[tuple[int, int, np.ndarray]],
+) -> tuple[int, int, float]:
+    """(data.depth_min_mm, data.depth_range_mm, median) that cover the 2nd to 98th percentile
+    of the sampled valid depth pixels (`depth_samples`), rounded outward to 10 mm."""
+    import math
+
+    import numpy as np
+
+    low, mid, high = np.percentile(np.concatenate([s[2] for s in samples]), [2, 50, 98])
+    start = 10 * math.floor(float(low) / 10)
+    return start, max(10, 10 * math.ceil(float(high) / 10) - start), float(mid)
+
+
+def _fit_depth_range(catalog: Catalog, low: float, span: float) -> tuple[list[str], list[str]]:
+    """The ``data.depth_min_mm`` and ``data.depth_range_mm`` overrides (and what to say of
+    them) for a recipe that maps raw depth from ``low`` to ``low + span`` mm: none where at
+    least `lookfeel.data.check.MIN_IN_RANGE` of a sample of the valid pixels lies inside
+    (GelFabric: 77%); else the range covering their 2nd to 98th percentile (depth from another
+    camera pose, 1.6 m away, which the default range would read as a constant image)."""
+    from lookfeel.data.check import MIN_IN_RANGE
+
+    samples = depth_samples(catalog)
+    if not samples:
+        return [], []
+    share = depth_in_range(samples, low, low + span)
+    if share >= MIN_IN_RANGE:
+        return [], []
+    start, width, median = covering_depth_range(samples)
+    settings = [f"data.depth_min_mm={start}", f"data.depth_range_mm={width}"]
+    return settings, [
+        f"{share:.0%} of the depth maps' valid pixels lie inside the recipe's {low:,.0f}-"
+        f"{low + span:,.0f} mm (their median: {median:,.0f} mm): raw depth mapped from their "
+        f"2nd-98th percentile, {start:,}-{start + width:,} mm "
+        f"({', '.join(settings)})"
+    ]
+
+
+def _fit_text_heads(catalog: Catalog) -> tuple[list[str], list[str]]:
+    """The ``model.class_heads`` override (and what to say of it) for a recipe with no class
+    head, on a dataset whose labels.csv has columns of words (``material``): a head for each
+    column that has something to learn across fabrics (two classes or more held by two
+    fabrics or more each), so that ``lookfeel predict`` answers it as ``lookfeel match``
+    does from the library's neighbours; a word of each column left without one, and why."""
+    if not catalog.text_columns:
+        return [], []
+    noun = "object" if any(f.name is not None for f in catalog.fabrics) else "fabric"
+    heads: list[str] = []
+    said: list[str] = []
+    for col in catalog.text_columns:
+        members = Counter(k for f in catalog.fabrics if (k := f.class_of(col)) is not None)
+        shared = sum(1 for n in members.values() if n >= 2)
+        if shared >= 2:
+            heads.append(col)
+            continue
+        if len(members) < 2:
+            one = "one class" if members else "no value"
+            why = f"{one} among the {noun}s, nothing to tell apart"
+        elif not shared:
+            why = f"every {noun} has its own word (descriptions, not classes)"
+        else:
+            why = (
+                f"only 1 of its {len(members)} classes is held by 2 {noun}s or more, too few "
+                "to learn"
+            )
+        said.append(f"no class head for labels.csv's {col}: {why}")
+    if not heads:
+        return [], said
+    setting = f"model.class_heads={json.dumps(heads, ensure_ascii=False)}"
+    words = ", ".join(heads)
+    said.insert(
+        0,
+        f"class heads for labels.csv's words: {words} ({setting}), so that `lookfeel predict` "
+        "answers them as `lookfeel match` does",
+    )
+    return [setting], said
+
+
 def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> Recipe:
     """``recipe`` with the overrides that let it run on ``catalog``, the reason saying which.
 
@@ -305,6 +475,22 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
       rather than warned at every run; a ``reprints/`` folder with fewer renders of a photo
       than the recipe reads (``lookfeel synth --reprints 1``): the number every photo has
       (the fewest any has), and 0 with a warning naming a photo that has none;
+    - touch presses of no kind the recipe trains on (``data.touch_kinds``, by default fold:
+      a rig that recorded flat presses only), or a fabric with none of them: every kind the
+      dataset holds; presses of other kinds beside the recipe's (a synthetic world's flat
+      presses): the recipe's kinds kept, said with how many presses are left out and the
+      ``--set`` that uses them (`_fit_touch_kinds`; presses of no stated kind, PhysiCLeAR's
+      ``videos/<object>_<n>.mov``, are of every kind);
+    - raw depth (``data.depth_input: raw``) of which fewer than
+      `lookfeel.data.check.MIN_IN_RANGE` of the valid pixels lie inside the range it is mapped
+      from (``data.depth_min_mm`` to ``+ data.depth_range_mm``, 800-1,300 mm by default; depth
+      from another camera pose, 1.6 m away): the range covering the 2nd to 98th percentile of
+      a sample of them (`depth_samples`), rounded to 10 mm. GelFabric (77% inside) and a
+      synthetic world keep the recipe's;
+    - columns of words in labels.csv (``material``) where the recipe has no class head: a
+      class head for each that two or more classes of two or more fabrics each let it learn
+      (`_fit_text_heads`), so that ``lookfeel predict`` answers it as ``lookfeel match``
+      answers it from a library's neighbours; a column left without one is said, with why;
     - fewer fabrics than the recipe's folds test (synth_cross.yaml: 5 folds of 18, chosen from
       a paper-size world's 100 training fabrics; ``lookfeel train`` trains fold 0, ``cv`` all):
       folds that deal every fabric (``train.fold_size=null``), and with fewer than two fabrics
@@ -322,6 +508,7 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
         ``recipe`` itself when nothing needs changing or saying, else a copy with the
         overrides added and the reason extended.
     """
+    from lookfeel.config.data import DataConfig
     from lookfeel.data.files import VIDEO_SUFFIXES
     from lookfeel.data.splits import paper_split
 
@@ -346,11 +533,29 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
         if settings:
             overrides += settings
             said.append(f"touch videos read as physiclear.yaml does ({', '.join(settings)})")
+    if touch and not _gives(given, "data.touch_kinds"):
+        kinds = d.get("touch_kinds") or [k.value for k in DataConfig().touch_kinds]
+        more, words = _fit_touch_kinds(catalog, [str(k) for k in kinds])
+        overrides += more
+        said += words
     wants = d.get("color_reprints")
     if Modality.COLOR.value in views and _count(wants) and not _gives(given, "data.color_reprints"):
         more, words = _fit_reprints(catalog, wants)
         overrides += more
         said += words
+    d_run, default = _mapping(ours.get("data")), DataConfig()
+    if (
+        Modality.DEPTH.value in views
+        and d_run.get("depth_input", default.depth_input) == "raw"
+        and not _gives(given, "data.depth_min_mm")
+        and not _gives(given, "data.depth_range_mm")
+    ):
+        low = d_run.get("depth_min_mm", default.depth_min_mm)
+        span = d_run.get("depth_range_mm", default.depth_range_mm)
+        if isinstance(low, int | float) and isinstance(span, int | float) and span > 0:
+            more, words = _fit_depth_range(catalog, float(low), float(span))
+            overrides += more
+            said += words
     folds, size = t_run.get("folds", 5), t_run.get("fold_size")
     if t.get("split") == "fold" and _count(folds) and (size is None or _count(size)):
         n = len(paper_split(catalog).train) or len(catalog.ids)
@@ -359,6 +564,12 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
             more, words = _fit_folds(n, folds, size, *yours)
             overrides += more
             said += words
+    if not _mapping(data.get("model")).get("class_heads") and not _gives(
+        given, "model.class_heads"
+    ):
+        more, words = _fit_text_heads(catalog)
+        overrides += more
+        said += words
     if not overrides and not said:
         return recipe
     return replace(

@@ -583,6 +583,22 @@ def _probes(
     return out
 
 
+def _touch_presses(touch: EmbeddedItems, data_config: DataConfig | None) -> str:
+    """What a fabric's touch presses are, as the notes count them: ``touch presses (2 at
+    most)``; where the presses evaluated have kinds, those kinds, as the run's
+    ``data.touch_kinds`` chose them (a dataset's presses of other kinds are not evaluated, so
+    not counted): ``fold touch presses (the kind evaluated: the run's data.touch_kinds; 2 at
+    most)``."""
+    fabrics = np.asarray(touch.fabric_ids, dtype=np.int64)
+    most = int(np.unique(fabrics, return_counts=True)[1].max()) if fabrics.size else 0
+    kinds = sorted({it.kind.value for it in touch.items if it.kind is not None})
+    if not kinds:
+        return f"touch presses ({most} at most)"
+    which = "kinds" if len(kinds) > 1 else "kind"
+    run = ": the run's data.touch_kinds" if data_config is not None else ""
+    return f"{'/'.join(kinds)} touch presses (the {which} evaluated{run}; {most} at most)"
+
+
 def evaluate_embeddings(
     embedded: Mapping[Modality, EmbeddedItems],
     config: EvalConfig | None = None,
@@ -687,8 +703,8 @@ def evaluate_embeddings(
     }
     if Modality.TOUCH in mods and len(queries[Modality.TOUCH].fabric) == 0:
         notes.add(
-            f"no fabric has {presses} touch presses to pool into a query: touch queries are "
-            "single presses"
+            f"no fabric has {presses} {_touch_presses(embedded[Modality.TOUCH], data_config)} "
+            "to pool into a query: touch queries are single presses"
         )
         presses = 1
         config = replace(config, presses=1)
@@ -822,7 +838,8 @@ def evaluate_embeddings(
                 else press_queries(touch, p, config.seed, pool)
             )
             if len(qs.fabric) == 0:
-                notes.add(f"no fabric has {p} touch presses: the press curve stops before {p}")
+                what = _touch_presses(touch, data_config)
+                notes.add(f"no fabric has {p} {what}: the press curve stops before {p}")
                 break
             if p == presses:  # the main keys already hold these
                 for pair in to_every:

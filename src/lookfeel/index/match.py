@@ -31,6 +31,7 @@ threshold says (a user matching a file of the library expects its fabric, not "u
 from __future__ import annotations
 
 import math
+import re
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -57,7 +58,7 @@ from lookfeel.index.query import (
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
-from lookfeel.modality import Modality, Pair
+from lookfeel.modality import Modality, Pair, PressKind
 
 __all__ = [
     "FabricMatch",
@@ -69,7 +70,9 @@ __all__ = [
     "check_touch_input",
     "class_value",
     "format_match",
+    "press_kind",
     "stacked_frames_refused",
+    "warn_press_kinds",
 ]
 
 IDENTICAL_DISTANCE = 1e-3
@@ -122,6 +125,43 @@ def check_touch_input(
             if _is_video(p):
                 raise ImageError(p, stacked_frames_refused(config))
     check_touch_files(files, trained_on, config)
+
+
+_KIND_IN_NAME = re.compile(r"^F\d+_(fold|flat|rand)_", re.IGNORECASE)
+_KIND_FOLDERS = {"image_fold": PressKind.FOLD, "image_flat": PressKind.FLAT}
+
+
+def press_kind(path: str | Path) -> PressKind | None:
+    """The kind of press a touch query file shows, as the dataset layout names it: from its
+    name (``F0001_flat_1000.mp4``, ``F0001_fold_02_101.png``) or its folder (``image_flat/``);
+    None where neither says (``press.mp4``, an object's ``sponge_0.mov``)."""
+    p = Path(path)
+    m = _KIND_IN_NAME.match(p.name)
+    if m is not None:
+        return PressKind(m[1].lower())
+    return _KIND_FOLDERS.get(p.parent.name.lower())
+
+
+def warn_press_kinds(
+    paths: Sequence[str | Path], config: DataConfig, holder: str = "the model"
+) -> None:
+    """Warn once, in one line, where touch query files are presses of a kind (`press_kind`)
+    the model was not trained on (its ``data.touch_kinds``: a flat press given to a model
+    trained on fold presses only), naming the first and counting the rest; files that do not
+    say their kind are taken as they are."""
+    trained = {k.value for k in config.touch_kinds}
+    other = [(p, k) for p in paths if (k := press_kind(p)) is not None and k.value not in trained]
+    if not other:
+        return
+    first, kind = other[0]
+    n = len(other) - 1
+    also = f" (and {n} other such press{'es' if n > 1 else ''})" if n else ""
+    kinds = "/".join(sorted(trained))
+    warnings.warn(
+        f"{first}{also}: a {kind.value} press, but {holder} was trained on {kinds} presses only "
+        f"(its data.touch_kinds), so it may answer a {kind.value} press less well",
+        stacklevel=3,
+    )
 
 
 def check_touch_dataset(
@@ -324,6 +364,7 @@ class Matcher:
         paths = query_paths(paths)
         if modality is Modality.TOUCH:
             check_touch_input(paths, self.touch_input, self.data_config)
+            warn_press_kinds(paths, self.data_config, "the library's model")
         images, used = load_query_files(paths, modality, self.data_config)
         return query_batch(images, modality), used
 
