@@ -30,7 +30,7 @@ test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
 bench: $(STAMP)
-	$(BIN)/python -m benchmarks --data $(GELFABRIC)
+	$(BIN)/python -m benchmarks $(if $(wildcard $(GELFABRIC)),--data $(GELFABRIC))
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

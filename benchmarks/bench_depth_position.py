@@ -212,10 +212,11 @@ def score_variants(
 
 
 def write_result(result: dict[str, object], out: Path, module: str, argv: list[str] | None) -> None:
-    """Write ``result`` to ``out`` (atomically) with the machine and the command line."""
-    from benchmarks.__main__ import machine
+    """Write ``result`` to ``out`` (atomically) with the time, the machine and the command line."""
+    from benchmarks.__main__ import machine, now
     from lookfeel.atomic import atomic_write_text
 
+    result["when"] = now()
     result["machine"] = machine()
     result["command"] = " ".join([f"python -m benchmarks.{module}", *(argv or sys.argv[1:])])
     atomic_write_text(out, json.dumps(result, indent=1) + "\n")
