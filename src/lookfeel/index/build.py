@@ -65,6 +65,7 @@ from lookfeel.index.library import (
     write_shard,
 )
 from lookfeel.index.match import check_touch_dataset
+from lookfeel.index.query import shape_record
 from lookfeel.index.search import FaissSearch, choose_backend
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.modality import Modality, Pair, PressKind
@@ -586,6 +587,10 @@ def _build(
             for m, its in items.items()
         },
     }
+    for m, its in items.items():  # a query turned against them is warned of (`lookfeel match`)
+        shape = shape_record([it.path for it in its], m, data_config)
+        if shape is not None:
+            manifest["modalities"][m.value]["shape"] = shape
     known = _known_shards(work, out)  # before this build's manifest replaces the work folder's
     work.mkdir(parents=True, exist_ok=True)
     _remove_temps(work)

@@ -26,6 +26,11 @@ so are the distances to each fabric's nearest items of that modality.
 A query whose embedding is identical (distance below `IDENTICAL_DISTANCE`) to a library item of
 its own modality is that item: it is reported as known, its fabric named, whatever the
 threshold says (a user matching a file of the library expects its fabric, not "unknown").
+
+A query turned against the library's items of its modality (a portrait press among landscape
+ones: `lookfeel.index.query.warn_orientation`) is matched with one warning, naming the file and
+both orientations; the library records its items' shape when built (`Matcher.shape`; a library
+built before that is not checked).
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -54,6 +60,7 @@ from lookfeel.index.query import (
     load_query_files,
     query_batch,
     query_paths,
+    warn_orientation,
 )
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
@@ -343,6 +350,17 @@ class Matcher:
             )
         return modality
 
+    def shape(self, modality: Modality | str) -> dict[str, Any] | None:
+        """The shape of the library's items of ``modality`` (a `Modality` or its name) that
+        its manifest records (`lookfeel.index.query.shape_record`: their one orientation and
+        most common size), which a query is checked against (`warn_orientation`); None for a
+        modality the library lacks, items of several orientations, or a library built before
+        it was recorded."""
+        entries = self.library.manifest.get("modalities")
+        entry = entries.get(Modality.of(modality).value) if isinstance(entries, dict) else None
+        shape = entry.get("shape") if isinstance(entry, dict) else None
+        return shape if isinstance(shape, dict) else None
+
     @torch.inference_mode()
     def embed(self, x: torch.Tensor, modality: Modality | str) -> NDArray[np.float32]:
         """Embed a `query_batch` (N, C, S, S) or (1, P, 3, S, S) -> (N, D) float32."""
@@ -365,6 +383,7 @@ class Matcher:
         if modality is Modality.TOUCH:
             check_touch_input(paths, self.touch_input, self.data_config)
             warn_press_kinds(paths, self.data_config, "the library's model")
+        warn_orientation(paths, modality, self.shape(modality), self.data_config, "the library")
         images, used = load_query_files(paths, modality, self.data_config)
         return query_batch(images, modality), used
 

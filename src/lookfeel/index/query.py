@@ -17,15 +17,26 @@ refuses a still frame, which has no such frames (`check_touch_query`). A model t
 frames takes a video too, read as `lookfeel.data.video` reads one, with a warning where that
 read is such a difference, which the model never saw; a checkpoint from before the record is not
 checked.
+
+A query whose orientation (portrait or landscape, `orientation_of`) differs from that of the
+images its model is compared with is taken with one warning (`warn_orientation`): each is
+resized to the network's one square input, so such a query is stretched unlike them and is
+most likely turned (a DIGIT's 240x320 press given as 320x240). Only a record of those images'
+shape says what they were: a library records its items' (`shape_record`, in its manifest); a
+checkpoint does not record its training data's, so ``lookfeel predict`` does not check.
 """
 
 from __future__ import annotations
 
+import math
 import os
+import stat
 import tempfile
 import warnings
-from collections.abc import Iterable, Sequence
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -35,8 +46,10 @@ from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth
 from lookfeel.data.images import (
     DEFAULT_MAX_PIXELS,
+    GELSIGHT_SIZE,
     ImageError,
     ImageLoader,
+    declared_size,
     open_rgb,
     preprocess_depth,
     preprocess_rgb,
@@ -52,17 +65,22 @@ from lookfeel.models.backbone import ModelInputError
 
 __all__ = [
     "IMAGE_TYPES",
+    "ORIENTATIONS",
     "QUERY_IMAGES",
     "STILL_TOUCH_REFUSED",
     "VIDEO_FOR_STILL_MODEL",
     "check_touch_files",
     "check_touch_query",
+    "frame_size",
     "load_query_bytes",
     "load_query_files",
     "load_query_image",
+    "orientation_of",
     "query_batch",
     "query_paths",
+    "shape_record",
     "sniff_type",
+    "warn_orientation",
 ]
 
 QueryFiles = str | os.PathLike[str] | Iterable[str | os.PathLike[str]]
@@ -360,3 +378,163 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> tor
     if modality is Modality.TOUCH:
         return x.unsqueeze(0)  # (P, C, S, S) -> (1, P, C, S, S)
     return x.contiguous(memory_format=torch.channels_last)
+
+
+# ---------------------------------------------------------------------------------------------
+# Orientation: a query turned against the images its model is compared with.
+
+ORIENTATIONS = ("portrait", "landscape", "square")
+"""What `orientation_of` names a shape."""
+
+_SQUARE_LOG_RATIO = 0.03
+"""Aspect ratios within this of 1 (in log, about 3%) are square, as `lookfeel data check`
+takes two sizes within it for one shape."""
+
+_HEAD_BYTES = 256 * 1024
+"""Bytes read of an image for its size: a JPEG's frame header follows its metadata (EXIF with
+a thumbnail: up to 64 KiB a segment)."""
+
+
+def frame_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
+    """(width, height) of an image or a video's frames, read cheaply: an image's (PNG, JPEG)
+    from its header bytes, a video's (by its content, `sniff_video`) from its first video
+    stream as FFmpeg opens it, without decoding a frame. None where the file is not a regular
+    file, cannot be read or does not say (reading it as a query then says why)."""
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO is never waited on
+            return None
+        head = os.read(fd, _HEAD_BYTES)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    if not sniff_video(head[:16]):
+        return declared_size(head)
+    try:
+        import av
+    except ImportError:
+        return None
+    try:
+        with av.open(str(p), mode="r") as container:
+            if not container.streams.video:
+                return None
+            ctx = container.streams.video[0].codec_context
+            w, h = int(ctx.width), int(ctx.height)
+    except (av.FFmpegError, OSError, ValueError, EOFError):
+        return None
+    return (w, h) if w > 0 and h > 0 else None
+
+
+def orientation_of(size: tuple[int, int], modality: Modality | str, config: DataConfig) -> str:
+    """``portrait``, ``landscape`` or ``square`` (`ORIENTATIONS`): the shape of a (width,
+    height) image of ``modality`` as the model resizes it to its square input, after the crop
+    the run's data settings make (`lookfeel.data.images.preprocess_rgb`): a touch frame cropped
+    to its central square (``data.touch_crop: center``, or ``auto`` for a 960x720 GelSight
+    frame) or a photo (``data.color_crop: center``) is square.
+
+    Raises:
+        ModalityError: ``modality`` names no modality.
+    """
+    modality = Modality.of(modality)
+    w, h = size
+    if modality is Modality.TOUCH:
+        cropped = config.touch_crop == "center" or (
+            config.touch_crop == "auto" and (w, h) == GELSIGHT_SIZE
+        )
+    else:
+        cropped = modality is Modality.COLOR and config.color_crop == "center"
+    if cropped or abs(math.log(w / h)) <= _SQUARE_LOG_RATIO:
+        return "square"
+    return "portrait" if h > w else "landscape"
+
+
+def shape_record(
+    paths: Sequence[str | os.PathLike[str]], modality: Modality | str, config: DataConfig
+) -> dict[str, Any] | None:
+    """What shape the files of one modality are, for a query to be checked against
+    (`warn_orientation`): ``{"orientation": ..., "size": [w, h]}``, the orientation all of them
+    share (`orientation_of`) and their most common size; None when they come in more than one
+    orientation (``lookfeel data check`` warns of that) or none says its size (`frame_size`).
+    """
+    sizes = [s for p in paths if (s := frame_size(p)) is not None]
+    kinds = {orientation_of(s, modality, config) for s in sizes}
+    if len(kinds) != 1:
+        return None
+    w, h = Counter(sizes).most_common(1)[0][0]
+    return {"orientation": kinds.pop(), "size": [w, h]}
+
+
+def _recorded(record: Mapping[str, Any] | None) -> tuple[str, str] | None:
+    """(orientation, "WxH" or "") of a `shape_record`; None for none, or one this version does
+    not read (a newer lookfeel's), which is then not checked."""
+    if not isinstance(record, Mapping) or record.get("orientation") not in ORIENTATIONS:
+        return None
+    size = record.get("size")
+    if not isinstance(size, (list, tuple)) or len(size) != 2:
+        return str(record["orientation"]), ""
+    ok = all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)
+    return str(record["orientation"]), f"{size[0]}x{size[1]}" if ok else ""
+
+
+def warn_orientation(
+    paths: Sequence[str | os.PathLike[str]],
+    modality: Modality | str,
+    record: Mapping[str, Any] | None,
+    config: DataConfig,
+    holder: str,
+) -> None:
+    """Warn once, in one line, where query files are portrait and the images they are compared
+    with landscape, or the other way round (`orientation_of`): each is resized to the
+    network's one square input, so such a query is stretched unlike them and most likely
+    turned. The first such file is named, the others counted; a square query or a square
+    record, a file whose size cannot be read (`frame_size`) and a missing record (a library
+    built before it was kept) are not checked.
+
+    Args:
+        paths: the query's files, all of ``modality``.
+        modality: what they show (a `Modality` or its name).
+        record: the compared images' `shape_record` (or None).
+        config: the model's data settings (its crops).
+        holder: whose images they are, as the warning names them (``"the library"``).
+
+    Raises:
+        ModalityError: ``modality`` names no modality.
+    """
+    modality = Modality.of(modality)
+    known = _recorded(record)
+    if known is None or known[0] == "square":
+        return
+    want, want_size = known
+    odd = []
+    for p in paths:
+        size = frame_size(p)
+        if size is None:
+            continue
+        got = orientation_of(size, modality, config)
+        if got not in (want, "square"):
+            odd.append((Path(p), got, size))
+    if not odd:
+        return
+    first, got, (w, h) = odd[0]
+    n = len(odd) - 1
+    also = f" (and {n} other such file{'s' if n > 1 else ''})" if n else ""
+    if modality is Modality.TOUCH:
+        what = "video" if first.suffix.lower() in VIDEO_SUFFIXES else "frame"
+        theirs = "presses"
+    elif modality is Modality.COLOR:
+        what, theirs = "image", "images"
+    else:
+        what, theirs = "map", "maps"
+    their = f" ({want_size})" if want_size else ""
+    warnings.warn(
+        f"{first}{also}: a {got} {modality.value} {what} ({w}x{h}), but {holder}'s "
+        f"{modality.value} {theirs} are {want}{their}: each is resized to the network's one "
+        f"square input, so this one is stretched unlike them and most likely turned; turn it "
+        f"to {want}",
+        stacklevel=3,
+    )
