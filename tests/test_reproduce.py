@@ -35,8 +35,10 @@ def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
     assert metrics["touch_to_depth_top1_chance"] == pytest.approx(1 / 3)  # 3 held-out fabrics
     assert set(result.results["snn_depth"]) >= {"seen", "novel"}
     report = result.report.read_text()
-    row = r"\| depth_to_touch \| - \(0\.306\) \| \d\.\d{3} \[[\d., ]+\] \(0\.429\) \|"
-    assert re.search(row, report)  # not run: the paper's number alone; run: ours beside it
+    row = r"\| depth_to_touch \| -\^1 \(0\.306\) \| \d\.\d{3} \[[\d., ]+\] \(0\.429\) \|"
+    assert re.search(row, report)  # left out: -^1 and the paper's number; run: ours beside it
+    assert "seeds: 1; --only: cross_modal, snn_depth; " in report
+    assert "- ^1 flat, auxiliary, multi_input: not run (--only cross_modal, snn_depth)." in report
     assert f"({TABLE_4['snn_depth']['novel_top1']:.3f})" in report
     assert result.findings["model_order"]["verdict"] == "not tested"
     snn = result.results["snn_depth"]  # 3 novel fabrics: top-3 of 3 candidates is always 1
@@ -109,7 +111,8 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
     )
     assert result.results["multi_input"]["not_scored"] == {"touch_to_touch": why}
     report = result.report.read_text()
-    assert "| n/a^1 (0.935) |" in report and f"- ^1 multi_input touch_to_touch: {why}." in report
+    # Table 2's note 1 is the columns --only left out, "-^1".
+    assert "| n/a^2 (0.935) |" in report and f"- ^2 multi_input touch_to_touch: {why}." in report
     saved = json.loads((out / "results.json").read_text())
     assert saved["results"]["multi_input"]["not_scored"] == {"touch_to_touch": why}
     # 3 held-out fabrics: no finding gets a verdict, in the JSON as in the report.
@@ -130,7 +133,7 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
     again = reproduce(data, out, only=["multi_input"], **args)
     assert again.results["multi_input"]["not_scored"] == {}
     assert (
-        "- ^1 multi_input touch_to_touch: reason not recorded (computed by an earlier "
+        "- ^2 multi_input touch_to_touch: reason not recorded (computed by an earlier "
         "lookfeel): delete the run's eval.json and rerun to record it."
     ) in again.report.read_text()
 
@@ -637,3 +640,315 @@ def test_findings_resting_on_fewer_than_10_fabrics_get_no_verdict(
     assert "too few fabrics (4): Multi-input > Auxiliary > Cross-modal > Flat" in out
     # Right-aligned to the longest verdict, "too few fabrics (4)" (19 characters).
     assert "\n" + " " * 14 + "holds: joint training with touch improves depth-to-depth" in out
+
+
+def _cells(**cells: tuple[float, float, float]) -> dict:
+    """A run's metrics: each pair's top-1 with its interval (value, low, high)."""
+    m = {}
+    for pair, (v, lo, hi) in cells.items():
+        m |= {f"{pair}_top1": v, f"{pair}_top1_ci_low": lo, f"{pair}_top1_ci_high": hi}
+    return {"metrics": m}
+
+
+def test_findings_on_means_show_their_intervals_and_a_pair_the_other_way(tmp_path: Path):
+    """QA: Multi-input's colour to touch fell from 0.127 [0.09, 0.17] to 0.054 [0.03, 0.09]
+    with augmentation, intervals apart, while the finding read "within noise ... 0.117 ->
+    0.095 (mean of the colour pairs; 1 of 4 up)": the means' intervals were not shown, nor
+    the pair that went the other way. The verdict stays the means'."""
+    before = {
+        "touch_to_color": (0.111, 0.06, 0.17),
+        "color_to_touch": (0.127, 0.09, 0.17),
+        "depth_to_color": (0.116, 0.05, 0.19),
+        "color_to_depth": (0.115, 0.08, 0.16),
+    }
+    after = {
+        "touch_to_color": (0.085, 0.02, 0.16),
+        "color_to_touch": (0.054, 0.03, 0.085),
+        "depth_to_color": (0.112, 0.05, 0.18),
+        "color_to_depth": (0.130, 0.06, 0.22),
+    }
+    results = {"multi_input": _cells(**before), "multi_input_aug": _cells(**after)}
+    f = findings(results)["augmentation_helps_color"]
+    assert f["verdict"] == "within noise"  # the means' intervals overlap
+    assert f["detail"] == (
+        "multi_input: 0.117 [0.07, 0.17] -> 0.095 [0.04, 0.16] with augmentation (means of the "
+        "colour pairs; 1 of 4 up, the paper: all; went the other way beyond both intervals: "
+        "color_to_touch 0.127 [0.09, 0.17] -> 0.054 [0.03, 0.09]) (the means' 95% intervals "
+        "overlap)"
+    )
+    # Within against across: a within pair below an across one beyond both intervals is named.
+    within = {"depth_to_depth": (0.8, 0.7, 0.9), "color_to_color": (0.9, 0.85, 0.95)}
+    across = {"touch_to_depth": (0.2, 0.1, 0.3), "depth_to_touch": (0.3, 0.25, 0.35)}
+    low = {"touch_to_touch": (0.15, 0.11, 0.19)}
+    f = findings({"flat": _cells(**within, **across, **low)})["within_beats_across"]
+    assert f["verdict"] == "holds"  # the means' intervals apart
+    assert f["detail"] == (
+        "flat: within 0.617 [0.55, 0.68] vs across 0.250 [0.17, 0.32] (means; went the other "
+        "way beyond both intervals: touch_to_touch 0.150 [0.11, 0.19] below depth_to_touch "
+        "0.300 [0.25, 0.35])"
+    )
+    report = _report(tmp_path, results, {"split": "paper"})
+    assert "Two findings compare means over pairs: within against across one modality" in report
+    assert "named in the evidence but does not decide the verdict" in report
+
+
+def test_only_says_which_runs_it_left_out(tmp_path: Path):
+    """QA: with --only the findings of the runs left out read "not tested" with "its runs were
+    skipped", Table 4's "needs both Table 4 runs (depth and touch data)" (as if the data
+    lacked a sense), and their cells "-" unexplained."""
+    from lookfeel.reproduce.report import write_reproduction_report
+    from lookfeel.reproduce.result import ReproduceResult
+
+    cells = {"touch_to_depth": (0.3, 0.2, 0.4), "touch_to_color": (0.2, 0.1, 0.3)}
+    results = {"auxiliary": _cells(**cells)}
+    only = ["auxiliary"]
+    f = findings(results, only=only)
+    for key in ("model_order", "augmentation_helps_color", "touch_helps_depth"):
+        assert f[key] == {
+            "verdict": "not tested",
+            "detail": "not run (--only auxiliary)",
+            "claim": f[key]["claim"],
+        }
+    assert f["depth_beats_color"]["verdict"] == "within noise"  # auxiliary's own pairs
+    # Asked for but skipped (the data lacks touch): the reason is the data's.
+    skipped = {"cross_modal_depth_touch": "needs touch; the data has depth, color"}
+    table_4 = findings({}, only=["snn_depth", "cross_modal_depth_touch"])["touch_helps_depth"]
+    assert table_4["detail"] == "needs both Table 4 runs (depth and touch data)"
+    assert findings({})["touch_helps_depth"]["detail"] == table_4["detail"]
+    # Finished runs --only left out but reported all the same test the findings as any.
+    earlier = {m: _cells(**cells) for m in ("flat", "cross_modal", "multi_input")}
+    assert findings(results | earlier, only=only)["model_order"]["verdict"] == "within noise"
+
+    result = ReproduceResult(tmp_path, tmp_path / "report.md", results, skipped, f)
+    meta = {"data": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0, "only": only}
+    write_reproduction_report(result, meta)
+    report = result.report.read_text()
+    assert "Data: `w`; budget: **tiny**; seeds: 1; --only: auxiliary; 1.0 min." in report
+    assert "| **not tested** | not run (--only auxiliary) |" in report
+    assert "**not tested**: a run it needs was not run (--only auxiliary) or was skipped)" in (
+        report
+    )
+    assert "| touch_to_depth | -^1 | -^1 | 0.300 [0.20, 0.40] | -^1 |" in report
+    assert "- ^1 flat, cross_modal, multi_input: not run (--only auxiliary)." in report
+    assert "| snn_depth | -^1 (0.482) | -^1 (0.660) | -^1 (0.554) | -^1 (0.729) |" in report
+    assert "| cross_modal_depth_touch | -^2 (0.608) |" in report
+    assert "- ^1 snn_depth: not run (--only auxiliary)." in report
+    assert "- ^2 cross_modal_depth_touch: skipped (see Skipped below)." in report
+    assert "-^k: the column's run was not run, note k says why" in report
+    assert "its runs were skipped" not in report
+
+    meta |= {"only": only, "earlier": ["flat"]}
+    write_reproduction_report(result, meta)
+    assert (
+        "--only: auxiliary (and flat from finished runs of an earlier reproduction here); "
+        in result.report.read_text()
+    )
+    # Without --only nothing of it; the plain "-" of a run neither left out nor skipped stays.
+    report = _report(tmp_path, results, {"split": "paper"})
+    assert "--only" not in report and "-^" not in report and "its runs were skipped" in report
+    assert "| touch_to_depth | - | - | 0.300 [0.20, 0.40] | - |" in report
+
+
+def test_the_report_says_how_seeds_and_few_candidates_make_its_numbers(tmp_path: Path):
+    """QA: with --seeds 2 the report said "95% bootstrap interval over test fabrics (first
+    seed)", yet every number, bounds included, is the mean over the seeds; over 6 test
+    fabrics it said "pick 1 of 10" where chance was 1/6."""
+
+    def run(n: int) -> dict:
+        row = _cells(touch_to_depth=(0.3, 0.2, 0.4))
+        row["metrics"] |= {"touch_to_depth_n_effective": float(n)}
+        return row
+
+    novel = {"top1": 0.5, "n_effective": 6.0}
+    report = _report(tmp_path, {"flat": run(10)}, {"split": "paper", "seeds": 3})
+    assert "first seed" not in report
+    assert (
+        "Each cell: the mean over the 3 seeds of our top-1 accuracy (exact expectation over the "
+        "draw) of pick 1 of 10, its 95% bootstrap interval over test fabrics (each bound the "
+        "mean over the 3 seeds of that seed's interval), ±the standard deviation over the "
+        "seeds, and (the paper's number);"
+    ) in report
+    report = _report(tmp_path, {"flat": run(6), "snn_depth": {"novel": novel}}, {"seeds": 1})
+    assert (
+        "Each cell: our top-1 accuracy (exact expectation over the draw) of pick 1 of 6 (the "
+        "paper's pick 1 of 10, but the test fabrics offer only 6 candidates a draw), its 95% "
+        "bootstrap interval over test fabrics, and (the paper's number);"
+    ) in report
+    seen = {"top1": 0.5, "n_effective": 10.0}
+    report = _report(
+        tmp_path, {"flat": run(6), "snn_depth": {"novel": novel, "seen": seen}}, {"seeds": 1}
+    )
+    assert (
+        "pick 1 of as many candidates as the test fabrics offer, up to the paper's 10 (here 1 "
+        "of 6 on Tables 1-3, 1 of 10 on Table 4's seen side, 1 of 6 on Table 4's novel side)"
+    ) in report
+
+
+# --- helper-rrun: --only accumulates, run times, interrupts and warnings of workers ----------
+
+
+def test_only_adds_to_the_finished_runs_in_out(data: Path, tmp_path: Path, capsys):
+    """QA: rerunning ``--only auxiliary`` into a finished --out replaced the report with
+    auxiliary alone, results.json did not say what was asked, and a resumed reproduction's
+    header read "0.0 min". Now the finished runs trained with the same settings are reported
+    too (``meta.earlier``), ``meta.only`` is what was asked, and ``runs`` / ``run_minutes`` are
+    the runs behind the numbers and their own time (a resumed run's with its logged training
+    before the resume)."""
+    from lookfeel.config import ConfigError
+
+    out = tmp_path / "out"
+    args = dict(budget="tiny", n_boot=20, overrides=FAST)
+    first = reproduce(data, out, only=["cross_modal"], log=lambda s: None, **args)
+    meta = json.loads((out / "results.json").read_text())["meta"]
+    assert meta["only"] == ["cross_modal"] and meta["earlier"] == [] and meta["runs"] == 1
+    lines: list[str] = []
+    second = reproduce(data, out, only=["snn_depth"], log=lines.append, **args)
+    assert list(second.results) == ["cross_modal", "snn_depth"]
+    assert json.dumps(second.results["cross_modal"]) == json.dumps(first.results["cross_modal"])
+    assert f"also reported, from finished runs in {out}: cross_modal (seed 0)" in lines
+    saved = json.loads((out / "results.json").read_text())
+    assert list(saved["results"]) == ["cross_modal", "snn_depth"]
+    assert saved["meta"]["only"] == ["snn_depth"] and saved["meta"]["earlier"] == ["cross_modal"]
+    seconds = [json.loads(p.read_text())["seconds"] for p in out.glob("runs/*/seed0/eval.json")]
+    assert saved["meta"]["runs"] == 2
+    assert saved["meta"]["run_minutes"] == round(sum(seconds) / 60, 1)
+
+    # A run killed after its training logged 3 steps at 0.001 steps/s (3,000 s), resumed.
+    run_dir = out / "runs" / "cross_modal" / "seed0"
+    (run_dir / "eval.json").unlink()
+    slow = {"step": 3, "loss": 1.0, "lr": 0.001, "steps_per_s": 0.001}
+    (run_dir / "metrics.jsonl").write_text(json.dumps(slow) + "\n")
+    argv = ["reproduce", "--data", str(data), "--out", str(out), "--budget", "tiny"]
+    argv += ["--only", "cross_modal", "--n-boot", "20", "--set", FAST[0], "--set", FAST[1]]
+    assert main(argv) == 0
+    resumed = json.loads((run_dir / "eval.json").read_text())["seconds"]
+    assert 3000 <= resumed < 3300
+    meta = json.loads((out / "results.json").read_text())["meta"]
+    assert meta["only"] == ["cross_modal"] and meta["earlier"] == ["snn_depth"]
+    assert meta["run_minutes"] >= 50 and meta["minutes"] < 5
+    printed = capsys.readouterr().out
+    assert f"2 run(s) behind these numbers, {meta['run_minutes']} min of training" in printed
+    header = (out / "report.md").read_text()
+    assert f"2 runs behind these numbers, {meta['run_minutes']} min of training and scoring; " in (
+        header
+    )
+    assert f"this reproduction {meta['minutes']} min." in header
+
+    # A finished run trained with other settings: left out, saying how, when not asked for;
+    # refused, before any training, when asked for.
+    config = run_dir / "config.yaml"
+    config.write_text(config.read_text().replace("lr: 0.001", "lr: 0.002"))
+    lines.clear()
+    third = reproduce(data, out, only=["snn_depth"], log=lines.append, **args)
+    assert list(third.results) == ["snn_depth"] and third.meta["earlier"] == []
+    assert (
+        f"not reported: {run_dir}, a finished run trained with other settings than this "
+        "reproduction's (train.lr: trained 0.002, asked 0.001)" in lines
+    )
+    with pytest.raises(ConfigError, match=r"finished run trained with other settings .*train\.lr"):
+        reproduce(data, out, only=["cross_modal"], log=lambda s: None, **args)
+    config.unlink()  # not readable: left out, saying so
+    lines.clear()
+    assert list(reproduce(data, out, only=["snn_depth"], log=lines.append, **args).results) == [
+        "snn_depth"
+    ]
+    assert any(
+        line.startswith(f"not reported: {run_dir}, a finished run whose config.yaml cannot be read")
+        for line in lines
+    ), lines
+
+
+def test_the_training_time_a_run_logged_and_warnings_sent_from_workers():
+    from lookfeel.reproduce.run import _logged_seconds, _sendable
+
+    lines = [
+        {"step": 50, "loss": 1.0, "steps_per_s": 0.5},  # 100 s
+        {"step": 50, "val/x_top1": 0.3},  # a validation: no time
+        {"step": 100, "loss": 1.0, "steps_per_s": None},  # not measured
+        {"step": 150, "loss": 1.0, "steps_per_s": 2.0},  # 100 steps since step 50: 50 s
+    ]
+    path = Path(__file__).parent / "_not_there.jsonl"
+    assert _logged_seconds(path) == 0.0
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "metrics.jsonl"
+        path.write_text("".join(json.dumps(x) + "\n" for x in lines) + "{cut\n")
+        assert _logged_seconds(path) == pytest.approx(150.0)
+
+    local = type("Local", (UserWarning,), {})  # pickle cannot name it
+    assert _sendable(local) is UserWarning and _sendable(RuntimeWarning) is RuntimeWarning
+
+
+_FAKE_RUNS = """
+import os, sys, time, warnings
+
+import lookfeel.reproduce.run as run
+
+
+def fake_run_one(exp, config, catalog, data, run_dir, n_boot):
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if exp.name == "flat":
+        warnings.warn("fake: flat warns")
+        return {"experiment": "flat", "seconds": 0.0, "not_scored": {}}
+    (run_dir / "pid").write_text(str(os.getpid()))
+    time.sleep(600)
+    raise AssertionError("not interrupted")
+
+
+run._run_one = fake_run_one  # here and in each spawned worker, which imports this file
+
+if __name__ == "__main__":
+    from lookfeel.cli import run as cli
+
+    sys.exit(cli(sys.argv[1:]))
+"""
+
+
+def test_an_interrupt_ends_the_workers_at_once_and_their_warnings_are_one_line(
+    data: Path, tmp_path: Path
+):
+    """QA: SIGINT sent to the command alone left it running 50+ s (the pool's shutdown waited
+    for the runs in its workers), and a worker's warning came out in Python's own form, with
+    file, line and source line. Fake runs in 2 workers: flat warns and ends (its warning is
+    one line, raised again in the command), cross_modal and auxiliary wait 600 s."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "fake_runs.py"
+    script.write_text(_FAKE_RUNS)
+    out = tmp_path / "out"
+    argv = [sys.executable, str(script), "reproduce", "--data", str(data), "--out", str(out)]
+    argv += ["--budget", "tiny", "--workers", "2", "--only", "flat", "cross_modal", "auxiliary"]
+    pids = [out / "runs" / name / "seed0" / "pid" for name in ("cross_modal", "auxiliary")]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120  # two spawned workers import torch: seconds
+        while not all(p.exists() and p.read_text() for p in pids):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the fake runs never started"
+            time.sleep(0.1)
+        # auxiliary started after flat's result (and its warnings) came back: both running.
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)  # was: until the runs end
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert err.count("lookfeel: warning: fake: flat warns\n") == 1, err
+    assert "UserWarning" not in err and "Traceback" not in err, err
+    assert err.endswith("lookfeel: interrupted\n"), err
+    for path in pids:  # the workers ended with their runs
+        pid = int(path.read_text())
+        for _ in range(50):
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            pytest.fail(f"worker {pid} still runs")

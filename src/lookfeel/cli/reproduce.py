@@ -1,9 +1,13 @@
 """``lookfeel reproduce``: every experiment of the paper on a dataset, reported beside its numbers.
 
 Train and evaluate the paper's experiments (Figure 7, Tables 1-4) on a dataset and write
-DIR/report.md and DIR/results.json. Budgets: tiny (seconds per run), small (minutes per run,
-compact CNN at 64 px), paper (the paper's AlexNet configs; needs --pretrained). Runs whose
-modalities the data lacks are skipped with the reason. Re-running resumes finished runs.
+DIR/report.md and DIR/results.json. Budgets: tiny (compact CNN at 40 px, 120 steps: seconds a
+run; make demo's eight took 39 s side by side on 2 cores, session 46); small (the default:
+compact CNN at 64 px, 1,500 steps of batch 64: about 34 min a run, two at a time on 2 cores, at
+the 0.73 steps/s measured in session 51 on a loaded machine); paper (the paper's AlexNet
+configs; needs --pretrained). Runs whose modalities the data lacks are skipped with the
+reason. Re-running resumes finished runs, and the report covers every finished run in DIR
+trained with the same settings: --only adds to it.
 """
 
 from __future__ import annotations
@@ -45,7 +49,14 @@ def add_parser(subparsers: Subparsers) -> None:
         default=None,
         help="ImageNet AlexNet weights (the runs' config.yaml names the file's absolute path)",
     )
-    rep.add_argument("--only", nargs="*", default=None, metavar="NAME", help="experiments to run")
+    rep.add_argument(
+        "--only",
+        nargs="*",
+        default=None,
+        metavar="NAME",
+        help="experiments to run (default all); the report also covers the finished runs of the "
+        "others already in --out with the same settings",
+    )
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
     rep.add_argument(
         "--workers",
@@ -82,5 +93,11 @@ def run(args: argparse.Namespace) -> int:
     width = max([13, *(len(v) for v, _ in verdicts)])  # 13: "does not hold"
     for verdict, claim in verdicts:
         print(f"{verdict:>{width}}: {claim}")
+    meta = result.meta
+    if meta.get("runs"):  # a resumed reproduction's own minutes are not the numbers' cost
+        print(
+            f"\n{meta['runs']} run(s) behind these numbers, {meta['run_minutes']} min of training "
+            f"and scoring; this reproduction {meta['minutes']} min"
+        )
     print(f"\nReport: {result.report}")
     return 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from lookfeel.atomic import atomic_write_text
@@ -20,6 +20,8 @@ from lookfeel.reproduce.result import ReproduceResult
 __all__ = ["findings", "verdict_text", "write_reproduction_report"]
 
 _COLOR_PAIRS = ("touch_to_color", "color_to_touch", "depth_to_color", "color_to_depth")
+EXPERIMENT_NAMES = (*MODEL_COLUMNS, "cross_modal_aug", "multi_input_aug", *TABLE_4)
+"""The experiments behind the findings and tables."""
 
 
 Interval = tuple[float, float, float]
@@ -91,6 +93,19 @@ def _mean_interval(values: list[Interval]) -> Interval:
     )
 
 
+def _shown(value: Interval) -> str:
+    """``0.127 [0.09, 0.17]``, as the tables show a number with its interval (``0.127`` when
+    it has none)."""
+    v, lo, hi = value
+    return f"{v:.3f}" if (lo, hi) == (v, v) else f"{v:.3f} [{lo:.2f}, {hi:.2f}]"
+
+
+def _against(expected_above: Interval, other: Interval) -> bool:
+    """Whether ``other`` is above ``expected_above`` beyond both intervals: the other way
+    from the paper's, decided (equal values without intervals are not)."""
+    return other[1] > expected_above[2]
+
+
 def _side(better: Interval, worse: Interval) -> int:
     """+1 if ``better`` is above ``worse`` beyond both intervals, -1 if below beyond them, 0 if
     the intervals overlap (without intervals, the values decide)."""
@@ -104,11 +119,16 @@ def _side(better: Interval, worse: Interval) -> int:
 
 
 def _verdict(
-    sides: list[int] | None, detail: str, reason: str = "", fabrics: Sequence[int | None] = ()
+    sides: list[int] | None,
+    detail: str,
+    reason: str = "",
+    fabrics: Sequence[int | None] = (),
+    overlap: str = "95% intervals overlap",
 ) -> dict[str, Any]:
     """The finding's verdict from its comparisons (`_side`, each the paper's way round);
     `TOO_FEW` instead when one of the intervals compared is over fewer than `MIN_FABRICS`
-    (``fabrics``: how many each is over, None where not recorded), with the fewest."""
+    (``fabrics``: how many each is over, None where not recorded), with the fewest;
+    ``overlap``: what the evidence adds when it is `NOISE`."""
     if not sides:
         return {"verdict": UNTESTED, "detail": reason}
     counts = [n for n in fabrics if n is not None]
@@ -120,7 +140,7 @@ def _verdict(
         return {"verdict": HOLDS, "detail": detail}
     if any(s < 0 for s in sides):
         return {"verdict": NOT_HOLD, "detail": detail}
-    return {"verdict": NOISE, "detail": f"{detail} (95% intervals overlap)"}
+    return {"verdict": NOISE, "detail": f"{detail} ({overlap})"}
 
 
 def verdict_text(finding: Mapping[str, Any]) -> str:
@@ -129,7 +149,18 @@ def verdict_text(finding: Mapping[str, Any]) -> str:
     return f"{finding['verdict']} ({n})" if finding["verdict"] == TOO_FEW else finding["verdict"]
 
 
-def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+MEANS_NOTE = "the means' 95% intervals overlap"
+"""What a finding that compares means over pairs (`_mean_interval`) adds when it is `NOISE`."""
+
+
+def only_reason(only: Sequence[str]) -> str:
+    """Why a run `lookfeel reproduce --only` left out has no numbers: ``not run (--only a, b)``."""
+    return f"not run (--only {', '.join(only)})"
+
+
+def findings(
+    results: Mapping[str, Any], only: Sequence[str] | None = None
+) -> dict[str, dict[str, Any]]:
     """Check each of the paper's findings (`PAPER_FINDINGS`) on our numbers.
 
     Each finding is one or more comparisons (Multi-input above Auxiliary, ...). A comparison is
@@ -139,7 +170,28 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     interval are compared as they are. A finding one of whose intervals is over fewer than
     `MIN_FABRICS` fabrics gets no verdict but `TOO_FEW`, with the count as ``fabrics``: a
     bootstrap over so few fabrics can come out far narrower than the uncertainty.
+
+    Two findings compare means over pairs (`_mean_interval`): within against across one
+    modality, and colour augmentation (the paper's claims are about the pairs on average).
+    Their verdict is the means'; a single pair that goes the other way beyond both intervals
+    is named in the evidence (``detail``) but does not decide it.
+
+    ``only``: the experiments `lookfeel reproduce --only` was asked for (None: all). A finding
+    each of whose ways to be tested lacks a run --only left out (one not in ``results`` either)
+    is ``not tested`` with `only_reason`; where its runs were asked for but not run (the data
+    lacks a sense they need), the reason says what they need.
     """
+
+    left_out = {r for r in EXPERIMENT_NAMES if only and r not in only and r not in results}
+
+    def untested(ways: Iterable[tuple[str, ...]], reason: str) -> str:
+        """``reason``, or `only_reason` when each of ``ways`` (the runs that together could
+        test the finding) lacks a run that --only left out."""
+        if only and all(any(run in left_out for run in way) for way in ways):
+            return only_reason(only)
+        return reason
+
+    models = [(m,) for m in MODEL_COLUMNS]
     out: dict[str, dict[str, Any]] = {}
     rows, sides = [], []
     fabrics: list[int | None] = []
@@ -159,7 +211,7 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         + (f"; not: {', '.join(rows)}" if rows else "")
     )
     out["above_chance"] = _verdict(
-        sides, detail, "no model with touch and depth or colour", fabrics
+        sides, detail, untested(models, "no model with touch and depth or colour"), fabrics
     )
     order = [m for m in ("multi_input", "auxiliary", "cross_modal", "flat")]
     vals = {m: _top1_interval(results, m, "touch_to_depth") for m in order}
@@ -171,7 +223,8 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         out["model_order"] = _verdict(sides, detail, fabrics=fabrics)
     else:
         missing = [m for m, v in vals.items() if v is None]
-        out["model_order"] = _verdict(None, "", f"not run: {', '.join(missing)}")
+        why = untested([tuple(order)], f"not run: {', '.join(missing)}")
+        out["model_order"] = _verdict(None, "", why)
     rows, sides, fabrics = [], [], []
     for m in MODEL_COLUMNS:  # Figure 7: touch as the query; Table 1: touch as the candidates
         for with_depth, with_color in (
@@ -184,9 +237,8 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
                 sides.append(_side(d, c))
                 rows.append(f"{m} {with_depth} {d[0]:.3f} vs {with_color} {c[0]:.3f}")
                 fabrics += [_cell_fabrics(results, m, p) for p in (with_depth, with_color)]
-    out["depth_beats_color"] = _verdict(
-        sides, "; ".join(rows), "no model with touch, depth and colour", fabrics
-    )
+    why = untested(models, "no model with touch, depth and colour")
+    out["depth_beats_color"] = _verdict(sides, "; ".join(rows), why, fabrics)
     rows, sides, fabrics = [], [], []
     across = ("touch_to_depth", "touch_to_color", *TABLE_1)
     for m in MODEL_COLUMNS:
@@ -197,11 +249,24 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         if inside and between:
             mw, ma = _mean_interval(inside), _mean_interval(between)
             sides.append(_side(mw, ma))
-            rows.append(f"{m}: within {mw[0]:.3f} vs across {ma[0]:.3f} (means)")
+            named = dict(zip(TABLE_2, within, strict=True)) | dict(zip(across, other, strict=True))
+            cells = {p: x for p, x in named.items() if x is not None and x[0] == x[0]}
+            wrong = []  # each within pair below an across one beyond both intervals
+            for w in TABLE_2:
+                above = [p for p in across if p in cells and w in cells]
+                above = [p for p in above if _against(cells[w], cells[p])]
+                if above:
+                    top = max(above, key=lambda p: cells[p][0])
+                    wrong.append(f"{w} {_shown(cells[w])} below {top} {_shown(cells[top])}")
+            against = f"; went the other way beyond both intervals: {', '.join(wrong)}"
+            rows.append(
+                f"{m}: within {_shown(mw)} vs across {_shown(ma)} (means"
+                + (against if wrong else "")
+                + ")"
+            )
             fabrics += [_cell_fabrics(results, m, p) for p in (*TABLE_2, *across)]
-    out["within_beats_across"] = _verdict(
-        sides, "; ".join(rows), "no model scored within and across modalities", fabrics
-    )
+    why = untested(models, "no model scored within and across modalities")
+    out["within_beats_across"] = _verdict(sides, "; ".join(rows), why, fabrics, MEANS_NOTE)
     rows, sides, fabrics = [], [], []
     for base in ("cross_modal", "multi_input"):
         a = [_top1_interval(results, base, p) for p in _COLOR_PAIRS]
@@ -212,16 +277,21 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             sides.append(_side(mb, ma))
             runs = (base, base + "_aug")
             fabrics += [_cell_fabrics(results, r, p) for r in runs for p in _COLOR_PAIRS]
-            up = sum(
-                y[0] > x[0] for x, y in zip(a, b, strict=True) if x is not None and y is not None
-            )
+            up, wrong = 0, []
+            for pair, x, y in zip(_COLOR_PAIRS, a, b, strict=True):
+                if x is not None and y is not None:
+                    up += y[0] > x[0]
+                    if _against(y, x):
+                        wrong.append(f"{pair} {_shown(x)} -> {_shown(y)}")
+            against = f"; went the other way beyond both intervals: {', '.join(wrong)}"
             rows.append(
-                f"{base}: {ma[0]:.3f} -> {mb[0]:.3f} with augmentation (mean of the colour pairs; "
-                f"{up} of {len(a)} up, the paper: all)"
+                f"{base}: {_shown(ma)} -> {_shown(mb)} with augmentation (means of the colour "
+                f"pairs; {up} of {len(a)} up, the paper: all" + (against if wrong else "") + ")"
             )
-    out["augmentation_helps_color"] = _verdict(
-        sides, "; ".join(rows), "augmentation runs not run", fabrics
+    why = untested(
+        [(m, m + "_aug") for m in ("cross_modal", "multi_input")], "augmentation runs not run"
     )
+    out["augmentation_helps_color"] = _verdict(sides, "; ".join(rows), why, fabrics, MEANS_NOTE)
     snn, joint = results.get("snn_depth", {}), results.get("cross_modal_depth_touch", {})
     both = [s for s in ("novel", "seen") if s in snn and s in joint]
     both = [s for s in both if snn[s]["top1"] == snn[s]["top1"]]  # drop NaN (n/a) sides
@@ -236,10 +306,11 @@ def findings(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     detail = "; ".join(
         f"{s}: SNN {snn[s]['top1']:.3f} vs joint {joint[s]['top1']:.3f}" for s in both
     )
-    reason = (
+    reason = untested(
+        [tuple(TABLE_4)],
         "no side with two held-out items per fabric"
         if "snn_depth" in results and "cross_modal_depth_touch" in results
-        else "needs both Table 4 runs (depth and touch data)"
+        else "needs both Table 4 runs (depth and touch data)",
     )
     out["touch_helps_depth"] = _verdict(sides, detail, reason, fabrics)
     for k, v in out.items():
@@ -266,18 +337,19 @@ _SCORED_ON_HELD_OUT = (*MODEL_COLUMNS, "cross_modal_aug", "multi_input_aug")
 
 
 class _Notes:
-    """The notes under one table: each distinct reason a cell is n/a, numbered in order."""
+    """The notes under one table: each distinct reason a cell is n/a (or ``-``: its run was not
+    run), numbered in order."""
 
     def __init__(self) -> None:
         self.cells: dict[str, list[str]] = {}
         """reason -> the cells it explains (``"multi_input touch_to_touch"``)."""
 
-    def mark(self, reason: str, cell: str) -> str:
-        """``n/a`` with the number of ``reason``'s note (``n/a^1``), ``cell`` listed there."""
+    def mark(self, reason: str, cell: str, shown: str = NOT_SCORED) -> str:
+        """``shown`` with the number of ``reason``'s note (``n/a^1``), ``cell`` listed there."""
         cells = self.cells.setdefault(reason, [])
         if cell not in cells:
             cells.append(cell)
-        return f"{NOT_SCORED}^{list(self.cells).index(reason) + 1}"
+        return f"{shown}^{list(self.cells).index(reason) + 1}"
 
     def lines(self) -> list[str]:
         """The notes, one list item each: which cells, and why."""
@@ -287,12 +359,28 @@ class _Notes:
         return out
 
 
+def _unrun_reasons(result: ReproduceResult, only: Sequence[str] | None) -> dict[str, str]:
+    """Why each experiment of the tables that has no numbers was not run: left out by
+    ``--only`` (`only_reason`), or skipped (the data cannot serve it)."""
+    names = [r for r in EXPERIMENT_NAMES if r not in result.results]
+    out = {r: only_reason(only) for r in names if only and r not in only}
+    return out | {r: "skipped (see Skipped below)" for r in names if r in result.skipped}
+
+
 def _cell(
-    results: Mapping[str, Any], model: str, pair: str, paper: float | None, notes: _Notes
+    results: Mapping[str, Any],
+    model: str,
+    pair: str,
+    paper: float | None,
+    notes: _Notes,
+    unrun: Mapping[str, str],
 ) -> str:
     row = results.get(model, {})
     m = row.get("metrics")
-    if m is None or f"{pair}_top1" not in m:
+    why = unrun.get(model)
+    if why is not None:
+        ours = notes.mark(why, model, "-")
+    elif m is None or f"{pair}_top1" not in m:
         ours = "-"
     elif m[f"{pair}_top1"] != m[f"{pair}_top1"]:  # NaN: not scored, with its reason
         ours = notes.mark(row.get("not_scored", {}).get(pair, _UNMEASURED), f"{model} {pair}")
@@ -326,7 +414,10 @@ def _counts(results: Mapping[str, Any], columns: tuple[str, ...], pair: str) -> 
 
 
 def _table(
-    results: Mapping[str, Any], table: Mapping[str, Mapping[str, float]], columns: tuple[str, ...]
+    results: Mapping[str, Any],
+    table: Mapping[str, Mapping[str, float]],
+    columns: tuple[str, ...],
+    unrun: Mapping[str, str],
 ) -> list[str]:
     lines = [
         "| pair | " + " | ".join(columns) + " | chance | fabrics / queries |",
@@ -342,7 +433,7 @@ def _table(
             ),
             None,
         )
-        cells = [_cell(results, m, pair, paper.get(m), notes) for m in columns]
+        cells = [_cell(results, m, pair, paper.get(m), notes, unrun) for m in columns]
         cells.append("-" if chance is None else f"{chance:.3f}")
         cells.append(_counts(results, columns, pair))
         lines.append(f"| {pair} | " + " | ".join(cells) + " |")
@@ -463,7 +554,7 @@ def _intervals_note(results: Mapping[str, Any]) -> str:
     return text
 
 
-def _table_4(results: Mapping[str, Any]) -> list[str]:
+def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
     """Table 4 (depth to depth, seen and novel fabrics), its chance and counts, and notes."""
     lines = [
         "| model | seen top-1 | seen top-3 | novel top-1 | novel top-3 |",
@@ -478,7 +569,10 @@ def _table_4(results: Mapping[str, Any]) -> list[str]:
             for k in (1, 3):
                 ours = got.get(f"top{k}")
                 n_eff = _candidates(got)
-                if ours is None:
+                unscored = unrun.get(name)
+                if unscored is not None:
+                    cell = notes.mark(unscored, name, "-")
+                elif ours is None:
                     cell = "-"
                 elif ours != ours:
                     why = row.get("not_scored", {}).get(side, _UNMEASURED)
@@ -520,23 +614,97 @@ def _candidates(side: Mapping[str, Any]) -> int | None:
     return round(1 / chance) if chance else None
 
 
+def _pick(results: Mapping[str, Any]) -> str:
+    """``pick 1 of 10``, or of the candidates a draw has (``n_effective``) where the test
+    fabrics offer fewer than 10: ``pick 1 of 6 (the paper's pick 1 of 10, but ...)``."""
+    parts: list[tuple[list[int], str]] = []
+    held = []
+    for run in _SCORED_ON_HELD_OUT:
+        m = results.get(run, {}).get("metrics", {})
+        for key, n in m.items():
+            top1 = m.get(key.removesuffix("_n_effective") + "_top1")
+            if key.endswith("_n_effective") and top1 is not None and top1 == top1:
+                held.append(round(n))
+    if held:
+        parts.append((held, "Tables 1-3"))
+    for side in ("seen", "novel"):
+        got = [_candidates(results[n][side]) for n in TABLE_4 if side in results.get(n, {})]
+        counts = [n for n in got if n is not None]
+        if counts:
+            parts.append((counts, f"Table 4's {side} side"))
+    if all(min(counts) >= 10 for counts, _ in parts):
+        return "pick 1 of 10"
+    spans = [(_span(counts), where) for counts, where in parts]
+    if len({span for span, _ in spans}) == 1:
+        return (
+            f"pick 1 of {spans[0][0]} (the paper's pick 1 of 10, but the test fabrics offer "
+            f"only {spans[0][0]} candidates a draw)"
+        )
+    here = ", ".join(f"1 of {span} on {where}" for span, where in spans)
+    return (
+        "pick 1 of as many candidates as the test fabrics offer, up to the paper's 10 (here "
+        f"{here})"
+    )
+
+
+def _what_a_cell_is(results: Mapping[str, Any], seeds: int) -> str:
+    """The sentence on what a cell of the tables shows: with several seeds, each number and
+    each interval bound is the mean over the seeds (`lookfeel.reproduce.run`'s aggregate)."""
+    pick = f"top-1 accuracy (exact expectation over the draw) of {_pick(results)}"
+    if seeds <= 1:
+        return f"Each cell: our {pick}, its 95% bootstrap interval over test fabrics"
+    return (
+        f"Each cell: the mean over the {seeds} seeds of our {pick}, its 95% bootstrap interval "
+        f"over test fabrics (each bound the mean over the {seeds} seeds of that seed's "
+        "interval), ±the standard deviation over the seeds"
+    )
+
+
+def _earlier(meta: Mapping[str, Any]) -> str:
+    """`` (and flat from finished runs of an earlier reproduction in this folder)``: the
+    experiments ``--only`` left out that the report shows all the same (``meta["earlier"]``)."""
+    earlier = meta.get("earlier") or []
+    if not earlier:
+        return ""
+    return f" (and {', '.join(earlier)} from finished runs of an earlier reproduction here)"
+
+
+def _time_behind(meta: Mapping[str, Any]) -> str:
+    """The header's time: the work behind the numbers (``runs``, ``run_minutes``: each run's
+    training and scoring, resumes included) beside this reproduction's own minutes, which a
+    reproduction that found its runs finished spends almost none of."""
+    if meta.get("runs") is None or meta.get("run_minutes") is None:
+        return f"{meta['minutes']} min."
+    n = int(meta["runs"])
+    return (
+        f"{n} run{'' if n == 1 else 's'} behind these numbers, {meta['run_minutes']} min of "
+        f"training and scoring; this reproduction {meta['minutes']} min."
+    )
+
+
 def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) -> None:
     """Write ``report.md``: which fabrics each table scores on, tables with ours and (the
-    paper's) numbers and notes on the cells without one, findings, skipped runs."""
+    paper's) numbers and notes on the cells without one, findings, skipped runs.
+
+    ``meta["only"]``: the experiments ``--only`` ran (absent or None: all were asked for); the
+    header names them, and the cells of the runs it left out say so in a note."""
     r = result.results
     where, few = _few_fabrics(r)
+    only = meta.get("only") or None
+    unrun = _unrun_reasons(result, only)
     lines = [
         "# Reproducing *Connecting Look and Feel* (CVPR 2017)",
         "",
         f"Data: `{meta['data']}`; budget: **{meta['budget']}**; seeds: {meta['seeds']}; "
-        f"{meta['minutes']} min.",
+        + (f"--only: {', '.join(only)}{_earlier(meta)}; " if only else "")
+        + _time_behind(meta),
         "",
         *_where_scored(result, meta),
-        "Each cell: our top-1 accuracy of pick 1 of 10 (exact expectation over the draw), its 95% "
-        "bootstrap interval over test fabrics (first seed), the spread over seeds when there are "
-        "several, and (the paper's number); `fabrics / queries`: the test fabrics and queries "
-        f"behind a row's numbers; {NOT_SCORED}^k: no number, note k under the table says why. "
-        "Query modality first: `touch_to_depth` is a GelSight press matched against depth "
+        f"{_what_a_cell_is(r, int(meta.get('seeds', 1)))}, and (the paper's number); "
+        "`fabrics / queries`: the test fabrics and queries behind a row's numbers; "
+        f"{NOT_SCORED}^k: no number, note k under the table says why"
+        + ("; -^k: the column's run was not run, note k says why" if unrun else "")
+        + ". Query modality first: `touch_to_depth` is a GelSight press matched against depth "
         "images. Touch inputs carry the model's number of presses (3 for the Multi-input Net).",
         "",
         "## Findings",
@@ -552,12 +720,17 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
     for f in result.findings.values():
         lines.append(f"| {f['claim']} | **{verdict_text(f)}** | {f['detail']} |")
     too_few = any(f["verdict"] == TOO_FEW for f in result.findings.values())
+    untested = (
+        f"a run it needs was {only_reason(only)}" + (" or was skipped" if result.skipped else "")
+        if only
+        else "its runs were skipped"
+    )
     lines += [
         "",
         f"A finding is one or more comparisons of two of our numbers. It **{HOLDS}** when every "
         "comparison goes the paper's way with the two 95% intervals (over test fabrics) apart, "
         f"**{NOT_HOLD}** when one goes the other way with them apart, and is **{NOISE}** when "
-        f"the intervals overlap ({_intervals_note(r)}; **{UNTESTED}**: its runs were skipped"
+        f"the intervals overlap ({_intervals_note(r)}; **{UNTESTED}**: {untested}"
         + (
             f"; **{TOO_FEW}** (how many): no verdict, as an interval it rests on is over fewer "
             f"than {MIN_FABRICS} fabrics"
@@ -565,19 +738,25 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
             else ""
         )
         + "). "
+        "Two findings compare means over pairs: within against across one modality (the mean "
+        "of the Table 2 pairs against that of the pairs across), and colour augmentation (the "
+        "mean of the four pairs with colour before and after); each mean's interval is the mean "
+        "of its pairs' bounds, and the verdict is the means', as the paper's claims are about "
+        "the pairs on average. A single pair that goes the other way beyond both intervals is "
+        "named in the evidence but does not decide the verdict. "
         "The paper's numbers are from real fabrics, AlexNets with ImageNet weights and 25,000 "
         "steps; a short run on a synthetic world is not expected to reach them, only to show "
         "whether their order holds.",
     ]
     lines += ["", "## Figure 7 and Table 1: matching across modalities", ""]
     cross = {"touch_to_depth": {}, "touch_to_color": {}, **TABLE_1}
-    lines += _table(r, cross, MODEL_COLUMNS)
+    lines += _table(r, cross, MODEL_COLUMNS, unrun)
     lines += ["", "## Table 2: matching within a modality", ""]
-    lines += _table(r, TABLE_2, MODEL_COLUMNS)
+    lines += _table(r, TABLE_2, MODEL_COLUMNS, unrun)
     lines += ["", "## Table 3: colour augmentation", ""]
-    lines += _table(r, TABLE_3, _TABLE_3_COLUMNS)
+    lines += _table(r, TABLE_3, _TABLE_3_COLUMNS, unrun)
     lines += ["", "## Table 4: touch helps vision (depth to depth)", ""]
-    lines += _table_4(r)
+    lines += _table_4(r, unrun)
     if any(s in r.get(n, {}) for n in TABLE_4 for s in ("seen", "novel")):
         lines += [
             "",

@@ -18,3 +18,8 @@ class ReproduceResult:
     results: dict[str, Any] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     findings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+    """``results.json``'s ``meta``: the data, budget and settings; ``only`` (the experiments
+    asked for, None: all) and ``earlier`` (those not asked for, reported from finished runs
+    found in ``out``); ``minutes`` (this reproduction's) and ``runs`` with ``run_minutes`` (the
+    runs behind the results and their own time, training and scoring, summed)."""

@@ -6,16 +6,22 @@ trained with a *budget* and scored on fabrics held out from training:
 - ``paper``: the configs as written (ImageNet AlexNet at 227 px, fc6 frozen, 25,000 steps of
   batch 128); needs the ImageNet weights (``pretrained``), since training a whole AlexNet on a
   CPU is out of reach.
-- ``small``: the compact CNN at 64 px, 1,500 steps of batch 64 (minutes per run on 2 cores).
-- ``tiny``: the compact CNN at 40 px, 120 steps of batch 32 (seconds per run; the demo).
+- ``small``: the compact CNN at 64 px, 1,500 steps of batch 64 (about 34 min a run, two at a
+  time on 2 cores: 0.73 steps/s over a run's first 150 steps, session 51, on a loaded machine).
+- ``tiny``: the compact CNN at 40 px, 120 steps of batch 32 (seconds a run; the demo's eight
+  took 39 s side by side on 2 cores, session 46).
 
 The architectures stay the paper's under every budget: which presses (flat or fold), the
 cluster head, three pooled presses, colour augmentation and the modalities of each run. Runs
 the data cannot serve (modalities or touch presses it lacks, or fewer presses a fabric than the
 run pools into one touch input) are listed as skipped with the reason, before any training.
 Each finished run writes ``runs/<name>/seed<k>/eval.json``; a killed reproduction resumes where
-it stopped. A number the held-out data cannot give (no query has an item of its own fabric to
-find) is NaN, with the reason under ``not_scored`` (the report shows it as n/a with a note).
+it stopped. A reproduction into a folder that holds finished runs of experiments it was not
+asked for (``only``) reports them too when they were trained with its settings, so results
+accumulate; one with other settings is left out with a line saying how it differs (a finished
+run it was asked for that differs is an error, before any training). A number the held-out
+data cannot give (no query has an item of its own fabric to find) is NaN, with the reason
+under ``not_scored`` (the report shows it as n/a with a note).
 """
 
 from __future__ import annotations
@@ -23,6 +29,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import pickle
+import re
+import signal
+import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -37,7 +47,7 @@ import torch
 
 from lookfeel.atomic import atomic_write_text
 from lookfeel.checkpoint import load_model
-from lookfeel.config import ConfigError, RunConfig, load_config
+from lookfeel.config import ConfigError, RunConfig, load_config, to_dict
 from lookfeel.config._core import Override
 from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
@@ -57,6 +67,7 @@ from lookfeel.processes import available_cores, die_with_parent
 from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
 from lookfeel.train import run_started, train
+from lookfeel.train.loop import as_trained
 
 __all__ = [
     "BUDGETS",
@@ -258,7 +269,9 @@ def _run_one(
             saved["not_scored"] = _old_reasons(saved, run_dir)
         return saved
     started = time.perf_counter()
-    result = train(config, data, run_dir, resume=run_started(run_dir))
+    resume = run_started(run_dir)
+    before = _logged_seconds(run_dir / "metrics.jsonl") if resume else 0.0
+    result = train(config, data, run_dir, resume=resume)
     loaded = load_model(
         result.last_checkpoint
     )  # the last step, as the paper: no test-set selection
@@ -292,10 +305,33 @@ def _run_one(
     test_ids = split.get("novel") or split["val"]
     record["test_fabrics"] = len(test_ids)
     record["test_fabric_ids"] = sorted(int(i) for i in test_ids)
-    record["seconds"] = round(time.perf_counter() - started, 1)
+    # The run's own time: its training and scoring here, and the training a killed
+    # reproduction did on it before this one resumed it.
+    record["seconds"] = round(before + time.perf_counter() - started, 1)
     record["threads"] = torch.get_num_threads()
     atomic_write_text(done, json.dumps(record, indent=1) + "\n")
     return record
+
+
+def _logged_seconds(path: Path) -> float:
+    """The training time ``metrics.jsonl`` at ``path`` records: each logged window's steps over
+    its ``steps_per_s`` (the time of validations and checkpoints between windows is not in it).
+    0 without the file; a line that cannot be read counts nothing."""
+    total, last = 0.0, 0
+    try:
+        lines = path.read_text().splitlines()
+    except OSError:
+        return 0.0
+    for line in lines:
+        try:
+            entry = json.loads(line)
+            step, rate = int(entry["step"]), entry.get("steps_per_s")
+        except (ValueError, KeyError, TypeError):
+            continue
+        if isinstance(rate, (int, float)) and rate > 0 and step > last:
+            total += (step - last) / rate
+            last = step
+    return total
 
 
 def _old_reasons(record: Mapping[str, Any], run_dir: Path) -> dict[str, str]:
@@ -325,8 +361,9 @@ def _over_seeds(tables: Sequence[Mapping[str, float]], stat: str) -> dict[str, f
 
 
 def _aggregate(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Mean over seeds of every number (and its spread with several seeds); the intervals are
-    the first seed's bootstrap over test fabrics; ``not_scored``: why each number that is NaN
+    """Mean over seeds of every number, each interval bound included (a bound is the mean over
+    the seeds of that seed's bootstrap bound over test fabrics), and its standard deviation over
+    seeds when there are several; ``not_scored``: why each number that is NaN
     in any seed is (every seed's reasons, by pair name or Table 4 side)."""
     out: dict[str, Any] = {"seeds": len(records)}
     for part in ("metrics", "seen", "novel"):
@@ -395,6 +432,13 @@ def _run_jobs(
     runs side by side use the cores fully. A run's numbers depend on its thread count (the
     rounding of the sums), which its ``eval.json`` records; `lookfeel reproduce --workers 1`
     trains in this process with every core's thread. A line is logged as each run starts.
+
+    The warnings a worker's run raises are raised again here as it finishes (`_relay`), so
+    that they are shown as this process shows its own (``lookfeel: warning: ...`` under the
+    command). An interrupt (Ctrl-C, or SIGINT sent to this process alone; the workers ignore
+    it) ends the workers at once (`_stop_workers`) and goes on up: runs resume from their last
+    checkpoint. An error of a run lets the others running finish first (each writes its own
+    ``eval.json``), and starts no more.
     """
     n = _workers_for(jobs, workers)
     if n == 1:
@@ -406,13 +450,14 @@ def _run_jobs(
     threads = max(1, available_cores() // n)
     out: list[dict[str, Any] | None] = [None] * len(jobs)
     waiting = iter(range(len(jobs)))
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         n,
         mp_context=get_context("spawn"),
         initializer=_start_worker,
         initargs=(os.getpid(), threads),
-    ) as pool:
-        running: dict[Future[dict[str, Any]], int] = {}
+    )
+    try:
+        running: dict[Future[tuple[dict[str, Any], list[_Caught]]], int] = {}
 
         def start_next() -> None:
             for i in waiting:
@@ -430,17 +475,48 @@ def _run_jobs(
         while running:
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
-                out[running.pop(future)] = future.result()
+                record, caught = future.result()
+                out[running.pop(future)] = record
+                _relay(caught)
                 start_next()
+    except KeyboardInterrupt:
+        _stop_workers(pool)
+        raise
+    finally:
+        try:
+            pool.shutdown(wait=True, cancel_futures=True)
+        except KeyboardInterrupt:  # while the others' runs end after a run's error
+            _stop_workers(pool)
+            raise
     return [r for r in out if r is not None]
 
 
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End ``pool``'s worker processes now, with the runs they are training (SIGTERM, then
+    SIGKILL to one still there after 5 s; their own workers die with them), so that its
+    shutdown waits for nothing (`ProcessPoolExecutor.shutdown` alone waits for the runs).
+    Python 3.11 has no public way to do so: the pool's ``_processes``, which the shutdown
+    clears only after the wait."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(5.0)
+        if process.is_alive():
+            process.kill()
+            process.join(5.0)
+
+
 def _start_worker(parent: int, threads: int) -> None:
-    """Initializer of a reproduction worker: die with ``parent``, use ``threads`` threads, and
+    """Initializer of a reproduction worker: die with ``parent``, ignore SIGINT (Ctrl-C
+    reaches every process of the terminal's group; ``parent`` ends its workers itself, so a
+    worker waiting for its next run prints no traceback), use ``threads`` threads, and
     import the user's plugins (`load_plugins`: ``LOOKFEEL_PLUGINS``, inherited from the parent,
     and entry points), so that a config naming their own backbone or loss trains here too (a
     spawned worker runs none of the parent's imports)."""
     die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(threads)
     load_plugins()
 
@@ -448,12 +524,59 @@ def _start_worker(parent: int, threads: int) -> None:
 _CATALOGS: dict[Path, Catalog] = {}
 """The dataset a worker scanned, by path: scanned once per worker, not once per run."""
 
+_Caught = tuple[type[Warning], str, str, int, str | None]
+"""A warning a worker's run raised: its category, message, file, line and module."""
 
-def _run_in_worker(job: _Job, data: Path, n_boot: int) -> dict[str, Any]:
-    """`_run_one` in a worker process."""
-    if data not in _CATALOGS:
-        _CATALOGS[data] = scan(data, require=[], strict=True)
-    return _run_one(job.exp, job.config, _CATALOGS[data], data, job.run_dir, n_boot)
+
+def _run_in_worker(job: _Job, data: Path, n_boot: int) -> tuple[dict[str, Any], list[_Caught]]:
+    """`_run_one` in a worker process; with the warnings it raised that this process's
+    filters let through (each once), for the parent to raise again (`_relay`): a spawned
+    worker shows them in Python's own form, with the file, line and source line, which the
+    parent's ``lookfeel: warning: ...`` does not reach."""
+    caught: dict[tuple[type[Warning], str], tuple[str, int]] = {}
+
+    def keep(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: Any = None,
+        line: str | None = None,
+    ) -> None:
+        caught.setdefault((category, str(message)), (filename, lineno))
+
+    with warnings.catch_warnings():
+        warnings.showwarning = keep
+        if data not in _CATALOGS:
+            _CATALOGS[data] = scan(data, require=[], strict=True)
+        record = _run_one(job.exp, job.config, _CATALOGS[data], data, job.run_dir, n_boot)
+    modules = {getattr(m, "__file__", None): name for name, m in list(sys.modules.items()) if m}
+    return record, [
+        (_sendable(category), text, filename, lineno, modules.get(filename))
+        for (category, text), (filename, lineno) in caught.items()
+    ]
+
+
+def _sendable(category: type[Warning]) -> type[Warning]:
+    """``category``, or `UserWarning` when it cannot be sent to the parent (a class pickle
+    cannot name, such as one made in a function)."""
+    try:
+        pickle.dumps(category)
+    except (pickle.PicklingError, AttributeError, TypeError):
+        return UserWarning
+    return category
+
+
+_RELAYED: dict[Any, Any] = {}
+"""The warnings registry of the warnings relayed from workers: each shown once, as Python
+shows a warning of one place once."""
+
+
+def _relay(caught: Sequence[_Caught]) -> None:
+    """Raise again here the warnings a worker's run raised, at their own file and line (this
+    process's filters and display decide what is shown, and how)."""
+    for category, text, filename, lineno, module in caught:
+        warnings.warn_explicit(text, category, filename, lineno, module, _RELAYED)
 
 
 def split_overrides(has_paper_test: bool, pool: int) -> tuple[list[str], list[str], int]:
@@ -552,13 +675,19 @@ def reproduce(
     split, vision, n_val = split_overrides(has_paper_test, len(paper.train) or len(catalog.ids))
     result = ReproduceResult(out=out, report=out / "report.md")
     started = time.perf_counter()
-    jobs: list[_Job] = []
+    jobs: list[_Job] = []  # the runs asked for
+    earlier: list[_Job] = []  # the finished runs of the experiments not asked for
     for exp in EXPERIMENTS:
-        if only and exp.name not in only:
+        asked = not only or exp.name in only
+        if not asked and not (out / "runs" / exp.name).is_dir():
             continue
         run_overrides = experiment_overrides(exp, budget, split, vision, overrides, pretrained)
         base = load_config(RunConfig, config_dir() / f"{exp.name}.yaml", run_overrides)
         reason = _needs(base, catalog)
+        if not asked:
+            if reason is None:
+                earlier += _finished_runs(exp, run_overrides, out, log)
+            continue
         if reason is not None:
             result.skipped[exp.name] = reason
             log(f"skip {exp.name}: {reason}")
@@ -567,13 +696,33 @@ def reproduce(
             config = load_config(
                 RunConfig, config_dir() / f"{exp.name}.yaml", [*run_overrides, f"train.seed={seed}"]
             )
-            jobs.append(_Job(exp, config, out / "runs" / exp.name / f"seed{seed}"))
+            job = _Job(exp, config, out / "runs" / exp.name / f"seed{seed}")
+            # Refused before any training, as a resume with another config is (an earlier
+            # lookfeel's run without its config.yaml cannot be checked: read as it is).
+            if job.finished and (job.run_dir / "config.yaml").exists():
+                why = _differs(job.run_dir, config)
+                if why is not None:
+                    raise ConfigError(
+                        f"{job.run_dir} is a finished run {why}: reproduce into another --out, "
+                        "or delete the run to train it anew"
+                    )
+            jobs.append(job)
+    if earlier:
+        found: dict[str, list[str]] = {}
+        for job in earlier:
+            found.setdefault(job.exp.name, []).append(str(job.config.train.seed))
+        log(
+            f"also reported, from finished runs in {out}: "
+            + ", ".join(f"{name} (seed {', '.join(s)})" for name, s in found.items())
+        )
     records = _run_jobs(jobs, catalog, data, n_boot, workers, log)
+    records += [_run_one(j.exp, j.config, catalog, data, j.run_dir, n_boot) for j in earlier]
+    every = [*jobs, *earlier]
     for exp in EXPERIMENTS:
-        mine = [r for job, r in zip(jobs, records, strict=True) if job.exp == exp]
+        mine = [r for job, r in zip(every, records, strict=True) if job.exp == exp]
         if mine:
             result.results[exp.name] = _aggregate(mine)
-    result.findings = findings(result.results)
+    result.findings = findings(result.results, only=list(only) or None)
     meta = {
         "data": str(data),
         "budget": budget,
@@ -581,8 +730,19 @@ def reproduce(
         "overrides": list(overrides),
         "split": "paper" if has_paper_test else f"stratified, {n_val} held-out fabrics",
         "paper_test_fabrics": len(paper.test),
+        # What this reproduction was asked to run (--only; None: every experiment), and the
+        # experiments it was not asked for whose finished runs in ``out``, trained with the
+        # same settings, it reports too: the results hold both.
+        "only": list(only) or None,
+        "earlier": list(dict.fromkeys(j.exp.name for j in earlier)),
         "minutes": round((time.perf_counter() - started) / 60, 1),
+        # The runs behind the results and their own time (training and scoring, summed over
+        # runs side by side; with the runs an earlier reproduction trained, which a resumed
+        # one only reads).
+        "runs": len(records),
+        "run_minutes": round(sum(float(r.get("seconds") or 0.0) for r in records) / 60, 1),
     }
+    result.meta = meta
     everything = {
         "meta": meta,
         "results": result.results,
@@ -594,6 +754,78 @@ def reproduce(
     atomic_write_text(out / "results.json", text + "\n")
     write_reproduction_report(result, meta)
     return result
+
+
+_FREE = (
+    "model.pretrained",
+    "train.progress",
+    "train.threads",
+    "train.log_every",
+    "train.checkpoint_every",
+    "data.cache_dir",
+    "data.decode",
+    "data.workers",
+)
+"""Config keys that change no number of a finished run: where the weights file was named from
+(a run has its weights), the progress bar, logging and checkpoint intervals, the threads (the
+run's ``eval.json`` records its count) and how images are decoded and cached."""
+
+
+def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            out |= _flat(v, f"{prefix}{k}.")
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _differs(run_dir: Path, config: RunConfig) -> str | None:
+    """None when the finished run at ``run_dir`` is the one ``config`` asks for (`_FREE` keys
+    aside, and what training resolves from the labels: `as_trained`); else how it is not, to
+    follow "a finished run": "trained with other settings than this reproduction's (up to 4
+    keys, ``key: trained A, asked B``)" or "whose config.yaml cannot be read (why)"."""
+    path = run_dir / "config.yaml"
+    try:
+        trained = load_config(RunConfig, path)
+    except (ConfigError, OSError, ValueError) as e:
+        return f"whose {path.name} cannot be read ({e})"
+    a, b = _flat(to_dict(trained)), _flat(to_dict(as_trained(config, trained)))
+    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in _FREE)
+    if not changed:
+        return None
+    keys = "; ".join(f"{k}: trained {a.get(k)!r}, asked {b.get(k)!r}" for k in changed[:4])
+    more = f" and {len(changed) - 4} more" if len(changed) > 4 else ""
+    return f"trained with other settings than this reproduction's ({keys}{more})"
+
+
+_SEED_DIR = re.compile(r"seed(\d+)")
+
+
+def _finished_runs(
+    exp: Experiment, run_overrides: Sequence[str | Override], out: Path, log: Callable[[str], None]
+) -> list[_Job]:
+    """The finished runs of ``exp`` under ``out/runs`` (every seed's) trained with the settings
+    this reproduction would train it with (``run_overrides``), by seed; each finished run
+    trained otherwise is left out, with a line saying how it differs."""
+    seeds = []
+    for path in (out / "runs" / exp.name).iterdir():
+        match = _SEED_DIR.fullmatch(path.name)
+        if match and (path / "eval.json").exists():
+            seeds.append(int(match.group(1)))
+    found = []
+    for seed in sorted(seeds):
+        config = load_config(
+            RunConfig, config_dir() / f"{exp.name}.yaml", [*run_overrides, f"train.seed={seed}"]
+        )
+        job = _Job(exp, config, out / "runs" / exp.name / f"seed{seed}")
+        why = _differs(job.run_dir, config)
+        if why is None:
+            found.append(job)
+        else:
+            log(f"not reported: {job.run_dir}, a finished run {why}")
+    return found
 
 
 def _finite_or_null(obj: Any) -> Any:
