@@ -258,6 +258,77 @@ def test_glance_ranks_the_true_look_and_reads_the_feel_from_the_nearest_training
     assert not evaluate_embeddings(only_touch, FAST).glance
 
 
+def test_few_training_fabrics_neither_average_them_all_nor_hide_an_overconfident_c(
+    tmp_path: Path,
+):
+    """QA (a rig of 10 fabrics, 5 trained on): the glance's feel and the k-NN probe averaged
+    the nearest 5 of 5 training fabrics, so every query got their mean and the probe scored
+    chance's MAE exactly; and c fitted on the 5 training fabrics (told apart far better than
+    new ones) gave an NLL of 118 against chance's 1.6 with nothing flagging it. Now a k-NN
+    averages at most half its training fabrics, said in the notes and the report, and a row
+    whose NLL is above chance's, or whose c was fitted on fewer than 10 fabrics, is flagged."""
+    from lookfeel.evaluate.report import _feel_title
+
+    embedded, centres = _world(n_fabrics=5, noise=1.0, seed=8)
+    reference, ref_centres = _world(n_fabrics=5, noise=0.02, seed=9, first_id=101)
+    labels = {f + 1: [float(c[0])] for f, c in enumerate(centres)}
+    labels |= {101 + f: [float(c[0])] for f, c in enumerate(ref_centres)}
+    r = evaluate_embeddings(embedded, FAST, labels=labels, label_names=["x"], reference=reference)
+    m = r.metrics
+    # The feel: the nearest 2 of 5, so the queries do not all get one answer.
+    assert r.glance and all(len(g.neighbours) == 2 and g.n_reference == 5 for g in r.glance)
+    assert len({g.predicted for g in r.glance}) > 1
+    assert "the glance's feel: the mean of the nearest 2 of the 5 training fabrics" in r.notes[-1]
+    assert "the nearest 5 of 5 would be all of them" in r.notes[-1]
+    # The probe: k = 2, in the metrics and the report; not chance's MAE to the last digit.
+    for mod in ("depth", "color", "touch"):
+        assert m[f"property_{mod}_x_knn_k"] == 2.0
+        assert m[f"property_{mod}_x_knn_mae"] != m[f"property_{mod}_x_knn_mae_chance"]
+    assert any(
+        n.startswith("k-NN property probe: the mean of the nearest 2 of the 5") for n in r.notes
+    )
+    # Calibration: c fitted on 5 nearly noiseless training fabrics is far too sharp for noisy
+    # test ones.
+    pair = "touch_to_depth"
+    cal = r.calibration[pair]
+    assert cal.c_source == "fitted" and cal.fit_fabrics == 5
+    assert cal.nll > 5 * cal.nll_chance and cal.overconfident
+    assert m[f"{pair}_overconfident"] == 1.0 and m[f"{pair}_c_fit_fabrics"] == 5.0
+    text = write_report(r, tmp_path / "few").report.read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| touch → depth | 2"))
+    assert "| fitted on 5 training fabrics |" in row
+    assert f"{cal.nll:.3f} (overconfident: NLL above chance's) | 1.609 |" in row
+    assert "\nOverconfident: depth → depth, " in text
+    assert "c fitted on 5 training fabrics only: those are the fabrics the model was" in text
+    assert "| touch | x | knn (k=2) |" in text
+    assert "k-NN (mean of the nearest 5, but at most half the reference fabrics" in text
+    assert (
+        _feel_title(r.glance[0]) == "Feels like (mean of the 2\ntraining fabrics nearest in touch)"
+    )
+    one = dataclasses.replace(r.glance[0], neighbours=(101,), n_reference=1)
+    assert _feel_title(one) == "Feels like (the only training\nfabric with labels)"
+    assert "the training fabric\nnearest" in _feel_title(dataclasses.replace(one, n_reference=3))
+
+    # As many training fabrics as the demo's 100 (here 12): k stays 5 and nothing is flagged;
+    # the report reads as before.
+    embedded, centres = _world(noise=0.3, seed=4)
+    reference, ref_centres = _world(noise=0.3, seed=5, first_id=101)
+    labels = {f + 1: [float(c[0])] for f, c in enumerate(centres)}
+    labels |= {101 + f: [float(c[0])] for f, c in enumerate(ref_centres)}
+    r = evaluate_embeddings(embedded, FAST, labels=labels, label_names=["x"], reference=reference)
+    assert all(len(g.neighbours) == 5 and g.n_reference == 12 for g in r.glance)
+    assert r.metrics["property_touch_x_knn_k"] == 5.0
+    assert r.calibration[pair].fit_fabrics == 12 and not r.calibration[pair].overconfident
+    assert r.metrics[f"{pair}_overconfident"] == 0.0
+    assert not any("nearest" in n for n in r.notes)
+    text = write_report(r, tmp_path / "many").report.read_text()
+    assert "k-NN (mean of the nearest 5) and ridge regression." in text
+    assert "(k=" not in text and "Overconfident" not in text and "training fabrics only" not in text
+    assert f"| {r.calibration[pair].c:.4g} | fitted | " in text
+    assert "paper" in str(evaluate_embeddings(embedded, FAST).calibration[pair].c_source)
+    assert np.isnan(evaluate_embeddings(embedded, FAST).metrics[f"{pair}_c_fit_fabrics"])
+
+
 def _mixed(labels: np.ndarray, first_id: int, seed: int) -> dict[Modality, EmbeddedItems]:
     """Depth and touch items whose embeddings are two different linear mixes of their fabric's
     labels: the embeddings do not meet, the labels do."""

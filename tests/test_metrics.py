@@ -31,6 +31,7 @@ from lookfeel.metrics import (
     property_probe,
     reliability_curve,
 )
+from lookfeel.metrics.properties import knn_neighbours
 
 # ---------------------------------------------------------------- oracles (slow, obvious)
 
@@ -503,6 +504,34 @@ def test_property_probe_per_fabric_and_disjoint_fabrics():
         property_probe(
             emb, label[fabric], emb, label[fabric], train_fabric=fabric, test_fabric=fabric
         )
+
+
+def test_knn_probe_never_averages_every_training_fabric():
+    # With k >= the training fabrics the "nearest k" are all of them: every test fabric would
+    # get the training mean, and the probe's MAE would equal chance's exactly.
+    # At most half, at least one; k = 5 unchanged from 10 fabrics up (the demo's 100).
+    sizes = (1, 2, 3, 5, 9, 10, 11, 100)
+    assert [knn_neighbours(5, n) for n in sizes] == [1, 1, 1, 2, 4, 5, 5, 5]
+    assert knn_neighbours(1, 100) == 1
+    fabric = np.repeat(np.arange(10), 2)
+    centre = np.arange(10, dtype=float)[:, None] * np.array([[1.0, 0.0]])
+    emb = centre[fabric]
+    label = np.arange(10, dtype=float)[fabric]
+    tr, te = fabric < 5, fabric >= 5
+    res = property_probe(
+        emb[tr], label[tr], emb[te], label[te], "knn",
+        train_fabric=fabric[tr], test_fabric=fabric[te], k=5,
+    )["0"]  # fmt: skip
+    assert res["k"] == 2 and res["n_train"] == 5
+    # The nearest 2 of training fabrics 0-4 to each of 5-9 are 3 and 4: mean 3.5, not 2.
+    assert res["mae"] == pytest.approx(np.mean(np.arange(5, 10) - 3.5))
+    chance = np.mean(np.arange(5, 10) - 2.0)  # always answering the training mean
+    assert res["mae"] < chance
+    many = property_probe(emb, label, emb, label, "knn", k=5)["0"]  # 20 rows: k stays 5
+    assert many["k"] == 5
+    assert "k" not in property_probe(emb, label, emb, label, "ridge")["0"]
+    one = property_probe(emb[:1], label[:1], emb, label, "knn")["0"]  # too few to fit
+    assert math.isnan(one["k"]) and math.isnan(one["mae"])
 
 
 def test_property_probe_ignores_columns_constant_in_training():

@@ -13,10 +13,13 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
 - ``map``, ``recall{k}``, ``median_rank``, each with ``_chance``; ``_ci_low``/``_ci_high`` for
   the exact top-k, map, recall and median rank (bootstrap over test fabrics);
 - ``n_queries``, ``n_fabrics``, ``n_effective``;
-- calibration: ``c``, ``c_fitted``, ``fabric_accuracy`` (+ ``_chance``), ``confidence``,
-  ``ece``, ``nll`` (+ ``_chance``);
+- calibration: ``c``, ``c_fitted``, ``c_fit_fabrics`` (the reference fabrics c was fitted on;
+  NaN when not fitted), ``fabric_accuracy`` (+ ``_chance``), ``confidence``, ``ece``, ``nll``
+  (+ ``_chance``), ``overconfident`` (1 where the NLL is above chance's);
 - ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
-- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``;
+- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``, and
+  ``property_{modality}_{label}_knn_k``: the neighbours the k-NN averaged (``probe_k``, at most
+  half the reference fabrics);
 - beside them (`lookfeel.evaluate.controls`, as ``lookfeel cv``): ``{q}_to_{q}_raw_pixels_top{k}``
   (raw pixels, pairs of one modality), ``{pair}_top{k}_swapped``/``_room`` (the background
   control, pairs with depth) and ``{pair}_top{k}_untouched`` (the untouched control, pairs

@@ -41,6 +41,7 @@ from lookfeel.metrics import (
 )
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_map
 from lookfeel.metrics.label_space import fit_label_spaces
+from lookfeel.metrics.properties import knn_neighbours
 from lookfeel.modality import Modality, Pair
 
 from .result import CalibrationResult, EvalResult, GlanceExample, GlanceGallery, PickExample
@@ -442,6 +443,17 @@ def _nearest_fabrics(
     )
 
 
+def fewer_neighbours(what: str, used: int, n: int, k: int) -> str:
+    """The note that ``what`` averaged the nearest ``used`` of ``n`` reference fabrics instead
+    of ``eval.probe_k``'s ``k`` (`lookfeel.metrics.properties.knn_neighbours`)."""
+    covers = "all of them: their mean, the same for every query" if k >= n else "most of them"
+    return (
+        f"{what}: the mean of the nearest {used} of the {n} training fabrics, not "
+        f"eval.probe_k's {k}: a k-NN averages at most half of them (the nearest {k} of {n} "
+        f"would be {covers})"
+    )
+
+
 def _feels_like(
     query_emb: NDArray[np.float64],
     own: int,
@@ -449,19 +461,22 @@ def _feels_like(
     labels: Mapping[int, Sequence[float]],
     n_cols: int,
     k: int,
-) -> tuple[tuple[float, ...], tuple[int, ...]]:
-    """The mean label of the ``k`` training fabrics whose touch is nearest (by their nearest
-    query), and those fabrics; the query's own fabric is never one of them."""
+) -> tuple[tuple[float, ...], tuple[int, ...], int]:
+    """The mean label of the training fabrics whose touch is nearest (by their nearest query),
+    those fabrics and how many there were to choose from; the query's own fabric is never one
+    of them. ``k`` of them, but at most half of those with labels (`knn_neighbours`): the
+    nearest k of k or fewer would be every one, the same answer for every query."""
     d = pairwise_distances(query_emb[None], reference.emb)[0]
     ranked, _ = _rank_fabrics(d, np.asarray(reference.fabric, dtype=np.int64))
-    nearest = [int(f) for f in ranked if f != own and int(f) in labels][:k]
+    known = [int(f) for f in ranked if f != own and int(f) in labels]
+    nearest = known[: knn_neighbours(k, len(known))]
     if not nearest:
-        return tuple([math.nan] * n_cols), ()
+        return tuple([math.nan] * n_cols), (), len(known)
     y = _labels_of(np.asarray(nearest, dtype=np.int64), labels, n_cols)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a column no neighbour knows: NaN
         mean = np.nanmean(y, axis=0)
-    return tuple(float(v) for v in mean), tuple(nearest)
+    return tuple(float(v) for v in mean), tuple(nearest), len(known)
 
 
 def project_to_labels(
@@ -579,6 +594,10 @@ def _probes(
                 )
             for j, name in enumerate(names):
                 res[name]["mae_chance"] = float(chance[j])
+                used, n_fit = res[name].get("k", math.nan), res[name]["n_train"]
+                if math.isfinite(used) and used < config.probe_k:
+                    what = "k-NN property probe"
+                    notes.add(fewer_neighbours(what, int(used), int(n_fit), config.probe_k))
             out.setdefault(m, {})[method] = res
     return out
 
@@ -636,7 +655,11 @@ def evaluate_embeddings(
     presses); the curve over P = 1 .. ``config.max_presses`` is in the
     ``touch_to_{gallery}_presses{P}_*`` keys. Physical-property probes (k-NN, ridge) are fitted
     on ``reference`` and scored on the test fabrics when ``labels`` are given:
-    ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}``.
+    ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}`` (and ``..._knn_k``);
+    a k-NN, the probe's or the glance's feel, averages at most half the reference fabrics
+    (`knn_neighbours`), noted where that is fewer than ``config.probe_k``. A calibration row
+    says how many reference fabrics c was fitted on (``{pair}_c_fit_fabrics``) and whether its
+    NLL is above chance's (``{pair}_overconfident``).
 
     Args:
         embedded: the test items' embeddings per modality (touch: one row per press).
@@ -762,6 +785,7 @@ def evaluate_embeddings(
             not_scored[pair] = why
             notes.add(f"{pair} not scored: {why}")
         c_used, source = config.c, "fixed"
+        fit_fabrics = 0
         if c_used is None:
             fitted = None
             if (
@@ -771,22 +795,28 @@ def evaluate_embeddings(
                 and q in reference
                 and g in reference
             ):
-                rg = reference_gallery(g, pair.same)
-                fitted = _fit_c(reference_queries(q), rg, q, g, notes)
+                rq, rg = reference_queries(q), reference_gallery(g, pair.same)
+                fitted = _fit_c(rq, rg, q, g, notes)
+                if fitted is not None:
+                    fit_fabrics = len(np.intersect1d(rq.fabric, rg.fabric))
             c_used, source = (fitted, "fitted") if fitted is not None else (PAPER_C, "paper")
         figure = pair in figure_pairs
         cal = _calibrate(
             pair, dist, qs, gf, excl, c_used, source, config, cluster_map, figure, scorable
         )
-        calibration[pair] = cal
+        cal = calibration[pair] = replace(cal, fit_fabrics=fit_fabrics)
         out[f"{pair}_c"] = cal.c
         out[f"{pair}_c_fitted"] = 1.0 if source == "fitted" else 0.0
+        out[f"{pair}_c_fit_fabrics"] = float(fit_fabrics) if fit_fabrics else math.nan
         out[f"{pair}_fabric_accuracy"] = cal.accuracy
         out[f"{pair}_fabric_accuracy_chance"] = 1.0 / max(cal.n_fabrics, 1)
         out[f"{pair}_confidence"] = cal.confidence
         out[f"{pair}_ece"] = cal.reliability.ece
         out[f"{pair}_nll"] = cal.nll
-        out[f"{pair}_nll_chance"] = math.log(max(cal.n_fabrics, 1))
+        out[f"{pair}_nll_chance"] = cal.nll_chance
+        out[f"{pair}_overconfident"] = (
+            float(cal.overconfident) if math.isfinite(cal.nll) else math.nan
+        )
         per_pair[pair] = out
         if figure:
             rows = None if pair.same or g not in galleries else galleries[g].members[:, 0]
@@ -870,8 +900,9 @@ def evaluate_embeddings(
         for m, by_probe in properties.items():
             for probe, by_label in by_probe.items():
                 for name, scores in by_label.items():
-                    for stat in ("r2", "spearman", "mae", "mae_chance"):
-                        metrics[f"property_{m.value}_{name}_{probe}_{stat}"] = scores[stat]
+                    for stat in ("r2", "spearman", "mae", "mae_chance", "k"):
+                        if stat in scores:  # k: the k-NN's neighbours
+                            metrics[f"property_{m.value}_{name}_{probe}_{stat}"] = scores[stat]
     full_info = dict(info or {})
     full_info.setdefault("items", {m.value: len(embedded[m].embeddings) for m in mods})
     full_info.setdefault("fabrics", [int(f) for f in all_fabrics])
@@ -888,11 +919,15 @@ def evaluate_embeddings(
             predicted: tuple[float, ...] = ()
             truth: tuple[float, ...] = ()
             neighbours: tuple[int, ...] = ()
+            n_ref = 0
             if labels and ref_touch is not None and len(ref_touch.fabric):
-                predicted, neighbours = _feels_like(
+                predicted, neighbours, n_ref = _feels_like(
                     tq.emb[qi], f, ref_touch, labels, n_cols, config.probe_k
                 )
                 truth = tuple(float(v) for v in _labels_of(np.array([f]), labels, n_cols)[0])
+                if neighbours and len(neighbours) < config.probe_k:
+                    what = "the glance's feel"
+                    notes.add(fewer_neighbours(what, len(neighbours), n_ref, config.probe_k))
             glance.append(
                 GlanceExample(
                     query_rows=tuple(int(r) for r in tq.members[qi]),
@@ -902,6 +937,7 @@ def evaluate_embeddings(
                     predicted=predicted,
                     truth=truth,
                     neighbours=neighbours,
+                    n_reference=n_ref,
                 )
             )
 

@@ -42,6 +42,10 @@ so: the bootstrap resamples only those few, so it cannot reach past their own sc
 fabrics that score alike give an interval of width 0) and tells nothing of how another fabric
 would fare. Such intervals are marked `FEW_MARK`."""
 FEW_MARK = "†"
+FEW_FIT_FABRICS = 10
+"""A c fitted on fewer reference (training) fabrics than this is flagged in the calibration
+table: they are the fabrics the model was trained on, and so few it tells apart far better than
+new ones, so a c fitted on them comes out larger than the test fabrics support."""
 
 
 @dataclass(frozen=True)
@@ -517,18 +521,27 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
         "",
     ]
     rows = []
+    over: list[str] = []
+    few: set[int] = set()
     for pair, cal in result.calibration.items():
         m = result.metrics
+        source, nll = cal.c_source, _f(cal.nll)
+        if source == "fitted" and 0 < cal.fit_fabrics < FEW_FIT_FABRICS:
+            source = f"fitted on {cal.fit_fabrics} training fabrics"
+            few.add(cal.fit_fabrics)
+        if cal.overconfident:
+            nll += " (overconfident: NLL above chance's)"
+            over.append(_pretty(pair))
         rows.append(
             [
                 _pretty(pair),
                 f"{cal.c:.4g}",
-                cal.c_source,
+                source,
                 _f(cal.accuracy),
                 _f(m.get(f"{pair}_fabric_accuracy_chance")),
                 _f(cal.confidence),
                 _f(cal.reliability.ece),
-                _f(cal.nll),
+                nll,
                 _f(m.get(f"{pair}_nll_chance")),
             ]
         )
@@ -546,6 +559,23 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
         ],
         rows,
     )
+    if over:
+        lines += [
+            f"Overconfident: {', '.join(over)}: the NLL is above chance's, so a uniform guess "
+            "over the gallery fabrics scores better than these probabilities: they claim more "
+            "than the test fabrics' distances know (c is too large for them, or the distances "
+            "do not tell them apart).",
+            "",
+        ]
+    if few:
+        n = " or ".join(str(v) for v in sorted(few))
+        lines += [
+            f"c fitted on {n} training fabrics only: those are the fabrics the model was trained "
+            f"on, and it tells so few apart far better than new ones, so a c fitted there says "
+            f"little of the test fabrics (fewer than {FEW_FIT_FABRICS} are flagged). Fit it on "
+            "more fabrics, or fix one (`--set c=VALUE`; the paper's is 0.085).",
+            "",
+        ]
     for pair, paths in figures.items():
         lines += [f"### {_pretty(pair)}", ""]
         lines += [f"![{Path(p).stem}]({p})" for p in paths] + [""]
@@ -555,12 +585,25 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
 def _section_properties(result: EvalResult) -> list[str]:
     if not result.properties:
         return []
+    k = result.config.probe_k
+    fewer = any(
+        math.isfinite(s.get("k", math.nan)) and s["k"] < k
+        for by_probe in result.properties.values()
+        for by_label in by_probe.values()
+        for s in by_label.values()
+    )
     lines = [
         "## Physical properties (probes)",
         "",
         "Per fabric (its embeddings averaged), a probe fitted on the reference fabrics predicts "
-        "each label of the test fabrics: k-NN (mean of the nearest "
-        f"{result.config.probe_k}) and ridge regression. Chance: R² ≈ 0, Spearman 0, and the "
+        f"each label of the test fabrics: k-NN (mean of the nearest {k}"
+        + (
+            ", but at most half the reference fabrics, k beside the probe where fewer: the "
+            f"nearest {k} of {k} or fewer would be all of them, the training mean"
+            if fewer
+            else ""
+        )
+        + ") and ridge regression. Chance: R² ≈ 0, Spearman 0, and the "
         "MAE of always answering the training mean.",
         "",
     ]
@@ -568,11 +611,12 @@ def _section_properties(result: EvalResult) -> list[str]:
     for m, by_probe in result.properties.items():
         for probe, by_label in by_probe.items():
             for name, s in by_label.items():
+                used = s.get("k", math.nan)
                 rows.append(
                     [
                         m.value,
                         name,
-                        probe,
+                        f"{probe} (k={int(used)})" if math.isfinite(used) and used < k else probe,
                         _f(s["r2"]),
                         _f(s["spearman"]),
                         _f(s["mae"]),
@@ -704,15 +748,38 @@ def _glance_rows(
                 query_label=label,
                 looks=looks,
                 feel=feel,
-                feel_title=(
-                    f"Feels like (mean of the {len(ex.neighbours)}\ntraining fabrics "
-                    "nearest in touch)"
-                    if feel
-                    else ""
-                ),
+                feel_title=_feel_title(ex) if feel else "",
             )
         )
     return rows
+
+
+def _feel_title(ex: GlanceExample) -> str:
+    """The glance's caption over what a query feels like: the mean of how many training fabrics
+    nearest in touch (at most half of them, so all of them only where there is one)."""
+    n = len(ex.neighbours)
+    if n == 1 and ex.n_reference == 1:  # at most half, but at least one: all there is
+        return "Feels like (the only training\nfabric with labels)"
+    if n == 1:
+        return "Feels like (the training fabric\nnearest in touch)"
+    return f"Feels like (mean of the {n}\ntraining fabrics nearest in touch)"
+
+
+def _feel_fewer(result: EvalResult) -> str:
+    """The glance paragraph's sentence on a feel that averaged fewer training fabrics than
+    ``eval.probe_k`` (at most half of them); empty where none did."""
+    k = result.config.probe_k
+    fewer = [ex for ex in result.glance if ex.neighbours and len(ex.neighbours) < k]
+    if not fewer:
+        return ""
+    ex = fewer[0]
+    n, used = ex.n_reference, len(ex.neighbours)
+    covers = "all of them, the same answer for every query" if k >= n else "most of them"
+    return (
+        f" With {n} training fabrics to choose from, it averages the nearest {used}, not "
+        f"eval.probe_k's {k}: at most half of them, since the nearest {k} of {n} would be "
+        f"{covers}."
+    )
 
 
 def _cluster_name(c: int | None) -> str:
@@ -925,7 +992,7 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
                 "beside each, the test fabrics whose look is nearest (through the cross-modal "
                 "map where one was fitted: see its section), and what the query "
                 "feels like (the mean label of the training fabrics nearest in touch) against "
-                "the truth.",
+                "the truth." + _feel_fewer(result),
                 "",
                 f"![at a glance]({png})",
                 "",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,6 +47,8 @@ class CalibrationResult:
         confusion: fabric-level confusion, fabrics ordered by cluster (Figure 8), for the figure
             pairs only.
         cluster_confusion: cluster-level confusion (Figure 8b), when clusters are known.
+        fit_fabrics: the reference fabrics c was fitted on (those whose queries had an item of
+            their own to find); 0 when c was not fitted.
     """
 
     pair: Pair
@@ -58,6 +61,19 @@ class CalibrationResult:
     n_fabrics: int
     confusion: Confusion | None = None
     cluster_confusion: Confusion | None = None
+    fit_fabrics: int = 0
+
+    @property
+    def nll_chance(self) -> float:
+        """The NLL of a uniform guess over the gallery fabrics, ``log n_fabrics``."""
+        return math.log(max(self.n_fabrics, 1))
+
+    @property
+    def overconfident(self) -> bool:
+        """Whether the NLL is above chance's: a uniform guess over the gallery fabrics would
+        score better, so c is larger than these distances support (a smaller c, down to the
+        uniform guess at c = 0, does better)."""
+        return math.isfinite(self.nll) and self.nll > self.nll_chance
 
 
 @dataclass(frozen=True)
@@ -118,6 +134,9 @@ class GlanceExample:
             is nearest to the query (NaN where none is known).
         truth: per label, the query fabric's own label (NaN where unknown).
         neighbours: the training fabrics ``predicted`` averages, nearest first.
+        n_reference: the training fabrics with labels they were chosen among (the query's own
+            fabric left out); ``neighbours`` is at most half of them
+            (`lookfeel.metrics.properties.knn_neighbours`).
     """
 
     query_rows: tuple[int, ...]
@@ -127,6 +146,7 @@ class GlanceExample:
     predicted: tuple[float, ...] = ()
     truth: tuple[float, ...] = ()
     neighbours: tuple[int, ...] = ()
+    n_reference: int = 0
 
 
 @dataclass(frozen=True)
@@ -155,7 +175,7 @@ class EvalResult:
         calibration: per pair, c and the calibration of ``P ∝ exp(-c D^2)``.
         examples: per figure pair, drawn pick trials.
         properties: modality -> probe -> label -> {r2, spearman, mae, mae_chance, n_train,
-            n_test}.
+            n_test}, and for ``knn`` k (the neighbours averaged: at most half of ``n_train``).
         embedded: the scored embeddings (the test items).
         clusters: fabric id -> cluster (None where unknown).
         notes: what was skipped or approximated, and why.

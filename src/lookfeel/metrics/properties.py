@@ -20,7 +20,18 @@ from scipy.stats import spearmanr
 from sklearn.linear_model import RidgeCV
 from sklearn.neighbors import KNeighborsRegressor
 
-__all__ = ["fit_ridge", "per_fabric_means", "property_probe"]
+__all__ = ["fit_ridge", "knn_neighbours", "per_fabric_means", "property_probe"]
+
+
+def knn_neighbours(k: int, n_reference: int) -> int:
+    """The neighbours a k-NN over ``n_reference`` reference rows averages: ``k``, but at most
+    half of them (and at least one).
+
+    The nearest k of k or fewer rows are all of them: the k-NN then answers their mean, the same
+    for every query (and a probe scores exactly the MAE of always answering the training mean).
+    Half keeps the nearest a minority; on 10 or more rows ``k`` = 5 stays 5.
+    """
+    return max(1, min(k, n_reference // 2))
 
 
 def per_fabric_means(
@@ -108,11 +119,14 @@ def property_probe(
         names: a name per label column (default ``"0"``, ``"1"``, ...).
         train_fabric, test_fabric: (N,), (M,) fabric ids; when given, embeddings are averaged
             per fabric first, and a fabric in both sets raises.
-        k: neighbours for ``"knn"`` (fewer when there are fewer training rows).
+        k: neighbours for ``"knn"``; at most half the training rows of a column
+            (`knn_neighbours`: the nearest k of k or fewer are all of them, their mean).
 
     Returns:
-        ``{name: {"r2", "spearman", "mae", "n_train", "n_test"}}``; scores are NaN when a
-        column has fewer than 2 test rows or a constant target.
+        ``{name: {"r2", "spearman", "mae", "n_train", "n_test"}}``, and for ``"knn"`` ``"k"``,
+        the neighbours it averaged (NaN where the column was not fitted); scores are NaN when
+        a column has fewer than 2 training rows, fewer than 2 test rows or a constant
+        target.
     """
     xtr = np.asarray(train_emb, dtype=np.float64)
     xte = np.asarray(test_emb, dtype=np.float64)
@@ -155,11 +169,14 @@ def property_probe(
             "n_train": float(n_tr),
             "n_test": float(n_te),
         }
+        if method == "knn":
+            scores["k"] = nan
         out[name] = scores
         if n_tr < 2 or n_te < 1:
             continue
         if method == "knn":
-            knn = KNeighborsRegressor(n_neighbors=min(k, n_tr))
+            scores["k"] = float(knn_neighbours(k, n_tr))
+            knn = KNeighborsRegressor(n_neighbors=int(scores["k"]))
             knn.fit(xtr[tr], ytr[tr, j])
             pred = np.asarray(knn.predict(xte[te]), dtype=np.float64)
         else:
