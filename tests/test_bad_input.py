@@ -697,3 +697,21 @@ def test_embed_out_must_name_a_file(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert err[-1].endswith(
         f"{tmp_path} is a folder; name the file to write (e.g. {tmp_path / 'embeddings.npz'})"
     )
+
+
+def test_strict_json_writes_null_for_every_number_that_could_not_be_measured(tmp_path: Path):
+    from lookfeel.atomic import atomic_write_json
+
+    data = {"a": float("nan"), "b": [1.5, float("inf"), {"c": -float("inf")}], "d": (2, "x")}
+    path = atomic_write_json(tmp_path / "r.json", data, indent=1)
+    text = path.read_text()
+    assert text.endswith("\n") and "NaN" not in text and "Infinity" not in text
+
+    def refuse(word: str) -> None:
+        raise AssertionError(f"non-strict JSON: {word}")
+
+    assert json.loads(text, parse_constant=refuse) == {
+        "a": None,
+        "b": [1.5, None, {"c": None}],
+        "d": [2, "x"],
+    }

@@ -9,19 +9,23 @@ teammate).
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 __all__ = [
     "atomic_write",
     "atomic_write_bytes",
+    "atomic_write_json",
     "atomic_write_text",
     "current_umask",
     "file_mode",
+    "finite_or_null",
     "remove_stale_temps",
 ]
 
@@ -99,3 +103,21 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` atomically."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def finite_or_null(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float, at any depth, replaced by None: a number that
+    could not be measured is JSON's ``null``, never a bare ``NaN`` that strict parsers refuse."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {k: finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_null(v) for v in obj]
+    return obj
+
+
+def atomic_write_json(path: str | os.PathLike[str], data: Any, indent: int | None = None) -> Path:
+    """Write ``data`` to ``path`` atomically as strict JSON (`finite_or_null`), newline-ended."""
+    text = json.dumps(finite_or_null(data), indent=indent, allow_nan=False)
+    return atomic_write_text(path, text + "\n")

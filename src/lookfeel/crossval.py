@@ -54,8 +54,8 @@ press's class is read from the heads, one press at a time and with every press o
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training
 majority class: accuracy (95% interval resampling held-out objects) and macro-F1.
 
-What cv writes is strict JSON: a number no run could score is ``null`` (`_finite_or_null`), and
-``cv.md`` says ``n/a`` and why.
+What cv writes is strict JSON: a number no run could score is ``null``
+(`lookfeel.atomic.finite_or_null`), and ``cv.md`` says ``n/a`` and why.
 
 Every run lives in ``OUT/seed{S}-fold{F}/`` and its scores in ``result.json`` there; a rerun
 skips finished runs and resumes an interrupted one, so a killed cross-validation loses at most
@@ -75,7 +75,7 @@ from typing import Any
 
 import numpy as np
 
-from lookfeel.atomic import atomic_write_text
+from lookfeel.atomic import atomic_write_json, atomic_write_text, finite_or_null
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError, to_dict
@@ -153,23 +153,9 @@ def _run_config(config: RunConfig, fold: int, seed: int) -> RunConfig:
     return dataclasses.replace(config, train=t)
 
 
-def _finite_or_null(obj: Any) -> Any:
-    """``obj`` with every NaN or infinite float, at any depth, replaced by None: what cv writes
-    as JSON is strict JSON (``null``, never a bare ``NaN`` that strict parsers refuse), as
-    `lookfeel reproduce`'s results.json."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {k: _finite_or_null(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite_or_null(v) for v in obj]
-    return obj
-
-
 def _write_json(path: Path, data: Any, indent: int | None = None) -> None:
-    """``data`` as strict JSON (`_finite_or_null`), written atomically."""
-    text = json.dumps(_finite_or_null(data), indent=indent, allow_nan=False)
-    atomic_write_text(path, text + "\n")
+    """``data`` as strict JSON (`lookfeel.atomic.finite_or_null`), written atomically."""
+    atomic_write_json(path, data, indent)
 
 
 def _noun(catalog: Catalog) -> str:
@@ -1640,7 +1626,7 @@ def cross_validate(
             # How the maps score (session 22 added the hub correction): a result scored
             # otherwise is scored again from its checkpoint, never silently kept.
             key["cross_map_hubs"] = HUB_NEIGHBOURS
-            key = _finite_or_null(key)  # as result.json holds it
+            key = finite_or_null(key)  # as result.json holds it
             if presses > 1:
                 key["presses"] = presses
                 key["pooled_gallery"] = True  # session 23: touch candidates pooled too

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from lookfeel.atomic import atomic_write_text
+from lookfeel.atomic import atomic_write_json, atomic_write_text
 from lookfeel.checkpoint import load_model
 from lookfeel.config import ConfigError, RunConfig, load_config, to_dict
 from lookfeel.config._core import Override
@@ -750,8 +750,7 @@ def reproduce(
         "findings": result.findings,
     }
     # A number that could not be measured (NaN) is null: JSON has no NaN.
-    text = json.dumps(_finite_or_null(everything), indent=1, allow_nan=False)
-    atomic_write_text(out / "results.json", text + "\n")
+    atomic_write_json(out / "results.json", everything, indent=1)
     write_reproduction_report(result, meta)
     return result
 
@@ -826,17 +825,6 @@ def _finished_runs(
         else:
             log(f"not reported: {job.run_dir}, a finished run {why}")
     return found
-
-
-def _finite_or_null(obj: Any) -> Any:
-    """``obj`` with every NaN or infinite float, at any depth, replaced by None."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {k: _finite_or_null(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite_or_null(v) for v in obj]
-    return obj
 
 
 def headline(results: Mapping[str, Any]) -> list[str]:
