@@ -299,3 +299,108 @@ def test_a_press_of_a_kind_the_model_was_not_trained_on_is_warned_of_once(
         warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
         predict_files(heads, [fold], "touch")
         matcher.match_files([fold], "touch")
+
+
+TURNED = "most likely turned"
+
+
+def _turned(call) -> list[str]:
+    """The turned-query warnings ``call()`` gives."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        call()
+    return [str(w.message) for w in caught if TURNED in str(w.message)]
+
+
+def test_a_query_turned_against_the_training_items_is_warned_of_once(
+    run, heads: LoadedModel, tmp_path: Path
+):
+    """A checkpoint records the shape of each modality's training items (the tiny touch frames
+    are 32x24, landscape; depth and colour 24x24), and `predict` warns once of a portrait
+    touch query, naming the first turned file and counting the rest (as `lookfeel match`)."""
+    from ._tiny import write_rgb
+
+    landscape = {"orientation": "landscape", "size": [32, 24]}
+    square = {"orientation": "square", "size": [24, 24]}
+    assert heads.shapes == {
+        Modality.TOUCH: landscape,
+        Modality.DEPTH: square,
+        Modality.COLOR: square,
+    }
+    write_rgb(tmp_path / "turned.png", 3, 0, size=(24, 32))
+    write_rgb(tmp_path / "also.png", 3, 1, size=(24, 32))
+    write_rgb(tmp_path / "level.png", 3, 2, size=(32, 24))
+    turned = tmp_path / "turned.png"
+    assert _turned(lambda: predict_files(heads, turned, "touch")) == [
+        f"{turned}: a portrait touch frame (24x32), but the model's touch presses are "
+        "landscape (32x24): each is resized to the network's one square input, so this one is "
+        "stretched unlike them and most likely turned; turn it to landscape"
+    ]
+    files = [tmp_path / "level.png", turned, tmp_path / "also.png"]
+    [message] = _turned(lambda: predict_files(heads, files, "touch"))
+    assert message.startswith(f"{turned} (and 1 other such file): a portrait touch frame")
+    [message] = _turned(lambda: predict_files(heads, files, "touch", together=True))
+    assert message.startswith(f"{turned} (and 1 other such file)")
+    assert _turned(lambda: predict_files(heads, tmp_path / "level.png", "touch")) == []
+    # Colour was trained on square images: a query of any shape is not checked against them.
+    photo = tmp_path / "color" / "tall.png"
+    write_rgb(photo, 3, 0, size=(24, 40))
+    assert _turned(lambda: predict_files(heads, photo)) == []
+
+
+def test_a_checkpoint_from_before_the_shape_record_predicts_without_the_warning(
+    heads: LoadedModel, tmp_path: Path
+):
+    import warnings
+
+    from lookfeel.checkpoint import read_checkpoint, save_checkpoint
+
+    from ._tiny import write_rgb
+
+    state = read_checkpoint(heads.path)
+    del state["shapes"]
+    old = load_model(save_checkpoint(tmp_path / "old.pt", state))
+    assert old.shapes == {}
+    turned = tmp_path / "turned.png"
+    write_rgb(turned, 3, 0, size=(24, 32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
+        [p] = predict_files(old, turned, "touch")
+    assert "stretchiness" in p.properties
+    # A record this version cannot read (a newer lookfeel's) is left out, not refused.
+    state["shapes"] = {"smell": {"orientation": "landscape"}, "touch": "landscape"}
+    assert load_model(save_checkpoint(tmp_path / "newer.pt", state)).shapes == {}
+
+
+def test_a_resumed_run_and_an_ensemble_keep_the_shape_record(
+    run, heads: LoadedModel, tmp_path: Path
+):
+    """The record survives a resumed run's checkpoints and an ensemble's merged checkpoint
+    (which also keeps the ranks of the columns of ranks)."""
+    from lookfeel.checkpoint import read_checkpoint
+
+    data, _ = run
+    run_dir = shutil.copytree(heads.path.parents[1], tmp_path / "resumed")
+    config = load_config(RunConfig, run_dir / "config.yaml", ["train.steps=3"])
+    ensemble = load_config(
+        RunConfig,
+        TINY,
+        ["model.members=2", "train.steps=1", "train.split=none", "train.val_every=0"],
+    )
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as `heads` trained: a resumed run warns of another count
+    try:
+        resumed = train(config, data, run_dir, resume=True)
+        merged = train(ensemble, data, tmp_path / "ensemble")
+    finally:
+        torch.set_num_threads(threads)
+    state = read_checkpoint(resumed.last_checkpoint)
+    assert state["step"] == 3
+    assert load_model(resumed.last_checkpoint).shapes == heads.shapes
+    loaded = load_model(merged.last_checkpoint)
+    assert loaded.config.model.members == 2
+    assert loaded.shapes == heads.shapes
+    assert loaded.rank_columns == {"stiffness": (0, 1, 2, 3, 4), "stretchiness": (0, 1)}

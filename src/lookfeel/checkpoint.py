@@ -9,7 +9,10 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     `TOUCH_BOTH`; absent in checkpoints from before it was recorded, and for a model without
     a touch branch), data_fingerprint (the dataset trained on, `Catalog.fingerprint`; absent
     before it was recorded), rank_columns (label column -> the ranks its training data held,
-    for the columns of ranks; absent before session 50)
+    for the columns of ranks; absent before session 50), shapes (modality name -> the shape of
+    its training items, `lookfeel.index.query.shape_record`, for a query turned against them
+    to be warned of; none for a modality whose items come in more than one orientation;
+    absent before session 51)
 """
 
 from __future__ import annotations
@@ -154,6 +157,12 @@ class LoadedModel:
     and the ranks the training data held, sorted: a property head's number for one is read
     as the nearest of them (`lookfeel.predict`). Empty in checkpoints from before session 50,
     whose ranks are then answered as numbers."""
+    shapes: dict[Modality, dict[str, Any]] = field(default_factory=dict)
+    """Per modality, the shape of the items it was trained on (`lookfeel.index.query.
+    shape_record`: their one orientation and most common size), for a query turned against
+    them to be warned of (`lookfeel.index.query.warn_orientation`). Empty in checkpoints from
+    before session 51, whose queries are then not checked; a modality whose items came in
+    more than one orientation has none."""
 
 
 def non_finite_tensors(tensors: Mapping[str, Any]) -> list[str]:
@@ -294,7 +303,23 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
             for c, ranks in (state.get("rank_columns") or {}).items()
         },
         data_fingerprint=state.get("data_fingerprint"),
+        shapes=_shapes(state.get("shapes")),
     )
+
+
+def _shapes(value: object) -> dict[Modality, dict[str, Any]]:
+    """The checkpoint's ``shapes`` record (empty when absent). A modality this version does not
+    know, or an entry that is not a mapping (a newer lookfeel's), is left out: its queries are
+    then not checked, as `lookfeel.index.query.warn_orientation` leaves out a record it cannot
+    read."""
+    if not isinstance(value, Mapping):
+        return {}
+    known = {m.value: m for m in Modality}
+    return {
+        known[str(k)]: dict(v)
+        for k, v in value.items()
+        if str(k) in known and isinstance(v, Mapping)
+    }
 
 
 def _touch_input(path: str | os.PathLike[str], value: object) -> str | None:

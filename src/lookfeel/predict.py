@@ -13,6 +13,11 @@ trained on still frames takes a press video with a warning, unless it stacks a p
 images (``data.touch_frames``), which no video has: it refuses one, saying what to give
 (`lookfeel.index.match.check_touch_input`). Without a modality given, each
 file's own kind says what it shows (`guess_modality`); one the model lacks is refused.
+
+A query whose orientation (portrait or landscape) differs from that of the items the model was
+trained on is answered with one warning (`lookfeel.index.query.warn_orientation`): it is
+stretched unlike them and most likely turned. A checkpoint from before the record
+(`lookfeel.checkpoint.LoadedModel.shapes`) is not checked.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from lookfeel.index.query import (
     load_query_files,
     query_batch,
     query_paths,
+    warn_orientation,
 )
 from lookfeel.modality import Modality
 from lookfeel.models import CLASSES, PROPERTY, eval_mode
@@ -259,6 +265,9 @@ def predict_files(
     touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
     check_touch_input(touch, loaded.touch_input, data)  # every file before any is decoded
     warn_press_kinds(touch, data)
+    for m in dict.fromkeys(mods):  # a query turned against the training items: one warning each
+        of_m = [p for p, pm in zip(files, mods, strict=True) if pm is m]
+        warn_orientation(of_m, m, loaded.shapes.get(m), data, "the model")
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []

@@ -22,8 +22,9 @@ A query whose orientation (portrait or landscape, `orientation_of`) differs from
 images its model is compared with is taken with one warning (`warn_orientation`): each is
 resized to the network's one square input, so such a query is stretched unlike them and is
 most likely turned (a DIGIT's 240x320 press given as 320x240). Only a record of those images'
-shape says what they were: a library records its items' (`shape_record`, in its manifest); a
-checkpoint does not record its training data's, so ``lookfeel predict`` does not check.
+shape says what they were: a library records its items' (`shape_record`, in its manifest) and
+a checkpoint since session 51 its training items' (``shapes``, `LoadedModel.shapes`, which
+``lookfeel predict`` checks); an older one is not checked.
 """
 
 from __future__ import annotations

@@ -66,6 +66,7 @@ from lookfeel.data import (
 from lookfeel.data.labels import MAX_RANK, is_rank
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddingError
+from lookfeel.index.query import shape_record
 from lookfeel.losses import create_loss
 from lookfeel.modality import REPRINTS, Modality, slot_modality
 from lookfeel.models import (
@@ -980,6 +981,8 @@ def _train_members(
             "split",
             "touch_input",
             "data_fingerprint",
+            "rank_columns",
+            "shapes",
         )
         save_checkpoint(
             last,
@@ -1164,6 +1167,14 @@ def _train(
         else None
     )
 
+    # The shape of each modality's training items (their one orientation and most common
+    # size, read from file headers once, here): `predict` warns of a query turned against them.
+    shapes: dict[str, dict[str, Any]] = {}
+    for m in modalities:
+        paths = [it.path for it in train_cat.items(m, config.data.touch_kinds)]
+        if (shape := shape_record(paths, m, config.data)) is not None:
+            shapes[m.value] = shape
+
     # The ranks each column of ranks holds (hardness 0/1/2): `predict` reads the property
     # head's number for one as the nearest rank.
     rank_columns = {
@@ -1185,6 +1196,7 @@ def _train(
                 for i, c in enumerate(catalog.label_columns)
             },
             "rank_columns": rank_columns,
+            "shapes": shapes,
             "split": split_info,
             "model": model.state_dict(),
             "optimizer": optimizer.state_dict(),
