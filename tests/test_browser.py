@@ -187,7 +187,8 @@ def test_upload_shows_ranked_fabrics_and_their_images(browser: Browser, tmp_path
         )
         assert images == 15  # 5 fabrics x (depth, colour, touch)
         props = browser.eval("document.querySelector('.props').textContent")
-        assert props.startswith("Predicted properties: thickness_mm ")
+        # As `lookfeel match` labels them: the likeliest fabrics' labels, not the heads'.
+        assert props.startswith("Properties (the 5 likeliest fabrics weighted by P): thickness_mm ")
         # Each probability bar is as wide as its P (an inline style the CSP blocks: all full).
         shown = browser.eval(
             "[...document.querySelectorAll('.fabric')].map(f => [f.querySelector('.p')"
@@ -252,9 +253,10 @@ def test_named_objects_show_by_name_with_their_words(browser: Browser, tmp_path:
         metas = browser.eval(
             "[...document.querySelectorAll('.fabric .meta')].map(m => m.textContent)"
         )
-        assert "hardness 2.00 · material metal" in metas
+        assert "hardness 2 · material metal" in metas  # a rank as the whole number it is
         props = browser.eval("document.querySelector('.props').textContent")
         assert re.fullmatch(
-            r"Predicted properties: hardness [012] \(\d+%\) · material (foam|metal|wood) \(\d+%\)",
+            r"Properties \(the \d likeliest objects weighted by P[^)]*\): "
+            r"hardness [012] \(\d+%\) · material (foam|metal|wood) \(\d+%\)",
             props,
         ), props

@@ -441,6 +441,11 @@ def test_a_pooled_upload_leaves_out_a_video_without_a_press_as_match_does(run, t
         (expected,) = matcher.match_files([pressed, static], Modality.TOUCH, top=3)
     (warned,) = [str(w.message) for w in caught if "left out" in str(w.message)]
     assert warned.startswith(f"{static}: no contact found")
+    # All that match warns of, the tiny model's note on press videos included, names cut.
+    said = [
+        str(w.message).replace(str(static), "static.mov").replace(str(pressed), pressed.name)
+        for w in caught
+    ]
 
     def upload(*paths: Path) -> httpx.Response:
         files = [("files", (p.name, p.read_bytes(), "video/quicktime")) for p in paths]
@@ -450,13 +455,14 @@ def test_a_pooled_upload_leaves_out_a_video_without_a_press_as_match_does(run, t
         r = upload(pressed, static)
         assert r.status_code == 200, r.text
         body = r.json()
-        assert body["warnings"] == [warned.replace(str(static), "static.mov")]
+        assert body["warnings"] == said
+        assert warned.replace(str(static), "static.mov") in said
         [res] = body["results"]
         assert res["query"] == ["spoon_1.mov"] and res["presses"] == 1
         assert [(f["fabric_id"], f["probability"]) for f in res["fabrics"]] == [
             (f.fabric_id, f.probability) for f in expected.fabrics
         ]
-        assert upload(pressed).json()["warnings"] == []
+        assert [w for w in upload(pressed).json()["warnings"] if "left out" in w] == []
         for query in ((static,), (static, static)):  # no press left: the first one's error
             r = upload(*query)
             assert r.status_code == 422

@@ -150,12 +150,16 @@ def press_kind(path: str | Path) -> PressKind | None:
 
 
 def warn_press_kinds(
-    paths: Sequence[str | Path], config: DataConfig, holder: str = "the model"
+    paths: Sequence[str | Path],
+    config: DataConfig,
+    holder: str = "the model",
+    warn: Callable[[str], None] | None = None,
 ) -> None:
     """Warn once, in one line, where touch query files are presses of a kind (`press_kind`)
     the model was not trained on (its ``data.touch_kinds``: a flat press given to a model
     trained on fold presses only), naming the first and counting the rest; files that do not
-    say their kind are taken as they are."""
+    say their kind are taken as they are. The line goes to ``warn`` where given (``lookfeel
+    serve`` collects it for its answer), else to `warnings.warn`."""
     trained = {k.value for k in config.touch_kinds}
     other = [(p, k) for p in paths if (k := press_kind(p)) is not None and k.value not in trained]
     if not other:
@@ -164,11 +168,14 @@ def warn_press_kinds(
     n = len(other) - 1
     also = f" (and {n} other such press{'es' if n > 1 else ''})" if n else ""
     kinds = "/".join(sorted(trained))
-    warnings.warn(
+    message = (
         f"{first}{also}: a {kind.value} press, but {holder} was trained on {kinds} presses only "
-        f"(its data.touch_kinds), so it may answer a {kind.value} press less well",
-        stacklevel=3,
+        f"(its data.touch_kinds), so it may answer a {kind.value} press less well"
     )
+    if warn is not None:
+        warn(message)
+    else:
+        warnings.warn(message, stacklevel=3)
 
 
 def check_touch_dataset(
@@ -570,15 +577,17 @@ class Matcher:
         elif known:
             message = f"{best_name} (P = {best:.3f}, P(unknown) = {p_unknown:.3f}, {chance})"
         else:
+            # A library of named objects (``sponge``) says "object", as `format_match` does.
+            noun = "object" if any(r.name is not None for r in lib.fabrics.values()) else "fabric"
             message = (
-                f"no known fabric: the best match, {best_name}, has P = {best:.3f} "
+                f"no known {noun}: the best match, {best_name}, has P = {best:.3f} "
                 f"(P(unknown) = {p_unknown:.3f}, {chance}), below the threshold "
                 f"{cal.threshold:.3f} calibrated for a {100 * cal.target_false_accept:g}% "
                 "false-accept rate on held-out fabrics"
             )
             if cal.n_absent and not cal.true_accept > 0:
                 message += (
-                    f" (at that rate this pair accepted no known fabric in calibration, true "
+                    f" (at that rate this pair accepted no known {noun} in calibration, true "
                     f"accept {cal.true_accept:.3f}: read the ranking, not the verdict)"
                 )
         if through_map is not None:

@@ -35,7 +35,7 @@ import stat
 import tempfile
 import warnings
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -66,9 +66,11 @@ from lookfeel.models.backbone import ModelInputError
 
 __all__ = [
     "IMAGE_TYPES",
+    "NO_VALID_DEPTH",
     "ORIENTATIONS",
     "QUERY_IMAGES",
     "STILL_TOUCH_REFUSED",
+    "VIDEOS_ARE_TOUCH",
     "VIDEO_FOR_STILL_MODEL",
     "check_touch_files",
     "check_touch_query",
@@ -139,6 +141,8 @@ def _not_a_query_image(head: bytes) -> str:
     kind = next((k for magic, k in _OTHER_IMAGES if head.startswith(magic)), None)
     if head.startswith(b"RIFF") and head[8:12] == b"WEBP":
         kind = "a WebP"
+    if kind is None and sniff_video(head[:16]):
+        return f"not {QUERY_IMAGES}: a video ({VIDEOS_ARE_TOUCH})"
     if kind is None:
         return f"not {QUERY_IMAGES}: it does not begin as one"
     return f"is {kind} image, not {QUERY_IMAGES}: convert it"
@@ -159,7 +163,11 @@ VIDEO_FOR_STILL_MODEL = (
 
 
 def check_touch_query(
-    name: str | Path, video: bool, trained_on: str | None, config: DataConfig
+    name: str | Path,
+    video: bool,
+    trained_on: str | None,
+    config: DataConfig,
+    warn: Callable[[str], None] | None = None,
 ) -> None:
     """Refuse a still touch image for a model that saw only press videos as differences.
 
@@ -177,6 +185,8 @@ def check_touch_query(
         video: whether the query is a press video.
         trained_on: the checkpoint's ``touch_input`` (`lookfeel.checkpoint.TOUCH_VIDEOS`, ...).
         config: the run's data settings.
+        warn: where the warning goes, one line (``lookfeel serve`` collects it for its answer,
+            thread-safely); default `warnings.warn`.
 
     Raises:
         ImageError: naming the file, when it is a still image and the model needs a video.
@@ -185,7 +195,11 @@ def check_touch_query(
     if trained_on == TOUCH_VIDEOS and not video and subtract:
         raise ImageError(Path(name), STILL_TOUCH_REFUSED)
     if trained_on == TOUCH_FRAMES and video and subtract:
-        warnings.warn(f"{name}: {VIDEO_FOR_STILL_MODEL}", stacklevel=3)
+        message = f"{name}: {VIDEO_FOR_STILL_MODEL}"
+        if warn is not None:
+            warn(message)
+        else:
+            warnings.warn(message, stacklevel=3)
 
 
 def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataConfig) -> None:
@@ -203,12 +217,22 @@ def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataCon
         check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
 
 
+NO_VALID_DEPTH = "the depth map has no valid pixel (every pixel is 0, no reading)"
+"""Why a depth query of holes only is refused: it shows nothing to match."""
+
+VIDEOS_ARE_TOUCH = "videos are read as touch only"
+"""Said of a press video given as depth or colour."""
+
+
 def _preprocess(
     name: Path, data: bytes, modality: Modality | str, config: DataConfig, max_pixels: int
 ) -> torch.Tensor:
     modality = Modality.of(modality)
     if modality is Modality.DEPTH:
-        a = preprocess_depth(decode_depth(name, data, max_pixels), config)  # (S, S) float32
+        mm = decode_depth(name, data, max_pixels)
+        if not mm.any():  # 0 is a hole (no reading): nothing to match, whatever it would score
+            raise ImageError(name, NO_VALID_DEPTH)
+        a = preprocess_depth(mm, config)  # (S, S) float32
         return torch.from_numpy(np.ascontiguousarray(a)).unsqueeze(0)
     rgb = preprocess_rgb(open_rgb(name, data, max_pixels), modality, config)  # (S, S, 3)
     return torch.from_numpy(rgb).permute(2, 0, 1).float().div_(255.0)
@@ -297,18 +321,23 @@ def load_query_bytes(
     max_pixels: int = DEFAULT_MAX_PIXELS,
     *,
     trained_on: str | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> torch.Tensor:
     """`load_query_image` for an upload, decoded from memory: errors name ``name`` (the
     client's file name) and nothing of the server's disk. A touch upload is a video by its
-    content (`sniff_video`), whatever its name.
+    content (`sniff_video`), whatever its name. A model that stacks a press's frames refuses
+    a touch upload before anything else is said of it (no warning first).
+
+    Args:
+        warn: where a warning about the upload goes (`check_touch_query`'s), one line each;
+            default `warnings.warn`. ``lookfeel serve`` passes a list's ``append`` to answer
+            them to the client.
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
         ModalityError: ``modality`` names no modality.
     """
     modality = Modality.of(modality)
-    if modality is Modality.TOUCH:
-        check_touch_query(name, sniff_video(data[:16]), trained_on, config)
     if modality is Modality.TOUCH and config.stacks_touch_frames:
         raise ImageError(
             Path(name),
@@ -316,6 +345,8 @@ def load_query_bytes(
             "together (data.touch_frames), and an upload is one image: match the press's "
             "frame files with `lookfeel match` instead",
         )
+    if modality is Modality.TOUCH:
+        check_touch_query(name, sniff_video(data[:16]), trained_on, config, warn)
     if modality is Modality.TOUCH and sniff_video(data[:16]):
         return _video_bytes(data, name, config)
     return _preprocess(Path(name), data, modality, config, max_pixels)

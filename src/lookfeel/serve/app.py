@@ -67,6 +67,8 @@ from lookfeel.index import (
     query_batch,
     sniff_type,
 )
+from lookfeel.index.match import warn_press_kinds
+from lookfeel.index.query import VIDEOS_ARE_TOUCH
 from lookfeel.modality import Modality
 
 __all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
@@ -159,6 +161,11 @@ def _image_kind(head: bytes) -> str | None:
     if head[4:12] in (b"ftypavif", b"ftypheic", b"ftypheix", b"ftypmif1"):
         return "AVIF/HEIF"
     return next((name for magic, name in _OTHER_IMAGES.items() if head.startswith(magic)), None)
+
+
+def _a_video(name: str, data: bytes) -> bool:
+    """Whether an upload is a video, by its content (`sniff_video`) or its name's suffix."""
+    return sniff_video(data[:16]) or Path(name).suffix.lower() in VIDEO_SUFFIXES
 
 
 def _no_press(e: ImageError) -> bool:
@@ -364,9 +371,10 @@ class MatchResponse(BaseModel):
     results: list[MatchResult]
     warnings: list[str] = Field(
         default_factory=list,
-        description="what was left out of the query, one line each: of several touch files, "
-        "a press video without a press (as `lookfeel match` warns); its result's `query` "
-        "lists the files used",
+        description="what `lookfeel match` would warn of, one line each: of several touch "
+        "files, a press video without a press, left out (its result's `query` lists the files "
+        "used); a press video given to a model trained on still frames; a press of a kind the "
+        "model was not trained on (by its name, F0007_flat_1000.mp4)",
     )
 
 
@@ -731,7 +739,8 @@ def create_app(
                     415,
                     f"{name}: not a PNG or JPEG image"
                     + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else "")
-                    + (f" (a {other} image: save it as PNG or JPEG)" if other else ""),
+                    + (f" (a {other} image: save it as PNG or JPEG)" if other else "")
+                    + (f" ({VIDEOS_ARE_TOUCH})" if _a_video(name, data) else ""),
                 )
             size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:
@@ -749,7 +758,15 @@ def create_app(
         def work() -> tuple[list[MatchResult], list[str]]:
             # As `lookfeel match` reads files (`load_query_files`): of several touch presses,
             # a video without a press is left out with a warning; the only one, or every one,
-            # is an error (the first one's).
+            # is an error (the first one's). Its warnings (a press video for a model trained on
+            # still frames, a press of a kind the model was not trained on) are collected in
+            # `notes`, this request's own list (`warnings.catch_warnings` is process-wide, not
+            # safe in the server's threads), and answered in `warnings`.
+            notes: list[str] = []
+            if modality is Modality.TOUCH and not match.data_config.stacks_touch_frames:
+                warn_press_kinds(
+                    [n for n, _ in blobs], match.data_config, "the library's model", notes.append
+                )
             images, names, missed = [], [], []
             for n, d in blobs:
                 try:
@@ -761,6 +778,7 @@ def create_app(
                             match.data_config,
                             cfg.max_pixels,
                             trained_on=match.touch_input,
+                            warn=notes.append,
                         )
                     )
                     names.append(n)
@@ -777,7 +795,7 @@ def create_app(
                 match.match_embedding(e, modality, g, top=top, gallery=gallery)
                 for e, g in zip(emb, groups, strict=True)
             ]
-            return results, [f"{e}: left out of the pooled query" for e in missed]
+            return results, [*notes, *(f"{e}: left out of the pooled query" for e in missed)]
 
         try:
             results, warnings = await run_model(work)

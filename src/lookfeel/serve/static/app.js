@@ -32,19 +32,31 @@ function title(f) {
   return f.name === null || f.name === undefined ? `fabric ${f.fabric_id ?? f.id}` : f.name;
 }
 
+// A number as Python's "%.<digits>g" writes it, as `lookfeel match` prints: 1.4, 0, 2.
+function g(x, digits = 3) {
+  return x === null || x === undefined ? "?" : String(Number(Number(x).toPrecision(digits)));
+}
+
 // A property estimate as `lookfeel match` prints it: "hardness 2 (87%)" for a column of
 // classes, "thickness_mm 1.43 ± 0.3" for a number.
 function property(p) {
   if (p.value !== null && p.value !== undefined) return `${p.name} ${p.value} (${Math.round(100 * p.probability)}%)`;
-  return `${p.name} ${fmt(p.mean)} ± ${fmt(p.std, 2)}`;
+  return `${p.name} ${g(p.mean)} ± ${g(p.std, 2)}`;
 }
 
-// A fabric's labels: the numbers, then the words (material) it also has.
+// A fabric's labels: the numbers (a rank or class as the whole number it is: hardness 2), then
+// the words (material) it also has.
 function labels(f) {
   const text = f.text_labels || {};
   const words = Object.entries(text).filter(([k]) => !(k in f.labels));
-  return [...Object.entries(f.labels).map(([k, v]) => `${k} ${fmt(v)}`),
+  return [...Object.entries(f.labels).map(([k, v]) => `${k} ${g(v)}`),
           ...words.map(([k, v]) => `${k} ${v}`)].join(" · ");
+}
+
+// Whether an upload is a press video, by its type or its name.
+const VIDEO_NAME = /\.(mov|mp4|avi|mkv|webm|m4v)$/i;
+function isVideo(file) {
+  return (file.type || "").startsWith("video/") || VIDEO_NAME.test(file.name);
 }
 
 async function loadLibrary() {
@@ -73,11 +85,12 @@ async function loadLibrary() {
 }
 
 function showPreview() {
-  // Browsers draw a 16-bit depth map (millimetres) nearly black, so depth shows its name only.
+  // Browsers draw a 16-bit depth map (millimetres) nearly black, and an <img> cannot show a
+  // press video, so depth and videos show their names only.
   const p = $("#preview");
   p.replaceChildren();
   for (const f of $("#files").files) {
-    if ($("#modality").value === "depth") p.append(el("span", { class: "file" }, f.name));
+    if ($("#modality").value === "depth" || isVideo(f)) p.append(el("span", { class: "file" }, f.name));
     else p.append(el("img", { src: URL.createObjectURL(f), alt: f.name }));
   }
 }
@@ -90,12 +103,22 @@ function bar(probability) {
   return el("div", { class: "bar" }, fill);
 }
 
+// What the properties are, as `lookfeel match` labels them: the likeliest fabrics' labels
+// weighted by P (not the model's property heads, which `lookfeel predict` answers).
+function propertiesLabel(res) {
+  const noun = res.fabrics.some((f) => f.name !== null && f.name !== undefined) ? "object" : "fabric";
+  const k = res.property_fabrics;
+  const likeliest = k === 1 ? `the likeliest ${noun}` : `the ${k} likeliest ${noun}s`;
+  const guess = res.known ? "" : `; no known ${noun}: the nearest ones', a guess`;
+  return `Properties (${likeliest} weighted by P${guess})`;
+}
+
 function renderResult(res) {
   const box = el("div", { class: "result" });
   const what = res.presses > 1 ? `${res.presses} presses` : res.query.join(", ");
   box.append(el("h2", {}, `${res.query_modality} query (${what}) against ${res.gallery_modality}`));
   const props = res.properties.filter((p) => p.mean !== null || p.value !== null).map(property);
-  if (props.length) box.append(el("p", { class: "props" }, "Predicted properties: " + props.join(" · ")));
+  if (props.length) box.append(el("p", { class: "props" }, propertiesLabel(res) + ": " + props.join(" · ")));
   for (const f of res.fabrics) {
     const left = el("div", {},
       el("h3", {}, `#${f.rank} ${title(f)}`),
