@@ -23,6 +23,7 @@ from lookfeel.modality import Modality
 __all__ = [
     "MIN_IN_RANGE",
     "PLAUSIBLE_DEPTH_MM",
+    "SAME_SHAPE_LOG_RATIO",
     "UNREAD_IMAGE_SUFFIXES",
     "check_dataset",
     "decode_problem",
@@ -273,6 +274,11 @@ def _class_problems(catalog: Catalog, fabrics: Sequence[Fabric]) -> list[Problem
     return out
 
 
+SAME_SHAPE_LOG_RATIO = 0.03
+"""Two aspect ratios within this of each other (in log, about 3%) are one shape: resized to the
+square input alike (`lookfeel.index.query.orientation_of` takes one within it of 1 as square)."""
+
+
 def _shape(size: tuple[int, int], modality: Modality) -> tuple[int, int]:
     """The shape whose aspect is resized to the square input: 960x720 GelSight frames are
     cropped to their central square first (``data.touch_crop: auto``)."""
@@ -298,7 +304,7 @@ def _shape_problems(fabrics: Sequence[Fabric], sizes: dict[Path, tuple[int, int]
         odd = [
             k
             for k in groups
-            if abs(math.log((_shape(k, m)[0] / _shape(k, m)[1]) / (cw / ch))) > 0.03
+            if abs(math.log((_shape(k, m)[0] / _shape(k, m)[1]) / (cw / ch))) > SAME_SHAPE_LOG_RATIO
         ]
         if not odd:
             continue

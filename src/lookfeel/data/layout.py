@@ -42,6 +42,7 @@ __all__ = [
     "folder_modality",
     "parse_touch_name",
     "press_frame_files",
+    "press_kind",
     "scan",
     "sniff_video",
 ]
@@ -146,6 +147,24 @@ def press_frame_files(path: Path) -> tuple[Path, ...] | None:
         ):
             frames.append((tn.frame, p.name, p))
     return tuple(p for _, _, p in sorted(frames))
+
+
+def press_kind(path: str | os.PathLike[str]) -> PressKind | None:
+    """The kind of press a touch file shows, as `scan` reads it: from its name, a frame's
+    (``F0001_fold_02_101.png``, `parse_touch_name`) or a video's (``F0001_flat_1000.mp4``),
+    else from its folder (``image_flat/``, `folder_modality`); None where neither says
+    (``press.mp4``, an object's ``sponge_0.mov``). For a query file, which no scan has read."""
+    p = Path(path)
+    if p.suffix.lower() in VIDEO_SUFFIXES:
+        m = _TOUCH_VIDEO.match(p.stem)
+        kind = PressKind(m["kind"].lower()) if m is not None and m["kind"] else None
+    else:
+        tn = parse_touch_name(p.name)
+        kind = None if tn is None else tn.kind
+    if kind is None:
+        folder = folder_modality(p.parent.name)
+        kind = None if folder is None else folder[1]
+    return kind
 
 
 def folder_modality(name: str) -> tuple[Modality, PressKind | None] | None:

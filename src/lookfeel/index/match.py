@@ -36,7 +36,6 @@ built before that is not checked).
 from __future__ import annotations
 
 import math
-import re
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -50,6 +49,7 @@ from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES, ImageError
+from lookfeel.data.layout import press_kind
 from lookfeel.devices import resolve_device
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
@@ -57,6 +57,7 @@ from lookfeel.index.query import (
     VIDEO_FOR_STILL_MODEL,
     QueryFiles,
     check_touch_files,
+    check_touch_query,
     load_query_files,
     query_batch,
     query_paths,
@@ -65,7 +66,7 @@ from lookfeel.index.query import (
 from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
-from lookfeel.modality import Modality, Pair, PressKind
+from lookfeel.modality import Modality, Pair
 
 __all__ = [
     "FabricMatch",
@@ -134,21 +135,6 @@ def check_touch_input(
     check_touch_files(files, trained_on, config)
 
 
-_KIND_IN_NAME = re.compile(r"^F\d+_(fold|flat|rand)_", re.IGNORECASE)
-_KIND_FOLDERS = {"image_fold": PressKind.FOLD, "image_flat": PressKind.FLAT}
-
-
-def press_kind(path: str | Path) -> PressKind | None:
-    """The kind of press a touch query file shows, as the dataset layout names it: from its
-    name (``F0001_flat_1000.mp4``, ``F0001_fold_02_101.png``) or its folder (``image_flat/``);
-    None where neither says (``press.mp4``, an object's ``sponge_0.mov``)."""
-    p = Path(path)
-    m = _KIND_IN_NAME.match(p.name)
-    if m is not None:
-        return PressKind(m[1].lower())
-    return _KIND_FOLDERS.get(p.parent.name.lower())
-
-
 def warn_press_kinds(
     paths: Sequence[str | Path],
     config: DataConfig,
@@ -206,10 +192,10 @@ def check_touch_dataset(
         check_touch_input(stills[:1], trained_on, config)
     except ImageError as e:
         raise ImageError(e.path, f"{e.reason} ({share(len(stills), 'still images')})") from None
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        check_touch_input(videos[:1], trained_on, config)
-    if any(VIDEO_FOR_STILL_MODEL in str(w.message) for w in caught):  # one for all, the first named
+    caught: list[str] = []
+    if videos:
+        check_touch_query(videos[0], True, trained_on, config, warn=caught.append)
+    if caught:  # one warning for all the videos, the first named
         n = len(videos) - 1
         also = f" (and {n} other press video{'s' if n > 1 else ''} of {root})" if n else ""
         warnings.warn(f"{videos[0]}{also}: {VIDEO_FOR_STILL_MODEL}", stacklevel=3)

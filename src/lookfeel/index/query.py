@@ -45,6 +45,7 @@ import torch
 from lookfeel.checkpoint import TOUCH_FRAMES, TOUCH_VIDEOS
 from lookfeel.config import DataConfig
 from lookfeel.data import decode_depth
+from lookfeel.data.check import SAME_SHAPE_LOG_RATIO
 from lookfeel.data.images import (
     DEFAULT_MAX_PIXELS,
     GELSIGHT_SIZE,
@@ -418,9 +419,6 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> tor
 ORIENTATIONS = ("portrait", "landscape", "square")
 """What `orientation_of` names a shape."""
 
-_SQUARE_LOG_RATIO = 0.03
-"""Aspect ratios within this of 1 (in log, about 3%) are square, as `lookfeel data check`
-takes two sizes within it for one shape."""
 
 _HEAD_BYTES = 256 * 1024
 """Bytes read of an image for its size: a JPEG's frame header follows its metadata (EXIF with
@@ -480,7 +478,7 @@ def orientation_of(size: tuple[int, int], modality: Modality | str, config: Data
         )
     else:
         cropped = modality is Modality.COLOR and config.color_crop == "center"
-    if cropped or abs(math.log(w / h)) <= _SQUARE_LOG_RATIO:
+    if cropped or abs(math.log(w / h)) <= SAME_SHAPE_LOG_RATIO:
         return "square"
     return "portrait" if h > w else "landscape"
 
