@@ -47,7 +47,7 @@ import torch
 
 from lookfeel.atomic import atomic_write_json, atomic_write_text
 from lookfeel.checkpoint import load_model
-from lookfeel.config import ConfigError, RunConfig, load_config, to_dict
+from lookfeel.config import ConfigError, RunConfig, load_config
 from lookfeel.config._core import Override
 from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
@@ -67,7 +67,7 @@ from lookfeel.processes import available_cores, die_with_parent
 from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
 from lookfeel.train import run_started, train
-from lookfeel.train.loop import as_trained
+from lookfeel.train.loop import config_changes
 
 __all__ = [
     "BUDGETS",
@@ -770,16 +770,6 @@ _FREE = (
 run's ``eval.json`` records its count) and how images are decoded and cached."""
 
 
-def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, Mapping):
-            out |= _flat(v, f"{prefix}{k}.")
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
 def _differs(run_dir: Path, config: RunConfig) -> str | None:
     """None when the finished run at ``run_dir`` is the one ``config`` asks for (`_FREE` keys
     aside, and what training resolves from the labels: `as_trained`); else how it is not, to
@@ -790,11 +780,10 @@ def _differs(run_dir: Path, config: RunConfig) -> str | None:
         trained = load_config(RunConfig, path)
     except (ConfigError, OSError, ValueError) as e:
         return f"whose {path.name} cannot be read ({e})"
-    a, b = _flat(to_dict(trained)), _flat(to_dict(as_trained(config, trained)))
-    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in _FREE)
+    changed = config_changes(trained, config, _FREE)
     if not changed:
         return None
-    keys = "; ".join(f"{k}: trained {a.get(k)!r}, asked {b.get(k)!r}" for k in changed[:4])
+    keys = "; ".join(f"{k}: trained {was!r}, asked {now!r}" for k, was, now in changed[:4])
     more = f" and {len(changed) - 4} more" if len(changed) > 4 else ""
     return f"trained with other settings than this reproduction's ({keys}{more})"
 

@@ -29,7 +29,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -82,7 +82,7 @@ from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
 
-__all__ = ["TrainResult", "TrainRun", "train", "train_step"]
+__all__ = ["TrainResult", "TrainRun", "config_changes", "train", "train_step"]
 
 StepCallback = Callable[[int, Mapping[str, float]], None]
 
@@ -575,6 +575,20 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
+def config_changes(
+    trained: RunConfig, asked: RunConfig, free: Iterable[str] = ()
+) -> list[tuple[str, Any, Any]]:
+    """``(key, trained value, asked value)`` for each setting, by its dotted key, in which
+    ``asked`` differs from the run ``trained`` (what the run resolved from its labels counts as
+    asked where ``asked`` leaves it to the labels: `as_trained`), the keys ``free`` aside;
+    sorted by key. A resume (`_check_resume_config`) and ``lookfeel reproduce``'s reuse of a
+    finished run both decide by it."""
+    a, b = _flatten(to_dict(trained)), _flatten(to_dict(as_trained(asked, trained)))
+    skip = set(free)
+    keys = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in skip)
+    return [(k, a.get(k), b.get(k)) for k in keys]
+
+
 def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
     """The saved config, with a longer ``train.steps`` allowed, and where images are cached or
     how they are decoded (``data.cache_dir``, ``data.decode``, ``data.workers``: the same
@@ -584,7 +598,6 @@ def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) ->
     labels (`as_trained`). ``model.pretrained`` may differ (the same file named from another
     folder, or no longer there): a resumed run takes every weight from its checkpoint."""
     old = from_dict(RunConfig, saved)
-    a, b = _flatten(to_dict(old)), _flatten(to_dict(as_trained(given, old)))
     # What cannot change a number: where images are cached, how they are decoded and by how
     # many workers (bit for bit the same, checked), and the progress bar.
     free = (
@@ -596,11 +609,11 @@ def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) ->
         "data.decode",
         "data.workers",
     )
-    changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and k not in free)
+    changed = config_changes(old, given, free)
     if changed:
         raise ConfigError(
             f"{_RESUME}: the config differs from the run's ({path}) in "
-            + ", ".join(f"{k} ({a.get(k)!r} -> {b.get(k)!r})" for k in changed[:6])
+            + ", ".join(f"{k} ({was!r} -> {now!r})" for k, was, now in changed[:6])
             + "; resume with the run's own config.yaml or start a new run"
         )
     data = replace(
