@@ -16,7 +16,13 @@ from lookfeel.cli import run as cli_run
 from lookfeel.config import DataConfig
 from lookfeel.data.images import GELSIGHT_SIZE
 from lookfeel.index import Library, Matcher
-from lookfeel.index.query import frame_size, orientation_of, shape_record, warn_orientation
+from lookfeel.index.query import (
+    bytes_frame_size,
+    frame_size,
+    orientation_of,
+    shape_record,
+    warn_orientation,
+)
 from lookfeel.modality import Modality
 
 from ._library import tiny_library
@@ -70,6 +76,46 @@ def test_frame_size_reads_headers_of_images_and_videos(tmp_path: Path):
     if hasattr(os, "mkfifo"):
         os.mkfifo(tmp_path / "fifo.png")
         assert frame_size(tmp_path / "fifo.png") is None  # never waited on
+
+
+def test_an_upload_s_bytes_say_the_size_its_file_says(tmp_path: Path):
+    write_rgb(tmp_path / "p.png", 1, 0, size=(24, 32))
+    write_rgb(tmp_path / "l.jpg", 1, 0, size=(40, 30))
+    video = _portrait_video(tmp_path / "press.mp4")
+    for path, size in [
+        (tmp_path / "p.png", (24, 32)),
+        (tmp_path / "l.jpg", (40, 30)),
+        (video, (48, 64)),
+    ]:
+        assert bytes_frame_size(path.read_bytes()) == frame_size(path) == size
+    assert bytes_frame_size(video.read_bytes()[:64]) is None  # a video header, nothing behind it
+    assert bytes_frame_size(b"not an image") is None
+
+
+def test_a_turned_upload_to_serve_is_answered_with_match_s_warning(library: Path, tmp_path: Path):
+    """``lookfeel serve`` says of a turned upload what ``lookfeel match`` says of the file, in
+    the response's ``warnings`` (with the upload's name), and nothing of a level one."""
+    import httpx
+
+    from lookfeel.serve import ServeConfig, background_server, create_app
+
+    write_rgb(tmp_path / "turned.png", 3, 0, size=(24, 32))
+    write_rgb(tmp_path / "level.png", 3, 2, size=(32, 24))
+    matcher = Matcher(Library.open(library))
+    [expected] = _match(matcher, [tmp_path / "turned.png"], Modality.TOUCH)
+    app = create_app(Library.open(library), ServeConfig(), matcher)
+    with background_server(app) as url:
+        answers = {}
+        for name in ("turned.png", "level.png"):
+            r = httpx.post(
+                url + "/api/match",
+                data={"modality": "touch", "top": "1"},
+                files=[("files", (name, (tmp_path / name).read_bytes(), "image/png"))],
+            )
+            assert r.status_code == 200, r.text
+            answers[name] = r.json()["warnings"]
+    assert answers["turned.png"] == [expected.replace(str(tmp_path / "turned.png"), "turned.png")]
+    assert answers["level.png"] == []
 
 
 def test_orientation_is_the_shape_the_model_resizes():

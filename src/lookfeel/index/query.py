@@ -29,6 +29,7 @@ a checkpoint since session 51 its training items' (``shapes``, `LoadedModel.shap
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import stat
@@ -73,12 +74,14 @@ __all__ = [
     "STILL_TOUCH_REFUSED",
     "VIDEOS_ARE_TOUCH",
     "VIDEO_FOR_STILL_MODEL",
+    "bytes_frame_size",
     "check_touch_files",
     "check_touch_query",
     "frame_size",
     "load_query_bytes",
     "load_query_files",
     "load_query_image",
+    "orientation_note",
     "orientation_of",
     "query_batch",
     "query_paths",
@@ -445,12 +448,26 @@ def frame_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
         os.close(fd)
     if not sniff_video(head[:16]):
         return declared_size(head)
+    return _video_size(str(p))
+
+
+def bytes_frame_size(data: bytes) -> tuple[int, int] | None:
+    """`frame_size` of a file's bytes (an upload): an image's from its header, a video's from
+    its first video stream; None where they do not say."""
+    if not sniff_video(data[:16]):
+        return declared_size(data[:_HEAD_BYTES])
+    return _video_size(io.BytesIO(data))
+
+
+def _video_size(source: str | io.BytesIO) -> tuple[int, int] | None:
+    """(width, height) of the first video stream of a file (a path) or bytes, as FFmpeg opens
+    it, no frame decoded; None where it cannot say."""
     try:
         import av
     except ImportError:
         return None
     try:
-        with av.open(str(p), mode="r") as container:
+        with av.open(source, mode="r") as container:
             if not container.streams.video:
                 return None
             ctx = container.streams.video[0].codec_context
@@ -519,11 +536,9 @@ def warn_orientation(
     holder: str,
 ) -> None:
     """Warn once, in one line, where query files are portrait and the images they are compared
-    with landscape, or the other way round (`orientation_of`): each is resized to the
-    network's one square input, so such a query is stretched unlike them and most likely
-    turned. The first such file is named, the others counted; a square query or a square
-    record, a file whose size cannot be read (`frame_size`) and a missing record (a library
-    built before it was kept) are not checked.
+    with landscape, or the other way round (`orientation_note` on each file's `frame_size`):
+    each is resized to the network's one square input, so such a query is stretched unlike
+    them and most likely turned.
 
     Args:
         paths: the query's files, all of ``modality``.
@@ -535,21 +550,44 @@ def warn_orientation(
     Raises:
         ModalityError: ``modality`` names no modality.
     """
+    note = orientation_note(
+        [(str(p), frame_size(p)) for p in paths], modality, record, config, holder
+    )
+    if note is not None:
+        warnings.warn(note, stacklevel=3)
+
+
+def orientation_note(
+    files: Sequence[tuple[str, tuple[int, int] | None]],
+    modality: Modality | str,
+    record: Mapping[str, Any] | None,
+    config: DataConfig,
+    holder: str,
+) -> str | None:
+    """The one line `warn_orientation` warns (None where nothing is turned) for files given as
+    (name, (width, height) or None): where some are portrait and the images they are compared
+    with landscape, or the other way round (`orientation_of`). The first such file is named,
+    the others counted; a square query or a square record, a file whose size is not known and
+    a missing record (a library built before it was kept) are not checked. ``lookfeel serve``
+    answers it for uploads, whose sizes come from their bytes (`bytes_frame_size`).
+
+    Raises:
+        ModalityError: ``modality`` names no modality.
+    """
     modality = Modality.of(modality)
     known = _recorded(record)
     if known is None or known[0] == "square":
-        return
+        return None
     want, want_size = known
     odd = []
-    for p in paths:
-        size = frame_size(p)
+    for name, size in files:
         if size is None:
             continue
         got = orientation_of(size, modality, config)
         if got not in (want, "square"):
-            odd.append((Path(p), got, size))
+            odd.append((Path(name), got, size))
     if not odd:
-        return
+        return None
     first, got, (w, h) = odd[0]
     n = len(odd) - 1
     also = f" (and {n} other such file{'s' if n > 1 else ''})" if n else ""
@@ -561,10 +599,9 @@ def warn_orientation(
     else:
         what, theirs = "map", "maps"
     their = f" ({want_size})" if want_size else ""
-    warnings.warn(
+    return (
         f"{first}{also}: a {got} {modality.value} {what} ({w}x{h}), but {holder}'s "
         f"{modality.value} {theirs} are {want}{their}: each is resized to the network's one "
         f"square input, so this one is stretched unlike them and most likely turned; turn it "
-        f"to {want}",
-        stacklevel=3,
+        f"to {want}"
     )

@@ -68,7 +68,7 @@ from lookfeel.index import (
     sniff_type,
 )
 from lookfeel.index.match import warn_press_kinds
-from lookfeel.index.query import VIDEOS_ARE_TOUCH
+from lookfeel.index.query import VIDEOS_ARE_TOUCH, bytes_frame_size, orientation_note
 from lookfeel.modality import Modality
 
 __all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
@@ -759,7 +759,8 @@ def create_app(
             # As `lookfeel match` reads files (`load_query_files`): of several touch presses,
             # a video without a press is left out with a warning; the only one, or every one,
             # is an error (the first one's). Its warnings (a press video for a model trained on
-            # still frames, a press of a kind the model was not trained on) are collected in
+            # still frames, a press of a kind the model was not trained on, a query turned against
+            # the library's items) are collected in
             # `notes`, this request's own list (`warnings.catch_warnings` is process-wide, not
             # safe in the server's threads), and answered in `warnings`.
             notes: list[str] = []
@@ -767,6 +768,15 @@ def create_app(
                 warn_press_kinds(
                     [n for n, _ in blobs], match.data_config, "the library's model", notes.append
                 )
+            turned = orientation_note(
+                [(n, bytes_frame_size(d)) for n, d in blobs],
+                modality,
+                match.shape(modality),
+                match.data_config,
+                "the library",
+            )
+            if turned is not None:
+                notes.append(turned)
             images, names, missed = [], [], []
             for n, d in blobs:
                 try:
