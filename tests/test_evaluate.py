@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -297,7 +298,7 @@ def test_few_training_fabrics_neither_average_them_all_nor_hide_an_overconfident
     text = write_report(r, tmp_path / "few").report.read_text()
     row = next(line for line in text.splitlines() if line.startswith("| touch → depth | 2"))
     assert "| fitted on 5 training fabrics |" in row
-    assert f"{cal.nll:.3f} (overconfident: NLL above chance's) | 1.609 |" in row
+    assert f"{cal.nll:.3f} (overconfident: NLL clearly above chance's) | 1.609 |" in row
     assert "\nOverconfident: depth → depth, " in text
     assert "c fitted on 5 training fabrics only: those are the fabrics the model was" in text
     assert "| touch | x | knn (k=2) |" in text
@@ -309,6 +310,16 @@ def test_few_training_fabrics_neither_average_them_all_nor_hide_an_overconfident
     assert _feel_title(one) == "Feels like (the only training\nfabric with labels)"
     assert "the training fabric\nnearest" in _feel_title(dataclasses.replace(one, n_reference=3))
 
+    # Flagged beyond its noise only: the 5 fabrics' own NLLs spread, so an NLL above chance's
+    # by less than twice their standard error is not (QA: 8 of 9 rows of a 5-fabric rig were
+    # flagged, most by under 0.11 nats).
+    assert m[f"{pair}_nll_se"] == cal.nll_se > 0
+    assert cal.nll_chance + 2 * cal.nll_se > 2 * cal.nll_chance  # spread wide by a few ...
+    assert cal.nll > 2 * cal.nll_chance  # ... yet far above chance: flagged (above)
+    near = dataclasses.replace(cal, nll_se=0.1, nll=cal.nll_chance + 0.19)
+    assert not near.overconfident
+    assert dataclasses.replace(near, nll=cal.nll_chance + 0.21).overconfident
+    assert dataclasses.replace(near, nll_se=math.nan).overconfident  # unknown: any amount
     # As many training fabrics as the demo's 100 (here 12): k stays 5 and nothing is flagged;
     # the report reads as before.
     embedded, centres = _world(noise=0.3, seed=4)
@@ -1236,3 +1247,16 @@ def test_the_press_curve_note_counts_the_presses_of_the_kinds_evaluated():
         n.startswith("no fabric has 3 fold touch presses (the kind evaluated; 2 at most) to pool")
         for n in pooled.notes
     )
+
+
+def test_the_nll_s_standard_error_is_over_fabrics_not_queries():
+    """Queries of one fabric are not independent: the error is the spread of the fabrics' own
+    mean NLLs (one fabric of 3 queries weighs as one of 1), NaN for a single fabric."""
+    from lookfeel.evaluate.core import _se_over_fabrics
+
+    values = np.array([1.0, 1.0, 1.0, 3.0, 5.0])
+    fabric = np.array([7, 7, 7, 2, 9])
+    assert _se_over_fabrics(values, fabric) == pytest.approx(
+        np.std([3.0, 1.0, 5.0], ddof=1) / math.sqrt(3)
+    )
+    assert math.isnan(_se_over_fabrics(values[:3], fabric[:3]))

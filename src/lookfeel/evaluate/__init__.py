@@ -15,7 +15,8 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
 - ``n_queries``, ``n_fabrics``, ``n_effective``;
 - calibration: ``c``, ``c_fitted``, ``c_fit_fabrics`` (the reference fabrics c was fitted on;
   NaN when not fitted), ``fabric_accuracy`` (+ ``_chance``), ``confidence``, ``ece``, ``nll``
-  (+ ``_chance``), ``overconfident`` (1 where the NLL is above chance's);
+  (+ ``_chance``, ``_se``: its standard error over the test fabrics), ``overconfident`` (1
+  where the NLL is above chance's by more than twice that, or twice chance's);
 - ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
 - ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``, and
   ``property_{modality}_{label}_knn_k``: the neighbours the k-NN averaged (``probe_k``, at most

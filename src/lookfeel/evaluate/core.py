@@ -322,10 +322,23 @@ def _calibrate(
         accuracy=float(correct.mean()) if has.any() else nan,
         confidence=float(conf.mean()) if has.any() else nan,
         nll=float(-np.log(np.maximum(p_own, 1e-300)).mean()) if has.any() else nan,
+        nll_se=_se_over_fabrics(
+            -np.log(np.maximum(p_own, 1e-300)), np.asarray(q.fabric[has], np.int64)
+        ),
         n_fabrics=len(fabrics),
         confusion=confusion,
         cluster_confusion=cluster_conf,
     )
+
+
+def _se_over_fabrics(values: NDArray[np.float64], fabric: NDArray[np.int64]) -> float:
+    """The standard error of the mean of per-query ``values`` over their fabrics: the spread
+    of the fabrics' own means over the square root of their number (NaN under two)."""
+    ids, inverse = np.unique(fabric, return_inverse=True)
+    if len(ids) < 2:
+        return float("nan")
+    means = np.bincount(inverse, weights=values) / np.bincount(inverse)
+    return float(means.std(ddof=1) / math.sqrt(len(ids)))
 
 
 def _draw_examples(
@@ -659,7 +672,9 @@ def evaluate_embeddings(
     a k-NN, the probe's or the glance's feel, averages at most half the reference fabrics
     (`knn_neighbours`), noted where that is fewer than ``config.probe_k``. A calibration row
     says how many reference fabrics c was fitted on (``{pair}_c_fit_fabrics``) and whether its
-    NLL is above chance's (``{pair}_overconfident``).
+    NLL is clearly above chance's (`CalibrationResult.overconfident`: by more than twice its
+    standard error over the test fabrics, ``{pair}_nll_se``, or twice chance's;
+    ``{pair}_overconfident``).
 
     Args:
         embedded: the test items' embeddings per modality (touch: one row per press).
@@ -814,6 +829,7 @@ def evaluate_embeddings(
         out[f"{pair}_ece"] = cal.reliability.ece
         out[f"{pair}_nll"] = cal.nll
         out[f"{pair}_nll_chance"] = cal.nll_chance
+        out[f"{pair}_nll_se"] = cal.nll_se
         out[f"{pair}_overconfident"] = (
             float(cal.overconfident) if math.isfinite(cal.nll) else math.nan
         )

@@ -530,7 +530,7 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
             source = f"fitted on {cal.fit_fabrics} training fabrics"
             few.add(cal.fit_fabrics)
         if cal.overconfident:
-            nll += " (overconfident: NLL above chance's)"
+            nll += " (overconfident: NLL clearly above chance's)"
             over.append(_pretty(pair))
         rows.append(
             [
@@ -561,10 +561,12 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
     )
     if over:
         lines += [
-            f"Overconfident: {', '.join(over)}: the NLL is above chance's, so a uniform guess "
-            "over the gallery fabrics scores better than these probabilities: they claim more "
-            "than the test fabrics' distances know (c is too large for them, or the distances "
-            "do not tell them apart).",
+            f"Overconfident: {', '.join(over)}: the NLL is above chance's by more than twice "
+            "its standard error over the test fabrics (or is more than twice chance's), so a "
+            "uniform guess over the gallery "
+            "fabrics scores better than these probabilities: they claim more than the test "
+            "fabrics' distances know (c is too large for them, or the distances do not tell "
+            "them apart).",
             "",
         ]
     if few:

@@ -49,6 +49,9 @@ class CalibrationResult:
         cluster_confusion: cluster-level confusion (Figure 8b), when clusters are known.
         fit_fabrics: the reference fabrics c was fitted on (those whose queries had an item of
             their own to find); 0 when c was not fitted.
+        nll_se: the standard error of ``nll`` over the query fabrics (the spread of their own
+            mean NLLs over the square root of their number; queries of one fabric are not
+            independent); NaN with fewer than two fabrics.
     """
 
     pair: Pair
@@ -62,6 +65,7 @@ class CalibrationResult:
     confusion: Confusion | None = None
     cluster_confusion: Confusion | None = None
     fit_fabrics: int = 0
+    nll_se: float = math.nan
 
     @property
     def nll_chance(self) -> float:
@@ -70,10 +74,16 @@ class CalibrationResult:
 
     @property
     def overconfident(self) -> bool:
-        """Whether the NLL is above chance's: a uniform guess over the gallery fabrics would
-        score better, so c is larger than these distances support (a smaller c, down to the
+        """Whether the NLL is clearly above chance's: by more than twice its standard error
+        over the query fabrics (`nll_se`; by any amount where that is not known), or to more
+        than twice chance's (a few fabrics given next to no probability spread the error
+        wide, yet say the same). A uniform guess over the gallery fabrics would then score
+        better, so c is larger than these distances support (a smaller c, down to the
         uniform guess at c = 0, does better)."""
-        return math.isfinite(self.nll) and self.nll > self.nll_chance
+        if not math.isfinite(self.nll):
+            return False
+        margin = 2 * self.nll_se if math.isfinite(self.nll_se) else 0.0
+        return self.nll > min(self.nll_chance + margin, 2 * self.nll_chance)
 
 
 @dataclass(frozen=True)
