@@ -968,3 +968,41 @@ def test_an_interrupt_ends_the_workers_at_once_and_their_warnings_are_one_line(
             time.sleep(0.1)
         else:
             pytest.fail(f"worker {pid} still runs")
+
+
+def test_sigint_while_waiting_on_the_pool_is_raised_as_the_wait_returns():
+    """A KeyboardInterrupt raised inside ``concurrent.futures.wait`` can leave its futures'
+    locks held, and the pool's shutdown then waits forever: SIGINT during the wait is noted
+    and raised as the wait returns, with every lock free; outside the wait it raises at once;
+    the handler is Python's own again afterwards."""
+    import os
+    import signal
+    import threading
+    from concurrent.futures import Future
+
+    from lookfeel.reproduce.run import _interrupt_between_waits
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        future: Future[int] = Future()
+        with _interrupt_between_waits() as interrupts:
+            assert signal.getsignal(signal.SIGINT) == interrupts.handle
+            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                interrupts.wait_for({future: 0})
+            timer.join()
+            assert interrupts.pending and future._condition.acquire(timeout=1)
+            future._condition.release()
+            with pytest.raises(KeyboardInterrupt):  # not waiting: at once
+                interrupts.handle(signal.SIGINT, None)
+            done: Future[int] = Future()
+            done.set_result(1)
+            interrupts.pending = False
+            assert interrupts.wait_for({done: 0, future: 1}) == {done}
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with _interrupt_between_waits():  # ignored (a background job): left as it is
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -33,10 +33,12 @@ import pickle
 import re
 import signal
 import sys
+import threading
 import time
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
@@ -470,15 +472,16 @@ def _run_jobs(
                 running[pool.submit(_run_in_worker, job, data, n_boot)] = i
                 return
 
-        for _ in range(n):
-            start_next()
-        while running:
-            done, _ = wait(running, return_when=FIRST_COMPLETED)
-            for future in done:
-                record, caught = future.result()
-                out[running.pop(future)] = record
-                _relay(caught)
+        with _interrupt_between_waits() as interrupted:
+            for _ in range(n):
                 start_next()
+            while running:
+                done = interrupted.wait_for(running)
+                for future in done:
+                    record, caught = future.result()
+                    out[running.pop(future)] = record
+                    _relay(caught)
+                    start_next()
     except KeyboardInterrupt:
         _stop_workers(pool)
         raise
@@ -489,6 +492,59 @@ def _run_jobs(
             _stop_workers(pool)
             raise
     return [r for r in out if r is not None]
+
+
+class _Interrupts:
+    """SIGINT while waiting on the pool, taken at a known point (`_interrupt_between_waits`)."""
+
+    def __init__(self) -> None:
+        self.waiting = False
+        self.pending = False
+
+    def handle(self, signum: int, frame: Any) -> None:
+        """The SIGINT handler: a KeyboardInterrupt now, except inside `wait_for`'s wait, where
+        it is only noted (and raised there as the wait returns)."""
+        if not self.waiting:
+            raise KeyboardInterrupt
+        self.pending = True
+
+    def wait_for(self, running: Mapping[Future[Any], int]) -> set[Future[Any]]:
+        """The futures of ``running`` that are done, waiting up to 0.2 s at a time for one;
+        KeyboardInterrupt once SIGINT came while waiting."""
+        while True:
+            self.waiting = True
+            try:
+                done, _ = wait(running, timeout=0.2, return_when=FIRST_COMPLETED)
+            finally:
+                self.waiting = False
+            if self.pending:
+                raise KeyboardInterrupt
+            if done:
+                return done
+
+
+@contextmanager
+def _interrupt_between_waits() -> Iterator[_Interrupts]:
+    """While waiting on the pool's futures, take SIGINT as a note, raised as KeyboardInterrupt
+    when the wait returns (`_Interrupts.wait_for`), never inside ``concurrent.futures.wait``:
+    raised there, it can leave the futures' locks held (between acquiring them and releasing
+    them), and the pool's manager thread, which sets those futures once the workers are
+    stopped, then blocks on them and the shutdown waits for it forever. Outside the wait
+    SIGINT raises at once, as Python's own handler does. Only the main thread can set a
+    signal handler; elsewhere, or where SIGINT is not Python's default handler (ignored, or the
+    caller's own), it is left as it is."""
+    interrupts = _Interrupts()
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield interrupts
+        return
+    signal.signal(signal.SIGINT, interrupts.handle)
+    try:
+        yield interrupts
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _stop_workers(pool: ProcessPoolExecutor) -> None:
