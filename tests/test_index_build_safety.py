@@ -273,3 +273,25 @@ def test_press_kinds_the_data_lacks_leave_touch_out_with_a_warning(run, tmp_path
     with pytest.warns(UserWarning, match=r"no rand presses: touch is left out of the library"):
         build_library(ckpt, data, tmp_path / "lib", kinds=[PressKind.RAND])
     assert "touch" not in Library.open(tmp_path / "lib").modalities
+
+
+def test_a_rebuild_keeps_a_file_of_the_user_s_in_the_library_by_refusing(
+    run, library: Path, tmp_path: Path
+):
+    """QA: notes put in a library folder were deleted by the next build without a word (the
+    swap removes the whole old folder). A library holding files no build writes is not
+    rebuilt, and says which; a library of its own files alone is."""
+    data, ckpt = run
+    lib = shutil.copytree(library, tmp_path / "lib")
+    (lib / "NOTES.txt").write_text("which checkpoint this was")
+    before = _files(lib)
+    with pytest.raises(LibraryError) as e:
+        build_library(ckpt, data, lib, shard_size=8)
+    assert str(e.value) == (
+        f"{lib}: the library holds a file it did not write (NOTES.txt); a rebuild replaces the "
+        "whole folder, so move it out first (nothing was changed)"
+    )
+    assert _files(lib) == before and _beside(lib) == []
+    (lib / "NOTES.txt").unlink()
+    build_library(ckpt, data, lib, shard_size=8)
+    assert Library.open(lib).root == lib

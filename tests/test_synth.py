@@ -668,3 +668,61 @@ def test_contact_sheet_beside_another_datasets_depth(tmp_path: Path) -> None:
     assert not (tmp_path / "none").exists()  # refused before anything was rendered
     with pytest.raises(ValueError, match="not a folder"):
         generate(cfg, tmp_path / "x", labels=labels, progress=False, beside=tmp_path / "nope")
+
+
+def test_a_rerun_removes_only_files_of_its_own_folder(tmp_path: Path) -> None:
+    """QA: an earlier run's manifest lists what a rerun removes; a listed absolute path (a
+    hand-edited or foreign synth.json) deleted a file outside the folder. Now only files of
+    the folder go: never an absolute path, one through "..", or one through a symlinked
+    folder (a real depth/ linked in beside the synthetic senses)."""
+    out = tmp_path / "world"
+    (out / "touch").mkdir(parents=True)
+    real = tmp_path / "real_depth"
+    real.mkdir()
+    (out / "depth").symlink_to(real)
+    victim, theirs = tmp_path / "victim.txt", real / "F0001_Depth_New_000001.png"
+    old_touch = out / "touch" / "F0001_fold_01_1000.jpg"
+    for f in (victim, theirs, old_touch):
+        f.write_text("keep" if f != old_touch else "old")
+    listed = [
+        str(victim),
+        "../victim.txt",
+        "depth/F0001_Depth_New_000001.png",
+        str(old_touch.relative_to(out)),
+    ]
+    manifest = {"generator": world_module._GENERATOR, "files": listed}
+    (out / MANIFEST).write_text(json.dumps(manifest))
+    world_module._prepare_out(out, planned=[])
+    assert victim.read_text() == "keep" and theirs.read_text() == "keep"
+    assert not old_touch.exists()  # the earlier run's own file, not planned again
+
+
+def test_a_failed_write_names_the_file_and_leaves_no_temp(tmp_path: Path, monkeypatch) -> None:
+    """QA: on a full disk synth ended in a traceback naming nothing, and left
+    ``.NAME.PID.tmp`` behind."""
+    import builtins
+    import errno
+
+    real_open = builtins.open
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            self.f.write(data[:3])
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(builtins, "open", lambda p, *a, **k: Full(real_open(p, *a, **k)))
+    (tmp_path / "touch").mkdir()
+    with pytest.raises(OSError) as e:
+        world_module._write(tmp_path, "touch/F0001_fold_01_1000.jpg", b"jpeg bytes")
+    monkeypatch.undo()
+    assert e.value.filename == str(tmp_path / "touch" / "F0001_fold_01_1000.jpg")
+    assert list((tmp_path / "touch").iterdir()) == []

@@ -761,3 +761,45 @@ def test_a_cluster_the_head_has_no_class_for_is_refused_naming_it(data: Path, tm
         train(cfg, data, tmp_path / "run")
     three = _config("model.cluster_head=true", "model.num_clusters=3", "train.steps=1")
     assert train(three, data, tmp_path / "ok").steps == 1
+
+
+def test_a_folder_of_the_user_s_own_config_is_not_a_run_to_write_into(
+    data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `train --config exp1/config.yaml --out exp1` replaced the user's commented config
+    with the resolved one: a folder holding a config.yaml was taken for a run. A run writes
+    split.json beside it; a folder without is refused, unchanged."""
+    exp = tmp_path / "exp1"
+    exp.mkdir()
+    mine = "# my experiment: keep these notes\n" + TINY.read_text()
+    (exp / "config.yaml").write_text(mine)
+    code = main(
+        ["train", "--config", str(exp / "config.yaml"), "--data", str(data), "--out", str(exp)]
+    )
+    assert code == 1
+    err = capsys.readouterr().err
+    assert f"--out {exp}: the folder holds files and is not a lookfeel run" in err
+    assert (exp / "config.yaml").read_text() == mine and [p.name for p in exp.iterdir()] == [
+        "config.yaml"
+    ]
+
+
+def test_a_resume_into_a_read_only_run_is_refused_before_training(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """QA: a resume whose checkpoints/ was read-only trained for 40 s, then failed on its
+    first checkpoint, leaving log lines of steps never saved: refused before any step."""
+    from lookfeel import atomic
+
+    cfg = _config("train.steps=10", "train.checkpoint_every=5")
+    train(cfg, data, tmp_path / "run")
+    checkpoints = tmp_path / "run" / "checkpoints"
+    real = os.access
+    monkeypatch.setattr(
+        atomic.os, "access", lambda p, m, **k: False if Path(p) == checkpoints else real(p, m, **k)
+    )
+    steps: list[int] = []
+    longer = _config("train.steps=20", "train.checkpoint_every=5")
+    with pytest.raises(PermissionError) as e:
+        train(longer, data, tmp_path / "run", resume=True, on_step=lambda s, _: steps.append(s))
+    assert e.value.filename == str(checkpoints) and steps == []

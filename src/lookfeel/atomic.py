@@ -3,15 +3,21 @@
 Checkpoints, caches, indexes, configs and reports all go through here, so a run killed at any
 moment leaves every file it had written intact (write to a temp file in the same folder, flush,
 fsync, then ``os.replace``). The file gets the mode a plain ``open(path, "w")`` would give:
-``0o666`` less the process's umask (a temp file alone would be ``0o600``, unreadable by a
-teammate).
+an existing file keeps its own, and one its owner made read-only is refused (`check_writable`);
+a new one gets ``0o666`` less the process's umask (a temp file alone would be ``0o600``,
+unreadable by a teammate). A write that fails (a full disk, a folder made read-only meanwhile)
+raises an `OSError` naming the destination, never the hidden temp file, and leaves the old
+file as it was.
 """
 
 from __future__ import annotations
 
+import errno
+import glob
 import json
 import math
 import os
+import stat
 import tempfile
 import threading
 from collections.abc import Callable, Mapping
@@ -23,6 +29,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "check_writable",
     "current_umask",
     "file_mode",
     "finite_or_null",
@@ -62,10 +69,49 @@ def remove_stale_temps(path: str | os.PathLike[str]) -> list[Path]:
     """
     p = Path(path)
     gone = []
-    for tmp in p.parent.glob(f".{p.name}.*.tmp"):
+    for tmp in p.parent.glob(f"{glob.escape(_temp_prefix(p.name))}*.tmp"):
         tmp.unlink(missing_ok=True)
         gone.append(tmp)
     return gone
+
+
+_NAME_MAX = 255
+"""Bytes a file name may hold on the common file systems (ext4, XFS, btrfs, tmpfs, APFS)."""
+
+
+def _temp_prefix(name: str) -> str:
+    """The temp files' prefix for ``name``: ``.{name}.``, with the name cut short enough
+    that the temp name (prefix, 8 random characters, ``.tmp``) fits where ``name`` fits."""
+    room = _NAME_MAX - len(".") - len(".") - 8 - len(".tmp") - len("~")
+    raw = name.encode("utf-8", "surrogateescape")
+    if len(raw) <= room + 1:
+        return f".{name}."
+    cut = raw[:room].decode("utf-8", "ignore")
+    return f".{cut}~."
+
+
+def check_writable(path: str | os.PathLike[str]) -> None:
+    """Refuse what `atomic_write` would refuse, before any work: an existing ``path`` its
+    owner made read-only (a plain ``open(path, "w")`` refuses it too), or a folder it would go
+    in that exists and cannot be written.
+
+    Raises:
+        PermissionError: naming ``path`` (or its folder) and why.
+    """
+    p = Path(path)
+    if p.is_file() and not os.access(p, os.W_OK):
+        raise PermissionError(
+            errno.EACCES,
+            "the file is read-only for this user; lookfeel does not replace it",
+            str(p),
+        )
+    folder = p.parent
+    if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(
+            errno.EACCES,
+            "the folder is read-only for this user; nothing can be written in it",
+            str(folder),
+        )
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], object]) -> Path:
@@ -76,23 +122,55 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
         write: writes the whole content to the binary file object it is given.
 
     Returns:
-        The destination path, of mode ``0o666 & ~umask`` (as `open` would create it).
+        The destination path, of its own mode where it existed, else ``0o666 & ~umask`` (as
+        `open` would give).
+
+    Raises:
+        PermissionError: ``path`` exists and is read-only for this user (`check_writable`).
+        OSError: the write failed (a full disk ...), naming ``path``; the old file is as it
+            was and no temp file is left.
     """
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    check_writable(p)
+    try:
+        mode = stat.S_IMODE(os.stat(p).st_mode) if p.is_file() else file_mode()
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=_temp_prefix(p.name), suffix=".tmp")
+    except OSError as e:
+        raise _naming(e, p) from None
     try:
         with os.fdopen(fd, "wb") as f:
             if hasattr(os, "fchmod"):
-                os.fchmod(f.fileno(), file_mode())
+                os.fchmod(f.fileno(), mode)
             write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, p)
+    except OSError as e:
+        Path(tmp).unlink(missing_ok=True)
+        raise _naming(e, p) from None
+    except RuntimeError as e:  # torch.save's zip writer says a short write so
+        Path(tmp).unlink(missing_ok=True)
+        if "inline_container" not in str(e) and "unexpected pos" not in str(e):
+            raise
+        first = str(e).strip().splitlines()[0] if str(e).strip() else "no reason given"
+        raise OSError(
+            errno.EIO, f"the write stopped short (is the disk full? torch: {first})", str(p)
+        ) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
+
+
+def _naming(e: OSError, path: Path) -> OSError:
+    """``e`` as an error of ``path`` (the destination) where it names the temp file written
+    for it or nothing (the command line prints an `OSError` as ``path: reason``); one about
+    another file (the folder it could not create) keeps that file's name."""
+    name = Path(e.filename).name if e.filename is not None else None
+    if name is None or name.startswith(_temp_prefix(path.name)):
+        e.filename, e.filename2 = str(path), None
+    return e
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:

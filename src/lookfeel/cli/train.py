@@ -47,9 +47,11 @@ def add_parser(subparsers: Subparsers) -> None:
     )
 
 
-RUN_FILES = ("config.yaml", "checkpoints", "members")
+RUN_FILES = ("split.json", "checkpoints", "members", "metrics.jsonl")
 """What a run folder holds (an ensemble's members first): an existing, non-empty --out must
-hold one (a run to resume, or one ``train`` then refuses to write over without --resume)."""
+hold one (a run to resume, or one ``train`` then refuses to write over without --resume). Not
+``config.yaml`` alone, which a run writes with ``split.json`` beside it: a folder of the
+user's own ``config.yaml`` (their --config, with its comments) is not a run to write into."""
 
 
 def run(args: argparse.Namespace) -> int:

@@ -27,6 +27,7 @@ without each fold's fabrics, `lookfeel.index.calibrate`).
 from __future__ import annotations
 
 import contextlib
+import fnmatch
 import hashlib
 import json
 import os
@@ -154,12 +155,33 @@ def _check_out(out: Path) -> None:
             raise LibraryError(
                 f"{out}: folder exists and is not a lookfeel library; choose a new or empty folder"
             )
+        if theirs := _not_the_library_s(out):
+            n = len(theirs)
+            more = f" and {n - 3} more" if n > 3 else ""
+            raise LibraryError(
+                f"{out}: the library holds {'a file' if n == 1 else 'files'} it did not write "
+                f"({', '.join(theirs[:3])}{more}); a rebuild replaces the whole folder, so move "
+                f"{'it' if n == 1 else 'them'} out first (nothing was changed)"
+            )
     work = work_folder(out)
     if work.exists() and not _ours(work):
         raise LibraryError(
             f"{work}: in the way of building {out} there (lookfeel's work folder for it), and "
             "not a library build; move it away or choose another --out"
         )
+
+
+LIBRARY_NAMES = (MANIFEST, CROSS_MAPS, "shards", "index-*.faiss", ".*.tmp")
+"""What a build writes at a library's top level (and the temp files of its writes)."""
+
+
+def _not_the_library_s(folder: Path) -> list[str]:
+    """Names at the top of a library ``folder`` that no build writes (a user's notes): sorted."""
+    return sorted(
+        p.name
+        for p in folder.iterdir()
+        if not any(fnmatch.fnmatch(p.name, pattern) for pattern in LIBRARY_NAMES)
+    )
 
 
 def _check_not_here(out: Path) -> None:
@@ -369,7 +391,11 @@ def _link(src: Path, dst: Path) -> None:
     try:
         os.link(src, tmp)
     except OSError:
-        shutil.copyfile(src, tmp)
+        try:
+            shutil.copyfile(src, tmp)
+        except OSError as e:  # a full disk: name the shard, leave no temp behind
+            tmp.unlink(missing_ok=True)
+            raise OSError(e.errno, e.strerror, str(dst)) from None
     os.replace(tmp, dst)
 
 

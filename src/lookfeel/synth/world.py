@@ -135,9 +135,13 @@ def _write(root: Path, rel: str, data: bytes) -> None:
     """Write to a hidden temporary name beside the target, then rename it into place."""
     path = root / rel
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except OSError as e:  # a full disk: name the file, leave no temp behind
+        tmp.unlink(missing_ok=True)
+        raise OSError(e.errno, e.strerror, str(path)) from None
 
 
 def _densify_factor(cfg: SynthConfig) -> int:
@@ -239,10 +243,18 @@ def _prepare_out(out: Path, planned: Iterable[str]) -> None:
             )
         keep = set(planned)
         old_files = old.get("files", [])
+        inside = out.resolve()
         for rel in old_files if isinstance(old_files, list) else []:
-            if not isinstance(rel, str) or rel in keep or ".." in Path(rel).parts:
+            if not isinstance(rel, str) or rel in keep:
                 continue
-            (out / rel).unlink(missing_ok=True)
+            target = out / rel
+            # Only a file of this folder: never an absolute path, one up through "..", or one
+            # through a symlinked folder (a real depth/ linked in beside the synthetic senses).
+            if Path(rel).is_absolute() or ".." in Path(rel).parts:
+                continue
+            if not target.parent.resolve().is_relative_to(inside):
+                continue
+            target.unlink(missing_ok=True)
         for sub in ("depth", "color", REPRINTS, "touch"):
             folder = out / sub
             if folder.is_dir():

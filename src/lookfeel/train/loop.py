@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from lookfeel.atomic import atomic_write_text, remove_stale_temps
+from lookfeel.atomic import atomic_write_text, check_writable, remove_stale_temps
 from lookfeel.checkpoint import (
     init_from_checkpoint,
     non_finite_tensors,
@@ -847,6 +847,8 @@ def train(
                 )
             state = read_checkpoint(last)
             config = _check_resume_config(state["config"], config, last)
+            for path in (last, run_dir / "config.yaml"):  # before the work, not at its end
+                check_writable(path)
         elif last.exists():
             raise ConfigError(f"{run_dir} already holds a run ({last}); {_ELSEWHERE}")
         dist = Distributed.from_env(config.train.device)
