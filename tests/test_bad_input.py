@@ -480,6 +480,33 @@ def test_a_long_file_name_gets_a_temp_name_that_fits(tmp_path: Path):
     assert remove_stale_temps(short) == [tmp_path / ".last.pt.x1y2z3w4.tmp"]
 
 
+def test_an_interrupted_command_is_written_again_into_its_folder_leaving_no_temp(
+    run, tmp_path: Path, capsys
+):
+    """QA: an evaluation stopped after its first figures (no metrics.json yet) could not be
+    run again into its folder ("not a lookfeel evaluation report"), and the temp files of
+    writes killed midway stayed for good after a rerun (only train and index build removed
+    theirs)."""
+    data, ckpt = run
+    out = tmp_path / "ev"
+    assert evaluate_cli(ckpt, data, out) == 0
+    (out / "metrics.json").unlink()  # as a rewrite stopped before its numbers leaves it
+    (out / "report.md").unlink()
+    stale = [out / ".metrics.json.ab12cd34.tmp", out / "figures" / ".presses.png.x_y1z2w3.tmp"]
+    for f in stale:
+        f.write_bytes(b"half")
+    mine = out / ".my_notes.tmp"  # not a temp name of lookfeel's: kept
+    mine.write_text("mine")
+    capsys.readouterr()
+    assert evaluate_cli(ckpt, data, out) == 0, capsys.readouterr().err
+    assert (out / "metrics.json").is_file() and not any(f.exists() for f in stale)
+    assert mine.read_text() == "mine"
+    e = tmp_path / "e.npz"
+    (tmp_path / ".e.npz.qwerty12.tmp").write_bytes(b"half")
+    assert main(["embed", "--checkpoint", str(ckpt), "--data", str(data), "--out", str(e)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.npz", "ev"]
+
+
 def test_a_report_is_readable_by_the_group(run, tmp_path: Path, capsys):
     data, ckpt = run
     old = os.umask(0o022)

@@ -515,6 +515,8 @@ def test_a_report_written_again_removes_only_the_figures_the_last_one_wrote(
     monkeypatch.setattr(report_module, "save_figure", real)
     listed_now = set(json.loads((figures / FIGURES_MANIFEST).read_text())["figures"])
     assert set(calls) <= listed_now
+    # QA: the last report's numbers stayed beside the new figures; now none is left.
+    assert not (out / "metrics.json").exists() and not (out / "report.md").exists()
     write_report(evaluate_embeddings(looks, config, clusters), out)
     assert {p.name for p in figures.iterdir()} == drawn | {"mine.png", FIGURES_MANIFEST}
 

@@ -803,3 +803,20 @@ def test_a_resume_into_a_read_only_run_is_refused_before_training(
     with pytest.raises(PermissionError) as e:
         train(longer, data, tmp_path / "run", resume=True, on_step=lambda s, _: steps.append(s))
     assert e.value.filename == str(checkpoints) and steps == []
+
+
+def test_a_run_stopped_while_writing_its_first_last_pt_resumes_from_best_pt(
+    data: Path, tmp_path: Path
+):
+    """QA: killed while its first last.pt was written (best.pt of that step was written just
+    before), a run refused --resume ("stopped before its first checkpoint") and its steps were
+    trained again. It resumes from best.pt, and ends as an unbroken run does."""
+    cfg = _config()
+    unbroken = _unbroken_and_killed(cfg, data, tmp_path)  # broken: checkpoints of step 10
+    checkpoints = tmp_path / "broken" / "checkpoints"
+    assert torch.load(checkpoints / "best.pt", weights_only=True)["step"] == 10
+    (checkpoints / "last.pt").unlink()  # as if killed while writing it
+    with pytest.raises(ConfigError, match="already holds a run"):
+        train(cfg, data, tmp_path / "broken")  # not started again over it either
+    resumed = train(cfg, data, tmp_path / "broken", resume=True)
+    assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)

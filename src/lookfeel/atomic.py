@@ -17,6 +17,7 @@ import glob
 import json
 import math
 import os
+import re
 import stat
 import tempfile
 import threading
@@ -34,6 +35,7 @@ __all__ = [
     "file_mode",
     "finite_or_null",
     "remove_stale_temps",
+    "remove_stale_temps_in",
 ]
 
 _UMASK_LOCK = threading.Lock()
@@ -73,6 +75,30 @@ def remove_stale_temps(path: str | os.PathLike[str]) -> list[Path]:
         tmp.unlink(missing_ok=True)
         gone.append(tmp)
     return gone
+
+
+_TEMP_NAME = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")
+"""What `atomic_write`'s temp files are named: ``.{name}.`` (`_temp_prefix`), the 8 characters
+``tempfile.mkstemp`` draws, ``.tmp``."""
+
+
+def remove_stale_temps_in(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove every temp file `atomic_write` left in ``folder`` (not below it) when its process
+    was killed mid-write: a command's own output folder, written again (`remove_stale_temps`
+    for one file). Call it only where no other process may be writing in ``folder`` now.
+
+    Returns:
+        The files removed.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        return []
+    gone = []
+    for tmp in root.iterdir():
+        if _TEMP_NAME.fullmatch(tmp.name) and tmp.is_file() and not tmp.is_symlink():
+            tmp.unlink(missing_ok=True)
+            gone.append(tmp)
+    return sorted(gone)
 
 
 _NAME_MAX = 255

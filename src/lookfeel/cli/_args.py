@@ -184,7 +184,8 @@ def check_out_folder(out: Path, data: Path | None, holds: Sequence[str], what: s
     """Before a command writes the folder ``out``: refuse it inside ``--data``
     (`check_out_beside_data`), and refuse a folder that already holds files unless it holds
     this command's own output, one of the names or patterns ``holds`` (a run's
-    ``config.yaml``, ``checkpoints`` ...: what a rerun or ``--resume`` continues), as
+    ``split.json``, ``checkpoints`` ...: what a rerun or ``--resume`` continues; a path with a
+    ``/`` names a file below the top, such as an interrupted report's figure list), as
     ``index build`` refuses a folder that is not a library. Names beginning with a dot are not
     counted (a temp file of an atomic write; lookfeel writes no other).
 
@@ -203,11 +204,23 @@ def check_out_folder(out: Path, data: Path | None, holds: Sequence[str], what: s
     names = [p.name for p in out.iterdir() if not p.name.startswith(".")]
     if not names or any(fnmatch.fnmatch(n, pattern) for n in names for pattern in holds):
         return
+    if any("/" in pattern and (out / pattern).exists() for pattern in holds):
+        return  # a file below the top that only this command writes
     marks = ", ".join(holds)
     raise OutError(
         f"--out {out}: the folder holds files and is not {what} (none of {marks}); nothing "
         "in it is changed: choose a new or empty folder"
     )
+
+
+def clear_stale_temps(out: Path, *below: str) -> None:
+    """Remove the temp files a killed write left in the command's own ``out`` folder (and the
+    subfolders ``below``), once `check_out_folder` took it for the command's: a rerun that
+    finishes leaves none behind (`lookfeel.atomic.remove_stale_temps_in`)."""
+    from lookfeel.atomic import remove_stale_temps_in
+
+    for folder in (out, *(out / b for b in below)):
+        remove_stale_temps_in(folder)
 
 
 EMBEDDINGS_KEYS = ("meta.npy", "embeddings_*.npy")

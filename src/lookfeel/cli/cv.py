@@ -27,6 +27,7 @@ from lookfeel.cli._args import (
     add_command,
     add_run_config,
     check_out_folder,
+    clear_stale_temps,
     run_config_source,
 )
 
@@ -114,6 +115,7 @@ def _seed_list(text: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
     check_out_folder(args.out, args.data, CV_FILES, "a cross-validation folder")
+    clear_stale_temps(args.out)
     from lookfeel.cli.train import check_senses
     from lookfeel.config import RunConfig, load_config
     from lookfeel.crossval import cross_validate, format_cv_summary

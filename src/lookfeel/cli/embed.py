@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from lookfeel.atomic import remove_stale_temps
 from lookfeel.cli._args import (
     Choices,
     Subparsers,
@@ -50,6 +51,7 @@ def add_parser(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Embed and save, then say how many items of each modality went where."""
     check_embeddings_out(args.out, args.data)  # before any work
+    remove_stale_temps(args.out)  # what a killed write of it left
     from lookfeel.evaluate import embed_checkpoint, save_embeddings
 
     emb = embed_checkpoint(

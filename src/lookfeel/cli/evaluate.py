@@ -29,12 +29,13 @@ from lookfeel.cli._args import (
     add_forward,
     add_set,
     check_out_folder,
+    clear_stale_temps,
     out_folder,
 )
 
-REPORT_FILES = ("metrics.json",)
-"""What an evaluation report folder holds: an existing, non-empty --out must hold it (a report
-written again)."""
+REPORT_FILES = ("metrics.json", "figures/.lookfeel-figures.json")
+"""What an evaluation report folder holds: an existing, non-empty --out must hold one (a report
+written again; the figure list alone: one stopped before its numbers were written)."""
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     check_out_folder(args.out, args.data, REPORT_FILES, "a lookfeel evaluation report")
+    clear_stale_temps(args.out, "figures")
     overrides = list(args.set)
     if args.released_variant:
         overrides.append("released_variant=true")

@@ -17,6 +17,7 @@ from lookfeel.cli._args import (
     add_choice,
     add_command,
     check_out_folder,
+    clear_stale_temps,
     out_folder,
 )
 from lookfeel.modality import Modality
@@ -70,6 +71,7 @@ def _opset(text: str) -> int:
 def run(args: argparse.Namespace) -> int:
     """Export every branch and print each file with its input, output and check."""
     check_out_folder(args.out, None, EXPORT_FILES, "a lookfeel export")  # before any work
+    clear_stale_temps(args.out)
     from lookfeel.export import export_onnx
 
     exported = export_onnx(args.checkpoint, args.out, opset=args.opset)

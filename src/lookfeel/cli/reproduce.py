@@ -24,6 +24,7 @@ from lookfeel.cli._args import (
     add_data_out,
     add_set,
     check_out_folder,
+    clear_stale_temps,
 )
 
 REPRODUCE_FILES = ("results.json", "runs")
@@ -71,6 +72,7 @@ def add_parser(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Reproduce, then print the headline numbers, the paper's findings checked, the report."""
     check_out_folder(args.out, args.data, REPRODUCE_FILES, "a lookfeel reproduce folder")
+    clear_stale_temps(args.out)
     from lookfeel.reproduce import headline, reproduce
     from lookfeel.reproduce.report import verdict_text
 

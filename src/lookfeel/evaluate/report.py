@@ -876,7 +876,9 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
 
     Written again into the same folder, the figures of the last report that this one does
     not draw are removed (they are listed in ``figures/`` `FIGURES_MANIFEST`), so that
-    ``figures/`` and ``report.md`` agree; any other file there is left alone. Every name is
+    ``figures/`` and ``report.md`` agree; any other file there is left alone. The last
+    ``metrics.json`` and ``report.md`` are removed first, so that a rewrite stopped half way
+    never leaves them beside the new figures. Every name is
     listed before its figure is written: a report killed midway leaves none unlisted.
 
     Returns:
@@ -887,6 +889,11 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     written: list[Path] = []
     notes = list(result.notes)
     listed = _listed_figures(fig_dir)  # the last report's figures (and this one's so far)
+    # The last report's numbers go before its figures are redrawn: a rewrite stopped half way
+    # leaves no report rather than old numbers beside new figures (written again, the folder
+    # is still taken as a report's by its figure list).
+    for old in (out / "metrics.json", out / "report.md"):
+        old.unlink(missing_ok=True)
 
     def save(fig: Figure, name: str) -> str:
         if name not in listed:

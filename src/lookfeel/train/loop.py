@@ -840,17 +840,20 @@ def train(
         last = run_dir / "checkpoints" / "last.pt"
         state: dict[str, Any] | None = None
         if resume:
-            if not last.exists():
+            # A run stopped while writing its first last.pt may hold best.pt of the same
+            # step (written just before): a whole state, resumed from as last.pt would be.
+            source = resume_checkpoint(run_dir)
+            if source is None:
                 raise ConfigError(
                     f"{_RESUME}: no checkpoint at {last} to resume from (the run stopped before "
                     "its first one): start it again without --resume"
                 )
-            state = read_checkpoint(last)
-            config = _check_resume_config(state["config"], config, last)
+            state = read_checkpoint(source)
+            config = _check_resume_config(state["config"], config, source)
             for path in (last, run_dir / "config.yaml"):  # before the work, not at its end
                 check_writable(path)
-        elif last.exists():
-            raise ConfigError(f"{run_dir} already holds a run ({last}); {_ELSEWHERE}")
+        elif (held := resume_checkpoint(run_dir)) is not None:
+            raise ConfigError(f"{run_dir} already holds a run ({held}); {_ELSEWHERE}")
         dist = Distributed.from_env(config.train.device)
         try:
             with _callers_cuda_rng(dist.device):
@@ -902,11 +905,22 @@ def _callers_cuda_rng(device: torch.device) -> Iterator[None]:
         torch.cuda.set_rng_state(rng, device)
 
 
+def resume_checkpoint(out: str | Path) -> Path | None:
+    """The checkpoint a run in ``out`` resumes from: ``checkpoints/last.pt``, or where a run was
+    stopped while writing its first one, the ``best.pt`` written just before it (of that
+    same step, a whole state); None when it has neither."""
+    for name in ("last.pt", "best.pt"):
+        if (path := Path(out) / "checkpoints" / name).is_file():
+            return path
+    return None
+
+
 def run_started(out: str | Path) -> bool:
-    """Whether ``out`` holds a run to resume: a checkpoint, or an ensemble's member's."""
+    """Whether ``out`` holds a run to resume (`resume_checkpoint`), or an ensemble's member
+    does."""
     run_dir = Path(out)
-    last = Path("checkpoints") / "last.pt"
-    return (run_dir / last).exists() or any(run_dir.glob(f"{MEMBERS}/*/{last}"))
+    members = sorted(run_dir.glob(f"{MEMBERS}/*")) if (run_dir / MEMBERS).is_dir() else []
+    return any(resume_checkpoint(d) is not None for d in [run_dir, *members])
 
 
 MEMBERS = "members"
@@ -1152,7 +1166,7 @@ def _train(
         else:
             _trim_log(log.path, start_step)
     if state is not None:  # after every set-up draw: dropout resumes exactly
-        _check_resume_threads(state, device, last)
+        _check_resume_threads(state, device, resume_checkpoint(run_dir) or last)
         torch.set_rng_state(state["rng"])
         if device.type == "cuda" and state.get("cuda_rng") is not None:
             torch.cuda.set_rng_state(state["cuda_rng"], device)
@@ -1238,7 +1252,7 @@ def _train(
     # whose loss was read and found finite.
     kept: dict[Path, int] = {}
     if state is not None:
-        kept[last] = start_step
+        kept[resume_checkpoint(run_dir) or last] = start_step
     checked = start_step
 
     def stop(what: str, value: float, done: int, terms: Sequence[str] = ()) -> TrainingDiverged:
