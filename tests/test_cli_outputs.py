@@ -173,7 +173,7 @@ def test_embed_replaces_the_embeddings_file_it_wrote(run: tuple[Path, Path], tmp
 
 
 OWN = {
-    "train": "config.yaml",
+    "train": "split.json",  # not config.yaml alone: that may be the user's own --config
     "train --resume": "checkpoints",
     "cv": "seed0-fold0",
     "reproduce": "results.json",
