@@ -108,11 +108,11 @@ _NAME_MAX = 255
 def _temp_prefix(name: str) -> str:
     """The temp files' prefix for ``name``: ``.{name}.``, with the name cut short enough
     that the temp name (prefix, 8 random characters, ``.tmp``) fits where ``name`` fits."""
-    room = _NAME_MAX - len(".") - len(".") - 8 - len(".tmp") - len("~")
+    extra = len("..") + 8 + len(".tmp")  # the dots around the name, mkstemp's characters
     raw = name.encode("utf-8", "surrogateescape")
-    if len(raw) <= room + 1:
+    if len(raw) + extra <= _NAME_MAX:
         return f".{name}."
-    cut = raw[:room].decode("utf-8", "ignore")
+    cut = raw[: _NAME_MAX - extra - len("~")].decode("utf-8", "ignore")
     return f".{cut}~."
 
 

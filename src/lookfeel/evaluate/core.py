@@ -300,6 +300,7 @@ def _calibrate(
     conf = np.clip(probs[rows, best][has], 0.0, 1.0)  # sums of P may round just past 1
     correct = (best == own)[has]
     p_own = probs[rows, own][has]
+    nll_own = -np.log(np.maximum(p_own, 1e-300))  # each scored query's
     rel = reliability_curve(conf, correct, config.n_bins)
     nan = float("nan")
     if not has.any():  # nothing to be calibrated on: no error either
@@ -321,10 +322,8 @@ def _calibrate(
         reliability=rel,
         accuracy=float(correct.mean()) if has.any() else nan,
         confidence=float(conf.mean()) if has.any() else nan,
-        nll=float(-np.log(np.maximum(p_own, 1e-300)).mean()) if has.any() else nan,
-        nll_se=_se_over_fabrics(
-            -np.log(np.maximum(p_own, 1e-300)), np.asarray(q.fabric[has], np.int64)
-        ),
+        nll=float(nll_own.mean()) if has.any() else nan,
+        nll_se=_se_over_fabrics(nll_own, np.asarray(q.fabric[has], np.int64)),
         n_fabrics=len(fabrics),
         confusion=confusion,
         cluster_confusion=cluster_conf,

@@ -563,10 +563,9 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
         lines += [
             f"Overconfident: {', '.join(over)}: the NLL is above chance's by more than twice "
             "its standard error over the test fabrics (or is more than twice chance's), so a "
-            "uniform guess over the gallery "
-            "fabrics scores better than these probabilities: they claim more than the test "
-            "fabrics' distances know (c is too large for them, or the distances do not tell "
-            "them apart).",
+            "uniform guess over the gallery fabrics scores better than these probabilities: "
+            "they claim more than the test fabrics' distances know (c is too large for them, "
+            "or the distances do not tell them apart).",
             "",
         ]
     if few:

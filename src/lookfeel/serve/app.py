@@ -759,10 +759,10 @@ def create_app(
             # As `lookfeel match` reads files (`load_query_files`): of several touch presses,
             # a video without a press is left out with a warning; the only one, or every one,
             # is an error (the first one's). Its warnings (a press video for a model trained on
-            # still frames, a press of a kind the model was not trained on, a query turned against
-            # the library's items) are collected in
-            # `notes`, this request's own list (`warnings.catch_warnings` is process-wide, not
-            # safe in the server's threads), and answered in `warnings`.
+            # still frames, a press of a kind the model was not trained on, a query turned
+            # against the library's items) are collected in `notes`, this request's own list
+            # (`warnings.catch_warnings` is process-wide, not safe in the server's threads),
+            # and answered in `warnings`.
             notes: list[str] = []
             if modality is Modality.TOUCH and not match.data_config.stacks_touch_frames:
                 warn_press_kinds(

@@ -1038,6 +1038,7 @@ def _train(
 ) -> TrainResult:
     t = config.train
     last = run_dir / "checkpoints" / "last.pt"
+    resumed_from = resume_checkpoint(run_dir) or last  # a resume's: where ``state`` was read
     if dist.is_main:  # what a kill mid-write left (one process writes a run's checkpoints)
         for name in ("last.pt", "best.pt"):
             remove_stale_temps(last.parent / name)
@@ -1166,7 +1167,7 @@ def _train(
         else:
             _trim_log(log.path, start_step)
     if state is not None:  # after every set-up draw: dropout resumes exactly
-        _check_resume_threads(state, device, resume_checkpoint(run_dir) or last)
+        _check_resume_threads(state, device, resumed_from)
         torch.set_rng_state(state["rng"])
         if device.type == "cuda" and state.get("cuda_rng") is not None:
             torch.cuda.set_rng_state(state["cuda_rng"], device)
@@ -1252,7 +1253,7 @@ def _train(
     # whose loss was read and found finite.
     kept: dict[Path, int] = {}
     if state is not None:
-        kept[resume_checkpoint(run_dir) or last] = start_step
+        kept[resumed_from] = start_step
     checked = start_step
 
     def stop(what: str, value: float, done: int, terms: Sequence[str] = ()) -> TrainingDiverged:
