@@ -99,6 +99,20 @@ def test_videos_folder_scans_named_objects_with_ids_in_name_order(tmp_path: Path
     }
 
 
+def test_objects_named_like_gelfabric_ids_are_objects_of_an_object_keyed_labels_file(
+    tmp_path: Path,
+):
+    # A user's objects may be called F0001 and F0002: with labels.csv keyed by `object`, their
+    # videos are those objects' presses, not fabric 1's (which "had no row in labels.csv")
+    labels = "object,hardness\nF0001,0\nF0002,2\n"
+    root = _recordings(tmp_path / "rec", {"F0001": 2, "F0002": 1}, labels)
+    catalog = scan(root)
+    assert catalog.errors == ()
+    assert [f.name for f in catalog.fabrics] == ["F0001", "F0002"]
+    assert [len(f.items_of(Modality.TOUCH)) for f in catalog.fabrics] == [2, 1]
+    assert [f.class_of("hardness") for f in catalog.fabrics] == ["0", "2"]
+
+
 def test_video_names_and_containers_are_checked(tmp_path: Path):
     root = _recordings(tmp_path / "rec", {"cork": 1})
     (root / "videos" / "nonumber.mov").write_bytes(QUICKTIME)

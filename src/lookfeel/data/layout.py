@@ -306,6 +306,26 @@ def _synth_problem(root: Path) -> Problem | None:
     return None
 
 
+def _object_videos_named_like_fabrics(
+    videos: dict[tuple[int | str, PressKind | None, str], Path], named: set[str]
+) -> dict[tuple[int | str, PressKind | None, str], Path]:
+    """The videos with those in ``videos/`` whose ``<object>_<n>`` names an object of a labels
+    file keyed by ``object`` (``F0001_0.mp4`` for an object ``F0001``) keyed as that object's
+    presses, not as fabric 1's, which `_video_key` reads before the labels."""
+    out: dict[tuple[int | str, PressKind | None, str], Path] = {}
+    for key, path in videos.items():
+        m = _OBJECT_VIDEO.match(path.stem)
+        if (
+            isinstance(key[0], int)
+            and path.parent.name.lower() == "videos"
+            and m is not None
+            and m["object"] in named
+        ):
+            key = (m["object"], None, m["press"])
+        out[key] = path
+    return out
+
+
 def _video_key(
     path: Path, folder: Path, folder_kind: PressKind | None
 ) -> tuple[tuple[int | str, PressKind | None, str] | None, str | None]:
@@ -536,6 +556,8 @@ def scan(
     if labels_path is not None:
         table, label_problems = read_labels(labels_path)
         problems.extend(label_problems)
+        if table.key == "object":
+            videos = _object_videos_named_like_fabrics(videos, set(table.named))
     names = sorted(
         {k[0] for k in videos if isinstance(k[0], str)} | set(table.named if table else ())
     )
