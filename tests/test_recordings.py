@@ -376,6 +376,8 @@ def test_recordings_train_predict_and_embed_as_the_readme_says(
     from lookfeel.predict import predict_files
 
     lm = load_model(ck)
+    # the dataset as `evaluate` scans it (foam_3 kept): --split val does not say "another dataset"
+    assert lm.data_fingerprint == scan(recordings).fingerprint()
     temps = {**lm.config.model.class_temperature, "hardness": 1000.0}
     hot = replace(lm.config.model, class_temperature=temps)
     (soft,) = predict_files(replace(lm, config=replace(lm.config, model=hot)), videos[:1])

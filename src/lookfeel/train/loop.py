@@ -1055,9 +1055,12 @@ def _train(
     loader = loader if loader is not None else ImageLoader(config.data)
     cached = t.cache_trunk and config.model.resolved_freeze != "none"
     # A live run trains on the press videos' views: decode them once, while finding the presses.
-    catalog = drop_unpressed(scan(data, require=modalities, strict=True), loader, views=not cached)
+    scanned = scan(data, require=modalities, strict=True)
+    # The files as `evaluate` scans them: before k-means clusters, and before the videos that
+    # hold no press are left out (which evaluate finds after it compares the two).
+    data_fingerprint = scanned.fingerprint()
+    catalog = drop_unpressed(scanned, loader, views=not cached)
     _say_reprints(catalog, loader, config, cached, data)
-    data_fingerprint = catalog.fingerprint()  # before k-means clusters: as `evaluate` scans it
     catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
