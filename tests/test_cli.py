@@ -114,10 +114,18 @@ def test_every_command_has_help(words: tuple[str, ...], capsys):
 def test_choices_come_from_where_they_are_defined(capsys):
     from lookfeel.demo import DEMO_BUDGETS
     from lookfeel.reproduce import BUDGETS
+    from lookfeel.reproduce.run import EXPERIMENT_NAMES
 
     with pytest.raises(SystemExit):
         main(["reproduce", "--help"])
-    assert f"--budget BUDGET       {', '.join(BUDGETS)} (default small" in capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())  # unwrapped
+    assert f"--budget BUDGET {', '.join(BUDGETS)} (default small" in out
+    assert f"experiments to run, of {', '.join(EXPERIMENT_NAMES)} (default all)" in out
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--data", "d", "--out", "o", "--only", "flat", "tables"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --only: invalid choice: 'tables' (choose from 'flat'" in err
     with pytest.raises(SystemExit) as e:
         main(["demo", "--budget", "paper"])
     assert e.value.code == 2

@@ -24,7 +24,12 @@ def add_parser(subparsers: Subparsers) -> None:
         default=Path("../shared/data/gelfabric"),
         help="real data to summarise first when present (default ../shared/data/gelfabric)",
     )
-    demo.add_argument("--out", type=out_folder, default=Path("demo-output"), help="demo folder")
+    demo.add_argument(
+        "--out",
+        type=out_folder,
+        default=Path("demo-output"),
+        help="demo folder (default demo-output)",
+    )
     demo.add_argument(
         "--fabrics",
         type=int,

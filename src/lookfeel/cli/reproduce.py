@@ -43,7 +43,14 @@ def add_parser(subparsers: Subparsers) -> None:
         "small",
         "%(choices)s (default small; see above)",
     )
-    rep.add_argument("--seeds", type=int, default=1, help="training seeds per experiment")
+    rep.add_argument(
+        "--seeds",
+        type=int,
+        default=1,
+        metavar="N",
+        help="how many training seeds per experiment: seeds 0 to N-1, the numbers their means "
+        "(default 1: seed 0)",
+    )
     rep.add_argument(
         "--pretrained",
         type=Path,
@@ -54,9 +61,10 @@ def add_parser(subparsers: Subparsers) -> None:
         "--only",
         nargs="*",
         default=None,
+        choices=Choices("lookfeel.reproduce.run", "EXPERIMENT_NAMES"),
         metavar="NAME",
-        help="experiments to run (default all); the report also covers the finished runs of the "
-        "others already in --out with the same settings",
+        help="experiments to run, of %(choices)s (default all); the report also covers the "
+        "finished runs of the others already in --out with the same settings",
     )
     rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
     rep.add_argument(

@@ -74,6 +74,7 @@ from lookfeel.train.loop import config_changes
 __all__ = [
     "BUDGETS",
     "EXPERIMENTS",
+    "EXPERIMENT_NAMES",
     "Experiment",
     "ReproduceResult",
     "experiment_overrides",
@@ -102,6 +103,8 @@ EXPERIMENTS = (
     Experiment("snn_depth", "Table 4 (SNN, only depth)", "vision"),
     Experiment("cross_modal_depth_touch", "Table 4 (Cross-mdl, depth & Gel)", "vision"),
 )
+EXPERIMENT_NAMES = tuple(e.name for e in EXPERIMENTS)
+"""The experiments' names, in the report's order (``lookfeel reproduce --only``)."""
 
 _COMPACT = ["model.backbone=compact", "model.freeze=none", "model.pretrained=null"]
 BUDGETS: dict[str, tuple[str, ...]] = {
@@ -716,10 +719,11 @@ def reproduce(
         raise ConfigError(f"seeds must be >= 1, got {seeds}")
     if workers < 0:
         raise ConfigError(f"workers must be >= 0 (0: one per core on a CPU), got {workers}")
-    names = [e.name for e in EXPERIMENTS]
-    unknown = [n for n in only if n not in names]
+    unknown = [n for n in only if n not in EXPERIMENT_NAMES]
     if unknown:
-        raise ConfigError(f"unknown experiment(s) {', '.join(unknown)}; have: {', '.join(names)}")
+        raise ConfigError(
+            f"unknown experiment(s) {', '.join(unknown)}; have: {', '.join(EXPERIMENT_NAMES)}"
+        )
     data, out = Path(data), Path(out)
     catalog = scan(data, require=[], strict=True)
     # The paper's split is used when the data has at least 10 of its test fabrics (pick 1 of 10
