@@ -51,9 +51,11 @@ def _args(data: Path, config: Path | None = None, sets: tuple[str, ...] = ()) ->
     return argparse.Namespace(data=data, config=config, set=list(sets))
 
 
-def test_a_named_config_is_used_as_given(tiny_dataset: Path, capsys):
-    path, overrides = run_config_source(_args(tiny_dataset, Path("my.yaml"), ("a.b=1",)))
-    assert (path, overrides) == (Path("my.yaml"), ["a.b=1"])
+def test_a_named_config_is_used_as_given(tiny_dataset: Path, tmp_path: Path, capsys):
+    mine = tmp_path / "my.yaml"
+    mine.write_text("train: {steps: 3}\n")
+    path, overrides = run_config_source(_args(tiny_dataset, mine, ("a.b=1",)))
+    assert (path, overrides) == (mine, ["a.b=1"])
     assert capsys.readouterr().err == ""
 
 
@@ -480,3 +482,31 @@ def test_the_chooser_adds_class_heads_for_columns_of_words(tmp_path: Path, capsy
     path, overrides = run_config_source(_args(data, sets=("model.class_heads=[]",)))
     assert "class head" not in capsys.readouterr().err
     assert load_config(RunConfig, path, overrides).model.class_heads == ()
+
+
+def test_a_shipped_config_is_named_the_same_from_any_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.config.recipes import config_file, shipped_configs
+
+    monkeypatch.chdir(tmp_path)  # no configs/ here: as after `pip install lookfeel`
+    assert "physiclear" in shipped_configs() and "paper/flat" in shipped_configs()
+    for name in ("tiny", "tiny.yaml", "configs/tiny.yaml"):
+        assert config_file(name) == recipe_path("tiny.yaml")
+    assert config_file("configs/paper/flat.yaml") == recipe_path("paper/flat.yaml")
+    assert config_file("paper/flat") == recipe_path("paper/flat.yaml")
+    Path("tiny.yaml").write_text("train: {steps: 3}\n")  # the user's own file comes first
+    assert config_file("tiny.yaml") == Path("tiny.yaml")
+    for wrong in (
+        "nosuch",
+        "configs/nosuch.yaml",
+        str(tmp_path / "paper" / "flat.yaml"),
+        "../tiny",
+    ):
+        with pytest.raises(ConfigError, match=r"no such config file, nor a shipped .*physiclear"):
+            config_file(wrong)
+    (tmp_path / "data").mkdir()
+    argv = ["train", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "run")]
+    assert main([*argv, "--config", "nosuch"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lookfeel: nosuch: no such config file, nor a")

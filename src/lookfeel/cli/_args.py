@@ -277,7 +277,8 @@ def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:
         "--config",
         type=Path,
         default=None,
-        help="run config YAML (configs/...); default: the shipped recipe for what --data holds "
+        help="run config YAML, or a shipped one by name from any folder (physiclear, "
+        "configs/paper/flat.yaml); default: the shipped recipe for what --data holds "
         "(two or more senses: synth_cross.yaml on them; touch alone: physiclear.yaml; depth "
         "alone: real_depth.yaml)",
     )
@@ -321,7 +322,9 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
         DatasetError: ``--data`` is not a folder.
     """
     if args.config is not None:
-        return args.config, list(args.set)
+        from lookfeel.config.recipes import config_file
+
+        return config_file(args.config), list(args.set)
     from lookfeel.config.recipes import default_recipe, fit_class_heads, fit_dataset
     from lookfeel.data.layout import scan
 

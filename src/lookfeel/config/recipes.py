@@ -50,6 +50,7 @@ __all__ = [
     "DEPTH_RANGE_SAMPLE",
     "Recipe",
     "UnreadSense",
+    "config_file",
     "covering_depth_range",
     "default_recipe",
     "depth_in_range",
@@ -57,6 +58,7 @@ __all__ = [
     "fit_class_heads",
     "fit_dataset",
     "recipe_path",
+    "shipped_configs",
     "unread_senses",
 ]
 
@@ -132,6 +134,36 @@ def unread_senses(catalog: Catalog) -> list[UnreadSense]:
 def recipe_path(name: str) -> Path:
     """The shipped config (or folder of them) ``configs/<name>`` in the installed package."""
     return Path(str(resources.files("lookfeel") / "configs" / name))
+
+
+def shipped_configs() -> list[str]:
+    """The shipped configs' names, as `config_file` takes them (``physiclear``, ``paper/flat``)."""
+    root = recipe_path("")
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml"))
+
+
+def config_file(path: str | os.PathLike[str]) -> Path:
+    """The file ``--config`` names: ``path`` where it exists, else the shipped config it names
+    from any folder: ``physiclear``, ``physiclear.yaml``, ``configs/physiclear.yaml`` or
+    ``configs/paper/flat.yaml`` read ``configs/`` of the installed package (`recipe_path`).
+
+    Raises:
+        ConfigError: no such file, and no shipped config of that name (the message lists them).
+    """
+    p = Path(path)
+    if p.exists():
+        return p
+    parts = p.parts[1:] if p.parts[:1] == ("configs",) else p.parts
+    if parts and not p.is_absolute() and ".." not in parts:
+        rel = Path(*parts)
+        name = rel.name if rel.suffix in (".yaml", ".yml") else rel.name + ".yaml"
+        shipped = recipe_path(rel.with_name(name).as_posix())
+        if shipped.is_file():
+            return shipped
+    raise ConfigError(
+        f"{p}: no such config file, nor a shipped config of that name (shipped: "
+        f"{', '.join(shipped_configs())}; name one as e.g. --config physiclear)"
+    )
 
 
 def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) -> Recipe:
