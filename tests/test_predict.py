@@ -287,6 +287,7 @@ def test_a_press_of_a_kind_the_model_was_not_trained_on_is_warned_of_once(
     with pytest.warns(UserWarning) as caught:
         predict_files(heads, flat, "touch")
     assert [str(w.message) for w in caught if "trained on fold" in str(w.message)] == [said]
+    assert {w.filename for w in caught} == {__file__}  # the caller's line, not torch's
     matcher = Matcher(Library.open(tiny_library(tmp_path_factory, "kinds", 64)))
     with pytest.warns(UserWarning) as caught:
         matcher.match_files(flat[:1], "touch")
@@ -294,6 +295,7 @@ def test_a_press_of_a_kind_the_model_was_not_trained_on_is_warned_of_once(
         f"{flat[0]}: a flat press, but the library's model was trained on fold presses only "
         "(its data.touch_kinds), so it may answer a flat press less well"
     ]
+    assert {w.filename for w in caught} == {__file__}
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")

@@ -10,6 +10,8 @@ this class) and never prints.
 from __future__ import annotations
 
 import os
+import sys
+import types
 
 
 class LookfeelError(ValueError):
@@ -58,3 +60,19 @@ def error_line(e: BaseException, limit: int = 200) -> str:
     text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
     first = text.split(". ")[0].split(" [Caused by")[0] if text else "no reason given"
     return f"{type(e).__name__}: {first[:limit]}"
+
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def caller_stacklevel() -> int:
+    """The ``stacklevel`` that makes a `warnings.warn` in the calling function name the first
+    line outside lookfeel's own code: the user's call, however deep in lookfeel the warning is
+    raised (``warnings.warn(msg, stacklevel=caller_stacklevel())``; Python 3.12's
+    ``skip_file_prefixes`` does this, and lookfeel supports 3.11)."""
+    frame: types.FrameType | None = sys._getframe(1)  # the function about to warn: level 1
+    level = 1
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame = frame.f_back
+        level += 1
+    return level

@@ -37,7 +37,7 @@ from lookfeel.data.images import png_header
 from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
-from lookfeel.errors import LookfeelError
+from lookfeel.errors import LookfeelError, caller_stacklevel
 from lookfeel.index.match import check_touch_input, class_value, warn_press_kinds
 from lookfeel.index.query import (
     QUERY_IMAGES,
@@ -184,7 +184,6 @@ def _heads(loaded: LoadedModel) -> None:
         )
 
 
-@torch.inference_mode()
 def predict_files(
     loaded: LoadedModel | str | os.PathLike[str],
     paths: QueryFiles,
@@ -236,7 +235,7 @@ def predict_files(
             f"{loaded.path}: its class heads' probabilities are as trained, not calibrated "
             "(no model.class_temperature): on objects they never saw, such heads are often "
             "far surer than they are right; `lookfeel cv` fits a temperature for each",
-            stacklevel=2,
+            stacklevel=caller_stacklevel(),
         )
     model = loaded.model
     have = list(model.modalities)
@@ -271,7 +270,8 @@ def predict_files(
     groups = [files] if together else [[p] for p in files]
     group_mods = [mods[0]] if together else mods
     out = []
-    with eval_mode(model):
+    # Not a decorator: a warning above names the caller's line, not torch's wrapper.
+    with torch.inference_mode(), eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
             try:
                 images, group = load_query_files(group, m, data)

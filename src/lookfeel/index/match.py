@@ -51,6 +51,7 @@ from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES, ImageError
 from lookfeel.data.layout import press_kind
 from lookfeel.devices import resolve_device
+from lookfeel.errors import caller_stacklevel
 from lookfeel.index.calibrate import unknown_probability
 from lookfeel.index.library import Library, LibraryError, LibraryItem
 from lookfeel.index.query import (
@@ -161,7 +162,7 @@ def warn_press_kinds(
     if warn is not None:
         warn(message)
     else:
-        warnings.warn(message, stacklevel=3)
+        warnings.warn(message, stacklevel=caller_stacklevel())
 
 
 def check_touch_dataset(
@@ -198,7 +199,7 @@ def check_touch_dataset(
     if caught:  # one warning for all the videos, the first named
         n = len(videos) - 1
         also = f" (and {n} other press video{'s' if n > 1 else ''} of {root})" if n else ""
-        warnings.warn(f"{videos[0]}{also}: {VIDEO_FOR_STILL_MODEL}", stacklevel=3)
+        warnings.warn(f"{videos[0]}{also}: {VIDEO_FOR_STILL_MODEL}", stacklevel=caller_stacklevel())
 
 
 def class_value(name: str) -> int | float | str:

@@ -62,7 +62,7 @@ from lookfeel.data.images import (
 )
 from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES, sniff_video
 from lookfeel.data.video import NoPressError
-from lookfeel.errors import LookfeelError
+from lookfeel.errors import LookfeelError, caller_stacklevel
 from lookfeel.modality import Modality
 from lookfeel.models.backbone import ModelInputError
 
@@ -203,7 +203,7 @@ def check_touch_query(
         if warn is not None:
             warn(message)
         else:
-            warnings.warn(message, stacklevel=3)
+            warnings.warn(message, stacklevel=caller_stacklevel())
 
 
 def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataConfig) -> None:
@@ -313,7 +313,7 @@ def load_query_files(
     if not images:
         raise failed[0]
     for missed in failed:
-        warnings.warn(f"{missed}: left out of the pooled query", stacklevel=3)
+        warnings.warn(f"{missed}: left out of the pooled query", stacklevel=caller_stacklevel())
     return images, used
 
 
@@ -554,7 +554,7 @@ def warn_orientation(
         [(str(p), frame_size(p)) for p in paths], modality, record, config, holder
     )
     if note is not None:
-        warnings.warn(note, stacklevel=3)
+        warnings.warn(note, stacklevel=caller_stacklevel())
 
 
 def orientation_note(
