@@ -585,13 +585,21 @@ def test_demo_steps_are_numbered_and_every_training_run_shows_progress(
     monkeypatch.setattr(demo, "reproduce", fake_reproduce)
     lines: list[str] = []
     with pytest.raises(KeyboardInterrupt):
-        demo.run_demo(tmp_path / "demo", overrides=["train.steps=2"], log=lines.append)
+        demo.run_demo(
+            tmp_path / "demo",
+            real_data=tmp_path / "absent",
+            overrides=["train.steps=2"],
+            log=lines.append,
+        )
     assert seen["synth_progress"] is True
     cache = f'data.cache_dir="{tmp_path / "demo" / "cache"}"'  # the runs share decoded images
     assert seen["overrides"] == ["train.progress=true", cache, "train.steps=2"]  # the user's win
     steps = [ln for ln in lines if ln.startswith("[")]
-    assert [s[:4] for s in steps] == ["[2/5", "[3/5"], lines
-    assert " min] Generating a synthetic world of 150 fabrics (50 held out)" in steps[0]
+    assert [s[:4] for s in steps] == ["[1/5", "[2/5", "[3/5"], lines
+    assert steps[0].endswith(
+        f"No real data at {tmp_path / 'absent'} (--data) to summarise: on to the synthetic world."
+    )
+    assert " min] Generating a synthetic world of 150 fabrics (50 held out)" in steps[1]
 
 
 def test_the_demo_cache_is_in_its_folder_whatever_the_folder_is_called(

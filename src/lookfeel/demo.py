@@ -322,6 +322,8 @@ def run_demo(
         step(1, f"Real GelFabric data at {real_data}:")
         log(format_summary(scan(real_data)))
         log("")
+    elif real_data is not None:  # e.g. run outside the repository, beside no ../shared/data
+        step(1, f"No real data at {real_data} (--data) to summarise: on to the synthetic world.")
     world = out / "world"
     config = demo_world(fabrics, seed, test_fabrics)
     held = config.test_fabrics
