@@ -96,7 +96,7 @@ def test_the_docstring_and_help_list_every_command(capsys):
         main(["--help"])
     assert e.value.code == 0
     out = capsys.readouterr().out
-    assert out.startswith("usage: lookfeel [-h] [--version] COMMAND ...")
+    assert out.startswith("usage: lookfeel [-h] [--version] [--plugin MODULE] COMMAND ...")
     for words in COMMANDS:
         assert re.search(rf"^  {' '.join(words)} .*\w", out, re.M), words
 

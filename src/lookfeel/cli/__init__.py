@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lookfeel`` command: every command module adds its own."""
     parser = argparse.ArgumentParser(
         prog="lookfeel",
-        usage="%(prog)s [-h] [--version] COMMAND ...",
+        usage="%(prog)s [-h] [--version] [--plugin MODULE] COMMAND ...",
         description="Connect how fabrics look (colour, depth) with how they feel (GelSight).\n\n"
         + _command_list(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
