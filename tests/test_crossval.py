@@ -466,7 +466,8 @@ def test_the_room_probe_reads_labels_that_follow_the_session_and_no_others(tmp_p
 
 
 def test_each_held_out_item_is_scored_over_its_own_queries_worst_first():
-    from lookfeel.crossval import _per_item, _per_item_lines
+    from lookfeel.crossval.report import _per_item_lines
+    from lookfeel.crossval.summary import _per_item
     from lookfeel.modality import Pair
 
     pair = Pair.parse("touch_to_touch")
@@ -537,7 +538,8 @@ def _report(results: list[dict], summarise: dict | None = None, **extra) -> tupl
     hand-made runs, numpy's warnings as errors."""
     import warnings
 
-    from lookfeel.crossval import _summarise, format_cv_summary
+    from lookfeel.crossval import format_cv_summary
+    from lookfeel.crossval.summary import _summarise
     from lookfeel.evaluate.core import no_query_scored
 
     pairs = list(results[0]["pairs"])
@@ -707,7 +709,7 @@ def test_folds_holding_out_one_item_are_refused_before_anything_is_trained(
     """QA: 3 objects in 3 folds ran, every score 1.000 and chance 1.000 (one held-out object
     finds itself among itself). Now a fold must hold out 2: refused in one line naming the
     flag and the counts, before any line is logged or the folder made; objects are objects."""
-    from lookfeel.crossval import _fold_plan
+    from lookfeel.crossval.run import _fold_plan
     from lookfeel.data import SplitError
 
     from ._tiny import write_recordings
@@ -786,7 +788,8 @@ def test_a_temperature_at_the_search_edge_is_marked_not_fitted():
     "right" differed from the classes table's accuracy with no word of why. Now it is n/a at
     the search edge, left out of what to put in model.class_temperature, and the table says
     how each is averaged; a head's fitted temperature is still given."""
-    from lookfeel.crossval import _calibration, _calibration_lines
+    from lookfeel.crossval.report import _calibration_lines
+    from lookfeel.crossval.summary import _calibration
     from lookfeel.metrics.classes import logit_temperature, softmax
 
     rng = np.random.default_rng(2)

@@ -159,7 +159,7 @@ def test_a_class_temperature_names_a_head_and_is_positive():
     # A column with no head is ignored: a recipe's temperatures outlive fewer heads.
     assert _config(class_heads=("hardness",), class_temperature={"roughness": 2.0})
     # It changes neither training nor the cv's scores: a cv keeps runs trained without it.
-    from lookfeel.crossval import _result_config
+    from lookfeel.crossval.run import _result_config
 
     assert _result_config(cfg) == _result_config(_config(class_heads=("hardness",)))
     for bad in (0.0, -1.0, float("inf"), "hot", True):
@@ -189,7 +189,8 @@ def test_the_temperature_that_fits_a_head_is_the_one_it_was_drawn_at():
 
 
 def test_cv_says_how_far_a_heads_probabilities_can_be_trusted():
-    from lookfeel.crossval import _calibration, _calibration_lines
+    from lookfeel.crossval.report import _calibration_lines
+    from lookfeel.crossval.summary import _calibration
     from lookfeel.metrics.classes import softmax
 
     rng = np.random.default_rng(1)
