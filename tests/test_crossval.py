@@ -196,6 +196,39 @@ def test_a_cv_folder_keeps_its_runs_for_the_same_data_moved_and_refuses_other_da
     labels.write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n")
     with pytest.raises(ConfigError, match="before its files or labels changed"):
         cross_validate(config, moved, tmp_path / "cv", folds=[0], n_boot=20)
+    # The same names and labels with other pixels (a world rendered again at another seed):
+    # a file of another size is another dataset too.
+    again = Path(shutil.copytree(data, tmp_path / "again"))
+    image = next(iter(sorted((again / "depth").iterdir())))
+    image.write_bytes(image.read_bytes() + b"\0")
+    with pytest.raises(ConfigError, match="before its files or labels changed"):
+        cross_validate(config, again, tmp_path / "cv", folds=[0], n_boot=20)
+
+
+def test_a_fingerprint_recorded_before_file_sizes_counted_still_matches(data: Path):
+    import hashlib
+    import json
+    import os
+
+    catalog = scan(data)
+    rows = [  # the digest as lookfeel took it up to session 52 (names and labels only)
+        [
+            f.id,
+            f.name,
+            sorted(f.labels.items()),
+            sorted(f.text_labels.items()),
+            f.cluster,
+            [
+                [m.value, [[os.path.relpath(p, data) for p in it.frames] for it in its]]
+                for m, its in sorted(f.items.items(), key=lambda kv: kv[0].value)
+            ],
+        ]
+        for f in catalog.fabrics
+    ]
+    old = hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
+    assert old != catalog.fingerprint()
+    assert catalog.matches_fingerprint(old) and catalog.matches_fingerprint(catalog.fingerprint())
+    assert not catalog.matches_fingerprint("0123456789abcdef")
 
 
 def test_an_auto_property_head_is_the_same_run_when_scored_again(data: Path, tmp_path: Path):

@@ -286,7 +286,9 @@ def cross_validate(
                 if control.has_room_control:
                     key["room_control"] = True
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
-            if saved is not None and saved.get("data", data_id)["fingerprint"] != fingerprint:
+            if saved is not None and not catalog.matches_fingerprint(
+                saved.get("data", data_id)["fingerprint"]
+            ):
                 raise ConfigError(
                     f"{run_dir} holds a run on another dataset ({saved['data']['root']}), or on "
                     f"{catalog.root} before its files or labels changed; use another --out"

@@ -271,10 +271,25 @@ class Catalog:
 
     def fingerprint(self) -> str:
         """A digest of what a run learns and is scored on: every fabric's id, name, labels and
-        cluster and its items' files, relative to the dataset folder (a moved folder keeps its
-        digest; a file added, removed or renamed, or a label changed, does not). Runs record
-        it (``lookfeel cv``'s folders, checkpoints), so that results on one dataset are never
-        taken for another's."""
+        cluster and its items' files, relative to the dataset folder, with each file's size (a
+        moved or copied folder keeps its digest; a file added, removed, renamed or rewritten
+        at another size, as a world rendered again at another seed or image size is, or a
+        label changed, does not). Runs record it (checkpoints, ``lookfeel cv``'s folders,
+        ``lookfeel reproduce``'s runs), so that results on one dataset are never taken for
+        another's: compare with `matches_fingerprint`."""
+        return self._digest(sizes=True)
+
+    def matches_fingerprint(self, recorded: str) -> bool:
+        """Whether ``recorded`` (a run's `fingerprint`) is this dataset's: its digest now, or
+        the one lookfeel recorded before session 53 (without the files' sizes), which older
+        checkpoints and cv folders hold."""
+        return recorded in (self.fingerprint(), self._digest(sizes=False))
+
+    def _digest(self, sizes: bool) -> str:
+        def file(p: Path) -> str | list[object]:
+            rel = os.path.relpath(p, self.root)
+            return [rel, _size(p)] if sizes else rel
+
         rows = [
             [
                 f.id,
@@ -283,7 +298,7 @@ class Catalog:
                 sorted(f.text_labels.items()),
                 f.cluster,
                 [
-                    [m.value, [[os.path.relpath(p, self.root) for p in it.frames] for it in its]]
+                    [m.value, [[file(p) for p in it.frames] for it in its]]
                     for m, its in sorted(f.items.items(), key=lambda kv: kv[0].value)
                 ],
             ]
@@ -358,3 +373,11 @@ class Catalog:
                 f.name for f in self.labelled_only.values() if f.name is not None
             )
         return out
+
+
+def _size(path: Path) -> int:
+    """A file's size in bytes, -1 where it cannot be read now (the digest then differs)."""
+    try:
+        return os.stat(path).st_size
+    except OSError:
+        return -1

@@ -161,9 +161,10 @@ def _select(
     unit = _unit(catalog)
     if split == "all":
         return catalog, None, _every_item(catalog, [])
-    if split in ("val", "train", "novel") and loaded.data_fingerprint not in (
-        None,
-        catalog.fingerprint(),
+    if (
+        split in ("val", "train", "novel")
+        and loaded.data_fingerprint is not None
+        and not catalog.matches_fingerprint(loaded.data_fingerprint)
     ):
         warnings.warn(
             f"{loaded.path} was trained on another dataset than {catalog.root}, or on this one "

@@ -1060,6 +1060,15 @@ def _train(
     # hold no press are left out (which evaluate finds after it compares the two).
     data_fingerprint = scanned.fingerprint()
     catalog = drop_unpressed(scanned, loader, views=not cached)
+    trained_on = state.get("data_fingerprint") if state is not None else None
+    if trained_on is not None and not any(  # before session 53 taken after the drop
+        c.matches_fingerprint(trained_on) for c in (scanned, catalog)
+    ):
+        raise ConfigError(
+            f"{_RESUME}: {resumed_from} was trained on another dataset than {data}, or on this "
+            "one before its files or labels changed: resume it with the data it trained on, or "
+            "start a new run in another --out"
+        )
     _say_reprints(catalog, loader, config, cached, data)
     catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
