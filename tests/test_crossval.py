@@ -62,6 +62,10 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
         config, data, tmp_path / "cv", seeds=[0, 1], n_boot=50, log=logs.append
     )
     assert summary["runs"] == 4
+    # what made the numbers: the resamples, the dataset and the software
+    assert summary["n_boot"] == 50
+    assert summary["data"] == {"root": str(data), "fingerprint": scan(data).fingerprint()}
+    assert set(summary["software"]) == {"lookfeel", "torch", "python"}
     pair = summary["pairs"]["depth_to_depth"]
     for key in ("model_top1", "model_top3", "raw_pixels_top1", "raw_pixels_top3"):
         low, high = pair[key]["ci95"]

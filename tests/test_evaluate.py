@@ -836,6 +836,17 @@ def test_a_split_of_the_run_on_another_dataset_is_warned_of(run: tuple[Path, Pat
     data, ckpt, _ = run
     loaded = load_model(ckpt)
     assert loaded.data_fingerprint == scan(data).fingerprint()
+    import platform
+
+    import torch
+
+    import lookfeel
+
+    assert loaded.software == {  # what wrote it, for a number read months later
+        "lookfeel": lookfeel.__version__,
+        "torch": str(torch.__version__),
+        "python": platform.python_version(),
+    }
     moved = Path(shutil.copytree(data, tmp_path / "moved"))  # the same data elsewhere: quiet
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -12,7 +12,8 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     for the columns of ranks; absent before session 50), shapes (modality name -> the shape of
     its training items, `lookfeel.index.query.shape_record`, for a query turned against them
     to be warned of; none for a modality whose items come in more than one orientation;
-    absent before session 51)
+    absent before session 51), software (the lookfeel, torch and Python versions that wrote
+    it, `lookfeel.provenance.software_versions`; absent before session 53)
 """
 
 from __future__ import annotations
@@ -148,6 +149,9 @@ class LoadedModel:
     """`lookfeel.data.Catalog.fingerprint` of the dataset the run trained on (None in
     checkpoints from before it was recorded): a split of the run's (its held-out fabrics)
     names the same fabrics only in that dataset."""
+    software: dict[str, str] = field(default_factory=dict)
+    """The lookfeel, torch and Python versions that wrote the checkpoint
+    (`lookfeel.provenance.software_versions`; empty in checkpoints from before session 53)."""
     touch_input: str | None = None
     """What the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or `TOUCH_BOTH`;
     None in checkpoints from before it was recorded (queries are then not checked against
@@ -303,6 +307,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
             for c, ranks in (state.get("rank_columns") or {}).items()
         },
         data_fingerprint=state.get("data_fingerprint"),
+        software={str(k): str(v) for k, v in (state.get("software") or {}).items()},
         shapes=_shapes(state.get("shapes")),
     )
 

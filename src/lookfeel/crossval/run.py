@@ -41,6 +41,7 @@ from lookfeel.evaluate.core import no_query_scored
 from lookfeel.metrics import mean_and_spread
 from lookfeel.metrics.cross_map import HUB_NEIGHBOURS
 from lookfeel.modality import Modality, Pair
+from lookfeel.provenance import software_versions
 from lookfeel.train import run_started, select_split, train
 from lookfeel.train.loop import as_trained
 
@@ -360,6 +361,9 @@ def cross_validate(
         "train_seconds": mean_and_spread([r["train_seconds"] for r in results]),
         "config": to_dict(config),
         "coverage": coverage,
+        "n_boot": n_boot,
+        "data": data_id,  # the dataset's folder and fingerprint (`Catalog.fingerprint`)
+        "software": software_versions(),
     }
     _write_json(out / SUMMARY, summary, indent=1)
     atomic_write_text(out / REPORT, format_cv_summary(summary))

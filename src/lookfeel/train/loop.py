@@ -77,6 +77,7 @@ from lookfeel.models import (
     create_model,
     to_channels_last,
 )
+from lookfeel.provenance import software_versions
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
@@ -1010,6 +1011,7 @@ def _train_members(
             "split",
             "touch_input",
             "data_fingerprint",
+            "software",
             "rank_columns",
             "shapes",
         )
@@ -1225,11 +1227,14 @@ def _train(
         if c in catalog.label_columns
     }
 
+    software = software_versions()
+
     def checkpoint_state(step: int) -> dict[str, Any]:
         return {
             "step": step,
             "touch_input": touch_input,
             "data_fingerprint": data_fingerprint,
+            "software": software,
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),
