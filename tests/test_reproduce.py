@@ -1006,3 +1006,115 @@ def test_sigint_while_waiting_on_the_pool_is_raised_as_the_wait_returns():
             assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+# --- helper-rdata: runs on another dataset, another --n-boot, what results.json records --------
+
+
+def test_runs_trained_on_another_dataset_are_refused_before_any_training(
+    data: Path, tmp_path: Path, capsys
+):
+    """QA: rerunning into a folder whose runs were trained on another world reused them
+    silently, its numbers written under the new ``meta.data``. Now a folder with runs (finished
+    or started, asked for or not) whose checkpoint records another dataset is refused, in one
+    line, before any training; the same dataset in another folder is still reused."""
+    out = tmp_path / "out"
+    args = dict(budget="tiny", n_boot=20, overrides=FAST, log=lambda s: None, workers=1)
+    reproduce(data, out, only=["flat"], **args)
+    done = out / "runs" / "flat" / "seed0" / "eval.json"
+    stamps = {p: p.stat().st_mtime_ns for p in [done, out / "results.json"]}
+    moved = shutil.copytree(data, tmp_path / "moved")  # the same files: reused
+    reproduce(moved, out, only=["flat"], **args)
+    assert done.stat().st_mtime_ns == stamps[done]
+    stamps[out / "results.json"] = (out / "results.json").stat().st_mtime_ns
+
+    other = write_tiny_dataset(
+        tmp_path / "other", fabrics=10, drapes=5, fold_presses=4, flat_presses=3
+    )
+    said = (
+        f"{out} holds runs trained on another dataset (runs/flat/seed0), or on {other} before "
+        "its files or labels changed; use another --out"
+    )
+    with pytest.raises(ConfigError) as e:
+        reproduce(other, out, only=["flat"], **args)
+    assert str(e.value) == said
+    argv = ["reproduce", "--data", str(other), "--out", str(out), "--budget", "tiny"]
+    assert main([*argv, "--only", "flat", "--n-boot", "20"]) == 1
+    assert capsys.readouterr().err == f"lookfeel: {said}\n"
+    with pytest.raises(ConfigError, match="trained on another dataset"):  # not asked for
+        reproduce(other, out, only=["snn_depth"], **args)
+    assert not (out / "runs" / "snn_depth").exists()  # nothing trained
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # nothing written
+
+    # A label changed: another dataset too. A started run (no eval.json): its checkpoint's.
+    relabelled = shutil.copytree(data, tmp_path / "relabelled")
+    labels = relabelled / "labels.csv"
+    labels.write_text(labels.read_text().replace("\n1,0,0.5,", "\n1,0,0.7,"))
+    done.unlink()
+    with pytest.raises(ConfigError, match=r"trained on another dataset \(runs/flat/seed0\)"):
+        reproduce(relabelled, out, only=["flat"], **args)
+    assert not done.exists()
+
+
+def test_a_rerun_with_another_n_boot_scores_the_kept_runs_again(data: Path, tmp_path: Path):
+    """QA: rerunning a finished folder with another --n-boot kept the intervals of the first
+    --n-boot. Now each finished run scored otherwise is scored again from its checkpoint (not
+    trained again), giving the numbers a fresh reproduction with that --n-boot gives; one
+    whose checkpoint is gone is refused, before any training."""
+    only = ["flat", "snn_depth"]
+    lines: list[str] = []
+    args = dict(budget="tiny", only=only, overrides=FAST, log=lines.append, workers=1)
+    out = tmp_path / "out"
+    first = reproduce(data, out, n_boot=20, **args)
+    checkpoints = sorted(out.glob("runs/*/seed0/checkpoints/*.pt"))
+    stamps = [p.stat().st_mtime_ns for p in checkpoints]
+    seconds = [json.loads(p.read_text())["seconds"] for p in sorted(out.glob("runs/*/*/eval.json"))]
+    lines.clear()
+    again = reproduce(data, out, n_boot=50, **args)
+    said = lines[0]
+    assert [p.stat().st_mtime_ns for p in checkpoints] == stamps  # not trained again
+    fresh = reproduce(data, tmp_path / "fresh", n_boot=50, **args)
+    assert json.dumps(again.results) == json.dumps(fresh.results)  # NaN-safe equality
+    assert json.dumps(again.results) != json.dumps(first.results)  # the intervals moved
+    assert said == (
+        "scoring again with --n-boot 50, from their checkpoints, the finished runs scored "
+        "otherwise: flat seed 0, snn_depth seed 0"
+    )
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["meta"]["n_boot"] == 50
+    evals = sorted(out.glob("runs/*/*/eval.json"))
+    assert [json.loads(p.read_text())["n_boot"] for p in evals] == [50, 50]
+    assert [json.loads(p.read_text())["seconds"] for p in evals] == seconds  # its training's
+
+    # Scored with 50, its checkpoint gone: another --n-boot is refused, before any training.
+    (out / "runs" / "flat" / "seed0" / "checkpoints" / "last.pt").unlink()
+    report = (out / "report.md").stat().st_mtime_ns
+    with pytest.raises(ConfigError) as e:
+        reproduce(data, out, n_boot=20, **args)
+    assert str(e.value) == (
+        f"{out / 'runs' / 'flat' / 'seed0'} is a finished run scored with --n-boot 50, and its "
+        "checkpoint checkpoints/last.pt, needed to score it again with --n-boot 20, is gone: "
+        "rerun with --n-boot 50, reproduce into another --out, or delete the run to train it "
+        "anew"
+    )
+    assert (out / "report.md").stat().st_mtime_ns == report
+
+
+def test_results_json_records_what_it_takes_to_reproduce_it(tmp_path: Path):
+    """QA: ``results.json`` did not record --n-boot, --workers, which dataset or which
+    software. A reproduction that trains nothing (each run skipped) writes them all."""
+    from lookfeel.data import scan
+    from lookfeel.provenance import software_versions
+
+    two = write_tiny_dataset(tmp_path / "two", fabrics=10, drapes=2, fold_presses=2)
+    out = tmp_path / "o"
+    args = dict(budget="tiny", n_boot=30, overrides=FAST, log=lambda s: None)
+    reproduce(two, out, only=["multi_input"], **args)
+    meta = json.loads((out / "results.json").read_text())["meta"]
+    assert meta["n_boot"] == 30
+    assert meta["workers"] == 0 and meta["workers_resolved"] == 1  # 0: the default, resolved
+    assert meta["data_fingerprint"] == scan(two, require=[], strict=True).fingerprint()
+    assert meta["software"] == software_versions()
+    assert set(meta["software"]) == {"lookfeel", "torch", "python"}
+    assert meta["data"] == str(two) and meta["budget"] == "tiny"  # the keys it had
+    assert "budget: **tiny**" in (out / "report.md").read_text()

@@ -7,7 +7,8 @@ compact CNN at 64 px, 1,500 steps of batch 64: about 34 min a run, two at a time
 the 0.73 steps/s measured in session 51 on a loaded machine); paper (the paper's AlexNet
 configs; needs --pretrained). Runs whose modalities the data lacks are skipped with the
 reason. Re-running resumes finished runs, and the report covers every finished run in DIR
-trained with the same settings: --only adds to it.
+trained with the same settings: --only adds to it. A DIR of runs trained on another dataset is
+refused; another --n-boot scores the finished runs again from their checkpoints.
 """
 
 from __future__ import annotations

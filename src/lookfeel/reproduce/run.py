@@ -19,9 +19,15 @@ Each finished run writes ``runs/<name>/seed<k>/eval.json``; a killed reproductio
 it stopped. A reproduction into a folder that holds finished runs of experiments it was not
 asked for (``only``) reports them too when they were trained with its settings, so results
 accumulate; one with other settings is left out with a line saying how it differs (a finished
-run it was asked for that differs is an error, before any training). A number the held-out
-data cannot give (no query has an item of its own fabric to find) is NaN, with the reason
-under ``not_scored`` (the report shows it as n/a with a note).
+run it was asked for that differs is an error, before any training). A folder holding runs
+(finished or started) trained on another dataset, or on this one before its files or labels
+changed (`Catalog.matches_fingerprint` of what each run's checkpoint recorded), is refused
+before any training. A finished run scored with another ``n_boot`` is scored again from its
+checkpoint (not trained again), so that its intervals are those of a fresh run; refused when
+its checkpoint is gone. ``results.json``'s ``meta`` records ``n_boot``, ``workers``, the
+dataset's fingerprint and the software versions. A number the held-out data cannot give (no
+query has an item of its own fabric to find) is NaN, with the reason under ``not_scored`` (the
+report shows it as n/a with a note).
 """
 
 from __future__ import annotations
@@ -66,10 +72,11 @@ from lookfeel.metrics import (
 from lookfeel.modality import Modality, Pair
 from lookfeel.plugins import load_plugins
 from lookfeel.processes import available_cores, die_with_parent
+from lookfeel.provenance import software_versions
 from lookfeel.reproduce.report import findings, write_reproduction_report
 from lookfeel.reproduce.result import ReproduceResult
 from lookfeel.train import run_started, train
-from lookfeel.train.loop import config_changes
+from lookfeel.train.loop import MEMBERS, config_changes, resume_checkpoint
 
 __all__ = [
     "BUDGETS",
@@ -267,9 +274,24 @@ def _run_one(
     run_dir: Path,
     n_boot: int,
 ) -> dict[str, Any]:
+    """Train the run at ``run_dir`` (resuming a started one) and score its last checkpoint on
+    its held-out fabrics; its ``eval.json``'s record. A finished run is read from its
+    ``eval.json``; one scored with another ``n_boot`` (or before ``eval.json`` recorded it)
+    is scored again from its kept checkpoint, its training time kept (`_scored_otherwise`)."""
     done = run_dir / "eval.json"
     if done.exists():
         saved: dict[str, Any] = dict(json.loads(done.read_text()))
+        last = run_dir / "checkpoints" / "last.pt"
+        if _scored_otherwise(saved, n_boot) and last.is_file():
+            # What a fresh run with this n_boot would record, but its training: as it was;
+            # scored on the threads it was scored on (the numbers depend on them).
+            with _torch_threads(saved.get("threads")):
+                record = _evaluate(exp, config, catalog, load_model(last), n_boot)
+            record["seconds"], record["threads"] = saved.get("seconds"), saved.get("threads")
+            atomic_write_text(done, json.dumps(record, indent=1) + "\n")
+            return record
+        if saved.get("n_boot", n_boot) != n_boot:  # refused before any training: `reproduce`
+            raise ConfigError(_cannot_rescore(run_dir, saved["n_boot"], n_boot))
         if "not_scored" not in saved:  # an earlier lookfeel's: derive its reasons
             saved["not_scored"] = _old_reasons(saved, run_dir)
         return saved
@@ -280,6 +302,21 @@ def _run_one(
     loaded = load_model(
         result.last_checkpoint
     )  # the last step, as the paper: no test-set selection
+    record = _evaluate(exp, config, catalog, loaded, n_boot)
+    # The run's own time: its training and scoring here, and the training a killed
+    # reproduction did on it before this one resumed it.
+    record["seconds"] = round(before + time.perf_counter() - started, 1)
+    record["threads"] = torch.get_num_threads()
+    atomic_write_text(done, json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def _evaluate(
+    exp: Experiment, config: RunConfig, catalog: Catalog, loaded: Any, n_boot: int
+) -> dict[str, Any]:
+    """A trained run's ``eval.json`` record but its time and threads: ``loaded`` (its last
+    checkpoint, `load_model`) scored on its held-out fabrics of ``catalog`` with ``n_boot``
+    bootstrap resamples for the intervals (recorded, with the dataset it was trained on)."""
     split = loaded.split
     record: dict[str, Any] = {
         "experiment": exp.name,
@@ -310,12 +347,40 @@ def _run_one(
     test_ids = split.get("novel") or split["val"]
     record["test_fabrics"] = len(test_ids)
     record["test_fabric_ids"] = sorted(int(i) for i in test_ids)
-    # The run's own time: its training and scoring here, and the training a killed
-    # reproduction did on it before this one resumed it.
-    record["seconds"] = round(before + time.perf_counter() - started, 1)
-    record["threads"] = torch.get_num_threads()
-    atomic_write_text(done, json.dumps(record, indent=1) + "\n")
+    record["n_boot"] = n_boot
+    record["data_fingerprint"] = loaded.data_fingerprint
     return record
+
+
+@contextmanager
+def _torch_threads(threads: Any) -> Iterator[None]:
+    """Run with ``threads`` torch threads (a run's recorded count), then as before; as it is
+    when ``threads`` is not a positive count (not recorded)."""
+    before = torch.get_num_threads()
+    if isinstance(threads, int) and threads > 0 and threads != before:
+        torch.set_num_threads(threads)
+    try:
+        yield
+    finally:
+        if torch.get_num_threads() != before:
+            torch.set_num_threads(before)
+
+
+def _scored_otherwise(saved: Mapping[str, Any], n_boot: int) -> bool:
+    """Whether a finished run's ``eval.json`` record was scored with another ``n_boot`` than
+    ``n_boot``, or with one it does not record (an earlier lookfeel's): its intervals are
+    then not those this reproduction asks for."""
+    return saved.get("n_boot") != n_boot
+
+
+def _cannot_rescore(run_dir: Path, was: int, now: int) -> str:
+    """Why the finished run at ``run_dir``, scored with ``--n-boot was``, cannot be scored
+    with ``now``: its checkpoint is gone (one line, with what to do)."""
+    return (
+        f"{run_dir} is a finished run scored with --n-boot {was}, and its checkpoint "
+        f"checkpoints/last.pt, needed to score it again with --n-boot {now}, is gone: rerun "
+        f"with --n-boot {was}, reproduce into another --out, or delete the run to train it anew"
+    )
 
 
 def _logged_seconds(path: Path) -> float:
@@ -705,7 +770,10 @@ def reproduce(
             on CUDA 1. 1: one after the other in this process.
 
     Raises:
-        ConfigError: an unknown budget or experiment, or ``paper`` without weights.
+        ConfigError: an unknown budget or experiment, or ``paper`` without weights; before
+            any training, runs in ``out`` trained on another dataset (`_trained_on_other_data`),
+            a finished run asked for trained with other settings (`_differs`), or one scored
+            with another ``n_boot`` whose checkpoint is gone.
     """
     if budget not in BUDGETS:
         raise ConfigError(f"budget {budget!r} is not one of {', '.join(BUDGETS)}")
@@ -726,6 +794,16 @@ def reproduce(
         )
     data, out = Path(data), Path(out)
     catalog = scan(data, require=[], strict=True)
+    fingerprint = catalog.fingerprint()
+    # Runs in ``out`` trained on another dataset are refused before anything is trained.
+    other = _trained_on_other_data(out, catalog)
+    if other:
+        names = ", ".join(str(p.relative_to(out)) for p in other[:3])
+        more = f" and {len(other) - 3} more" if len(other) > 3 else ""
+        raise ConfigError(
+            f"{out} holds runs trained on another dataset ({names}{more}), or on {data} before "
+            "its files or labels changed; use another --out"
+        )
     # The paper's split is used when the data has at least 10 of its test fabrics (pick 1 of 10
     # needs 10); otherwise a cluster-stratified share of the training fabrics is held out
     # (the paper's test fabrics are never trained on either way): 18 of 118 as the paper, and
@@ -767,6 +845,24 @@ def reproduce(
                         "or delete the run to train it anew"
                     )
             jobs.append(job)
+    # Finished runs scored with another --n-boot are scored again from their checkpoints
+    # (`_run_one`); one whose checkpoint is gone is refused, before any training.
+    rescore = []
+    for job in [*jobs, *earlier]:
+        if not job.finished:
+            continue
+        saved = json.loads((job.run_dir / "eval.json").read_text())
+        if not _scored_otherwise(saved, n_boot):
+            continue
+        if (job.run_dir / "checkpoints" / "last.pt").is_file():
+            rescore.append(f"{job.exp.name} seed {job.config.train.seed}")
+        elif saved.get("n_boot") is not None:
+            raise ConfigError(_cannot_rescore(job.run_dir, saved["n_boot"], n_boot))
+    if rescore:
+        log(
+            f"scoring again with --n-boot {n_boot}, from their checkpoints, the finished runs "
+            f"scored otherwise: {', '.join(rescore)}"
+        )
     if earlier:
         found: dict[str, list[str]] = {}
         for job in earlier:
@@ -775,6 +871,7 @@ def reproduce(
             f"also reported, from finished runs in {out}: "
             + ", ".join(f"{name} (seed {', '.join(s)})" for name, s in found.items())
         )
+    resolved = _workers_for(jobs, workers)
     records = _run_jobs(jobs, catalog, data, n_boot, workers, log)
     records += [_run_one(j.exp, j.config, catalog, data, j.run_dir, n_boot) for j in earlier]
     every = [*jobs, *earlier]
@@ -788,6 +885,12 @@ def reproduce(
         "budget": budget,
         "seeds": seeds,
         "overrides": list(overrides),
+        # The bootstrap resamples of every interval (runs scored with another are scored again).
+        "n_boot": n_boot,
+        # --workers as given (0: the default) and how many runs trained at once here (none
+        # left to train: 1).
+        "workers": workers,
+        "workers_resolved": resolved,
         "split": "paper" if has_paper_test else f"stratified, {n_val} held-out fabrics",
         "paper_test_fabrics": len(paper.test),
         # What this reproduction was asked to run (--only; None: every experiment), and the
@@ -801,6 +904,10 @@ def reproduce(
         # one only reads).
         "runs": len(records),
         "run_minutes": round(sum(float(r.get("seconds") or 0.0) for r in records) / 60, 1),
+        # The dataset (`Catalog.fingerprint`: its files, sizes and labels) and the software
+        # behind the numbers.
+        "data_fingerprint": fingerprint,
+        "software": software_versions(),
     }
     result.meta = meta
     everything = {
@@ -874,6 +981,55 @@ def _finished_runs(
         else:
             log(f"not reported: {job.run_dir}, a finished run {why}")
     return found
+
+
+def _trained_on_other_data(out: Path, catalog: Catalog) -> list[Path]:
+    """The runs under ``out/runs`` (``<experiment>/seed<k>``, finished or started) trained on
+    another dataset than ``catalog``, or on it before its files or labels changed
+    (`Catalog.matches_fingerprint`). A run that records no dataset (trained before lookfeel
+    recorded it, or with no checkpoint yet) is taken as trained on it."""
+    runs = out / "runs"
+    if not runs.is_dir():
+        return []
+    matches: dict[str, bool] = {}
+    other = []
+    for run_dir in sorted(runs.glob("*/seed*")):
+        if not (_SEED_DIR.fullmatch(run_dir.name) and run_dir.is_dir()):
+            continue
+        recorded = _recorded_fingerprint(run_dir)
+        if recorded is None:
+            continue
+        if recorded not in matches:
+            matches[recorded] = catalog.matches_fingerprint(recorded)
+        if not matches[recorded]:
+            other.append(run_dir)
+    return other
+
+
+def _recorded_fingerprint(run_dir: Path) -> str | None:
+    """The dataset the run at ``run_dir`` was trained on (`Catalog.fingerprint`), or None when
+    it records none: from its ``eval.json`` when finished (since it records it), else from the
+    checkpoint it resumes from (`resume_checkpoint`; an ensemble's: its members'). Only the
+    checkpoint's small entries are read: its tensors are mapped, not loaded."""
+    try:
+        saved = json.loads((run_dir / "eval.json").read_text())
+    except (OSError, ValueError):
+        saved = None
+    if isinstance(saved, dict) and isinstance(saved.get("data_fingerprint"), str):
+        return str(saved["data_fingerprint"])
+    members = sorted((run_dir / MEMBERS).glob("*")) if (run_dir / MEMBERS).is_dir() else []
+    for folder in [run_dir, *members]:
+        path = resume_checkpoint(folder)
+        if path is None:
+            continue
+        try:
+            state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
+        except Exception:  # damaged or foreign: resuming or scoring it says so
+            continue
+        recorded = state.get("data_fingerprint") if isinstance(state, dict) else None
+        if isinstance(recorded, str):
+            return recorded
+    return None
 
 
 def headline(results: Mapping[str, Any]) -> list[str]:
