@@ -78,6 +78,7 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Generate the world and say what was written."""
+    from lookfeel.locks import BusyError
     from lookfeel.synth import SIZE_PRESETS, SynthConfig, generate
 
     try:
@@ -99,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
         summary = generate(
             config, args.out, labels=args.labels, progress=not args.quiet, beside=args.beside
         )
+    except BusyError:
+        raise  # another synth is writing the folder: not a usage error (`lookfeel: `, exit 1)
     except (ValueError, FileExistsError) as e:
         # Not only LookfeelError: the labels file, --beside and the output folder raise plain
         # ValueError and FileExistsError, and a bad value here is a usage error (exit 2).

@@ -34,7 +34,7 @@ import os
 import shutil
 import time
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -58,7 +58,6 @@ from lookfeel.index.library import (
     LibraryError,
     aside_folder,
     file_sha256,
-    lock_file,
     manifest_status,
     read_shard,
     work_folder,
@@ -68,6 +67,7 @@ from lookfeel.index.library import (
 from lookfeel.index.match import check_touch_dataset
 from lookfeel.index.query import shape_record
 from lookfeel.index.search import FaissSearch, choose_backend
+from lookfeel.locks import exclusive
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.modality import Modality, Pair, PressKind
 
@@ -209,56 +209,14 @@ def _ours(folder: Path) -> bool:
     return all(p.name.startswith(".") and p.name.endswith(".tmp") for p in folder.iterdir())
 
 
-@contextlib.contextmanager
-def _build_lock(out: Path) -> Iterator[None]:
-    """Hold ``OUT.lock`` (`lock_file`) exclusively while building ``out``; the system releases
-    it when the process ends, however it ends. The lock file holds the builder's PID and is
-    removed on a normal end (a file left by a killed build is taken over; any other file of
-    that name is refused, never removed).
+def _build_lock(out: Path) -> contextlib.AbstractContextManager[None]:
+    """Hold ``OUT.lock`` (`lock_file`, `lookfeel.locks.exclusive`) while building ``out``.
 
     Raises:
         LibraryError: another process holds the lock, naming ``out`` and that process's PID;
             or ``OUT.lock`` is a file of the user's (not a PID) or a folder.
     """
-    try:
-        import fcntl
-    except ImportError:  # not on Linux or macOS: no lock
-        yield
-        return
-    path = lock_file(out)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if path.exists() or path.is_symlink():  # a lock holds a PID, or nothing yet
-        held = path.read_bytes()[:64] if path.is_file() and not path.is_symlink() else None
-        if held is None or not (held.strip().isdigit() or not held.strip()):
-            raise LibraryError(
-                f"{out}: {path} is in the way of the build's lock and is not one (a lock "
-                "holds a process id); it is kept: move it, or choose another --out"
-            )
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
-            os.close(fd)
-            raise LibraryError(
-                f"{out}: another `lookfeel index build` is writing this library (PID {pid}, "
-                f"lock {path}); wait for it to end, or stop it"
-            ) from None
-        try:  # its last holder may have removed the file between our open and our lock
-            same = os.path.samestat(os.fstat(fd), os.stat(path))
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
-        yield
-    finally:
-        path.unlink(missing_ok=True)  # while still held: no other build holds this file
-        os.close(fd)
+    return exclusive(out, "index build", "this library", LibraryError)
 
 
 def _move(src: Path, dst: Path) -> None:

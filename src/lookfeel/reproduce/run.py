@@ -61,6 +61,7 @@ from lookfeel.config.recipes import recipe_path
 from lookfeel.data import Catalog, DatasetError, ImageLoader, paper_split, scan
 from lookfeel.embedding import embed_catalog
 from lookfeel.evaluate.core import no_query_scored
+from lookfeel.locks import exclusive
 from lookfeel.metrics import (
     EXACT_PICK,
     ScoringProtocol,
@@ -775,6 +776,25 @@ def reproduce(
             a finished run asked for trained with other settings (`_differs`), or one scored
             with another ``n_boot`` whose checkpoint is gone.
     """
+    with exclusive(out, "reproduce", "this folder"):  # a second one into ``out`` is refused
+        return _reproduce(
+            data, out, budget, seeds, pretrained, only, n_boot, overrides, log, workers
+        )
+
+
+def _reproduce(
+    data: str | Path,
+    out: str | Path,
+    budget: str,
+    seeds: int,
+    pretrained: str | Path | None,
+    only: Sequence[str],
+    n_boot: int,
+    overrides: Sequence[str],
+    log: Callable[[str], None],
+    workers: int,
+) -> ReproduceResult:
+    """`reproduce`'s work, while it holds ``out``'s lock."""
     if budget not in BUDGETS:
         raise ConfigError(f"budget {budget!r} is not one of {', '.join(BUDGETS)}")
     if budget == "paper" and pretrained is None:

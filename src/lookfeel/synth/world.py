@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from lookfeel.atomic import atomic_write_text
+from lookfeel.locks import exclusive
 from lookfeel.modality import REPRINTS, Modality, PressKind
 from lookfeel.processes import available_cores, die_with_parent
 from lookfeel.synth.color import render_colors
@@ -320,6 +321,18 @@ def generate(
         ValueError: the labels file is unreadable or malformed (the message names the line),
             or given with ``config.test_fabrics``.
     """
+    with exclusive(out, "synth", "this world"):  # a second synth into ``out`` is refused
+        return _generate(config, out, labels, progress, beside)
+
+
+def _generate(
+    config: SynthConfig,
+    out: Path,
+    labels: Path | None,
+    progress: bool,
+    beside: Path | None,
+) -> SynthSummary:
+    """`generate`'s work, while it holds ``out``'s lock."""
     started = time.perf_counter()
     out = Path(out)
     if labels is not None and config.test_fabrics is not None:

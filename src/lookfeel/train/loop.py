@@ -30,7 +30,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -67,6 +67,7 @@ from lookfeel.data.labels import MAX_RANK, is_rank
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddingError
 from lookfeel.index.query import shape_record
+from lookfeel.locks import exclusive
 from lookfeel.losses import create_loss
 from lookfeel.modality import REPRINTS, Modality, slot_modality
 from lookfeel.models import (
@@ -835,7 +836,7 @@ def train(
     # Images smaller than the backbone takes are refused here, before any data is read, not
     # after the data are loaded; each backbone class knows its own minimum.
     config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
-    with _callers_torch_state():
+    with _callers_torch_state(), _run_lock(run_dir):
         if config.model.members > 1:
             return _train_members(config, Path(data), run_dir, resume, on_step, loader)
         last = run_dir / "checkpoints" / "last.pt"
@@ -864,6 +865,14 @@ def train(
             raise
         dist.close(sync=True)
         return result
+
+
+def _run_lock(run_dir: Path) -> AbstractContextManager[None]:
+    """One training at a time per run folder (`lookfeel.locks.exclusive`: a second process is
+    refused, naming the first's PID); under torchrun the first process holds it for all."""
+    if int(os.environ.get("RANK", "0")) != 0:
+        return nullcontext()
+    return exclusive(run_dir, "train", "this run")
 
 
 _RESUME = "--resume (resume=True)"
