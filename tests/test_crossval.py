@@ -176,6 +176,59 @@ def test_rescoring_keeps_the_runs_and_refuses_another_config(data: Path, tmp_pat
         cross_validate(other, data, tmp_path / "cv", folds=[0], n_boot=20)
 
 
+def test_a_cv_names_the_finished_runs_of_its_folder_that_its_summary_leaves_out(
+    data: Path, tmp_path: Path
+):
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    out = tmp_path / "cv"
+    logs: list[str] = []
+    cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
+    assert not any("also holds" in line for line in logs)
+    # `--only-folds 1` after `--only-folds 0`: its summary is of fold 1, and it says so.
+    logs.clear()
+    summary = cross_validate(config, data, out, folds=[1], n_boot=20, log=logs.append)
+    assert summary["folds"] == [1] and summary["runs"] == 1
+    assert json.loads((out / "cv.json").read_text())["folds"] == [1]
+    assert logs[-1] == (
+        f"{out} also holds finished runs of seed 0 fold 0, scored with these settings (not in "
+        "this summary): `lookfeel cv` with the same options but --seeds 0 --only-folds 0,1 "
+        "summarises them together without training"
+    )
+    logs.clear()
+    both = cross_validate(config, data, out, folds=[0, 1], n_boot=20, log=logs.append)
+    assert both["runs"] == 2 and all("done before, kept" in line for line in logs)
+    # Only finished runs of these settings on this data count: a result of seed 1 counts, one
+    # scored otherwise, one of other data, an unfinished run and a folder cv never makes do not.
+    result = json.loads((out / "seed0-fold1" / "result.json").read_text())
+
+    def planted(name: str, seed: int, **changes: object) -> None:
+        res = json.loads(json.dumps(result | changes)) | {"seed": seed}
+        res["key"]["config"]["train"]["seed"] = seed
+        (out / name).mkdir()
+        (out / name / "result.json").write_text(json.dumps(res))
+
+    planted("seed1-fold1", 1)
+    planted("seed2-fold1", 2, key={**result["key"], "tta": True})
+    planted("seed3-fold1", 3, data={"root": "elsewhere", "fingerprint": "0123456789abcdef"})
+    planted("seed01-fold1", 1)
+    (out / "seed4-fold1" / "checkpoints").mkdir(parents=True)
+    logs.clear()
+    cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
+    assert [line for line in logs if "also holds" in line] == [
+        f"{out} also holds finished runs of seed 0 fold 1, seed 1 fold 1, scored with these "
+        "settings (not in this summary): `lookfeel cv` with the same options but --seeds 0,1 "
+        "--only-folds 0,1 summarises them together, running seed 1 fold 0 first"
+    ]
+    # Scored with --tta: only the run scored so counts.
+    logs.clear()
+    cross_validate(config, data, out, folds=[0], tta=True, n_boot=20, log=logs.append)
+    assert [line for line in logs if "also holds" in line] == [
+        f"{out} also holds finished runs of seed 2 fold 1, scored with these settings (not in "
+        "this summary): `lookfeel cv` with the same options but --seeds 0,2 --only-folds 0,1 "
+        "summarises them together, running seed 0 fold 1, seed 2 fold 0 first"
+    ]
+
+
 def test_a_cv_folder_keeps_its_runs_for_the_same_data_moved_and_refuses_other_data(
     data: Path, tmp_path: Path
 ):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -189,6 +190,99 @@ def _same_run(trained: RunConfig, asked: RunConfig) -> bool:
     return _result_config(trained) == _result_config(as_trained(asked, trained))
 
 
+def _result_key(
+    cfg: RunConfig,
+    tta: bool,
+    pairs: Sequence[Pair],
+    presses: int,
+    control: BackgroundControl | None,
+) -> dict[str, Any]:
+    """What a run's ``result.json`` records as its ``key``: a kept result stands only when
+    its key is this one (the run's config and how it is scored)."""
+    key: dict[str, Any] = {"config": _result_config(cfg), "tta": tta, "pairs": list(pairs)}
+    # How the maps score (session 22 added the hub correction): a result scored
+    # otherwise is scored again from its checkpoint, never silently kept.
+    key["cross_map_hubs"] = HUB_NEIGHBOURS
+    key = finite_or_null(key)  # as result.json holds it
+    if presses > 1:
+        key["presses"] = presses
+        key["pooled_gallery"] = True  # session 23: touch candidates pooled too
+    if cfg.model.class_heads:
+        key["class_logits"] = True  # session 47: the heads' calibration needs them
+    if control is not None:
+        key["background_control"] = CONTROL_SEED
+        if control.has_room_control:
+            key["room_control"] = True
+    return key
+
+
+_RUN_DIR = re.compile(r"seed(\d+)-fold(\d+)")
+
+
+def _other_finished_runs(
+    out: Path,
+    config: RunConfig,
+    catalog: Catalog,
+    asked: set[tuple[int, int]],
+    key_of: Callable[[RunConfig], dict[str, Any]],
+) -> list[tuple[int, int]]:
+    """(seed, fold) of the runs in ``out`` outside ``asked`` that are finished with the same
+    settings on the same data: what a cv of them too would keep, not train or score again
+    (`cross_validate`'s "done before, kept"). Sorted."""
+    found = []
+    for run_dir in out.iterdir() if out.is_dir() else ():
+        m = _RUN_DIR.fullmatch(run_dir.name)
+        if m is None:
+            continue
+        seed, fold = int(m[1]), int(m[2])
+        if run_dir.name != f"seed{seed}-fold{fold}" or fold >= config.train.folds:
+            continue  # not a folder cv makes (seed01-fold1), or not a fold of this config
+        if (seed, fold) in asked:
+            continue
+        try:
+            saved = json.loads((run_dir / RESULT).read_text())
+            data = saved.get("data")  # none before it was recorded: kept as this data's
+            same_data = data is None or catalog.matches_fingerprint(data["fingerprint"])
+            key = saved.get("key")
+        except (OSError, ValueError, TypeError, KeyError, AttributeError):
+            continue  # no result (a run not finished), or not one cv wrote
+        if same_data and key == key_of(_run_config(config, fold, seed)):
+            found.append((seed, fold))
+    return sorted(found)
+
+
+def _others_line(
+    out: Path,
+    others: list[tuple[int, int]],
+    seeds: Sequence[int],
+    folds: Sequence[int],
+    done: set[tuple[int, int]],
+) -> str:
+    """The line that names finished runs outside a cv's summary and how to summarise them
+    together with it: the seeds and folds of both, and the runs of those not finished with
+    these settings (``done`` are), which that cv would train or score first."""
+    all_seeds = sorted({*seeds, *(s for s, _ in others)})
+    all_folds = sorted({*folds, *(f for _, f in others)})
+    missing = [(s, f) for s in all_seeds for f in all_folds if (s, f) not in done]
+
+    def runs(which: list[tuple[int, int]]) -> str:
+        return ", ".join(f"seed {s} fold {f}" for s, f in which)
+
+    command = (
+        f"`lookfeel cv` with the same options but --seeds "
+        f"{','.join(map(str, all_seeds))} --only-folds {','.join(map(str, all_folds))}"
+    )
+    how = (
+        "summarises them together without training"
+        if not missing
+        else f"summarises them together, running {runs(missing)} first"
+    )
+    return (
+        f"{out} also holds finished runs of {runs(others)}, scored with these settings (not "
+        f"in this summary): {command} {how}"
+    )
+
+
 def cross_validate(
     config: RunConfig,
     data: str | Path,
@@ -272,20 +366,7 @@ def cross_validate(
             run_dir = out / f"seed{seed}-fold{fold}"
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
-            key = {"config": _result_config(cfg), "tta": tta, "pairs": pairs}
-            # How the maps score (session 22 added the hub correction): a result scored
-            # otherwise is scored again from its checkpoint, never silently kept.
-            key["cross_map_hubs"] = HUB_NEIGHBOURS
-            key = finite_or_null(key)  # as result.json holds it
-            if presses > 1:
-                key["presses"] = presses
-                key["pooled_gallery"] = True  # session 23: touch candidates pooled too
-            if cfg.model.class_heads:
-                key["class_logits"] = True  # session 47: the heads' calibration needs them
-            if control is not None:
-                key["background_control"] = CONTROL_SEED
-                if control.has_room_control:
-                    key["room_control"] = True
+            key = _result_key(cfg, tta, pairs, presses, control)
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
             if saved is not None and not catalog.matches_fingerprint(
                 saved.get("data", data_id)["fingerprint"]
@@ -367,4 +448,10 @@ def cross_validate(
     }
     _write_json(out / SUMMARY, summary, indent=1)
     atomic_write_text(out / REPORT, format_cv_summary(summary))
+    asked = {(seed, fold) for seed in seeds for fold in fold_list}
+    others = _other_finished_runs(
+        out, config, catalog, asked, lambda cfg: _result_key(cfg, tta, pairs, presses, control)
+    )
+    if others:
+        log(_others_line(out, others, seeds, fold_list, asked | set(others)))
     return summary

@@ -21,7 +21,9 @@ beside it, ``LIB.building/`` (`work_folder`: also what a killed build resumes fr
 it in when it is complete: the old library is renamed to ``LIB.replaced/`` (`aside_folder`),
 the new one to ``LIB``, then the old one is removed. ``LIB.lock`` (`lock_file`) is held while
 a build runs. A build killed between the two renames leaves both libraries whole; the next build
-finishes the swap, and `Library.open` says what to do until then.
+finishes the swap, and `Library.open` says what to do until then. A library opened while a build
+swaps it in is read whole, old or new: `Library.open` waits for a swap a running build is making
+(`SWAP_WAIT` seconds at most), and reads again when the library was replaced while it read.
 
 The library refers to its checkpoint by path and SHA-256 (queries are embedded with that model);
 `Library.load_model` refuses a checkpoint that has changed since the build.
@@ -37,6 +39,7 @@ import hashlib
 import io
 import json
 import os
+import time
 import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -64,6 +67,7 @@ __all__ = [
     "LIBRARY_FORMAT",
     "LIBRARY_VERSION",
     "MANIFEST",
+    "SWAP_WAIT",
     "FabricRecord",
     "Library",
     "LibraryError",
@@ -85,6 +89,12 @@ LIBRARY_VERSION = 2
 """2: pairs may be matched through a cross-modal map (``cross_maps.npz``); 1 is still read."""
 MANIFEST = "manifest.json"
 CROSS_MAPS = "cross_maps.npz"
+SWAP_WAIT = 5.0
+"""Seconds `Library.open` waits for a running build to finish swapping a library in."""
+_SWAP_POLL = 0.02
+_OPEN_TRIES = 4
+"""Times `Library.open` reads a library that another is swapped in for while it reads, before
+what it read stands (an error, or a library read while one build after another swapped)."""
 
 
 class LibraryError(LookfeelError):
@@ -507,6 +517,35 @@ class Library:
                 newer lookfeel, or damaged.
         """
         root = Path(root)
+        deadline = time.monotonic() + SWAP_WAIT
+        tries = 1
+        while True:
+            before = _identity(root)
+            try:
+                library = cls._open_once(root, checkpoint)
+            except LibraryError:
+                after = _identity(root)
+                lock = _swap_lock(root) if after is None else None
+                if lock is not None:  # a build is moving the new library in
+                    if time.monotonic() < deadline:
+                        time.sleep(_SWAP_POLL)
+                        continue
+                    raise LibraryError(
+                        f"{root}: not found: a `lookfeel index build` running now is moving a "
+                        f"new library in (it holds {lock}) and has not finished in "
+                        f"{SWAP_WAIT:g} s; open it again when that build ends"
+                    ) from None
+                if after != before and tries < _OPEN_TRIES:  # replaced while it was read
+                    tries += 1
+                    continue
+                raise
+            if _identity(root) == before or tries >= _OPEN_TRIES:
+                return library
+            tries += 1  # replaced while it was read: read the library now there whole
+
+    @classmethod
+    def _open_once(cls, root: Path, checkpoint: str | os.PathLike[str] | None) -> Library:
+        """`open`, reading the folder once (what it reads may change under it: `open`)."""
         manifest = read_manifest(root)
         if manifest.get("status") != "complete":
             raise LibraryError(
@@ -635,6 +674,50 @@ def manifest_status(root: Path) -> str | None:
         return None
     status = manifest.get("status")
     return status if isinstance(status, str) else None
+
+
+def _identity(root: Path) -> tuple[int, int] | None:
+    """Which folder ``root`` is now (device, inode), None when there is none: a library swapped
+    in is another folder than the one it replaced."""
+    try:
+        st = os.stat(root)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
+def _swap_lock(root: Path) -> Path | None:
+    """The lock of a build moving a library in at ``root`` now, None when none is: a complete
+    library waits in the work folder or the previous one lies aside (module docstring), and a
+    live build holds the lock (`_held`)."""
+    if root.is_symlink():  # a build swaps the folder a link names (`build_library`)
+        root = Path(os.path.realpath(root))
+    if not (aside_folder(root).is_dir() or manifest_status(work_folder(root)) == "complete"):
+        return None
+    lock = lock_file(root)
+    return lock if _held(lock) else None
+
+
+def _held(lock: Path) -> bool:
+    """Whether a live process holds the build lock ``lock`` (`lock_file`): one that can be
+    taken at once (shared, and released at once) is held by none; no lock file, no build."""
+    try:
+        import fcntl
+    except ImportError:  # not on Linux or macOS: builds hold no lock
+        return False
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
+        os.close(fd)
 
 
 def _not_found(root: Path) -> str:
