@@ -306,32 +306,18 @@ def _synth_problem(root: Path) -> Problem | None:
     return None
 
 
-def _object_videos_named_like_fabrics(
-    videos: dict[tuple[int | str, PressKind | None, str], Path], named: set[str]
-) -> dict[tuple[int | str, PressKind | None, str], Path]:
-    """The videos with those in ``videos/`` whose ``<object>_<n>`` names an object of a labels
-    file keyed by ``object`` (``F0001_0.mp4`` for an object ``F0001``) keyed as that object's
-    presses, not as fabric 1's, which `_video_key` reads before the labels."""
-    out: dict[tuple[int | str, PressKind | None, str], Path] = {}
-    for key, path in videos.items():
-        m = _OBJECT_VIDEO.match(path.stem)
-        if (
-            isinstance(key[0], int)
-            and path.parent.name.lower() == "videos"
-            and m is not None
-            and m["object"] in named
-        ):
-            key = (m["object"], None, m["press"])
-        out[key] = path
-    return out
-
-
 def _video_key(
-    path: Path, folder: Path, folder_kind: PressKind | None
+    path: Path, folder: Path, folder_kind: PressKind | None, objects: frozenset[str] = frozenset()
 ) -> tuple[tuple[int | str, PressKind | None, str] | None, str | None]:
     """(owner, kind, press) of a video: ``F<id>_[<kind>_]<press>`` names a fabric (in any touch
-    folder); in ``videos/``, ``<object>_<n>`` names an object. Or a message saying why not."""
+    folder); in ``videos/``, ``<object>_<n>`` names an object, and always does for one of
+    ``objects`` (those a labels file keyed by ``object`` names: ``F0001_0.mp4`` is object
+    ``F0001``'s press there, not fabric 1's). Or a message saying why not."""
     stem = path.stem
+    in_videos = folder.name.lower() == "videos"
+    named = _OBJECT_VIDEO.match(stem) if in_videos else None
+    if named is not None and named["object"] in objects:
+        return (named["object"], None, named["press"]), None
     m = _TOUCH_VIDEO.match(stem)
     if m is not None:
         fid = _fabric_id(m["fabric"].lstrip("0") or "0")
@@ -350,10 +336,9 @@ def _video_key(
                 f"{folder.name}/ does not give one; expected F<id>_<kind>_<press>{path.suffix}"
             )
         return (fid, kind, m["press"]), None
-    if folder.name.lower() == "videos":
-        m = _OBJECT_VIDEO.match(stem)
-        if m is not None:
-            return (m["object"], None, m["press"]), None
+    if in_videos:
+        if named is not None:
+            return (named["object"], None, named["press"]), None
         return None, (
             f"video name does not parse; expected <object>_<n>{path.suffix} "
             f"(e.g. sponge_0{path.suffix}) or F<id>_<press>{path.suffix}"
@@ -429,6 +414,13 @@ def scan(
     for path, modality, _ in sorted(folders, key=lambda x: rank[x[1]].get(x[0].name.lower(), 99)):
         if modality is not Modality.TOUCH and modality not in used_single:
             used_single[modality] = path
+    # labels.csv before the files: one keyed by `object` says which videos name objects (its
+    # problems are reported after the files', where they always were)
+    table: LabelTable | None = None
+    label_problems: list[Problem] = []
+    if labels_path is not None:
+        table, label_problems = read_labels(labels_path)
+    objects = frozenset(table.named) if table is not None and table.key == "object" else frozenset()
     kept = []
     for path, modality, kind in folders:
         if modality is not Modality.TOUCH and used_single[modality] != path:
@@ -474,7 +466,7 @@ def scan(
                 problems.append(Problem(path, msg))
                 continue
             if is_video:
-                key, msg = _video_key(path, folder, folder_kind)
+                key, msg = _video_key(path, folder, folder_kind, objects)
                 if msg is None and check_headers:
                     msg = _video_header_problem(path)
                 if msg is not None or key is None:
@@ -551,13 +543,8 @@ def scan(
                     continue
                 singles[fid][modality].append(path)
 
-    # ---- labels (read before numbering named objects) ---------------------------------------
-    table: LabelTable | None = None
-    if labels_path is not None:
-        table, label_problems = read_labels(labels_path)
-        problems.extend(label_problems)
-        if table.key == "object":
-            videos = _object_videos_named_like_fabrics(videos, set(table.named))
+    # ---- the labels' problems, and ids for the named objects -----------------------------------
+    problems.extend(label_problems)
     names = sorted(
         {k[0] for k in videos if isinstance(k[0], str)} | set(table.named if table else ())
     )
