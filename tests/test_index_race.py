@@ -64,7 +64,7 @@ def test_an_open_during_a_running_swap_waits_for_it_and_reads_the_new_library(
     # A build holds it: open waits for the swap, which the "build" finishes once open has
     # seen its lock held (no timing: the order is forced).
     seen = threading.Event()
-    real_held = getattr(library_module, "_held", lambda path: False)  # (before the fix: none)
+    real_held = getattr(library_module, "is_held", lambda path: False)  # (before the fix: none)
 
     def held(path: Path) -> bool:
         got = real_held(path)
@@ -72,7 +72,7 @@ def test_an_open_during_a_running_swap_waits_for_it_and_reads_the_new_library(
             seen.set()
         return got
 
-    monkeypatch.setattr(library_module, "_held", held, raising=False)
+    monkeypatch.setattr(library_module, "is_held", held, raising=False)
     with _build_lock(out) as fd:
 
         def finish_swap() -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from lookfeel.errors import LookfeelError
 
-__all__ = ["BusyError", "exclusive", "lock_path"]
+__all__ = ["BusyError", "exclusive", "is_held", "lock_path"]
 
 
 class BusyError(LookfeelError):
@@ -95,6 +95,29 @@ def exclusive(
         yield
     finally:
         path.unlink(missing_ok=True)  # while still held: no other process holds this file
+        os.close(fd)
+
+
+def is_held(lock: Path) -> bool:
+    """Whether a live process holds the lock file ``lock`` (`exclusive`'s, `lock_path`): one
+    that can be taken at once (shared, and released at once) is held by none; no file, no
+    holder."""
+    try:
+        import fcntl
+    except ImportError:  # not on Linux or macOS: nothing is locked
+        return False
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
         os.close(fd)
 
 

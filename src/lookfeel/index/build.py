@@ -209,16 +209,6 @@ def _ours(folder: Path) -> bool:
     return all(p.name.startswith(".") and p.name.endswith(".tmp") for p in folder.iterdir())
 
 
-def _build_lock(out: Path) -> contextlib.AbstractContextManager[None]:
-    """Hold ``OUT.lock`` (`lock_file`, `lookfeel.locks.exclusive`) while building ``out``.
-
-    Raises:
-        LibraryError: another process holds the lock, naming ``out`` and that process's PID;
-            or ``OUT.lock`` is a file of the user's (not a PID) or a folder.
-    """
-    return exclusive(out, "index build", "this library", LibraryError)
-
-
 def _move(src: Path, dst: Path) -> None:
     """Rename ``src`` to ``dst`` (one step of the swap) and make the rename durable."""
     os.rename(src, dst)
@@ -468,7 +458,7 @@ def build_library(
     if out.is_symlink():  # swap the folder it names, keeping the link
         out = out.resolve()
     _check_not_here(out)
-    with _build_lock(out):
+    with exclusive(out, "index build", "this library", LibraryError):  # OUT.lock
         _finish_swap(out)
         _check_out(out)
         work = work_folder(out)

@@ -59,6 +59,7 @@ from lookfeel.data.labels import is_rank_column
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.index.calibrate import Calibration, CalibrationError
 from lookfeel.index.search import ExactSearch, FaissSearch, Search
+from lookfeel.locks import is_held, lock_path
 from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
@@ -121,8 +122,9 @@ def aside_folder(root: Path) -> Path:
 
 
 def lock_file(root: Path) -> Path:
-    """``LIB.lock``: the lock a build holds while it writes ``root`` (or its work folder)."""
-    return _beside(root, ".lock")
+    """``LIB.lock``: the lock a build holds while it writes ``root`` (or its work folder;
+    `lookfeel.locks.lock_path`)."""
+    return lock_path(root)
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
@@ -695,29 +697,7 @@ def _swap_lock(root: Path) -> Path | None:
     if not (aside_folder(root).is_dir() or manifest_status(work_folder(root)) == "complete"):
         return None
     lock = lock_file(root)
-    return lock if _held(lock) else None
-
-
-def _held(lock: Path) -> bool:
-    """Whether a live process holds the build lock ``lock`` (`lock_file`): one that can be
-    taken at once (shared, and released at once) is held by none; no lock file, no build."""
-    try:
-        import fcntl
-    except ImportError:  # not on Linux or macOS: builds hold no lock
-        return False
-    try:
-        fd = os.open(lock, os.O_RDONLY)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except OSError:
-        return True
-    else:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        return False
-    finally:
-        os.close(fd)
+    return lock if is_held(lock) else None
 
 
 def _not_found(root: Path) -> str:
