@@ -1,6 +1,8 @@
 """``lookfeel serve``: a web page and a JSON API that match images against a library.
 
-Serve a page and a JSON API (OpenAPI at /openapi.json) over a library.
+Serve a page and a JSON API (OpenAPI at /openapi.json) over a library. A library rebuilt
+while it runs (`lookfeel index build` into the same folder) is served once it is loaded; until
+then, and when a rebuild cannot be served (said in one line), the one opened before answers.
 """
 
 from __future__ import annotations

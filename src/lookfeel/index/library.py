@@ -76,6 +76,7 @@ __all__ = [
     "ModalityTable",
     "aside_folder",
     "file_sha256",
+    "folder_identity",
     "lock_file",
     "manifest_status",
     "read_cross_maps",
@@ -522,11 +523,11 @@ class Library:
         deadline = time.monotonic() + SWAP_WAIT
         tries = 1
         while True:
-            before = _identity(root)
+            before = folder_identity(root)
             try:
                 library = cls._open_once(root, checkpoint)
             except LibraryError:
-                after = _identity(root)
+                after = folder_identity(root)
                 lock = _swap_lock(root) if after is None else None
                 if lock is not None:  # a build is moving the new library in
                     if time.monotonic() < deadline:
@@ -541,7 +542,7 @@ class Library:
                     tries += 1
                     continue
                 raise
-            if _identity(root) == before or tries >= _OPEN_TRIES:
+            if folder_identity(root) == before or tries >= _OPEN_TRIES:
                 return library
             tries += 1  # replaced while it was read: read the library now there whole
 
@@ -678,7 +679,7 @@ def manifest_status(root: Path) -> str | None:
     return status if isinstance(status, str) else None
 
 
-def _identity(root: Path) -> tuple[int, int] | None:
+def folder_identity(root: Path) -> tuple[int, int] | None:
     """Which folder ``root`` is now (device, inode), None when there is none: a library swapped
     in is another folder than the one it replaced."""
     try:

@@ -23,7 +23,8 @@ text (a bad field's name and what is wrong with it included), with any value it 
 ``Content-Security-Policy`` allowing only this server's own scripts and styles, and
 ``X-Frame-Options: DENY``. The model runs in a thread pool, at most
 ``max_concurrency`` queries at a time (a semaphore); beyond ``max_waiting`` waiting queries
-the server answers 503 instead of queueing without bound.
+the server answers 503 instead of queueing without bound. A library rebuilt under the server is
+loaded beside the one it serves and answers once loaded (`lookfeel.serve.reload`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ import asyncio
 import io
 import os
 import re
+import sys
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from importlib import resources
 from math import inf
@@ -70,6 +73,7 @@ from lookfeel.index import (
 from lookfeel.index.match import warn_press_kinds
 from lookfeel.index.query import VIDEOS_ARE_TOUCH, bytes_frame_size, orientation_note
 from lookfeel.modality import Modality
+from lookfeel.serve.reload import Served, ServedLibrary
 
 __all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
 
@@ -189,6 +193,10 @@ _STATIC = {
 }
 
 
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
 def _need(ok: bool, option: str, value: object, rule: str) -> None:
     if not ok:
         raise ServeOptionError(f"{option} must be {rule}; got {value!r}")
@@ -207,9 +215,12 @@ class ServeConfig:
         thumbnail_size: longest side of the item images served, in pixels.
         max_pixels: largest width x height of an upload, checked from its header before
             decoding (413 above).
+        reload_every: seconds between looks, when requests come, at whether the library was
+            rebuilt (then it is loaded beside the old one and served; `ServedLibrary`); 0
+            serves the library opened at start until the server stops.
 
     Raises:
-        ServeOptionError: a limit below 1, naming it.
+        ServeOptionError: a limit below 1, or ``reload_every`` below 0, naming it.
     """
 
     max_upload_bytes: int = 8 * 1024 * 1024
@@ -219,8 +230,17 @@ class ServeConfig:
     max_top: int = 20
     thumbnail_size: int = 256
     max_pixels: int = 25_000_000
+    reload_every: float = 2.0
 
     def __post_init__(self) -> None:
+        _need(
+            isinstance(self.reload_every, int | float)
+            and not isinstance(self.reload_every, bool)
+            and 0 <= self.reload_every < inf,
+            "reload_every",
+            self.reload_every,
+            "a number of seconds, 0 or more",
+        )
         for name in (
             "max_upload_bytes",
             "max_files",
@@ -505,20 +525,26 @@ def create_app(
     library: Library | str | os.PathLike[str],
     config: ServeConfig | None = None,
     matcher: Matcher | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> FastAPI:
     """Build the web app over a library.
+
+    A library rebuilt under the server (`lookfeel index build` into its folder) is served
+    once it is loaded (`ServedLibrary`; ``config.reload_every``).
 
     Args:
         library: an opened `Library` or its folder.
         config: limits; defaults to `ServeConfig()`.
-        matcher: a ready `Matcher` (tests inject one); default: built from the library.
+        matcher: a ready `Matcher` for ``library`` (tests inject one); default: built from the
+            library. A rebuilt library gets a `Matcher` of its own.
+        log: where a swap is noted in one line (default: standard error).
 
     Raises:
         LibraryError: the library or its checkpoint cannot be used.
     """
     cfg = config or ServeConfig()
-    lib = library if isinstance(library, Library) else Library.open(library)
-    match = matcher or Matcher(lib)
+    opened = library if isinstance(library, Library) else Library.open(library)
+    served = ServedLibrary(opened, matcher, cfg.reload_every, log or _to_stderr)
     static = {
         name: (resources.files("lookfeel.serve").joinpath("static", name).read_bytes(), mime)
         for name, mime in _STATIC.items()
@@ -531,7 +557,7 @@ def create_app(
         redoc_url=None,
     )
     state: dict[str, Any] = {"waiting": 0, "semaphore": None}
-    thumbnails: OrderedDict[str, bytes] = OrderedDict()
+    thumbnails: OrderedDict[tuple[int, str], bytes] = OrderedDict()
 
     def semaphore() -> asyncio.Semaphore:
         if state["semaphore"] is None:  # created in the server's event loop
@@ -581,6 +607,8 @@ def create_app(
     @app.get("/api/library", response_model=LibraryInfo)
     def library_info() -> LibraryInfo:
         """What the library holds: fabrics, items per modality, model, calibration, limits."""
+        now = served.current()
+        lib, match = now.library, now.matcher
         return LibraryInfo(
             fabrics=len(lib.fabrics),
             items={m.value: len(t) for m, t in lib.tables.items()},
@@ -616,6 +644,7 @@ def create_app(
                 422,
                 f"per_modality must be between 0 and {MAX_PER_MODALITY}; got {per_modality}",
             )
+        lib = served.current().library
         out = []
         for fid, record in sorted(lib.fabrics.items()):
             items = {
@@ -634,7 +663,7 @@ def create_app(
             )
         return out
 
-    def lookup(item_id: str) -> LibraryItem:
+    def lookup(lib: Library, item_id: str) -> LibraryItem:
         try:
             return lib.item(item_id)
         except KeyError as e:
@@ -643,7 +672,7 @@ def create_app(
     @app.get("/api/items/{item_id}", response_model=ItemInfo)
     def item_info(item_id: str) -> ItemInfo:
         """One library item by id (``depth:12``)."""
-        return _item_info(lookup(item_id))
+        return _item_info(lookup(served.current().library, item_id))
 
     @app.get(
         "/api/items/{item_id}/image",
@@ -657,17 +686,19 @@ def create_app(
     async def item_image(item_id: str) -> Response:
         """The item's image as a PNG thumbnail (depth shown as grey, near = dark; a press
         video as its frame of deepest contact, as recorded)."""
-        item = lookup(item_id)
-        png = thumbnails.get(item.id)
+        now = served.current()
+        item = lookup(now.library, item_id)
+        key = (now.generation, item.id)
+        png = thumbnails.get(key)
         if png is None:
             try:
-                png = await run_in_threadpool(_thumbnail, item, lib, cfg.thumbnail_size)
+                png = await run_in_threadpool(_thumbnail, item, now.library, cfg.thumbnail_size)
             except ImageError as e:
                 raise HTTPException(
                     410,
                     public_message(f"item {item.id}: its file can no longer be read ({e.reason})"),
                 ) from None
-            thumbnails[item.id] = png
+            thumbnails[key] = png
             while len(thumbnails) > 2048:
                 thumbnails.popitem(last=False)
         return Response(
@@ -678,7 +709,8 @@ def create_app(
         if not 1 <= top <= cfg.max_top:
             raise HTTPException(422, f"top must be between 1 and {cfg.max_top}; got {top}")
 
-    def check_modalities(modality: Modality, gallery: Modality | None) -> None:
+    def check_modalities(now: Served, modality: Modality, gallery: Modality | None) -> None:
+        lib, match = now.library, now.matcher
         try:
             match.check_modality(modality)
             if gallery is not None:
@@ -715,7 +747,9 @@ def create_app(
         """Rank the library's fabrics for uploaded images, with probabilities, the nearest
         items of each fabric in every modality and predicted physical properties."""
         check_top(top)
-        check_modalities(modality, gallery)
+        now = served.current()  # the whole request is answered from this library
+        match = now.matcher
+        check_modalities(now, modality, gallery)
         if not files:
             raise HTTPException(422, "no file uploaded")
         if len(files) > cfg.max_files:
@@ -822,8 +856,10 @@ def create_app(
     async def match_library_item(query: ItemQuery) -> MatchResponse:
         """Match a library item as a query, itself left out of the gallery."""
         check_top(query.top)
-        item = lookup(query.item)
-        check_modalities(item.modality, query.gallery)
+        now = served.current()
+        match = now.matcher
+        item = lookup(now.library, query.item)
+        check_modalities(now, item.modality, query.gallery)
         try:
             result = await run_model(
                 lambda: match.match_item(item.id, top=query.top, gallery=query.gallery)
