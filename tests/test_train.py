@@ -189,10 +189,15 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
 
 
-def test_a_resume_on_other_data_is_refused(data: Path, tmp_path: Path):
+def test_a_resume_on_other_data_is_refused(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
     """QA: a run killed on one dataset resumed on another (a new --data, or the same names
-    rendered again) without a word, and its checkpoint then named only the second."""
+    rendered again) without a word, and its checkpoint then named only the second. Refused
+    before any press video is decoded (`drop_unpressed`: a minute for PhysiCLeAR's)."""
     import shutil
+
+    from lookfeel.train import loop
 
     cfg = _config()
     _unbroken_and_killed(cfg, data, tmp_path)
@@ -200,9 +205,13 @@ def test_a_resume_on_other_data_is_refused(data: Path, tmp_path: Path):
     image = sorted((other / "depth").iterdir())[0]
     image.write_bytes(image.read_bytes() + b"\0")  # the same names, another file
     before = (tmp_path / "broken/checkpoints/last.pt").read_bytes()
+    decoded = []
+    drop = loop.drop_unpressed
+    monkeypatch.setattr(loop, "drop_unpressed", lambda *a, **k: decoded.append(1) or drop(*a, **k))
     with pytest.raises(ConfigError, match=r"--resume \(resume=True\): .*last\.pt was trained on "
                        r"another dataset than .*other, or on this one before"):  # fmt: skip
         train(cfg, other, tmp_path / "broken", resume=True)
+    assert decoded == []
     assert (tmp_path / "broken/checkpoints/last.pt").read_bytes() == before
     moved = Path(shutil.copytree(data, tmp_path / "moved"))  # a moved copy is the same data
     train(cfg, moved, tmp_path / "broken", resume=True)

@@ -1070,16 +1070,26 @@ def _train(
     # The files as `evaluate` scans them: before k-means clusters, and before the videos that
     # hold no press are left out (which evaluate finds after it compares the two).
     data_fingerprint = scanned.fingerprint()
-    catalog = drop_unpressed(scanned, loader, views=not cached)
     trained_on = state.get("data_fingerprint") if state is not None else None
-    if trained_on is not None and not any(  # before session 53 taken after the drop
+    other_data = ConfigError(
+        f"{_RESUME}: {resumed_from} was trained on another dataset than {data}, or on this "
+        "one before its files or labels changed: resume it with the data it trained on, or "
+        "start a new run in another --out"
+    )
+    # Refused before any video is decoded: a checkpoint that records its software (session 53
+    # on) took the fingerprint before the drop; an older one after it (checked below).
+    if (
+        trained_on is not None
+        and state is not None
+        and "software" in state
+        and not scanned.matches_fingerprint(trained_on)
+    ):
+        raise other_data
+    catalog = drop_unpressed(scanned, loader, views=not cached)
+    if trained_on is not None and not any(
         c.matches_fingerprint(trained_on) for c in (scanned, catalog)
     ):
-        raise ConfigError(
-            f"{_RESUME}: {resumed_from} was trained on another dataset than {data}, or on this "
-            "one before its files or labels changed: resume it with the data it trained on, or "
-            "start a new run in another --out"
-        )
+        raise other_data
     _say_reprints(catalog, loader, config, cached, data)
     catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
