@@ -4,7 +4,7 @@ Generate depth and colour images of fabrics draped over the post and GelSight pr
 (flat and on a fold) from physical fabric parameters, in the layout that `lookfeel data check`
 reads. With --labels, render exactly the fabrics of a labels.csv (ids kept) from their labels:
 by default colour and touch, to stand beside real depth images. The same seed gives
-byte-identical files. See docs/synth.md.
+byte-identical files. See docs/synth.md in the lookfeel source repository.
 """
 
 from __future__ import annotations
