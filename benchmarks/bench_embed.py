@@ -77,7 +77,7 @@ def run(
 
     model = create_model(ModelConfig(backbone="alexnet"), [Modality.TOUCH]).to(dev)
     if dev.type == "cuda":
-        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload, unused-ignore]
         torch.backends.cudnn.benchmark = True
         torch.cuda.reset_peak_memory_stats()
     config = DataConfig(image_size=227, workers=16 if dev.type == "cuda" else 2)

@@ -1139,7 +1139,7 @@ def _train(
     if device.type == "cuda":
         torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest
     if t.channels_last:  # on every device (`TrainConfig.channels_last`)
-        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+        model = model.to(memory_format=torch.channels_last)  # type: ignore[call-overload, unused-ignore]
     loss_fn = create_loss(config.loss, config.model.class_sizes).to(device)
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)
