@@ -295,3 +295,22 @@ def test_a_rebuild_keeps_a_file_of_the_user_s_in_the_library_by_refusing(
     (lib / "NOTES.txt").unlink()
     build_library(ckpt, data, lib, shard_size=8)
     assert Library.open(lib).root == lib
+
+
+def test_a_library_of_a_plugin_backbone_opened_without_the_plugin_says_so(
+    library: Path, tmp_path: Path, capsys
+):
+    """QA: it said "malformed manifest ...; rebuild", which would not help: the manifest is
+    whole, the plugin that registers its backbone was not loaded."""
+    out = shutil.copytree(library, tmp_path / "lib")
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["config"]["model"]["backbone"] = "lfplug_gone"
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    assert main(["index", "info", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        f"lookfeel: {out / 'manifest.json'}: its model's config does not load: model.backbone: "
+        "'lfplug_gone' is not one of alexnet, compact, resnet18 (one of your own: import its "
+        "module first, or name it in LOOKFEEL_PLUGINS or lookfeel --plugin"
+    )
+    assert "malformed" not in err and "rebuild" not in err and err.count("\n") == 1

@@ -501,3 +501,33 @@ def test_loss_config_validates_with_key_names() -> None:
     ]:
         with pytest.raises(ConfigError, match=key):
             from_dict(LossConfig, bad)
+
+
+class _Detached(torch.nn.Module):
+    """A loss of one's own whose term is cut from the embeddings (``.item()`` back to a tensor)."""
+
+    def forward(self, embeddings, y=None, fabric=None):
+        a, b = embeddings.values()
+        return {"depth_touch_loss": torch.tensor((a - b).pow(2).mean().item())}
+
+
+def test_a_loss_that_gives_nothing_to_train_with_is_one_line_naming_it() -> None:
+    """QA: a build function returning None failed at the first step with "'NoneType' object
+    is not callable", and a detached term at backward with "element 0 of tensors does not
+    require grad": neither named the loss."""
+    with restored_registries():
+        register_loss("lfnone", lambda config: None)
+        with pytest.raises(
+            LossError,
+            match=r"^loss 'lfnone': its build function tests\.test_losses\..*<lambda> returned "
+            r"NoneType, not a torch\.nn\.Module",
+        ):
+            create_loss(LossConfig(kind="lfnone"))
+    out = {k: v.requires_grad_() for k, v in _outputs().items() if "/" not in k}
+    with pytest.raises(
+        LossError,
+        match=r"^the loss _Detached: its terms depth_touch_loss do not depend on the embeddings",
+    ):
+        CombinedLoss(_Detached())(out)
+    with torch.no_grad():  # scoring: nothing to train, nothing refused
+        assert CombinedLoss(_Detached())(out)["loss"].dim() == 0

@@ -349,3 +349,77 @@ def test_a_spawned_reproduce_worker_loads_the_plugins(plugin, monkeypatch):
     ) as pool:
         assert name in pool.submit(backbone_names).result(timeout=120)
     assert name not in backbone_names()  # the worker's own doing, not this process's
+
+
+_OVERRIDE = """\
+from torch import nn
+
+from lookfeel.models import Backbone, register_backbone
+
+
+class Residual(Backbone):
+    freeze_points = {"none": 0}
+
+    def _build(self, freeze, dropout, width):
+        conv = nn.Conv2d(self.stem_channels, 8, 3, 2, 1)
+        self.conv = nn.Sequential(conv, nn.AdaptiveAvgPool2d(1))
+        self._set_stages([self.conv, nn.Flatten(1)], "none", embed_dim=8)
+
+    def forward(self, x):
+        return self.head(self.trunk(x)) + 1
+
+
+register_backbone("lfplug_residual", Residual)
+"""
+
+_CLASH = """\
+from lookfeel.models import register_backbone
+from lookfeel.models.compact import CompactCNN
+
+
+class Mine(CompactCNN):
+    pass
+
+
+register_backbone("compact", Mine)
+"""
+
+
+@pytest.mark.parametrize(
+    ("source", "message"),
+    [
+        (
+            _OVERRIDE,
+            "TypeError: backbone 'lfplug_residual': Residual defines forward(), which lookfeel "
+            "never calls (it runs the stages given to _set_stages): make it a stage, at {path}:18",
+        ),
+        (
+            _CLASH,
+            "ValueError: backbone 'compact' is already registered "
+            "(lookfeel.models.compact.CompactCNN), at {path}:9",
+        ),
+    ],
+    ids=["forward-defined", "name-clash"],
+)
+def test_a_backbone_lookfeel_cannot_run_as_written_is_refused_at_the_plugins_line(
+    plugin, tmp_path: Path, monkeypatch, source: str, message: str
+):
+    """QA: a plugin backbone's own forward() (a residual connection) was never called and
+    nothing said so; a refused name was located in lookfeel's registry, not the plugin."""
+    name = plugin("lfplug_contract")
+    path = tmp_path / "plugins" / f"{name}.py"
+    path.write_text(source)
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
+    with pytest.raises(PluginError) as e:
+        load_plugins()
+    assert str(e.value) == (
+        f"LOOKFEEL_PLUGINS: cannot import 'lfplug_contract' ({message.format(path=path)})"
+    )
+
+
+def test_an_error_s_first_sentence_keeps_its_example() -> None:
+    """QA: ``error_line`` cut "... stages in the trunk, e.g. {"none": 0}" at "e.g"."""
+    from lookfeel.errors import error_line
+
+    e = TypeError('point -> stages, e.g. {"none": 0}, i.e. a dict. More follows. And more')
+    assert error_line(e) == 'TypeError: point -> stages, e.g. {"none": 0}, i.e. a dict'

@@ -603,7 +603,7 @@ def test_a_backbone_and_a_loss_of_ones_own_train_through_the_config(
 
 def test_a_non_finite_loss_term_is_named(data: Path, tmp_path: Path):
     """QA: a loss of one's own whose term turned NaN was reported as the loss, with only the
-    learning rate to suspect."""
+    learning rate to suspect (session 54: the loss is named as the first suspect)."""
     from lookfeel.losses import register_loss
 
     from ._registry import NaNTermLoss, restored_registries
@@ -612,8 +612,9 @@ def test_a_non_finite_loss_term_is_named(data: Path, tmp_path: Path):
         register_loss("nanterm", lambda c: NaNTermLoss())
         train(_config("loss.kind=nanterm", "train.checkpoint_every=0"), data, tmp_path / "r")
     assert str(e.value).startswith(
-        "train: the loss became NaN between steps 1 and 5, in its term broken_loss "
-        "(train.lr=0.001 too high?)"
+        "train: the loss became NaN between steps 1 and 5, in its term broken_loss (does the "
+        "loss 'nanterm' divide by zero, say a mean over pairs a batch may lack? or "
+        "train.lr=0.001 too high?)"
     )
 
 

@@ -10,6 +10,7 @@ this class) and never prints.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import types
 
@@ -53,12 +54,16 @@ def load_problem(e: Exception, path: str | os.PathLike[str] | None = None) -> st
     return error_line(e)
 
 
+_SENTENCE_END = re.compile(r"(?<!e\.g)(?<!i\.e)\. ")
+"""Where a sentence ends: a full stop and a space, not that of ``e.g.`` or ``i.e.``."""
+
+
 def error_line(e: BaseException, limit: int = 200) -> str:
     """Another library's error in one line for a person: its type and its first sentence (at
     most ``limit`` characters), without the paragraphs, graph dumps and advice that follow it
     (``[Caused by ...]``)."""
     text = " ".join(line.strip() for line in str(e).splitlines() if line.strip())
-    first = text.split(". ")[0].split(" [Caused by")[0] if text else "no reason given"
+    first = _SENTENCE_END.split(text)[0].split(" [Caused by")[0] if text else "no reason given"
     return f"{type(e).__name__}: {first[:limit]}"
 
 

@@ -235,22 +235,28 @@ def _load_entry_point(ep: importlib.metadata.EntryPoint) -> None:
 
 def _why(e: BaseException, locate: bool) -> str:
     """``e`` in one line; with ``locate``, the file and line of the plugin's code it was raised
-    at (the innermost frame outside the import machinery and this module), so that a bug in a
-    plugin can be found without its traceback."""
+    at (the innermost frame outside the import machinery and lookfeel's own code: a name that
+    `register_backbone` refuses is named at the plugin's line that registers it), so that a
+    bug in a plugin can be found without its traceback."""
     if not locate:
         return str(e)  # "No module named 'x'" says it all
     text = error_line(e)
     if isinstance(e, SyntaxError) and e.filename:
         return f"{text}, at {e.filename}:{e.lineno}"
-    at = None
+    at = own = None
     tb = e.__traceback__
     while tb is not None:
         filename = tb.tb_frame.f_code.co_filename
         if not (filename.startswith("<frozen") or filename in _MACHINERY):
             at = f"{filename}:{tb.tb_lineno}"
+            if not filename.startswith(_LOOKFEEL):
+                own = at
         tb = tb.tb_next
+    at = own or at
     return f"{text}, at {at}" if at else text
 
 
 _MACHINERY = {__file__, importlib.__file__, importlib.metadata.__file__}
 """Files whose frames are the import machinery, not a plugin's code."""
+_LOOKFEEL = os.path.dirname(os.path.abspath(__file__)) + os.sep
+"""lookfeel's own code: where a plugin's error is raised, not where its cause is."""

@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from lookfeel.atomic import atomic_write
 from lookfeel.checkpoint import LoadedModel, load_model
-from lookfeel.config import RunConfig, from_dict
+from lookfeel.config import ConfigError, RunConfig, from_dict
 from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.catalog import Catalog, Fabric
 from lookfeel.data.labels import is_rank_column
@@ -563,6 +563,10 @@ class Library:
             raise LibraryError(
                 f"{root / MANIFEST}: {e}; the manifest is damaged: rebuild with "
                 "`lookfeel index build`"
+            ) from None
+        except ConfigError as e:  # a plugin's backbone this process has not loaded, say
+            raise LibraryError(
+                f"{root / MANIFEST}: its model's config does not load: {e}"
             ) from None
         except KeyError as e:
             raise LibraryError(

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import get_args, overload
 
+import torch
 from torch import Tensor, nn
 
 from lookfeel.config._core import ConfigError
@@ -140,7 +141,8 @@ class CombinedLoss(nn.Module):
 
         Raises:
             ValueError: targets given for a head the outputs lack, or nothing to optimise.
-            LossError: the pairwise objective gave a term that is not a scalar tensor.
+            LossError: the pairwise objective gave a term that is not a scalar tensor, or
+                while gradients are recorded, a total that does not depend on the embeddings.
         """
         terms: dict[str, Tensor] = {}
         if self.pair_weight > 0:
@@ -175,6 +177,16 @@ class CombinedLoss(nn.Module):
         _check_terms(terms, "the combined loss")
         values = list(terms.values())
         terms["loss"] = sum(values[1:], values[0])
+        if (
+            torch.is_grad_enabled()
+            and not terms["loss"].requires_grad
+            and any(v.requires_grad for v in embeddings_of(outputs).values())
+        ):
+            raise LossError(
+                f"the loss {type(self.pair_loss).__name__}: its terms "
+                f"{', '.join(n for n in terms if n != 'loss')} do not depend on the embeddings "
+                "(a constant, or a tensor detached from them): there is no gradient to train with"
+            )
         return terms
 
 
@@ -278,8 +290,16 @@ def create_loss(config: LossConfig, class_sizes: tuple[int, ...] = ()) -> Combin
     ):
         if value not in known:
             raise ValueError(f"loss.{what}: {value!r} is not one of {', '.join(allowed)}")
+    build = PAIR_LOSSES[config.kind]
+    pair_loss = build(config)
+    if not isinstance(pair_loss, nn.Module):
+        raise LossError(
+            f"loss {config.kind!r}: its build function {_where(build)} returned "
+            f"{type(pair_loss).__name__}, not a torch.nn.Module (register_loss takes a function "
+            "of the LossConfig that returns the loss module)"
+        )
     return CombinedLoss(
-        PAIR_LOSSES[config.kind](config),
+        pair_loss,
         pair_weight=config.pair_weight,
         cluster_weight=config.cluster_weight,
         property_weight=config.property_weight,

@@ -86,7 +86,9 @@ def register_backbone(
         ``cls`` (or the decorator).
 
     Raises:
-        TypeError: ``cls`` is not a `Backbone` subclass, or its attributes are inconsistent.
+        TypeError: ``cls`` is not a `Backbone` subclass, its attributes are inconsistent, or it
+            defines ``forward``, ``trunk`` or ``head`` (lookfeel runs the stages given to
+            ``_set_stages``, never these: an override would be ignored without a word).
         ValueError: another class is registered under ``name``, or ``cls`` is named otherwise.
     """
     if cls is None:
@@ -95,6 +97,13 @@ def register_backbone(
         raise TypeError(f"backbone {name!r}: expected a Backbone subclass, got {cls!r}")
     if not isinstance(name, str) or not name:
         raise ValueError(f"a backbone name must be a non-empty string, got {name!r}")
+    for klass in cls.__mro__[: cls.__mro__.index(Backbone)]:
+        defined = [m for m in _RUN_BY_LOOKFEEL if m in vars(klass)]
+        if defined:
+            raise TypeError(
+                f"backbone {name!r}: {klass.__qualname__} defines {defined[0]}(), which lookfeel "
+                "never calls (it runs the stages given to _set_stages): make it a stage"
+            )
     known = dict.get(BACKBONES, name)
     if known is not None and _where(known) != _where(cls):
         raise ValueError(f"backbone {name!r} is already registered ({_where(known)})")
@@ -105,6 +114,11 @@ def register_backbone(
     cls.name = name
     dict.__setitem__(BACKBONES, name, cls)
     return cls
+
+
+_RUN_BY_LOOKFEEL = ("forward", "trunk", "head")
+"""`Backbone` methods lookfeel runs as the base class defines them (`Branch` calls `trunk` and
+`head`, which run the stages): a subclass must not define them."""
 
 
 def _where(cls: type) -> str:

@@ -34,6 +34,7 @@ def diverged(
     kept: Mapping[Path, int],
     checkpoint_every: int,
     terms: Sequence[str] = (),
+    own_loss: str | None = None,
 ) -> TrainingDiverged:
     """The error that stops a diverged run.
 
@@ -47,6 +48,8 @@ def diverged(
         checkpoint_every: ``train.checkpoint_every``, named when nothing was kept.
         terms: the loss terms that were not finite, when known (``depth_touch_loss``): a
             loss of one's own that gives NaN is told apart from a learning rate too high.
+        own_loss: ``loss.kind`` when a plugin registered it (not lookfeel): where its terms
+            are among those not finite (or none are known), the hint names it first.
 
     Returns:
         A `TrainingDiverged` whose message reads, for example, ``train: the loss became NaN
@@ -63,6 +66,14 @@ def diverged(
     where = ""
     if terms:
         where = f", in its term{'s' if len(terms) > 1 else ''} {', '.join(terms)}"
-    return TrainingDiverged(
-        f"train: the {what} became {became} {when}{where} (train.lr={lr:g} too high?); {tail}"
-    )
+    hint = f"train.lr={lr:g} too high?"
+    if what == "loss" and own_loss is not None and not set(terms) <= _HEAD_TERMS:
+        hint = (
+            f"does the loss {own_loss!r} divide by zero, say a mean over pairs a batch may "
+            f"lack? or train.lr={lr:g} too high?"
+        )
+    return TrainingDiverged(f"train: the {what} became {became} {when}{where} ({hint}); {tail}")
+
+
+_HEAD_TERMS = {"cluster_loss", "property_loss", "class_loss"}
+"""The loss terms of lookfeel's own heads, whatever the pairwise loss (`CombinedLoss`)."""

@@ -1274,6 +1274,8 @@ def _train(
             "best": best,
         }
 
+    # A plugin's loss (not lookfeel's) is named first when a run diverges in its terms.
+    own_loss = None if loss_fn.pair_loss.__module__.startswith("lookfeel.") else config.loss.kind
     progress = None
     if t.progress and dist.is_main:
         from tqdm import tqdm
@@ -1296,7 +1298,9 @@ def _train(
         if progress is not None:
             progress.close()
         log.close()
-        return diverged(what, value, checked + 1, done, t.lr, kept, t.checkpoint_every, terms)
+        return diverged(
+            what, value, checked + 1, done, t.lr, kept, t.checkpoint_every, terms, own_loss
+        )
 
     def save(path: Path, done: int) -> None:
         """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
