@@ -196,3 +196,15 @@ def test_glance_figure_rejects_bad_rows():
     bad = GlanceLook("depth", row.looks[0].images, ["1."], [True])
     with pytest.raises(ValueError, match="images, labels and true flags differ"):
         glance_figure([GlanceRow(row.query_image, "q", [bad])], "t")
+
+
+def test_a_figure_is_whole_pixels_whether_matplotlib_cuts_or_rounds():
+    """QA (lowest versions): glance.png was 805 px wide with matplotlib < 3.11.1, 806 after:
+    its 1.2 * (3 + 1.3) + 2.9 inches are 805.9999 px, which older versions cut, newer round."""
+    from lookfeel.plots._figure import DPI, new_figure
+
+    for inches in [1.2 * (3 + 1.3) + 2.9, 0.29 * 10, 3.3, 7.000001, 6.9999]:
+        fig = new_figure(inches, 2.0)
+        px = fig.get_figwidth() * DPI
+        assert int(px) == round(px) == round(inches * DPI)  # matplotlib < 3.11.1 cuts
+        assert fig.get_figheight() * DPI >= 200

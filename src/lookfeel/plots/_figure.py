@@ -45,10 +45,18 @@ def style() -> Iterator[None]:
 
 
 def new_figure(width_in: float, height_in: float) -> Figure:
-    """A figure of ``width_in`` x ``height_in`` inches on an Agg canvas (no pyplot)."""
-    fig = Figure(figsize=(width_in, height_in), dpi=DPI)
+    """A figure of ``width_in`` x ``height_in`` inches on an Agg canvas (no pyplot), each side
+    made a whole number of pixels (`_whole_pixels`)."""
+    fig = Figure(figsize=(_whole_pixels(width_in), _whole_pixels(height_in)), dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
+
+
+def _whole_pixels(inches: float) -> float:
+    """``inches`` rounded to whole pixels at `DPI`, a hair above them: 8.06 in is 805.9999 px in
+    floating point, which matplotlib before 3.11.1 cut to 805 px and later versions round to
+    806; 806.001 px is 806 for both."""
+    return (round(inches * DPI) + 1e-3) / DPI
 
 
 def figure_png(fig: Figure) -> bytes:
