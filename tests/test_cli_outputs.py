@@ -39,8 +39,19 @@ WORK = [
 
 @pytest.fixture
 def no_work(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every command's work raises `_Worked` (the commands import it when they run)."""
+    """Every command's work raises `_Worked` (the commands import it when they run).
+
+    Every lookfeel module is imported first: one imported for the first time while the work
+    is replaced (``lookfeel.crossval.run``'s ``from lookfeel.train import train``) would keep
+    the stand-in after the test, and a later test in the process would run it."""
     import importlib
+    import pkgutil
+
+    import lookfeel
+
+    for info in pkgutil.walk_packages(lookfeel.__path__, "lookfeel."):
+        if not info.name.endswith(".__main__"):  # that one runs the CLI
+            importlib.import_module(info.name)
 
     def worked(*args: object, **kwargs: object) -> None:
         raise _Worked
