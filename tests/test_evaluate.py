@@ -582,6 +582,12 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
     with np.load(npz) as z:
         assert set(np.unique(z["fabric_id_touch"]).tolist()) == set(val)
         assert z["embeddings_touch"].shape[0] == 4 * len(val)  # one row per press
+        meta = json.loads(str(z["meta"]))  # what made it (session 54)
+        from lookfeel.data import scan
+        from lookfeel.provenance import software_versions
+
+        assert meta["data_fingerprint"] == scan(data).fingerprint()
+        assert meta["software"] == software_versions()
         assert z["embeddings_depth"].shape == (3 * len(val), z["embeddings_depth"].shape[1])
         assert z["path_depth"][0].endswith(".png")
         assert z["reference_embeddings_depth"].shape[0] == 3 * (8 - len(val))

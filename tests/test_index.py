@@ -408,6 +408,13 @@ def test_cli_index_build_and_info(run, tmp_path: Path, capsys):
     assert main(["index", "info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["items"] == {"depth": 18, "color": 18, "touch": 18} and info["fabrics"] == 6
+    # what built it, as a run records it (session 54): the dataset's fingerprint, the software
+    from lookfeel.data import scan
+    from lookfeel.provenance import software_versions
+
+    assert info["data_fingerprint"] == scan(data).fingerprint()
+    assert info["software"] == software_versions()
+    assert f"(fingerprint {info['data_fingerprint'][:12]})" in printed
     assert main(["index", "info", str(tmp_path / "nothing")]) == 1
     assert "library folder not found" in capsys.readouterr().err
     assert math.isclose(info["calibration"]["target_false_accept"], 0.1)

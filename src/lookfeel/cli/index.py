@@ -187,7 +187,9 @@ def run_info(args: argparse.Namespace) -> int:
     if model.get("color_size"):
         sizes += f" (colour {model['color_size']} px)"
     print(f"  model       {model['backbone']} at {sizes}, D = {model['embed_dim']}")
-    print(f"  data        {summary['data_root']}")
+    fingerprint = summary.get("data_fingerprint")
+    digest = f" (fingerprint {fingerprint[:12]})" if fingerprint else ""
+    print(f"  data        {summary['data_root']}{digest}")
     items = ", ".join(f"{n} {m}" for m, n in summary["items"].items())
     print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")
     cal = library.calibration

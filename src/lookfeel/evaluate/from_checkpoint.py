@@ -57,6 +57,7 @@ from lookfeel.index.match import check_touch_dataset
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import BranchEnsemble, Embedder
+from lookfeel.provenance import software_versions
 
 from .controls import background_control, raw_pixel_baseline, untouched_control
 from .core import evaluate_embeddings
@@ -312,6 +313,8 @@ def _embed(
         "checkpoint": str(loaded.path),
         "step": loaded.step,
         "data_root": str(catalog.root),
+        "data_fingerprint": catalog.fingerprint(),  # the folder as scanned (`Catalog`)
+        "software": software_versions(),
         "data_config": to_dict(loaded.config.data),
         "presses": loaded.config.data.presses,
         "pool_exact": pools_final_embedding(loaded.model),

@@ -70,6 +70,7 @@ from lookfeel.index.search import FaissSearch, choose_backend
 from lookfeel.locks import exclusive
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.modality import Modality, Pair, PressKind
+from lookfeel.provenance import software_versions
 
 __all__ = ["MIN_MAP_FABRICS", "BuildResult", "build_library"]
 
@@ -537,6 +538,7 @@ def _build(
         check_touch_dataset(presses, loaded.touch_input, config.data, catalog.root)
     data_config = replace(config.data, cache_dir=None)
     loader = ImageLoader(data_config)
+    fingerprint = catalog.fingerprint()  # as `train` and `evaluate` take it: before the drop
     catalog = drop_unpressed(catalog, loader)
     items = {m: catalog.items(m, kinds) for m in items}
     shards = _plan(items, loader, shard_size, checkpoint_sha)
@@ -548,6 +550,8 @@ def _build(
         "checkpoint": {"path": str(ck), "sha256": checkpoint_sha, "step": loaded.step},
         "config": to_dict(config),
         "data_root": str(catalog.root.resolve()),
+        "data_fingerprint": fingerprint,
+        "software": software_versions(),
         "touch_kinds": [k.value for k in kinds],
         "embed_dim": loaded.model.embed_dim,
         "shard_size": shard_size,

@@ -475,6 +475,9 @@ class Library:
                 "step": self.manifest["checkpoint"].get("step"),
             },
             "data_root": self.manifest["data_root"],
+            # what built it (a library built before session 54 records neither: None)
+            "data_fingerprint": self.manifest.get("data_fingerprint"),
+            "software": self.manifest.get("software"),
             "backend": self.backend,
             "fabrics": len(self.fabrics),
             "items": {m.value: len(t) for m, t in self.tables.items()},
