@@ -45,6 +45,16 @@ def _swap_in(new: Path, lib: Path) -> None:
     shutil.rmtree(lib.with_name(lib.name + ".replaced"))
 
 
+def _served(
+    library: Path, tmp_path: Path, check_every: float
+) -> tuple[Path, ServedLibrary, list[str]]:
+    """(LIB, its ServedLibrary, the notes it logs): a copy of ``library`` served."""
+    lib = tmp_path / "lib"
+    shutil.copytree(library, lib)
+    notes: list[str] = []
+    return lib, ServedLibrary(Library.open(lib), check_every=check_every, log=notes.append), notes
+
+
 def _until(condition: Callable[[], bool], timeout: float = 30.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -84,11 +94,8 @@ def test_a_running_server_serves_the_library_rebuilt_under_it(
 def test_a_rebuild_that_cannot_be_served_is_named_and_the_old_library_kept(
     libraries: tuple[Path, Path], tmp_path: Path
 ) -> None:
-    six, four = libraries
-    lib = tmp_path / "lib"
-    shutil.copytree(six, lib)
-    notes: list[str] = []
-    served = ServedLibrary(Library.open(lib), check_every=0.01, log=notes.append)
+    _, four = libraries
+    lib, served, notes = _served(libraries[0], tmp_path, check_every=0.01)
     damaged = tmp_path / "damaged"
     shutil.copytree(four, damaged)
     manifest = json.loads((damaged / "manifest.json").read_text())
@@ -110,11 +117,8 @@ def test_a_rebuild_that_cannot_be_served_is_named_and_the_old_library_kept(
 def test_reload_every_0_serves_the_library_opened_at_start(
     libraries: tuple[Path, Path], tmp_path: Path
 ) -> None:
-    six, four = libraries
-    lib = tmp_path / "lib"
-    shutil.copytree(six, lib)
-    notes: list[str] = []
-    served = ServedLibrary(Library.open(lib), check_every=0, log=notes.append)
+    _, four = libraries
+    lib, served, notes = _served(libraries[0], tmp_path, check_every=0)
     _swap_in(four, lib)
     time.sleep(0.05)
     assert served.current().generation == 0 and len(served.current().library.fabrics) == 6
