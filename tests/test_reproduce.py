@@ -529,19 +529,34 @@ def test_depth_over_colour_reads_both_ways_and_within_over_across():
 
 
 def test_the_headline_says_n_a_for_a_cell_that_could_not_be_scored():
+    """And each number with its interval and chance (QA, session 54: depth's had neither)."""
     from lookfeel.reproduce.run import headline
 
+    t2d = {"touch_to_depth_top1": 0.25, "touch_to_depth_top1_chance": 0.1}
     lines = headline(
         {
-            "flat": {"metrics": {"touch_to_depth_top1": 0.25, "touch_to_depth_top1_chance": 0.1}},
-            "snn_depth": {"novel": {"top1": float("nan")}},
-            "cross_modal_depth_touch": {"novel": {"top1": None}},
+            "flat": {"metrics": t2d},
+            "cross_modal": {
+                "metrics": t2d
+                | {"touch_to_depth_top1_ci_low": 0.2, "touch_to_depth_top1_ci_high": 0.3}
+            },
+            "snn_depth": {"novel": {"top1": float("nan"), "chance": 0.25}},
+            "cross_modal_depth_touch": {
+                "novel": {
+                    "top1": 0.556,
+                    "chance": 0.25,
+                    "top1_ci_low": 0.306,
+                    "top1_ci_high": 0.847,
+                }
+            },
         }
     )
     assert lines == [
+        "cross_modal  touch->depth top-1 0.250 [0.200, 0.300] (chance 0.100)",
         "flat         touch->depth top-1 0.250 (chance 0.100)",
-        "snn_depth    depth->depth top-1 on novel fabrics n/a",
-        "cross_modal_depth_touch depth->depth top-1 on novel fabrics n/a",
+        "snn_depth    depth->depth top-1 on novel fabrics n/a (chance 0.250)",
+        "cross_modal_depth_touch depth->depth top-1 on novel fabrics 0.556 [0.306, 0.847] "
+        "(chance 0.250)",
     ]
 
 

@@ -1053,21 +1053,33 @@ def _recorded_fingerprint(run_dir: Path) -> str | None:
 
 
 def headline(results: Mapping[str, Any]) -> list[str]:
-    """A few lines of the most telling numbers, for the terminal."""
+    """A few lines of the most telling numbers, for the terminal: each with its 95% interval
+    over the test fabrics, where scored, and its chance."""
     lines = []
 
     def number(v: Any) -> str:  # a cell that could not be scored is n/a, never "nan"
         return f"{v:.3f}" if isinstance(v, (int, float)) and math.isfinite(v) else "n/a"
 
+    def cell(r: Mapping[str, Any], key: str, chance: str) -> str:
+        low, high = r.get(f"{key}_ci_low"), r.get(f"{key}_ci_high")
+        interval = (
+            ""
+            if number(r.get(key)) == "n/a" or number(low) == "n/a"
+            else (f" [{number(low)}, {number(high)}]")
+        )
+        return f"{number(r.get(key))}{interval} (chance {number(r.get(chance))})"
+
     for name in ("multi_input", "cross_modal", "flat"):
         r = results.get(name, {}).get("metrics")
         if r and "touch_to_depth_top1" in r:
             lines.append(
-                f"{name:<12} touch->depth top-1 {number(r['touch_to_depth_top1'])} "
-                f"(chance {number(r.get('touch_to_depth_top1_chance'))})"
+                f"{name:<12} touch->depth top-1 "
+                f"{cell(r, 'touch_to_depth_top1', 'touch_to_depth_top1_chance')}"
             )
     for name in ("snn_depth", "cross_modal_depth_touch"):
         r = results.get(name, {}).get("novel")
         if r:
-            lines.append(f"{name:<12} depth->depth top-1 on novel fabrics {number(r['top1'])}")
+            lines.append(
+                f"{name:<12} depth->depth top-1 on novel fabrics {cell(r, 'top1', 'chance')}"
+            )
     return lines
