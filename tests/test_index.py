@@ -401,6 +401,8 @@ def test_cli_index_build_and_info(run, tmp_path: Path, capsys):
     assert "touch_to_depth" in printed
     legend = "(top1: how often a library item's best match, its own item left out, is its own"
     assert legend in printed  # what top1, c and the threshold are
+    assert "(in-sample: fitted and scored on the library itself" in printed
+    assert printed.count(" (chance 1/6 = 0.167)  c ") == 9  # beside each pair's top1
     assert main(["index", "info", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "compact at 32 px, D = 16" in printed and "target false-accept 0.1" in printed

@@ -465,6 +465,7 @@ def test_cli_train_then_load_and_embed(data: Path, tmp_path: Path, capsys):
     assert main([*args, "--set", "train.steps=4", "--set", "train.val_every=2"]) == 0
     printed = capsys.readouterr().out
     assert "Trained 4 steps" in printed and "val touch_to_depth_top1" in printed
+    assert "  validation on 2 held-out fabrics (one press a touch query; " in printed
     loaded = load_model(out / "checkpoints" / "best.pt")
     assert loaded.config.train.steps == 4 and loaded.step in (2, 4)
     assert loaded.model.modalities == (Modality.DEPTH, Modality.COLOR, Modality.TOUCH)

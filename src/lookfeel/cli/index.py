@@ -41,7 +41,8 @@ def add_parser(subparsers: Subparsers) -> None:
             "same arguments; a rebuild reuses the shards whose files did not change. A finished "
             "library of another checkpoint or dataset folder is replaced only with --replace. "
             "One build at a time per OUT (OUT.lock). Calibrates c of P ∝ exp(-c D²) and an "
-            "'unknown' threshold on held-out fabrics (leave fabrics out). When 10 or more "
+            "'unknown' threshold on the library's own items (in-sample: each query's own item "
+            "left out, and for the threshold its fabric, by folds). When 10 or more "
             "fabrics have two modalities, fits a cross-modal map between them on the library's "
             "fabrics, and matches the pair through it when calibration (the map refitted "
             "without each fold's fabrics) finds it better."
@@ -143,11 +144,13 @@ def run_build(args: argparse.Namespace) -> int:
         f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded, "
         f"{result.shards_reused} reused; search {result.backend}; {result.seconds:.1f} s"
     )
-    print(_LEGEND)
+    for line in _LEGEND:
+        print(f"  {line}")
     for key, p in result.calibration.pairs.items():
         print(
-            f"  {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  unknown below P {p.threshold:.3g}: "
-            f"false accept {p.false_accept:.3f}, true accept {p.true_accept:.3f}{_how(p)}"
+            f"  {key:<16} top1 {p.top1:.3f} (chance {_chance(p)})  c {p.c:.4g}  unknown below P "
+            f"{p.threshold:.3g}: false accept {p.false_accept:.3f}, true accept "
+            f"{p.true_accept:.3f}{_how(p)}"
         )
     for note in result.calibration.notes:
         print(f"  note: {note}")
@@ -155,10 +158,24 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 _LEGEND = (
-    "  (top1: how often a library item's best match, its own item left out, is its own fabric, "
-    "among all the library's fabrics, not pick 1 of 10; c: how sharp P is; below the "
-    "threshold P: no known fabric)"
+    "(top1: how often a library item's best match, its own item left out, is its own fabric, "
+    "among all the library's fabrics, not pick 1 of 10; chance: what a random ranking scores, "
+    "1 over the fabrics; c: how sharp P is; below the threshold P: no known fabric)",
+    "(in-sample: fitted and scored on the library itself, its own items as the queries, each "
+    "with the item itself left out; c, the threshold and how a pair is matched were chosen on "
+    "these same queries, so false accept is the target met on the queries the threshold was "
+    "fitted on, not a rate measured on new data; held-out numbers with intervals: "
+    "`lookfeel evaluate` or `lookfeel cv`)",
 )
+"""The lines printed above the pairs' calibration (`run_build`, `run_info`)."""
+
+
+def _chance(p: PairCalibration) -> str:
+    """A pair's chance top-1, as ``1/24 = 0.042`` when it is one over its fabrics."""
+    shown = f"{p.chance:.3f}" if not p.chance < 0.0005 else f"{p.chance:.1e}"
+    if p.fabrics and math.isclose(p.chance * p.fabrics, 1.0):
+        return f"1/{p.fabrics} = {shown}"
+    return shown
 
 
 def _how(p: PairCalibration) -> str:
@@ -194,11 +211,13 @@ def run_info(args: argparse.Namespace) -> int:
     print(f"  items       {items}; {summary['fabrics']} fabrics; search {library.backend}")
     cal = library.calibration
     print(f"  calibration target false-accept {cal.target_false_accept:g}, {cal.folds} folds")
-    print("  " + _LEGEND)
+    for line in _LEGEND:
+        print(f"    {line}")
     for key, p in cal.pairs.items():
         print(
-            f"    {key:<16} top1 {p.top1:.3f}  c {p.c:.4g}  threshold {p.threshold:.3g}  "
-            f"false accept {p.false_accept:.3f}  true accept {p.true_accept:.3f}{_how(p)}"
+            f"    {key:<16} top1 {p.top1:.3f} (chance {_chance(p)})  c {p.c:.4g}  threshold "
+            f"{p.threshold:.3g}  false accept {p.false_accept:.3f}  true accept "
+            f"{p.true_accept:.3f}{_how(p)}"
         )
     for note in cal.notes:
         print(f"    note: {note}")

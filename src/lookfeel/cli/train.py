@@ -12,8 +12,10 @@ processes under `torchrun --nproc_per_node N -m lookfeel train ...`.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import warnings
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -85,15 +87,60 @@ def run(args: argparse.Namespace) -> int:
     val = result.validation
     keys = {k.removesuffix("_top1") for k in val if k.endswith("_top1")}
     keys |= {k.removesuffix("_not_scored") for k in val if k.endswith("_not_scored")}
+    if keys:
+        n = _held_out_fabrics(val, result.run_dir)
+        print(validation_header(n, config.train.split, config.data.presses, sorted(keys)))
     for pair in sorted(keys):
         key, v = f"{pair}_top1", val.get(f"{pair}_top1")
         if not isinstance(v, float):  # a pair with no query to score: why, never NaN
             print(f"  val {key:<24} not scored: {val.get(f'{pair}_not_scored', 'no query')}")
             continue
         chance = val.get(f"{pair}_chance")
-        shown = f"  (chance {chance:.3f})" if isinstance(chance, float) and chance else ""
+        notes = [f"chance {chance:.3f}"] if isinstance(chance, float) and chance else []
+        fabrics = val.get(f"{pair}_fabrics")
+        if isinstance(fabrics, int) and n is not None and fabrics != n:
+            notes.append(f"queries from {fabrics} of the {n} fabrics")
+        shown = f"  ({'; '.join(notes)})" if notes else ""
         print(f"  val {key:<24} {v:.3f}{shown}")
     return 0
+
+
+def _held_out_fabrics(val: Mapping[str, object], run_dir: Path) -> int | None:
+    """How many fabrics the validation's queries came from: the most of any pair
+    (``{pair}_fabrics``, `lookfeel.train.validate.validate`), else the fabrics the run's
+    split.json names as validating, else None."""
+    counts = [v for k, v in val.items() if k.endswith("_fabrics") and isinstance(v, int)]
+    if counts:
+        return max(counts)
+    try:
+        held = json.loads((run_dir / "split.json").read_text()).get("val")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return len(held) if isinstance(held, list) and held else None
+
+
+def validation_header(n: int | None, split: str, presses: int, pairs: Sequence[str]) -> str:
+    """The line above ``train``'s validation numbers: what they were measured on (``n``
+    fabrics, held out, or for ``split`` ``seen`` the held-out items of training fabrics), that
+    each query is one item (a touch query one press, where a pair's query is touch), and how
+    `lookfeel evaluate` of the checkpoint differs (it pools ``presses`` presses a touch query,
+    the run's ``data.presses``, and gives intervals)."""
+    noun = "fabric" if n == 1 else "fabrics"
+    if split == "seen":
+        what = f"the held-out items of {n} training {noun}" if n else "held-out items"
+    else:
+        what = f"{n} held-out {noun}" if n else "held-out fabrics"
+    touch = any(p.startswith("touch_to_") for p in pairs)
+    if touch and presses > 1:
+        how = (
+            f"one press a touch query; `lookfeel evaluate` pools {presses} presses a query, "
+            "the run's data.presses, and gives intervals"
+        )
+    elif touch:
+        how = "one press a touch query; `lookfeel evaluate` gives intervals"
+    else:
+        how = "one image a query; `lookfeel evaluate` gives intervals"
+    return f"  validation on {what} ({how}):"
 
 
 def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:

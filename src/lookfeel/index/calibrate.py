@@ -1,8 +1,8 @@
 """Calibrating a library: c of ``P ∝ exp(-c D^2)``, an "unknown" class and its threshold.
 
-For every pair (query modality, gallery modality) of the library, held-out queries are drawn
-from the library itself (up to ``max_queries`` items of the query modality, seeded), and each is
-matched twice:
+For every pair (query modality, gallery modality) of the library, queries are drawn from the
+library itself (up to ``max_queries`` items of the query modality, seeded), and each is matched
+twice:
 
 - **Known fabric.** Against the whole gallery with its own item left out. c is fitted by
   maximum likelihood of the true fabric (`lookfeel.metrics.fit_temperature`: the fabric-level
@@ -33,13 +33,21 @@ rate costs.
 Touch queries are single presses here; a pooled multi-press query (the Multi-input Net) is
 usually matched more confidently, so the threshold is conservative for it.
 
+**In-sample.** Every number here is fitted and scored on the library's own items: the queries
+are library items (their own item left out of a same-modality gallery, their fabric's other
+items kept), c is fitted on the very known-fabric matches ``top1`` counts, and the threshold is
+chosen on the very absent-fabric matches ``false_accept`` counts, so ``false_accept`` is the
+target met by construction, not a rate measured on new data. ``top1``'s chance is ``chance``:
+1 over the gallery's fabrics, as a query is ranked among all of them (not pick 1 of 10).
+Held-out numbers, with intervals, are `lookfeel evaluate`'s and `lookfeel cv`'s.
+
 **Through a cross-modal map.** A pair that can be matched through a cross-modal map
 (`lookfeel.metrics.cross_map`, fitted on the library's own items, `lookfeel.index.build`) is
 calibrated twice, with the embedding's own distances and with the map's, and keeps the one
-whose held-out top-1 is higher (``mapped``; the other's top-1 in ``top1_unmapped``). The map's
+whose top-1 is higher (``mapped``; the other's top-1 in ``top1_unmapped``). The map's
 queries are held out as the fabrics are: each fold's queries are measured through a map
 refitted without that fold's fabrics, so neither top-1 nor c nor the threshold rests on a map
-that saw the query's fabric.
+that saw the query's fabric; the choice between the two is made on the same queries (in-sample).
 """
 
 from __future__ import annotations
@@ -96,7 +104,8 @@ class CalibrationError(LookfeelError):
 
 @dataclass(frozen=True)
 class PairCalibration:
-    """How matching one query modality against one gallery modality behaves on held-out queries.
+    """How matching one query modality against one gallery modality behaves on the library's own
+    items as queries (in-sample: the module docstring).
 
     Attributes:
         query, gallery: the modalities.
@@ -107,10 +116,12 @@ class PairCalibration:
             class (too few fabrics to hold any out).
         threshold: best fabric probability at or above which a query is a known fabric.
         target_false_accept: the false-accept rate the threshold was chosen for.
-        false_accept: the measured rate: absent-fabric queries accepted at the threshold.
+        false_accept: absent-fabric queries accepted at the threshold: the queries the
+            threshold was chosen on, so at most the target by construction (in-sample).
         true_accept: known-fabric queries accepted at the threshold.
         accepted_top1: top-1 accuracy among the accepted known-fabric queries (NaN if none).
-        top1: top-1 accuracy of the best match over known-fabric queries, before thresholding.
+        top1: top-1 accuracy of the best match over known-fabric queries, before thresholding,
+            among all ``fabrics`` of the gallery (in-sample: c was fitted on these queries).
         log_likelihood: mean ``log P(true fabric)`` over known-fabric queries (closed set:
             without the unknown class, as the paper's P).
         ece: expected calibration error of the closed-set best-match probability (10 bins).
@@ -118,8 +129,10 @@ class PairCalibration:
         n_absent: absent-fabric queries (0: too few fabrics; no threshold, never "unknown").
         fabrics: fabrics in the gallery.
         mapped: matched through the pair's cross-modal map (module docstring).
-        top1_unmapped: when a map was tried, the held-out top-1 of the embedding's own
+        top1_unmapped: when a map was tried, the top-1 of the embedding's own
             distances (NaN otherwise); ``top1`` is then the map's when ``mapped``.
+        chance: ``top1`` of a random ranking: 1 / ``fabrics``, a query being ranked among all
+            the gallery's fabrics. A manifest written before it was recorded reads as that.
     """
 
     query: Modality
@@ -140,6 +153,11 @@ class PairCalibration:
     fabrics: int
     mapped: bool = False
     top1_unmapped: float = math.nan
+    chance: float = math.nan
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.chance) and self.fabrics > 0:  # not given: the protocol's chance
+            object.__setattr__(self, "chance", 1.0 / self.fabrics)
 
     @property
     def key(self) -> str:
@@ -157,7 +175,8 @@ class PairCalibration:
     def from_dict(cls, d: object, where: str = "calibration.pair") -> PairCalibration:
         """Read back what `to_dict` wrote, checking every value's type (None: NaN, and for
         ``unknown_logit`` minus infinity; ``mapped`` and ``top1_unmapped`` may be absent, as
-        in a library of version 1).
+        in a library of version 1, and ``chance``, as in one built before it was recorded: it
+        is then 1 / ``fabrics``, what those libraries' calibration ranked a query among).
 
         Args:
             d: the pair's mapping, as read from a manifest.
@@ -171,7 +190,7 @@ class PairCalibration:
         unknown = [k for k in d if k not in names]
         if unknown:
             raise CalibrationError(f"{where}: unknown key {unknown[0]!r}")
-        optional = {"mapped", "top1_unmapped"}
+        optional = {"mapped", "top1_unmapped", "chance"}
         missing = [k for k in names if k not in d and k not in optional]
         if missing:
             raise CalibrationError(f"{where}.{missing[0]}: missing")
@@ -190,6 +209,8 @@ class PairCalibration:
                 values[name] = _count(v, key)
             elif name in ("c", "threshold"):  # used to match: finite, >= 0
                 values[name] = _number(v, key, low=0.0)
+            elif name == "chance":  # None: not known, 1 / fabrics
+                values[name] = math.nan if v is None else _number(v, key, low=0.0)
             elif name == "unknown_logit":
                 values[name] = -math.inf if v is None else _number(v, key)
             else:
@@ -203,7 +224,7 @@ class Calibration:
 
     Attributes:
         pairs: ``query_to_gallery`` -> its calibration.
-        default_gallery: query modality -> the gallery modality with the best held-out top-1
+        default_gallery: query modality -> the gallery modality with the best (in-sample) top-1
             accuracy (ties: the best log-likelihood).
         target_false_accept, folds, seed, max_queries: the settings used.
     """
@@ -513,6 +534,7 @@ def calibrate_pair(
         n_present=int(present.sum()),
         n_absent=len(absent_open),
         fabrics=nf,
+        chance=1.0 / nf,  # a known query's best match is ranked among all nf fabrics
     )
 
 

@@ -1,4 +1,5 @@
-"""Validation during training: pick 1 of 10 (exact expectation) on held-out items."""
+"""Validation during training: pick 1 of 10 (exact expectation) on held-out items, each touch
+query one press (`lookfeel evaluate` pools ``data.presses`` of them and gives intervals)."""
 
 from __future__ import annotations
 
@@ -71,7 +72,9 @@ def validate(
     """Embed the validation items and score each pair by pick 1 of 10 (exact, top-1 and -3).
 
     Same-modality pairs never offer a query its own item; with fewer than 10 fabrics the
-    candidates offered shrink, and ``chance`` says so (`lookfeel.metrics.EXACT_PICK`).
+    candidates offered shrink, and ``chance`` says so (`lookfeel.metrics.EXACT_PICK`). Every
+    query is one item: a touch query is a single press, never pooled as `lookfeel evaluate`
+    pools ``data.presses`` of them, so the two give different numbers for a run of more presses.
 
     A pair none of whose queries has an item of its own fabric to find (one depth image per
     held-out fabric for depth to depth; no held-out item of a modality at all, as
@@ -83,9 +86,10 @@ def validate(
             modalities of ``items``.
 
     Returns:
-        ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per scored pair,
-        ``{pair}_not_scored`` (why, in words) per pair not scored, and ``primary_pair`` (the
-        first pair's name: what ``best.pt`` is chosen by).
+        ``{pair}_top1``, ``{pair}_top3`` and ``{pair}_chance`` per scored pair, with
+        ``{pair}_queries`` (the queries scored, one item each) and ``{pair}_fabrics`` (the
+        held-out fabrics they come from), ``{pair}_not_scored`` (why, in words) per pair not
+        scored, and ``primary_pair`` (the first pair's name: what ``best.pt`` is chosen by).
 
     Raises:
         EmbeddingError: the model embeds some item as NaN or infinity (a diverged run).
@@ -115,4 +119,7 @@ def validate(
         out[f"{pair}_top1"] = s.metrics["top1"]
         out[f"{pair}_top3"] = s.metrics["top3"]
         out[f"{pair}_chance"] = s.metrics["top1_chance"]
+        scored = ~np.isnan(s.pick.per_query[:, 0])  # queries with an item of their own fabric
+        out[f"{pair}_queries"] = int(s.pick.n_queries)
+        out[f"{pair}_fabrics"] = len(np.unique(fab[pair.query][scored]))
     return out
