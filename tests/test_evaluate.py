@@ -1048,6 +1048,15 @@ def _section(report: str, heading: str) -> str:
     return report.split(f"## {heading}")[1].split("\n## ")[0]
 
 
+def _printed(lines: list[str], pair: str) -> list[str]:
+    """A pair's printed lines (`summary_lines`): its own, then those under it (its controls,
+    the cross-modal map, raw pixels), stripped."""
+    start = next(i for i, x in enumerate(lines) if x.startswith(f"  {pair} "))
+    under = lines[start + 1 :]
+    end = next((i for i, x in enumerate(under) if not x.startswith(" " * 19)), len(under))
+    return [x.strip() for x in [lines[start], *under[:end]]]
+
+
 @pytest.mark.filterwarnings("ignore:pick 10")
 def test_the_background_control_pools_touch_as_the_scores_and_raw_pixels_join_each_sense(
     run: tuple[Path, Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
@@ -1091,7 +1100,9 @@ def test_the_background_control_pools_touch_as_the_scores_and_raw_pixels_join_ea
         for k in m
         if "raw_pixels" in k and not k.startswith(("depth_to_d", "color_to_c", "touch_to_t"))
     ]
-    assert "raw pixels" in next(x for x in summary_lines(r) if "touch_to_touch" in x)
+    printed = _printed(summary_lines(r), "touch_to_touch")
+    raw = "touch_to_touch_raw_pixels_top1"
+    assert f"raw pixels {m[raw]:.3f} [{m[f'{raw}_ci_low']:.3f}, " in printed[-1]
 
     report = write_report(r, tmp_path / "r").report.read_text()
     pick = _row(_section(report, "Pick"), "| color → color |")
@@ -1177,7 +1188,12 @@ def test_press_videos_get_the_untouched_control_as_cv_scores_it(
         assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
     lines = summary_lines(r)
     assert lines[0] == "Evaluated the run's held-out objects (3):"
-    assert f"untouched {m['touch_to_touch_top1_untouched']:.3f}" in lines[1]
+    printed = _printed(lines, "touch_to_touch")
+    key = "touch_to_touch_top1_untouched"
+    lo, hi = m[f"{key}_ci_low"], m[f"{key}_ci_high"]
+    assert f"model, untouched {m[key]:.3f} [{lo:.3f}, {hi:.3f}]" in printed
+    raw = [x for x in printed if x.startswith("raw pixels ")]
+    assert raw and f"untouched {m[keys[1]]:.3f} [" in raw[0]  # raw pixels' own, beside theirs
     files = write_report(r, tmp_path / "r")
     assert keys[0] in json.loads(files.metrics.read_text())
     section = _section(files.report.read_text(), "Untouched control")

@@ -1,6 +1,6 @@
 """Evaluation workflow: score embeddings by the paper's section 5 and write a report.
 
-    >>> result = evaluate_checkpoint("runs/x/checkpoints/best.pt", "data/", split="val")
+    >>> result = evaluate_checkpoint("runs/x/checkpoints/last.pt", "data/", split="val")
     >>> result.metrics["touch_to_depth_top1"], result.metrics["touch_to_depth_top1_chance"]
     >>> write_report(result, "runs/x/eval")  # metrics.json, report.md, figures/*.png
 
@@ -18,9 +18,14 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
   (+ ``_chance``, ``_se``: its standard error over the test fabrics), ``overconfident`` (1
   where the NLL is above chance's by more than twice that, or twice chance's);
 - ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
-- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance}``, and
-  ``property_{modality}_{label}_knn_k``: the neighbours the k-NN averaged (``probe_k``, at most
-  half the reference fabrics);
+- ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance|n_test}`` (``n_test``:
+  the labelled test fabrics the scores are over; the report shows no Spearman over fewer than
+  ``lookfeel.crossval.MIN_SPEARMAN``), and ``property_{modality}_{label}_knn_k``: the
+  neighbours the k-NN averaged (``probe_k``, at most half the reference fabrics);
+- ``selected_on_split`` (a checkpoint's evaluation): 1 when the checkpoint is a run's
+  ``best.pt`` and the test items include those it was chosen on (the run's validation
+  fabrics, or held-out items), its scores there optimistic (said in the printed lines and the
+  report); else 0;
 - beside them (`lookfeel.evaluate.controls`, as ``lookfeel cv``): ``{q}_to_{q}_raw_pixels_top{k}``
   (raw pixels, pairs of one modality), ``{pair}_top{k}_swapped``/``_room`` (the background
   control, pairs with depth) and ``{pair}_top{k}_untouched`` (the untouched control, pairs

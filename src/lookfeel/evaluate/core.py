@@ -667,7 +667,8 @@ def evaluate_embeddings(
     presses); the curve over P = 1 .. ``config.max_presses`` is in the
     ``touch_to_{gallery}_presses{P}_*`` keys. Physical-property probes (k-NN, ridge) are fitted
     on ``reference`` and scored on the test fabrics when ``labels`` are given:
-    ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}`` (and ``..._knn_k``);
+    ``property_{modality}_{label}_{probe}_{r2|spearman|mae|mae_chance}`` (and ``..._knn_k``;
+    ``..._n_test``: the labelled test fabrics they are over);
     a k-NN, the probe's or the glance's feel, averages at most half the reference fabrics
     (`knn_neighbours`), noted where that is fewer than ``config.probe_k``. A calibration row
     says how many reference fabrics c was fitted on (``{pair}_c_fit_fabrics``) and whether its
@@ -915,8 +916,8 @@ def evaluate_embeddings(
         for m, by_probe in properties.items():
             for probe, by_label in by_probe.items():
                 for name, scores in by_label.items():
-                    for stat in ("r2", "spearman", "mae", "mae_chance", "k"):
-                        if stat in scores:  # k: the k-NN's neighbours
+                    for stat in ("r2", "spearman", "mae", "mae_chance", "k", "n_test"):
+                        if stat in scores:  # k: the k-NN's neighbours; n_test: scored over
                             metrics[f"property_{m.value}_{name}_{probe}_{stat}"] = scores[stat]
     full_info = dict(info or {})
     full_info.setdefault("items", {m.value: len(embedded[m].embeddings) for m in mods})

@@ -4,7 +4,10 @@ Which items are "test" (``split``):
 
 - ``val``: the run's held-out items, from the checkpoint's split (the fabrics in
   ``split["val"]``; for a ``seen`` run, its held-out 20% of each training fabric's items). The
-  run's training items are the reference: c and the property probes are fitted on them.
+  run's training items are the reference: c and the property probes are fitted on them. A
+  run's ``best.pt`` was chosen on these (the best validation top-1): scored here (or on any
+  split that holds them), the result says its scores are optimistic (``selected_on_split``,
+  a note; `_chosen_on`); ``last.pt`` was not chosen on them.
 - ``train``: the run's training items (the paper's Figure 8b shows these); no reference.
 - ``novel``: a ``seen`` run's held-out fabrics (Table 4's novel fabrics); reference: training.
 - ``paper``: the paper's 18 test fabrics (labels.csv's ``paper_split``, else the built-in list);
@@ -62,9 +65,11 @@ from lookfeel.provenance import software_versions
 from .controls import background_control, raw_pixel_baseline, untouched_control
 from .core import evaluate_embeddings
 from .embeddings_file import EmbeddingSet, load_embeddings
+from .report import selection_note
 from .result import EvalResult
 
 __all__ = [
+    "BEST_CHECKPOINT",
     "SPLITS",
     "embed_checkpoint",
     "evaluate_checkpoint",
@@ -74,6 +79,10 @@ __all__ = [
 
 SPLITS = ("val", "train", "novel", "paper", "all")
 """The ``split`` values of `evaluate_checkpoint` and `embed_checkpoint`."""
+
+BEST_CHECKPOINT = "best.pt"
+"""The name training gives the checkpoint it chose by validation (`lookfeel.train.loop`: the
+one of the best validation top-1 so far, beside ``last.pt``, the run's last step)."""
 
 
 def _scan(data_root: str | os.PathLike[str]) -> Catalog:
@@ -235,6 +244,41 @@ def _select(
     return catalog.subset(ids), ref, f"the run's {what} {unit} ({len(ids)})"
 
 
+def _chosen_on(
+    loaded: LoadedModel, catalog: Catalog, test: Catalog, split: str
+) -> dict[str, Any] | None:
+    """What of ``test`` the checkpoint was chosen on, when it is a run's `BEST_CHECKPOINT`:
+    ``{"shared": n, "of": m, "unit": ..., "step": ...}``, ``n`` of the ``m`` test fabrics
+    (``unit`` ``fabrics`` or ``objects``) being the run's validation fabrics, or, for a
+    ``seen`` run, ``n`` of the ``m`` test items its held-out items (``unit`` ``items``);
+    None when it shares none of them or is not a best checkpoint.
+
+    Training writes ``best.pt`` and ``last.pt`` from the same state: nothing inside tells them
+    apart (``best`` is the best validation top-1 so far in both, and neither records the step
+    it was reached at; at the run's last step the two are the same file). The name training
+    gave it is the one signal, with the run's split holding validation fabrics or items (a
+    run that validated on none, ``train.split=none``, or an ensemble of members, writes no
+    ``best.pt``). On another dataset than the run's (its fingerprint), the run's ids name
+    other fabrics: only ``--split val``, which takes the run's ids as the test set, counts.
+    """
+    s = loaded.split
+    if loaded.path.name != BEST_CHECKPOINT or not (s.get("val") or s.get("val_items")):
+        return None
+    recorded = loaded.data_fingerprint
+    if split != "val" and recorded is not None and not catalog.matches_fingerprint(recorded):
+        return None
+    if s.get("kind") == "seen":
+        held = {_item_key(p) for p in s.get("val_items", [])}
+        items = [it for m in test.modalities for it in test.items(m)]
+        shared, of, unit = sum(_item_key(it.path) in held for it in items), len(items), "items"
+    else:
+        val = {int(i) for i in s.get("val", [])}
+        shared, of, unit = sum(i in val for i in test.ids), len(test.ids), _unit(catalog)
+    if not shared:
+        return None
+    return {"shared": shared, "of": of, "unit": unit, "step": loaded.step}
+
+
 def _load(checkpoint: str | os.PathLike[str] | LoadedModel, device: str) -> LoadedModel:
     return checkpoint if isinstance(checkpoint, LoadedModel) else load_model(checkpoint, device)
 
@@ -318,6 +362,8 @@ def _embed(
         "data_config": to_dict(loaded.config.data),
         "presses": loaded.config.data.presses,
         "pool_exact": pools_final_embedding(loaded.model),
+        # what of the test items the checkpoint was chosen on (None: nothing): see `_chosen_on`
+        "selected_on": _chosen_on(loaded, catalog, test, split),
     }
     ref_emb = run(ref) if ref is not None and ref.fabrics else None
     return EmbeddingSet(embedded, ref_emb or None, meta), loader
@@ -397,6 +443,11 @@ def _evaluate_set(
     label_names: list[str] = []
     objects: dict[int, str] = {}  # the data's object names, shown in place of fabric ids
     notes = list(extra_notes)
+    chosen: dict[str, float] = {}
+    if "selected_on" in emb.meta:  # a checkpoint's embeddings (not an older file's)
+        chosen["selected_on_split"] = 1.0 if emb.meta["selected_on"] else 0.0
+        said = selection_note(emb.meta)
+        notes += [said] if said else []
     if catalog is not None:
         clusters, labels, label_names, more = _clusters_and_labels(catalog)
         notes += more
@@ -412,7 +463,12 @@ def _evaluate_set(
         info=emb.meta,
         data_config=data_config,
     )
-    return replace(result, notes=tuple(notes) + result.notes, names=objects)
+    return replace(
+        result,
+        metrics={**result.metrics, **chosen},
+        notes=tuple(notes) + result.notes,
+        names=objects,
+    )
 
 
 def evaluate_checkpoint(

@@ -6,9 +6,10 @@ import json
 import math
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -32,7 +33,7 @@ from lookfeel.plots import (
 
 from .result import CalibrationResult, EvalResult, GlanceExample, PickExample, PressCurve
 
-__all__ = ["ReportFiles", "summary_lines", "write_metrics", "write_report"]
+__all__ = ["ReportFiles", "selection_note", "summary_lines", "write_metrics", "write_report"]
 
 _ARROW = "→"
 
@@ -307,23 +308,78 @@ def _section_pick(result: EvalResult) -> list[str]:
     return lines
 
 
+def selection_note(info: Mapping[str, Any]) -> str | None:
+    """What an evaluation says of a checkpoint scored on the fabrics it was chosen on: a run's
+    ``best.pt`` (chosen as the best by its validation top-1) scored on the run's validation
+    fabrics (or held-out items), its scores there optimistic. ``info``: an evaluation's
+    provenance, whose ``selected_on`` (`lookfeel.evaluate.from_checkpoint._chosen_on`) says
+    how many of the test fabrics (items) it was chosen on; None when none."""
+    chosen = info.get("selected_on")
+    if not isinstance(chosen, Mapping) or not chosen.get("shared"):
+        return None
+    shared, of, unit = int(chosen["shared"]), int(chosen.get("of", 0)), str(chosen["unit"])
+    name = Path(str(info.get("checkpoint", "best.pt"))).name
+    step = chosen.get("step", info.get("step", "?"))
+    picked = (
+        f"this checkpoint ({name}, step {step}) was chosen as the run's best by its "
+        "validation top-1"
+    )
+    seen = unit == "items"
+    held = "the run's held-out items" if seen else f"the run's validation {unit}"
+    if shared >= of:
+        said = f"{picked} on these same {unit}" + (f" ({held})" if seen else "")
+    else:
+        said = f"{shared} of these {of} test {unit} are {held}, on which {picked}"
+    never = "fabrics" if seen else unit
+    return (
+        f"{said}, so its scores here are optimistic: evaluate last.pt for an unbiased score "
+        f"(the same where best.pt is of the run's last step), or {never} the run never saw"
+    )
+
+
 def _bracket(m: dict[str, float], key: str) -> str:
     """``0.583 [0.500, 0.667]``, or the value alone when it has no interval."""
     v, lo, hi = m[key], m.get(f"{key}_ci_low"), m.get(f"{key}_ci_high")
-    if lo is None or hi is None:
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
         return _f(v)
     return f"{_f(v)} [{_f(lo)}, {_f(hi)}]"
+
+
+_CONTROLS = (
+    ("_swapped", "background swapped"),
+    ("_room", "in another fabric's room"),
+    ("_untouched", "untouched"),
+)
+"""The controls' key suffixes (`lookfeel.evaluate.controls`) and how the printed lines name
+them."""
+
+
+def _control_line(m: dict[str, float], whose: str, key: str, with_main: bool) -> str | None:
+    """``raw pixels 0.917 [0.833, 1.000], background swapped 0.583 [0.500, 0.667]``: one
+    scorer's numbers (``key``: its top-k; ``with_main``: that score too) under each control
+    that ran for it, each with its interval; None when there is nothing to add."""
+    said = [f"{name} {_bracket(m, key + sfx)}" for sfx, name in _CONTROLS if key + sfx in m]
+    if with_main and key in m:
+        return ", ".join([f"{whose} {_bracket(m, key)}", *said])
+    return f"{whose}, " + ", ".join(said) if said else None
 
 
 def summary_lines(result: EvalResult) -> list[str]:
     """What `lookfeel evaluate` prints: each pair's first top-k with its interval, the queries
     and test fabrics it rests on (an interval over fewer than `FEW_FABRICS` said to say
-    little) and chance, beside raw pixels, the background and untouched controls and the
-    cross-modal map where they ran; a pair none of whose queries could be scored says why
-    instead (`EvalResult.not_scored`)."""
+    little) and chance; under it, one line per scorer, each number named as whose it is and
+    with its interval: the model under the background and untouched controls, the
+    cross-modal map (and it under the controls) and raw pixels (and they under the controls),
+    where they ran. A pair none of whose queries could be scored says why instead
+    (`EvalResult.not_scored`). A checkpoint scored on the fabrics it was chosen on says so
+    first (`selection_note`)."""
     m, k = result.metrics, result.config.ks[0]
     unit = result.unit
     lines = [f"Evaluated {result.info.get('split_description', 'the embeddings')}:"]
+    chosen = selection_note(result.info)
+    if chosen:
+        lines.append(f"  Note: {chosen}.")
+    indent = " " * 21  # under the pair's first number
     for pair in result.pairs:
         if pair in result.not_scored:
             lines.append(f"  {pair!s:<16} not scored: {result.not_scored[pair]}")
@@ -336,18 +392,13 @@ def summary_lines(result: EvalResult) -> list[str]:
         text = (
             f"top-{k} {_bracket(m, key)} ({basis})  chance {m.get(f'{key}_chance', math.nan):.3f}"
         )
-        if f"{pair}_raw_pixels_top{k}" in m:
-            text += f"  raw pixels {_bracket(m, f'{pair}_raw_pixels_top{k}')}"
-        controls = [
-            ("_swapped", "background swapped"),
-            ("_room", "in another fabric's room"),
-            ("_untouched", "untouched"),
-            ("_mapped", "through the cross-modal map"),
-        ]
-        for name, said in controls:
-            if f"{key}{name}" in m:
-                text += f"  {said} {m[f'{key}{name}']:.3f}"
         lines.append(f"  {pair!s:<16} {text}")
+        more = [
+            _control_line(m, "model", key, with_main=False),
+            _control_line(m, "through the cross-modal map", f"{key}_mapped", with_main=True),
+            _control_line(m, "raw pixels", f"{pair}_raw_pixels_top{k}", with_main=True),
+        ]
+        lines += [indent + line for line in more if line]
     return lines
 
 
@@ -583,16 +634,36 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
     return lines
 
 
+SPEARMAN_MARK = "‡"
+"""Marks a Spearman left out of the properties table: over fewer than
+`lookfeel.crossval.summary.MIN_SPEARMAN` test fabrics it is +1 or -1 whatever the probe
+predicts."""
+
+
+def _over(counts: Sequence[int], unit: str) -> str:
+    """``2 test fabrics``, ``2 to 5 test fabrics``: what the probes' scores rest on."""
+    lo, hi = min(counts), max(counts)
+    n = str(lo) if lo == hi else f"{lo} to {hi}"
+    return f"{n} test {unit}{'' if n == '1' else 's'}"
+
+
 def _section_properties(result: EvalResult) -> list[str]:
+    """The property probes' table: R², Spearman and MAE of each label over the labelled test
+    fabrics, how many beside each; a Spearman over fewer than ``MIN_SPEARMAN`` of them (±1
+    whatever the probe predicts) is not shown, as `lookfeel cv` leaves it out."""
+    from lookfeel.crossval.summary import MIN_SPEARMAN  # crossval imports evaluate
+
     if not result.properties:
         return []
-    k = result.config.probe_k
-    fewer = any(
-        math.isfinite(s.get("k", math.nan)) and s["k"] < k
+    k, unit = result.config.probe_k, result.unit
+    scores = [
+        s
         for by_probe in result.properties.values()
         for by_label in by_probe.values()
         for s in by_label.values()
-    )
+    ]
+    fewer = any(math.isfinite(s.get("k", math.nan)) and s["k"] < k for s in scores)
+    counts = [int(s["n_test"]) for s in scores if math.isfinite(s.get("n_test", math.nan))]
     lines = [
         "## Physical properties (probes)",
         "",
@@ -605,21 +676,30 @@ def _section_properties(result: EvalResult) -> list[str]:
             else ""
         )
         + ") and ridge regression. Chance: R² ≈ 0, Spearman 0, and the "
-        "MAE of always answering the training mean.",
+        "MAE of always answering the training mean."
+        + (
+            f" Each R², Spearman and MAE is over the test {unit}s with that label: "
+            f"{_over(counts, unit)} here (each row's in its last column)."
+            if counts
+            else ""
+        ),
         "",
     ]
     rows = []
+    left_out = False
     for m, by_probe in result.properties.items():
         for probe, by_label in by_probe.items():
             for name, s in by_label.items():
                 used = s.get("k", math.nan)
+                few = s.get("n_test", math.nan) < MIN_SPEARMAN  # NaN (unknown): shown
+                left_out |= few
                 rows.append(
                     [
                         m.value,
                         name,
                         f"{probe} (k={int(used)})" if math.isfinite(used) and used < k else probe,
                         _f(s["r2"]),
-                        _f(s["spearman"]),
+                        f"n/a {SPEARMAN_MARK}" if few else _f(s["spearman"]),
                         _f(s["mae"]),
                         _f(s["mae_chance"]),
                         f"{int(s['n_train'])} / {int(s['n_test'])}",
@@ -634,10 +714,18 @@ def _section_properties(result: EvalResult) -> list[str]:
             "Spearman",
             "MAE",
             "MAE chance",
-            "fabrics train / test",
+            f"{unit}s train / test",
         ],
         rows,
     )
+    if left_out:
+        lines += [
+            f"{SPEARMAN_MARK} Not shown: a Spearman over fewer than {MIN_SPEARMAN} test "
+            f"{unit}s says nothing (over 2 it is +1 or -1 whatever the probe predicts; "
+            f"`lookfeel cv` leaves it out too); hold out {MIN_SPEARMAN} or more labelled "
+            f"{unit}s, or cross-validate (`lookfeel cv`), for one that does.",
+            "",
+        ]
     return lines
 
 
@@ -1028,6 +1116,10 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
 
     metrics_path = write_metrics(result, out / "metrics.json")
     lines = _provenance(result)
+    chosen = selection_note(result.info)
+    if chosen:  # said where the scores are read, not only among the notes
+        lines += [f"**Optimistic scores:** {chosen}.", ""]
+        notes = [n for n in notes if n != chosen]
     lines += glance_lines
     lines += _section_pick(result)
     lines += _section_control(result)
