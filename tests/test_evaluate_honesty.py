@@ -84,10 +84,12 @@ def test_a_best_checkpoint_scored_on_the_fabrics_it_was_chosen_on_says_so(
     )
 
 
-def test_which_checkpoint_counts_as_chosen_and_on_what(run: tuple[Path, Path]):
-    """best.pt and last.pt are written from the same state (at the run's last step they are
-    the same bytes), so the name training gives it is the signal, with a run that validated;
-    a seen run was chosen on its held-out items, not on its training fabrics as such."""
+def test_which_checkpoint_counts_as_chosen_and_on_what(run: tuple[Path, Path], tmp_path: Path):
+    """best.pt records the score it was chosen by (session 54), so a renamed copy is known too;
+    an older best.pt by its name; with a run that validated. A seen run was chosen on its
+    held-out items, not on its training fabrics as such."""
+    import shutil
+
     from lookfeel.evaluate.from_checkpoint import _chosen_on
 
     data, last = run
@@ -97,7 +99,16 @@ def test_which_checkpoint_counts_as_chosen_and_on_what(run: tuple[Path, Path]):
     chosen = _chosen_on(loaded, catalog, val, "val")
     assert chosen == {"shared": 2, "of": 2, "unit": "fabrics", "step": 20}
     assert _chosen_on(loaded, catalog, catalog.subset(loaded.split["train"]), "train") is None
-    assert _chosen_on(dataclasses.replace(loaded, path=last), catalog, val, "val") is None
+    assert loaded.chosen_by == "val/touch_to_depth_top1" and load_model(last).chosen_by is None
+    assert _chosen_on(load_model(last), catalog, val, "val") is None
+    renamed = load_model(shutil.copyfile(last.parent / "best.pt", tmp_path / "model.pt"))
+    assert _chosen_on(renamed, catalog, val, "val") == chosen
+    older = dataclasses.replace(loaded, chosen_by=None)  # a best.pt of before session 54
+    assert _chosen_on(older, catalog, val, "val") == chosen
+    assert (
+        _chosen_on(dataclasses.replace(older, path=tmp_path / "model.pt"), catalog, val, "val")
+        is None
+    )
     no_val = dataclasses.replace(loaded, split={**loaded.split, "val": []})
     assert _chosen_on(no_val, catalog, val, "val") is None  # train.split=none: no best.pt
 

@@ -152,6 +152,9 @@ class LoadedModel:
     software: dict[str, str] = field(default_factory=dict)
     """The lookfeel, torch and Python versions that wrote the checkpoint
     (`lookfeel.provenance.software_versions`; empty in checkpoints from before session 53)."""
+    chosen_by: str | None = None
+    """The validation score a run chose this checkpoint by (``val/touch_to_depth_top1``: its
+    ``best.pt``, session 54 on), None for any other checkpoint and older ``best.pt`` files."""
     touch_input: str | None = None
     """What the touch branch was trained on: `TOUCH_VIDEOS`, `TOUCH_FRAMES` or `TOUCH_BOTH`;
     None in checkpoints from before it was recorded (queries are then not checked against
@@ -308,6 +311,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         },
         data_fingerprint=state.get("data_fingerprint"),
         software={str(k): str(v) for k, v in (state.get("software") or {}).items()},
+        chosen_by=str(state["chosen_by"]) if state.get("chosen_by") is not None else None,
         shapes=_shapes(state.get("shapes")),
     )
 

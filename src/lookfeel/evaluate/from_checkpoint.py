@@ -253,16 +253,16 @@ def _chosen_on(
     ``seen`` run, ``n`` of the ``m`` test items its held-out items (``unit`` ``items``);
     None when it shares none of them or is not a best checkpoint.
 
-    Training writes ``best.pt`` and ``last.pt`` from the same state: nothing inside tells them
-    apart (``best`` is the best validation top-1 so far in both, and neither records the step
-    it was reached at; at the run's last step the two are the same file). The name training
-    gave it is the one signal, with the run's split holding validation fabrics or items (a
+    Since session 54 training records in ``best.pt`` the score it was chosen by
+    (`LoadedModel.chosen_by`), so a renamed copy is known too; an older one is known by the
+    name training gave it. Either needs the run's split to hold validation fabrics or items (a
     run that validated on none, ``train.split=none``, or an ensemble of members, writes no
     ``best.pt``). On another dataset than the run's (its fingerprint), the run's ids name
     other fabrics: only ``--split val``, which takes the run's ids as the test set, counts.
     """
     s = loaded.split
-    if loaded.path.name != BEST_CHECKPOINT or not (s.get("val") or s.get("val_items")):
+    chosen = loaded.chosen_by is not None or loaded.path.name == BEST_CHECKPOINT
+    if not chosen or not (s.get("val") or s.get("val_items")):
         return None
     recorded = loaded.data_fingerprint
     if split != "val" and recorded is not None and not catalog.matches_fingerprint(recorded):

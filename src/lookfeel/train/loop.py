@@ -1302,13 +1302,18 @@ def _train(
             what, value, checked + 1, done, t.lr, kept, t.checkpoint_every, terms, own_loss
         )
 
-    def save(path: Path, done: int) -> None:
+    def save(path: Path, done: int, chosen_by: str | None = None) -> None:
         """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
-        every process checks: their weights are equal, so all stop together)."""
+        every process checks: their weights are equal, so all stop together); ``chosen_by``:
+        the validation score ``best.pt`` was chosen by, recorded in it (`LoadedModel.chosen_by`:
+        `lookfeel evaluate` then says when it scores the fabrics it was chosen on)."""
         if non_finite_tensors(model.state_dict()):
             raise stop("weights", math.nan, done)
         if dist.is_main:
-            save_checkpoint(path, checkpoint_state(done))
+            state = checkpoint_state(done)
+            if chosen_by is not None:
+                state["chosen_by"] = chosen_by
+            save_checkpoint(path, state)
             kept[path] = done
 
     model.train()
@@ -1369,7 +1374,7 @@ def _train(
                     said_unscored = _say_unscored(last_val, key)
                 if key in last_val and last_val[key] > best:
                     best = last_val[key]
-                    save(run_dir / "checkpoints" / "best.pt", done)
+                    save(run_dir / "checkpoints" / "best.pt", done, chosen_by=f"val/{key}")
             dist.barrier()
         if is_save:
             save(last, done)
