@@ -45,16 +45,27 @@ def test_calibration_records_the_chance_of_its_top1():
     assert PairCalibration.from_dict(json.loads(json.dumps(same.to_dict()))) == same
 
 
-def test_build_and_info_print_each_pairs_chance_and_say_the_numbers_are_in_sample(
-    run, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-):
+@pytest.fixture(scope="module")
+def built(run, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[str]]:
+    """(LIB, what `index build` printed): a library of the tiny run, built once."""
+    import contextlib
+    import io
+
     data, ckpt = run
-    out = tmp_path / "lib"
+    out = tmp_path_factory.mktemp("calibration-text") / "lib"
     argv = ["index", "build", "--checkpoint", str(ckpt), "--data", str(data), "--out", str(out)]
-    assert main([*argv, "--quiet"]) == 0
-    built = capsys.readouterr().out.splitlines()
-    assert f"  {IN_SAMPLE}" in built
-    pairs = [line for line in built if " top1 " in line]
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main([*argv, "--quiet"]) == 0
+    return out, printed.getvalue().splitlines()
+
+
+def test_build_and_info_print_each_pairs_chance_and_say_the_numbers_are_in_sample(
+    built: tuple[Path, list[str]], capsys: pytest.CaptureFixture[str]
+):
+    out, printed = built
+    assert f"  {IN_SAMPLE}" in printed
+    pairs = [line for line in printed if " top1 " in line]
     assert len(pairs) == 9  # depth, colour and touch against each other
     for line in pairs:  # 6 fabrics in each gallery
         assert " (chance 1/6 = 0.167)  c " in line and "unknown below P " in line
@@ -70,20 +81,15 @@ def test_build_and_info_print_each_pairs_chance_and_say_the_numbers_are_in_sampl
 
 
 def test_a_library_built_before_the_chance_was_recorded_reads_it_as_one_over_its_fabrics(
-    run, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    built: tuple[Path, list[str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ):
-    data, ckpt = run
-    out = tmp_path / "lib"
-    argv = ["index", "build", "--checkpoint", str(ckpt), "--data", str(data), "--out", str(out)]
-    assert main([*argv, "--quiet"]) == 0
-    capsys.readouterr()
-    old = shutil.copytree(out, tmp_path / "old")
+    old = shutil.copytree(built[0], tmp_path / "old")
     manifest = json.loads((old / "manifest.json").read_text())
     for p in manifest["calibration"]["pairs"].values():
         assert math.isclose(p.pop("chance"), 1 / p["fabrics"])
     (old / "manifest.json").write_text(json.dumps(manifest))
     cal = Library.open(old).calibration
-    assert cal == Library.open(out).calibration
+    assert cal == Library.open(built[0]).calibration
     assert all(p.chance == 1 / p.fabrics for p in cal.pairs.values())
     assert main(["index", "info", str(old)]) == 0
     assert capsys.readouterr().out.count(" (chance 1/6 = 0.167)  c ") == 9
