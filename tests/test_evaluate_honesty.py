@@ -224,3 +224,25 @@ def test_no_spearman_over_too_few_test_fabrics_and_each_score_says_how_many(tmp_
     assert cells[4] == f"{m['property_depth_x_ridge_spearman']:.3f}"
     assert SPEARMAN_MARK not in section
     assert f"with that label: {MIN_SPEARMAN} test fabrics here" in section
+
+
+def test_the_fabric_accuracy_of_the_calibration_has_its_interval(tmp_path: Path):
+    """QA: the calibration table's fabric accuracy stood beside its chance with no interval,
+    though every pick score had one."""
+    rng = np.random.default_rng(1)
+    centres = rng.standard_normal((6, 4))
+    f = np.repeat(np.arange(6), 4)
+    emb = {m: centres[f] + 0.8 * rng.standard_normal((24, 4)) for m in (D, T)}
+    arrays = embedded_from_arrays(emb, {m: f + 1 for m in emb})
+    r = evaluate_embeddings(arrays, EvalConfig(n_boot=200, sampled=False, c=1.0))
+    key = "touch_to_depth_fabric_accuracy"
+    low, acc, high = (r.metrics[k] for k in (f"{key}_ci_low", key, f"{key}_ci_high"))
+    assert 0.0 <= low < acc < high <= 1.0
+    row = next(
+        line
+        for line in write_report(r, tmp_path / "r").report.read_text().splitlines()
+        if line.startswith("| touch → depth | 1 | fixed |")  # the calibration table's row
+    )
+    assert f"{acc:.3f} [{low:.3f}, {high:.3f}]" in row
+    none = evaluate_embeddings(arrays, EvalConfig(n_boot=0, sampled=False, c=1.0))
+    assert math.isnan(none.metrics[f"{key}_ci_low"])

@@ -26,6 +26,7 @@ from lookfeel.metrics import (
     PairDistances,
     QuerySet,
     ScoringProtocol,
+    bootstrap_ci,
     cluster_confusion_matrix,
     confusion_matrix,
     fabric_probabilities,
@@ -324,10 +325,24 @@ def _calibrate(
         confidence=float(conf.mean()) if has.any() else nan,
         nll=float(nll_own.mean()) if has.any() else nan,
         nll_se=_se_over_fabrics(nll_own, np.asarray(q.fabric[has], np.int64)),
+        accuracy_ci=_accuracy_ci(correct, np.asarray(q.fabric[has], np.int64), config),
         n_fabrics=len(fabrics),
         confusion=confusion,
         cluster_confusion=cluster_conf,
     )
+
+
+def _accuracy_ci(
+    correct: NDArray[np.bool_], fabric: NDArray[np.int64], config: EvalConfig
+) -> tuple[float, float]:
+    """The 95% bootstrap interval of the fabric accuracy over the query fabrics (resampled as
+    the pick scores are: `bootstrap_ci`); NaN without resamples or queries."""
+    if config.n_boot <= 0 or not len(correct):
+        return (math.nan, math.nan)
+    low, high = bootstrap_ci(
+        correct.astype(np.float64), fabric, n_boot=config.n_boot, seed=config.seed
+    )
+    return (float(low), float(high))
 
 
 def _se_over_fabrics(values: NDArray[np.float64], fabric: NDArray[np.int64]) -> float:
@@ -824,6 +839,9 @@ def evaluate_embeddings(
         out[f"{pair}_c_fitted"] = 1.0 if source == "fitted" else 0.0
         out[f"{pair}_c_fit_fabrics"] = float(fit_fabrics) if fit_fabrics else math.nan
         out[f"{pair}_fabric_accuracy"] = cal.accuracy
+        out[f"{pair}_fabric_accuracy_ci_low"], out[f"{pair}_fabric_accuracy_ci_high"] = (
+            cal.accuracy_ci
+        )
         out[f"{pair}_fabric_accuracy_chance"] = 1.0 / max(cal.n_fabrics, 1)
         out[f"{pair}_confidence"] = cal.confidence
         out[f"{pair}_ece"] = cal.reliability.ece

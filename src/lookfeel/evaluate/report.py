@@ -588,7 +588,7 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
                 _pretty(pair),
                 f"{cal.c:.4g}",
                 source,
-                _f(cal.accuracy),
+                _bracket(m, f"{pair}_fabric_accuracy"),
                 _f(m.get(f"{pair}_fabric_accuracy_chance")),
                 _f(cal.confidence),
                 _f(cal.reliability.ece),

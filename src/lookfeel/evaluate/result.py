@@ -52,6 +52,8 @@ class CalibrationResult:
         nll_se: the standard error of ``nll`` over the query fabrics (the spread of their own
             mean NLLs over the square root of their number; queries of one fabric are not
             independent); NaN with fewer than two fabrics.
+        accuracy_ci: the 95% bootstrap interval of ``accuracy`` over the query fabrics, as the
+            pick scores' (NaN without resamples, ``n_boot`` 0, or without scored queries).
     """
 
     pair: Pair
@@ -66,6 +68,7 @@ class CalibrationResult:
     cluster_confusion: Confusion | None = None
     fit_fabrics: int = 0
     nll_se: float = math.nan
+    accuracy_ci: tuple[float, float] = (math.nan, math.nan)
 
     @property
     def nll_chance(self) -> float:
