@@ -494,3 +494,24 @@ def test_no_background_pixel_reads_n_a_with_why_never_nan_and_json_null(tmp_path
         json.dumps(dataclasses.replace(report, position=nothing).to_dict(), allow_nan=False)
     )
     assert d["position"]["post_uv"]["top1"] is None
+
+
+def test_a_background_above_chance_but_under_the_flag_is_said_to_be(clean: Path):
+    """QA: "no leak found" was all a background read whose interval lay wholly above chance but
+    under 2x chance: a weaker cue, said so now; one whose interval reaches chance is not."""
+    import dataclasses
+
+    from lookfeel.data.leakage import _verdict
+
+    report = leakage_report(scan(clean), n_boot=200)
+    (depth,) = report.modalities
+    weak = dataclasses.replace(
+        depth, background_top1=0.15, background_ci95=(0.12, 0.19), chance=0.1, leak=False
+    )
+    assert _verdict(weak, 2.0) == (
+        "no leak found: the background's 95% interval's lower end 0.12 is below 2x chance "
+        "0.20; yet the background scores above chance (0.15 top-1, its interval from 0.12, "
+        "chance 0.10): a weaker session cue, which a model's background control would show"
+    )
+    none = dataclasses.replace(weak, background_ci95=(0.08, 0.19))
+    assert "yet" not in _verdict(none, 2.0)

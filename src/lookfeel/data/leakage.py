@@ -900,7 +900,14 @@ def _verdict(m: ModalityLeakage, factor: float, noun: str = "fabric") -> str:
             "capture session instead of the material"
         )
     what = "no-contact frame" if m.press_videos else "background"
-    return f"no leak found: {_rule([(what, m.background_ci95[0])], m.chance, factor)}"
+    said = f"no leak found: {_rule([(what, m.background_ci95[0])], m.chance, factor)}"
+    if m.background_ci95[0] > m.chance:  # under the flag, yet surely above chance
+        said += (
+            f"; yet the {what} scores above chance ({m.background_top1:.2f} top-1, its interval "
+            f"from {m.background_ci95[0]:.2f}, chance {m.chance:.2f}): a weaker session cue, "
+            "which a model's background control would show"
+        )
+    return said
 
 
 def _modality_lines(m: ModalityLeakage, factor: float, noun: str = "fabric") -> list[str]:
