@@ -264,8 +264,22 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
     assert name not in backbone_names()
     from lookfeel.checkpoint import load_model
 
-    loaded = load_model(out / "checkpoints" / "last.pt")
-    assert type(loaded.model.branch("depth").backbone).__name__ == "TinyConv"
+    with restored_registries():
+        loaded = load_model(out / "checkpoints" / "last.pt")
+        assert type(loaded.model.branch("depth").backbone).__name__ == "TinyConv"
+    # Where the plugin is not loaded, the error names the module the run was trained with.
+    from lookfeel.checkpoint import CheckpointError
+
+    plugins._reset()
+    del sys.modules[name]
+    monkeypatch.setenv("LOOKFEEL_PLUGINS", "")
+    with pytest.raises(CheckpointError) as e:
+        load_model(out / "checkpoints" / "last.pt")
+    assert str(e.value).endswith(
+        f"(the run was trained with the plugin module {name}: lookfeel --plugin {name}, with "
+        "its folder on PYTHONPATH)"
+    )
+    assert "model.backbone: 'lfplug_cli' is not one of" in str(e.value)
 
 
 def test_a_bad_plugin_option_prints_one_line_and_exits_1(

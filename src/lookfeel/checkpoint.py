@@ -278,7 +278,14 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         with unregistered_loss_kinds_allowed():
             config = from_dict(RunConfig, state["config"])
     except ConfigError as e:
-        raise CheckpointError(f"{path}: its config does not load: {e}") from None
+        plugins = [str(p) for p in state.get("plugins") or ()]
+        hint = (
+            f" (the run was trained with the plugin module {', '.join(plugins)}: "
+            f"lookfeel --plugin {plugins[0]}, with its folder on PYTHONPATH)"
+            if plugins
+            else ""
+        )
+        raise CheckpointError(f"{path}: its config does not load: {e}{hint}") from None
     modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]
     model = create_model(
         config.model,

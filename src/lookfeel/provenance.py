@@ -22,3 +22,15 @@ def software_versions() -> dict[str, str]:
         "torch": str(torch.__version__),
         "python": platform.python_version(),
     }
+
+
+def plugin_modules_of(backbone: str, loss_kind: str) -> list[str]:
+    """The modules, other than lookfeel's own and a script's ``__main__``, that registered
+    ``backbone`` and ``loss_kind`` in this process: what a checkpoint records so that loading
+    it where they are not loaded can name them (`lookfeel.checkpoint.load_model`)."""
+    from lookfeel.losses.combined import PAIR_LOSSES
+    from lookfeel.models.registry import BACKBONES
+
+    found = [dict.get(BACKBONES, backbone), PAIR_LOSSES.get(loss_kind)]
+    modules = [getattr(x, "__module__", None) for x in found if x is not None]
+    return sorted({m for m in modules if m and m != "__main__" and not m.startswith("lookfeel.")})

@@ -78,7 +78,7 @@ from lookfeel.models import (
     create_model,
     to_channels_last,
 )
-from lookfeel.provenance import software_versions
+from lookfeel.provenance import plugin_modules_of, software_versions
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
@@ -1021,6 +1021,7 @@ def _train_members(
             "touch_input",
             "data_fingerprint",
             "software",
+            "plugins",
             "rank_columns",
             "shapes",
         )
@@ -1247,6 +1248,7 @@ def _train(
     }
 
     software = software_versions()
+    plugins = plugin_modules_of(config.model.backbone, config.loss.kind)
 
     def checkpoint_state(step: int) -> dict[str, Any]:
         return {
@@ -1254,6 +1256,7 @@ def _train(
             "touch_input": touch_input,
             "data_fingerprint": data_fingerprint,
             "software": software,
+            "plugins": plugins,
             "config": to_dict(config),
             "modalities": [m.value for m in modalities],
             "label_columns": list(catalog.label_columns),
