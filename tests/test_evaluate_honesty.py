@@ -13,7 +13,6 @@ import pytest
 
 from lookfeel.checkpoint import load_model
 from lookfeel.config import EvalConfig
-from lookfeel.crossval.summary import MIN_SPEARMAN
 from lookfeel.data import scan
 from lookfeel.evaluate import (
     embedded_from_arrays,
@@ -22,6 +21,7 @@ from lookfeel.evaluate import (
     summary_lines,
     write_report,
 )
+from lookfeel.metrics.properties import MIN_SPEARMAN
 from lookfeel.modality import Modality
 
 from ._library import evaluate_cli

@@ -16,6 +16,7 @@ from lookfeel.evaluate.core import no_query_scored
 from lookfeel.metrics import bootstrap_ci, mean_and_spread
 from lookfeel.metrics.calibration import expected_calibration_error
 from lookfeel.metrics.classes import accuracy, logit_temperature, macro_f1, softmax
+from lookfeel.metrics.properties import MIN_SPEARMAN
 from lookfeel.modality import Pair
 
 __all__ = [
@@ -159,11 +160,6 @@ def _summarise(
     summary["properties"] = _summarise_probes(results, label_values, noun)
     summary["classes"] = _summarise_classes(results, n_boot)
     return summary
-
-
-MIN_SPEARMAN = 3
-"""Held-out items below which a run's Spearman is left out: over two it is +1 or -1 whatever
-the probe predicts."""
 
 
 def _summarise_probes(

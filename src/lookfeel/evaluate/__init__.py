@@ -20,7 +20,7 @@ Metric keys (flat floats, `EvalResult.metrics`), for every ordered modality pair
 - ``touch_to_{g}_presses{P}_*``: the pick and gallery keys for touch queries pooling P presses;
 - ``property_{modality}_{label}_{knn|ridge}_{r2|spearman|mae|mae_chance|n_test}`` (``n_test``:
   the labelled test fabrics the scores are over; the report shows no Spearman over fewer than
-  ``lookfeel.crossval.MIN_SPEARMAN``), and ``property_{modality}_{label}_knn_k``: the
+  ``lookfeel.metrics.properties.MIN_SPEARMAN``), and ``property_{modality}_{label}_knn_k``: the
   neighbours the k-NN averaged (``probe_k``, at most half the reference fabrics);
 - ``selected_on_split`` (a checkpoint's evaluation): 1 when the checkpoint is a run's
   ``best.pt`` and the test items include those it was chosen on (the run's validation

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write_text
 from lookfeel.config import DataConfig
 from lookfeel.data import ImageError, ImageLoader
+from lookfeel.metrics.properties import MIN_SPEARMAN
 from lookfeel.modality import Modality, Pair
 from lookfeel.plots import (
     GlanceLook,
@@ -636,7 +637,7 @@ def _section_calibration(result: EvalResult, figures: dict[Pair, list[str]]) -> 
 
 SPEARMAN_MARK = "‡"
 """Marks a Spearman left out of the properties table: over fewer than
-`lookfeel.crossval.summary.MIN_SPEARMAN` test fabrics it is +1 or -1 whatever the probe
+`lookfeel.metrics.properties.MIN_SPEARMAN` test fabrics it is +1 or -1 whatever the probe
 predicts."""
 
 
@@ -651,8 +652,6 @@ def _section_properties(result: EvalResult) -> list[str]:
     """The property probes' table: R², Spearman and MAE of each label over the labelled test
     fabrics, how many beside each; a Spearman over fewer than ``MIN_SPEARMAN`` of them (±1
     whatever the probe predicts) is not shown, as `lookfeel cv` leaves it out."""
-    from lookfeel.crossval.summary import MIN_SPEARMAN  # crossval imports evaluate
-
     if not result.properties:
         return []
     k, unit = result.config.probe_k, result.unit

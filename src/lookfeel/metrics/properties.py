@@ -20,7 +20,12 @@ from scipy.stats import spearmanr
 from sklearn.linear_model import RidgeCV
 from sklearn.neighbors import KNeighborsRegressor
 
-__all__ = ["fit_ridge", "knn_neighbours", "per_fabric_means", "property_probe"]
+__all__ = ["MIN_SPEARMAN", "fit_ridge", "knn_neighbours", "per_fabric_means", "property_probe"]
+
+MIN_SPEARMAN = 3
+"""Held-out items below which a probe's Spearman says nothing and is not shown (`lookfeel cv`
+leaves a run's out, `lookfeel evaluate` its report's): over two it is +1 or -1 whatever the
+probe predicts."""
 
 
 def knn_neighbours(k: int, n_reference: int) -> int:
