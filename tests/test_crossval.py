@@ -907,3 +907,20 @@ def test_a_temperature_at_the_search_edge_is_marked_not_fitted():
     assert f"`model.class_temperature: {{hardness: {c_sure['temperature']:.2f}}}`" in text
     assert "right is over them all, where the classes table averages each run's" in text
     assert "held-out presses" in text and "presss" not in text
+
+
+def test_a_catalog_reads_its_files_sizes_once_however_often_it_is_fingerprinted(
+    data: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """evaluate fingerprints one scan up to three times (the run's data, the selection check,
+    the embeddings' record): each read every file's size again."""
+    from lookfeel.data import catalog as catalog_module
+
+    catalog = scan(data)
+    sized: list[Path] = []
+    size = catalog_module._size
+    monkeypatch.setattr(catalog_module, "_size", lambda p: sized.append(p) or size(p))
+    first = catalog.fingerprint()
+    assert catalog.matches_fingerprint(first) and catalog.fingerprint() == first
+    files = sum(len(it.frames) for f in catalog.fabrics for its in f.items.values() for it in its)
+    assert len(sized) == files > 0

@@ -6,6 +6,7 @@ take. It is immutable and cheap: it holds paths and labels, never pixels.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -276,14 +277,19 @@ class Catalog:
         at another size, as a world rendered again at another seed or image size is, or a
         label changed, does not). Runs record it (checkpoints, ``lookfeel cv``'s folders,
         ``lookfeel reproduce``'s runs), so that results on one dataset are never taken for
-        another's: compare with `matches_fingerprint`."""
+        another's: compare with `matches_fingerprint`. Taken once per catalog (it reads every
+        file's size), as the scan it describes was."""
+        return self._sized_digest
+
+    @functools.cached_property
+    def _sized_digest(self) -> str:
         return self._digest(sizes=True)
 
     def matches_fingerprint(self, recorded: str) -> bool:
         """Whether ``recorded`` (a run's `fingerprint`) is this dataset's: its digest now, or
         the one lookfeel recorded before session 53 (without the files' sizes), which older
         checkpoints and cv folders hold."""
-        return recorded in (self.fingerprint(), self._digest(sizes=False))
+        return recorded == self.fingerprint() or recorded == self._digest(sizes=False)
 
     def _digest(self, sizes: bool) -> str:
         def file(p: Path) -> str | list[object]:
