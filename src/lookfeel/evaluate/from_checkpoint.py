@@ -65,7 +65,6 @@ from lookfeel.provenance import software_versions
 from .controls import background_control, raw_pixel_baseline, untouched_control
 from .core import evaluate_embeddings
 from .embeddings_file import EmbeddingSet, load_embeddings
-from .report import selection_note
 from .result import EvalResult
 
 __all__ = [
@@ -444,10 +443,9 @@ def _evaluate_set(
     objects: dict[int, str] = {}  # the data's object names, shown in place of fabric ids
     notes = list(extra_notes)
     chosen: dict[str, float] = {}
-    if "selected_on" in emb.meta:  # a checkpoint's embeddings (not an older file's)
+    if "selected_on" in emb.meta:  # a checkpoint's embeddings (not an older file's); the
+        # note itself is said from the result's info (`selection_note`), above its scores
         chosen["selected_on_split"] = 1.0 if emb.meta["selected_on"] else 0.0
-        said = selection_note(emb.meta)
-        notes += [said] if said else []
     if catalog is not None:
         clusters, labels, label_names, more = _clusters_and_labels(catalog)
         notes += more

@@ -1116,9 +1116,8 @@ def write_report(result: EvalResult, out_dir: str | os.PathLike[str]) -> ReportF
     metrics_path = write_metrics(result, out / "metrics.json")
     lines = _provenance(result)
     chosen = selection_note(result.info)
-    if chosen:  # said where the scores are read, not only among the notes
+    if chosen:  # said where the scores are read
         lines += [f"**Optimistic scores:** {chosen}.", ""]
-        notes = [n for n in notes if n != chosen]
     lines += glance_lines
     lines += _section_pick(result)
     lines += _section_control(result)
