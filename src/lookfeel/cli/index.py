@@ -171,11 +171,10 @@ _LEGEND = (
 
 
 def _chance(p: PairCalibration) -> str:
-    """A pair's chance top-1, as ``1/24 = 0.042`` when it is one over its fabrics."""
-    shown = f"{p.chance:.3f}" if not p.chance < 0.0005 else f"{p.chance:.1e}"
-    if p.fabrics and math.isclose(p.chance * p.fabrics, 1.0):
-        return f"1/{p.fabrics} = {shown}"
-    return shown
+    """A pair's chance top-1, one over its fabrics: ``1/24 = 0.042``."""
+    if not p.fabrics:
+        return "n/a"
+    return f"1/{p.fabrics} = {p.chance:.3f}" if p.chance >= 0.0005 else f"1/{p.fabrics}"
 
 
 def _how(p: PairCalibration) -> str:

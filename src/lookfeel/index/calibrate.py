@@ -131,8 +131,8 @@ class PairCalibration:
         mapped: matched through the pair's cross-modal map (module docstring).
         top1_unmapped: when a map was tried, the top-1 of the embedding's own
             distances (NaN otherwise); ``top1`` is then the map's when ``mapped``.
-        chance: ``top1`` of a random ranking: 1 / ``fabrics``, a query being ranked among all
-            the gallery's fabrics. A manifest written before it was recorded reads as that.
+
+    The ``chance`` of ``top1`` is derived from ``fabrics`` (a property).
     """
 
     query: Modality
@@ -153,19 +153,21 @@ class PairCalibration:
     fabrics: int
     mapped: bool = False
     top1_unmapped: float = math.nan
-    chance: float = math.nan
-
-    def __post_init__(self) -> None:
-        if math.isnan(self.chance) and self.fabrics > 0:  # not given: the protocol's chance
-            object.__setattr__(self, "chance", 1.0 / self.fabrics)
 
     @property
     def key(self) -> str:
         return pair_key(self.query, self.gallery)
 
+    @property
+    def chance(self) -> float:
+        """``top1`` of a random ranking: a known query's best match is ranked among all the
+        gallery's ``fabrics``, so 1 / ``fabrics`` (NaN without any)."""
+        return 1.0 / self.fabrics if self.fabrics else math.nan
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain data for the manifest (NaN becomes None so the JSON is standard)."""
-        d = asdict(self)
+        """Plain data for the manifest (NaN becomes None so the JSON is standard), with the
+        `chance` beside ``top1`` for a reader of the JSON."""
+        d = asdict(self) | {"chance": self.chance}
         d["query"], d["gallery"] = self.query.value, self.gallery.value
         return {
             k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()
@@ -175,8 +177,8 @@ class PairCalibration:
     def from_dict(cls, d: object, where: str = "calibration.pair") -> PairCalibration:
         """Read back what `to_dict` wrote, checking every value's type (None: NaN, and for
         ``unknown_logit`` minus infinity; ``mapped`` and ``top1_unmapped`` may be absent, as
-        in a library of version 1, and ``chance``, as in one built before it was recorded: it
-        is then 1 / ``fabrics``, what those libraries' calibration ranked a query among).
+        in a library of version 1; ``chance``, which `to_dict` writes for readers of the JSON, is
+        derived from ``fabrics`` and not read).
 
         Args:
             d: the pair's mapping, as read from a manifest.
@@ -187,10 +189,10 @@ class PairCalibration:
         """
         d = _mapping(d, where)
         names = [f.name for f in fields(cls)]
-        unknown = [k for k in d if k not in names]
+        unknown = [k for k in d if k not in names and k != "chance"]
         if unknown:
             raise CalibrationError(f"{where}: unknown key {unknown[0]!r}")
-        optional = {"mapped", "top1_unmapped", "chance"}
+        optional = {"mapped", "top1_unmapped"}
         missing = [k for k in names if k not in d and k not in optional]
         if missing:
             raise CalibrationError(f"{where}.{missing[0]}: missing")
@@ -209,8 +211,6 @@ class PairCalibration:
                 values[name] = _count(v, key)
             elif name in ("c", "threshold"):  # used to match: finite, >= 0
                 values[name] = _number(v, key, low=0.0)
-            elif name == "chance":  # None: not known, 1 / fabrics
-                values[name] = math.nan if v is None else _number(v, key, low=0.0)
             elif name == "unknown_logit":
                 values[name] = -math.inf if v is None else _number(v, key)
             else:
@@ -534,7 +534,6 @@ def calibrate_pair(
         n_present=int(present.sum()),
         n_absent=len(absent_open),
         fabrics=nf,
-        chance=1.0 / nf,  # a known query's best match is ranked among all nf fabrics
     )
 
 
