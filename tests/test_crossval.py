@@ -924,3 +924,149 @@ def test_a_catalog_reads_its_files_sizes_once_however_often_it_is_fingerprinted(
     assert catalog.matches_fingerprint(first) and catalog.fingerprint() == first
     files = sum(len(it.frames) for f in catalog.fabrics for its in f.items.values() for it in its)
     assert len(sized) == files > 0
+
+
+def _probe_runs(
+    seeds: tuple[int, ...] = (0, 1), folds: tuple[int, ...] = (0, 1, 2)
+) -> tuple[list[dict], np.ndarray, np.ndarray]:
+    """Runs of 30 fabrics in 3 folds (fabric i in fold (i - 1) % 3), each probed by `_probe` as
+    `_score` probes them: ``stiffness`` is the embedding's first coordinate (a ridge finds it
+    exactly), ``noise`` is drawn apart from it; raw pixels are noise too. Returns the runs,
+    each fabric's labels (30, 2) and fold."""
+    from lookfeel.crossval.score import _probe
+    from lookfeel.data import Catalog, Fabric
+
+    rng = np.random.default_rng(21)
+    ids = np.arange(1, 31)
+    centre = rng.standard_normal((30, 4))
+    labels = np.stack([2.0 * centre[:, 0] + 1.0, rng.standard_normal(30)], 1)
+    catalog = Catalog(
+        root=Path("."),
+        fabrics=tuple(
+            Fabric(int(i), {"stiffness": float(s), "noise": float(n)})
+            for i, (s, n) in zip(ids, labels, strict=True)
+        ),
+        label_columns=("stiffness", "noise"),
+    )
+    item_fabric = np.repeat(ids, 2)  # two items a fabric, averaged by the probe
+    fold_of = (ids - 1) % 3
+    runs = []
+    for seed in seeds:
+        emb = centre[item_fabric - 1] + 0.01 * rng.standard_normal((60, 4))  # a seed's model
+        pix = rng.standard_normal((60, 6))
+        for fold in folds:
+            held = fold_of[item_fabric - 1] == fold
+            props = {
+                name: _probe(catalog, x[~held], item_fabric[~held], x[held], item_fabric[held])
+                for name, x in (("model", emb), ("raw_pixels", pix))
+            }
+            run = _hand_made_run(fold, {"depth_to_depth": {"model": [[1.0, 1.0], [0.0, 1.0]]}})
+            runs.append(run | {"seed": seed, "properties": {"depth": props}})
+    return runs, labels, fold_of
+
+
+def test_probes_pool_each_seeds_held_out_fabrics_with_intervals_and_chance():
+    """Each run keeps every held-out fabric's prediction; a seed's folds pooled cover every
+    fabric once, and R², Spearman and chance R² over them get 95% intervals resampling the
+    fabrics: a label the embedding holds scores near 1, one it does not near chance (an R²
+    a little below 0, a Spearman interval around 0); chance R² is the fold's training mean
+    predicted, worked out here by hand. The mean over seeds and its interval, as the class
+    tables; the per-run mean ± std stays in cv.json."""
+    from lookfeel.crossval.summary import _summarise_probes
+
+    runs, labels, fold_of = _probe_runs()
+    kept = runs[0]["properties"]["depth"]["model"]["stiffness"]["held_out"]
+    assert kept["fabric"] == list(range(1, 31, 3))  # fold 0 holds out fabrics 1, 4, ..., 28
+    assert kept["truth"] == pytest.approx(labels[0::3, 0]) and len(kept["pred"]) == 10
+    assert kept["train_mean"] == pytest.approx(labels[fold_of != 0, 0].mean())
+    props = _summarise_probes(runs, None, "fabric", n_boot=300)["depth"]
+    stiff, noise = props["model"]["stiffness"], props["model"]["noise"]
+    for row in (stiff, noise):  # the per-run scores, as before
+        assert row["runs"] == 6 and not math.isnan(row["r2_std"]) and "spearman_std" in row
+    pooled = stiff["pooled"]
+    assert pooled["held_out"] == 30 and pooled["seeds"] == [0, 1]
+    assert len(pooled["r2"]["per_seed"]) == 2 and len(pooled["r2"]["per_seed_ci95"]) == 2
+    assert pooled["r2"]["mean"] == pytest.approx(np.mean(pooled["r2"]["per_seed"]))
+    for score in ("r2", "spearman"):
+        low, high = pooled[score]["ci95"]
+        assert 0.9 <= low <= pooled[score]["mean"] <= high <= 1.0, score
+    # Chance: each fold's training mean for its held-out fabrics, over all 30 at once.
+    for j, row in ((0, stiff), (1, noise)):
+        truth = labels[:, j]
+        guess = np.array([truth[fold_of != f].mean() for f in fold_of])
+        want = 1.0 - ((truth - guess) ** 2).sum() / ((truth - truth.mean()) ** 2).sum()
+        chance = row["pooled"]["chance_r2"]
+        assert chance["mean"] == pytest.approx(want) and -0.3 < want <= 0.0
+        assert chance["per_seed"] == pytest.approx([want, want])  # the labels alone: no seed
+    low, high = noise["pooled"]["spearman"]["ci95"]
+    assert low < 0.0 < high
+    low, high = noise["pooled"]["r2"]["ci95"]
+    assert low < noise["pooled"]["chance_r2"]["mean"] < high and -0.15 < high < 0.3
+    raw = props["raw_pixels"]["stiffness"]["pooled"]["r2"]
+    assert raw["ci95"][1] < 0.5  # pixels of noise hold nothing of it
+    # One seed: its own interval is the interval.
+    one = _summarise_probes(runs[:3], None, "fabric", n_boot=300)["depth"]["model"]["noise"]
+    assert one["pooled"]["r2"]["ci95"] == one["pooled"]["r2"]["per_seed_ci95"][0]
+
+
+def test_cv_md_shows_the_pooled_probes_and_old_summaries_as_before():
+    """cv.md's probe table: R² and Spearman [95%], raw pixels R² [95%] and chance R² per label,
+    the runs column kept; a cv of some folds (--only-folds) says which fabrics it pools; a
+    summary of runs scored before the predictions were kept shows its table as it was."""
+    runs, _, _ = _probe_runs()
+    summary, md = _report(runs)
+    stiff = summary["properties"]["depth"]["model"]["stiffness"]
+    raw = summary["properties"]["depth"]["raw_pixels"]["stiffness"]
+
+    def cell(x: dict) -> str:
+        return f"{x['mean']:.2f} [{x['ci95'][0]:.2f}, {x['ci95'][1]:.2f}]"
+
+    p = stiff["pooled"]
+    assert (
+        f"| stiffness | {cell(p['r2'])} | {cell(p['spearman'])} | {cell(raw['pooled']['r2'])} | "
+        f"{p['chance_r2']['mean']:.2f} | 6 of 6 (60) |"
+    ) in md
+    assert (
+        "| label | model R² | model Spearman | raw pixels R² | chance R² | runs (held-out "
+        "fabrics) |"
+    ) in md
+    assert "the mean over 2 seeds. Chance R²: each fold's training mean" in md
+    assert "chance Spearman is 0" in md and "Pooled over" not in md and "nan" not in md
+    # Two of the three folds run: the pooled numbers are over their 20 fabrics, and said so.
+    some = [r for r in runs if r["fold"] != 2]
+    coverage = {
+        "held_out": [i for i in range(1, 31) if i % 3 != 0],
+        "items": 30,
+        "fold_sizes": [10, 10],
+        "folds_total": 3,
+        "not_run": {"folds": [2], "items": list(range(3, 31, 3))},
+        "train_only": [],
+        "never_used": {"ids": [], "items": [], "why": None},
+    }
+    summary, md = _report(some, coverage=coverage)
+    assert summary["properties"]["depth"]["model"]["stiffness"]["pooled"]["held_out"] == 20
+    assert (
+        "Pooled over the 20 fabrics the folds run held out, not every fabric (1 of the 3 folds "
+        "not run: --only-folds)."
+    ) in md
+    # Runs scored before: no predictions kept, the table as it was.
+    for r in runs:
+        for per in r["properties"]["depth"].values():
+            for c in per.values():
+                del c["held_out"]
+    old, md = _report(runs)
+    assert "pooled" not in old["properties"]["depth"]["model"]["stiffness"]
+    assert "| label | model R² | model Spearman | raw pixels R² | raw pixels Spearman | runs " in md
+    assert "chance R²" not in md and " ± " in md
+
+
+def test_a_run_scored_before_probe_predictions_were_kept_is_scored_again():
+    """A kept result stands only when its key matches: with labels, the key now asks for the
+    probes' held-out predictions, so a run scored before is scored again, not kept."""
+    from lookfeel.crossval.run import _result_key
+    from lookfeel.modality import Pair
+
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    pairs = [Pair.parse("depth_to_depth")]
+    assert _result_key(config, False, pairs, 1, None, labelled=True)["probe_predictions"]
+    assert "probe_predictions" not in _result_key(config, False, pairs, 1, None, labelled=False)

@@ -31,7 +31,13 @@ from lookfeel.metrics import (
     property_probe,
     reliability_curve,
 )
-from lookfeel.metrics.properties import knn_neighbours
+from lookfeel.metrics.bootstrap import fabric_weights, percentile_interval
+from lookfeel.metrics.properties import (
+    knn_neighbours,
+    probe_columns,
+    resampled_r2,
+    resampled_spearman,
+)
 
 # ---------------------------------------------------------------- oracles (slow, obvious)
 
@@ -396,6 +402,15 @@ def test_bootstrap_literal_cases():
     assert med_low == 1.0 and med_high == 3.0
 
 
+def test_percentile_interval_of_replicates_skips_undefined_ones():
+    assert percentile_interval(np.arange(101.0)) == pytest.approx((2.5, 97.5))
+    assert percentile_interval([np.nan, *np.arange(101.0), np.nan]) == pytest.approx((2.5, 97.5))
+    assert percentile_interval(np.arange(11.0), alpha=0.2) == pytest.approx((1.0, 9.0))
+    assert all(math.isnan(v) for v in percentile_interval([np.nan, np.nan]))
+    with pytest.raises(ValueError, match="alpha"):
+        percentile_interval([1.0], alpha=1.0)
+
+
 def test_mean_and_spread():
     out = mean_and_spread([1.0, 2.0, 3.0, np.nan])
     assert out["mean"] == 2.0 and out["std"] == 1.0 and out["n"] == 3.0
@@ -544,3 +559,71 @@ def test_property_probe_ignores_columns_constant_in_training():
     x[80:, 4] = 3.0
     res = property_probe(x[:80], y[:80], x[80:], y[80:], "ridge")
     assert res["0"]["r2"] > 0.95
+
+
+def test_probe_columns_keep_what_property_probe_scores():
+    """The same fits as `property_probe`, with each held-out fabric's id, label and
+    prediction, and the training fabrics' mean label (what a probe that knows nothing says)."""
+    rng = np.random.default_rng(14)
+    fabric = np.repeat(np.arange(20), 2)
+    centre = rng.standard_normal((20, 3))
+    label = np.stack([centre[:, 0] + 2.0, rng.standard_normal(20)], 1)
+    label[3, 1] = label[15, 1] = np.nan  # unknown: not held out, not trained on
+    emb = centre[fabric] + 0.01 * rng.standard_normal((40, 3))
+    tr, te = fabric < 12, fabric >= 12
+    args = (emb[tr], label[fabric][tr], emb[te], label[fabric][te])
+    for method in ("ridge", "knn"):
+        kw = {"names": ["a", "b"], "train_fabric": fabric[tr], "test_fabric": fabric[te]}
+        cols = probe_columns(*args, method, **kw)
+        scores = property_probe(*args, method, **kw)
+        for name in ("a", "b"):
+            got, want = cols[name].scores(), scores[name]
+            assert got.keys() == want.keys()
+            assert all(got[k] == pytest.approx(want[k], nan_ok=True) for k in want), (method, name)
+    a, b = cols["a"], cols["b"]
+    assert a.rows.tolist() == list(range(12, 20))
+    assert b.rows.tolist() == [12, 13, 14, 16, 17, 18, 19]  # fabric 15's label is unknown
+    assert a.truth == pytest.approx(label[12:, 0]) and len(b.pred) == 7
+    assert a.train_mean == pytest.approx(label[:12, 0].mean())
+    assert b.train_mean == pytest.approx(np.delete(label[:12, 1], 3).mean())
+    unfitted = probe_columns(emb[:2], label[fabric][:2], emb[te], label[fabric][te], "ridge",
+                             train_fabric=fabric[:2], test_fabric=fabric[te])["0"]  # fmt: skip
+    assert not unfitted.fitted and unfitted.n_train == 1 and math.isnan(unfitted.scores()["r2"])
+
+
+def _drawn(x: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The rows one resample draws, each as often as it is drawn."""
+    return np.repeat(x, counts.astype(int))
+
+
+def test_resampled_r2_and_spearman_are_those_of_the_drawn_rows():
+    """Brute-force parity: each resample's R^2 and Spearman from the weights equal those of
+    its drawn rows written out (a row drawn twice is two rows, ties among them ranked as
+    scipy ranks them); undefined where the draws hold one value."""
+    from scipy.stats import spearmanr
+
+    rng = np.random.default_rng(15)
+    truth = np.round(rng.standard_normal(9), 1)
+    truth[4] = truth[1]  # a tie in the labels
+    pred = truth + rng.standard_normal(9)
+    pred[7] = pred[2]  # and in the predictions
+    w = fabric_weights(9, n_boot=60, seed=3)
+    r2, rho = resampled_r2(truth, pred, w), resampled_spearman(truth, pred, w)
+    for b in range(len(w)):
+        t, p = _drawn(truth, w[b]), _drawn(pred, w[b])
+        want_r2 = 1.0 - ((p - t) ** 2).sum() / ((t - t.mean()) ** 2).sum()
+        assert r2[b] == pytest.approx(want_r2), b
+        assert rho[b] == pytest.approx(spearmanr(t, p).statistic), b
+    assert resampled_r2(truth, pred)[0] == pytest.approx(
+        1.0 - ((pred - truth) ** 2).sum() / ((truth - truth.mean()) ** 2).sum()
+    )
+    assert resampled_spearman(truth, pred)[0] == pytest.approx(spearmanr(truth, pred).statistic)
+    assert resampled_r2(truth, truth)[0] == 1.0 and resampled_spearman(truth, -truth)[0] == -1.0
+    # Every draw of one row: nothing to explain, nothing to rank.
+    one = np.zeros((1, 9))
+    one[0, 5] = 9.0
+    assert np.isnan(resampled_r2(truth, pred, one)).all()
+    assert np.isnan(resampled_spearman(truth, pred, one)).all()
+    assert np.isnan(resampled_spearman(truth, np.ones(9))).all()  # one prediction
+    with pytest.raises(ValueError, match="must be"):
+        resampled_r2(truth, pred[:5])

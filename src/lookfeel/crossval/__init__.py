@@ -49,6 +49,12 @@ beside raw pixels and, with depth and the background control on, beside the **ro
 (`RoomProbe`: the same probe on each raw depth image's background pixels, no cloth). Where the
 background follows the labels (as when each fabric was captured in its own session), the room
 predicts them, and a model's probe is only as good as its lead over the room's.
+Each run keeps every held-out fabric's prediction (``held_out`` in ``result.json``): a seed's
+folds together predict each held-out fabric once, and R^2 and Spearman over them all get a 95%
+interval resampling fabrics (the mean over seeds and the interval of that mean, as the class
+tables), beside chance: each fold's training mean predicted for its held-out fabrics (R^2 a
+little below 0 over every fold, lower over a few; Spearman 0). ``cv.json`` keeps these under
+``pooled`` beside each score's mean and std over runs.
 For a model with class heads (``model.class_heads``: hardness 0/1/2, material ...), each held-out
 press's class is read from the heads, one press at a time and with every press of an object
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training

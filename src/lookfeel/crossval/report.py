@@ -368,7 +368,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     for m, per in summary["properties"].items():
         if not per.get("model"):
             continue
-        lines += _probe_lines(m, per, runs, nouns)
+        lines += _probe_lines(m, per, runs, nouns, _pooled_scope(summary))
     for m, per in summary.get("classes", {}).items():
         unit = "press" if m == Modality.TOUCH.value else "image"
         lines += [
@@ -395,9 +395,117 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _probe_lines(modality: str, per: dict[str, Any], runs: int, nouns: str) -> list[str]:
-    """The property probes' table of one modality (`_summarise_probes`): ``n/a: why`` where no
-    run could score a label, and on how many runs and held-out items each row rests."""
+def _pooled_scope(summary: dict[str, Any]) -> str:
+    """The sentence the property tables add where the folds run did not hold out every
+    item that cv could (``--only-folds``, or a ``train.fold_size`` that leaves some in no
+    fold): which items the pooled numbers are over; nothing otherwise."""
+    cov = summary.get("coverage")
+    if not cov or not (cov["not_run"]["items"] or cov["train_only"]):
+        return ""
+    noun = summary.get("noun", "fabric")
+    why = []
+    if cov["not_run"]["folds"]:
+        n = len(cov["not_run"]["folds"])
+        why.append(f"{n} of the {cov['folds_total']} folds not run: --only-folds")
+    if cov["train_only"]:
+        why.append(f"{_count(len(cov['train_only']), noun)} in no fold")
+    return (
+        f" Pooled over the {_count(len(cov['held_out']), noun)} the folds run held out, not "
+        f"every {noun} ({'; '.join(why)})."
+    )
+
+
+def _interval(x: dict[str, Any] | None) -> str:
+    """A pooled probe score (`_pooled_probe`) as ``mean [low, high]``: just the mean where
+    the interval is not known, ``n/a`` where the score is not."""
+    if x is None or x["mean"] is None or math.isnan(x["mean"]):
+        return "n/a"
+    lo, hi = x["ci95"]
+    if lo is None or hi is None or math.isnan(lo) or math.isnan(hi):
+        return f"{x['mean']:.2f}"
+    return f"{x['mean']:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def _probe_lines(
+    modality: str, per: dict[str, Any], runs: int, nouns: str, scope: str = ""
+) -> list[str]:
+    """The property probes' table of one modality (`_summarise_probes`): per label R² and
+    Spearman over every held-out item of a seed's folds at once, with 95% intervals
+    (``pooled``), beside raw pixels, the room alone and chance R²; ``n/a: why`` where no run
+    could score a label, and on how many runs and held-out items each row rests. ``scope``:
+    `_pooled_scope`'s sentence. A summary made before the pooled scores (session 55) gets
+    its table as it was (`_per_run_probe_lines`)."""
+    rows = per["model"]
+    if not any("pooled" in row for row in rows.values()):
+        return _per_run_probe_lines(modality, per, runs, nouns)
+    noun = nouns[:-1]
+    seeds = max(len(row["pooled"].get("seeds", ())) for row in rows.values() if "pooled" in row)
+    room = "room" in per
+    lines = [
+        "",
+        f"Physical properties from {modality}: a ridge probe on {noun}-mean embeddings, "
+        f"fitted on each fold's training {nouns}, predicts that fold's held-out {nouns}; R² "
+        f"and Spearman are over a seed's held-out {nouns} of every fold at once [95% "
+        f"interval, resampling held-out {nouns}]"
+        + (f", the mean over {seeds} seeds" if seeds > 1 else "")
+        + ". Chance R²: each fold's training mean as the prediction, what a probe that knows "
+        "nothing scores (chance Spearman is 0)."
+        + scope
+        + f" Runs: how many scored the label (their held-out {nouns}, summed); each run's own "
+        "R² and Spearman, and their mean ± std over runs, are in `cv.json`.",
+        "",
+        "| label | model R² | model Spearman | raw pixels R² |"
+        + (" room alone R² |" if room else "")
+        + f" chance R² | runs (held-out {nouns}) |",
+        "|---|---|---|---|" + ("---|" if room else "") + "---|---|",
+    ]
+    for label, row in rows.items():
+        pooled = row.get("pooled")
+        shown = [("model", "r2"), ("model", "spearman"), ("raw_pixels", "r2")]
+        if room:
+            shown.append(("room", "r2"))
+        cells = [_probe_cell(per.get(k, {}).get(label), name) for k, name in shown]
+        chance = pooled["chance_r2"]["mean"] if pooled else None
+        cells.append("n/a" if chance is None or math.isnan(chance) else f"{chance:.2f}")
+        if row.get("not_scored"):
+            cells[0] = f"n/a: {row['not_scored']}"
+        elif pooled and pooled.get("spearman_not_scored"):
+            cells[1] = f"n/a: {pooled['spearman_not_scored']}"
+        elif not pooled and row.get("spearman_not_scored"):
+            cells[1] = f"n/a: {row['spearman_not_scored']}"
+        cells.append(f"{row['runs']} of {row['runs_total']} ({row['held_out']})")
+        lines.append(f"| {label} | {' | '.join(cells)} |")
+    return lines + _room_note(room)
+
+
+def _probe_cell(row: dict[str, Any] | None, name: str) -> str:
+    """A method's score ``name`` (``r2``, ``spearman``) of one label: pooled, with its
+    interval, where the runs kept their predictions, else its mean ± std over runs; ``-``
+    where the method has no row for the label."""
+    if row is None:
+        return "-"
+    return _interval(row["pooled"][name]) if "pooled" in row else _pm(row, name)
+
+
+def _room_note(room: bool) -> list[str]:
+    """What the room-alone column means, under a probe table that has it."""
+    if not room:
+        return []
+    return [
+        "",
+        "Room alone: the same probe on each raw depth image's background pixels (no "
+        "cloth; `lookfeel data leakage`'s rule). Where it scores, the background "
+        "follows the labels (as it does when each fabric was captured in its own "
+        "session and the sessions follow the labels): read the model's probe against "
+        "it, not against zero.",
+    ]
+
+
+def _per_run_probe_lines(modality: str, per: dict[str, Any], runs: int, nouns: str) -> list[str]:
+    """The property probes' table of one modality as summaries made before session 55 have
+    it (no held-out predictions kept, so no pooled scores): each score's mean ± std over
+    runs; ``n/a: why`` where no run could score a label, and on how many runs and held-out
+    items each row rests."""
     counted = any("runs" in row for row in per["model"].values())
     lines = [
         "",
@@ -428,16 +536,7 @@ def _probe_lines(modality: str, per: dict[str, Any], runs: int, nouns: str) -> l
         if counted:
             cells.append(f"{row['runs']} of {row['runs_total']} ({row['held_out']})")
         lines.append(f"| {label} | {' | '.join(cells)} |")
-    if "room" in per:
-        lines += [
-            "",
-            "Room alone: the same probe on each raw depth image's background pixels (no "
-            "cloth; `lookfeel data leakage`'s rule). Where it scores, the background "
-            "follows the labels (as it does when each fabric was captured in its own "
-            "session and the sessions follow the labels): read the model's probe against "
-            "it, not against zero.",
-        ]
-    return lines
+    return lines + _room_note("room" in per)
 
 
 def _calibration_lines(modality: str, per: dict[str, Any]) -> list[str]:

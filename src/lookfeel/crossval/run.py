@@ -196,9 +196,11 @@ def _result_key(
     pairs: Sequence[Pair],
     presses: int,
     control: BackgroundControl | None,
+    labelled: bool = False,
 ) -> dict[str, Any]:
     """What a run's ``result.json`` records as its ``key``: a kept result stands only when
-    its key is this one (the run's config and how it is scored)."""
+    its key is this one (the run's config and how it is scored). ``labelled``: the data has
+    label columns, so the run has property probes."""
     key: dict[str, Any] = {"config": _result_config(cfg), "tta": tta, "pairs": list(pairs)}
     # How the maps score (session 22 added the hub correction): a result scored
     # otherwise is scored again from its checkpoint, never silently kept.
@@ -209,6 +211,8 @@ def _result_key(
         key["pooled_gallery"] = True  # session 23: touch candidates pooled too
     if cfg.model.class_heads:
         key["class_logits"] = True  # session 47: the heads' calibration needs them
+    if labelled:
+        key["probe_predictions"] = True  # session 55: the probes' intervals pool them
     if control is not None:
         key["background_control"] = CONTROL_SEED
         if control.has_room_control:
@@ -358,6 +362,7 @@ def cross_validate(
     )
     untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
     room = RoomProbe(catalog, config.data.workers) if control is not None else None
+    labelled = bool(catalog.label_columns)
     fingerprint = catalog.fingerprint()
     data_id = {"root": str(catalog.root), "fingerprint": fingerprint}
     results = []
@@ -366,7 +371,7 @@ def cross_validate(
             run_dir = out / f"seed{seed}-fold{fold}"
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
-            key = _result_key(cfg, tta, pairs, presses, control)
+            key = _result_key(cfg, tta, pairs, presses, control, labelled)
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
             if saved is not None and not catalog.matches_fingerprint(
                 saved.get("data", data_id)["fingerprint"]
@@ -450,7 +455,11 @@ def cross_validate(
     atomic_write_text(out / REPORT, format_cv_summary(summary))
     asked = {(seed, fold) for seed in seeds for fold in fold_list}
     others = _other_finished_runs(
-        out, config, catalog, asked, lambda cfg: _result_key(cfg, tta, pairs, presses, control)
+        out,
+        config,
+        catalog,
+        asked,
+        lambda cfg: _result_key(cfg, tta, pairs, presses, control, labelled),
     )
     if others:
         log(_others_line(out, others, seeds, fold_list, asked | set(others)))

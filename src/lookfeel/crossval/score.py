@@ -32,13 +32,13 @@ from lookfeel.metrics import (
     EXACT_PICK,
     PairScore,
     QuerySet,
-    property_probe,
     score_distances,
     score_pairs,
 )
 from lookfeel.metrics.classes import knn_classes, majority_class
 from lookfeel.metrics.cross_map import CrossMap, fit_cross_maps
 from lookfeel.metrics.label_space import LabelSpace, fit_label_spaces
+from lookfeel.metrics.properties import probe_columns
 from lookfeel.modality import Modality, Pair
 from lookfeel.train.validate import default_pairs
 
@@ -122,12 +122,17 @@ def _probe(
     train_f: np.ndarray,
     test_x: np.ndarray,
     test_f: np.ndarray,
-) -> dict[str, dict[str, float]]:
+) -> dict[str, dict[str, Any]]:
+    """The ridge probe of every label column on fabric-mean rows (`probe_columns`): per label
+    its scores on the held-out fabrics (`property_probe`'s) and ``held_out``, what the summary
+    pools over a run's folds: each held-out fabric's id (``fabric``), label (``truth``) and
+    prediction (``pred``), and the training fabrics' mean label (``train_mean``, what a probe
+    that knows nothing predicts). The lists are empty where the probe was not fitted."""
     if not catalog.label_columns:
         return {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return property_probe(
+        columns = probe_columns(
             train_x,
             _labels(catalog, train_f),
             test_x,
@@ -137,6 +142,17 @@ def _probe(
             train_fabric=train_f,
             test_fabric=test_f,
         )
+    out: dict[str, dict[str, Any]] = {}
+    for name, c in columns.items():
+        rows = range(len(c.rows) if c.fitted else 0)  # a probe not fitted predicted none
+        held_out = {
+            "fabric": [int(c.rows[i]) for i in rows],
+            "truth": [float(c.truth[i]) for i in rows],
+            "pred": [float(c.pred[i]) for i in rows],
+            "train_mean": c.train_mean,
+        }
+        out[name] = c.scores() | {"held_out": held_out}
+    return out
 
 
 class RoomProbe:
@@ -171,7 +187,7 @@ class RoomProbe:
 
     def __call__(
         self, train_ids: Sequence[int], held_ids: Sequence[int]
-    ) -> dict[str, dict[str, float]] | None:
+    ) -> dict[str, dict[str, Any]] | None:
         x = self._pixels()
         if not self.catalog.label_columns or x.shape[1] == 0:
             return None

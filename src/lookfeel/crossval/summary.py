@@ -14,9 +14,10 @@ import numpy as np
 
 from lookfeel.evaluate.core import no_query_scored
 from lookfeel.metrics import bootstrap_ci, mean_and_spread
+from lookfeel.metrics.bootstrap import fabric_weights, percentile_interval
 from lookfeel.metrics.calibration import expected_calibration_error
 from lookfeel.metrics.classes import accuracy, logit_temperature, macro_f1, softmax
-from lookfeel.metrics.properties import MIN_SPEARMAN
+from lookfeel.metrics.properties import MIN_SPEARMAN, resampled_r2, resampled_spearman
 from lookfeel.modality import Pair
 
 __all__ = [
@@ -157,19 +158,25 @@ def _summarise(
             entry["missing_in"] = missing
         entry["per_item"] = _per_item(results, pair, names)
         summary["pairs"][pair] = entry
-    summary["properties"] = _summarise_probes(results, label_values, noun)
+    summary["properties"] = _summarise_probes(results, label_values, noun, n_boot)
     summary["classes"] = _summarise_classes(results, n_boot)
     return summary
 
 
 def _summarise_probes(
-    results: list[dict], label_values: Mapping[str, Sequence[float]] | None, noun: str
+    results: list[dict],
+    label_values: Mapping[str, Sequence[float]] | None,
+    noun: str,
+    n_boot: int = 1000,
 ) -> dict[str, Any]:
     """The property probes over runs: per modality, method (model, raw pixels, room) and label,
     R² and Spearman's mean and std over the runs that could score them, how many did
     (``runs``, ``spearman_runs``, of ``runs_total``) and on how many labelled held-out items in
     all (``held_out``); where no run could, ``not_scored`` (or ``spearman_not_scored``) says why
-    (`_probe_reason`). A run's Spearman over fewer than `MIN_SPEARMAN` items is left out."""
+    (`_probe_reason`). A run's Spearman over fewer than `MIN_SPEARMAN` items is left out.
+    Where every run kept its held-out predictions, also ``pooled`` (`_pooled_probe`): R²,
+    Spearman and chance R² over every held-out item of a seed's folds at once, with 95%
+    intervals resampling the items (``n_boot`` resamples)."""
     out: dict[str, Any] = {}
     for m, per in results[0]["properties"].items():  # none when no run had training fabrics
         out[m] = {}
@@ -207,8 +214,104 @@ def _summarise_probes(
                         if few[scored].all()
                         else "the probe predicted one value"
                     )
+                pooled = _pooled_probe(cells, [r.get("seed") for r in results], n_boot, noun)
+                if pooled is not None:
+                    row["pooled"] = pooled
                 table[label] = row
             out[m][method] = table
+    return out
+
+
+def _pooled_probe(
+    cells: Sequence[Mapping[str, Any]], seeds: Sequence[Any], n_boot: int, noun: str
+) -> dict[str, Any] | None:
+    """One label's probe over every held-out item of a seed's folds at once: each run's
+    ``held_out`` predictions (`lookfeel.crossval.score._probe`) pooled per seed (the folds of
+    one seed hold out each item once), then averaged over the seeds. None where a run kept
+    no predictions (a result scored before session 55).
+
+    Per seed: R², Spearman (over `MIN_SPEARMAN` or more items), and the R² of chance: each
+    fold's training mean predicted for its held-out items, what a probe that knows nothing
+    does (typically a little below 0: R² is measured from the held-out items' own mean, and
+    a fold's training mean lies off it, away from that fold's held-out items). Each 95%
+    interval resamples the items (`fabric_weights`, seed 0: one draw shared by every seed,
+    label and method). Across seeds, as in the class tables (`_summarise_classes`), the
+    number is the mean over seeds and its interval that of the mean: each resample's scores
+    are averaged over the seeds before the percentiles are taken.
+
+    Returns:
+        ``{"r2", "spearman", "chance_r2"}``, each ``{"mean", "ci95", "per_seed",
+        "per_seed_ci95"}``; ``held_out``, the items pooled (over every seed); ``seeds``, the
+        seeds, in the order of ``per_seed``; and ``spearman_not_scored`` where R² was scored
+        and Spearman was not, saying why.
+    """
+    if not all(isinstance(c.get("held_out"), Mapping) for c in cells):
+        return None
+    by_seed: dict[Any, list[Mapping[str, Any]]] = {}
+    for c, seed in zip(cells, seeds, strict=True):
+        by_seed.setdefault(seed, []).append(c["held_out"])
+    parts = []
+    for held in by_seed.values():
+        ids = np.array([int(i) for h in held for i in h["fabric"]], dtype=np.int64)
+        truth = np.array([_num(v) for h in held for v in h["truth"]])
+        pred = np.array([_num(v) for h in held for v in h["pred"]])
+        chance = np.array([_num(h["train_mean"]) for h in held for _ in h["fabric"]])
+        parts.append((ids, truth, pred, chance))
+    items = np.unique(np.concatenate([p[0] for p in parts]))
+    w = fabric_weights(len(items), n_boot, seed=0)  # (B, F), columns: the sorted items
+    scores: dict[str, list[tuple[float, np.ndarray]]] = {"r2": [], "spearman": [], "chance_r2": []}
+    for ids, truth, pred, chance in parts:
+        ws = w[:, np.searchsorted(items, ids)]  # (B, F) -> (B, M): each row its item's draws
+        for key, (value, reps) in _seed_scores(truth, pred, chance, ws).items():
+            scores[key].append((value, reps))
+    out: dict[str, Any] = {}
+    for key, per_seed in scores.items():
+        values = [v for v, _ in per_seed]
+        reps = np.stack([r for _, r in per_seed])  # (S, B)
+        n = (~np.isnan(reps)).sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean_reps = np.where(n > 0, np.nansum(reps, axis=0) / n, np.nan)
+        out[key] = {
+            "mean": mean_and_spread(values)["mean"],
+            "ci95": list(percentile_interval(mean_reps)),
+            "per_seed": values,
+            "per_seed_ci95": [list(percentile_interval(r)) for _, r in per_seed],
+        }
+    out["held_out"] = len(items)
+    out["seeds"] = list(by_seed)
+    r2_scored = not math.isnan(out["r2"]["mean"])
+    if r2_scored and math.isnan(out["spearman"]["mean"]):
+        most = max(len(p[0]) for p in parts)
+        out["spearman_not_scored"] = (
+            f"at most {MIN_SPEARMAN - 1} labelled held-out {noun}s in all: their Spearman is ±1 "
+            "whatever the probe predicts"
+            if most < MIN_SPEARMAN
+            else "the probe predicted one value"
+        )
+    return out
+
+
+def _seed_scores(
+    truth: np.ndarray, pred: np.ndarray, chance: np.ndarray, w: np.ndarray
+) -> dict[str, tuple[float, np.ndarray]]:
+    """One seed's pooled probe: ``{"r2", "spearman", "chance_r2"}``, each (its value on the
+    items as they are, its value in each resample (B,)); ``truth``, ``pred``, ``chance``
+    (M,): each held-out item's label, prediction and fold's training mean; ``w`` (B, M):
+    how many times each resample draws each item. NaN where there is nothing to score:
+    fewer than 2 items, or fewer than `MIN_SPEARMAN` for Spearman (a resample that draws 2
+    items keeps its Spearman: whether the probe orders those two, not a fixed ±1)."""
+    none = (math.nan, np.full(len(w), np.nan))
+    if len(truth) < 2:
+        return {"r2": none, "spearman": none, "chance_r2": none}
+    one = np.ones((1, len(truth)))
+    out = {
+        "r2": (float(resampled_r2(truth, pred, one)[0]), resampled_r2(truth, pred, w)),
+        "spearman": none,
+        "chance_r2": (float(resampled_r2(truth, chance, one)[0]), resampled_r2(truth, chance, w)),
+    }
+    if len(truth) >= MIN_SPEARMAN:
+        spearman = float(resampled_spearman(truth, pred, one)[0])
+        out["spearman"] = (spearman, resampled_spearman(truth, pred, w))
     return out
 
 

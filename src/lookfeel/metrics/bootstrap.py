@@ -4,7 +4,9 @@ Queries of one fabric are not independent (they share the fabric), so the bootst
 fabrics, not queries: each replicate draws F fabrics with replacement and recomputes the metric
 from the per-query values of the drawn fabrics (a fabric drawn twice counts twice). All
 replicates come from one (B, F) matrix of multinomial weights, so B = 1000 costs a few matrix
-products.
+products. A statistic that is not a mean over queries (R^2, Spearman) is computed on each
+resample from the same weights (`lookfeel.metrics.properties.resampled_r2`) and its interval
+read off by `percentile_interval`.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["bootstrap_ci", "fabric_weights", "mean_and_spread"]
+__all__ = ["bootstrap_ci", "fabric_weights", "mean_and_spread", "percentile_interval"]
 
 
 def fabric_weights(n_fabrics: int, n_boot: int = 1000, seed: int = 0) -> NDArray[np.float64]:
@@ -87,6 +89,21 @@ def bootstrap_ci(
     low, high = np.nanpercentile(reps, q, axis=0) if n_m else (np.zeros(0), np.zeros(0))
     low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
     return (low[0], high[0]) if one else (low, high)
+
+
+def percentile_interval(replicates: ArrayLike, alpha: float = 0.05) -> tuple[float, float]:
+    """The percentile interval of a statistic from its bootstrap replicates (B,): their
+    ``alpha / 2`` and ``1 - alpha / 2`` quantiles (the 2.5th and 97.5th percentiles for 0.05),
+    over the replicates where the statistic is defined (not NaN); ``(nan, nan)`` where none
+    is."""
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be in (0, 1); got {alpha}")
+    r = np.asarray(replicates, dtype=np.float64).reshape(-1)
+    r = r[~np.isnan(r)]
+    if not len(r):
+        return float("nan"), float("nan")
+    low, high = np.percentile(r, [100.0 * alpha / 2.0, 100.0 * (1.0 - alpha / 2.0)])
+    return float(low), float(high)
 
 
 def _weighted_median(
