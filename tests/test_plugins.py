@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 import yaml
@@ -19,7 +20,7 @@ from lookfeel import plugins
 from lookfeel.cli import main
 from lookfeel.config import ConfigError, LossConfig, ModelConfig, RunConfig, load_config
 from lookfeel.config.model import backbone_names
-from lookfeel.plugins import PluginError, load_plugins
+from lookfeel.plugins import PluginError, PluginWarning, load_plugins
 
 from ._registry import restored_registries
 
@@ -280,6 +281,20 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
         "its folder on PYTHONPATH)"
     )
     assert "model.backbone: 'lfplug_cli' is not one of" in str(e.value)
+    # Installed as an entry point that now fails to import: the error names it and why.
+    (tmp_path / "plugins" / f"{name}.py").write_text("import lfplug_missing_dependency\n")
+    plugins._reset()
+    monkeypatch.setattr(plugins, "_entry_points", lambda: [_entry_point("cli", name)])
+    warned = pytest.warns(PluginWarning, match="entry point 'cli'")
+    with warned, pytest.raises(CheckpointError) as e:
+        load_model(out / "checkpoints" / "last.pt")
+    assert (
+        "(one of your own: import its module first, or name it in LOOKFEEL_PLUGINS or lookfeel "
+        "--plugin, which lookfeel.plugins.load_plugins() imports; entry point 'cli' = "
+        "'lfplug_cli' did not load (ModuleNotFoundError: No module named "
+        "'lfplug_missing_dependency')) (the run was trained with the plugin module lfplug_cli: "
+        "lookfeel --plugin lfplug_cli, with its folder on PYTHONPATH)"
+    ) in str(e.value)
 
 
 def test_a_bad_plugin_option_prints_one_line_and_exits_1(
@@ -343,11 +358,63 @@ def test_entry_points_are_loaded_once_modules_imported_functions_called(
 def test_an_entry_point_that_fails_names_its_package(plugin, tmp_path: Path, monkeypatch):
     _install(tmp_path / "plugins", "lab-ext", "gone = lfplug_gone:setup")
     monkeypatch.setattr(importlib.metadata, "entry_points", _ENTRY_POINTS)
-    with pytest.raises(PluginError) as e:
+    with pytest.warns(PluginWarning) as caught:
         load_plugins()
-    assert str(e.value) == (
+    assert [str(w.message) for w in caught] == [
         "entry point 'gone' (lookfeel.plugins) of package lab-ext: cannot load "
-        "'lfplug_gone:setup' (ModuleNotFoundError: No module named 'lfplug_gone')"
+        "'lfplug_gone:setup' (ModuleNotFoundError: No module named 'lfplug_gone'); lookfeel "
+        "goes on without it"
+    ]
+
+
+def _entry_point(name: str, value: str) -> importlib.metadata.EntryPoint:
+    return importlib.metadata.EntryPoint(name=name, value=value, group=plugins.ENTRY_POINT_GROUP)
+
+
+def test_a_broken_entry_point_is_one_warning_and_every_command_goes_on(
+    plugin, tiny_dataset: Path, tmp_path: Path, monkeypatch, capsys
+):
+    """QA: one installed package whose entry point failed to import stopped every command,
+    even ``lookfeel data info``. It is one warning line naming it; the other entry points load;
+    a module named with --plugin that fails is still an error."""
+    good = plugin("lfplug_ep_good")
+    broken = tmp_path / "plugins" / "lfplug_ep_broken.py"
+    broken.write_text("import lfplug_missing_dependency\n")
+    eps = [
+        _entry_point("broken", "lfplug_ep_broken"),
+        _entry_point("calls", f"{good}:nowhere"),
+        _entry_point("good", good),
+    ]
+    monkeypatch.setattr(plugins, "_entry_points", lambda: eps)
+    from lookfeel.cli import run
+
+    assert run(["data", "info", str(tiny_dataset)]) == 0
+    out = capsys.readouterr()
+    assert "fabrics" in out.out
+    assert out.err.splitlines() == [
+        "lookfeel: warning: entry point 'broken' (lookfeel.plugins): cannot load "
+        "'lfplug_ep_broken' (ModuleNotFoundError: No module named 'lfplug_missing_dependency', "
+        f"at {broken}:1); lookfeel goes on without it",
+        "lookfeel: warning: entry point 'calls' (lookfeel.plugins): cannot load "
+        f"'{good}:nowhere' (AttributeError: module '{good}' has no attribute 'nowhere'); "
+        "lookfeel goes on without it",
+    ]
+    assert good in backbone_names()  # the entry point after the broken ones loaded
+    # A name no loaded plugin registers names the entry points that did not load.
+    with pytest.raises(ConfigError) as e:
+        ModelConfig(backbone="lfplug_ep_broken")
+    assert str(e.value).endswith(
+        "the plugins loaded (entry point good) register no such name; entry point 'broken' = "
+        "'lfplug_ep_broken' did not load (ModuleNotFoundError: No module named "
+        "'lfplug_missing_dependency'); entry point 'calls' = 'lfplug_ep_good:nowhere' did not "
+        "load (AttributeError: module 'lfplug_ep_good' has no attribute 'nowhere'))"
+    )
+    # Named with --plugin, a module that fails is an error in one line, as before.
+    plugins._reset()
+    assert run(["--plugin", "lfplug_ep_broken", "data", "info", str(tiny_dataset)]) == 1
+    assert capsys.readouterr().err == (
+        "lookfeel: --plugin: cannot import 'lfplug_ep_broken' (ModuleNotFoundError: No module "
+        f"named 'lfplug_missing_dependency', at {broken}:1)\n"
     )
 
 
@@ -399,9 +466,44 @@ register_backbone("compact", Mine)
 """
 
 
+_BAD_NAME = """\
+from lookfeel.models import register_backbone
+from lookfeel.models.compact import CompactCNN
+
+
+@register_backbone("My Net!")
+class Mine(CompactCNN):
+    pass
+"""
+
+_BAD_FREEZE_POINT = """\
+from lookfeel.models import register_backbone
+from lookfeel.models.compact import CompactCNN
+
+
+class Mine(CompactCNN):
+    freeze_points = {"none": 0, "all": -1}
+
+
+register_backbone("lfplug_negative", Mine)
+"""
+
+
 @pytest.mark.parametrize(
     ("source", "message"),
     [
+        (
+            _BAD_NAME,
+            "PluginError: backbone name 'My Net!' cannot be written as model.backbone in a "
+            "config: use only letters, digits, _, - and ., beginning with a letter (e.g. "
+            "my_net), at {path}:5",
+        ),
+        (
+            _BAD_FREEZE_POINT,
+            "BackboneError: backbone 'lfplug_negative': Mine.freeze_points['all'] is -1; a "
+            "freeze point's value is the number of stages in the trunk, an int >= 0, at "
+            "{path}:9",
+        ),
         (
             _OVERRIDE,
             "TypeError: backbone 'lfplug_residual': Residual defines forward(), which lookfeel "
@@ -413,7 +515,7 @@ register_backbone("compact", Mine)
             "(lookfeel.models.compact.CompactCNN), at {path}:9",
         ),
     ],
-    ids=["forward-defined", "name-clash"],
+    ids=["bad-name", "negative-freeze-point", "forward-defined", "name-clash"],
 )
 def test_a_backbone_lookfeel_cannot_run_as_written_is_refused_at_the_plugins_line(
     plugin, tmp_path: Path, monkeypatch, source: str, message: str
@@ -437,3 +539,112 @@ def test_an_error_s_first_sentence_keeps_its_example() -> None:
 
     e = TypeError('point -> stages, e.g. {"none": 0}, i.e. a dict. More follows. And more')
     assert error_line(e) == 'TypeError: point -> stages, e.g. {"none": 0}, i.e. a dict'
+
+
+def test_a_name_a_config_cannot_give_is_refused_when_registered() -> None:
+    """QA: ``register_backbone("My Net!")`` was accepted, though no config can select it
+    (``--set model.backbone=My Net!``); so was such a loss name. A plain name registers and is
+    given through --set as written; every built-in name is one."""
+    from lookfeel.config.loss import loss_kinds
+    from lookfeel.losses import register_loss
+    from lookfeel.models import register_backbone
+    from lookfeel.plugins import check_registry_name
+
+    from ._registry import MeanTripletLoss, TinyViT
+
+    rule = "only letters, digits, _, - and ., beginning with a letter (e.g. my_net)"
+    with restored_registries():
+        for register, what, key in (
+            (register_backbone, "backbone", "model.backbone"),
+            (register_loss, "loss", "loss.kind"),
+        ):
+            for name in ("My Net!", "2net", "", None):
+                with pytest.raises(PluginError) as e:
+                    register(name)  # type: ignore[call-overload]
+                assert str(e.value) == (
+                    f"{what} name {name!r} cannot be written as {key} in a config: use {rule}"
+                )
+            with pytest.raises(PluginError) as e:
+                register("yes")  # type: ignore[call-overload]
+            assert str(e.value) == (
+                f"{what} name 'yes' cannot be written as {key} in a config, which reads it as "
+                f"True: choose another name of {rule}"
+            )
+        for name in backbone_names():
+            check_registry_name(name, "backbone", "model.backbone")
+        for name in loss_kinds():
+            check_registry_name(name, "loss", "loss.kind")
+
+        class Dotted(TinyViT):
+            name = "my-net.v2"
+
+        register_backbone("my-net.v2", Dotted)
+        register_loss("my-loss.v2", lambda c: MeanTripletLoss(c.triplet_margin))
+        config = load_config(
+            RunConfig, overrides=["model.backbone=my-net.v2", "loss.kind=my-loss.v2"]
+        )
+        assert (config.model.backbone, config.loss.kind) == ("my-net.v2", "my-loss.v2")
+
+
+def test_a_freeze_point_beyond_the_backbone_s_stages_is_refused_when_built() -> None:
+    """QA: a ``freeze_points`` value above the stages a backbone builds was accepted (it froze
+    every stage, whatever the point's name said). The stages exist only once it is built:
+    refused then, naming the backbone, the point and the count."""
+    from lookfeel.models import BackboneError, create_backbone, register_backbone
+
+    from ._registry import TinyViT  # three stages
+
+    class Short(TinyViT):
+        name = "lfplug_short"
+        freeze_points: ClassVar[dict[str, int]] = {"none": 0, "to_patches": 1, "all": 4}
+
+    with restored_registries():
+        register_backbone("lfplug_short", Short)
+        with pytest.raises(BackboneError) as e:
+            create_backbone("lfplug_short", freeze="none", width=8)
+        assert str(e.value) == (
+            f"lfplug_short ({Short.__module__}.{Short.__qualname__}): freeze point 'all' puts 4 "
+            "stages in the trunk, but the backbone has 3 (the stages given to _set_stages); a "
+            "freeze point's value is at most 3"
+        )
+
+
+_UNPOOLED = """\
+from torch import nn
+
+from lookfeel.models import Backbone, register_backbone
+
+
+@register_backbone("lfplug_unpooled")
+class Unpooled(Backbone):
+    freeze_points = {"none": 0}
+    min_size = 8
+
+    def _build(self, freeze, dropout, width):
+        self.conv = nn.Conv2d(self.stem_channels, 8, 3, 2, 1)
+        self._set_stages([self.conv], "none", embed_dim=8)  # (N, 8, H, W): never pooled
+"""
+
+
+def test_a_run_whose_plugin_fails_before_its_first_checkpoint_leaves_out_as_found(
+    plugin, tiny_dataset: Path, tmp_path: Path, capsys
+):
+    """QA: a run whose plugin backbone failed at its first batch left config.yaml and
+    split.json in --out, which then looked like a run (``--resume`` read that config.yaml,
+    and said there was nothing to resume). The folder is left as the run found it: one it
+    made is gone, an empty one it was given stays empty."""
+    name = plugin("lfplug_unpooled")
+    (tmp_path / "plugins" / f"{name}.py").write_text(_UNPOOLED)
+    given = tmp_path / "given"
+    given.mkdir()
+    for out in (tmp_path / "runs" / "first", given):
+        args = ["--plugin", name, "train", "--config", str(TINY_CONFIG), "--data"]
+        args += [str(tiny_dataset), "--out", str(out), "--set", f"model.backbone={name}"]
+        assert main(args) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(
+            "lookfeel: lfplug_unpooled (lfplug_unpooled.Unpooled): returned embeddings of shape "
+        )
+        assert err.count("\n") == 1
+    assert not (tmp_path / "runs").exists()
+    assert list(given.iterdir()) == []

@@ -850,3 +850,55 @@ def test_a_run_stopped_while_writing_its_first_last_pt_resumes_from_best_pt(
         train(cfg, data, tmp_path / "broken")  # not started again over it either
     resumed = train(cfg, data, tmp_path / "broken", resume=True)
     assert _states_equal(unbroken.last_checkpoint, resumed.last_checkpoint)
+
+
+def test_a_run_that_fails_before_its_first_checkpoint_leaves_its_folder_as_found(
+    data: Path, tmp_path: Path
+):
+    """QA: a run that failed before its first checkpoint left config.yaml, split.json and
+    metrics.jsonl behind, so the folder looked like a run. What the run made goes (the
+    folders above it too); a folder it was given keeps the user's files; a run of an
+    ensemble goes as a whole."""
+
+    def kill(step: int, _: object) -> None:
+        raise _Kill
+
+    cfg = _config("train.steps=4", "train.checkpoint_every=2", "train.val_every=0")
+    with pytest.raises(_Kill):
+        train(cfg, data, tmp_path / "new" / "run", on_step=kill)
+    assert not (tmp_path / "new").exists()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes\n")
+    (mine / "checkpoints").mkdir()
+    with pytest.raises(_Kill):
+        train(cfg, data, mine, on_step=kill)
+    assert sorted(p.name for p in mine.iterdir()) == ["checkpoints", "notes.txt"]
+    assert (mine / "notes.txt").read_text() == "my notes\n"
+    with pytest.raises(_Kill):
+        train(_config(*ENSEMBLE), data, tmp_path / "ensemble", on_step=kill)
+    assert not (tmp_path / "ensemble").exists()
+
+
+def test_a_run_killed_after_its_first_checkpoint_keeps_its_files_and_resumes(
+    data: Path, tmp_path: Path
+):
+    """What a failed run removes (above) never touches a run with a checkpoint: it resumes."""
+
+    def kill(step: int, _: object) -> None:
+        if step == 3:
+            raise _Kill
+
+    cfg = _config(
+        "train.steps=4", "train.checkpoint_every=2", "train.val_every=0", "train.log_every=1"
+    )
+    run = tmp_path / "run"
+    with pytest.raises(_Kill):
+        train(cfg, data, run, on_step=kill)
+    assert {"config.yaml", "split.json", "metrics.jsonl", "checkpoints"} <= {
+        p.name for p in run.iterdir()
+    }
+    assert torch.load(run / "checkpoints" / "last.pt", weights_only=True)["step"] == 2
+    resumed = train(cfg, data, run, resume=True)
+    assert resumed.steps == 4
+    assert torch.load(resumed.last_checkpoint, weights_only=True)["step"] == 4

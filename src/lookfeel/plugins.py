@@ -23,9 +23,13 @@ process calls it, from two places that every new process finds again:
 worker processes when it starts. Library code calls it too, lazily: when the config meets
 a ``model.backbone`` or ``loss.kind`` nobody has registered (``load_config``, ``load_model``,
 ``build_library`` in a script of one's own), so a plugin named in either place loads in any
-process without a call of one's own. A plugin that cannot be imported
-is a `PluginError` naming where it was asked for (``--plugin`` for a module that option
-added). This module imports no torch (the plugins themselves may).
+process without a call of one's own. A module named in ``LOOKFEEL_PLUGINS`` or by
+``--plugin`` that cannot be imported is a `PluginError` naming where it was asked for
+(``--plugin`` for a module that option added). An installed entry point that cannot be loaded
+or run is a `PluginWarning` instead, and lookfeel goes on without it: a broken package one
+did not name for this command must not stop every command (``lookfeel data info`` included).
+A backbone or loss name a config cannot give is refused when registered
+(`check_registry_name`). This module imports no torch (the plugins themselves may).
 """
 
 from __future__ import annotations
@@ -35,17 +39,20 @@ import importlib.metadata
 import os
 import re
 import types
+import warnings
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from lookfeel.errors import LookfeelError, error_line
+from lookfeel.errors import LookfeelError, caller_stacklevel, error_line
 
 __all__ = [
     "ENTRY_POINT_GROUP",
     "ENV_VAR",
     "PluginError",
+    "PluginWarning",
     "add_plugin_modules",
+    "check_registry_name",
     "load_plugins",
     "plugin_modules",
     "unknown_name_hint",
@@ -65,6 +72,10 @@ _entry_points_loaded = False
 """Whether this process has loaded the ``lookfeel.plugins`` entry points."""
 _entry_point_names: list[str] = []
 """The names of the entry points this process has loaded (for `unknown_name_hint`)."""
+_entry_point_failures: list[str] = []
+"""The entry points this process failed to load, each as ``entry point 'name' = 'value' did
+not load (why)`` (for `unknown_name_hint`: the name asked for may be one that such a plugin
+registers)."""
 _from_option: dict[str, str] = {}
 """Module -> the option that added it to ``LOOKFEEL_PLUGINS`` in this process (``--plugin``):
 an error about it names that option."""
@@ -74,7 +85,41 @@ must not start it again)."""
 
 
 class PluginError(LookfeelError):
-    """A plugin module cannot be imported, or an entry point cannot be loaded or run."""
+    """A plugin module named in ``LOOKFEEL_PLUGINS`` or by ``--plugin`` cannot be imported, or
+    a backbone or loss is registered under a name a config cannot give."""
+
+
+class PluginWarning(UserWarning):
+    """An installed entry point of group ``lookfeel.plugins`` cannot be loaded or run; lookfeel
+    goes on without it (the message names it, its package and the error)."""
+
+
+_REGISTRY_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_.-]*\Z")
+"""A name a config gives as it is (``model.backbone=my_net``, ``backbone: my-net.v2``)."""
+
+
+def check_registry_name(name: object, what: str, key: str) -> None:
+    """Refuse a backbone or loss ``name`` that a config cannot give as the value of ``key``
+    (``model.backbone``, ``loss.kind``): it must be letters, digits, ``_``, ``-`` and ``.``,
+    beginning with a letter, and not a word YAML reads as something else (``yes``, ``null``).
+
+    Args:
+        name: the name being registered.
+        what: what it names, for the message (``backbone``, ``loss``).
+        key: the config key that selects it.
+
+    Raises:
+        PluginError: in one line naming ``name`` and the rule.
+    """
+    rule = "only letters, digits, _, - and ., beginning with a letter (e.g. my_net)"
+    where = f"{what} name {name!r} cannot be written as {key} in a config"
+    if not (isinstance(name, str) and _REGISTRY_NAME.match(name)):
+        raise PluginError(f"{where}: use {rule}")
+    import yaml  # only here: most commands never register a name of their own
+
+    read = yaml.safe_load(name)
+    if read != name:
+        raise PluginError(f"{where}, which reads it as {read!r}: choose another name of {rule}")
 
 
 def plugin_modules(value: str | None = None) -> list[str]:
@@ -101,9 +146,13 @@ def load_plugins() -> None:
     (`lookfeel.config.model.backbone_spec`, `lookfeel.config.LossConfig`), so a script of
     one's own that calls lookfeel gets the plugins as the ``lookfeel`` command does.
 
+    An entry point that cannot be loaded or run is a `PluginWarning` in one line (its name,
+    value, package and error), and the others load: an installed package one did not name
+    for this command must not stop it. Its name is remembered for `unknown_name_hint`.
+
     Raises:
-        PluginError: a module cannot be imported (its own error in one line, and where in it
-            when the module itself failed), or an entry point cannot be loaded or run.
+        PluginError: a module of ``LOOKFEEL_PLUGINS`` cannot be imported (its own error in one
+            line, and where in it when the module itself failed).
     """
     global _entry_points_loaded, _loading
     if _loading:
@@ -116,8 +165,19 @@ def load_plugins() -> None:
                 _loaded_modules.add(name)
         if not _entry_points_loaded:
             for ep in _entry_points():
-                _load_entry_point(ep)
-                _entry_point_names.append(ep.name)
+                try:
+                    _load_entry_point(ep)
+                except PluginError as e:
+                    why = error_line(e.__cause__ or e)
+                    failed = f"entry point {ep.name!r} = {ep.value!r} did not load ({why})"
+                    _entry_point_failures.append(failed)
+                    warnings.warn(
+                        f"{e}; lookfeel goes on without it",
+                        PluginWarning,
+                        stacklevel=caller_stacklevel(),
+                    )
+                else:
+                    _entry_point_names.append(ep.name)
             _entry_points_loaded = True
     finally:
         _loading = False
@@ -125,8 +185,9 @@ def load_plugins() -> None:
 
 def unknown_name_hint() -> str:
     """What to do about a backbone or loss name no plugin registered, for the config's error
-    (called after `load_plugins`): the ways to register one's own, and which
-    plugins were loaded without registering it."""
+    (called after `load_plugins`): the ways to register one's own, which plugins were loaded
+    without registering it, and which entry points failed to load (one of them may be the
+    plugin that registers it)."""
     hint = (
         "one of your own: import its module first, or name it in LOOKFEEL_PLUGINS or "
         "lookfeel --plugin"
@@ -134,8 +195,10 @@ def unknown_name_hint() -> str:
     loaded = [m for m in plugin_modules() if m in _loaded_modules]
     loaded += [f"entry point {n}" for n in _entry_point_names]
     if loaded:
-        return f"{hint}; the plugins loaded ({', '.join(loaded)}) register no such name"
-    return f"{hint}, which lookfeel.plugins.load_plugins() imports"
+        hint += f"; the plugins loaded ({', '.join(loaded)}) register no such name"
+    else:
+        hint += ", which lookfeel.plugins.load_plugins() imports"
+    return "; ".join([hint, *_entry_point_failures])
 
 
 def add_plugin_modules(names: Iterable[str], option: str = "--plugin") -> None:
@@ -162,6 +225,7 @@ def _reset() -> None:
     global _entry_points_loaded, _loading
     _loaded_modules.clear()
     _entry_point_names.clear()
+    _entry_point_failures.clear()
     _from_option.clear()
     _entry_points_loaded = False
     _loading = False
@@ -217,7 +281,8 @@ def _entry_points() -> Iterable[importlib.metadata.EntryPoint]:
 
 
 def _load_entry_point(ep: importlib.metadata.EntryPoint) -> None:
-    """Load entry point ``ep`` (import its module; call its object when it is a function)."""
+    """Load entry point ``ep`` (import its module; call its object when it is a function), or
+    raise `PluginError` saying in one line why not (`load_plugins` warns with it)."""
     package = getattr(getattr(ep, "dist", None), "name", None)
     where = f"entry point {ep.name!r} ({ENTRY_POINT_GROUP})"
     where += f" of package {package}: " if package else ": "

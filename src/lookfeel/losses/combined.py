@@ -28,6 +28,7 @@ from lookfeel.losses.distance import (
 from lookfeel.losses.infonce import MultiPositiveInfoNCE
 from lookfeel.losses.property import masked_mse
 from lookfeel.losses.triplet import BatchHardTripletLoss
+from lookfeel.plugins import check_registry_name
 
 __all__ = ["PAIR_LOSSES", "CombinedLoss", "LossError", "create_loss", "register_loss"]
 
@@ -243,9 +244,13 @@ def register_loss(
         ``build`` (or the decorator).
 
     Raises:
+        PluginError: ``name`` cannot be given as ``loss.kind`` in a config (it must be
+            letters, digits, ``_``, ``-`` and ``.``, beginning with a letter:
+            `lookfeel.plugins.check_registry_name`); refused by the decorator form too.
         TypeError: ``build`` is not callable.
         ValueError: another function is registered under ``name``.
     """
+    check_registry_name(name, "loss", "loss.kind")
     if build is None:
         return lambda b: register_loss(name, b)
     if not callable(build):

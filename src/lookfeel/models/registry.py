@@ -23,9 +23,10 @@ from typing import Any, overload
 
 from lookfeel.config.model import BackboneSpec, register_backbone_spec
 from lookfeel.models.alexnet import AlexNet
-from lookfeel.models.backbone import Backbone
+from lookfeel.models.backbone import Backbone, BackboneError
 from lookfeel.models.compact import CompactCNN
 from lookfeel.models.resnet import ResNet18
+from lookfeel.plugins import check_registry_name
 
 __all__ = ["BACKBONES", "create_backbone", "list_backbones", "register_backbone"]
 
@@ -51,6 +52,14 @@ def _spec(name: str, cls: type[Backbone]) -> BackboneSpec:
             f"backbone {name!r}: {cls.__qualname__}.freeze_points must be a dict of freeze "
             'point -> stages in the trunk, e.g. {"none": 0}'
         )
+    for point, cut in points.items():
+        # The stages themselves are made only when the class is built (`create_backbone`
+        # checks each count against them then); a count that is no count is refused now.
+        if isinstance(cut, bool) or not isinstance(cut, int) or cut < 0:
+            raise BackboneError(
+                f"backbone {name!r}: {cls.__qualname__}.freeze_points[{point!r}] is {cut!r}; "
+                "a freeze point's value is the number of stages in the trunk, an int >= 0"
+            )
     try:
         return BackboneSpec(
             name,
@@ -86,17 +95,21 @@ def register_backbone(
         ``cls`` (or the decorator).
 
     Raises:
+        PluginError: ``name`` cannot be given as ``model.backbone`` in a config (it must be
+            letters, digits, ``_``, ``-`` and ``.``, beginning with a letter:
+            `lookfeel.plugins.check_registry_name`); refused by the decorator form too.
         TypeError: ``cls`` is not a `Backbone` subclass, its attributes are inconsistent, or it
             defines ``forward``, ``trunk`` or ``head`` (lookfeel runs the stages given to
             ``_set_stages``, never these: an override would be ignored without a word).
+        BackboneError: a ``freeze_points`` value is not an int >= 0 (one beyond the stages
+            the class builds is refused when it is built: `create_backbone`).
         ValueError: another class is registered under ``name``, or ``cls`` is named otherwise.
     """
+    check_registry_name(name, "backbone", "model.backbone")
     if cls is None:
         return lambda c: register_backbone(name, c)
     if not (isinstance(cls, type) and issubclass(cls, Backbone)):
         raise TypeError(f"backbone {name!r}: expected a Backbone subclass, got {cls!r}")
-    if not isinstance(name, str) or not name:
-        raise ValueError(f"a backbone name must be a non-empty string, got {name!r}")
     for klass in cls.__mro__[: cls.__mro__.index(Backbone)]:
         defined = [m for m in _RUN_BY_LOOKFEEL if m in vars(klass)]
         if defined:
@@ -148,9 +161,21 @@ def create_backbone(name: str, **kwargs: Any) -> Backbone:
 
     Raises:
         ValueError: an unknown name (listing the known ones) or a bad keyword value.
+        BackboneError: the class breaks the `Backbone` contract, e.g. a ``freeze_points``
+            value above the number of stages it gave ``_set_stages`` (which would freeze
+            stages that do not exist: checked here, as the stages exist only once built).
     """
     if name not in BACKBONES:
         raise ValueError(
             f"unknown backbone {name!r}; expected one of: {', '.join(list_backbones())}"
         )
-    return BACKBONES[name](**kwargs)
+    backbone = BACKBONES[name](**kwargs)
+    stages = len(backbone._stages)
+    for point, cut in type(backbone).freeze_points.items():
+        if cut > stages:
+            raise BackboneError(
+                f"{backbone._who()}: freeze point {point!r} puts {cut} stages in the trunk, "
+                f"but the backbone has {stages} (the stages given to _set_stages); a freeze "
+                f"point's value is at most {stages}"
+            )
+    return backbone

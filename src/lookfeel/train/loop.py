@@ -30,7 +30,7 @@ import os
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from contextlib import AbstractContextManager, contextmanager, nullcontext
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -836,7 +836,7 @@ def train(
     # Images smaller than the backbone takes are refused here, before any data is read, not
     # after the data are loaded; each backbone class knows its own minimum.
     config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
-    with _callers_torch_state(), _run_lock(run_dir):
+    with _callers_torch_state(), _run_folder(run_dir):
         if config.model.members > 1:
             return _train_members(config, Path(data), run_dir, resume, on_step, loader)
         last = run_dir / "checkpoints" / "last.pt"
@@ -867,12 +867,74 @@ def train(
         return result
 
 
-def _run_lock(run_dir: Path) -> AbstractContextManager[None]:
-    """One training at a time per run folder (`lookfeel.locks.exclusive`: a second process is
-    refused, naming the first's PID); under torchrun the first process holds it for all."""
+@contextmanager
+def _run_folder(run_dir: Path) -> Iterator[None]:
+    """Hold the run folder while a run trains in it, and give it back as found when the run
+    fails before it has a checkpoint.
+
+    One training at a time per run folder (`lookfeel.locks.exclusive`: a second process is
+    refused, naming the first's PID); under torchrun the first process holds it for all, and
+    alone tidies up (it alone writes the run).
+
+    A run that fails (an error, Ctrl-C) while the folder holds no checkpoint (`run_started`)
+    has nothing to resume from, yet its config.yaml and split.json would make the folder look
+    like a run. So what this call created goes: the run's own files (`_OWN_FILES`) that did
+    not exist when it began, then the folders it made (the run folder and the missing ones
+    above it, ``checkpoints``, ...) where they are empty. A file that was there before is
+    kept, and so is any file of the user's. Once a checkpoint exists, everything is kept, to
+    resume from (a run killed during training resumes as before).
+    """
     if int(os.environ.get("RANK", "0")) != 0:
-        return nullcontext()
-    return exclusive(run_dir, "train", "this run")
+        yield
+        return
+    missing: list[Path] = []  # the run folder and those above it that do not exist: deepest first
+    for folder in (run_dir, *run_dir.parents):
+        if folder.exists() or folder.is_symlink():
+            break
+        missing.append(folder)
+    made: list[Path] = []  # of ``missing``, to remove once the lock file beside them is gone
+    try:
+        with exclusive(run_dir, "train", "this run"):
+            before = _own_files(run_dir)
+            try:
+                yield
+            except BaseException:
+                if not run_started(run_dir):
+                    new = _own_files(run_dir) - before
+                    made = missing
+                    for path in sorted(new, key=lambda p: len(p.parts), reverse=True):
+                        _remove_if_own(path)
+                raise
+    finally:
+        for folder in made:  # deepest first; the lock file beside the run folder is gone now
+            try:
+                folder.rmdir()
+            except FileNotFoundError:  # an ensemble member's run removed it already
+                continue
+            except OSError:  # not empty: someone else's files are in it, so keep it and above
+                break
+
+
+_OWN_FILES = ("config.yaml", "split.json", "metrics.jsonl", "checkpoints", "tensorboard")
+"""What a run writes in its folder before its first checkpoint (and the folders its
+checkpoints and TensorBoard's event files go into; an ensemble's ``members`` too)."""
+
+
+def _own_files(run_dir: Path) -> set[Path]:
+    """Those of `_OWN_FILES` (and ``members``, TensorBoard's event files) in ``run_dir`` now."""
+    paths = [run_dir / name for name in (*_OWN_FILES, MEMBERS)]
+    paths += (run_dir / "tensorboard").glob("events.out.tfevents.*")
+    return {p for p in paths if p.exists() or p.is_symlink()}
+
+
+def _remove_if_own(path: Path) -> None:
+    """Remove a file this run wrote, or a folder it made once it is empty (one that holds
+    anything else is kept)."""
+    if path.is_dir() and not path.is_symlink():
+        with suppress(OSError):  # not empty: kept
+            path.rmdir()
+    else:
+        path.unlink(missing_ok=True)
 
 
 _RESUME = "--resume (resume=True)"
