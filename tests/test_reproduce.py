@@ -1133,3 +1133,210 @@ def test_results_json_records_what_it_takes_to_reproduce_it(tmp_path: Path):
     assert set(meta["software"]) == {"lookfeel", "torch", "python"}
     assert meta["data"] == str(two) and meta["budget"] == "tiny"  # the keys it had
     assert "budget: **tiny**" in (out / "report.md").read_text()
+
+
+# --- Table 4 beside raw pixels and the background control ------------------------------------
+
+
+@pytest.fixture(scope="module")
+def vision(data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A finished reproduction of ``snn_depth`` alone (Table 4), its folder: read, or copied
+    before it is changed."""
+    out = tmp_path_factory.mktemp("vision") / "out"
+    reproduce(
+        data,
+        out,
+        budget="tiny",
+        only=["snn_depth"],
+        n_boot=50,
+        overrides=FAST,
+        log=lambda s: None,
+        workers=1,
+    )
+    return out
+
+
+def _ordered(side: dict, key: str) -> bool:
+    """``side[key]`` in [0, 1], inside its interval when it has one."""
+    v = side[key]
+    low, high = side.get(f"{key}_ci_low", v), side.get(f"{key}_ci_high", v)
+    return 0.0 <= low <= v <= high <= 1.0
+
+
+def test_table_4_has_raw_pixels_and_the_background_control_beside_the_model(vision: Path):
+    """QA: Table 4's depth numbers stood beside chance alone. On GelFabric each
+    fabric is captured in its own session, so the room behind the cloth names it. Each side now
+    carries, on the same queries, raw pixels' top-1 and the model's and raw pixels' with each
+    depth image's background swapped for another fabric's, each with its interval; eval.json,
+    results.json, the report and the headline show them."""
+    from lookfeel.reproduce.report import CONTROLS_NOTE
+    from lookfeel.reproduce.run import CONTROL_KEYS, headline
+
+    record = json.loads((vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text())
+    saved = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
+    for novel in (record["novel"], saved["novel"]):
+        assert set(CONTROL_KEYS) <= set(novel)
+        for key in ("top1", "raw_pixels_top1", "top1_swapped", "raw_pixels_top1_swapped"):
+            assert f"{key}_ci_low" in novel and _ordered(novel, key), key
+        assert novel["top1_swapped"] != novel["top1"]  # the swap changed the images
+    # The seen side has no query (one held-out depth image a fabric): every number n/a, for
+    # the side's reason; results.json has null for them, as for the model's.
+    assert all(record["seen"][k] != record["seen"][k] for k in CONTROL_KEYS)
+    assert all(saved["seen"][k] is None for k in CONTROL_KEYS)
+    assert set(record["not_scored"]) == {"seen"}
+    report = (vision / "report.md").read_text()
+    table_4 = report[report.index("## Table 4") :]
+    n = record["novel"]
+    for label, key in (
+        ("snn_depth, background swapped", "top1_swapped"),
+        ("raw pixels, snn_depth's queries", "raw_pixels_top1"),
+        ("raw pixels, snn_depth's queries, background swapped", "raw_pixels_top1_swapped"),
+    ):
+        cell = f"{n[key]:.3f} [{n[f'{key}_ci_low']:.2f}, {n[f'{key}_ci_high']:.2f}]"
+        assert f"| {label} | n/a^1 | n/a^1 | {cell} | n/a^2 |" in table_4, label
+    assert CONTROLS_NOTE in table_4 and "keeps its score when the background is swapped" in (
+        CONTROLS_NOTE
+    )
+    assert "- ^1 snn_depth seen: no seen fabric has two depth images" in table_4
+    results = {"snn_depth": saved}
+    assert headline(results) == [
+        f"snn_depth    depth->depth top-1 on novel fabrics {n['top1']:.3f} "
+        f"[{n['top1_ci_low']:.3f}, {n['top1_ci_high']:.3f}] (raw pixels "
+        f"{n['raw_pixels_top1']:.3f}, background swapped {n['top1_swapped']:.3f}; chance 0.333)"
+    ]
+
+
+def test_the_controls_score_the_models_queries_by_its_protocol(
+    vision: Path, data: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """With nothing swapped (each image served with its own background) the background
+    control reproduces the model's number and interval exactly, and raw pixels' likewise: the
+    same queries, protocol, seed and resamples. One fabric has no other to take a background
+    from: its swapped numbers are n/a with the reason, the rest scored."""
+    import math
+
+    from lookfeel.checkpoint import load_model
+    from lookfeel.data import ImageLoader, scan
+    from lookfeel.data.background_swap import BackgroundControl
+    from lookfeel.reproduce.run import _depth_pick
+
+    loaded = load_model(vision / "runs" / "snn_depth" / "seed0" / "checkpoints" / "last.pt")
+    catalog = scan(data, require=[], strict=True)
+    novel = catalog.subset(loaded.split["novel"])
+    args = (loaded.model, novel, loaded.config, 50, 0, "novel")
+    monkeypatch.setattr(BackgroundControl, "loader", lambda self, items: ImageLoader(self.config))
+    side, why = _depth_pick(*args)
+    assert why == {}
+    for suffix in ("", "_ci_low", "_ci_high"):
+        assert side[f"top1_swapped{suffix}"] == side[f"top1{suffix}"]
+        assert side[f"raw_pixels_top1_swapped{suffix}"] == side[f"raw_pixels_top1{suffix}"]
+    monkeypatch.undo()
+
+    one = catalog.subset(loaded.split["novel"][:1])
+    side, why = _depth_pick(loaded.model, one, loaded.config, 50, 0, "novel")
+    assert side["top1"] == 1.0 and side["raw_pixels_top1"] == 1.0  # pick 1 of 1
+    assert math.isnan(side["top1_swapped"]) and math.isnan(side["raw_pixels_top1_swapped"])
+    assert why == {
+        "novel_swapped": "background control skipped: background swap needs images of two or "
+        "more fabrics; got 1"
+    }
+
+
+def test_a_table_4_run_scored_without_the_controls_is_scored_again_from_its_checkpoint(
+    vision: Path, data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """An eval.json of an earlier lookfeel has no raw pixels or background control: the run is
+    scored again from its checkpoint (not trained again), as a fresh one is, its time kept;
+    its checkpoint gone, the report says n/a with the reason, and nothing fails. Each run's
+    eval.json is read once (it was read three times)."""
+    from lookfeel.reproduce.run import CONTROL_KEYS, NO_CHECKPOINT
+
+    out = tmp_path / "out"
+    shutil.copytree(vision, out)
+    done = out / "runs" / "snn_depth" / "seed0" / "eval.json"
+    fresh_text = done.read_text()
+    fresh = json.loads(fresh_text)
+    old = dict(fresh)
+    for side in ("seen", "novel"):
+        old[side] = {k: v for k, v in fresh[side].items() if k.removesuffix("_ci_low")
+                     .removesuffix("_ci_high") not in CONTROL_KEYS}  # fmt: skip
+    old_text = json.dumps(old)
+    done.write_text(old_text)
+    checkpoint = out / "runs" / "snn_depth" / "seed0" / "checkpoints" / "last.pt"
+    stamp = checkpoint.stat().st_mtime_ns
+    reads: list[str] = []
+    read_text = Path.read_text
+
+    def counted(self: Path, *a, **k) -> str:
+        if self.name == "eval.json":
+            reads.append(str(self))
+        return read_text(self, *a, **k)
+
+    monkeypatch.setattr(Path, "read_text", counted)
+    lines: list[str] = []
+    args = dict(budget="tiny", only=["snn_depth"], n_boot=50, overrides=FAST, workers=1)
+    reproduce(data, out, log=lines.append, **args)
+    assert reads == [str(done)]
+    assert lines[0] == (
+        "scoring again from their checkpoints, to add raw pixels and the background control "
+        "beside Table 4's numbers, the finished runs scored without them: snn_depth seed 0"
+    )
+    assert checkpoint.stat().st_mtime_ns == stamp  # not trained again
+    assert done.read_text() == fresh_text  # as the fresh run wrote it, its time kept
+    first = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
+    assert json.loads((out / "results.json").read_text())["results"]["snn_depth"] == first
+
+    # Its checkpoint gone: reported, the controls n/a with why.
+    done.write_text(old_text)
+    checkpoint.unlink()
+    lines.clear()
+    gone = reproduce(data, out, log=lines.append, **args).results["snn_depth"]
+    assert lines[0] == (
+        "no raw pixels or background control for snn_depth seed 0: scored without them by an "
+        "earlier lookfeel, and the checkpoint is gone (the report says n/a)"
+    )
+    assert all(gone["novel"][k] != gone["novel"][k] for k in CONTROL_KEYS)
+    assert gone["novel"]["top1"] == fresh["novel"]["top1"]
+    assert gone["not_scored"]["novel_swapped"] == NO_CHECKPOINT
+    report = (out / "report.md").read_text()
+    assert "| raw pixels, snn_depth's queries | n/a^1 | n/a^1 | n/a^3 | n/a^3 |" in report
+    assert (
+        "- ^3 snn_depth novel background swapped, snn_depth novel raw pixels, snn_depth novel "
+        f"raw pixels background swapped: {NO_CHECKPOINT}."
+    ) in report
+    assert done.read_text() == old_text  # left as it was
+
+
+def test_table_4_s_controls_in_the_report_and_over_seeds(tmp_path: Path):
+    """Hand-made: each control row under its model, a swap that could not be made n/a with
+    its reason (the model's number kept), and the mean over seeds of a number one seed lacks
+    is over the seeds that have it."""
+    from lookfeel.reproduce.run import _aggregate
+
+    nan = float("nan")
+    novel = {"top1": 0.5, "top3": 0.8, "chance": 0.1, "n_effective": 10.0, "top1_ci_low": 0.4,
+             "top1_ci_high": 0.6, "raw_pixels_top1": 0.3, "raw_pixels_top3": 0.6,
+             "raw_pixels_top1_ci_low": 0.2, "raw_pixels_top1_ci_high": 0.4,
+             "top1_swapped": nan, "top3_swapped": nan, "raw_pixels_top1_swapped": nan,
+             "raw_pixels_top3_swapped": nan}  # fmt: skip
+    why = "background control skipped: background swap needs images of two or more fabrics"
+    results = {
+        "cross_modal_depth_touch": {"novel": novel, "not_scored": {"novel_swapped": why}},
+    }
+    report = _report(tmp_path, results, {"split": "paper"})
+    table_4 = report[report.index("## Table 4") :]
+    assert "| cross_modal_depth_touch | - (0.608) | - (0.786) | 0.500 [0.40, 0.60] (0.606) |" in (
+        table_4
+    )
+    assert "| cross_modal_depth_touch, background swapped | - | - | n/a^1 | n/a^1 |" in table_4
+    assert (
+        "| raw pixels, cross_modal_depth_touch's queries | - | - | 0.300 [0.20, 0.40] | 0.600 |"
+    ) in table_4
+    assert (
+        f"- ^1 cross_modal_depth_touch novel background swapped, cross_modal_depth_touch novel "
+        f"raw pixels background swapped: {why}."
+    ) in table_4
+    assert "in another fabric's room" not in table_4  # registered depth only
+    one = {"seen": {"top1": 0.5, "top1_swapped": 0.4}, "not_scored": {}}
+    two = {"seen": {"top1": 0.7}, "not_scored": {}}  # an older record, without it
+    assert _aggregate([one, two])["seen"] == {"top1": pytest.approx(0.6), "top1_swapped": 0.4}

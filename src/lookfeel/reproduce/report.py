@@ -554,44 +554,112 @@ def _intervals_note(results: Mapping[str, Any]) -> str:
     return text
 
 
+_CONTROL_ROWS = (
+    ("top{k}_swapped", "{name}, background swapped", "background swapped", "swapped"),
+    ("top{k}_room", "{name}, in another fabric's room", "in another room", "swapped"),
+    ("raw_pixels_top{k}", "raw pixels, {name}'s queries", "raw pixels", "raw_pixels"),
+    (
+        "raw_pixels_top{k}_swapped",
+        "raw pixels, {name}'s queries, background swapped",
+        "raw pixels background swapped",
+        "swapped",
+    ),
+    (
+        "raw_pixels_top{k}_room",
+        "raw pixels, {name}'s queries, in another fabric's room",
+        "raw pixels in another room",
+        "swapped",
+    ),
+)
+"""The rows under each model of Table 4 (`lookfeel.reproduce.run.CONTROL_KEYS`): the key of
+its numbers on a side, its label, what a note calls it, and the ``not_scored`` key
+(``{side}_{...}``) of why it is NaN. The room rows are there for registered depth only
+(`lookfeel.data.background_swap`)."""
+
+CONTROLS_NOTE = (
+    "Under each model, on the same queries: the model with each depth image's background "
+    "replaced by that of an image of another fabric, the cloth kept (background swapped), and "
+    "raw pixels (the preprocessed depth images themselves, matched as they are). A model that "
+    "reads the cloth, not the room, keeps its score when the background is swapped; raw pixels "
+    "show what the pixels alone give. On GelFabric each fabric was captured in its own "
+    "session, so the room behind the cloth can identify the fabric."
+)
+"""What Table 4's control rows mean, under the table."""
+
+
+def _side_cell(
+    row: Mapping[str, Any],
+    name: str,
+    side: str,
+    key: str,
+    k: int,
+    notes: _Notes,
+    control: tuple[str, str] | None = None,
+) -> str:
+    """One cell of Table 4: ``row[side][key]`` (top-``k``) with its interval, or ``-`` when not
+    recorded, or n/a with a note saying why. ``control``: for a control row, its label and the
+    ``not_scored`` key of its reason; a control is NaN for the side's own reason when the
+    model's number is."""
+    got = row.get(side, {})
+    ours = got.get(key)
+    n_eff = _candidates(got)
+    not_scored = row.get("not_scored", {})
+    if ours is None:
+        return "-"
+    if ours != ours:
+        if control is None or got.get(f"top{k}") != got.get(f"top{k}"):
+            return notes.mark(not_scored.get(side, _UNMEASURED), f"{name} {side}")
+        label, why = control
+        return notes.mark(not_scored.get(why, _UNMEASURED), f"{name} {side} {label}")
+    if n_eff is not None and k >= n_eff:
+        why = (
+            f"top-{k} of {n_eff} candidates is always 1 (the {side} side has "
+            f"{n_eff} fabrics to offer, the paper 10)"
+        )
+        return notes.mark(why, f"{name} {side} top-{k}")
+    if f"{key}_ci_low" in got and k == 1:
+        return f"{ours:.3f} [{got[f'{key}_ci_low']:.2f}, {got[f'{key}_ci_high']:.2f}]"
+    return f"{ours:.3f}"
+
+
 def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
-    """Table 4 (depth to depth, seen and novel fabrics), its chance and counts, and notes."""
+    """Table 4 (depth to depth, seen and novel fabrics): each model with its raw pixels and
+    background control under it (`_CONTROL_ROWS`), chance and counts, and notes."""
     lines = [
         "| model | seen top-1 | seen top-3 | novel top-1 | novel top-3 |",
         "|---|---|---|---|---|",
     ]
     notes = _Notes()
+    controls = False
     for name, paper in TABLE_4.items():
         row = results.get(name, {})
         cells = []
         for side in ("seen", "novel"):
-            got = row.get(side, {})
             for k in (1, 3):
-                ours = got.get(f"top{k}")
-                n_eff = _candidates(got)
                 unscored = unrun.get(name)
                 if unscored is not None:
                     cell = notes.mark(unscored, name, "-")
-                elif ours is None:
-                    cell = "-"
-                elif ours != ours:
-                    why = row.get("not_scored", {}).get(side, _UNMEASURED)
-                    cell = notes.mark(why, f"{name} {side}")
-                elif n_eff is not None and k >= n_eff:
-                    why = (
-                        f"top-{k} of {n_eff} candidates is always 1 (the {side} side has "
-                        f"{n_eff} fabrics to offer, the paper 10)"
-                    )
-                    cell = notes.mark(why, f"{name} {side} top-{k}")
                 else:
-                    cell = f"{ours:.3f}"
-                    if k == 1 and "top1_ci_low" in got:
-                        cell += f" [{got['top1_ci_low']:.2f}, {got['top1_ci_high']:.2f}]"
+                    cell = _side_cell(row, name, side, f"top{k}", k, notes)
                 cells.append(cell + f" ({paper[f'{side}_top{k}']:.3f})")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        if name in unrun:
+            continue
+        for key, label, what, why in _CONTROL_ROWS:
+            if not any(key.format(k=1) in row.get(side, {}) for side in ("seen", "novel")):
+                continue
+            controls = True
+            cells = [
+                _side_cell(row, name, side, key.format(k=k), k, notes, (what, f"{side}_{why}"))
+                for side in ("seen", "novel")
+                for k in (1, 3)
+            ]
+            lines.append(f"| {label.format(name=name)} | " + " | ".join(cells) + " |")
     chance, counts = [], []
     for side in ("seen", "novel"):
-        got = next((results[n][side] for n in TABLE_4 if side in results.get(n, {})), {})
+        got: Mapping[str, Any] = next(
+            (results[n][side] for n in TABLE_4 if side in results.get(n, {})), {}
+        )
         n_eff = _candidates(got)
         for k in (1, 3):
             chance.append("-" if n_eff is None else f"{min(k, n_eff) / n_eff:.3f}")
@@ -603,7 +671,7 @@ def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
         counts += [queries[0] if queries else "-"] * 2
     lines.append("| chance | " + " | ".join(chance) + " |")
     lines.append("| fabrics / queries | " + " | ".join(counts) + " |")
-    return lines + notes.lines()
+    return lines + (["", CONTROLS_NOTE] if controls else []) + notes.lines()
 
 
 def _candidates(side: Mapping[str, Any]) -> int | None:
