@@ -273,3 +273,41 @@ def test_a_constant_column_and_classes_of_one_fabric_are_a_warning_per_column(
         "4,wool,2,d\n5,silk,0,e\n6,silk,1,f\n"
     )
     assert check_dataset(tiny_dataset).problems == ()
+
+
+def test_an_image_renamed_as_a_video_is_said_to_be_one_as_predict_says(tmp_path: Path):
+    """QA: a PNG renamed .mp4 was "not a video container (QuickTime .mov, MP4, AVI or
+    Matroska)" in `data check`, while `predict` said what it is. `data check` decodes it and
+    says so in predict's words; the scan, which reads 16 bytes, keeps its own."""
+    pytest.importorskip("av")
+    from lookfeel.data import scan
+
+    from ._tiny import write_recordings
+
+    root = write_recordings(tmp_path / "rec", {"cork": 1, "felt": 1}, "object\ncork\nfelt\n")
+    png, jpeg = root / "videos" / "cork_1.mp4", root / "videos" / "felt_1.mov"
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(png, format="PNG")
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(jpeg, format="JPEG")
+    junk = root / "videos" / "felt_2.mkv"
+    junk.write_bytes(bytes(range(64)))
+    said = {p.path: p.message for p in scan(root).errors}
+    scanned = "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
+    assert said[png] == said[jpeg] == said[junk] == scanned
+    said = {p.path: p.message for p in check_dataset(root, workers=1).errors}
+    assert said[png] == "cannot decode video: the file is an image (png_pipe), not a video"
+    assert said[jpeg] == "cannot decode video: the file is an image (jpeg_pipe), not a video"
+    assert said[junk] == "cannot decode video: not a video file FFmpeg can read"
+
+
+@pytest.mark.parametrize("action", ["info", "check", "leakage"])
+def test_every_data_action_s_help_describes_both_layouts(
+    action: str, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `data info --help` described ROOT as "(depth/, color/, touch/, labels.csv)", never
+    the recordings layout (videos/<object>_<n>.mov) that the scan reads as well."""
+    with pytest.raises(SystemExit) as e:
+        main(["data", action, "--help"])
+    assert e.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert "depth/, color/, touch/" in text
+    assert "videos/ (<object>_<n>.mov)" in text and "keyed by fabric_id or object" in text

@@ -221,3 +221,104 @@ def test_classes_spelt_in_two_cases_are_a_warning_naming_both(tmp_path: Path):
     ]
     _, problems = _read(tmp_path, "fabric_id,material\n1,cotton\n2,wool\n3,cotton\n")
     assert problems == []
+
+
+def test_an_unnamed_empty_column_is_ignored_with_a_warning_and_one_with_values_is_an_error(
+    tmp_path: Path,
+):
+    """QA: a spreadsheet saves its empty last column as a comma ending every line
+    (``object,hardness,material,``), and the unnamed column was an error that blocked every
+    command. A column with no name and no value is now ignored with a warning; one that holds
+    values stays an error, hinting at a trailing comma where it is the last column."""
+    ignored = (
+        "column 4 has no name and no value in any row (the header ends with a comma, as a "
+        "spreadsheet saves an empty last column): ignored"
+    )
+    for text in (
+        "object,hardness,material,\negg,2,food,\nfelt,1,wool,\n,,,\n",
+        "object,hardness,material,\negg,2,food\nfelt,1,wool,\n",  # a row without the comma
+    ):
+        table, problems = _read(tmp_path, text)
+        assert [(p.line, p.severity, p.message) for p in problems] == [(1, "warning", ignored)]
+        assert table.columns == ("hardness",) and table.text_columns == ("material",)
+        assert table.named["egg"].values == {"hardness": 2.0}
+        assert table.named["felt"].text == {"hardness": "1", "material": "wool"}
+    table, problems = _read(tmp_path, "object,,hardness,,\negg,,2,,\nfelt,, 1\n")
+    assert [(p.line, p.severity, p.message) for p in problems] == [
+        (
+            1,
+            "warning",
+            "columns 2, 4, 5 have no name and no value in any row (the header ends with a "
+            "comma, as a spreadsheet saves an empty last column): ignored",
+        )
+    ]
+    assert table.named["felt"].values == {"hardness": 1.0}
+    # a row of another length is an error against the header as written
+    _, problems = _read(tmp_path, "object,,hardness\negg,,2\nfelt,1\n")
+    assert [(p.line, p.severity, p.message) for p in problems] == [
+        (1, "warning", "column 2 has no name and no value in any row: ignored"),
+        (3, "error", "2 cells but the header has 3"),
+    ]
+    # values under no name: an error, the other columns read
+    table, problems = _read(tmp_path, "object,hardness,\negg,2,soft\nfelt,1,\n")
+    assert [(p.line, p.severity, p.message) for p in problems] == [
+        (
+            1,
+            "error",
+            "column 3 has no name in the header (a trailing comma?) but holds values ('soft' at "
+            "line 2): name it, or delete the column",
+        )
+    ]
+    assert table.columns == ("hardness",) and table.named["felt"].values == {"hardness": 1.0}
+    _, problems = _read(tmp_path, "object,,hardness\negg,x,2\n")
+    assert [p.message for p in problems] == [
+        "column 2 has no name in the header but holds values ('x' at line 2): name it, or "
+        "delete the column"
+    ]
+    # a row with a comma too many
+    _, problems = _read(tmp_path, "object,hardness\negg,2,\nfelt,1,x\n")
+    assert [(p.line, p.message) for p in problems] == [
+        (2, "3 cells but the header has 2 (a trailing comma?)"),
+        (3, "3 cells but the header has 2"),
+    ]
+
+
+def test_data_check_warns_of_an_ignored_empty_column_and_passes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    root = write_tiny_dataset(
+        tmp_path / "t", fabrics=3, drapes=1, fold_presses=1, flat_presses=0, frames=1,
+        labels=False,
+    )  # fmt: skip
+    (root / "labels.csv").write_text("fabric_id,stiffness,\n1,2,\n2,3,\n3,1,\n")
+    assert main(["data", "check", str(root), "--no-leakage"]) == 0
+    out = capsys.readouterr().out
+    assert f"WARNING  {root / 'labels.csv'}:1: column 3 has no name and no value in any row" in out
+    assert scan(root).fabric(2).labels == {"stiffness": 3.0}
+
+
+@pytest.mark.parametrize(
+    "content, why",
+    [
+        (
+            b"Object,hardness\nsponge,0\ncork,1\n",
+            "no 'fabric_id' or 'object' column in the header (first line); found: Object, "
+            "hardness (names are case-sensitive: write 'object')",
+        ),
+        (b"name,hardness\nsponge,0\ncork,1\n", "found: name, hardness"),
+        (b"", "labels file is empty"),
+        ("object,hardness\nm\xe9tal,0\n".encode("latin-1"), "not a text CSV in UTF-8"),
+    ],
+    ids=["capitalised", "no-key", "empty", "latin1"],
+)
+def test_a_labels_file_without_a_key_column_is_one_error_and_no_cascade(
+    tmp_path: Path, content: bytes, why: str
+):
+    """QA: a header of ``Object`` was refused clearly, and then every object was also "has no
+    row in labels.csv": nothing of the file could be read, so those said nothing more."""
+    from ._tiny import write_recordings
+
+    root = write_recordings(tmp_path / "rec", {"sponge": 1, "cork": 2}, "")
+    (root / "labels.csv").write_bytes(content)
+    (error,) = scan(root).errors
+    assert error.path == root / "labels.csv" and why in error.message

@@ -294,3 +294,42 @@ def test_a_missing_item_names_the_files_of_its_folder_that_were_skipped(tmp_path
     (root / "color" / "F0002_2.png").unlink()
     said = [p.message for p in scan(root).problems if "no color item" in p.message]
     assert said == ["fabric 2 has no color item (other fabrics have; a run that uses it cannot)"]
+
+
+@pytest.mark.parametrize("file_form, labels_form", [("NFD", "NFC"), ("NFC", "NFD")])
+def test_an_object_name_spelt_in_another_unicode_form_is_the_same_object(
+    tmp_path: Path, file_form: str, labels_form: str
+):
+    """QA: macOS names a file ``crème_0.mp4`` with the é decomposed (e + a combining accent);
+    a labels.csv typed elsewhere has it composed. The two look the same, yet the scan said
+    "object 'crème' has no row in labels.csv" and "object 'crème' is in labels.csv but has no
+    video". Both are now read in the composed form (NFC); the file keeps its own name."""
+    import unicodedata
+
+    forms = {
+        "NFC": unicodedata.normalize("NFC", "crème"),
+        "NFD": unicodedata.normalize("NFD", "crème"),
+    }
+    assert forms["NFC"] != forms["NFD"]  # e + a combining accent: they look alike
+
+    def spelt(form: str) -> str:
+        return forms[form]
+
+    root = tmp_path / "rec"
+    (root / "videos").mkdir(parents=True)
+    (root / "labels.csv").write_text(
+        f"object,hardness,material\n{spelt(labels_form)},1,{spelt(labels_form)}\nfelt,0,wool\n",
+        encoding="utf-8",
+    )
+    mp4 = b"\x00\x00\x00\x18ftypmp42" + bytes(16)  # a header is all the scan reads
+    video = root / "videos" / f"{spelt(file_form)}_0.mp4"
+    video.write_bytes(mp4)
+    (root / "videos" / "felt_0.mp4").write_bytes(mp4)
+    catalog = scan(root)
+    assert catalog.problems == ()
+    creme = next(f for f in catalog.fabrics if f.name == spelt("NFC"))
+    assert creme.labels == {"hardness": 1.0}
+    assert creme.text_labels["material"] == spelt("NFC")
+    [item] = creme.items[Modality.TOUCH]
+    assert item.path == video  # opened by its real name
+    assert item.path.name == f"{spelt(file_form)}_0.mp4"

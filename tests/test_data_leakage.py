@@ -515,3 +515,40 @@ def test_a_background_above_chance_but_under_the_flag_is_said_to_be(clean: Path)
     )
     none = dataclasses.replace(weak, background_ci95=(0.08, 0.19))
     assert "yet" not in _verdict(none, 2.0)
+
+
+def test_a_leak_warning_names_the_pick_its_data_allows(tmp_path: Path):
+    """QA: on 4 objects `data check` warned "pick-1-of-10 top-1 0.94 ... vs chance 0.25": a
+    draw there offers the 4 objects, and the words now say pick 1 of 4."""
+    from lookfeel.data.leakage import LeakageReport, ModalityLeakage
+    from lookfeel.modality import Modality
+
+    def touch(chance: float) -> ModalityLeakage:
+        return ModalityLeakage(
+            Modality.TOUCH, 12, round(1 / chance), (48, 64), 4, "no-contact", 1.0, 0.9,
+            (0.8, 1.0), 0.94, (0.88, 1.0), chance, True, press_videos=True, input_top1=0.58,
+        )  # fmt: skip
+
+    four = LeakageReport(tmp_path, (touch(0.25),), noun="object")
+    (problem,) = leakage_problems(four)
+    assert "identifies the object at pick-1-of-4 top-1 0.94 [0.88, 1.00] vs chance 0.25" in (
+        problem.message
+    )
+    assert format_leakage(four).startswith(
+        f"Leak check of {tmp_path}: pick 1 of 4 top-1 [95% over objects] from raw pixels\n"
+    )
+    depth = dataclasses.replace(
+        touch(0.1), modality=Modality.DEPTH, press_videos=False, mask_source="static"
+    )
+    both = LeakageReport(tmp_path, (depth, touch(0.25)), noun="object")
+    assert [p.message.split(" top-1 ")[0].rsplit(" ", 1)[1] for p in leakage_problems(both)] == [
+        "pick-1-of-10",
+        "pick-1-of-4",
+    ]
+    assert format_leakage(both).startswith(
+        f"Leak check of {tmp_path}: pick 1 of 10 (or of every object, where a modality has "
+        "fewer) top-1 [95% over objects]"
+    )
+    position = _position((0.9, 0.8, 1.0), (0.2, 0.1, 0.3), True)
+    (problem,) = leakage_problems(LeakageReport(tmp_path, (), position=position))
+    assert "identifies the fabric at pick-1-of-10 top-1 0.90 vs chance 0.10" in problem.message

@@ -209,3 +209,25 @@ def test_paper_split_row_of_named_objects_says_objects(tmp_path: Path, capsys):
         "none (labels.csv has no paper_split column): no object is held out as a test set; a "
         "run validates on the objects its train.split holds out"
     )
+
+
+def test_labels_read_despite_a_header_problem_are_not_said_unreadable(tmp_path: Path, capsys):
+    """QA: with an unnamed column in labels.csv, `data info` showed the labels as read and
+    "paper split none (labels.csv cannot be read)". One rule for both rows now: the file is
+    unreadable only when none of its columns could be read. An empty unnamed column (a
+    spreadsheet's trailing comma) is no error at all."""
+    labels = "object,hardness,paper_split,\nsponge,0,train,x\ncork,1,test,\nfelt,2,train,\n"
+    root = write_recordings(tmp_path / "rec", {"sponge": 1, "cork": 1, "felt": 1}, labels)
+    out = _info(root, capsys)
+    assert re.search(r"^  labels +hardness; 3 objects labelled$", out, re.M)
+    assert _split_row(out) == "  paper split  train 2, test 1"
+    (root / "labels.csv").write_text("object,hardness,\nsponge,0,x\ncork,1,\nfelt,2,\n")
+    assert _split_row(_info(root, capsys)).endswith(
+        "none (labels.csv has no paper_split column): no object is held out as a test set; a "
+        "run validates on the objects its train.split holds out"
+    )
+    (root / "labels.csv").write_text("object,hardness,\nsponge,0,\ncork,1,\nfelt,2,\n")
+    out = _info(root, capsys)
+    assert re.search(r"^  labels +hardness; 3 objects labelled$", out, re.M)
+    assert "labels.csv has no paper_split column" in _split_row(out)
+    assert re.search(r"^  problems +0 errors, 1 warning in names and headers", out, re.M)

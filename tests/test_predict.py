@@ -146,7 +146,8 @@ def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
     run, heads: LoadedModel, tmp_path: Path
 ):
     """One list of query images (PNG and JPEG, by content) in the CLI and the server; a folder
-    given as touch is a folder, not "a still image"."""
+    given as touch is a folder, not "a still image". A file refused for its content is its
+    query's error (as any input that cannot be read)."""
     from PIL import Image
 
     from lookfeel.data import ImageError
@@ -155,8 +156,9 @@ def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
     photo = Image.open(data / "color/F0003_2.png")
     for name, kind in (("p.gif", "GIF"), ("p.webp", "WebP"), ("gif.png", "GIF")):
         photo.save(tmp_path / name, format="GIF" if kind == "GIF" else "WEBP")
-        with pytest.raises(ImageError, match=rf"{name}: is a {kind} image, not a PNG or JPEG"):
-            predict_files(heads, tmp_path / name, "color")
+        [answer] = predict_files(heads, tmp_path / name, "color")
+        assert answer.properties == {} and answer.error is not None
+        assert re.match(rf".*{name}: is a {kind} image, not a PNG or JPEG", answer.error)
     folder = r"touch: is a folder, not a press: give a press's video or its frame files$"
     with pytest.raises(ImageError, match=folder):
         predict_files(heads, data / "touch", "touch")
@@ -406,3 +408,57 @@ def test_a_resumed_run_and_an_ensemble_keep_the_shape_record(
     assert loaded.config.model.members == 2
     assert loaded.shapes == heads.shapes
     assert loaded.rank_columns == {"stiffness": (0, 1, 2, 3, 4), "stretchiness": (0, 1)}
+
+
+def test_an_input_that_cannot_be_decoded_is_its_own_error_and_the_others_are_answered(
+    run, heads: LoadedModel, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: one empty video (or a PNG renamed .mp4) among `lookfeel predict`'s inputs aborted the
+    whole batch with one line, --json included, while a video without a press was already its
+    own "error". Now any input that cannot be read is answered so, naming it; the exit status is
+    1 only when no input could be answered, as for a video without a press."""
+    import json
+
+    pytest.importorskip("av")
+    from lookfeel.cli import main
+
+    from ._video import PRESS, object_press, write_video
+
+    data, _ = run
+    photo = str(data / "color/F0003_2.png")
+    damaged = tmp_path / "color" / "damaged.png"
+    damaged.parent.mkdir()
+    damaged.write_bytes(Path(photo).read_bytes()[:60])  # a PNG cut short
+    good, broken = predict_files(heads, [photo, damaged], "color")
+    assert good == predict_files(heads, photo, "color")[0]  # answered as if alone
+    assert broken.properties == {} and broken.error == f"{damaged}: file is truncated"
+    empty = tmp_path / "empty.mp4"
+    empty.write_bytes(b"")
+    image = tmp_path / "image.mp4"
+    image.write_bytes(Path(photo).read_bytes())  # a PNG renamed
+    ckpt = str(heads.path)
+    with pytest.warns(UserWarning):  # a still-frame model warns of videos
+        code = main(["predict", "--checkpoint", ckpt, photo, str(empty), str(image), "--json"])
+    assert code == 0
+    out = capsys.readouterr()
+    answers = json.loads(out.out)
+    assert [a["path"] for a in answers] == [photo, str(empty), str(image)]
+    assert answers[0]["error"] is None and answers[0]["properties"]
+    assert answers[1]["properties"] == {}
+    assert answers[1]["error"] == f"{empty}: cannot decode video: file is empty"
+    assert answers[2]["error"].startswith(f"{image}: cannot decode video: the file is an image")
+    assert len(out.err.strip().splitlines()) == 2  # one warning line each
+    with pytest.warns(UserWarning):
+        assert main(["predict", "--checkpoint", ckpt, str(empty), str(image)]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        f"{empty}: cannot decode video: file is empty (nothing predicted)",
+        f"{image}: cannot decode video: the file is an image (png_pipe), not a video "
+        "(nothing predicted)",
+    ]
+    # Presses given together: the pooled query's error names the file that failed.
+    press = write_video(tmp_path / "press.mov", object_press(1, PRESS, t=14))
+    with pytest.warns(UserWarning):
+        [pooled] = predict_files(heads, [press, image], "touch", together=True)
+    assert pooled.paths == [str(press), str(image)] and pooled.properties == {}
+    assert pooled.error is not None and pooled.error.startswith(f"{image}: cannot decode video")
+    assert pooled.error.endswith("; it is one of the 2 presses given together")

@@ -86,8 +86,9 @@ class Prediction:
         paths: every file of the query.
         modality: what the files show.
         properties: label column -> its predicted `PropertyValue` (empty with ``error``).
-        error: why nothing is predicted: a press video that holds no press (too short, no
-            contact). None when the query was answered.
+        error: why nothing is predicted, naming the file: it cannot be read or decoded (an
+            empty file, an image renamed ``.mp4``), or a press video holds no press (too short,
+            no contact). None when the query was answered.
     """
 
     path: str
@@ -205,12 +206,15 @@ def predict_files(
         device: where the network runs.
 
     Returns:
-        One `Prediction` per file, or one for all with ``together``. A query whose video
-        holds no press (too short, no contact) is answered with its ``error`` and no
-        properties, the only query as well as one of several (the others are still
-        predicted); ``lookfeel predict`` exits with 1 when every query was answered so. With
-        ``together``, a press without one is left out of the pooled query with a warning (as
-        a run leaves it out), and the query is answered from the others (its ``paths``).
+        One `Prediction` per file, or one for all with ``together``. A query whose file cannot
+        be read (a video FFmpeg cannot decode, an empty file, an image renamed ``.mp4``, a
+        damaged image) or whose video holds no press (too short, no contact) is answered with
+        its ``error``, naming the file, and no properties, the only query as well as one of
+        several (the others are still predicted); ``lookfeel predict`` exits with 1 when
+        every query was answered so. With ``together``, a press without one is left out of
+        the pooled query with a warning (as a run leaves it out), and the query is answered
+        from the others (its ``paths``); a file that cannot be read is the pooled query's
+        ``error``, which names it.
 
     Raises:
         PredictError: the model has no heads, lacks the modality, the files mix modalities, or
@@ -218,10 +222,11 @@ def predict_files(
         ModalityError: ``modality`` names no modality.
         DeviceError: ``device`` is none this machine can use.
         CheckpointError: ``loaded`` is a path that holds no usable checkpoint.
-        ImageError: naming a file that cannot be read (video errors other than a missing press
-            included), a still touch image for a model trained on press videos, or a press
-            video for a model that stacks frame images (checked for every file before any is
-            decoded: `lookfeel.index.match.check_touch_input`).
+        ImageError: naming a file that is missing, a folder, or by its suffix neither an
+            image nor a video; a still touch image for a model trained on press videos, or a
+            press video for a model that stacks frame images (checked for every file before
+            any is decoded: `lookfeel.index.match.check_touch_input`). A file that exists but
+            cannot be decoded is its query's ``error`` instead.
     """
     device = resolve_device(device)  # a device this machine lacks: one line
     if not isinstance(loaded, LoadedModel):
@@ -275,8 +280,9 @@ def predict_files(
         for group, m in zip(groups, group_mods, strict=True):
             try:
                 images, group = load_query_files(group, m, data)
-            except NoPressError as e:  # none of its files holds a press
-                out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, str(e)))
+            except ImageError as e:  # this input only: undecodable, unreadable, or no press
+                error = _input_error(e, group)
+                out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, error))
                 continue
             x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
@@ -289,6 +295,18 @@ def predict_files(
                 )
             )
     return out
+
+
+def _input_error(e: ImageError, group: Sequence[Path]) -> str:
+    """Why one query is not answered, in one line naming the file at fault: ``e`` names it;
+    for presses given together it also says that the pooled query was lost with it (a file
+    that cannot be decoded), or that every press lacks contact (a `NoPressError`: one without
+    is left out, so the error of the first means all of them)."""
+    if len(group) < 2:
+        return str(e)
+    if isinstance(e, NoPressError):
+        return f"{e}; none of the {len(group)} presses given together holds a usable press"
+    return f"{e}; it is one of the {len(group)} presses given together"
 
 
 def _read_heads(

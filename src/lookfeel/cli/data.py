@@ -1,5 +1,5 @@
 """``lookfeel data info``, ``data check`` and ``data leakage``: what a dataset folder holds,
-every problem in it, and whether its background alone identifies the fabric."""
+every problem in it, and whether its background alone identifies the fabric (or object)."""
 
 from __future__ import annotations
 
@@ -9,17 +9,31 @@ from pathlib import Path
 
 from lookfeel.cli._args import Subparsers, add_json, add_modalities, number
 
+_ROOT_HELP = (
+    "dataset folder: fabrics' images in depth/, color/, touch/ (F<id>_...), or recordings in "
+    "videos/ (<object>_<n>.mov); labels.csv keyed by fabric_id or object"
+)
+"""The ``root`` argument of every ``data`` action: both layouts the scan reads (README, Data)."""
+
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``data info``, ``data check`` and ``data leakage``."""
-    data = subparsers.add_parser("data", description="Inspect and check a dataset folder.")
+    data = subparsers.add_parser(
+        "data",
+        description="Inspect and check a dataset folder: fabrics' images (depth/, color/, "
+        "touch/) or recordings of objects (videos/<object>_<n>.mov), with labels.csv.",
+    )
     actions = data.add_subparsers(dest="data_command", metavar="ACTION", required=True)
     info = actions.add_parser(
         "info",
-        help="what a dataset holds: fabrics, items per modality and press kind, labels, clusters",
-        description="Summarise a dataset in the lookfeel layout (the README's Data section).",
+        help="what a dataset holds: fabrics or objects, items per modality and press kind, "
+        "labels, clusters",
+        description="Summarise a dataset in the lookfeel layout (the README's Data section): "
+        "fabrics' images in depth/, color/ and touch/, or press videos of objects in "
+        "videos/<object>_<n>.mov, and labels.csv keyed by fabric_id or object. It reads names "
+        "and file headers only; `data check` decodes every file.",
     )
-    info.add_argument("root", type=Path, help="dataset folder (depth/, color/, touch/, labels.csv)")
+    info.add_argument("root", type=Path, help=_ROOT_HELP)
     add_json(info, "print the summary as JSON")
     info.set_defaults(func=run_info)
 
@@ -28,18 +42,23 @@ def add_parser(subparsers: Subparsers) -> None:
         help="decode every file and report every problem; exit 1 if there is an error",
         description=(
             "Decode every file of a dataset and report all problems at once, each with its "
-            "path: undecodable or truncated files, depth that is not 16-bit, touch names that "
-            "do not parse, fabrics missing from labels.csv (or labelled without images, a "
-            "warning), fabrics lacking a modality, image files lookfeel does not read (.tif, "
-            ".npy ...) and press frames in subfolders, depth maps whose values do not read as "
+            "path: undecodable or truncated files, depth that is not 16-bit, touch names and "
+            "video names (videos/<object>_<n>.mov) that do not parse, press videos with no press "
+            "(a warning: runs leave them out), fabrics or objects missing from labels.csv (or "
+            "labelled without images or videos, a warning), fabrics lacking a modality, image "
+            "files lookfeel does not read (.tif, .npy ...) and press frames in subfolders, "
+            "depth maps whose values do not read as "
             "millimetres or lie mostly outside data.depth_min_mm..+data.depth_range_mm (by "
             "their defaults), frames of more than one shape, and background leaks (warnings). "
             "Exit 1 on errors, 0 when clean. Nothing under ROOT is modified."
         ),
     )
-    check.add_argument("root", type=Path, help="dataset folder")
+    check.add_argument("root", type=Path, help=_ROOT_HELP)
     add_modalities(
-        check, "--require", "modalities every fabric must have", "each modality any fabric has"
+        check,
+        "--require",
+        "modalities every fabric or object must have",
+        "each modality any fabric or object has",
     )
     check.add_argument("--strict", action="store_true", help="treat warnings as errors")
     add_json(check, "print the report as JSON")
@@ -55,12 +74,15 @@ def add_parser(subparsers: Subparsers) -> None:
 
     leakage = actions.add_parser(
         "leakage",
-        help="does the background alone (no cloth) identify the fabric? per modality",
+        help="does the background alone (no cloth; a press video's no-contact frame) identify "
+        "the fabric or object? per modality",
         description=(
-            "Score how well each image modality's background identifies an item's fabric: "
-            "pick 1 of 10 top-1 from raw pixels (mean-pooled to at most 64 px, z-scored) of the "
-            "background alone, beside the whole image and chance, with 95% intervals over "
-            "fabrics. Background = pixels that stay still across the modality's images: within "
+            "Score how well each image modality's background identifies an item's fabric (or "
+            "object, in recordings: videos/<object>_<n>.mov): pick 1 of 10 top-1 (of all of "
+            "them where there are fewer) from raw pixels (mean-pooled to at most 64 px, "
+            "z-scored) of the background alone, beside the whole image and chance, with 95% "
+            "intervals over fabrics or objects. Background = pixels that stay still across the "
+            "modality's images: within "
             "--tolerance of their per-pixel median (depth 20 mm, colour/touch 12 levels) in at "
             "least --static-fraction of them (cloth moves by centimetres between drapes, the "
             "room by millimetres), or the white pixels of a --mask image; for press videos, "
@@ -75,7 +97,7 @@ def add_parser(subparsers: Subparsers) -> None:
             "nothing under ROOT is modified."
         ),
     )
-    leakage.add_argument("root", type=Path, help="dataset folder")
+    leakage.add_argument("root", type=Path, help=_ROOT_HELP)
     add_modalities(leakage, "--modalities", "modalities to score", "every image modality it has")
     leakage.add_argument(
         "--mask",

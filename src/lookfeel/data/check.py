@@ -15,7 +15,13 @@ import numpy as np
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.images import GELSIGHT_SIZE, ImageError, decode_depth, decode_rgb
-from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES, VIDEO_SUFFIXES, scan
+from lookfeel.data.layout import (
+    FOLDER_ALIASES,
+    IMAGE_SUFFIXES,
+    NOT_A_VIDEO_CONTAINER,
+    VIDEO_SUFFIXES,
+    scan,
+)
 from lookfeel.data.problems import Problem
 from lookfeel.data.video import NoPressError, is_video, read_press
 from lookfeel.modality import Modality
@@ -179,8 +185,20 @@ def check_dataset(
     new.extend(_class_problems(catalog, usable))
     unread, skipped = unread_problems(catalog)
     new.extend(unread)
-    problems = sorted([*catalog.problems, *new], key=lambda p: (str(p.path), p.line or 0))
+    scanned = [_what_it_is(p) for p in catalog.problems]
+    problems = sorted([*scanned, *new], key=lambda p: (str(p.path), p.line or 0))
     return replace(catalog, fabrics=usable, problems=tuple(problems), skipped=skipped)
+
+
+def _what_it_is(problem: Problem) -> Problem:
+    """A scan's problem, or for a video file the scan refused by its first bytes
+    (`NOT_A_VIDEO_CONTAINER`), what decoding it says the file is, in the words ``lookfeel
+    predict`` uses (`read_press`: "the file is an image (png_pipe), not a video"). The scan's
+    own words stay where decoding finds nothing more to say."""
+    if problem.message != NOT_A_VIDEO_CONTAINER or problem.path is None:
+        return problem
+    said = decode_problem(problem.path, Modality.TOUCH).problem
+    return said if said is not None and said.severity == "error" else problem
 
 
 def range_problems(root: Path, samples: Sequence[tuple[int, int, np.ndarray]]) -> list[Problem]:

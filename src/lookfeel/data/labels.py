@@ -11,7 +11,8 @@ A numeric column whose every value is a whole number from 0 to `MAX_RANK` is a c
 data info``, ``data check``, training's class heads and so ``predict`` follow). One odd value
 (``1.5`` among 0, 1, 2) makes the column numbers only, and the reader warns naming its cell.
 Every known cell is also kept as text (a rank's class is its text, ``"2"``). Empty cells mean
-unknown.
+unknown. Names and cells are read in Unicode's composed form (NFC), as object names are taken
+from file names: an accented letter typed on macOS (``crème``) is one name however it was saved.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+import unicodedata
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -103,6 +105,10 @@ class LabelTable:
     named: dict[str, LabelRow] = field(default_factory=dict)
     rank_columns: tuple[str, ...] = ()
     """The numeric columns of ranks (`is_rank_column` over every row): classes as well."""
+    keyed: bool = True
+    """Whether the file's keys were read. False when it cannot be read, is empty, or its header
+    names no key column: it then says nothing of which fabrics or objects it holds, so no
+    fabric is reported as missing from it (its one error says why)."""
 
     def with_ids(self, ids: dict[str, int]) -> LabelTable:
         """The table with each named row under its id (``ids``: object name -> fabric id)."""
@@ -137,16 +143,20 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         text = path.read_text(encoding="utf-8-sig")
     except OSError as e:
         why = f"cannot read labels file: {e.strerror or e}"
-        return LabelTable(path, (), None, {}), [Problem(path, why)]
+        return LabelTable(path, (), None, {}, keyed=False), [Problem(path, why)]
     except UnicodeDecodeError as e:
         if (utf16 := _utf16_table(path)) is not None:
             return utf16
         why = f"not a text CSV in UTF-8 (byte {e.start}: {e.reason}); save it as UTF-8"
-        return LabelTable(path, (), None, {}), [Problem(path, why)]
+        return LabelTable(path, (), None, {}, keyed=False), [Problem(path, why)]
+    # One spelling of each name: macOS and some editors write an accented letter decomposed
+    # ("e" and a combining accent), which looks the same as the composed one but compares
+    # unequal, to the object names taken from file names (`lookfeel.data.layout`) too.
+    text = unicodedata.normalize("NFC", text)
     reader = csv.reader(text.splitlines())
     header = next(reader, None)
     if header is None:
-        return LabelTable(path, (), None, {}), [Problem(path, "labels file is empty")]
+        return LabelTable(path, (), None, {}, keyed=False), [Problem(path, "labels file is empty")]
     header = [h.strip() for h in header]
     key = next((k for k in KEY_COLUMNS if k in header), None)
     if key is None and (other := _other_separator(text)) is not None:
@@ -157,20 +167,20 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         )
         return _keys_only(path, text, sep, key, why)
     if key is None:
-        return LabelTable(path, (), None, {}), [
-            Problem(
-                path,
-                "no 'fabric_id' or 'object' column in the header (first line); found: "
-                + ", ".join(header),
-                line=1,
-            )
-        ]
-    dupes = sorted({h for h in header if header.count(h) > 1})
+        near = next((h for h in header if h.casefold() in KEY_COLUMNS), None)
+        hint = f" (names are case-sensitive: write {near.casefold()!r})" if near else ""
+        why = (
+            "no 'fabric_id' or 'object' column in the header (first line); found: "
+            + ", ".join(header)
+            + hint
+        )
+        return LabelTable(path, (), None, {}, keyed=False), [Problem(path, why, line=1)]
+    dupes = sorted({h for h in header if h and header.count(h) > 1})
     if dupes:
         problems.append(Problem(path, f"duplicate column(s) {', '.join(dupes)}", line=1))
-    empty_cols = [i + 1 for i, h in enumerate(header) if not h]
-    if empty_cols:
-        problems.append(Problem(path, f"column(s) {empty_cols} have no name", line=1))
+    records = list(enumerate(reader, start=2))
+    header, records, unnamed = _unnamed_columns(path, header, records)
+    problems.extend(unnamed)
     cluster_cols = [h for h in header if h.lower().startswith("cluster")]
     cluster_column = "cluster8" if "cluster8" in cluster_cols else next(iter(cluster_cols), None)
     value_cols = tuple(
@@ -178,7 +188,6 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         for h in header
         if h and h not in KEY_COLUMNS and h != "paper_split" and h not in cluster_cols
     )
-    records = list(enumerate(reader, start=2))
     text_cols = _text_columns(header, value_cols, [cells for _, cells in records])
     rows: dict[int, LabelRow] = {}
     named: dict[str, LabelRow] = {}
@@ -186,9 +195,7 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
         if not cells or all(not c.strip() for c in cells):
             continue
         if len(cells) != len(header):
-            problems.append(
-                Problem(path, f"{len(cells)} cells but the header has {len(header)}", line=lineno)
-            )
+            problems.append(_width_problem(path, cells, len(header), lineno))
             continue
         record = {h: c.strip() for h, c in zip(header, cells, strict=True)}
         name: str | None = None
@@ -298,6 +305,85 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     return table, problems
 
 
+def _unnamed_columns(
+    path: Path, header: list[str], records: list[tuple[int, list[str]]]
+) -> tuple[list[str], list[tuple[int, list[str]]], list[Problem]]:
+    """The header and rows without the columns that have no name and no value in any row (a
+    spreadsheet saves its empty last column as a comma ending every line), with a warning
+    naming them; an unnamed column that holds a value is an error (its values are not read).
+
+    A row that lacks the cells of such columns at its end (``egg,2`` under ``object,hardness,``)
+    is taken as if it had them empty; a row of another length is an error here, against the
+    header as written. Columns are numbered from 1 as a spreadsheet counts them.
+
+    Returns:
+        (header, rows by line, problems), the rows' cells in the returned header's columns (a
+        blank row as no cells).
+    """
+    unnamed = [i for i, h in enumerate(header) if not h]
+    if not unnamed:
+        return header, records, []
+
+    def values(i: int) -> list[tuple[int, str]]:  # in the rows as long as the header
+        return [(n, c[i].strip()) for n, c in records if len(c) == len(header) and c[i].strip()]
+
+    empty = [i for i in unnamed if not values(i)]
+    last = len(header) - 1
+    problems = []
+    for i in unnamed:
+        if i in empty:
+            continue
+        line, cell = values(i)[0]
+        trailing = " (a trailing comma?)" if i == last else ""
+        problems.append(
+            Problem(
+                path,
+                f"column {i + 1} has no name in the header{trailing} but holds values ({cell!r} "
+                f"at line {line}): name it, or delete the column",
+                line=1,
+            )
+        )
+    if empty:
+        cols = ", ".join(str(i + 1) for i in empty)
+        which = f"column {cols} has" if len(empty) == 1 else f"columns {cols} have"
+        trailing = (
+            " (the header ends with a comma, as a spreadsheet saves an empty last column)"
+            if last in empty
+            else ""
+        )
+        problems.append(
+            Problem(
+                path,
+                f"{which} no name and no value in any row{trailing}: ignored",
+                "warning",
+                line=1,
+            )
+        )
+    # The empty columns at the end, which a row may lack altogether.
+    tail = len(header)
+    while tail > 0 and tail - 1 in empty:
+        tail -= 1
+    keep = [i for i in range(len(header)) if i not in empty]
+    out: list[tuple[int, list[str]]] = []
+    for n, cells in records:
+        if not any(c.strip() for c in cells):
+            out.append((n, []))  # blank: skipped
+        elif tail <= len(cells) <= len(header):
+            cells = cells + [""] * (len(header) - len(cells))
+            out.append((n, [cells[i] for i in keep]))
+        else:
+            problems.append(_width_problem(path, cells, len(header), n))
+    return [header[i] for i in keep], out, problems
+
+
+def _width_problem(path: Path, cells: list[str], width: int, line: int) -> Problem:
+    """A row of ``cells`` under a header of ``width`` cells; a row longer by cells that are
+    all empty most likely ends with a comma too many."""
+    extra = cells[width:]
+    hint = " (a trailing comma?)" if extra and not any(c.strip() for c in extra) else ""
+    return Problem(path, f"{len(cells)} cells but the header has {width}{hint}", line=line)
+
+
 _SEPARATORS = {";": "semicolons (;)", "\t": "tabs"}
 _DECIMAL_COMMA = re.compile(r"^-?\d+,\d+$")
 
@@ -344,7 +430,7 @@ def _keys_only(
     """A labels.csv that cannot be read as it was saved (``why``: one error, at line 1), read
     with ``sep`` for its keys alone (no label is read), so that the scan does not also report
     every fabric as missing from it."""
-    records = list(csv.reader(text.splitlines(), delimiter=sep))
+    records = list(csv.reader(unicodedata.normalize("NFC", text).splitlines(), delimiter=sep))
     header = [h.strip() for h in records[0]]
     i = header.index(key)
     rows: dict[int, LabelRow] = {}

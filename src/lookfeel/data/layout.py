@@ -23,6 +23,7 @@ import json
 import os
 import re
 import stat
+import unicodedata
 from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -89,6 +90,11 @@ def sniff_video(head: bytes) -> bool:
     return head[:4] == b"\x1a\x45\xdf\xa3"
 
 
+NOT_A_VIDEO_CONTAINER = "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
+"""Why the scan refuses a video file by its first bytes (`sniff_video`); ``lookfeel data
+check``, which decodes, says what the file is instead (an image renamed ``.mp4``)."""
+
+
 def _video_header_problem(path: Path) -> str | None:
     """A cheap check that a video file is a container FFmpeg reads (QuickTime/MP4, AVI,
     Matroska/WebM)."""
@@ -101,7 +107,7 @@ def _video_header_problem(path: Path) -> str | None:
         return "file is empty"
     if sniff_video(head):
         return None
-    return "not a video container (QuickTime .mov, MP4, AVI or Matroska)"
+    return NOT_A_VIDEO_CONTAINER
 
 
 @dataclass(frozen=True)
@@ -312,8 +318,12 @@ def _video_key(
     """(owner, kind, press) of a video: ``F<id>_[<kind>_]<press>`` names a fabric (in any touch
     folder); in ``videos/``, ``<object>_<n>`` names an object, and always does for one of
     ``objects`` (those a labels file keyed by ``object`` names: ``F0001_0.mp4`` is object
-    ``F0001``'s press there, not fabric 1's). Or a message saying why not."""
-    stem = path.stem
+    ``F0001``'s press there, not fabric 1's). Or a message saying why not.
+
+    An object's name is taken in Unicode's composed form (NFC), as `read_labels` takes the
+    names in labels.csv: macOS writes ``crème`` in a file name decomposed (``e`` and a combining
+    accent), which looks the same but compares unequal. The path itself is kept as it is."""
+    stem = unicodedata.normalize("NFC", path.stem)
     in_videos = folder.name.lower() == "videos"
     named = _OBJECT_VIDEO.match(stem) if in_videos else None
     if named is not None and named["object"] in objects:
@@ -570,7 +580,7 @@ def scan(
         items[fid][Modality.TOUCH].append(Item(Modality.TOUCH, fid, ordered, kind, press))
 
     id_names = {i: n for n, i in name_ids.items()}
-    if table is not None:
+    if table is not None and table.keyed:  # else its one error says why no row is read
         for fid in sorted(items):
             if fid not in table.rows:
                 first = min(p for its in items[fid].values() for it in its for p in it.frames)

@@ -941,12 +941,31 @@ def _modality_lines(m: ModalityLeakage, factor: float, noun: str = "fabric") -> 
     ]
 
 
+def _pick(chance: float, sep: str = " ") -> str:
+    """``pick 1 of 4``: how many candidates a draw offers, from its chance top-1 (1 over
+    them): 10, or every fabric where there are fewer. ``sep`` joins the words."""
+    n = round(1 / chance) if math.isfinite(chance) and chance > 0 else _N
+    return sep.join(("pick", "1", "of", str(n)))
+
+
+def _report_pick(report: LeakageReport) -> str:
+    """The pick of the report's scores (`_pick`): one size, or the largest where modalities
+    hold different numbers of fabrics (each modality's chance says its own)."""
+    chances = [m.chance for m in report.modalities]
+    if report.position is not None:
+        chances.append(report.position.chance)
+    picks = sorted({_pick(c) for c in chances}, key=lambda p: int(p.rsplit(" ", 1)[1]))
+    if len(picks) > 1:
+        return f"{picks[-1]} (or of every {report.noun}, where a modality has fewer)"
+    return picks[0] if picks else _pick(1 / _N)
+
+
 def format_leakage(report: LeakageReport) -> str:
     """The report as text: a table per modality and a verdict line for each (never ``nan``:
     a score that could not be computed reads ``n/a`` and why)."""
     lines = [
-        f"Leak check of {report.root}: pick 1 of 10 top-1 [95% over {report.noun}s] from raw "
-        "pixels",
+        f"Leak check of {report.root}: {_report_pick(report)} top-1 [95% over {report.noun}s] "
+        "from raw pixels",
         f"(background: {_background_rule(report)}; {report.seconds:.1f} s)",
     ]
     for m in report.modalities:
@@ -1006,8 +1025,9 @@ def leakage_problems(report: LeakageReport) -> list[Problem]:
         found.append(
             Problem(
                 report.root / Modality.DEPTH.value,
-                f"where the drape lies in registered depth identifies the fabric at pick-1-of-10 "
-                f"top-1 {max(pos.post_uv.top1, pos.drape_centroid.top1):.2f} vs chance "
+                "where the drape lies in registered depth identifies the fabric at "
+                f"{_pick(pos.chance, '-')} top-1 "
+                f"{max(pos.post_uv.top1, pos.drape_centroid.top1):.2f} vs chance "
                 f"{pos.chance:.2f}: the camera moved between sessions (see `lookfeel data leakage "
                 "--position`; data.depth_post_at removes it)",
                 "warning",
@@ -1026,7 +1046,7 @@ def _leak_problem(root: Path, m: ModalityLeakage, noun: str = "fabric") -> Probl
         return Problem(
             folder,
             f"{m.modality.value}: the no-contact frame of each press video (the sensor's own "
-            f"light, nothing touching it) identifies the {noun} at pick-1-of-10 top-1 "
+            f"light, nothing touching it) identifies the {noun} at {_pick(m.chance, '-')} top-1 "
             f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: a "
             "model of raw frames can learn the recording session, not the touch; lookfeel's "
             "input subtracts that frame (data.video_reference: subtract), which leaves "
@@ -1037,7 +1057,7 @@ def _leak_problem(root: Path, m: ModalityLeakage, noun: str = "fabric") -> Probl
     return Problem(
         folder,
         f"{m.modality.value} background ({m.background_fraction:.0%} of the image, "
-        f"{_source(m)}) identifies the {noun} at pick-1-of-10 top-1 "
+        f"{_source(m)}) identifies the {noun} at {_pick(m.chance, '-')} top-1 "
         f"{m.background_top1:.2f} {_ci(m.background_ci95)} vs chance {m.chance:.2f}: "
         "a model can learn the capture session, not the material "
         "(see `lookfeel data leakage`)",

@@ -51,16 +51,29 @@ def _listed(names: Sequence[str], most: int = 6) -> str:
     return ", ".join(names[:most]) + more
 
 
+def _unread_labels(catalog: Catalog) -> str | None:
+    """Why labels.csv exists but none of it could be read (the scan's error about the whole
+    file or its header, counted under problems), or None. A file whose columns were read is
+    read, whatever else is wrong with its header (an unnamed column holding values): the
+    ``labels`` and ``paper split`` rows both follow this one rule."""
+    path = catalog.root / "labels.csv"
+    if catalog.label_columns or catalog.text_columns:
+        return None
+    if not (path.exists() or path.is_symlink()):
+        return None
+    unread = [p for p in catalog.errors if p.path == path and p.line in (None, 1)]
+    if unread:
+        return unread[0].message.removeprefix("cannot read labels file: ")
+    return None if path.is_file() else "not a file"
+
+
 def _labels_line(catalog: Catalog, s: dict[str, object], named: bool) -> str:
     """The ``labels`` row: the label columns, or why there are none (no labels.csv, or one that
     cannot be read), then how many fabrics or objects are labelled."""
     cols = s["label_columns"]
     assert isinstance(cols, list)
     path = catalog.root / "labels.csv"
-    unread = [p for p in catalog.errors if p.path == path and p.line in (None, 1)]
-    if not cols and not catalog.text_columns and unread and (path.exists() or path.is_symlink()):
-        # The scan reported why (it is counted under problems); no row of it was read.
-        why = unread[0].message.removeprefix("cannot read labels file: ")
+    if (why := _unread_labels(catalog)) is not None:
         return f"labels.csv exists but cannot be read: {why} (see `lookfeel data check`)"
     if cols:
         what = ", ".join(cols)
@@ -98,10 +111,9 @@ def _paper_split_line(catalog: Catalog, s: dict[str, object], named: bool) -> st
     if split:
         return ", ".join(f"{k} {v}" for k, v in split.items())
     path = catalog.root / "labels.csv"
-    unread = any(p.path == path and p.line in (None, 1) for p in catalog.errors)
     if not (path.exists() or path.is_symlink()):
         why = "no labels.csv"
-    elif unread or not path.is_file():
+    elif _unread_labels(catalog) is not None:
         why = "labels.csv cannot be read"
     elif not _has_split_column(path):
         why = "labels.csv has no paper_split column"

@@ -569,8 +569,9 @@ class Matcher:
             message = (
                 f"no known {noun}: the best match, {best_name}, has P = {best:.3f} "
                 f"(P(unknown) = {p_unknown:.3f}, {chance}), below the threshold "
-                f"{cal.threshold:.3f} calibrated for a {100 * cal.target_false_accept:g}% "
-                "false-accept rate on held-out fabrics"
+                f"{cal.threshold:.3f} chosen for a {100 * cal.target_false_accept:g}% "
+                f"false-accept rate in-sample (on the library's own {noun}s, each left out of "
+                "the gallery in turn: not a rate measured on new ones)"
             )
             if cal.n_absent and not cal.true_accept > 0:
                 message += (
