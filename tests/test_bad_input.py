@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import yaml
 
 from lookfeel.cli import main
 from lookfeel.config import ConfigError
@@ -297,6 +298,111 @@ def test_split_errors_name_what_was_left_out_and_warn_on_few_training_fabrics():
         stratified_fabric_folds(ids, {}, 5, fold_size=18, excluded=5)
     with pytest.warns(UserWarning, match="holding out 18 of 25 fabrics leaves 7 to train on"):
         stratified_fabric_split(ids, {}, n_test=18)
+
+
+# ---- a shipped --config on data it does not fit: one line, with the --set that fits -----------
+
+
+def _sets(line: str) -> list[str]:
+    """The ``--set 'KEY=VALUE'`` flags a message gives, as a shell would pass them."""
+    import re
+    import shlex
+
+    return [a for q in re.findall(r"--set ('[^']*')", line) for a in ("--set", *shlex.split(q))]
+
+
+QUICK = ["--set", "train.steps=2", "--set", "train.val_every=0"]
+
+
+def _touch_only(root: Path, kind: str = "fold", labels: str | None = None) -> Path:
+    """Four fabrics with touch presses of one ``kind`` alone, and ``labels`` as labels.csv."""
+    fold, flat = (2, 0) if kind == "fold" else (0, 2)
+    data = write_tiny_dataset(root, 4, drapes=1, fold_presses=fold, flat_presses=flat, frames=2)
+    shutil.rmtree(data / "depth")
+    shutil.rmtree(data / "color")
+    if labels is not None:
+        (data / "labels.csv").write_text(labels)
+    return data
+
+
+def test_a_class_head_the_labels_lack_says_the_heads_they_have(tmp_path: Path, capsys):
+    """QA (a DIGIT owner): `--config physiclear` on recordings labelled with hardness and
+    material said only "'roughness' is not a column of labels.csv"; it names every missing
+    column and the --set of the heads the labels have, which trains."""
+    labels = "fabric_id,hardness,material\n1,0,foam\n2,1,wood\n3,2,metal\n4,0,wood\n"
+    data = _touch_only(tmp_path / "digit", labels=labels)
+    before = tree_digest(data)
+    argv = ["train", "--config", "physiclear", "--data", data, "--out", tmp_path / "r"]
+    line = _fails(
+        capsys,
+        argv,
+        "model.class_heads: 'roughness' and 'bumpiness' are not columns of labels.csv (have: "
+        "hardness, material); give the heads your labels have: "
+        "--set 'model.class_heads=[hardness,material]', or --set 'model.class_heads=[]' for none",
+    )
+    assert not (tmp_path / "r").exists()  # refused before any work
+    fits = _sets(line)[:2]
+    assert fits == ["--set", "model.class_heads=[hardness,material]"]
+    quick = [*QUICK, "--set", "model.members=1", "--set", "data.image_size=32"]
+    assert main([str(a) for a in [*argv, *fits, *quick]]) == 0, capsys.readouterr().err
+    saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+    assert saved["model"]["class_heads"] == ["hardness", "material"]
+    assert tree_digest(data) == before
+
+
+@pytest.mark.parametrize("command", ["train", "cv"])
+def test_presses_of_another_kind_are_one_line_with_the_kinds_to_train_on(
+    command: str, tmp_path: Path, capsys
+):
+    """QA: a rig of flat presses under `--config tiny` (fold presses) got a line per fabric,
+    "fabric N has no touch (fold presses) item", and no word of data.touch_kinds."""
+    data = write_tiny_dataset(tmp_path / "flat", 6, drapes=2, fold_presses=0, flat_presses=2)
+    argv = [command, "--config", "tiny", "--data", data, "--out", tmp_path / "r"]
+    line = _fails(
+        capsys,
+        argv,
+        "none of the 6 fabrics (1, 2, 3 and 3 more) has a touch (fold presses) item; their "
+        "presses are flat (the run's data.touch_kinds asks fold): "
+        "--set 'data.touch_kinds=[flat]' trains on them",
+    )
+    if command == "train":
+        assert main([str(a) for a in [*argv, *_sets(line), *QUICK]]) == 0
+        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+        assert saved["data"]["touch_kinds"] == ["flat"]
+
+
+@pytest.mark.parametrize("command", ["train", "cv"])
+def test_views_of_senses_the_data_lacks_are_one_line_with_views_that_fit(
+    command: str, tmp_path: Path, capsys
+):
+    """QA: `--config tiny` (train.views [depth, color, touch]) on touch alone got a line per
+    fabric and sense, "fabric N has no depth item", and no word of train.views."""
+    data = _touch_only(tmp_path / "touch")
+    argv = [command, "--config", "tiny", "--data", data, "--out", tmp_path / "r"]
+    line = _fails(
+        capsys,
+        argv,
+        f"{data}: the run's train.views [depth, color, touch] use depth and color, of which "
+        "the data holds no item (it holds touch alone): --set 'train.views=[touch,touch]' "
+        "trains on what it holds",
+    )
+    if command == "train":
+        assert main([str(a) for a in [*argv, *_sets(line), *QUICK]]) == 0
+        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+        assert saved["train"]["views"] == ["touch", "touch"]
+
+
+def test_views_and_press_kinds_the_data_lacks_are_said_together(tmp_path: Path, capsys):
+    """Both wrong: a line each, whose --set flags together train."""
+    data = _touch_only(tmp_path / "flat", "flat")
+    argv = ["train", "--config", "tiny", "--data", data, "--out", tmp_path / "r"]
+    assert main([str(a) for a in argv]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.startswith(f"lookfeel: 2 problem(s) in {data}:\n")
+    assert "--set 'train.views=[touch,touch]'" in err
+    assert "--set 'data.touch_kinds=[flat]'" in err
+    assert main([str(a) for a in [*argv, *_sets(err), *QUICK]]) == 0
 
 
 # ---- libraries -------------------------------------------------------------------------------

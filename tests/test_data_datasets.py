@@ -1,5 +1,6 @@
 """Training tuples: Y = 0/1 semantics and ratio, multi-press touch, Siamese slots, seeding."""
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -89,11 +90,44 @@ def test_augmentation_is_seeded_and_off_for_validation(tiny_dataset: Path):
 
 
 def test_clear_errors_for_unusable_catalogs(tiny_dataset: Path):
-    with pytest.raises(DatasetError, match=r"fabric 1 has no touch \(rand presses\) item"):
+    with pytest.raises(DatasetError, match=r"none of the 6 fabrics \(1, 2, 3 and 3 more\) has"):
         _ds(tiny_dataset, touch_kinds=(PressKind.RAND,))
     small = scan(tiny_dataset).subset([1, 2])
     with pytest.raises(DatasetError, match="3 slots from different fabrics need at least"):
         TupleDataset(small, ImageLoader(DataConfig(image_size=16)), (D, C, T), length=4)
+
+
+def test_fabrics_lacking_an_item_are_a_line_each_when_few_and_one_line_when_many(
+    tiny_dataset: Path,
+):
+    """QA: flat presses only under data.touch_kinds fold gave a line per fabric and no fix.
+    A few fabrics lacking keep a line each (which ones matters); more are one counted line,
+    naming the first few; both give the --set of the press kinds that trains on them."""
+    fold = (PressKind.FOLD,)
+    for f in (1, 2):
+        for p in (tiny_dataset / "touch").glob(f"F{f:04d}_fold_*"):
+            p.unlink()
+    fix = "--set 'data.touch_kinds=[flat,fold]' trains on every kind the data holds"
+    few = [str(p) for p in scan(tiny_dataset).lacking([T], fold)]
+    assert few == [
+        f"{tiny_dataset / 'touch'}: fabric {f} has no touch (fold presses) item; its presses "
+        f"are flat (the run's data.touch_kinds asks fold): {fix}"
+        for f in (1, 2)
+    ]
+    for f in (3, 4, 5):
+        for p in (tiny_dataset / "touch").glob(f"F{f:04d}_fold_*"):
+            p.unlink()
+    with pytest.raises(DatasetError) as info:
+        _ds(tiny_dataset, touch_kinds=fold)
+    assert str(info.value) == (
+        f"{tiny_dataset / 'touch'}: 5 of the 6 fabrics (1, 2, 3 and 2 more) have no touch (fold "
+        f"presses) item; their presses are flat (the run's data.touch_kinds asks fold): {fix}"
+    )
+    # Every fabric lacking a modality: one line, with no press kind to suggest.
+    shutil.rmtree(tiny_dataset / "depth")
+    assert [p.message for p in scan(tiny_dataset).subset([1, 2, 3, 4]).lacking([D], fold)] == [
+        "none of the 4 fabrics (1, 2, 3, 4) has a depth item"
+    ]
 
 
 def test_image_store_holds_one_row_per_item_or_press(tiny_dataset: Path):

@@ -179,8 +179,32 @@ def test_required_modality_missing(tmp_path: Path):
     assert scan(root, require=[Modality.DEPTH]).errors == ()
     with pytest.raises(DatasetError, match="fabric 2 has no touch"):
         scan(root).require([Modality.TOUCH])
-    with pytest.raises(DatasetError, match=r"fabric 1 has no touch \(rand presses\)"):
+    with pytest.raises(
+        DatasetError, match=r"none of the 3 fabrics \(1, 2, 3\) has a touch \(rand presses\) item"
+    ):
         scan(root, require=[]).require([Modality.TOUCH], [PressKind.RAND])
+
+
+def test_a_sense_most_fabrics_lack_is_one_line_and_a_few_lacking_it_a_line_each(tmp_path: Path):
+    # A dataset without a sense said so once per fabric: 12 fabrics, 12 lines.
+    root = write_tiny_dataset(tmp_path / "d", fabrics=6, labels=False)
+    for p in (root / "color").iterdir():
+        p.unlink()
+    for p in (root / "touch").glob("F000[23]_*"):
+        p.unlink()
+    errors = [p.message for p in scan(root, require=[Modality.COLOR, Modality.TOUCH]).errors]
+    assert errors == [
+        "none of the 6 fabrics (1, 2, 3 and 3 more) has a color item",
+        "fabric 2 has no touch item",
+        "fabric 3 has no touch item",
+    ]
+    for p in (root / "touch").glob("F000[45]_*"):
+        p.unlink()
+    said = [p.message for p in scan(root).problems if "touch" in p.message]
+    assert said == [
+        "4 of the 6 fabrics (2, 3, 4, 5) have no touch item (other fabrics have; a run that "
+        "uses it cannot)"
+    ]
 
 
 def test_missing_root_is_a_clear_error(tmp_path: Path):
@@ -285,9 +309,9 @@ def test_a_missing_item_names_the_files_of_its_folder_that_were_skipped(tmp_path
     (root / "depth" / ".DS_Store").write_bytes(b"")  # hidden files are no reason
     errors = [p.message for p in scan(root, require=[Modality.DEPTH]).errors]
     assert errors == [
-        f"fabric {i} has no depth item; 4 file(s) of its folder were skipped, e.g. "
-        "F0001_Depth_New_000000.tif: not an image (.png, .jpg, .jpeg) (see `lookfeel data check`)"
-        for i in (1, 2)
+        "none of the 2 fabrics (1, 2) has a depth item; 4 file(s) of its folder were skipped, "
+        "e.g. F0001_Depth_New_000000.tif: not an image (.png, .jpg, .jpeg) (see `lookfeel data "
+        "check`)"
     ]
     # A folder with nothing skipped says what it said.
     (root / "color" / "F0002_1.png").unlink()

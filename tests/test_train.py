@@ -6,6 +6,7 @@ import json
 import os
 import random
 import re
+import shlex
 import statistics
 import subprocess
 import sys
@@ -384,6 +385,59 @@ def test_run_errors_are_clear(data: Path, tmp_path: Path):
         train(_config("train.split=paper"), data, tmp_path / "paper")
     with pytest.raises(ConfigError, match="num_properties=2, but labels.csv has 4"):
         train(_config("model.num_properties=2"), data, tmp_path / "props")
+
+
+def test_views_the_data_lacks_are_one_line_beside_its_other_problems(tmp_path: Path):
+    """train() as a library call: a sense of train.views that the data holds no item of is
+    one line naming train.views and the --set that fits (not a line per fabric), and the
+    scan's other problems still follow it."""
+    touch = write_tiny_dataset(tmp_path / "touch", fabrics=4, drapes=1, flat_presses=0)
+    for sense in ("depth", "color"):
+        for p in (touch / sense).iterdir():
+            p.unlink()
+        (touch / sense).rmdir()
+    bad = sorted((touch / "touch").glob("*.png"))[0]
+    bad.write_bytes(b"not an image")
+    cfg = _config("train.val_pairs=[depth_to_touch,touch_to_touch]")
+    with pytest.raises(DatasetError) as info:
+        train(cfg, touch, tmp_path / "run")
+    lines = str(info.value).splitlines()
+    assert lines[0] == f"2 problem(s) in {touch}:"
+    assert lines[1] == (
+        f"  {touch}: the run's train.views [depth, color, touch] use depth and color, of which "
+        "the data holds no item (it holds touch alone): --set 'train.views=[touch,touch]' "
+        "--set 'train.val_pairs=[touch_to_touch]' trains on what it holds"
+    )
+    assert lines[2].startswith(f"  {bad}: ") and len(lines) == 3
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_class_heads_a_message_gives_read_back_as_the_columns(tmp_path: Path):
+    """The --set of class heads that the labels have reads back, through the config parser,
+    as those columns, even where a bare word would read as YAML's true or a number."""
+    from lookfeel.train.loop import resolve_classes
+
+    root = write_tiny_dataset(tmp_path / "d", fabrics=4, drapes=1)
+    (root / "labels.csv").write_text(
+        "fabric_id,yes,1e3,stiffness\n1,0,foam,0.5\n2,1,wood,1.5\n3,0,foam,2\n4,1,wood,1\n"
+    )
+    catalog = scan(root)
+    asked = _config("model.class_heads=['yes',roughness,'1e3']")
+    with pytest.raises(ConfigError) as info:
+        resolve_classes(catalog, asked)
+    message = str(info.value)
+    assert message.startswith(
+        "model.class_heads: 'roughness' is not a column of labels.csv (have: yes, stiffness, "
+        "1e3); give the heads your labels have: --set "
+    )
+    given = shlex.split(message.partition("--set ")[2].partition(", or")[0])
+    assert load_config(RunConfig, TINY, given).model.class_heads == ("yes", "1e3")
+    assert message.endswith(", or --set 'model.class_heads=[]' for none")
+    # No column of classes at all: no head.
+    (root / "labels.csv").write_text("fabric_id,stiffness\n1,0.5\n2,1.5\n3,2\n4,1\n")
+    with pytest.raises(ConfigError, match=r"two classes or more to learn: --set "
+                       r"'model.class_heads=\[\]' for no head$"):  # fmt: skip
+        resolve_classes(scan(root), asked)
 
 
 def _strict_json_lines(path: Path) -> list[dict]:

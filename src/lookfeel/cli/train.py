@@ -151,12 +151,16 @@ def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
       `lookfeel.config.recipes.unread_senses`): an error in one line where the run's
       ``train.views`` use it, else, where the recipe was ``chosen`` for what the folder holds
       (no --config), a warning that the run goes without it;
+    - a config the data cannot serve (`_check_fits`): a modality of ``train.views`` it holds
+      no item of, no touch press of ``data.touch_kinds``, a class head labels.csv cannot give;
     - raw depth that lies mostly outside the range the run maps it from (its own
       ``data.depth_min_mm`` and ``data.depth_range_mm``): a warning in one line with a range
       that holds it (`_say_depth_range`).
 
     Raises:
-        DatasetError: a sense the run uses has no readable file.
+        DatasetError: a sense the run uses has no readable file, or no item; no press of the
+            run's kinds.
+        ConfigError: a class head labels.csv cannot give.
     """
     from lookfeel.config.recipes import unread_senses
     from lookfeel.data.layout import scan
@@ -188,8 +192,39 @@ def check_senses(config: RunConfig, data: Path, *, chosen: bool) -> None:
                 f"`lookfeel data check {data}`)",
                 stacklevel=2,
             )
+    _check_fits(config, catalog)
     if says:
         _say_depth_range(config, catalog)
+
+
+def _check_fits(config: RunConfig, catalog: Catalog) -> None:
+    """Refuse, before the run decodes anything, a config the data cannot serve, each reason in
+    one line with the ``--set`` that fits it: modalities of ``train.views`` the data holds no
+    item of (`lookfeel.train.loop.views_problem`), touch presses none of which is of the run's
+    ``data.touch_kinds`` (`lookfeel.data.catalog.Catalog.lacking`), class heads
+    (``model.class_heads``) that labels.csv cannot give (`lookfeel.train.loop.resolve_classes`).
+
+    Raises:
+        DatasetError: the views or press kinds (both, where both are wrong).
+        ConfigError: a class head.
+    """
+    from lookfeel.data.problems import DatasetError
+    from lookfeel.modality import Modality
+    from lookfeel.train.loop import resolve_classes, views_problem
+
+    problems = [p for p in [views_problem(catalog, config)] if p is not None]
+    touch, kinds = Modality.TOUCH, config.data.touch_kinds
+    # No press of the run's kinds in the whole dataset (fewer fabrics lacking them may all
+    # validate: the training split's own check, in `TupleDataset`, decides).
+    if (
+        touch in config.train.modalities
+        and catalog.items(touch)
+        and not catalog.items(touch, kinds)
+    ):
+        problems += catalog.lacking([touch], kinds)
+    if problems:
+        raise DatasetError(problems, catalog.root)
+    resolve_classes(catalog, config)
 
 
 def _say_depth_range(config: RunConfig, catalog: Catalog) -> None:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.labels import PHYSICAL_LABELS, class_of
-from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.data.problems import DatasetError, Problem, lacking_lines
 from lookfeel.modality import Modality, PressKind
 
 __all__ = ["PHYSICAL_LABELS", "Catalog", "Fabric", "Item"]
@@ -252,21 +252,56 @@ class Catalog:
         """Check that every fabric has an item of each modality a run needs.
 
         Raises:
-            DatasetError: listing every fabric and the modality it lacks.
+            DatasetError: listing what each modality lacks (`lacking`).
         """
-        kinds = None if kinds is None else tuple(kinds)
-        problems = []
-        for m in modalities:
-            for f in self.fabrics:
-                if not f.items_of(m, kinds):
-                    what = m.value
-                    if m is Modality.TOUCH and kinds is not None:
-                        what += " (" + "/".join(k.value for k in kinds) + " presses)"
-                    problems.append(
-                        Problem(self.root / m.value, f"fabric {f.id} has no {what} item")
-                    )
+        problems = self.lacking(modalities, kinds)
         if problems:
             raise DatasetError(problems, self.root)
+
+    def lacking(
+        self, modalities: Iterable[Modality], kinds: Iterable[PressKind] | None = None
+    ) -> list[Problem]:
+        """What `require` refuses: per modality (touch: of ``kinds`` when given), the fabrics
+        that have no item of it (`lookfeel.data.problems.lacking_lines`: a few get a line each;
+        more, or all, one line that counts them and names the first few). Where the fabrics
+        lacking a touch press of ``kinds`` have presses of other kinds, the line gives the
+        ``--set data.touch_kinds=[...]`` that trains on them (every kind the data holds)."""
+        kinds = None if kinds is None else tuple(kinds)
+        problems: list[Problem] = []
+        for m in modalities:
+            lacking = [f for f in self.fabrics if not f.items_of(m, kinds)]
+            if lacking:
+                problems += self._lacking(m, kinds, lacking)
+        return problems
+
+    def _lacking(
+        self, m: Modality, kinds: tuple[PressKind, ...] | None, lacking: list[Fabric]
+    ) -> list[Problem]:
+        folder = self.root / m.value
+        what = m.value
+        if m is Modality.TOUCH and kinds is not None:
+            what += " (" + "/".join(k.value for k in kinds) + " presses)"
+
+        def fix(fabrics: list[Fabric], whose: str) -> str:
+            """What presses ``fabrics`` have instead, and the --set that trains on them."""
+            if m is not Modality.TOUCH or kinds is None:
+                return ""
+            theirs = _press_kinds(it for f in fabrics for it in f.items.get(m, ()))
+            if not theirs:
+                return ""
+            every = _press_kinds(self.items(m))
+            on = "them" if every == theirs else "every kind the data holds"
+            return (
+                f"; {whose} presses are {'/'.join(theirs)} (the run's data.touch_kinds asks "
+                f"{'/'.join(k.value for k in kinds)}): --set "
+                f"'data.touch_kinds=[{','.join(every)}]' trains on {on}"
+            )
+
+        noun = "object" if any(f.name is not None for f in self.fabrics) else "fabric"
+        heads, grouped = lacking_lines([_who(f) for f in lacking], len(self.fabrics), noun, what)
+        if grouped:
+            return [Problem(folder, heads[0] + fix(lacking, "their"))]
+        return [Problem(folder, h + fix([f], "its")) for h, f in zip(heads, lacking, strict=True)]
 
     # ---- summary -----------------------------------------------------------------------------
 
@@ -379,6 +414,16 @@ class Catalog:
                 f.name for f in self.labelled_only.values() if f.name is not None
             )
         return out
+
+
+def _who(fabric: Fabric) -> str:
+    """``'sponge'`` for a named object, ``12`` for a numbered fabric."""
+    return repr(fabric.name) if fabric.name is not None else str(fabric.id)
+
+
+def _press_kinds(items: Iterable[Item]) -> list[str]:
+    """The stated press kinds of ``items``, sorted (``["flat", "fold"]``)."""
+    return sorted({it.kind.value for it in items if it.kind is not None})
 
 
 def _size(path: Path) -> int:

@@ -32,7 +32,7 @@ from pathlib import Path
 from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.files import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
-from lookfeel.data.problems import DatasetError, Problem
+from lookfeel.data.problems import DatasetError, Problem, lacking_lines
 from lookfeel.data.video import VIDEO_SUFFIXES
 from lookfeel.modality import REPRINTS, Modality, PressKind
 
@@ -610,21 +610,14 @@ def scan(
             if passed
             else ""
         )
-        for fid in sorted(items):
-            if not items[fid].get(m):
-                who = f"object {id_names[fid]!r}" if fid in id_names else f"fabric {fid}"
-                problems.append(
-                    Problem(
-                        folder,
-                        f"{who} has no {m.value} item"
-                        + (
-                            " (other fabrics have; a run that uses it cannot)"
-                            if require is None
-                            else ""
-                        )
-                        + why,
-                    )
-                )
+        lacking = [fid for fid in sorted(items) if not items[fid].get(m)]
+        if not lacking:
+            continue
+        noun = "object" if id_names else "fabric"
+        names = [repr(id_names[f]) if f in id_names else str(f) for f in lacking]
+        heads, _ = lacking_lines(names, len(items), noun, m.value)
+        others = f" (other {noun}s have; a run that uses it cannot)" if require is None else ""
+        problems += [Problem(folder, head + others + why) for head in heads]
     if require is not None and not items:
         problems.append(
             Problem(root, "no image or video found in the layout (depth/, color/, touch/, videos/)")

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from lookfeel.errors import LookfeelError
 
-__all__ = ["DatasetError", "Problem"]
+__all__ = ["FEW_LACKING", "DatasetError", "Problem", "lacking_lines"]
 
 
 @dataclass(frozen=True)
@@ -65,3 +65,27 @@ class DatasetError(LookfeelError):
         if len(self.problems) > 50:
             lines.append(f"  ... and {len(self.problems) - 50} more (run `lookfeel data check`)")
         super().__init__("\n".join([head + ":", *lines]))
+
+
+FEW_LACKING = 3
+"""Fabrics lacking an item that `lacking_lines` names on a line each; where more lack it, one
+line counts them and names this many."""
+
+
+def lacking_lines(who: Sequence[str], total: int, noun: str, what: str) -> tuple[list[str], bool]:
+    """The lines saying that the fabrics (or objects) ``who`` (``"12"``, ``"'sponge'"``), of
+    ``total`` in the dataset, have no ``what`` item, and whether they are grouped into one.
+
+    Up to `FEW_LACKING` of them, while others do have it, get a line each (``"fabric 12 has no
+    depth item"``); more, or all, one line that counts them and names the first few (``"none
+    of the 12 fabrics (1, 2, 3 and 9 more) has a depth item"``), so a dataset without a sense
+    is one line, not one per fabric. Callers add what follows (a reason, a fix)."""
+    if len(who) <= FEW_LACKING and len(who) < total:
+        return [f"{noun} {w} has no {what} item" for w in who], False
+    named = list(who) if len(who) <= FEW_LACKING + 1 else list(who[:FEW_LACKING])
+    shown = ", ".join(named)
+    if len(who) > len(named):
+        shown += f" and {len(who) - len(named)} more"
+    if len(who) == total:
+        return [f"none of the {total} {noun}s ({shown}) has a {what} item"], True
+    return [f"{len(who)} of the {total} {noun}s ({shown}) have no {what} item"], True

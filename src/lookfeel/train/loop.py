@@ -27,6 +27,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
+import shlex
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -37,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import torch
+import yaml
 from torch import Tensor
 
 from lookfeel.atomic import atomic_write_text, check_writable, remove_stale_temps
@@ -64,6 +67,7 @@ from lookfeel.data import (
     stratified_fabric_split,
 )
 from lookfeel.data.labels import MAX_RANK, is_rank
+from lookfeel.data.problems import Problem
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import EmbeddingError
 from lookfeel.index.query import shape_record
@@ -196,13 +200,16 @@ def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
     if not model.class_heads:
         return config
     known = [*catalog.label_columns, *catalog.text_columns]
+    absent = [col for col in model.class_heads if col not in known]
+    if absent:
+        some = len(absent) > 1
+        raise ConfigError(
+            f"model.class_heads: {' and '.join(map(repr, absent))} "
+            f"{'are not columns' if some else 'is not a column'} of labels.csv (have: "
+            f"{', '.join(known) or 'none'}); {_heads_fix(catalog, model.class_heads)}"
+        )
     classes: dict[str, tuple[str, ...]] = {}
     for col in model.class_heads:
-        if col not in known:
-            raise ConfigError(
-                f"model.class_heads: {col!r} is not a column of labels.csv (have: "
-                f"{', '.join(known) or 'none'})"
-            )
         if col not in catalog.class_columns:
             everyone = [*catalog.fabrics, *catalog.labelled_only.values()]
             odd = next(
@@ -230,6 +237,89 @@ def resolve_classes(catalog: Catalog, config: RunConfig) -> RunConfig:
                 "a class head needs two or more"
             )
     return replace(config, model=replace(model, classes=classes))
+
+
+def _heads_fix(catalog: Catalog, asked: Sequence[str]) -> str:
+    """The ``--set`` of ``model.class_heads`` that fits ``catalog``'s labels, for a config
+    whose heads name columns its labels.csv lacks: the asked heads the labels have as classes
+    (two or more), else every such column of the labels; ``[]`` (no class head) besides."""
+    usable = [
+        c
+        for c in catalog.class_columns
+        if len({k for f in catalog.fabrics if (k := f.class_of(c)) is not None}) >= 2
+    ]
+    heads = [c for c in asked if c in usable] or usable
+    none = "--set 'model.class_heads=[]'"
+    if not heads:
+        return f"no column of labels.csv has two classes or more to learn: {none} for no head"
+    setting = shlex.quote(f"model.class_heads={_flow_list(heads)}")
+    return f"give the heads your labels have: --set {setting}, or {none} for none"
+
+
+def _flow_list(values: Sequence[str]) -> str:
+    """``[hardness,material]``: a YAML list that ``--set`` reads back as these strings (JSON's
+    quoted strings where a bare word would read as something else: ``true``, ``1e3``,
+    ``a: b``)."""
+    bare = "[" + ",".join(values) + "]"
+    try:
+        if yaml.safe_load(bare) == list(values):
+            return bare
+    except yaml.YAMLError:
+        pass
+    return json.dumps(list(values), ensure_ascii=False)
+
+
+def views_problem(catalog: Catalog, config: RunConfig) -> Problem | None:
+    """Why the data cannot serve the run's ``train.views``, in one line: the modalities they
+    use of which ``catalog`` holds no item at all, what it holds, and the ``--set`` of
+    ``train.views`` (and of ``train.val_pairs`` where they name a missing modality) that
+    trains on what it holds. None when the data holds every modality the views use, or holds
+    nothing (the scan's own error says so)."""
+    t = config.train
+    have = catalog.modalities
+    absent = [m for m in t.modalities if m not in have]
+    if not absent or not have:
+        return None
+    views = [v for v in t.views if v in have]
+    if not views:
+        views = list(have) if len(have) > 1 else [have[0]]
+    if len(views) < 2:
+        views = views * 2  # one sense: two presses or images of a fabric (Siamese)
+    sets = [f"train.views=[{','.join(v.value for v in views)}]"]
+    if t.val_pairs and any(m in absent for p in t.val_pairs for m in (p.query, p.gallery)):
+        kept = [str(p) for p in t.val_pairs if p.query in views and p.gallery in views]
+        sets.append(f"train.val_pairs=[{','.join(kept)}]")
+    asked = "[" + ", ".join(v.value for v in t.views) + "]"
+    holds = " and ".join(m.value for m in have) + (" alone" if len(have) == 1 else "")
+    fix = " ".join(f"--set '{s}'" for s in sets)
+    return Problem(
+        catalog.root,
+        f"the run's train.views {asked} use {' and '.join(m.value for m in absent)}, of which "
+        f"the data holds no item (it holds {holds}): {fix} trains on what it holds",
+    )
+
+
+def _scan_for(data: Path, config: RunConfig) -> Catalog:
+    """``scan(data, require=<the run's modalities>, strict=True)``, where a modality the run's
+    ``train.views`` use that the data holds no item of is one line (`views_problem`), not one
+    per fabric.
+
+    Raises:
+        DatasetError: every problem of the scan, the views' first.
+    """
+    try:
+        return scan(data, require=config.train.modalities, strict=True)
+    except DatasetError as e:
+        held = scan(data)
+        problem = views_problem(held, config)
+        if problem is None:
+            raise
+        absent = [m for m in config.train.modalities if m not in held.modalities]
+        said = [  # `lookfeel.data.problems.lacking_lines`, a line a fabric or one for many
+            re.compile(rf"\b(has no|have no|has a) {m.value} item\b") for m in absent
+        ]
+        rest = [p for p in e.problems if not any(r.search(p.message) for r in said)]
+        raise DatasetError([problem, *rest], e.root) from None
 
 
 def resolve_properties(catalog: Catalog, config: RunConfig) -> RunConfig:
@@ -1129,7 +1219,7 @@ def _train(
     loader = loader if loader is not None else ImageLoader(config.data)
     cached = t.cache_trunk and config.model.resolved_freeze != "none"
     # A live run trains on the press videos' views: decode them once, while finding the presses.
-    scanned = scan(data, require=modalities, strict=True)
+    scanned = _scan_for(data, config)
     # The files as `evaluate` scans them: before k-means clusters, and before the videos that
     # hold no press are left out (which evaluate finds after it compares the two).
     data_fingerprint = scanned.fingerprint()
