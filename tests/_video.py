@@ -16,9 +16,16 @@ def sensor() -> np.ndarray:
     return np.stack([90 + 60 * x / W, 100 + 50 * y / H, 150 - 40 * x / W], axis=-1)
 
 
-def object_press(texture: int, depth: dict[int, float], t: int, seed: int = 0) -> np.ndarray:
+def object_press(
+    texture: int,
+    depth: dict[int, float],
+    t: int,
+    seed: int = 0,
+    light: dict[int, float] | None = None,
+) -> np.ndarray:
     """(t, H, W, 3) uint8: a press of object ``texture`` (stripes of its own period and angle
-    under a round contact), pressed to ``depth[i]`` at frame i (others: no contact)."""
+    under a round contact), pressed to ``depth[i]`` at frame i (others: no contact), the
+    sensor's light times ``light[i]`` at frame i (others: 1; a camera's exposure)."""
     y, x = np.mgrid[0:H, 0:W].astype(np.float32)
     rng = np.random.default_rng(seed)
     cx, cy = 32 + rng.uniform(-3, 3), 24 + rng.uniform(-3, 3)
@@ -30,6 +37,7 @@ def object_press(texture: int, depth: dict[int, float], t: int, seed: int = 0) -
     out = []
     for i in range(t):
         f = sensor() + depth.get(i, 0.0) * (contact * (0.4 + 0.6 * stripes))[..., None] * tint
+        f = f * (light or {}).get(i, 1.0)
         f = f + rng.normal(0, 0.7, (H, W, 1))
         out.append(np.clip(np.rint(f), 0, 255).astype(np.uint8))
     return np.stack(out)

@@ -44,7 +44,7 @@ from lookfeel.modality import Modality
 
 av = pytest.importorskip("av")
 
-from ._video import write_video  # noqa: E402
+from ._video import PRESS, object_press, write_video  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 PHYSICLEAR = [REPO.parent / "shared" / "data" / "physiclear", Path("/work/shared/data/physiclear")]
@@ -231,6 +231,97 @@ def test_a_too_short_video_is_refused(tmp_path: Path):
     with pytest.raises(VideoError, match=f"too short: 3 frames; at least {MIN_VIDEO_FRAMES}") as e:
         read_press(path)
     assert str(path) in str(e.value)
+
+
+# ---- QA: presses as a DIGIT / GelSight owner records them ---------------------------------------
+
+RAMP = {**{i: min(1.0, 0.1 * (i - 4)) for i in range(5, 22)}, 22: 0.6, 23: 0.3}
+"""A press pushed in over frames 5-14, held to 21 and released by 24 (of 40)."""
+
+
+@pytest.mark.parametrize("cut", [7, 9])
+def test_a_video_that_begins_mid_press_is_refused_not_read_backwards(tmp_path: Path, cut: int):
+    """QA: a clip starting mid-press, then releasing, was accepted: its first frames (pressed)
+    were taken as the untouched reference and the release as the press, so the model got an
+    inverted difference image."""
+    frames = object_press(1, RAMP, 40)
+    whole = read_press(write_video(tmp_path / "whole.mp4", frames)).span
+    assert whole.reference == (0, 5) and (whole.start, whole.end) == (7, 24)  # begins untouched
+    path = write_video(tmp_path / f"from{cut}.mp4", frames[cut:])
+    with pytest.raises(NoPressError) as e:
+        read_press(path)
+    assert str(e.value).startswith(f"{path}: the press began before the recording: the gel ")
+    assert "no untouched frame to compare against" in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("light", [{0: 0.85, 1: 0.85, 2: 0.95}, {0: 0.92, 1: 0.92, 2: 0.92}])
+def test_a_camera_exposure_settling_in_the_first_frames_is_skipped(tmp_path: Path, light):
+    """QA: a webcam's auto exposure that settles over the first 3 frames made the reference
+    darker than the frames after it: a real press refused as a change of light (naming the
+    frame of the press, not of the light), or a difference image far from 128 where untouched."""
+    depth = {i + 3: d for i, d in PRESS.items()}  # frames 8-12, deepest at 10
+    plain = read_press(write_video(tmp_path / "plain.mp4", object_press(1, depth, 20)))
+    press = read_press(
+        write_video(tmp_path / "settle.mp4", object_press(1, depth, 20, light=light))
+    )
+    span = press.span
+    assert span.reference == (3, 8)  # the reference begins once the light holds
+    assert (span.start, span.peak, span.end) == (plain.span.start, plain.span.peak, plain.span.end)
+    assert abs(float(press.images.mean()) - float(plain.images.mean())) < 1.0
+    assert span.strength.shape == (20,) and float(span.strength[:3].max()) < span.threshold
+
+
+def test_a_video_with_two_presses_keeps_the_deepest_and_warns(tmp_path: Path):
+    """QA: a video with two presses was used silently (the deeper one)."""
+    from lookfeel.data.check import decode_problem
+
+    depth = {5: 0.3, 6: 0.6, 7: 0.6, 8: 0.3, 15: 0.4, 16: 0.8, 17: 1.0, 18: 0.7, 19: 0.3}
+    path = write_video(tmp_path / "two.mp4", object_press(1, depth, 26))
+    warning = video_module.TwoPressesWarning
+    with pytest.warns(warning) as caught:
+        span = read_press(path).span
+    assert (span.start, span.peak, span.end) == (15, 17, 20)  # the deeper press, as before
+    assert len(caught) == 1 and str(caught[0].message) == (
+        f"{path}: more than one press: frames 15-19 (the deepest, used) and 5-8; record one "
+        "press per video to use each"
+    )
+    with pytest.warns(warning, match="two.mp4: more than one press"):  # `data check` shows it
+        assert decode_problem(path, Modality.TOUCH).problem is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", warning)
+        read_press(write_video(tmp_path / "one.mp4", object_press(1, RAMP, 40)))  # one press
+
+
+@pytest.mark.parametrize("t", [MIN_VIDEO_FRAMES, 7, 8])
+def test_a_short_clip_with_a_clear_press_is_read_down_to_the_minimum(tmp_path: Path, t: int):
+    """QA: 3 untouched frames and a clear press were refused as "nothing was pressed" under 10
+    frames: the floor and noise came from the frames after the first three, mostly pressed."""
+    depth = {3: 0.7, 4: 1.0, 5: 0.8, 6: 0.4}
+    span = read_press(write_video(tmp_path / f"short{t}.mp4", object_press(1, depth, t))).span
+    assert span.reference == (0, 3) and (span.start, span.peak, span.end) == (3, 4, min(t, 7))
+
+
+def test_a_press_held_to_the_end_starts_where_contact_does(tmp_path: Path):
+    """QA: 3 untouched frames then a press held to the end gave start 5, not 3: the floor (10th
+    percentile after the first frames) was a pressed level."""
+    depth = {i: min(1.0, 0.25 * (i - 2)) for i in range(3, 20)}
+    span = read_press(write_video(tmp_path / "held.mp4", object_press(1, depth, 20))).span
+    assert span.reference == (0, 3) and (span.start, span.end) == (3, 20) and span.peak >= 6
+
+
+def test_read_press_says_whether_a_video_has_no_colour(tmp_path: Path):
+    """QA: a grey video was converted to RGB silently; `Press.grey` says so, for `data check`
+    and `predict` to warn."""
+    colour = object_press(1, PRESS, 16)
+    grey = np.repeat(colour.astype(np.float32) @ np.array([0.299, 0.587, 0.114]), 3, axis=-1)
+    grey = np.rint(grey.reshape(colour.shape)).astype(np.uint8)
+    single = read_press(write_video(tmp_path / "grey.mkv", grey, "ffv1", "gray"))
+    assert single.grey and single.pixel_format == "gray" and video_module.is_single_channel("gray")
+    stored = read_press(write_video(tmp_path / "grey.mp4", grey))  # grey stored as colour
+    assert stored.grey and stored.pixel_format == "yuv420p"
+    press = read_press(write_video(tmp_path / "colour.mp4", colour))
+    assert not press.grey and press.pixel_format == "yuv420p"
+    assert not video_module.is_single_channel("yuv420p")
 
 
 def _png_bytes() -> bytes:
@@ -556,3 +647,27 @@ def test_real_gelsight_mini_presses_are_found(physiclear: Path, name: str):
     assert span.end - span.start >= 15  # a hand press lasts more than half a second at 25 fps
     assert span.contrast > 2.0
     assert press.images.shape == (1, 240, 320, 3)
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [
+        ("scissor_handle_4", ((0, 5), 11, 15, 41)),  # frame 0 an odd frame: not a moving gel
+        ("cotton_ball_2", ((0, 5), 29, 38, 81)),  # soft: the gel creeps before contact
+        ("pen_2", ((0, 5), 8, 13, 50)),  # held to the end of the video
+        ("basket_3", ((0, 5), 47, 68, 87)),  # pressed twice: the deeper press, and a warning
+    ],
+)
+def test_real_presses_keep_the_spans_the_published_numbers_used(physiclear, name, expected):
+    """The checks added for QA's videos (exposure settling, a video begun mid-press, a short
+    or held clip, a second press) change no span of the 398 PhysiCLeAR presses; these are the
+    nearest to each rule."""
+    path = physiclear / f"{name}.mov"
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        span = read_press(path).span
+    assert (span.reference, span.start, span.peak, span.end) == expected
+    two = [w for w in caught if issubclass(w.category, video_module.TwoPressesWarning)]
+    assert len(two) == (name == "basket_3")

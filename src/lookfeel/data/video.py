@@ -11,12 +11,16 @@ it, and returns the frames the model needs:
   greyscale version moved from the median of the first frames (the mean of its 5% most changed
   pixels, after removing a global brightness shift), thresholded relative to the noise of the
   frames before contact and to the peak. A change of the whole frame's light (the LED, the
-  exposure) is told from contact by its shape: it is a gain and offset of the untouched frame.
+  exposure) is told from contact by its shape: it is a gain and offset of the untouched frame;
+  a camera's exposure settling in the first frames is skipped. A video that begins mid-press
+  (its first frames already moving) is refused; one with two presses keeps the deeper, with a
+  `TwoPressesWarning`.
 - `contact_frames`, `reference_frame`, `difference_image`: the chosen frames and their
   difference from the no-contact frame (``128 + gain * (frame - reference)``), which removes
   the sensor's own light pattern and its drift.
-- `read_press`: all of it at once (`Press`); `lookfeel.data.images.ImageLoader` calls it for a
-  touch item whose file is a video, and caches the result like an image.
+- `read_press`: all of it at once (`Press`, which also says whether the video has no colour:
+  `Press.grey`); `lookfeel.data.images.ImageLoader` calls it for a touch item whose file is a
+  video, and caches the result like an image.
 
 Decoding is fast because full RGB is made only for the frames kept: the press is found on the
 luma plane of the decoded YUV frames (block-averaged to about 40x30), and only the chosen
@@ -28,9 +32,10 @@ file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`)
 more than `MAX_VIDEO_FRAMES` frames or more than 4 gigapixels in all is refused, from the
 stream's header before decoding where it declares them. A file that cannot be decoded (not a
 video, an image renamed, damaged, or fewer frames than it declares), a video with no contact
-(a change of light alone included), or one too short raises `VideoError` naming the file. A
-file that declares its duration but not its frames (Matroska) and whose frames end clearly
-before it is read as far as it goes, with a `TruncatedVideoWarning` naming it.
+(a change of light alone included), one that begins mid-press, or one too short raises
+`VideoError` naming the file. A file that declares its duration but not its frames (Matroska)
+and whose frames end clearly before it is read as far as it goes, with a
+`TruncatedVideoWarning` naming it.
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, VIDEO_SUFFIXES, ImageError, read_image_file
+from lookfeel.errors import caller_stacklevel
 
 if TYPE_CHECKING:
     import av.video.frame
@@ -59,12 +65,14 @@ __all__ = [
     "Press",
     "PressSpan",
     "TruncatedVideoWarning",
+    "TwoPressesWarning",
     "VideoError",
     "contact_frames",
     "deep_frames",
     "detect_press",
     "difference_image",
     "frame_at",
+    "is_single_channel",
     "is_video",
     "read_press",
     "read_video",
@@ -103,6 +111,32 @@ whole frame's light (a gain and offset of the untouched frame) is removed, else 
 a change of light with no press. Synthetic steps of 10-20% in brightness keep 3-40% (weaker
 ones mostly stay under the contact threshold); the 398 PhysiCLeAR presses keep at least 75%
 (median 99%), so the rule changes none of them."""
+_SETTLE_LEVELS = 2.0
+"""A first frame whose whole-frame light (a gain and offset) differs from the frames after it by
+at least this many grey levels, with nothing else changed, is the camera's exposure settling
+and is skipped (`_settle`). The 398 PhysiCLeAR presses change by at most 0.7 grey levels in
+their first five frames (1.1 in mean brightness), so none is skipped; on a GelSight Mini frame
+of mean grey 85, a settle from 92% of the light is 7 levels."""
+_MAX_SETTLE = 30
+"""Most frames skipped as the camera's exposure settling (about a second)."""
+_MOVING_START = 1.75
+"""A video whose gel moves before contact by more than this many times its own frame-to-frame
+noise began mid-press (`_start_motion`). The 398 PhysiCLeAR presses move at most 1.37 times it
+in their first five frames; clips cut from one of them (egg_1) 2 to 25 frames into its
+contact move 2.0 to 4.7 times it."""
+_FEW_FRAMES_AFTER = 10
+"""With fewer frames than this after the reference frames, the floor and noise of the contact
+signal come from the reference frames (`detect_press`)."""
+_HELD_SHARE = 0.5
+"""A floor (10th percentile after the reference frames) more than this share of the way from
+the reference frames' level to the peak means the frames after them are nearly all pressed
+(held to the end), if it is also as far above them as a press needs: the floor is then the
+reference frames' level. The 398 PhysiCLeAR presses are at most 0.41 of the way."""
+_SECOND_PRESS_SHARE = 0.5
+"""Contact outside the chosen span is another press (`TwoPressesWarning`) when at least this
+share as deep as the chosen one ..."""
+_SECOND_PRESS_FRAMES = 3
+"""... for at least this many frames, with the gel released in between."""
 _TRUNCATED_SLACK = 0.02
 """A file's frames may end this fraction of its declared duration (and two frames) early
 before `TruncatedVideoWarning` says it is truncated."""
@@ -117,10 +151,16 @@ class TruncatedVideoWarning(UserWarning):
     (a copy or a recording interrupted); what is there is read."""
 
 
+class TwoPressesWarning(UserWarning):
+    """A video holds more than one press (the gel released in between): the deepest is used,
+    the others are left out."""
+
+
 class NoPressError(VideoError):
     """A video decodes but holds no usable press: too short, no contact (or a change of light
-    alone), or contact from its first frame. A dataset's run leaves such a recording out with a
-    warning (`lookfeel.data.drop_unpressed`); a query that is one is an error."""
+    alone), or contact from its first frame (pressed, or already moving: begun mid-press). A
+    dataset's run leaves such a recording out with a warning (`lookfeel.data.drop_unpressed`);
+    a query that is one is an error."""
 
 
 def is_video(path: str | os.PathLike[str]) -> bool:
@@ -398,16 +438,19 @@ def small_greyscale(
 
 def _scan(
     p: Path, blob: bytes, max_frames: int | None, max_pixels: int | None, keep_bytes: int
-) -> tuple[np.ndarray, list[av.video.frame.VideoFrame] | None]:
-    """Small greyscale frames, and the decoded frames themselves while they fit ``keep_bytes``
-    (``None`` beyond: the caller decodes again rather than hold a long video in memory)."""
+) -> tuple[np.ndarray, list[av.video.frame.VideoFrame] | None, str]:
+    """Small greyscale frames, the decoded frames themselves while they fit ``keep_bytes``
+    (``None`` beyond: the caller decodes again rather than hold a long video in memory), and
+    the first frame's pixel format."""
     small: list[np.ndarray] = []
     kept: list[av.video.frame.VideoFrame] | None = [] if keep_bytes > 0 else None
     held = 0
     factor = 0
+    pixel_format = ""
     for frame in _decode(p, blob, max_pixels, max_frames):
         if not factor:
             factor = _block_factor(frame.height, frame.width)
+            pixel_format = frame.format.name
         y, limited = _luma(frame)
         g = _shrink(y, factor)
         if limited:
@@ -422,7 +465,7 @@ def _scan(
                 kept.append(frame)
             else:
                 kept = None
-    return np.stack(small), kept
+    return np.stack(small), kept, pixel_format
 
 
 # ---------------------------------------------------------------------------------------------
@@ -435,7 +478,8 @@ class PressSpan:
 
     reference: tuple[int, int]
     """The no-contact reference frames, ``range(*reference)``: the first frames of the video
-    (at least ``first`` of them when contact starts later, at most ``reference_frames``)."""
+    (at least ``first`` of them when contact starts later, at most ``reference_frames``), after
+    the frames of a camera's exposure settling where it has them."""
     start: int
     """First frame in contact."""
     peak: int
@@ -443,9 +487,12 @@ class PressSpan:
     end: int
     """First frame after the release (exclusive end of the contact span), or T."""
     strength: np.ndarray
-    """(T,) float32 contact signal of every frame, in grey levels (0-255 scale)."""
+    """(T,) float32 contact signal of every frame, in grey levels (0-255 scale); for the frames
+    of a camera's exposure settling (before ``reference``), once their change of light is
+    removed."""
     floor: float
-    """The signal's level without contact (its 10th percentile after the first frames)."""
+    """The signal's level without contact (its 10th percentile after the first frames; in a
+    short clip or one pressed to its end, the first frames' own level)."""
     noise: float
     """Frame-to-frame noise of the signal without contact (a robust standard deviation)."""
     threshold: float
@@ -509,6 +556,98 @@ def _light_change(reference: np.ndarray, frame: np.ndarray) -> tuple[float, floa
     return left, float((gain - 1.0) * x.mean() + offset)
 
 
+def _settle(grey: np.ndarray, first: int) -> tuple[int, np.ndarray]:
+    """How many frames at the start are a camera's exposure settling, and their contact signal.
+
+    A webcam's auto exposure (a DIGIT's, for one) often takes a few frames to settle: the first
+    frames are darker or brighter, then the light stays. Those frames are a gain and offset of
+    the settled frames (`_light_change`), not contact. This finds the first frame ``j`` from
+    which the light holds: the ``first + 2`` frames from ``j`` keep the light of the median of
+    the ``first`` from ``j`` (within `_SETTLE_LEVELS`), and every frame before ``j`` differs
+    from it by a change of light of at least `_SETTLE_LEVELS` that explains most of its change.
+    Without such a ``j`` (at most `_MAX_SETTLE`), nothing is skipped. (A frame whose mean grey
+    level is within `_SETTLE_LEVELS` of the reference's keeps its light without a fit: most
+    videos cost five means.)
+
+    Returns:
+        ``j`` (0: nothing to skip), and the (j,) contact signal of the skipped frames once
+        their change of light is removed.
+    """
+
+    def changed(ref: np.ndarray, frame: np.ndarray) -> bool:
+        return (
+            abs(float(frame.mean()) - float(ref.mean())) >= _SETTLE_LEVELS
+            and abs(_light_change(ref, frame)[1]) >= _SETTLE_LEVELS
+        )
+
+    window = first + 2
+    for j in range(min(_MAX_SETTLE, len(grey) - window) + 1):
+        ref = np.median(grey[j : j + first], axis=0)
+        if any(changed(ref, grey[i]) for i in range(j, j + window)):
+            continue  # the light still changes from frame j on
+        fits = [_light_change(ref, grey[i]) for i in range(j)]
+        if all(abs(shift) >= _SETTLE_LEVELS and left <= 0.5 * abs(shift) for left, shift in fits):
+            return j, np.array([left for left, _ in fits], np.float32)
+        break
+    return 0, np.zeros(0, np.float32)
+
+
+def _motion(grey: np.ndarray, a: int, b: int) -> float:
+    """How far frame ``b`` of (T, h, w) ``grey`` moved from frame ``a`` (as `_strength` scores
+    a frame's change)."""
+    return float(_top_change((grey[b] - grey[a]).reshape(1, -1))[0])
+
+
+def _start_motion(grey: np.ndarray, start: int, first: int) -> float:
+    """How much the gel moves in the frames before contact (at most ``first + 2``) of (T, h, w)
+    small grey frames.
+
+    An untouched gel is still: its first frames differ by the camera's noise alone. A video
+    that begins mid-press shows a gel that is already moving (pressed deeper or released). This
+    is the smallest change between frame 0 or 1 and one of the last two frames before contact,
+    so that one odd frame (a camera's first frame is sometimes one) does not count.
+    """
+    n = min(start, first + 2)
+    return min(_motion(grey, a, b) for a in (0, 1) for b in (n - 2, n - 1) if b > a)
+
+
+def _step_noise(grey: np.ndarray) -> float:
+    """The median change between consecutive frames of (T, h, w) small grey frames: how much
+    a video's frames differ when little moves (its noise)."""
+    steps = (grey[1:] - grey[:-1]).reshape(len(grey) - 1, -1)
+    return float(np.median(_top_change(steps)))
+
+
+def _runs(above: np.ndarray) -> list[tuple[int, int]]:
+    """The ``(start, stop)`` of each run of True in a (T,) bool array."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], above.view(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)]
+
+
+def _other_presses(
+    s: np.ndarray, span: tuple[int, int], after: int, floor: float, contrast: float, thr: float
+) -> list[tuple[int, int]]:
+    """Other presses than the contact ``span`` in the (T,) contact signal ``s``: runs of at
+    least `_SECOND_PRESS_FRAMES` frames in contact (above ``thr``, from frame ``after`` on),
+    pressed at least `_SECOND_PRESS_SHARE` as deep as the span, with the gel released between
+    them and the span (the signal back below ``floor + contrast / 10``)."""
+    above = s > thr
+    above[: max(after, 0)] = False
+    above[span[0] : span[1]] = False
+    released = floor + 0.1 * contrast
+    out = []
+    for a, b in _runs(above):
+        gap = s[b : span[0]] if b <= span[0] else s[span[1] : a]
+        if (
+            b - a >= _SECOND_PRESS_FRAMES
+            and float(s[a:b].max()) - floor >= _SECOND_PRESS_SHARE * contrast
+            and len(gap)
+            and float(gap.min()) <= released
+        ):
+            out.append((a, b))
+    return out
+
+
 def detect_press(
     frames: np.ndarray,
     path: str | os.PathLike[str] | None = None,
@@ -529,16 +668,34 @@ def detect_press(
     contact frames around the peak; the reference is the first frames, as many as stay quiet
     (up to ``reference_frames``, never into the span).
 
+    Where the frames after the reference cannot give the floor, the reference frames' own
+    level (the median of their signal) is the floor: in a short clip (fewer than
+    `_FEW_FRAMES_AFTER` frames after them, mostly pressed; the noise is then their signal's
+    frame-to-frame change too), and where the floor lies above their level by more than half
+    the way to the peak (`_HELD_SHARE`) and by as much as a press needs (``min_contrast``,
+    ``min_snr`` times the noise): nearly every frame after them is pressed, as in a press held
+    to the end of the recording.
+
+    A camera's exposure settling in the first frames (a change of the whole frame's light that
+    stops: `_settle`) is skipped: the reference and everything else start after it.
+
     A press changes part of the gel; a step of the sensor's light (its LED, the camera's
     exposure) changes the whole frame at once and stays. So the deepest frame must keep more
     than half its contrast (`_LIGHT_SHARE`) once the best gain and offset of the whole
     untouched frame are removed (`_light_change`), else the video is a change of light with no
     press (`NoPressError`). A press during which the light also changes still counts.
 
+    A video must begin untouched: its reference is the gel before contact. One whose first
+    frames already move (`_start_motion`: by more than ``min_contrast`` and more than
+    `_MOVING_START` times the video's frame-to-frame noise, `_step_noise`) began mid-press,
+    and is refused rather than read backwards (its release taken for the press). A video with
+    two presses (the gel released in between) keeps the deeper one, with a
+    `TwoPressesWarning` naming both.
+
     The signal is on brightness only (a GelSight press changes it; its colour channels are
     noisier after compression): a change of colour at constant brightness is not seen. On the
     401 PhysiCLeAR videos it finds a press in 398; the other three are two videos of 3 frames
-    and one of 7 frames that change by at most 0.4 grey levels.
+    and one of 7 frames that change by at most 0.5 grey levels.
 
     Args:
         frames: (T, H, W, 3) uint8 RGB or (T, H, W) greyscale (small is enough: about 40x30).
@@ -555,8 +712,8 @@ def detect_press(
 
     Raises:
         NoPressError: fewer than ``min_frames`` frames, no contact (or a change of the whole
-            frame's light alone), or contact from the first frame (no no-contact reference
-            before it).
+            frame's light alone), or contact from the first frame (no still, untouched frames
+            at the start to compare against).
     """
     p = Path(path) if path is not None else Path("<frames>")
     t = len(frames)
@@ -568,13 +725,29 @@ def detect_press(
             f"needed ({first} without contact, then the press)",
         )
     grey = _greyscale(frames)
-    s = _strength(grey, first)
+    lead, settling = _settle(grey, first)
+    if t - lead < min_frames:
+        raise NoPressError(
+            p,
+            f"video is too short: {t - lead} frames after the camera's exposure settled (frame "
+            f"{lead}); at least {min_frames} are needed ({first} without contact, then the press)",
+        )
+    g = grey[lead:]  # indices into g are frame - lead
+    s = _strength(g, first)
     rest = s[first:]
     floor = float(np.percentile(rest, 10))
     quiet = rest[rest <= np.percentile(rest, 50)]
     jitter = np.abs(np.diff(quiet)) if len(quiet) > 2 else np.abs(np.diff(s[: first + 2]))
     noise = float(1.4826 * np.median(jitter)) if len(jitter) else 0.0
     peak = int(np.argmax(s))
+    level = float(np.median(s[:first]))
+    if len(rest) < _FEW_FRAMES_AFTER:  # a short clip: too few frames after the reference
+        floor = level
+        noise = float(1.4826 * np.median(np.abs(np.diff(s[:first])))) if first > 1 else 0.0
+    elif floor - level > max(
+        _HELD_SHARE * (float(s[peak]) - level), min_contrast, min_snr * noise
+    ):  # the frames after the reference are nearly all pressed (clearly, against the noise)
+        floor = level
     contrast = float(s[peak]) - floor
     need = max(min_contrast, min_snr * noise)
     if contrast < need:
@@ -590,7 +763,7 @@ def detect_press(
     while start > 0 and s[start - 1] > thr:
         start -= 1
     end = peak + 1
-    while end < t and s[end] > thr:
+    while end < len(s) and s[end] > thr:
         end += 1
     if start == 0:
         raise NoPressError(
@@ -598,14 +771,31 @@ def detect_press(
             "contact from the first frame: no untouched frames at its start to compare against "
             "(record from before the press)",
         )
-    left, shift = _light_change(np.median(grey[:first], axis=0), grey[peak])
-    if left - floor <= _LIGHT_SHARE * contrast:
+    moved = _start_motion(g, start, first)
+    steps = _step_noise(g) if moved > min_contrast else np.inf  # slower: only where it can matter
+    if moved > _MOVING_START * steps:
         raise NoPressError(
             p,
-            f"no contact found: the light changed with no press (from frame {start} the whole "
-            f"frame is {abs(shift):.1f} grey levels {'brighter' if shift > 0 else 'darker'}; "
-            f"without that the frames change by {max(left - floor, 0.0):.2f} grey levels, a "
-            f"press needs more than {_LIGHT_SHARE * contrast:.2f})",
+            f"the press began before the recording: the gel already moves in its first frames "
+            f"({moved:.2f} grey levels over frames {lead}-{lead + min(start, first + 2) - 1}, "
+            f"{moved / max(steps, 1e-6):.1f} times its frame-to-frame noise), so there is no "
+            "untouched frame to compare against (record from before the press)",
+        )
+    reference = np.median(g[:first], axis=0)
+    left, shift = _light_change(reference, g[peak])
+    if left - floor <= _LIGHT_SHARE * contrast:
+        changed = next(
+            i
+            for i in range(first, peak + 1)
+            if abs(_light_change(reference, g[i])[1]) >= 0.5 * abs(shift)
+        )
+        raise NoPressError(
+            p,
+            f"no contact found: the light changed with no press (from frame {lead + changed} "
+            f"the whole frame is {abs(shift):.1f} grey levels "
+            f"{'brighter' if shift > 0 else 'darker'}; without that the frames change by "
+            f"{max(left - floor, 0.0):.2f} grey levels, a press needs more than "
+            f"{_LIGHT_SHARE * contrast:.2f})",
         )
     # The reference: the first frames (the signal's own reference, untouched by assumption),
     # extended while quiet up to ``reference_frames``. Measured on PhysiCLeAR, this beats the
@@ -615,12 +805,22 @@ def detect_press(
     stop = min(first, start)
     while stop < min(reference_frames, start) and s[stop] <= low:
         stop += 1
+    others = _other_presses(s, (start, end), stop, floor, contrast, thr)
+    if others:
+        spans = ", ".join(f"{lead + a}-{lead + b - 1}" for a, b in others)
+        warnings.warn(
+            TwoPressesWarning(
+                f"{p}: more than one press: frames {lead + start}-{lead + end - 1} (the "
+                f"deepest, used) and {spans}; record one press per video to use each"
+            ),
+            stacklevel=caller_stacklevel(),
+        )
     return PressSpan(
-        reference=(0, stop),
-        start=start,
-        peak=peak,
-        end=end,
-        strength=s,
+        reference=(lead, lead + stop),
+        start=lead + start,
+        peak=lead + peak,
+        end=lead + end,
+        strength=np.concatenate([settling, s]) if lead else s,
         floor=floor,
         noise=noise,
         threshold=thr,
@@ -695,6 +895,21 @@ def difference_image(
 # One call: a press video in, the frames the model needs out.
 
 
+def is_single_channel(pixel_format: str) -> bool:
+    """Whether FFmpeg's ``pixel_format`` (a decoded frame's ``format.name``) holds one grey
+    channel and no colour: ``gray`` and its deeper kinds, grey with alpha (``ya8``), black and
+    white (``monob``)."""
+    return pixel_format.startswith(("gray", "ya", "mono"))
+
+
+def _colourless(rgb: np.ndarray) -> bool:
+    """Whether an (H, W, 3) uint8 RGB frame has red, green and blue within 2 levels everywhere."""
+    g = rgb[..., 1].astype(np.int16)
+    return bool(
+        np.abs(rgb[..., 0] - g).max(initial=0) <= 2 and np.abs(rgb[..., 2] - g).max(initial=0) <= 2
+    )
+
+
 @dataclass(frozen=True)
 class Press:
     """What `read_press` took from a press video."""
@@ -709,6 +924,13 @@ class Press:
     """(H, W, 3) float32 no-contact reference (mean of the reference frames)."""
     subtracted: bool
     """Whether ``images`` are differences from the reference."""
+    pixel_format: str = ""
+    """The pixel format of the decoded frames, as FFmpeg names it (``yuv420p``, ``gray`` ...)."""
+    grey: bool = False
+    """Whether the video has no colour: a single-channel pixel format (``gray``, ``gray16le``
+    ...; `is_single_channel`), or red, green and blue equal (within 2 levels) in every frame
+    read (a grey recording stored as colour). Its frames are read as RGB all the same, each
+    channel the grey level: a model trained on colour presses never saw such an image."""
 
 
 def read_press(
@@ -751,7 +973,9 @@ def read_press(
     """
     p = Path(path)
     blob = _read_bytes(p) if data is None else data
-    small, decoded = _scan(p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES)
+    small, decoded, pixel_format = _scan(
+        p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES
+    )
     span = detect(small, p)
     if choose is not None:
         indices = list(choose(span))
@@ -776,4 +1000,5 @@ def read_press(
         images = np.stack([difference_image(rgb[i], reference, gain) for i in indices])
     else:
         images = np.stack([rgb[i] for i in indices])
-    return Press(p, span, tuple(indices), images, reference, subtract_reference)
+    grey = is_single_channel(pixel_format) or all(_colourless(rgb[i]) for i in wanted)
+    return Press(p, span, tuple(indices), images, reference, subtract_reference, pixel_format, grey)
