@@ -300,7 +300,11 @@ def test_runs_side_by_side_in_workers_give_the_numbers_of_one_process(
         data, tmp_path / "side", "tiny", only=only, n_boot=50, overrides=FAST, log=lines.append
     )
     cites = {e.name: e.cites for e in run.EXPERIMENTS}
-    assert sorted(lines) == sorted(f"run  {n} seed 0 ({cites[n]})" for n in only)  # as they start
+    said = [f"run  {n} seed 0 ({cites[n]})" for n in only if n != "snn_depth"]  # as they start
+    said.append(
+        f"read snn_depth seed 0 ({cites['snn_depth']}): finished, read back from its eval.json"
+    )
+    assert sorted(lines) == sorted(said)
     assert list(side.results) == only  # the experiments' order, whichever finished first
     assert json.dumps(side.results) == json.dumps(alone.results)
     for name in ("cross_modal", "cross_modal_depth_touch"):  # trained in the workers
@@ -351,7 +355,8 @@ def test_the_report_says_what_it_measured(tmp_path: Path):
     )
     assert "| touch_to_touch | - (" not in report and "| n/a^1 (" in report and "nan" not in report
     assert "| snn_depth | n/a^1 (0.482) | n/a^1 (0.660) | 0.700 [0.50, 0.90] (0.554) |" in report
-    assert "| chance | 0.100 | 0.300 | 0.167 | 0.500 |" in report  # each side's, top-1 and top-3
+    # Each side's, top-1 and top-3; none where no query was scored (the seen side here).
+    assert "| chance | n/a^1 | n/a^1 | 0.167 | 0.500 |" in report
     assert "It **holds** when every comparison goes the paper's way" in report
 
 
@@ -416,9 +421,9 @@ def test_cells_without_a_number_say_why_and_top_k_of_k_is_not_a_score(tmp_path: 
         "| snn_depth | n/a^1 (0.482) | n/a^1 (0.660) | 0.640 [0.56, 0.72] (0.554) | n/a^2 (0.729) |"
         in table_4
     )
-    assert "| chance | 0.100 | 0.300 | 0.500 | 1.000 |" in table_4
+    assert "| chance | n/a^1 | n/a^1 | 0.500 | 1.000 |" in table_4  # no seen query: no pick
     assert "| fabrics / queries | 0 / 0 | 0 / 0 | 2 / 6 | 2 / 6 |" in table_4
-    assert "- ^1 snn_depth seen: no seen fabric has two depth images." in table_4
+    assert "- ^1 snn_depth seen, seen chance: no seen fabric has two depth images." in table_4
     assert "- ^2 snn_depth novel top-3: top-3 of 2 candidates is always 1" in table_4
     assert "1.000 (" not in report and "fewer than two held-out items per fabric" not in report
 
@@ -778,14 +783,18 @@ def test_the_report_says_how_seeds_and_few_candidates_make_its_numbers(tmp_path:
     report = _report(tmp_path, {"flat": run(10)}, {"split": "paper", "seeds": 3})
     assert "first seed" not in report
     assert (
-        "Each cell: the mean over the 3 seeds of our top-1 accuracy (exact expectation over the "
-        "draw) of pick 1 of 10, its 95% bootstrap interval over test fabrics (each bound the "
+        "Each cell: the mean over the 3 seeds of our top-1 accuracy (top-1 or top-3 in Table 4's "
+        "columns; exact expectation over the draw) of pick 1 of 10, its 95% bootstrap interval "
+        "over test fabrics (each bound the "
         "mean over the 3 seeds of that seed's interval), ±the standard deviation over the "
         "seeds, and (the paper's number);"
     ) in report
+    report = _report(tmp_path, {"flat": run(10)}, {"seeds": 1, "n_boot": 0})
+    assert "of pick 1 of 10, no interval (--n-boot 0: none was drawn), and (the paper's" in report
     report = _report(tmp_path, {"flat": run(6), "snn_depth": {"novel": novel}}, {"seeds": 1})
     assert (
-        "Each cell: our top-1 accuracy (exact expectation over the draw) of pick 1 of 6 (the "
+        "Each cell: our top-1 accuracy (top-1 or top-3 in Table 4's columns; exact expectation "
+        "over the draw) of pick 1 of 6 (the "
         "paper's pick 1 of 10, but the test fabrics offer only 6 candidates a draw), its 95% "
         "bootstrap interval over test fabrics, and (the paper's number);"
     ) in report
@@ -1197,12 +1206,15 @@ def test_table_4_has_raw_pixels_and_the_background_control_beside_the_model(visi
     assert CONTROLS_NOTE in table_4 and "keeps its score when the background is swapped" in (
         CONTROLS_NOTE
     )
-    assert "- ^1 snn_depth seen: no seen fabric has two depth images" in table_4
-    results = {"snn_depth": saved}
-    assert headline(results) == [
-        f"snn_depth    depth->depth top-1 on novel fabrics {n['top1']:.3f} "
-        f"[{n['top1_ci_low']:.3f}, {n['top1_ci_high']:.3f}] (raw pixels "
-        f"{n['raw_pixels_top1']:.3f}, background swapped {n['top1_swapped']:.3f}; chance 0.333)"
+    assert "- ^1 snn_depth seen, seen chance: no seen fabric has two depth images" in table_4
+
+    def shown(key: str) -> str:
+        return f"{n[key]:.3f} [{n[f'{key}_ci_low']:.3f}, {n[f'{key}_ci_high']:.3f}]"
+
+    assert headline({"snn_depth": saved}) == [
+        f"snn_depth    depth->depth top-1 on novel fabrics {shown('top1')} (chance 0.333)",
+        f"    background swapped {shown('top1_swapped')}; raw pixels {shown('raw_pixels_top1')}, "
+        f"swapped {shown('raw_pixels_top1_swapped')}",
     ]
 
 
@@ -1340,3 +1352,171 @@ def test_table_4_s_controls_in_the_report_and_over_seeds(tmp_path: Path):
     one = {"seen": {"top1": 0.5, "top1_swapped": 0.4}, "not_scored": {}}
     two = {"seen": {"top1": 0.7}, "not_scored": {}}  # an older record, without it
     assert _aggregate([one, two])["seen"] == {"top1": pytest.approx(0.6), "top1_swapped": 0.4}
+
+
+# --- Table 4: top-3 intervals, the headline's controls, read-back runs, sides not scored ------
+
+
+def test_table_4_records_the_models_top_3_interval_and_adds_it_to_an_old_run(
+    vision: Path, data: Path, tmp_path: Path
+):
+    """QA: each control's top-3 had its interval in results.json, the model's top-3 none. Now
+    it has one too. An eval.json of an earlier lookfeel without it is scored again from its
+    checkpoint (not trained again); its checkpoint gone, the interval is n/a with the reason."""
+    import math
+
+    record = json.loads((vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text())
+    saved = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
+    for novel in (record["novel"], saved["novel"]):
+        assert "top3_ci_low" in novel and _ordered(novel, "top3")
+
+    out = tmp_path / "out"
+    shutil.copytree(vision, out)
+    done = out / "runs" / "snn_depth" / "seed0" / "eval.json"
+    fresh_text = done.read_text()
+    old = json.loads(fresh_text)
+    old["novel"] = {k: v for k, v in old["novel"].items() if not k.startswith("top3_ci_")}
+    old_text = json.dumps(old)
+    done.write_text(old_text)
+    lines: list[str] = []
+    args = dict(budget="tiny", only=["snn_depth"], n_boot=50, overrides=FAST, workers=1)
+    reproduce(data, out, log=lines.append, **args)
+    assert lines == [
+        "scoring again from their checkpoints, to add the top-3 interval to Table 4's numbers, "
+        "the finished runs scored without it: snn_depth seed 0",
+        "score snn_depth seed 0 (Table 4 (SNN, only depth)): finished, scored again from its "
+        "checkpoint, not trained",
+    ]
+    assert done.read_text() == fresh_text  # as the fresh run wrote it
+
+    done.write_text(old_text)
+    (done.parent / "checkpoints" / "last.pt").unlink()
+    lines.clear()
+    gone = reproduce(data, out, log=lines.append, **args).results["snn_depth"]
+    assert lines[0] == (
+        "no top-3 interval for snn_depth seed 0: scored without it by an earlier lookfeel, and "
+        "the checkpoint is gone (the report says n/a)"
+    )
+    assert math.isnan(gone["novel"]["top3_ci_low"]) and math.isnan(gone["novel"]["top3_ci_high"])
+    assert gone["novel"]["top3"] == record["novel"]["top3"]
+    from lookfeel.reproduce.run import NO_TOP3_INTERVAL
+
+    assert gone["not_scored"]["novel_top3_interval"] == NO_TOP3_INTERVAL
+    assert done.read_text() == old_text  # left as it was
+
+
+def test_every_number_of_table_4_shows_its_interval(tmp_path: Path):
+    """QA: Table 4 showed no top-3 interval, the model's or a control's, though the text says
+    each cell has its 95% interval; nor, over seeds, ±the spread the text promises. A top-3
+    interval an earlier lookfeel did not record is n/a with its reason."""
+    nan = float("nan")
+
+    def bounded(key: str, v: float) -> dict:
+        return {key: v, f"{key}_ci_low": v - 0.1, f"{key}_ci_high": v + 0.1}
+
+    novel = {"chance": 0.1, "n_effective": 10.0, "n_queries": 30.0, "n_fabrics": 10.0}
+    values = {"top1": 0.5, "top3": 0.8, "raw_pixels_top1": 0.3, "raw_pixels_top3": 0.6,
+              "top1_swapped": 0.45, "top3_swapped": 0.75, "raw_pixels_top1_swapped": 0.25,
+              "raw_pixels_top3_swapped": 0.55}  # fmt: skip
+    for key, v in values.items():
+        novel |= bounded(key, v)
+    spread = {"top1": 0.02, "top3": 0.01, "raw_pixels_top3": 0.03}
+    why = "scored without the top-3 interval, and the checkpoint is gone"
+    joint = bounded("top1", 0.6) | {"top3": 0.9, "top3_ci_low": nan, "top3_ci_high": nan}
+    results = {
+        "snn_depth": {"seeds": 2, "novel": novel, "novel_spread": spread, "not_scored": {}},
+        "cross_modal_depth_touch": {
+            "seeds": 2, "novel": joint | {"chance": 0.1, "n_effective": 10.0},
+            "not_scored": {"novel_top3_interval": why},
+        },
+    }  # fmt: skip
+    report = _report(tmp_path, results, {"split": "paper", "seeds": 2})
+    table_4 = report[report.index("## Table 4") :]
+    assert (
+        "| snn_depth | - (0.482) | - (0.660) | 0.500 [0.40, 0.60] ±0.020 (0.554) "
+        "| 0.800 [0.70, 0.90] ±0.010 (0.729) |"
+    ) in table_4
+    assert (
+        "| snn_depth, background swapped | - | - | 0.450 [0.35, 0.55] | 0.750 [0.65, 0.85] |"
+        in (table_4)
+    )
+    assert (
+        "| raw pixels, snn_depth's queries | - | - | 0.300 [0.20, 0.40] "
+        "| 0.600 [0.50, 0.70] ±0.030 |"
+    ) in table_4
+    assert (
+        "| raw pixels, snn_depth's queries, background swapped | - | - | 0.250 [0.15, 0.35] "
+        "| 0.550 [0.45, 0.65] |"
+    ) in table_4
+    assert (
+        "| cross_modal_depth_touch | - (0.608) | - (0.786) | 0.600 [0.50, 0.70] (0.606) "
+        "| 0.900 [n/a^1] (0.786) |"
+    ) in table_4
+    assert f"- ^1 cross_modal_depth_touch novel top-3 interval: {why}." in table_4
+    assert "its 95% bootstrap interval over test fabrics" in report
+
+
+def test_the_headline_shows_table_4_s_controls_on_their_own_line_with_intervals():
+    """QA: "0.556 [0.306, 0.847] (raw pixels 0.528, background swapped 0.542; chance 0.250)"
+    read as raw pixels swapped, while 0.542 is the model's, and the controls had no interval.
+    The controls now stand on an indented line of their own, each with its interval; one not
+    measured is n/a alone."""
+    from lookfeel.reproduce.run import headline
+
+    def bounded(key: str, v: float, low: float, high: float) -> dict:
+        return {key: v, f"{key}_ci_low": low, f"{key}_ci_high": high}
+
+    novel = {"chance": 0.25} | bounded("top1", 0.556, 0.306, 0.847)
+    novel |= bounded("top1_swapped", 0.542, 0.278, 0.833)
+    novel |= bounded("raw_pixels_top1", 0.528, 0.343, 0.713)
+    novel |= bounded("raw_pixels_top1_swapped", 0.528, 0.361, 0.736)
+    # --n-boot 0 (no intervals), no background swapped (NaN; null in results.json)
+    joint = {"top1": 0.449, "chance": 0.25, "raw_pixels_top1": 0.528}
+    joint |= {"top1_swapped": float("nan"), "raw_pixels_top1_swapped": None}
+    lines = headline({"snn_depth": {"novel": novel}, "cross_modal_depth_touch": {"novel": joint}})
+    assert lines == [
+        "snn_depth    depth->depth top-1 on novel fabrics 0.556 [0.306, 0.847] (chance 0.250)",
+        "    background swapped 0.542 [0.278, 0.833]; raw pixels 0.528 [0.343, 0.713], swapped "
+        "0.528 [0.361, 0.736]",
+        "cross_modal_depth_touch depth->depth top-1 on novel fabrics 0.449 (chance 0.250)",
+        "    background swapped n/a; raw pixels 0.528, swapped n/a",
+    ]
+    assert max(len(line) for line in lines) <= 108  # 110 with the demo's indent
+
+
+def test_a_finished_run_is_said_to_be_read_back_not_run(vision: Path, data: Path, tmp_path):
+    """QA: a second reproduce printed "run  snn_depth seed 0 (...)" for a finished run, though
+    nothing was trained: it says the run is read back (scored again: the test above)."""
+    out = tmp_path / "out"
+    shutil.copytree(vision, out)
+    lines: list[str] = []
+    args = dict(budget="tiny", only=["snn_depth"], n_boot=50, overrides=FAST, workers=1)
+    reproduce(data, out, log=lines.append, **args)
+    assert lines == [
+        "read snn_depth seed 0 (Table 4 (SNN, only depth)): finished, read back from its eval.json"
+    ]
+
+
+def test_a_table_4_side_without_a_scored_query_has_no_chance_and_no_pick(tmp_path: Path):
+    """QA: Table 4 showed the seen side's chance 0.100 / 0.300 beside 0 / 0 fabrics, and the
+    text said "1 of 10 on Table 4's seen side", though nothing was scored there. That side's
+    chance is now n/a with the side's reason, and the text names no pick for it."""
+    nan = float("nan")
+    seen = {"top1": nan, "top3": nan, "chance": 0.1, "top3_chance": 0.3, "n_effective": 10.0,
+            "n_queries": 0.0, "n_fabrics": 0.0}  # fmt: skip
+    novel = {"top1": 0.556, "top3": 0.986, "chance": 0.25, "top3_chance": 0.75,
+             "n_effective": 4.0, "n_queries": 12.0, "n_fabrics": 4.0}  # fmt: skip
+    why = "no seen fabric has two depth images in the held-out fifth of its images"
+    run = {"seen": seen, "novel": novel, "not_scored": {"seen": why}, "test_fabrics": 4}
+    results = {"snn_depth": run, "cross_modal_depth_touch": run}
+    report = _report(tmp_path, results, {"split": "paper"})
+    table_4 = report[report.index("## Table 4") :]
+    assert "| chance | n/a^1 | n/a^1 | 0.250 | 0.750 |" in table_4
+    assert "| fabrics / queries | 0 / 0 | 0 / 0 | 4 / 12 | 4 / 12 |" in table_4
+    assert f"- ^1 snn_depth seen, cross_modal_depth_touch seen, seen chance: {why}." in table_4
+    assert "seen side" not in report.split("## Findings")[0].split("Each cell:")[1]
+    assert (
+        "Each cell: our top-1 accuracy (top-1 or top-3 in Table 4's columns; exact expectation "
+        "over the draw) of pick 1 of 4 (the "
+        "paper's pick 1 of 10, but the test fabrics offer only 4 candidates a draw), its 95% "
+    ) in report

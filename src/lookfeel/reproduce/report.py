@@ -596,10 +596,12 @@ def _side_cell(
     notes: _Notes,
     control: tuple[str, str] | None = None,
 ) -> str:
-    """One cell of Table 4: ``row[side][key]`` (top-``k``) with its interval, or ``-`` when not
-    recorded, or n/a with a note saying why. ``control``: for a control row, its label and the
-    ``not_scored`` key of its reason; a control is NaN for the side's own reason when the
-    model's number is."""
+    """One cell of Table 4: ``row[side][key]`` (top-``k``) with its interval and, over several
+    seeds, ±its standard deviation over them (as `_cell` shows Tables 1-3's), or ``-`` when
+    not recorded, or n/a with a note saying why. An interval that could not be had is
+    ``[n/a^k]``, its reason under ``not_scored`` (``{side}_{key}_interval``). ``control``: for
+    a control row, its label and the ``not_scored`` key of its reason; a control is NaN for
+    the side's own reason when the model's number is."""
     got = row.get(side, {})
     ours = got.get(key)
     n_eff = _candidates(got)
@@ -617,9 +619,18 @@ def _side_cell(
             f"{n_eff} fabrics to offer, the paper 10)"
         )
         return notes.mark(why, f"{name} {side} top-{k}")
-    if f"{key}_ci_low" in got and k == 1:
-        return f"{ours:.3f} [{got[f'{key}_ci_low']:.2f}, {got[f'{key}_ci_high']:.2f}]"
-    return f"{ours:.3f}"
+    cell = f"{ours:.3f}"
+    low, high = got.get(f"{key}_ci_low"), got.get(f"{key}_ci_high")
+    if low is not None and high is not None:
+        if low == low and high == high:
+            cell += f" [{low:.2f}, {high:.2f}]"
+        else:  # NaN: a run of an earlier lookfeel recorded none
+            why = not_scored.get(f"{side}_{key}_interval", _UNMEASURED)
+            cell += f" [{notes.mark(why, f'{name} {side} top-{k} interval')}]"
+    spread = row.get(f"{side}_spread", {}).get(key)
+    if spread and row.get("seeds", 1) > 1:
+        cell += f" ±{spread:.3f}"
+    return cell
 
 
 def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
@@ -657,12 +668,15 @@ def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
             lines.append(f"| {label.format(name=name)} | " + " | ".join(cells) + " |")
     chance, counts = [], []
     for side in ("seen", "novel"):
-        got: Mapping[str, Any] = next(
-            (results[n][side] for n in TABLE_4 if side in results.get(n, {})), {}
-        )
-        n_eff = _candidates(got)
+        had = [results[n] for n in TABLE_4 if side in results.get(n, {})]
+        scored = [r[side] for r in had if _scored(r[side])]
+        n_eff = _candidates(scored[0]) if scored else None
         for k in (1, 3):
-            chance.append("-" if n_eff is None else f"{min(k, n_eff) / n_eff:.3f}")
+            if had and not scored:  # no query, so no pick and no chance: the side's reason
+                why = had[0].get("not_scored", {}).get(side, _UNMEASURED)
+                chance.append(notes.mark(why, f"{side} chance"))
+            else:
+                chance.append("-" if n_eff is None else f"{min(k, n_eff) / n_eff:.3f}")
         queries = [
             f"{int(r[side]['n_fabrics'])} / {int(r[side]['n_queries'])}"
             for r in (results.get(n, {}) for n in TABLE_4)
@@ -672,6 +686,12 @@ def _table_4(results: Mapping[str, Any], unrun: Mapping[str, str]) -> list[str]:
     lines.append("| chance | " + " | ".join(chance) + " |")
     lines.append("| fabrics / queries | " + " | ".join(counts) + " |")
     return lines + (["", CONTROLS_NOTE] if controls else []) + notes.lines()
+
+
+def _scored(side: Mapping[str, Any]) -> bool:
+    """Whether one side of a Table 4 run has a number: a query was scored there."""
+    top1 = side.get("top1")
+    return top1 is not None and top1 == top1
 
 
 def _candidates(side: Mapping[str, Any]) -> int | None:
@@ -695,8 +715,9 @@ def _pick(results: Mapping[str, Any]) -> str:
                 held.append(round(n))
     if held:
         parts.append((held, "Tables 1-3"))
-    for side in ("seen", "novel"):
-        got = [_candidates(results[n][side]) for n in TABLE_4 if side in results.get(n, {})]
+    for side in ("seen", "novel"):  # a side where no query was scored picks from none
+        sides = [results[n][side] for n in TABLE_4 if side in results.get(n, {})]
+        got = [_candidates(s) for s in sides if _scored(s)]
         counts = [n for n in got if n is not None]
         if counts:
             parts.append((counts, f"Table 4's {side} side"))
@@ -715,16 +736,26 @@ def _pick(results: Mapping[str, Any]) -> str:
     )
 
 
-def _what_a_cell_is(results: Mapping[str, Any], seeds: int) -> str:
+def _what_a_cell_is(results: Mapping[str, Any], seeds: int, n_boot: int = 1) -> str:
     """The sentence on what a cell of the tables shows: with several seeds, each number and
-    each interval bound is the mean over the seeds (`lookfeel.reproduce.run`'s aggregate)."""
-    pick = f"top-1 accuracy (exact expectation over the draw) of {_pick(results)}"
+    each interval bound is the mean over the seeds (`lookfeel.reproduce.run`'s aggregate);
+    with ``n_boot`` 0 (``--n-boot 0``) no interval."""
+    pick = (
+        "top-1 accuracy (top-1 or top-3 in Table 4's columns; exact expectation over the draw) "
+        f"of {_pick(results)}"
+    )
+    interval = (
+        "its 95% bootstrap interval over test fabrics"
+        if n_boot
+        else "no interval (--n-boot 0: none was drawn)"
+    )
     if seeds <= 1:
-        return f"Each cell: our {pick}, its 95% bootstrap interval over test fabrics"
+        return f"Each cell: our {pick}, {interval}"
+    bounds = f" (each bound the mean over the {seeds} seeds of that seed's interval)"
     return (
-        f"Each cell: the mean over the {seeds} seeds of our {pick}, its 95% bootstrap interval "
-        f"over test fabrics (each bound the mean over the {seeds} seeds of that seed's "
-        "interval), ±the standard deviation over the seeds"
+        f"Each cell: the mean over the {seeds} seeds of our {pick}, {interval}"
+        + (bounds if n_boot else "")
+        + ", ±the standard deviation over the seeds"
     )
 
 
@@ -768,7 +799,8 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
         + _time_behind(meta),
         "",
         *_where_scored(result, meta),
-        f"{_what_a_cell_is(r, int(meta.get('seeds', 1)))}, and (the paper's number); "
+        f"{_what_a_cell_is(r, int(meta.get('seeds', 1)), int(meta.get('n_boot', 1)))}, and (the "
+        "paper's number); "
         "`fabrics / queries`: the test fabrics and queries behind a row's numbers; "
         f"{NOT_SCORED}^k: no number, note k under the table says why"
         + ("; -^k: the column's run was not run, note k says why" if unrun else "")

@@ -35,8 +35,11 @@ and raw pixels' scores with each depth image's background swapped for another fa
 cloth kept. On GelFabric each fabric was captured in its own session, so the room behind the
 cloth identifies it; a model that reads the cloth keeps its score with the backgrounds
 swapped. Where no background can be swapped, those are NaN with the reason
-(``{side}_swapped``). A finished Table 4 run scored without them (by an earlier lookfeel) is
-scored again from its checkpoint; without one they are NaN, with the reason.
+(``{side}_swapped``). The model's top-1 and top-3 each have their interval, as each control's
+does. A finished Table 4 run scored without the controls or without the top-3 interval (by an
+earlier lookfeel) is scored again from its checkpoint; without one they are NaN, with the
+reason. As each run starts a line says whether it trains (``run``), is read back from its
+``eval.json`` (``read``) or is scored again from its checkpoint (``score``).
 """
 
 from __future__ import annotations
@@ -251,12 +254,12 @@ def _depth_pick(
     model: Any, catalog: Catalog, config: RunConfig, n_boot: int, seed: int, side: str
 ) -> tuple[dict[str, float], dict[str, str]]:
     """Exact pick 1 of 10 of depth against depth (Table 4) on one ``side`` (``seen`` or
-    ``novel``): top-1 with its 95% interval over the fabrics (``n_boot`` resamples; none when
-    0), top-3, their chance levels, the candidates per draw (``n_effective``), the queries and
-    their fabrics, and beside them raw pixels and the background control on the same queries
-    (`_controls`). Also why, by ``not_scored`` key, what is NaN: ``side`` when no query could
-    be scored (every number is then NaN), ``{side}_swapped`` when no background could be
-    swapped."""
+    ``novel``): top-1 and top-3, each with its 95% interval over the fabrics (``n_boot``
+    resamples; none when 0), their chance levels, the candidates per draw (``n_effective``),
+    the queries and their fabrics, and beside them raw pixels and the background control on
+    the same queries (`_controls`). Also why, by ``not_scored`` key, what is NaN: ``side``
+    when no query could be scored (every number is then NaN), ``{side}_swapped`` when no
+    background could be swapped."""
     loader = ImageLoader(config.data)
     emb = embed_catalog(model, catalog, loader, modalities=[Modality.DEPTH])
     if Modality.DEPTH not in emb:  # not one depth image on this side
@@ -277,14 +280,16 @@ def _depth_pick(
     out = {"top1": m["top1"], "top3": m["top3"], "chance": m["top1_chance"]}
     out |= {"top3_chance": m["top3_chance"], "n_effective": m["n_effective"]}
     out |= {"n_queries": m["n_queries"], "n_fabrics": m["n_fabrics"]}
-    if "top1_ci_low" in m:
-        out |= {"top1_ci_low": m["top1_ci_low"], "top1_ci_high": m["top1_ci_high"]}
+    out |= {k: m[k] for k in _INTERVAL_KEYS if k in m}
     why = {} if m["n_queries"] else {side: _depth_why(side)}
     controls, not_swapped = _controls(model, loader, d, n_boot, seed, bool(m["n_queries"]))
     if not_swapped is not None:
         why[f"{side}_swapped"] = not_swapped
     return out | controls, why
 
+
+_INTERVAL_KEYS = tuple(f"top{k}_ci_{end}" for k in (1, 3) for end in ("low", "high"))
+"""The bounds of the model's top-1 and top-3 intervals on a side of Table 4 (`_depth_pick`)."""
 
 CONTROL_KEYS = tuple(
     key.format(k=k)
@@ -352,17 +357,17 @@ def _run_one(
     its held-out fabrics; its ``eval.json``'s record. A finished run is read from its
     ``eval.json`` (``saved``: its record, when already read); one scored with another
     ``n_boot`` (or before ``eval.json`` recorded it), or a Table 4 run scored without raw
-    pixels and the background control (`_missing_controls`), is scored again from its kept
-    checkpoint, its training time kept. Without that checkpoint the controls are NaN, with the
-    reason (`_without_controls`)."""
+    pixels and the background control (`_missing_controls`) or without its top-3 interval
+    (`_missing_top3_interval`), is scored again from its kept checkpoint, its training time
+    kept (`_rescored`). Without that checkpoint those numbers are NaN, with the reason
+    (`_without_controls`, `_without_top3_interval`)."""
     done = run_dir / "eval.json"
     if saved is None and done.exists():
         saved = json.loads(done.read_text())
     if saved is not None:
         kept: dict[str, Any] = dict(saved)  # the caller's stays as read
         last = run_dir / "checkpoints" / "last.pt"
-        stale = _scored_otherwise(kept, n_boot) or _missing_controls(kept)
-        if stale and last.is_file():
+        if _rescored(kept, run_dir, n_boot):
             # What a fresh run with this n_boot would record, but its training: as it was;
             # scored on the threads it was scored on (the numbers depend on them).
             with _torch_threads(kept.get("threads")):
@@ -374,7 +379,7 @@ def _run_one(
             raise ConfigError(_cannot_rescore(run_dir, kept["n_boot"], n_boot))
         if "not_scored" not in kept:  # an earlier lookfeel's: derive its reasons
             kept["not_scored"] = _old_reasons(kept, run_dir)
-        return _without_controls(kept)
+        return _without_top3_interval(_without_controls(kept))
     started = time.perf_counter()
     resume = run_started(run_dir)
     before = _logged_seconds(run_dir / "metrics.jsonl") if resume else 0.0
@@ -452,6 +457,21 @@ def _scored_otherwise(saved: Mapping[str, Any], n_boot: int) -> bool:
     return saved.get("n_boot") != n_boot
 
 
+def _rescored(saved: Mapping[str, Any] | None, run_dir: Path, n_boot: int) -> bool:
+    """Whether the finished run at ``run_dir``, whose ``eval.json`` record is ``saved`` (None:
+    not read), is scored again from its checkpoint rather than read back (`_run_one`): it was
+    scored with another ``n_boot`` or without a number Table 4 records now, and its
+    ``checkpoints/last.pt`` is there."""
+    if saved is None:
+        return False
+    stale = (
+        _scored_otherwise(saved, n_boot)
+        or _missing_controls(saved)
+        or _missing_top3_interval(saved)
+    )
+    return bool(stale) and (run_dir / "checkpoints" / "last.pt").is_file()
+
+
 def _missing_controls(saved: Mapping[str, Any]) -> list[str]:
     """The Table 4 sides (``seen``, ``novel``) of a finished run's ``eval.json`` record that
     lack raw pixels and the background control (`CONTROL_KEYS`): an earlier lookfeel scored
@@ -474,6 +494,34 @@ def _without_controls(saved: dict[str, Any]) -> dict[str, Any]:
         saved[side] = dict.fromkeys(CONTROL_KEYS, float("nan")) | saved[side]
         reasons = {f"{side}_raw_pixels": NO_CHECKPOINT, f"{side}_swapped": NO_CHECKPOINT}
         saved["not_scored"] = {**saved["not_scored"], **reasons}
+    return saved
+
+
+def _missing_top3_interval(saved: Mapping[str, Any]) -> list[str]:
+    """The Table 4 sides of a finished run's ``eval.json`` record whose top-1 has its interval
+    but top-3 none: an earlier lookfeel recorded the top-1 interval alone (an ``n_boot`` of 0
+    records neither, so misses none)."""
+    return [
+        s
+        for s in ("seen", "novel")
+        if s in saved and "top1_ci_low" in saved[s] and "top3_ci_low" not in saved[s]
+    ]
+
+
+NO_TOP3_INTERVAL = (
+    "scored by an earlier lookfeel without the top-3 interval, and the run's "
+    "checkpoints/last.pt, needed to add it, is gone"
+)
+"""Why a Table 4 side's top-3 has no interval (`_without_top3_interval`)."""
+
+
+def _without_top3_interval(saved: dict[str, Any]) -> dict[str, Any]:
+    """``saved``, a finished run's record, with the model's top-3 interval NaN on each Table 4
+    side that lacks it (`_missing_top3_interval`: its checkpoint is gone, so it cannot be
+    scored), and why under ``not_scored`` (``{side}_top3_interval``)."""
+    for side in _missing_top3_interval(saved):
+        saved[side] = saved[side] | dict.fromkeys(("top3_ci_low", "top3_ci_high"), float("nan"))
+        saved["not_scored"] = {**saved["not_scored"], f"{side}_top3_interval": NO_TOP3_INTERVAL}
     return saved
 
 
@@ -571,9 +619,17 @@ class _Job:
     """Its ``eval.json``'s record as the reproduction found it (`_saved_records`); None when
     it has none (or one that cannot be read: `_run_one` reads it again and says why)."""
 
-    @property
-    def start_line(self) -> str:
-        return f"run  {self.exp.name} seed {self.config.train.seed} ({self.exp.cites})"
+    def start_line(self, n_boot: int) -> str:
+        """The line logged as the run starts: ``run  flat seed 0 (Figure 7, ...)`` when it
+        trains (or resumes), ``read ...`` when it is finished and read back from its
+        ``eval.json``, ``score ...`` when it is finished and scored again from its checkpoint
+        (`_rescored`, with ``n_boot``)."""
+        run = f"{self.exp.name} seed {self.config.train.seed} ({self.exp.cites})"
+        if not self.finished:
+            return f"run  {run}"
+        if _rescored(self.saved, self.run_dir, n_boot):
+            return f"score {run}: finished, scored again from its checkpoint, not trained"
+        return f"read {run}: finished, read back from its eval.json"
 
     @property
     def finished(self) -> bool:
@@ -625,7 +681,7 @@ def _run_jobs(
     if n == 1:
         records = []
         for job in jobs:
-            log(job.start_line)
+            log(job.start_line(n_boot))
             records.append(
                 _run_one(job.exp, job.config, catalog, data, job.run_dir, n_boot, job.saved)
             )
@@ -646,12 +702,12 @@ def _run_jobs(
             for i in waiting:
                 job = jobs[i]
                 if job.finished:  # nothing to train: read it here
-                    log(job.start_line)
+                    log(job.start_line(n_boot))
                     out[i] = _run_one(
                         job.exp, job.config, catalog, data, job.run_dir, n_boot, job.saved
                     )
                     continue
-                log(job.start_line)
+                log(job.start_line(n_boot))
                 running[pool.submit(_run_in_worker, job, data, n_boot)] = i
                 return
 
@@ -982,12 +1038,14 @@ def _reproduce(
                     )
             jobs.append(job)
     # Finished runs scored with another --n-boot, and Table 4's scored without raw pixels and
-    # the background control, are scored again from their checkpoints (`_run_one`). One of
-    # the first whose checkpoint is gone is refused, before any training; one of the second
-    # is reported with those numbers n/a.
+    # the background control or without the top-3 interval, are scored again from their
+    # checkpoints (`_run_one`). One of the first whose checkpoint is gone is refused, before
+    # any training; one of the others is reported with those numbers n/a.
     rescore: list[str] = []  # scored with another --n-boot
     add: list[str] = []  # scored without the controls of Table 4
-    gone: list[str] = []  # the second, without a checkpoint
+    add_interval: list[str] = []  # with them, but without the top-3 interval
+    gone: list[str] = []  # without the controls, and without a checkpoint
+    gone_interval: list[str] = []  # without the top-3 interval, and without a checkpoint
     for job in [*jobs, *earlier]:
         if not job.finished:
             continue
@@ -995,15 +1053,19 @@ def _reproduce(
         if record is None:  # it could not be read: say why
             record = json.loads((job.run_dir / "eval.json").read_text())
         otherwise, lacking = _scored_otherwise(record, n_boot), _missing_controls(record)
+        no_interval = _missing_top3_interval(record)
         name = f"{job.exp.name} seed {job.config.train.seed}"
-        if not (otherwise or lacking):
+        if not (otherwise or lacking or no_interval):
             continue
         if (job.run_dir / "checkpoints" / "last.pt").is_file():
-            (rescore if otherwise else add).append(name)
+            (rescore if otherwise else add if lacking else add_interval).append(name)
         elif otherwise and record.get("n_boot") is not None:
             raise ConfigError(_cannot_rescore(job.run_dir, record["n_boot"], n_boot))
-        elif lacking:
-            gone.append(name)
+        else:
+            if lacking:
+                gone.append(name)
+            if no_interval:
+                gone_interval.append(name)
     if rescore:
         log(
             f"scoring again with --n-boot {n_boot}, from their checkpoints, the finished runs "
@@ -1014,10 +1076,20 @@ def _reproduce(
             "scoring again from their checkpoints, to add raw pixels and the background control "
             f"beside Table 4's numbers, the finished runs scored without them: {', '.join(add)}"
         )
+    if add_interval:
+        log(
+            "scoring again from their checkpoints, to add the top-3 interval to Table 4's "
+            f"numbers, the finished runs scored without it: {', '.join(add_interval)}"
+        )
     if gone:
         log(
             f"no raw pixels or background control for {', '.join(gone)}: scored without them "
             "by an earlier lookfeel, and the checkpoint is gone (the report says n/a)"
+        )
+    if gone_interval:
+        log(
+            f"no top-3 interval for {', '.join(gone_interval)}: scored without it by an earlier "
+            "lookfeel, and the checkpoint is gone (the report says n/a)"
         )
     if earlier:
         found: dict[str, list[str]] = {}
@@ -1217,26 +1289,29 @@ def _recorded_fingerprint(run_dir: Path, saved: Mapping[str, Any] | None) -> str
 
 def headline(results: Mapping[str, Any]) -> list[str]:
     """A few lines of the most telling numbers, for the terminal: each with its 95% interval
-    over the test fabrics, where scored, and its chance; Table 4's with raw pixels' number and
-    the model's with the backgrounds swapped beside it, where recorded:
+    over the test fabrics, where scored, and its chance. Each Table 4 model's line is followed,
+    where recorded, by an indented line of its controls on the same queries: the model with
+    the backgrounds swapped, raw pixels, and raw pixels with the backgrounds swapped:
 
-        snn_depth    depth->depth top-1 on novel fabrics 0.467 [0.415, 0.518] (raw pixels
-        0.327, background swapped 0.449; chance 0.100)
+        snn_depth    depth->depth top-1 on novel fabrics 0.467 [0.415, 0.518] (chance 0.100)
+            background swapped 0.449 [0.398, 0.500]; raw pixels 0.327 [0.281, 0.372],
+            swapped 0.320 [0.275, 0.366]
 
-    (one line; the demo's)."""
+    (the second line is one line, under 110 characters). A number not measured is ``n/a``,
+    with no interval."""
     lines = []
 
     def number(v: Any) -> str:  # a cell that could not be scored is n/a, never "nan"
         return f"{v:.3f}" if isinstance(v, (int, float)) and math.isfinite(v) else "n/a"
 
-    def cell(r: Mapping[str, Any], key: str, chance: str, beside: str = "") -> str:
+    def shown(r: Mapping[str, Any], key: str) -> str:
         low, high = r.get(f"{key}_ci_low"), r.get(f"{key}_ci_high")
-        interval = (
-            ""
-            if number(r.get(key)) == "n/a" or number(low) == "n/a"
-            else (f" [{number(low)}, {number(high)}]")
-        )
-        return f"{number(r.get(key))}{interval} ({beside}chance {number(r.get(chance))})"
+        if number(r.get(key)) == "n/a" or number(low) == "n/a" or number(high) == "n/a":
+            return number(r.get(key))
+        return f"{number(r.get(key))} [{number(low)}, {number(high)}]"
+
+    def cell(r: Mapping[str, Any], key: str, chance: str) -> str:
+        return f"{shown(r, key)} (chance {number(r.get(chance))})"
 
     for name in ("multi_input", "cross_modal", "flat"):
         r = results.get(name, {}).get("metrics")
@@ -1248,14 +1323,12 @@ def headline(results: Mapping[str, Any]) -> list[str]:
     for name in ("snn_depth", "cross_modal_depth_touch"):
         r = results.get(name, {}).get("novel")
         if r:
-            beside = (
-                f"raw pixels {number(r.get('raw_pixels_top1'))}, "
-                f"background swapped {number(r.get('top1_swapped'))}; "
-                if "raw_pixels_top1" in r
-                else ""
-            )
             lines.append(
-                f"{name:<12} depth->depth top-1 on novel fabrics "
-                + cell(r, "top1", "chance", beside)
+                f"{name:<12} depth->depth top-1 on novel fabrics {cell(r, 'top1', 'chance')}"
             )
+            if "raw_pixels_top1" in r:
+                lines.append(
+                    f"    background swapped {shown(r, 'top1_swapped')}; raw pixels "
+                    f"{shown(r, 'raw_pixels_top1')}, swapped {shown(r, 'raw_pixels_top1_swapped')}"
+                )
     return lines
