@@ -780,7 +780,7 @@ def test_cv_md_says_which_fabrics_were_held_out_and_json_is_strict(tmp_path: Pat
     assert summary["properties"]["depth"]["model"]["thickness_mm"]["runs"] == 1
     md = (tmp_path / "cv" / "cv.md").read_text()
     assert "nan" not in md.lower()
-    assert "| stretchiness | n/a: every value 1 | n/a | n/a | n/a | 0 of 1 (0) |" in md
+    assert "| stretchiness | n/a: every value 1 | n/a | n/a | 3 (1 of 1 runs) |" in md
     assert md.startswith(
         "Fabric-disjoint cross-validation: 1 run (folds [0], seeds [0]; 3 of the 8 fabrics held "
         "out, each once, 3 per fold; fold 1 of 2 not run (--only-folds): 3 fabrics not held "
@@ -1010,28 +1010,28 @@ def test_probes_pool_each_seeds_held_out_fabrics_with_intervals_and_chance():
 
 
 def test_cv_md_shows_the_pooled_probes_and_old_summaries_as_before():
-    """cv.md's probe table: R² and Spearman [95%], raw pixels R² [95%] and chance R² per label,
-    the runs column kept; a cv of some folds (--only-folds) says which fabrics it pools; a
+    """cv.md's probe tables: R² in one, Spearman in the next, each for the model, raw pixels
+    and chance [95%] per label, and the fabrics each row is over (a seed's) with the runs
+    that predicted them; a cv of some folds (--only-folds) says which fabrics it pools; a
     summary of runs scored before the predictions were kept shows its table as it was."""
+    from lookfeel.crossval.report import _interval
+
     runs, _, _ = _probe_runs()
     summary, md = _report(runs)
     stiff = summary["properties"]["depth"]["model"]["stiffness"]
-    raw = summary["properties"]["depth"]["raw_pixels"]["stiffness"]
-
-    def cell(x: dict) -> str:
-        return f"{x['mean']:.2f} [{x['ci95'][0]:.2f}, {x['ci95'][1]:.2f}]"
-
+    raw = summary["properties"]["depth"]["raw_pixels"]["stiffness"]["pooled"]
     p = stiff["pooled"]
+    for score in ("r2", "spearman"):
+        assert (
+            f"| stiffness | {_interval(p[score])} | {_interval(raw[score])} | "
+            f"{_interval(p[f'chance_{score}'])} | 30 (6 of 6 runs) |"
+        ) in md
+    assert "| label | model R² | raw pixels R² | chance R² | fabrics (runs) |" in md
     assert (
-        f"| stiffness | {cell(p['r2'])} | {cell(p['spearman'])} | {cell(raw['pooled']['r2'])} | "
-        f"{p['chance_r2']['mean']:.2f} | 6 of 6 (60) |"
+        "| label | model Spearman | raw pixels Spearman | chance Spearman | fabrics (runs) |"
     ) in md
-    assert (
-        "| label | model R² | model Spearman | raw pixels R² | chance R² | runs (held-out "
-        "fabrics) |"
-    ) in md
-    assert "the mean over 2 seeds. Chance R²: each fold's training mean" in md
-    assert "chance Spearman is 0" in md and "Pooled over" not in md and "nan" not in md
+    assert "the mean over 2 seeds. Chance: each fold's training mean" in md
+    assert "Pooled over" not in md and "nan" not in md
     # Two of the three folds run: the pooled numbers are over their 20 fabrics, and said so.
     some = [r for r in runs if r["fold"] != 2]
     coverage = {
@@ -1070,3 +1070,195 @@ def test_a_run_scored_before_probe_predictions_were_kept_is_scored_again():
     pairs = [Pair.parse("depth_to_depth")]
     assert _result_key(config, False, pairs, 1, None, labelled=True)["probe_predictions"]
     assert "probe_predictions" not in _result_key(config, False, pairs, 1, None, labelled=False)
+
+
+def _kept_runs(
+    folds: list[dict[str, tuple[list[float], list[float]]]], seeds: tuple[int, ...] = (0,)
+) -> list[dict]:
+    """Hand-made runs whose probes kept their held-out predictions, with known answers:
+    ``folds[f][label]`` is (the truths of fold f's labelled held-out fabrics, the probe's
+    predictions of them). Fold f holds out the next block of fabric ids (as long as its
+    longest list); its chance, the training mean, is the mean of the other folds' truths
+    (0 for a fold alone);
+    each run's own scores are `ProbeColumn.scores`, as `_probe` writes them. Raw pixels
+    predict as the model; every seed's runs are the same."""
+    from lookfeel.metrics.properties import ProbeColumn
+
+    runs = []
+    for seed in seeds:
+        start = 1
+        for f, fold in enumerate(folds):
+            table = {}
+            for label, (truth, pred) in fold.items():
+                ids = list(range(start, start + len(truth)))
+                others = [t for g, o in enumerate(folds) if g != f for t in o[label][0]]
+                col = ProbeColumn(
+                    np.array(ids), np.array(truth, float), np.array(pred, float),
+                    len(others), float(np.mean(others)) if others else 0.0,
+                )  # fmt: skip
+                held = {"fabric": ids, "truth": truth, "pred": pred, "train_mean": col.train_mean}
+                table[label] = col.scores() | {"held_out": held}
+            start += max(len(t) for t, _ in fold.values())
+            run = _hand_made_run(f, {"depth_to_depth": {"model": [[1.0, 1.0], [0.0, 1.0]]}})
+            props = {"depth": {"model": table, "raw_pixels": table}}
+            runs.append(run | {"seed": seed, "properties": props})
+    return runs
+
+
+def test_chance_spearman_is_measured_from_the_folds_not_said_to_be_0():
+    """QA: cv.md said "chance Spearman is 0", false once folds are pooled: a fold's training
+    mean is anti-correlated with that fold's held-out labels. Folds {1, 2} and {3, 4}: chance
+    predicts 3.5 for 1 and 2 and 1.5 for 3 and 4, ties within each fold ranked as one value
+    (mid-ranks): Spearman -2/sqrt(5), R² 1 - 17/5. The tables show it, with its interval,
+    beside raw pixels' Spearman, and say why the model is read against it."""
+    from lookfeel.crossval.report import _interval
+
+    runs = _kept_runs(
+        [{"stiffness": ([1.0, 2.0], [1.0, 2.0])}, {"stiffness": ([3.0, 4.0], [3.0, 4.0])}]
+    )
+    summary, md = _report(runs)
+    pooled = summary["properties"]["depth"]["model"]["stiffness"]["pooled"]
+    chance = pooled["chance_spearman"]
+    assert chance["mean"] == pytest.approx(-2.0 / math.sqrt(5.0))
+    assert chance["per_seed"] == pytest.approx([-2.0 / math.sqrt(5.0)])
+    assert -1.0 <= chance["ci95"][0] <= chance["mean"] <= chance["ci95"][1] <= 1.0
+    assert pooled["chance_r2"]["mean"] == pytest.approx(1.0 - 17.0 / 5.0)
+    assert pooled["spearman"]["mean"] == pytest.approx(1.0)  # the probe is right
+    assert "chance Spearman is 0" not in md
+    assert "| label | model Spearman | raw pixels Spearman | chance Spearman |" in md
+    assert f"| {_interval(pooled['spearman'])} | {_interval(chance)} | 4 (2 of 2 runs) |" in md
+    assert (
+        "Pooling folds pulls R² and Spearman down, chance's and the model's alike (a known bias "
+        "of cross-validated R² and correlation: each fold's training mean lies away from that "
+        "fold's held-out fabrics), so read the model's numbers against the chance column, not "
+        "against 0."
+    ) in md
+    # One fold run: one training mean, no order to rank; n/a, and said why.
+    md = _report(_kept_runs([{"stiffness": ([1.0, 2.0, 4.0], [1.0, 2.0, 3.0])}]))[1]
+    assert "| 1.00 [1.00, 1.00] | n/a | 3 (1 of 1 runs) |" in md
+    assert "Chance Spearman is n/a where every held-out fabric got the same training mean" in md
+
+
+def test_chance_spearman_ties_training_means_equal_but_for_rounding():
+    """Two folds' training means of the same labels summed in another order differ in their
+    last bit (0.20000000000000004 and 0.19999999999999998); ranked apart, they would order
+    a tie. The chance Spearman is that of the means tied, as scipy ranks exact ties; one fold
+    alone (one training mean) has none."""
+    from scipy.stats import spearmanr
+
+    from lookfeel.crossval.summary import _pooled_probe
+
+    a, b = (0.1 + 0.2 + 0.3) / 3, (0.2 + 0.3 + 0.1) / 3
+    assert a != b
+    truth = [[1.0, 5.0], [2.0, 4.0], [3.0, 6.0]]
+    means = [a, b, 0.5]
+    cells = [
+        {"held_out": {"fabric": [2 * f + 1, 2 * f + 2], "truth": t, "pred": t, "train_mean": m}}
+        for f, (t, m) in enumerate(zip(truth, means, strict=True))
+    ]
+    pooled = _pooled_probe(cells, [0, 0, 0], 50, "fabric")
+    assert pooled is not None
+    want = spearmanr([t for ts in truth for t in ts], [0.2] * 4 + [0.5] * 2).statistic
+    assert pooled["chance_spearman"]["mean"] == pytest.approx(want)
+    one = _pooled_probe(cells[:1], [0], 50, "fabric")
+    assert one is not None and math.isnan(one["chance_spearman"]["mean"])
+
+
+def test_probe_tables_count_the_fabrics_their_numbers_are_over():
+    """QA: the "runs (held-out fabrics)" cell said ``4 of 5 (16)`` where R² was pooled over 20
+    fabrics (a fold whose held-out labels are all one value has no R² of its own, yet its
+    fabrics are pooled), and ``10 of 10 (40)`` over 2 seeds of 20 fabrics. Now: the fabrics
+    each number is over (a seed's) and the runs that predicted them. A label each fold holds
+    out one fabric of has no R² of any run, but its pooled R² is shown, not "n/a"."""
+    folds = [
+        {"flat": ([1.0, 2.0, 3.0, 4.0], [1.5, 2.0, 2.5, 4.0]), "one": ([1.0], [1.5])},
+        {"flat": ([5.0, 6.0, 7.0, 8.0], [5.0, 6.5, 7.0, 7.5]), "one": ([2.0], [2.5])},
+        {"flat": ([3.0, 3.0, 3.0, 3.0], [2.0, 3.0, 3.5, 4.0]), "one": ([6.0], [5.0])},
+    ]
+    summary, md = _report(_kept_runs(folds))
+    rows = summary["properties"]["depth"]["model"]
+    assert (rows["flat"]["runs"], rows["flat"]["held_out"]) == (2, 8)  # the runs' own R²
+    assert rows["flat"]["pooled"]["held_out"] == 12 and rows["flat"]["pooled"]["runs"] == 3
+    assert rows["one"]["not_scored"] == "at most 1 labelled held-out fabric a fold"
+    r2 = rows["one"]["pooled"]["r2"]["mean"]
+    assert r2 == pytest.approx(1.0 - (0.25 + 0.25 + 1.0) / (((np.array([1, 2, 6]) - 3) ** 2).sum()))
+    lines = [line for line in md.splitlines() if line.startswith("| flat |")]
+    assert len(lines) == 2 and all(line.endswith(" | 12 (3 of 3 runs) |") for line in lines)
+    assert f"| one | {r2:.2f} [" in md and "n/a: at most 1" not in md
+    assert "3 (3 of 3 runs) |" in md
+    # Pooled and still no R²: the reason is the pooled fabrics', not a fold's.
+    same = [{"same": ([3.0, 3.0], [2.0, 4.0]), "lone": (t, t)} for t in ([5.0], [], [])]
+    md_same = _report(_kept_runs(same))[1]
+    assert "| same | n/a: every labelled held-out fabric's value is 3 |" in md_same
+    assert "| lone | n/a: 1 labelled held-out fabric in all |" in md_same
+    two, md = _report(_kept_runs(folds, seeds=(0, 1)))
+    assert two["properties"]["depth"]["model"]["flat"]["pooled"]["per_seed_held_out"] == [12, 12]
+    assert "| 12 (6 of 6 runs) |" in md and "(24)" not in md
+    assert "how many held-out fabrics each number is over (each seed's), and how many runs" in md
+
+
+def test_cv_json_keeps_each_runs_own_probe_scores():
+    """QA: cv.md said each run's own R² and Spearman are in cv.json, which held only their
+    mean and std. Now ``per_run`` lists them, run by run (a Spearman over fewer than 3
+    fabrics, left out of the mean, is NaN there too), and the docs say the report shows
+    ``pooled``."""
+    import lookfeel.crossval
+    import lookfeel.crossval.summary
+
+    folds = [
+        {"stiffness": ([1.0, 2.0, 3.0], [1.0, 3.0, 2.0])},
+        {"stiffness": ([4.0, 5.0], [5.0, 4.0])},
+    ]
+    runs = _kept_runs(folds, seeds=(7,))
+    summary, md = _report(runs)
+    row = summary["properties"]["depth"]["model"]["stiffness"]
+    first = runs[0]["properties"]["depth"]["model"]["stiffness"]
+    assert row["per_run"][0] == {
+        "seed": 7, "fold": 0, "r2": first["r2"], "spearman": pytest.approx(0.5), "held_out": 3,
+    }  # fmt: skip
+    assert row["per_run"][1]["fold"] == 1 and row["per_run"][1]["r2"] == pytest.approx(-3.0)
+    assert math.isnan(row["per_run"][1]["spearman"])  # over 2 fabrics: ±1 whatever
+    assert row["r2"] == pytest.approx(np.mean([r["r2"] for r in row["per_run"]]))
+    assert "are in `cv.json` (`per_run`, `r2`, `spearman`); these tables are its `pooled`." in md
+    for module in (lookfeel.crossval, lookfeel.crossval.summary):
+        assert "``pooled.r2.mean``" in (module.__doc__ or "")
+
+
+def test_probe_intervals_over_too_few_fabrics_are_said_to_say_little():
+    """QA: with --only-folds 0 (4 fabrics) ``1.00 [1.00, 1.00]`` and ``-0.02 [-97.82, -0.01]``
+    looked precise. reproduce's rule (under `MIN_FABRICS` = 10 fabrics, intervals say little)
+    now marks them, naming the labels where only some are few; 30 fabrics get no mark."""
+    from lookfeel.crossval import report
+    from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS
+    from lookfeel.reproduce.report import MIN_FABRICS
+
+    assert report.FEW_FABRICS is MIN_INTERVAL_FABRICS is MIN_FABRICS
+    four = _kept_runs([{"a": ([1.0, 2.0, 3.0, 4.0], [1.0, 2.5, 2.5, 4.0])}])
+    md = _report(four)[1]
+    assert (
+        "**The intervals rest on 4 fabrics: under 10, they say little**, as the bootstrap can "
+        "only resample the few fabrics there are"
+    ) in md
+    some = _kept_runs(
+        [
+            {"a": (list(range(12)), list(range(12))), "b": ([1.0, 2.0, 3.0, 5.0], [1.0] * 4)},
+            {"a": (list(range(12, 24)), list(range(12, 24))), "b": ([4.0, 2.0], [3.0] * 2)},
+        ]
+    )
+    md = _report(some)[1]
+    assert "**The intervals of b (6 fabrics): under 10, they say little**" in md
+    assert "say little" not in _report(_probe_runs()[0])[1]
+
+
+def test_probe_tables_show_chance_r2_with_its_interval():
+    """QA: chance R² was shown without the interval cv.json holds. Now it has it; a bound
+    that rounds to zero prints 0.00, never -0.00."""
+    from lookfeel.crossval.report import _interval
+
+    runs, _, _ = _probe_runs(seeds=(0,))
+    summary, md = _report(runs)
+    chance = summary["properties"]["depth"]["model"]["noise"]["pooled"]["chance_r2"]
+    low, high = chance["ci95"]
+    assert low < chance["mean"] < high
+    assert f"| {_interval(chance)} | 30 (3 of 3 runs) |" in md
+    assert _interval({"mean": -0.3, "ci95": [-0.9, -0.001]}) == "-0.30 [-0.90, 0.00]"

@@ -52,9 +52,18 @@ predicts them, and a model's probe is only as good as its lead over the room's.
 Each run keeps every held-out fabric's prediction (``held_out`` in ``result.json``): a seed's
 folds together predict each held-out fabric once, and R^2 and Spearman over them all get a 95%
 interval resampling fabrics (the mean over seeds and the interval of that mean, as the class
-tables), beside chance: each fold's training mean predicted for its held-out fabrics (R^2 a
-little below 0 over every fold, lower over a few; Spearman 0). ``cv.json`` keeps these under
-``pooled`` beside each score's mean and std over runs.
+tables), beside chance: each fold's training mean predicted for its held-out fabrics. Pooled
+over folds, chance is not 0 but below it, R^2 and Spearman alike: a fold's training mean lies
+away from that fold's held-out fabrics (a known bias of cross-validated R^2 and correlation:
+chance's Spearman is -1 where each fold holds out one fabric), and the model's pooled scores
+carry the same bias, so they are read against chance's, not against 0. Over fewer than 10 fabrics
+(`lookfeel.reproduce.report.MIN_FABRICS`, reproduce's rule) ``cv.md`` says the intervals say
+little. In ``cv.json``, per modality, method and label under ``properties``: ``pooled`` holds
+what ``cv.md`` shows (``pooled.r2.mean`` and ``pooled.r2.ci95``, likewise ``spearman``,
+``chance_r2``, ``chance_spearman``; ``pooled.per_seed_held_out``, the fabrics each seed's
+numbers are over; ``pooled.runs``, the runs that predicted them); ``r2`` and ``spearman``
+(with ``r2_std``, ``spearman_std``) are the mean and spread of each run's own score, over its
+own held-out fabrics, and ``per_run`` lists those scores run by run.
 For a model with class heads (``model.class_heads``: hardness 0/1/2, material ...), each held-out
 press's class is read from the heads, one press at a time and with every press of an object
 pooled, beside a 5-nearest-neighbour probe on the embeddings and on raw pixels and the training

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from lookfeel.crossval.summary import CALIBRATION_BINS, CLASS_METHODS, MIN_SPEARMAN
+from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS as FEW_FABRICS
 from lookfeel.metrics.label_space import MIN_FABRICS
 from lookfeel.modality import Modality
 
@@ -417,65 +418,152 @@ def _pooled_scope(summary: dict[str, Any]) -> str:
 
 def _interval(x: dict[str, Any] | None) -> str:
     """A pooled probe score (`_pooled_probe`) as ``mean [low, high]``: just the mean where
-    the interval is not known, ``n/a`` where the score is not."""
+    the interval is not known, ``n/a`` where the score is not. Never ``-0.00``."""
     if x is None or x["mean"] is None or math.isnan(x["mean"]):
         return "n/a"
+
+    def f(v: float) -> str:
+        return f"{v:.2f}" if abs(v) >= 0.005 else "0.00"
+
     lo, hi = x["ci95"]
     if lo is None or hi is None or math.isnan(lo) or math.isnan(hi):
-        return f"{x['mean']:.2f}"
-    return f"{x['mean']:.2f} [{lo:.2f}, {hi:.2f}]"
+        return f(x["mean"])
+    return f"{f(x['mean'])} [{f(lo)}, {f(hi)}]"
+
+
+_PROBE_METHODS = (("model", "model"), ("raw_pixels", "raw pixels"), ("room", "room alone"))
+"""The probes a property table shows, as ``cv.json`` names them and as the table does."""
 
 
 def _probe_lines(
     modality: str, per: dict[str, Any], runs: int, nouns: str, scope: str = ""
 ) -> list[str]:
-    """The property probes' table of one modality (`_summarise_probes`): per label R² and
-    Spearman over every held-out item of a seed's folds at once, with 95% intervals
-    (``pooled``), beside raw pixels, the room alone and chance R²; ``n/a: why`` where no run
-    could score a label, and on how many runs and held-out items each row rests. ``scope``:
-    `_pooled_scope`'s sentence. A summary made before the pooled scores (session 55) gets
-    its table as it was (`_per_run_probe_lines`)."""
+    """The property probes' tables of one modality (`_summarise_probes`): per label, R² in
+    one table and Spearman in the next, each over every held-out item of a seed's folds at
+    once, with 95% intervals (``pooled``), for the model, raw pixels, the room alone and
+    chance, and how many items and runs each row is over; ``n/a: why`` where a label could
+    not be scored. Under them: why chance is the mark to beat, and which rows rest on too few
+    items for their intervals to say much (`_few_items_line`). ``scope``: `_pooled_scope`'s
+    sentence. A summary made before the pooled scores (session 55) gets its table as it was
+    (`_per_run_probe_lines`)."""
     rows = per["model"]
     if not any("pooled" in row for row in rows.values()):
         return _per_run_probe_lines(modality, per, runs, nouns)
     noun = nouns[:-1]
     seeds = max(len(row["pooled"].get("seeds", ())) for row in rows.values() if "pooled" in row)
-    room = "room" in per
+    methods = [(k, name) for k, name in _PROBE_METHODS if k in per]
     lines = [
         "",
         f"Physical properties from {modality}: a ridge probe on {noun}-mean embeddings, "
-        f"fitted on each fold's training {nouns}, predicts that fold's held-out {nouns}; R² "
+        f"fitted on each fold's training {nouns}, predicts that fold's held-out {nouns}. R² "
         f"and Spearman are over a seed's held-out {nouns} of every fold at once [95% "
-        f"interval, resampling held-out {nouns}]"
+        f"interval, resampling those {nouns}]"
         + (f", the mean over {seeds} seeds" if seeds > 1 else "")
-        + ". Chance R²: each fold's training mean as the prediction, what a probe that knows "
-        "nothing scores (chance Spearman is 0)."
-        + scope
-        + f" Runs: how many scored the label (their held-out {nouns}, summed); each run's own "
-        "R² and Spearman, and their mean ± std over runs, are in `cv.json`.",
-        "",
-        "| label | model R² | model Spearman | raw pixels R² |"
-        + (" room alone R² |" if room else "")
-        + f" chance R² | runs (held-out {nouns}) |",
-        "|---|---|---|---|" + ("---|" if room else "") + "---|---|",
+        + ". Chance: each fold's training mean as the prediction, what a probe that knows "
+        f"nothing scores.{scope} {nouns.capitalize()} (runs): how many held-out {nouns} each "
+        "number is over"
+        + (" (each seed's)" if seeds > 1 else "")
+        + ", and how many runs predicted them. Each run's own R² and Spearman, and their mean "
+        "± std over runs, are in `cv.json` (`per_run`, `r2`, `spearman`); these tables are "
+        "its `pooled`.",
     ]
-    for label, row in rows.items():
-        pooled = row.get("pooled")
-        shown = [("model", "r2"), ("model", "spearman"), ("raw_pixels", "r2")]
-        if room:
-            shown.append(("room", "r2"))
-        cells = [_probe_cell(per.get(k, {}).get(label), name) for k, name in shown]
-        chance = pooled["chance_r2"]["mean"] if pooled else None
-        cells.append("n/a" if chance is None or math.isnan(chance) else f"{chance:.2f}")
-        if row.get("not_scored"):
-            cells[0] = f"n/a: {row['not_scored']}"
-        elif pooled and pooled.get("spearman_not_scored"):
-            cells[1] = f"n/a: {pooled['spearman_not_scored']}"
-        elif not pooled and row.get("spearman_not_scored"):
-            cells[1] = f"n/a: {row['spearman_not_scored']}"
-        cells.append(f"{row['runs']} of {row['runs_total']} ({row['held_out']})")
-        lines.append(f"| {label} | {' | '.join(cells)} |")
-    return lines + _room_note(room)
+    for score, title in (("r2", "R²"), ("spearman", "Spearman")):
+        lines += [
+            "",
+            "| label | "
+            + " | ".join(f"{name} {title}" for _, name in methods)
+            + f" | chance {title} | {nouns} (runs) |",
+            "|---" * (len(methods) + 3) + "|",
+        ]
+        for label, row in rows.items():
+            pooled = row.get("pooled")
+            cells = [_probe_cell(per[k].get(label), score) for k, _ in methods]
+            cells.append(_interval(pooled.get(f"chance_{score}")) if pooled else "-")
+            why = _not_scored(row, score)
+            if why:
+                cells[0] = f"n/a: {why}"
+            cells.append(_items_cell(pooled) if pooled else "-")
+            lines.append(f"| {label} | {' | '.join(cells)} |")
+    lines += [
+        "",
+        "Pooling folds pulls R² and Spearman down, chance's and the model's alike (a known "
+        "bias of cross-validated R² and correlation: each fold's training mean lies away from "
+        f"that fold's held-out {nouns}), so read the model's numbers against the chance "
+        "column, not against 0.",
+    ]
+    lines += _few_items_line(rows, nouns)
+    if any(
+        row.get("pooled")
+        and _nan(row["pooled"].get("chance_spearman"))
+        and not _nan(row["pooled"]["spearman"])
+        for row in rows.values()
+    ):
+        lines += [
+            "",
+            f"Chance Spearman is n/a where every held-out {noun} got the same training mean "
+            "(as when one fold is run): a prediction of one value has no order.",
+        ]
+    return lines + _room_note("room" in per)
+
+
+def _nan(x: dict[str, Any] | None) -> bool:
+    """Whether a pooled score (`_pooled_probe`) is missing or has no number."""
+    return x is None or x["mean"] is None or math.isnan(x["mean"])
+
+
+def _not_scored(row: dict[str, Any], score: str) -> str | None:
+    """Why the model's pooled ``score`` (``r2``, ``spearman``) of a label has no number (R²'s
+    reason stands for Spearman too); None where it has one. A label some run could not score
+    on its own may still be scored over every fold pooled: the runs' reason
+    (``not_scored``) is given only where the pooled score has none of its own."""
+    pooled = row.get("pooled")
+    if pooled is None:
+        return row.get("not_scored") if score == "r2" else row.get("spearman_not_scored")
+    if _nan(pooled["r2"]):
+        return pooled.get("not_scored") or row.get("not_scored") or "not scored"
+    if score == "spearman" and _nan(pooled["spearman"]):
+        return pooled.get("spearman_not_scored") or "not scored"
+    return None
+
+
+def _items_cell(pooled: dict[str, Any]) -> str:
+    """``20 (5 of 5 runs)``: the held-out items a label's pooled numbers are over (a seed's;
+    ``16-20`` where seeds differ) and the runs whose predictions they are."""
+    per_seed = pooled.get("per_seed_held_out") or [pooled["held_out"]]
+    low, high = min(per_seed), max(per_seed)
+    n = str(low) if low == high else f"{low}-{high}"
+    runs, total = pooled.get("runs"), pooled.get("runs_total")
+    return n if runs is None else f"{n} ({runs} of {total} runs)"
+
+
+def _few_items_line(rows: dict[str, dict[str, Any]], nouns: str) -> list[str]:
+    """The line under the property tables that says which labels' intervals rest on fewer
+    than `FEW_FABRICS` held-out items (`lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS`: the
+    rule and the words ``reproduce`` gives its own intervals): all of them (``The intervals
+    rest on 4 fabrics``) or some (``The intervals of density (6 fabrics)``); nothing where none
+    does.
+    A label with no R² has no interval and is not counted."""
+    counts = {
+        label: min(pooled.get("per_seed_held_out") or [pooled["held_out"]])
+        for label, row in rows.items()
+        if (pooled := row.get("pooled")) is not None and not _nan(pooled["r2"])
+    }
+    few = {label: n for label, n in counts.items() if n < FEW_FABRICS}
+    if not few:
+        return []
+    noun = nouns[:-1]
+    if len(few) == len(counts):
+        low, high = min(few.values()), max(few.values())
+        where = "rest on " + (_count(low, noun) if low == high else f"{low} to {high} {nouns}")
+    else:
+        where = "of " + ", ".join(f"{label} ({_count(n, noun)})" for label, n in few.items())
+    return [
+        "",
+        f"**The intervals {where}: under {FEW_FABRICS}, they say little**, as the bootstrap can "
+        f"only resample the few {nouns} there are: an interval may be far narrower than the "
+        f"uncertainty, or far wider. Hold out more {nouns} (every fold rather than "
+        "`--only-folds`, more or larger folds) for intervals that say more.",
+    ]
 
 
 def _probe_cell(row: dict[str, Any] | None, name: str) -> str:

@@ -2,6 +2,12 @@
 runs, bootstrap intervals over held-out items, each item's own top-1, the property probes, the
 classes and the class heads' calibration), and the constants the other modules share. What
 the numbers mean: the package docstring (`lookfeel.crossval`).
+
+The property probes (``properties`` in ``cv.json``, `_summarise_probes`): ``cv.md`` shows each
+label's ``pooled`` scores (``pooled.r2.mean`` [``pooled.r2.ci95``], the same for
+``spearman``, ``chance_r2`` and ``chance_spearman``): over every held-out item of a seed's
+folds at once. The label's own ``r2`` and ``spearman`` are another number: the mean over runs
+of each run's score over its own few held-out items (``per_run`` lists them).
 """
 
 from __future__ import annotations
@@ -170,13 +176,16 @@ def _summarise_probes(
     n_boot: int = 1000,
 ) -> dict[str, Any]:
     """The property probes over runs: per modality, method (model, raw pixels, room) and label,
-    R² and Spearman's mean and std over the runs that could score them, how many did
-    (``runs``, ``spearman_runs``, of ``runs_total``) and on how many labelled held-out items in
-    all (``held_out``); where no run could, ``not_scored`` (or ``spearman_not_scored``) says why
-    (`_probe_reason`). A run's Spearman over fewer than `MIN_SPEARMAN` items is left out.
-    Where every run kept its held-out predictions, also ``pooled`` (`_pooled_probe`): R²,
-    Spearman and chance R² over every held-out item of a seed's folds at once, with 95%
-    intervals resampling the items (``n_boot`` resamples)."""
+    R² and Spearman's mean and std over the runs that could score them (``r2``, ``r2_std``,
+    ``spearman``, ``spearman_std``), how many did (``runs``, ``spearman_runs``, of
+    ``runs_total``) and on how many labelled held-out items in all (``held_out``); each run's
+    own (``per_run``: ``{"seed", "fold", "r2", "spearman", "held_out"}`` a run, in the order
+    of ``results``); where no run could, ``not_scored`` (or ``spearman_not_scored``) says why
+    (`_probe_reason`). A run's Spearman over fewer than `MIN_SPEARMAN` items is left out
+    (NaN in ``per_run`` too). Where every run kept its held-out predictions, also ``pooled``
+    (`_pooled_probe`): R², Spearman and chance's over every held-out item of a seed's folds
+    at once, with 95% intervals resampling the items (``n_boot`` resamples): what ``cv.md``
+    shows."""
     out: dict[str, Any] = {}
     for m, per in results[0]["properties"].items():  # none when no run had training fabrics
         out[m] = {}
@@ -205,6 +214,16 @@ def _summarise_probes(
                 row["spearman_runs"] = int((~np.isnan(sp)).sum())
                 row["runs_total"] = len(results)
                 row["held_out"] = int(np.nansum(n_test[scored])) if scored.any() else 0
+                row["per_run"] = [
+                    {
+                        "seed": r.get("seed"),
+                        "fold": r.get("fold"),
+                        "r2": float(r2[i]),
+                        "spearman": float(sp[i]),
+                        "held_out": None if math.isnan(n_test[i]) else int(n_test[i]),
+                    }
+                    for i, r in enumerate(results)
+                ]
                 if not scored.any():
                     row["not_scored"] = _probe_reason(label, cells, label_values, noun)
                 elif not row["spearman_runs"]:
@@ -216,6 +235,9 @@ def _summarise_probes(
                     )
                 pooled = _pooled_probe(cells, [r.get("seed") for r in results], n_boot, noun)
                 if pooled is not None:
+                    if "not_scored" in pooled:  # the data's own reason says more, if any
+                        why = _label_reason(label, label_values, noun)
+                        pooled["not_scored"] = why or pooled["not_scored"]
                     row["pooled"] = pooled
                 table[label] = row
             out[m][method] = table
@@ -230,20 +252,28 @@ def _pooled_probe(
     one seed hold out each item once), then averaged over the seeds. None where a run kept
     no predictions (a result scored before session 55).
 
-    Per seed: R², Spearman (over `MIN_SPEARMAN` or more items), and the R² of chance: each
+    Per seed: R², Spearman (over `MIN_SPEARMAN` or more items), and those of chance: each
     fold's training mean predicted for its held-out items, what a probe that knows nothing
-    does (typically a little below 0: R² is measured from the held-out items' own mean, and
-    a fold's training mean lies off it, away from that fold's held-out items). Each 95%
-    interval resamples the items (`fabric_weights`, seed 0: one draw shared by every seed,
-    label and method). Across seeds, as in the class tables (`_summarise_classes`), the
-    number is the mean over seeds and its interval that of the mean: each resample's scores
-    are averaged over the seeds before the percentiles are taken.
+    does. Pooled over folds, chance is not 0 but below it: a fold's training mean lies away
+    from that fold's held-out items (their labels are left out of it), so R² falls below 0
+    and the Spearman of chance is negative (-1 where each fold holds out one item). The
+    model's pooled scores carry the same bias, and are read against chance's. Chance is
+    constant within a fold: its Spearman ranks those ties as one value (mid-ranks, as
+    ``scipy.stats.spearmanr``), and training means equal but for rounding are tied too
+    (`_tied`). Each 95% interval resamples the items (`fabric_weights`, seed 0: one draw
+    shared by every seed, label and method). Across seeds, as in the class tables
+    (`_summarise_classes`), the number is the mean over seeds and its interval that of the
+    mean: each resample's scores are averaged over the seeds before the percentiles are
+    taken.
 
     Returns:
-        ``{"r2", "spearman", "chance_r2"}``, each ``{"mean", "ci95", "per_seed",
-        "per_seed_ci95"}``; ``held_out``, the items pooled (over every seed); ``seeds``, the
-        seeds, in the order of ``per_seed``; and ``spearman_not_scored`` where R² was scored
-        and Spearman was not, saying why.
+        ``{"r2", "spearman", "chance_r2", "chance_spearman"}``, each ``{"mean", "ci95",
+        "per_seed", "per_seed_ci95"}``; ``held_out``, the items pooled (over every seed);
+        ``per_seed_held_out``, how many each seed pooled (what each of its numbers is over);
+        ``runs``, the runs that predicted any of them, of ``runs_total``; ``seeds``, the
+        seeds, in the order of ``per_seed``; ``not_scored`` where items were pooled but R²
+        could not be scored, and ``spearman_not_scored`` where R² was scored and Spearman was
+        not, each saying why.
     """
     if not all(isinstance(c.get("held_out"), Mapping) for c in cells):
         return None
@@ -255,11 +285,11 @@ def _pooled_probe(
         ids = np.array([int(i) for h in held for i in h["fabric"]], dtype=np.int64)
         truth = np.array([_num(v) for h in held for v in h["truth"]])
         pred = np.array([_num(v) for h in held for v in h["pred"]])
-        chance = np.array([_num(h["train_mean"]) for h in held for _ in h["fabric"]])
+        chance = _tied(np.array([_num(h["train_mean"]) for h in held for _ in h["fabric"]]))
         parts.append((ids, truth, pred, chance))
     items = np.unique(np.concatenate([p[0] for p in parts]))
     w = fabric_weights(len(items), n_boot, seed=0)  # (B, F), columns: the sorted items
-    scores: dict[str, list[tuple[float, np.ndarray]]] = {"r2": [], "spearman": [], "chance_r2": []}
+    scores: dict[str, list[tuple[float, np.ndarray]]] = {k: [] for k in _POOLED_SCORES}
     for ids, truth, pred, chance in parts:
         ws = w[:, np.searchsorted(items, ids)]  # (B, F) -> (B, M): each row its item's draws
         for key, (value, reps) in _seed_scores(truth, pred, chance, ws).items():
@@ -278,10 +308,19 @@ def _pooled_probe(
             "per_seed_ci95": [list(percentile_interval(r)) for _, r in per_seed],
         }
     out["held_out"] = len(items)
+    out["per_seed_held_out"] = [len(p[0]) for p in parts]
+    out["runs"] = sum(len(c["held_out"]["fabric"]) > 0 for c in cells)
+    out["runs_total"] = len(cells)
     out["seeds"] = list(by_seed)
-    r2_scored = not math.isnan(out["r2"]["mean"])
-    if r2_scored and math.isnan(out["spearman"]["mean"]):
-        most = max(len(p[0]) for p in parts)
+    most = max(len(p[0]) for p in parts)
+    if math.isnan(out["r2"]["mean"]) and most:
+        truths = np.unique(np.concatenate([p[1] for p in parts]))
+        out["not_scored"] = (
+            f"1 labelled held-out {noun} in all"
+            if most < 2
+            else f"every labelled held-out {noun}'s value is {truths[0]:g}"
+        )
+    elif math.isnan(out["spearman"]["mean"]) and most:
         out["spearman_not_scored"] = (
             f"at most {MIN_SPEARMAN - 1} labelled held-out {noun}s in all: their Spearman is ±1 "
             "whatever the probe predicts"
@@ -291,33 +330,71 @@ def _pooled_probe(
     return out
 
 
+_POOLED_SCORES = ("r2", "spearman", "chance_r2", "chance_spearman")
+"""The scores `_pooled_probe` gives a label: the probe's, and chance's (each fold's training
+mean predicted)."""
+
+
+def _tied(x: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
+    """``x`` (M,) with values closer than ``rtol`` (relative) made one: each the smallest of
+    its run of neighbours. Two folds' training means can be equal but for rounding (the same
+    labels summed in another order); ranked apart, they would order what is a tie."""
+    if len(x) < 2:
+        return x
+    order = np.argsort(x, kind="stable")
+    s = x[order]
+    gap = ~(np.diff(s) <= rtol * np.maximum(np.abs(s[1:]), np.abs(s[:-1])))  # NaN: apart
+    start = np.concatenate([[0], np.flatnonzero(gap) + 1])  # where each run of near values begins
+    out = np.empty_like(x)
+    out[order] = s[start[np.cumsum(np.concatenate([[True], gap])) - 1]]
+    return out
+
+
 def _seed_scores(
     truth: np.ndarray, pred: np.ndarray, chance: np.ndarray, w: np.ndarray
 ) -> dict[str, tuple[float, np.ndarray]]:
-    """One seed's pooled probe: ``{"r2", "spearman", "chance_r2"}``, each (its value on the
-    items as they are, its value in each resample (B,)); ``truth``, ``pred``, ``chance``
-    (M,): each held-out item's label, prediction and fold's training mean; ``w`` (B, M):
-    how many times each resample draws each item. NaN where there is nothing to score:
-    fewer than 2 items, or fewer than `MIN_SPEARMAN` for Spearman (a resample that draws 2
-    items keeps its Spearman: whether the probe orders those two, not a fixed ±1)."""
+    """One seed's pooled probe: each of `_POOLED_SCORES` as (its value on the items as they
+    are, its value in each resample (B,)); ``truth``, ``pred``, ``chance`` (M,): each
+    held-out item's label, prediction and fold's training mean; ``w`` (B, M): how many times
+    each resample draws each item. NaN where there is nothing to score: fewer than 2 items,
+    or fewer than `MIN_SPEARMAN` for Spearman (a resample that draws 2 items keeps its
+    Spearman: whether the probe orders those two, not a fixed ±1), or one value predicted
+    for Spearman (chance over one fold)."""
     none = (math.nan, np.full(len(w), np.nan))
+    out = dict.fromkeys(_POOLED_SCORES, none)
     if len(truth) < 2:
-        return {"r2": none, "spearman": none, "chance_r2": none}
+        return out
     one = np.ones((1, len(truth)))
-    out = {
-        "r2": (float(resampled_r2(truth, pred, one)[0]), resampled_r2(truth, pred, w)),
-        "spearman": none,
-        "chance_r2": (float(resampled_r2(truth, chance, one)[0]), resampled_r2(truth, chance, w)),
-    }
-    if len(truth) >= MIN_SPEARMAN:
-        spearman = float(resampled_spearman(truth, pred, one)[0])
-        out["spearman"] = (spearman, resampled_spearman(truth, pred, w))
+    for name, guess in (("", pred), ("chance_", chance)):
+        out[f"{name}r2"] = (
+            float(resampled_r2(truth, guess, one)[0]),
+            resampled_r2(truth, guess, w),
+        )
+        if len(truth) >= MIN_SPEARMAN:
+            out[f"{name}spearman"] = (
+                float(resampled_spearman(truth, guess, one)[0]),
+                resampled_spearman(truth, guess, w),
+            )
     return out
 
 
 def _num(x: Any) -> float:
     """A score as a float: NaN for None (a NaN that went through result.json) or missing."""
     return math.nan if x is None else float(x)
+
+
+def _label_reason(
+    label: str, label_values: Mapping[str, Sequence[float]] | None, noun: str
+) -> str | None:
+    """Why the data itself leaves ``label`` nothing to predict (no item labelled, or every
+    value one), from its known values (``label_values``); None where it does not, or where
+    they are not known."""
+    known = label_values.get(label) if label_values is not None else None
+    if known is not None and not known:
+        return f"no {noun} labelled"
+    if known is not None and len(set(known)) == 1:
+        return f"every value {known[0]:g}"
+    return None
 
 
 def _probe_reason(
@@ -328,11 +405,9 @@ def _probe_reason(
 ) -> str:
     """Why no run's probe scored ``label``: ``cells``, each run's `property_probe` scores of
     it; ``label_values``: the label's known values over the data (None: not known here)."""
-    known = label_values.get(label) if label_values is not None else None
-    if known is not None and not known:
-        return f"no {noun} labelled"
-    if known is not None and len(set(known)) == 1:
-        return f"every value {known[0]:g}"
+    data_reason = _label_reason(label, label_values, noun)
+    if data_reason:
+        return data_reason
     n_test = [_num(c.get("n_test")) for c in cells]
     n_train = [_num(c.get("n_train")) for c in cells]
     most = max((n for n in n_test if not math.isnan(n)), default=math.nan)

@@ -7,6 +7,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from lookfeel.atomic import atomic_write_text
+from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS
 from lookfeel.reproduce.paper import (
     MODEL_COLUMNS,
     PAPER_FINDINGS,
@@ -34,12 +35,10 @@ TOO_FEW = "too few fabrics"
 """What a finding gets instead of a verdict when an interval it rests on is over fewer than
 `MIN_FABRICS` fabrics (`findings`; the count is its ``fabrics``)."""
 
-MIN_FABRICS = 10
+MIN_FABRICS = MIN_INTERVAL_FABRICS
 """Below this many test fabrics an interval over fabrics decides no finding (`TOO_FEW`), and
-the report says its intervals say little. Pick 1 of 10 offers 10 fabrics a draw (the paper's
-split needs 10 of its test fabrics for it), and a bootstrap over fewer fabrics can only
-resample those few, so an interval can come out far narrower than the uncertainty: over 4
-fabrics one cell read 0.019 [0.00, 0.04] with chance at 0.250."""
+the report says its intervals say little (`lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS`,
+which says why)."""
 
 
 def _interval(table: Mapping[str, Any] | None, key: str) -> Interval | None:
