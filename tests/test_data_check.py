@@ -311,3 +311,58 @@ def test_every_data_action_s_help_describes_both_layouts(
     text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
     assert "depth/, color/, touch/" in text
     assert "videos/ (<object>_<n>.mov)" in text and "keyed by fabric_id or object" in text
+
+
+def test_grey_press_videos_among_colour_ones_are_one_warning_naming_them(tmp_path: Path):
+    """QA: a dataset mixing grey and colour press videos passed `data check` silently, yet a
+    model reads a grey press (the same value in each channel) unlike a colour one. One warning
+    names the grey one, or counts them and names a few; a dataset all grey gets one milder
+    warning for the dataset; an all-colour one none."""
+    pytest.importorskip("av")
+    from ._tiny import write_recordings
+    from ._video import PRESS, object_press, write_video
+
+    def grey_warnings(root: Path) -> list[tuple[Path | None, str]]:
+        said = check_dataset(root, workers=1).warnings
+        return [(p.path, p.message) for p in said if "no colour" in p.message]
+
+    why = (
+        "(GelSight's and DIGIT's colours carry the surface's slopes, and a grey video gives the "
+        "same value in each channel)"
+    )
+    names = ["a", "b", "c", "d", "e", "f"]
+    root = write_recordings(tmp_path / "rec", {}, "object\n" + "\n".join(names) + "\n")
+    videos = root / "videos"
+    for k, name in enumerate(names[:2]):
+        write_video(videos / f"{name}_0.mov", object_press(k, PRESS, t=14, seed=k))
+    assert grey_warnings(root) == []
+    # one video of a single grey channel (FFmpeg's "gray" pixel format)
+    one = write_video(videos / "c_0.mkv", object_press(2, PRESS, t=14), "ffv1", "gray")
+    assert grey_warnings(root) == [
+        (
+            one,
+            "this touch press video has no colour (grey), unlike the other 2: a model reads it "
+            f"unlike them {why}; record it in colour, or leave it out",
+        )
+    ]
+    # grey frames stored as colour (red, green and blue equal) are grey too
+    for k, name in enumerate(names[3:], start=3):
+        frames = object_press(k, PRESS, t=14, seed=k).mean(axis=-1, keepdims=True)
+        write_video(videos / f"{name}_0.mov", np.repeat(frames.astype(np.uint8), 3, axis=-1))
+    assert grey_warnings(root) == [
+        (
+            one,
+            "4 of the 6 touch press videos have no colour (grey), unlike the other 2: c_0.mkv, "
+            f"d_0.mov, e_0.mov and 1 more; a model reads them unlike the others {why}; record "
+            "them in colour, or leave them out",
+        )
+    ]
+    for name in names[:2]:
+        (videos / f"{name}_0.mov").unlink()
+    assert grey_warnings(root) == [
+        (
+            root,
+            "all 4 touch press videos have no colour (grey): a model trains on them, but one "
+            f"trained on colour presses does not read them as it reads those {why}",
+        )
+    ]

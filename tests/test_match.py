@@ -341,3 +341,63 @@ def test_a_device_this_machine_lacks_is_one_line(matcher: Matcher):
 
     with pytest.raises(DeviceError, match="^device 'tpu': not a device torch knows"):
         Matcher(matcher.library, device="tpu")
+
+
+def _press_videos(folder: Path) -> dict[str, Path]:
+    """One press as colour, as a single grey channel, as grey stored in colour (red, green and
+    blue equal), and as colour after a black first frame (a camera starting up)."""
+    from ._video import PRESS, object_press, write_video
+
+    frames = object_press(1, PRESS, t=14)
+    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
+    videos = {
+        "colour": write_video(folder / "colour.mov", frames),
+        "grey": write_video(folder / "grey.mkv", frames, "ffv1", "gray"),
+        "stored": write_video(folder / "stored.mov", equal),
+    }
+    frames[0] = 0
+    videos["dark"] = write_video(folder / "dark.mov", frames)
+    return videos
+
+
+def test_a_video_is_grey_by_its_pixel_format_or_equal_channels_in_every_frame(tmp_path: Path):
+    pytest.importorskip("av")
+    from lookfeel.data.video import is_grey_video
+
+    v = _press_videos(tmp_path)
+    broken = tmp_path / "broken.mov"
+    broken.write_bytes(b"not a video")
+    assert {name: is_grey_video(p) for name, p in v.items()} == {
+        "colour": False,
+        "grey": True,
+        "stored": True,
+        "dark": False,
+    }
+    assert not is_grey_video(broken)  # its query's own error says why
+
+
+def test_a_grey_press_video_is_matched_with_one_warning_naming_it(matcher: Matcher, tmp_path: Path):
+    """QA: a grey press video was matched silently, though a model reads a press's colours.
+    It is still matched, with one line naming it (the first, counting the others, of a query of
+    several presses); a colour video gets none."""
+    pytest.importorskip("av")
+    import warnings
+
+    v = _press_videos(tmp_path)
+    grey = (
+        "the video has no colour (grey); lookfeel reads a press's colours, and a model trained "
+        "on colour presses reads a grey one unlike them"
+    )
+
+    def grey_lines(paths: list[Path]) -> list[str]:
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            [r] = matcher.match_files(paths, Modality.TOUCH, top=2)
+        assert r.query == [str(p) for p in paths] and len(r.fabrics) == 2  # still matched
+        return [str(w.message) for w in said if "no colour" in str(w.message)]
+
+    assert grey_lines([v["grey"]]) == [f"{v['grey']}: {grey}"]
+    assert grey_lines([v["colour"], v["stored"], v["grey"]]) == [
+        f"{v['stored']} (and 1 other grey video): {grey}"
+    ]
+    assert grey_lines([v["colour"], v["dark"]]) == []

@@ -20,6 +20,11 @@ from ._library import TINY
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*probabilities are as trained, not calibrated")
 
+GREY = (  # what a grey press video is warned of
+    "the video has no colour (grey); lookfeel reads a press's colours, and a model trained on "
+    "colour presses reads a grey one unlike them"
+)
+
 
 @pytest.fixture(scope="module")
 def heads(run, tmp_path_factory: pytest.TempPathFactory) -> LoadedModel:
@@ -462,3 +467,43 @@ def test_an_input_that_cannot_be_decoded_is_its_own_error_and_the_others_are_ans
     assert pooled.paths == [str(press), str(image)] and pooled.properties == {}
     assert pooled.error is not None and pooled.error.startswith(f"{image}: cannot decode video")
     assert pooled.error.endswith("; it is one of the 2 presses given together")
+
+
+def test_a_grey_press_video_is_answered_with_one_warning_naming_it(
+    heads: LoadedModel, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: a grey press video was answered silently, and unlike the colour video of the same
+    press. It is still answered, with one warning line naming it, on stderr (`--json` carries
+    no warnings); a colour video, or a grey one that holds no press (its own error), gets none.
+    """
+    import json
+    import warnings
+
+    pytest.importorskip("av")
+    from lookfeel.cli import run as cli_run
+
+    from ._video import PRESS, object_press, write_video
+
+    frames = object_press(1, PRESS, t=14)
+    colour = write_video(tmp_path / "colour.mov", frames)
+    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")
+    also = write_video(tmp_path / "also.mkv", object_press(2, PRESS, t=14), "ffv1", "gray")
+    unpressed = write_video(tmp_path / "unpressed.mkv", object_press(1, {}, t=14), "ffv1", "gray")
+
+    def grey_lines(paths: list[Path], together: bool = False) -> list[str]:
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            answers = predict_files(heads, paths, together=together)
+        assert all(a.properties for a in answers if str(unpressed) not in a.paths)
+        return [str(w.message) for w in said if "no colour" in str(w.message)]
+
+    assert grey_lines([colour, grey, unpressed]) == [f"{grey}: {GREY}"]
+    assert grey_lines([grey, also], together=True) == [f"{grey} (and 1 other grey video): {GREY}"]
+    assert grey_lines([colour]) == []
+
+    capsys.readouterr()
+    assert cli_run(["predict", "--checkpoint", str(heads.path), str(grey), "--json"]) == 0
+    out = capsys.readouterr()
+    [answer] = json.loads(out.out)
+    assert answer["path"] == str(grey) and answer["error"] is None and answer["properties"]
+    assert f"lookfeel: warning: {grey}: {GREY}" in out.err.splitlines()

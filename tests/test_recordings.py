@@ -935,6 +935,42 @@ def test_match_takes_a_video_as_touch_without_being_told(
     assert "not a PNG or JPEG image" in capsys.readouterr().err  # what it shows cannot be told
 
 
+def test_a_grey_press_is_answered_by_a_colour_trained_model_with_one_warning(
+    video_model: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `predict` and `match` answered a grey video of a press (a camera set to greyscale)
+    silently, and unlike the colour video of the same press, with a model trained on colour
+    presses. Each still answers, with one warning line naming the file; a colour press gets
+    none."""
+    from lookfeel.cli import run as cli_run
+
+    from ._video import PRESS, object_press, write_video
+
+    ck, lib = video_model
+    frames = object_press(2, PRESS, t=14, seed=20)  # cork_0's press
+    grey = write_video(tmp_path / "cork_grey.mkv", frames, "ffv1", "gray")
+    colour = write_video(tmp_path / "cork_colour.mov", frames)
+    said = (
+        f"lookfeel: warning: {grey}: the video has no colour (grey); lookfeel reads a press's "
+        "colours, and a model trained on colour presses reads a grey one unlike them"
+    )
+    capsys.readouterr()
+    for argv in (
+        ["predict", "--checkpoint", str(ck), str(grey), "--json"],
+        ["match", "--index", str(lib), str(grey), "--json"],
+    ):
+        assert cli_run(argv) == 0, argv
+        out = capsys.readouterr()
+        assert out.err.splitlines().count(said) == 1, argv
+        assert len(json.loads(out.out)) == 1  # answered
+    for argv in (
+        ["predict", "--checkpoint", str(ck), str(colour)],
+        ["match", "--index", str(lib), str(colour)],
+    ):
+        assert cli_run(argv) == 0, argv
+        assert "no colour" not in capsys.readouterr().err, argv
+
+
 def test_a_library_of_named_objects_names_them_and_their_words(
     recordings: Path,
     video_model: tuple[Path, Path],

@@ -17,7 +17,9 @@ file's own kind says what it shows (`guess_modality`); one the model lacks is re
 A query whose orientation (portrait or landscape) differs from that of the items the model was
 trained on is answered with one warning (`lookfeel.index.query.warn_orientation`): it is
 stretched unlike them and most likely turned. A checkpoint from before the record
-(`lookfeel.checkpoint.LoadedModel.shapes`) is not checked.
+(`lookfeel.checkpoint.LoadedModel.shapes`) is not checked. A press video with no colour (grey)
+is answered with one warning naming it (`lookfeel.index.match.warn_grey_videos`): the model
+reads a press's colours, and one trained on colour presses reads a grey one unlike them.
 """
 
 from __future__ import annotations
@@ -38,7 +40,12 @@ from lookfeel.data.layout import FOLDER_ALIASES, IMAGE_SUFFIXES
 from lookfeel.data.video import VIDEO_SUFFIXES, NoPressError
 from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError, caller_stacklevel
-from lookfeel.index.match import check_touch_input, class_value, warn_press_kinds
+from lookfeel.index.match import (
+    check_touch_input,
+    class_value,
+    warn_grey_videos,
+    warn_press_kinds,
+)
 from lookfeel.index.query import (
     QUERY_IMAGES,
     QueryFiles,
@@ -214,7 +221,8 @@ def predict_files(
         every query was answered so. With ``together``, a press without one is left out of
         the pooled query with a warning (as a run leaves it out), and the query is answered
         from the others (its ``paths``); a file that cannot be read is the pooled query's
-        ``error``, which names it.
+        ``error``, which names it. A press video with no colour (grey) is answered with a
+        warning naming it (`lookfeel.index.match.warn_grey_videos`).
 
     Raises:
         PredictError: the model has no heads, lacks the modality, the files mix modalities, or
@@ -284,6 +292,8 @@ def predict_files(
                 error = _input_error(e, group)
                 out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, error))
                 continue
+            if m is Modality.TOUCH:
+                warn_grey_videos(group)  # answered all the same
             x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
             out.append(

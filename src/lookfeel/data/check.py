@@ -72,12 +72,14 @@ _CONVERT = {
 
 @dataclass(frozen=True)
 class _Decoded:
-    """What decoding one file found: a problem, its frame size (w, h), and for depth the
-    counts of its valid pixels (inside the mapped range, in all) and a sample of them."""
+    """What decoding one file found: a problem, its frame size (w, h), for depth the counts
+    of its valid pixels (inside the mapped range, in all) and a sample of them, and for a press
+    video whether it has no colour (`lookfeel.data.video.Press.grey`; None for anything else)."""
 
     problem: Problem | None = None
     size: tuple[int, int] | None = None
     depth: tuple[int, int, np.ndarray] | None = None
+    grey: bool | None = None
 
 
 def _depth_unit_problem(path: Path, depth: np.ndarray) -> Problem | None:
@@ -112,7 +114,7 @@ def decode_problem(path: Path, modality: Modality) -> _Decoded:
         if modality is Modality.TOUCH and is_video(path):
             press = read_press(path)  # decodes every frame and finds the press
             h, w = press.images.shape[1:3]
-            return _Decoded(size=(w, h))
+            return _Decoded(size=(w, h), grey=press.grey)
         if modality is Modality.DEPTH:
             d = decode_depth(path)
             size = (d.shape[1], d.shape[0])
@@ -142,7 +144,8 @@ def check_dataset(
     Files are only read. Problems found while decoding (truncated or undecodable files, depth
     that is not 16-bit) are added to the scan's; those items are dropped from the catalog. A
     touch video is decoded and its press found; one without a press is a warning (runs leave
-    it out: `lookfeel.data.drop_unpressed`). A
+    it out: `lookfeel.data.drop_unpressed`), as are press videos of more than one aspect ratio
+    and grey videos (no colour) among colour ones (`_colour_problems`). A
     dataset with no usable fabric or only one is an error (no command can hold fabrics out of
     it), as is an unfinished `lookfeel synth` world.
 
@@ -171,6 +174,7 @@ def check_dataset(
     new = [d.problem for d in decoded if d.problem is not None]
     bad = {p.path for p in new if p.severity == "error"}
     sizes = {j[0]: d.size for j, d in zip(jobs, decoded, strict=True) if d.size is not None}
+    greys = {j[0]: d.grey for j, d in zip(jobs, decoded, strict=True) if d.grey is not None}
     fabrics = []
     for f in catalog.fabrics:
         items = {
@@ -182,6 +186,7 @@ def check_dataset(
     new.extend(size_problems(catalog.root, usable))
     new.extend(range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
     new.extend(_shape_problems(usable, sizes))
+    new.extend(_colour_problems(catalog.root, usable, greys))
     new.extend(_class_problems(catalog, usable))
     unread, skipped = unread_problems(catalog)
     new.extend(unread)
@@ -352,6 +357,66 @@ def _shape_problems(fabrics: Sequence[Fabric], sizes: dict[Path, tuple[int, int]
             )
         )
     return out
+
+
+_FEW_GREY = 3
+"""Grey press videos that `_colour_problems` names; the others are counted."""
+
+_GREY_READ = (
+    "GelSight's and DIGIT's colours carry the surface's slopes, and a grey video gives the "
+    "same value in each channel"
+)
+
+
+def _colour_problems(
+    root: Path, fabrics: Sequence[Fabric], greys: dict[Path, bool]
+) -> list[Problem]:
+    """One warning where the touch press videos of ``fabrics`` mix grey ones (no colour:
+    `lookfeel.data.video.Press.grey`, as ``greys`` says of each decoded video) and colour
+    ones: a model reads the grey ones unlike the others. The warning names the first grey
+    video, counts them and names a few. A dataset whose videos are all grey gets one milder
+    warning, for ``root``: it trains, but a model trained on colour presses does not read it
+    as it reads those. Videos without a press (no entry in ``greys``) are not counted."""
+    videos = [
+        it.frames[0]
+        for f in fabrics
+        for it in f.items.get(Modality.TOUCH, ())
+        if it.frames[0] in greys
+    ]
+    grey = [p for p in videos if greys[p]]
+    if not grey:
+        return []
+    if len(grey) == len(videos):
+        all_of = (
+            f"all {len(videos)} touch press videos have"
+            if len(videos) > 1
+            else "the one touch press video has"
+        )
+        return [
+            Problem(
+                root,
+                f"{all_of} no colour (grey): a model trains on them, but one trained on colour "
+                f"presses does not read them as it reads those ({_GREY_READ})",
+                "warning",
+            )
+        ]
+    colour = len(videos) - len(grey)
+    others = "the other one" if colour == 1 else f"the other {colour}"
+    if len(grey) == 1:
+        what = (
+            f"this touch press video has no colour (grey), unlike {others}: a model reads it "
+            "unlike them"
+        )
+        fix = "record it in colour, or leave it out"
+    else:
+        named = ", ".join(p.name for p in grey[:_FEW_GREY])
+        more = f" and {len(grey) - _FEW_GREY} more" if len(grey) > _FEW_GREY else ""
+        what = (
+            f"{len(grey)} of the {len(videos)} touch press videos have no colour (grey), "
+            f"unlike {others}: {named}{more}; a model reads them unlike the others"
+        )
+        fix = "record them in colour, or leave them out"
+    return [Problem(grey[0], f"{what} ({_GREY_READ}); {fix}", "warning")]
 
 
 def _modality_folder(path: Path, root: Path) -> Modality | None:

@@ -72,6 +72,7 @@ __all__ = [
     "detect_press",
     "difference_image",
     "frame_at",
+    "is_grey_video",
     "is_single_channel",
     "is_video",
     "read_press",
@@ -1002,3 +1003,20 @@ def read_press(
         images = np.stack([rgb[i] for i in indices])
     grey = is_single_channel(pixel_format) or all(_colourless(rgb[i]) for i in wanted)
     return Press(p, span, tuple(indices), images, reference, subtract_reference, pixel_format, grey)
+
+
+def is_grey_video(path: str | os.PathLike[str]) -> bool:
+    """Whether a press video has no colour, as `lookfeel.data.video.Press.grey` says: its
+    frames are of a single-channel pixel format (`is_single_channel`), or red, green and blue
+    lie within 2 levels of each other in every frame. Decoding stops at the first frame with
+    colour, so a colour video costs one frame. False for a file that cannot be decoded (its
+    query's own error says why)."""
+    try:
+        for frame in _decode(Path(path), None, None, None):
+            if is_single_channel(frame.format.name):
+                return True
+            if not _colourless(frame.to_ndarray(format="rgb24")):
+                return False
+    except VideoError:
+        return False
+    return True

@@ -30,7 +30,8 @@ threshold says (a user matching a file of the library expects its fabric, not "u
 A query turned against the library's items of its modality (a portrait press among landscape
 ones: `lookfeel.index.query.warn_orientation`) is matched with one warning, naming the file and
 both orientations; the library records its items' shape when built (`Matcher.shape`; a library
-built before that is not checked).
+built before that is not checked). A press video with no colour (grey: `warn_grey_videos`) is
+matched with one warning naming it: the model reads a press's colours.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from numpy.typing import NDArray
 from lookfeel.config import DataConfig
 from lookfeel.data.files import VIDEO_SUFFIXES, ImageError
 from lookfeel.data.layout import press_kind
+from lookfeel.data.video import is_grey_video
 from lookfeel.devices import resolve_device
 from lookfeel.errors import caller_stacklevel
 from lookfeel.index.calibrate import unknown_probability
@@ -70,6 +72,7 @@ from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "GREY_VIDEO",
     "FabricMatch",
     "ItemRef",
     "MatchResult",
@@ -81,6 +84,7 @@ __all__ = [
     "format_match",
     "press_kind",
     "stacked_frames_refused",
+    "warn_grey_videos",
     "warn_press_kinds",
 ]
 
@@ -163,6 +167,27 @@ def warn_press_kinds(
         warn(message)
     else:
         warnings.warn(message, stacklevel=caller_stacklevel())
+
+
+GREY_VIDEO = (
+    "the video has no colour (grey); lookfeel reads a press's colours, and a model trained on "
+    "colour presses reads a grey one unlike them"
+)
+"""What `warn_grey_videos` says of a grey press video, after its name."""
+
+
+def warn_grey_videos(paths: Sequence[str | Path]) -> None:
+    """Warn once, in one line, where touch query files are press videos with no colour
+    (`is_grey_video`), naming the first and counting the rest (`GREY_VIDEO`): a GelSight's or
+    DIGIT's colours carry the surface's slopes, and a grey video gives the same value in each
+    channel, which a model trained on colour presses never saw. Checkpoints do not record the
+    colour of their training presses, so every grey video is said to be one."""
+    grey = [p for p in paths if _is_video(Path(p)) and is_grey_video(p)]
+    if not grey:
+        return
+    n = len(grey) - 1
+    also = f" (and {n} other grey video{'s' if n > 1 else ''})" if n else ""
+    warnings.warn(f"{grey[0]}{also}: {GREY_VIDEO}", stacklevel=caller_stacklevel())
 
 
 def check_touch_dataset(
@@ -379,6 +404,8 @@ class Matcher:
             warn_press_kinds(paths, self.data_config, "the library's model")
         warn_orientation(paths, modality, self.shape(modality), self.data_config, "the library")
         images, used = load_query_files(paths, modality, self.data_config)
+        if modality is Modality.TOUCH:
+            warn_grey_videos(used)  # of the presses read: one left out has its own warning
         return query_batch(images, modality), used
 
     def match_files(
