@@ -152,3 +152,54 @@ def test_far_from_every_object_is_no_known_object(run, tmp_path: Path):
         r = matcher.match_embedding(far, Modality.TOUCH, ["far"], top=2, gallery=Modality.TOUCH)
     assert not r.known and r.message.startswith("no known object: the best match, ")
     assert "No known object" in format_match(r) and "fabric:" not in r.message
+
+
+def test_a_grey_press_video_upload_is_answered_with_one_note_naming_it(run, tmp_path: Path):
+    """QA: ``lookfeel match`` warned of a press video with no colour (grey), and ``serve``
+    answered the same upload silently. It is still answered, with the line ``lookfeel match``
+    warns of the same files in ``warnings`` (of several, the first grey one named and the
+    others counted), which the page shows as a note; a colour video gets none."""
+    from lookfeel.index.match import GREY_VIDEO
+
+    from ._video import PRESS, object_press, write_video
+
+    lib = _video_library(run, tmp_path)
+    frames = object_press(1, PRESS, t=14)
+    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
+    colour = write_video(tmp_path / "colour.mov", frames)
+    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")  # one channel
+    stored = write_video(tmp_path / "stored.mov", equal)  # red, green and blue equal
+    matcher = Matcher(Library.open(lib))
+
+    def match_says(paths: list[Path]) -> list[str]:
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            matcher.match_files(paths, Modality.TOUCH, top=2)
+        lines = [str(w.message) for w in said if GREY_VIDEO in str(w.message)]
+        for p in paths:  # the server names the client's file, not a path
+            lines = [line.replace(str(p), p.name) for line in lines]
+        return lines
+
+    with background_server(create_app(Library.open(lib), ServeConfig(), matcher)) as url:
+
+        def serve_says(paths: list[Path]) -> list[str]:
+            with warnings.catch_warnings(record=True) as on_server:
+                warnings.simplefilter("always")
+                r = httpx.post(
+                    url + "/api/match",
+                    data={"modality": "touch", "top": "2"},
+                    files=[("files", (p.name, p.read_bytes(), "video/mp4")) for p in paths],
+                )
+            assert r.status_code == 200, r.text
+            [result] = r.json()["results"]
+            assert result["query"] == [p.name for p in paths] and len(result["fabrics"]) == 2
+            assert not [w for w in on_server if GREY_VIDEO in str(w.message)]
+            return [w for w in r.json()["warnings"] if GREY_VIDEO in w]
+
+        assert serve_says([grey]) == [f"grey.mkv: {GREY_VIDEO}"] == match_says([grey])
+        assert serve_says([colour]) == [] == match_says([colour])
+        several = [colour, stored, grey]
+        said = serve_says(several)
+        assert said == [f"stored.mov (and 1 other grey video): {GREY_VIDEO}"] == match_says(several)
+        page = httpx.get(url + "/static/app.js").text  # the page shows each line as a note
+        assert "(data.warnings || []).map((w) => ` Note: ${w}.`)" in page

@@ -82,6 +82,7 @@ __all__ = [
     "check_touch_input",
     "class_value",
     "format_match",
+    "grey_line",
     "press_kind",
     "stacked_frames_refused",
     "warn_grey_videos",
@@ -182,12 +183,19 @@ def warn_grey_videos(paths: Sequence[str | Path]) -> None:
     DIGIT's colours carry the surface's slopes, and a grey video gives the same value in each
     channel, which a model trained on colour presses never saw. Checkpoints do not record the
     colour of their training presses, so every grey video is said to be one."""
-    grey = [p for p in paths if _is_video(Path(p)) and is_grey_video(p)]
+    line = grey_line([p for p in paths if _is_video(Path(p)) and is_grey_video(p)])
+    if line is not None:
+        warnings.warn(line, stacklevel=caller_stacklevel())
+
+
+def grey_line(grey: Sequence[str | Path]) -> str | None:
+    """The one line said of the grey press videos ``grey`` (`warn_grey_videos`, and ``serve``'s
+    note): the first named, the others counted, then `GREY_VIDEO`; None when there is none."""
     if not grey:
-        return
+        return None
     n = len(grey) - 1
     also = f" (and {n} other grey video{'s' if n > 1 else ''})" if n else ""
-    warnings.warn(f"{grey[0]}{also}: {GREY_VIDEO}", stacklevel=caller_stacklevel())
+    return f"{grey[0]}{also}: {GREY_VIDEO}"
 
 
 def check_touch_dataset(

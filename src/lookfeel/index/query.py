@@ -61,7 +61,7 @@ from lookfeel.data.images import (
     to_tensor,
 )
 from lookfeel.data.layout import IMAGE_SUFFIXES, VIDEO_SUFFIXES, sniff_video
-from lookfeel.data.video import NoPressError
+from lookfeel.data.video import NoPressError, is_grey_video
 from lookfeel.errors import LookfeelError, caller_stacklevel
 from lookfeel.modality import Modality
 from lookfeel.models.backbone import ModelInputError
@@ -326,6 +326,7 @@ def load_query_bytes(
     *,
     trained_on: str | None = None,
     warn: Callable[[str], None] | None = None,
+    on_grey: Callable[[str], None] | None = None,
 ) -> torch.Tensor:
     """`load_query_image` for an upload, decoded from memory: errors name ``name`` (the
     client's file name) and nothing of the server's disk. A touch upload is a video by its
@@ -336,6 +337,11 @@ def load_query_bytes(
         warn: where a warning about the upload goes (`check_touch_query`'s), one line each;
             default `warnings.warn`. ``lookfeel serve`` passes a list's ``append`` to answer
             them to the client.
+        on_grey: called with ``name`` when the upload is a press video with no colour
+            (`lookfeel.data.video.is_grey_video`), once it has been read: a model reads a
+            press's colours. ``lookfeel serve`` says so in one line, as ``lookfeel match``
+            warns (`lookfeel.index.match.GREY_VIDEO`). Checking costs one more decoded frame
+            of a colour video, and a second decoding of a grey one. Default: not checked.
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
@@ -352,21 +358,28 @@ def load_query_bytes(
     if modality is Modality.TOUCH:
         check_touch_query(name, sniff_video(data[:16]), trained_on, config, warn)
     if modality is Modality.TOUCH and sniff_video(data[:16]):
-        return _video_bytes(data, name, config)
+        return _video_bytes(data, name, config, on_grey)
     return _preprocess(Path(name), data, modality, config, max_pixels)
 
 
-def _video_bytes(data: bytes, name: str, config: DataConfig) -> torch.Tensor:
+def _video_bytes(
+    data: bytes, name: str, config: DataConfig, on_grey: Callable[[str], None] | None = None
+) -> torch.Tensor:
     """An uploaded press video: FFmpeg reads files, so it is written to a private temporary
-    folder (removed at once) and read as `load_query_image` reads one; errors name ``name``."""
+    folder (removed at once) and read as `load_query_image` reads one; errors name ``name``.
+    Once it is read, ``on_grey(name)`` is called if it has no colour (`is_grey_video`)."""
     suffix = Path(name).suffix.lower()
     with tempfile.TemporaryDirectory(prefix="lookfeel-query-") as tmp:
         path = Path(tmp) / ("query" + (suffix if suffix in VIDEO_SUFFIXES else ".mov"))
         path.write_bytes(data)
         try:
-            return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, Modality.TOUCH))
+            x = to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, Modality.TOUCH))
         except ImageError as e:
             raise ImageError(Path(name), e.reason) from None
+        # After reading: a video that cannot be read, or holds no press, gets its own error.
+        if on_grey is not None and is_grey_video(path):
+            on_grey(name)
+        return x
 
 
 def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> torch.Tensor:

@@ -143,7 +143,8 @@ function show(data) {
   const results = $("#results");
   results.replaceChildren(...data.results.map(renderResult));
   const first = data.results[0];
-  // Files left out of a pooled query (a press video without a press), as `lookfeel match` warns.
+  // What `lookfeel match` warns of the files: one left out of a pooled query (a press video
+  // without a press), a press of another kind, a turned query, a press video with no colour.
   const notes = (data.warnings || []).map((w) => ` Note: ${w}.`).join("");
   if (data.results.every((r) => r.known)) status(first.message + notes, "known");
   else status(first.message.charAt(0).toUpperCase() + first.message.slice(1) + notes, "unknown");
