@@ -7,6 +7,11 @@ with its own keep-alive connection, post queries back to back, in turn a depth m
 photo and a two-press touch query, until 30 s have passed or 20,000 requests were sent. Every
 answer must be a 200 with results; p50/p99 latency and throughput are reported. The clients
 share the 2 cores with the server, so the latency includes theirs.
+
+Before the load, one client alone posts `ONE_CLIENT_REQUESTS` queries back to back over one
+keep-alive connection, as a browser does (``one_client_ms``): what one user waits. Until
+session 55 each such answer waited about 40 ms for the client's delayed ACK (Nagle's delay was
+left on: `lookfeel.serve.server._bind`).
 """
 
 from __future__ import annotations
@@ -82,6 +87,41 @@ def serving(library: Path) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
             proc.wait(5)
 
 
+ONE_CLIENT_REQUESTS = 60
+"""Queries one client alone posts, back to back over one connection (`_one_client`)."""
+
+
+def _post(http: httpx.Client, modality: str, files: list[tuple[str, bytes]]) -> httpx.Response:
+    return http.post(
+        "/api/match",
+        data={"modality": modality},
+        files=[("files", (n, b, "image/png")) for n, b in files],
+    )
+
+
+def _one_client(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[str, Any]:
+    """One client's latency over one keep-alive connection, in turn each query (after one
+    of each to warm up): its p50 and p90 in ms, and whether every answer was a 200."""
+    latencies: list[float] = []
+    ok = True
+    with httpx.Client(base_url=url, timeout=60.0) as http:
+        for modality, files in queries:
+            _post(http, modality, files)
+        for i in range(ONE_CLIENT_REQUESTS):
+            modality, files = queries[i % len(queries)]
+            t = time.perf_counter()
+            r = _post(http, modality, files)
+            latencies.append(1e3 * (time.perf_counter() - t))
+            ok = ok and r.status_code == 200
+    lat = np.array(latencies)
+    return {
+        "requests": ONE_CLIENT_REQUESTS,
+        "all_ok": ok,
+        "p50": round(float(np.percentile(lat, 50)), 1),
+        "p90": round(float(np.percentile(lat, 90)), 1),
+    }
+
+
 def _load(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[str, Any]:
     latencies: list[float] = []
     failures: list[str] = []
@@ -101,11 +141,7 @@ def _load(url: str, queries: list[tuple[str, list[tuple[str, bytes]]]]) -> dict[
                 i += 1
                 t = time.perf_counter()
                 try:
-                    r = http.post(
-                        "/api/match",
-                        data={"modality": modality},
-                        files=[("files", (n, b, "image/png")) for n, b in files],
-                    )
+                    r = _post(http, modality, files)
                     ok = r.status_code == 200 and bool(r.json()["results"][0]["fabrics"])
                     why = f"{r.status_code}: {r.text[:200]}"
                 except httpx.HTTPError as e:
@@ -159,8 +195,10 @@ def run(data: Path | None) -> dict[str, object]:
             ),
         ]
         with serving(Path(tmp) / "lib") as (url, _):
+            one = _one_client(url, queries)
             result = _load(url, queries)
     return {
+        "one_client_ms": one,
         "clients": CLIENTS,
         "duration_s": SECONDS,
         "max_requests": MAX_REQUESTS,

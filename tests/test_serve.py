@@ -467,3 +467,25 @@ def test_a_pooled_upload_leaves_out_a_video_without_a_press_as_match_does(run, t
             r = upload(*query)
             assert r.status_code == 422
             assert r.json()["detail"].startswith("static.mov: no contact found")
+
+
+def test_the_listening_socket_is_tcp_without_nagles_delay():
+    """QA: every answer over a kept-open connection (a browser's, httpx's) waited about 40 ms
+    for the client's delayed ACK: the socket was made with protocol 0, and asyncio turns off
+    Nagle's delay only on connections of a socket whose protocol says TCP."""
+    from lookfeel.serve.server import _bind
+
+    sock = _bind("127.0.0.1", 0)
+    try:
+        assert sock.proto == socket.IPPROTO_TCP
+        assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
+        sock.listen()
+        client = socket.create_connection(sock.getsockname())
+        accepted, _ = sock.accept()
+        try:  # what asyncio checks before it sets TCP_NODELAY on the connection
+            assert accepted.proto == socket.IPPROTO_TCP
+        finally:
+            accepted.close()
+            client.close()
+    finally:
+        sock.close()
