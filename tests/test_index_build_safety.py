@@ -10,6 +10,7 @@ import json
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -118,6 +119,38 @@ def test_a_rebuild_after_new_data_keeps_the_library_and_unchanged_inputs_give_th
     resumed = build_library(ckpt, data, out, shard_size=8)
     assert (resumed.shards_embedded, resumed.shards_reused) == (0, 9)  # embedded before the kill
     assert len(Library.open(out).table(Modality.DEPTH)) == 17 and _beside(out) == []
+
+
+def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
+    run, library: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+):
+    data, ckpt = run
+    out = shutil.copytree(library, tmp_path / "lib")
+    before = json.loads((out / "manifest.json").read_text())
+    real, seeds = build_module.calibrate, []
+
+    def counted(*args: Any, **kwargs: Any) -> Calibration:
+        seeds.append(kwargs["seed"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(build_module, "calibrate", counted)
+    again = build_library(ckpt, data, out, shard_size=8, progress=True)
+    assert (again.shards_embedded, again.shards_reused) == (0, 9)
+    assert seeds == []  # not recalibrated
+    after = json.loads((out / "manifest.json").read_text())
+    assert after["calibration"] == before["calibration"] == again.calibration.to_dict()
+    printed = capsys.readouterr().out
+    assert f"  calibration of 9 pairs reused from {out / 'manifest.json'} (every shard" in printed
+    assert "calibrating" not in printed
+    # Another setting: the same shards, calibrated again, and said so before it starts.
+    other = build_library(ckpt, data, out, shard_size=8, seed=1, progress=True)
+    assert (other.shards_embedded, seeds) == (0, [1])
+    printed = capsys.readouterr().out
+    assert printed.endswith(
+        "  shard 9/9 shards/touch-00002.npz (2 items)\n  calibrating 9 pairs (depth 18 items, "
+        "color 18 items, touch 18 items; up to 1000 queries each, 5 folds)\n"
+    )
+    assert json.loads((out / "manifest.json").read_text())["calibration"]["seed"] == 1
 
 
 def test_a_build_killed_between_the_renames_is_finished_by_the_next(

@@ -15,6 +15,7 @@ from PIL import Image
 from lookfeel.cli import main
 from lookfeel.data import ImageError, ImageLoader, scan
 from lookfeel.index import Library, LibraryError, Matcher, build_library, load_query_image
+from lookfeel.index import match as match_module
 from lookfeel.modality import Modality
 
 from ._library import tiny_library
@@ -96,6 +97,46 @@ def test_touch_presses_are_pooled_into_one_query(run, matcher: Matcher):
     results = matcher.match_files(drapes, Modality.COLOR, top=2)
     assert [res.query for res in results] == [[str(p)] for p in drapes]  # one result each
     assert all(res.presses == 1 and len(res.fabrics) == 2 for res in results)
+
+
+def test_many_files_are_embedded_in_batches_with_the_same_answers(
+    run, matcher: Matcher, monkeypatch: pytest.MonkeyPatch
+):
+    data, _ = run
+    drapes = sorted((data / "color").glob("*.png"))[:7]
+    presses = sorted((data / "touch").glob("F0004_fold_*.png"))[:5]
+    forward = matcher.model.forward
+    batches: list[int] = []
+
+    def counted(inputs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        batches.extend(len(x) for x in inputs.values())
+        return forward(inputs)
+
+    monkeypatch.setattr(matcher.model, "forward", counted)
+    monkeypatch.setattr(match_module, "EMBED_BATCH", 1000, raising=False)
+    whole = matcher.match_files(drapes, Modality.COLOR, top=6)
+    pooled = matcher.match_files(presses, Modality.TOUCH, top=6)
+    assert batches == [7, 1]
+    batches.clear()
+    monkeypatch.setattr(match_module, "EMBED_BATCH", 3, raising=False)
+    split = matcher.match_files(drapes, Modality.COLOR, top=6)
+    assert batches == [3, 3, 1]  # 7 separate queries, 3 at a time
+    batches.clear()
+    x = matcher.load(drapes, Modality.COLOR)
+    every = matcher.embed(x, Modality.COLOR)  # a batch given to embed is split alike
+    assert batches == [3, 3, 1]
+    batches.clear()
+    assert matcher.match_files(presses, Modality.TOUCH, top=6)[0].fabrics == pooled[0].fabrics
+    assert batches == [1]  # a pooled query's 5 presses still go through the model together
+    one_pass = np.concatenate([matcher.embed(x[i : i + 1], Modality.COLOR) for i in range(7)])
+    np.testing.assert_allclose(every, one_pass, atol=1e-6)
+    assert [r.query for r in split] == [r.query for r in whole] == [[str(p)] for p in drapes]
+    for a, b in zip(split, whole, strict=True):
+        assert a.message == b.message and a.known == b.known
+        assert [f.fabric_id for f in a.fabrics] == [f.fabric_id for f in b.fabrics]
+        assert [f.probability for f in a.fabrics] == pytest.approx(
+            [f.probability for f in b.fabrics], abs=1e-6
+        )
 
 
 def test_far_from_every_fabric_is_no_known_fabric(matcher: Matcher):

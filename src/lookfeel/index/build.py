@@ -13,7 +13,10 @@ library replaces the one at ``OUT``, swapped in by two renames (the old one asid
 finished by the next). A shard the finished library already holds (same key) is hard-linked
 into the work folder, not embedded again, so a rebuild with unchanged inputs gives the same
 files, byte for byte. A finished library built from another checkpoint (by content) or another
-dataset folder is replaced only with ``replace=True`` (``--replace``). While it runs a build
+dataset folder is replaced only with ``replace=True`` (``--replace``). Calibration, the slow
+step after the shards, is reused from the finished library when every shard was reused and its
+manifest's ``calibration_key`` says it was made from the same shards with the same settings and
+the same lookfeel version (`_calibration_key`). While it runs a build
 holds ``OUT.lock`` (``fcntl.flock``, released by the system when the process ends, however it
 ends), so a second build to the same ``OUT`` is refused, naming the first one's PID.
 
@@ -49,7 +52,7 @@ from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import embed_items
-from lookfeel.index.calibrate import Calibration, calibrate
+from lookfeel.index.calibrate import Calibration, CalibrationError, calibrate
 from lookfeel.index.library import (
     CROSS_MAPS,
     LIBRARY_FORMAT,
@@ -64,7 +67,7 @@ from lookfeel.index.library import (
     write_cross_maps,
     write_shard,
 )
-from lookfeel.index.match import check_touch_dataset
+from lookfeel.index.match import EMBED_BATCH, check_touch_dataset
 from lookfeel.index.query import shape_record
 from lookfeel.index.search import FaissSearch, choose_backend
 from lookfeel.locks import exclusive
@@ -387,7 +390,7 @@ def build_library(
     *,
     backend: str = "auto",
     shard_size: int = 2048,
-    batch_size: int = 64,
+    batch_size: int = EMBED_BATCH,
     kinds: Sequence[PressKind] | None = None,
     target_false_accept: float = 0.05,
     folds: int = 5,
@@ -422,7 +425,8 @@ def build_library(
             content) or dataset folder; without it such a build is refused before any work.
         device: where to embed.
         on_shard: called as ``on_shard(file, rows)`` after each shard is written.
-        progress: print a line per shard.
+        progress: print a line per shard, and one before calibration (or saying it is
+            reused).
 
     Raises:
         LibraryError: ``out`` is another kind of folder, holds a library of another checkpoint
@@ -625,9 +629,23 @@ def _build(
     else:
         (work / CROSS_MAPS).unlink(missing_ok=True)
         manifest.pop("cross_maps", None)
-    calibration = calibrate(tables, map_pairs=list(maps), map_items=tables, **calibration_settings)
-    if map_note:
-        calibration.notes.append(map_note)
+    calibration_key = _calibration_key(shards, cross_map, calibration_settings)
+    manifest["calibration_key"] = calibration_key
+    calibration = _reused_calibration(_finished(out), calibration_key) if not embedded else None
+    if calibration is not None:
+        if progress:
+            print(
+                f"  calibration of {len(calibration.pairs)} pairs reused from {out / MANIFEST} "
+                "(every shard reused, the same settings)"
+            )
+    else:
+        if progress:
+            print(f"  calibrating {_calibration_work(tables, maps, calibration_settings)}")
+        calibration = calibrate(
+            tables, map_pairs=list(maps), map_items=tables, **calibration_settings
+        )
+        if map_note:
+            calibration.notes.append(map_note)
     resolved = choose_backend(backend, max(len(e) for e, _ in tables.values()))
     for old_index in work.glob("index-*.faiss"):
         old_index.unlink()  # another build's (another backend, or modalities)
@@ -666,6 +684,49 @@ def _build(
         backend=resolved,
         calibration=calibration,
         seconds=time.perf_counter() - started,
+    )
+
+
+def _calibration_key(shards: Sequence[_Shard], cross_map: bool, settings: dict[str, Any]) -> str:
+    """What a library's calibration is made from, as a digest its manifest records
+    (``calibration_key``): every shard's key in order (the items and their embeddings), the
+    calibration settings, whether cross-modal maps are fitted, and lookfeel's version (whose
+    calibration code made it). A rebuild with the same key reuses the calibration."""
+    blob = {
+        "shards": [[s.modality.value, s.key] for s in shards],
+        "cross_map": cross_map,
+        "settings": settings,
+        "lookfeel": software_versions()["lookfeel"],
+    }
+    return hashlib.sha1(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+
+def _reused_calibration(old: dict[str, Any] | None, key: str) -> Calibration | None:
+    """The calibration of the finished library's manifest ``old`` when it was made from the
+    same items with the same settings (its ``calibration_key`` is ``key``); None: calibrate
+    (a library built before the key was recorded, or a calibration that cannot be read)."""
+    if old is None or old.get("calibration_key") != key:
+        return None
+    try:
+        return Calibration.from_dict(old.get("calibration"))
+    except CalibrationError:
+        return None
+
+
+def _calibration_work(
+    tables: dict[Modality, tuple[np.ndarray, np.ndarray]],
+    maps: dict[Pair, CrossMap],
+    settings: dict[str, Any],
+) -> str:
+    """What calibration is about to do, for the line printed before it: ``4 pairs (depth 300
+    items, color 300 items; up to 1000 queries each, 5 folds; 2 also through a cross-modal
+    map)``."""
+    items = ", ".join(f"{m.value} {len(e)} items" for m, (e, _) in tables.items())
+    pairs = len(tables) ** 2
+    mapped = f"; {len(maps)} also through a cross-modal map" if maps else ""
+    return (
+        f"{pairs} pair{'s' if pairs > 1 else ''} ({items}; up to {settings['max_queries']} "
+        f"queries each, {settings['folds']} folds{mapped})"
     )
 
 

@@ -72,6 +72,7 @@ from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "EMBED_BATCH",
     "GREY_VIDEO",
     "FabricMatch",
     "ItemRef",
@@ -89,6 +90,11 @@ __all__ = [
     "warn_press_kinds",
 ]
 
+EMBED_BATCH = 64
+"""Images per forward pass when the library's model embeds images: a library's items
+(`lookfeel.index.build_library`'s default ``batch_size``) and the queries of
+`Matcher.match_files` and `Matcher.embed`. Memory then grows with this, not with the number of
+files matched at once."""
 IDENTICAL_DISTANCE = 1e-3
 """Embedding distance under which a query is taken to be the library item itself (unit-norm
 embeddings: distinct images are typically 0.1-1.4 apart; one file re-embedded, ~1e-6)."""
@@ -390,10 +396,20 @@ class Matcher:
 
     @torch.inference_mode()
     def embed(self, x: torch.Tensor, modality: Modality | str) -> NDArray[np.float32]:
-        """Embed a `query_batch` (N, C, S, S) or (1, P, 3, S, S) -> (N, D) float32."""
+        """Embed a `query_batch` (N, C, S, S) or (1, P, 3, S, S) -> (N, D) float32.
+
+        Separate queries (depth, colour) go through the model `EMBED_BATCH` at a time, so
+        memory does not grow with N; a touch query is one pooled query, and all its presses
+        go through the model together."""
         modality = self.check_modality(modality)
-        out = self.model({modality.value: x.to(self.device)})[modality.value]
-        return out.float().cpu().numpy()
+        step = len(x) if modality is Modality.TOUCH else EMBED_BATCH
+        out = [
+            self.model({modality.value: x[start : start + step].to(self.device)})[modality.value]
+            .float()
+            .cpu()
+            for start in range(0, len(x), max(step, 1))
+        ]
+        return torch.cat(out).numpy()
 
     def load(self, paths: QueryFiles, modality: Modality | str) -> torch.Tensor:
         """Read query files (a single path is one file) into a `query_batch`; errors name the
@@ -406,15 +422,21 @@ class Matcher:
         without a press is left out with a warning, as a run leaves it out; the only one, or
         every one, is an error."""
         modality = self.check_modality(modality)
-        paths = query_paths(paths)
-        if modality is Modality.TOUCH:
-            check_touch_input(paths, self.touch_input, self.data_config)
-            warn_press_kinds(paths, self.data_config, "the library's model")
-        warn_orientation(paths, modality, self.shape(modality), self.data_config, "the library")
+        paths = self._check(paths, modality)
         images, used = load_query_files(paths, modality, self.data_config)
         if modality is Modality.TOUCH:
             warn_grey_videos(used)  # of the presses read: one left out has its own warning
         return query_batch(images, modality), used
+
+    def _check(self, paths: QueryFiles, modality: Modality) -> list[Path]:
+        """The files of a query as a list, checked and warned of before any is decoded (a
+        touch query's files the model cannot take; a turned query: one warning for all)."""
+        files = query_paths(paths)
+        if modality is Modality.TOUCH:
+            check_touch_input(files, self.touch_input, self.data_config)
+            warn_press_kinds(files, self.data_config, "the library's model")
+        warn_orientation(files, modality, self.shape(modality), self.data_config, "the library")
+        return files
 
     def match_files(
         self,
@@ -440,25 +462,43 @@ class Matcher:
         """
         modality = Modality.of(modality)
         gallery = None if gallery is None else Modality.of(gallery)  # before any file is read
-        t0 = time.perf_counter()
-        x, used = self._load(paths, modality)
-        t1 = time.perf_counter()
-        emb = self.embed(x, modality)
-        t2 = time.perf_counter()
+        modality = self.check_modality(modality)
+        loading = embedding = 0.0
+        used: list[Path] = []
+        if modality is Modality.TOUCH:  # one query: every press is pooled, read together
+            t0 = time.perf_counter()
+            x, used = self._load(paths, modality)
+            t1 = time.perf_counter()
+            emb = self.embed(x, modality)
+            loading, embedding = t1 - t0, time.perf_counter() - t1
+        else:  # separate queries: decoded and embedded EMBED_BATCH at a time (memory)
+            files = self._check(paths, modality)
+            parts: list[NDArray[np.float32]] = []
+            for start in range(0, len(files), EMBED_BATCH):
+                t0 = time.perf_counter()
+                batch = files[start : start + EMBED_BATCH]
+                images, read = load_query_files(batch, modality, self.data_config)
+                t1 = time.perf_counter()
+                parts.append(self.embed(query_batch(images, modality), modality))
+                used += read
+                del images  # this batch's decoded images go before the next is read
+                loading += t1 - t0
+                embedding += time.perf_counter() - t1
+            emb = np.concatenate(parts)
         names = [str(p) for p in used]
         groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
         results = []
-        for e, files in zip(emb, groups, strict=True):
+        for e, group in zip(emb, groups, strict=True):
             r = self.match_embedding(
                 e,
                 modality,
-                files,
+                group,
                 top=top,
                 gallery=gallery,
                 k_properties=k_properties,
                 n_items=n_items,
             )
-            r.timing_ms.update(load=1e3 * (t1 - t0), embed=1e3 * (t2 - t1))
+            r.timing_ms.update(load=1e3 * loading, embed=1e3 * embedding)
             results.append(r)
         return results
 

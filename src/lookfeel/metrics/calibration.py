@@ -161,12 +161,21 @@ def fit_temperature(
     min_all = d2.min(axis=1, keepdims=True)
     min_true = np.where(true, d2, np.inf).min(axis=1, keepdims=True)
     rel_all = d2 - min_all
-    rel_true = np.where(true, d2 - min_true, np.inf)
+    # Only the true items' exp is computed (a query's fabric has a few of the G items); the
+    # others are exp(-inf) = 0, so they are left 0 in a (Q, G) buffer summed as the whole
+    # row was: the same sums, bit for bit, so the same c.
+    rows, cols = np.nonzero(true)
+    rel_true = (d2 - min_true)[rows, cols]
+    buf = np.empty_like(rel_all)  # (Q, G) buffers for every call, not new ones each
+    buf_true = np.zeros_like(rel_all)
 
     def nll(log_c: float) -> float:
         c = np.exp(log_c)
-        lse_all = -c * min_all[:, 0] + np.log(np.exp(-c * rel_all).sum(axis=1))
-        lse_true = -c * min_true[:, 0] + np.log(np.exp(-c * rel_true).sum(axis=1))
+        np.multiply(rel_all, -c, out=buf)
+        np.exp(buf, out=buf)
+        lse_all = -c * min_all[:, 0] + np.log(buf.sum(axis=1))
+        buf_true[rows, cols] = np.exp(-c * rel_true)
+        lse_true = -c * min_true[:, 0] + np.log(buf_true.sum(axis=1))
         return float(-(lse_true - lse_all).mean())
 
     finite = d2[np.isfinite(d2)]
