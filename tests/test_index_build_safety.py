@@ -151,6 +151,10 @@ def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
         "color 18 items, touch 18 items; up to 1000 queries each, 5 folds)\n"
     )
     assert json.loads((out / "manifest.json").read_text())["calibration"]["seed"] == 1
+    # Another way of calibrating (lookfeel's own version is the same between sessions).
+    monkeypatch.setattr(build_module, "CALIBRATION_VERSION", build_module.CALIBRATION_VERSION + 1)
+    build_library(ckpt, data, out, shard_size=8, seed=1)
+    assert seeds == [1, 1]
 
 
 def test_a_build_killed_between_the_renames_is_finished_by_the_next(

@@ -16,7 +16,7 @@ files, byte for byte. A finished library built from another checkpoint (by conte
 dataset folder is replaced only with ``replace=True`` (``--replace``). Calibration, the slow
 step after the shards, is reused from the finished library when every shard was reused and its
 manifest's ``calibration_key`` says it was made from the same shards with the same settings and
-the same lookfeel version (`_calibration_key`). While it runs a build
+the same calibration code (`_calibration_key`). While it runs a build
 holds ``OUT.lock`` (``fcntl.flock``, released by the system when the process ends, however it
 ends), so a second build to the same ``OUT`` is refused, naming the first one's PID.
 
@@ -52,7 +52,12 @@ from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.embedding import embed_items
-from lookfeel.index.calibrate import Calibration, CalibrationError, calibrate
+from lookfeel.index.calibrate import (
+    CALIBRATION_VERSION,
+    Calibration,
+    CalibrationError,
+    calibrate,
+)
 from lookfeel.index.library import (
     CROSS_MAPS,
     LIBRARY_FORMAT,
@@ -690,13 +695,15 @@ def _build(
 def _calibration_key(shards: Sequence[_Shard], cross_map: bool, settings: dict[str, Any]) -> str:
     """What a library's calibration is made from, as a digest its manifest records
     (``calibration_key``): every shard's key in order (the items and their embeddings), the
-    calibration settings, whether cross-modal maps are fitted, and lookfeel's version (whose
-    calibration code made it). A rebuild with the same key reuses the calibration."""
+    calibration settings, whether cross-modal maps are fitted, and lookfeel's version and
+    `CALIBRATION_VERSION` (the code that made it). A rebuild with the same key reuses the
+    calibration."""
     blob = {
         "shards": [[s.modality.value, s.key] for s in shards],
         "cross_map": cross_map,
         "settings": settings,
         "lookfeel": software_versions()["lookfeel"],
+        "calibration": CALIBRATION_VERSION,
     }
     return hashlib.sha1(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 

@@ -74,6 +74,7 @@ from lookfeel.metrics.cross_map import fit_cross_map
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "CALIBRATION_VERSION",
     "Calibration",
     "CalibrationError",
     "Distances",
@@ -86,6 +87,12 @@ __all__ = [
     "threshold_for",
     "unknown_probability",
 ]
+
+CALIBRATION_VERSION = 1
+"""Which way of calibrating made a library's calibration: part of the key under which
+`lookfeel.index.build` reuses a finished library's calibration. Raise it with any change to
+what `calibrate` computes, so that a rebuild calibrates afresh (lookfeel's own version does
+not change between development sessions)."""
 
 
 Distances = Callable[[NDArray[np.floating], NDArray[np.floating]], NDArray[np.float64]]
