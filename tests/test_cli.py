@@ -335,3 +335,40 @@ def test_embed_says_which_touch_presses_the_run_leaves_out(tmp_path: Path):
     )
     assert _kinds_left_out(data, ["fold", "flat"]) is None
     assert _kinds_left_out(data, None) is None
+
+
+def test_batch_size_default_is_the_one_constant_the_embedding_code_uses(
+    monkeypatch: pytest.MonkeyPatch,
+):
+    """QA: ``--batch-size`` wrote 64 as a literal (default and help), a copy of the embedding
+    code's own default. The parser now reads `lookfeel.config.model.EMBED_BATCH` (no torch),
+    for every command that embeds; the functions it feeds default to the same number."""
+    import inspect
+
+    import lookfeel.cli._args
+    from lookfeel.config.model import EMBED_BATCH
+
+    def batch_sizes(parser: argparse.ArgumentParser, path: str = "") -> dict[str, argparse.Action]:
+        """``--batch-size`` of every command under ``parser``, by its words (``index build``)."""
+        found = {}
+        for action in parser._actions:
+            if "--batch-size" in action.option_strings:
+                found[path] = action
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    found |= batch_sizes(sub, f"{path} {name}".strip())
+        return found
+
+    monkeypatch.setattr(lookfeel.cli._args, "EMBED_BATCH", 7)
+    actions = batch_sizes(build_parser())
+    assert {"embed", "evaluate", "index build"} <= set(actions)
+    for action in actions.values():
+        assert action.default == 7 and action.help == "images per forward pass (default 7)"
+    from lookfeel.embedding import embed_catalog, embed_items
+    from lookfeel.evaluate import embed_checkpoint, evaluate_checkpoint
+    from lookfeel.index import build_library
+    from lookfeel.index.match import EMBED_BATCH as MATCH_BATCH
+
+    assert MATCH_BATCH == EMBED_BATCH
+    for fed in (embed_checkpoint, evaluate_checkpoint, build_library, embed_items, embed_catalog):
+        assert inspect.signature(fed).parameters["batch_size"].default == EMBED_BATCH, fed

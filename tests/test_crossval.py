@@ -1247,7 +1247,43 @@ def test_probe_intervals_over_too_few_fabrics_are_said_to_say_little():
     )
     md = _report(some)[1]
     assert "**The intervals of b (6 fabrics): under 10, they say little**" in md
-    assert "say little" not in _report(_probe_runs()[0])[1]
+    probes = _report(_probe_runs()[0])[1].split("Physical properties from depth")[1]
+    assert "say little" not in probes  # 30 fabrics (its pick table's 6 are said to be few)
+
+
+def test_pick_intervals_over_too_few_fabrics_are_said_to_say_little():
+    """QA: the pick 1 of 10 tables printed ``0.500 [0.000, 1.000]`` over 4 held-out fabrics
+    with no word, while the property tables say when theirs rest on fewer than
+    `MIN_INTERVAL_FABRICS`. The pick tables now say it the same way: in full under the first,
+    pointing at it under the others over the same queries; naming the pairs where only some
+    are few; a fabric held out by two seeds is one fabric, as the bootstrap draws it; 12
+    fabrics get no mark."""
+    few = {"model": [[1.0, 1.0], [0.0, 1.0]], "model_labels": [[1.0, 1.0], [0.0, 1.0]]}
+    many = {k: v * 6 for k, v in few.items()}  # 12 queries a fold: 12 fabrics a fold
+    seeds = [
+        _hand_made_run(fold, {"touch_to_depth": few}) | {"seed": seed}
+        for seed in (0, 1)
+        for fold in (0, 1)
+    ]
+    summary, md = _report(seeds)
+    assert len(summary["pairs"]["touch_to_depth"]["per_item"]) == 4
+    first, label_space = md.split("Matching in label space")
+    assert (
+        "**The intervals rest on 4 fabrics: under 10, they say little**, as the bootstrap can "
+        "only resample the few fabrics there are"
+    ) in first
+    assert (
+        "**The intervals rest on 4 fabrics: under 10, they say little**, as under the "
+        in (label_space.split("Physical properties")[0])
+    )
+    some = [_hand_made_run(f, {"touch_to_depth": many, "depth_to_depth": few}) for f in (0, 1)]
+    md = _report(some)[1]
+    assert "**The intervals of depth to depth (4 fabrics): under 10, they say little**" in md
+    assert "touch to depth (" not in md
+    objects = _report(seeds, summarise={"noun": "object"})[1]
+    assert "**The intervals rest on 4 objects: under 10, they say little**" in objects
+    assert "the few objects there are" in objects
+    assert "say little" not in _report([_hand_made_run(0, {"touch_to_depth": many})])[1]
 
 
 def test_probe_tables_show_chance_r2_with_its_interval():

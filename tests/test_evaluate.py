@@ -1219,8 +1219,8 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     """QA: on 2 held-out fabrics the report said "10 candidates ... 9 other fabrics" and
     printed ``0.583 [0.583, 0.583]`` as if it were tight. Now it says how many candidates each
     pick offered, beside each pair the queries and fabrics its numbers rest on, and under
-    FEW_FABRICS (5) that the interval says little; data that names its objects says
-    "objects"."""
+    `lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS` (10) that the interval says little;
+    data that names its objects says "objects"."""
     from lookfeel.evaluate import summary_lines
 
     few = evaluate_embeddings(_world(n_fabrics=3, noise=0.5)[0], FAST)
@@ -1233,8 +1233,8 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     assert "9 other" not in report and "10 candidates" not in report
     row = _row(pick, "| touch → depth |")
     assert row[2].endswith("†") and row[-1] == "18 / 3"
-    rule = "† Over 3 test fabrics only: an interval resamples the test fabrics, so over fewer"
-    assert f"{rule} than 5 it cannot reach past their own scores" in pick
+    rule = "† Over 3 test fabrics only: under 10, an interval says little, as the bootstrap"
+    assert f"{rule} can only resample the few test fabrics there are: it may be far" in pick
     assert "| queries / test fabrics / candidates per pick | 18 / 3 / 3 |" in pick
 
     many = evaluate_embeddings(_world(n_fabrics=12, noise=0.5)[0], FAST)
@@ -1250,6 +1250,29 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     assert "one item of its own object and one of each of 9 other objects drawn" in pick
     assert "| queries / objects |" in pick and "fabric" not in pick
     assert "| test objects | 12: thing1, " in report
+
+
+def test_evaluate_marks_intervals_by_the_rule_reproduce_and_cv_use(tmp_path: Path):
+    """QA: evaluate marked an interval as saying little under 5 test fabrics, reproduce and cv
+    under `MIN_INTERVAL_FABRICS` (10): 6 fabrics got no mark here and "too few fabrics" there.
+    One rule now: 6 are marked, in the report (every table that shows the interval, with the
+    rule under it) and the printed line; 10 are not."""
+    from lookfeel.evaluate import summary_lines
+    from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS
+
+    assert MIN_INTERVAL_FABRICS == 10
+    six = evaluate_embeddings(_world(n_fabrics=6, noise=0.5)[0], FAST)
+    t2d = next(x for x in summary_lines(six) if "touch_to_depth" in x)
+    assert "(36 queries, 6 fabrics: too few for the interval to say much)" in t2d
+    pick = _section(write_report(six, tmp_path / "six").report.read_text(), "Pick")
+    assert _row(pick, "| touch → depth |")[2].endswith("†")
+    assert "† Over 6 test fabrics only: under 10, an interval says little" in pick
+    assert "Hold out 10 or more (or cross-validate, `lookfeel cv`)" in pick
+
+    ten = evaluate_embeddings(_world(n_fabrics=MIN_INTERVAL_FABRICS, noise=0.5)[0], FAST)
+    assert not any("too few" in x for x in summary_lines(ten))
+    report = write_report(ten, tmp_path / "ten").report.read_text()
+    assert "†" not in report and "says little" not in report
 
 
 def test_the_press_curve_note_counts_the_presses_of_the_kinds_evaluated():

@@ -586,6 +586,42 @@ def test_a_name_a_config_cannot_give_is_refused_when_registered() -> None:
         assert (config.model.backbone, config.loss.kind) == ("my-net.v2", "my-loss.v2")
 
 
+def test_the_config_registries_refuse_a_name_a_config_cannot_give_as_plugins_do() -> None:
+    """QA: ``register_loss_kind("My Net!")`` and ``register_backbone_spec`` of such a name,
+    called directly, were accepted (``""`` and ``None`` refused with another message), so a
+    config could not select what they registered. Now they refuse it with the one-line
+    `PluginError` that `register_loss` and `register_backbone` give, and register nothing."""
+    from lookfeel.config.loss import loss_kinds, register_loss_kind
+    from lookfeel.config.model import BackboneSpec, register_backbone_spec
+
+    rule = "only letters, digits, _, - and ., beginning with a letter (e.g. my_net)"
+    with restored_registries():
+        before = (loss_kinds(), backbone_names())
+        for name in ("My Net!", "2net", "", None):
+            with pytest.raises(PluginError) as e:
+                register_loss_kind(name)  # type: ignore[arg-type]
+            assert str(e.value) == (
+                f"loss name {name!r} cannot be written as loss.kind in a config: use {rule}"
+            )
+            with pytest.raises(PluginError) as e:
+                register_backbone_spec(BackboneSpec(name, ("none",)))  # type: ignore[arg-type]
+            assert str(e.value) == (
+                f"backbone name {name!r} cannot be written as model.backbone in a config: use "
+                f"{rule}"
+            )
+        with pytest.raises(PluginError, match=r"reads it as None: choose another name of only"):
+            register_loss_kind("null")
+        with pytest.raises(PluginError, match=r"reads it as False: choose another name of only"):
+            register_backbone_spec(BackboneSpec("off", ("none",)))
+        assert (loss_kinds(), backbone_names()) == before
+        register_loss_kind("my-loss.v2")
+        register_backbone_spec(BackboneSpec("my-net.v2", ("none",)))
+        config = load_config(
+            RunConfig, overrides=["model.backbone=my-net.v2", "loss.kind=my-loss.v2"]
+        )
+        assert (config.model.backbone, config.loss.kind) == ("my-net.v2", "my-loss.v2")
+
+
 def test_a_freeze_point_beyond_the_backbone_s_stages_is_refused_when_built() -> None:
     """QA: a ``freeze_points`` value above the stages a backbone builds was accepted (it froze
     every stage, whatever the point's name said). The stages exist only once it is built:

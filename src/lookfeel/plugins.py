@@ -103,6 +103,10 @@ def check_registry_name(name: object, what: str, key: str) -> None:
     (``model.backbone``, ``loss.kind``): it must be letters, digits, ``_``, ``-`` and ``.``,
     beginning with a letter, and not a word YAML reads as something else (``yes``, ``null``).
 
+    Every way of registering applies it: `lookfeel.models.register_backbone` and
+    `lookfeel.losses.register_loss`, and the config's own registries beneath them
+    (`lookfeel.config.model.register_backbone_spec`, `lookfeel.config.loss.register_loss_kind`).
+
     Args:
         name: the name being registered.
         what: what it names, for the message (``backbone``, ``loss``).

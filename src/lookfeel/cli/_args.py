@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lookfeel.config.model import EMBED_BATCH
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, parse_modalities
 
@@ -341,7 +342,12 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
 
 def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:
     """``--batch-size`` (and ``--device``) of the forward passes that embed images."""
-    parser.add_argument("--batch-size", type=int, default=64, help="images per forward pass (64)")
+    parser.add_argument(
+        "--batch-size",
+        type=int,
+        default=EMBED_BATCH,
+        help=f"images per forward pass (default {EMBED_BATCH})",
+    )
     if device:
         parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
 

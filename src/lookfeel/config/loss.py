@@ -12,6 +12,7 @@ from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
+from lookfeel.plugins import check_registry_name
 
 __all__ = [
     "Distance",
@@ -35,9 +36,13 @@ _LENIENT: ContextVar[bool] = ContextVar("lookfeel_unregistered_loss_kinds", defa
 
 def register_loss_kind(name: str) -> None:
     """Let `LossConfig` accept ``kind=name`` (called by `lookfeel.losses.register_loss`;
-    register a loss through that, which also records how to build it)."""
-    if not isinstance(name, str) or not name:
-        raise ValueError(f"a loss name must be a non-empty string, got {name!r}")
+    register a loss through that, which also records how to build it).
+
+    Raises:
+        PluginError: ``name`` cannot be given as ``loss.kind`` in a config
+            (`lookfeel.plugins.check_registry_name`, the rule ``register_loss`` applies).
+    """
+    check_registry_name(name, "loss", "loss.kind")
     _LOSS_KINDS[name] = None
 
 

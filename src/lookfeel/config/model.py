@@ -8,8 +8,10 @@ from typing import Literal
 
 from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
+from lookfeel.plugins import check_registry_name
 
 __all__ = [
+    "EMBED_BATCH",
     "BackboneSpec",
     "ModelConfig",
     "Precision",
@@ -20,6 +22,11 @@ __all__ = [
 
 Precision = Literal["auto", "fp32"]
 """How a network computes on CUDA (`ModelConfig.precision`)."""
+
+EMBED_BATCH = 64
+"""Images per forward pass when a trained model embeds images: the default of ``--batch-size``
+(``lookfeel embed``, ``evaluate``, ``index build``) and of the functions it feeds. Declared
+here, without torch, so that the command line reads it without importing the model."""
 
 
 @dataclass(frozen=True)
@@ -88,8 +95,11 @@ def register_backbone_spec(spec: BackboneSpec) -> None:
     register a backbone through that, which also records its class).
 
     Raises:
+        PluginError: ``spec.name`` cannot be given as ``model.backbone`` in a config
+            (`lookfeel.plugins.check_registry_name`, the rule ``register_backbone`` applies).
         ValueError: another spec is registered under that name.
     """
+    check_registry_name(spec.name, "backbone", "model.backbone")
     known = _BACKBONE_SPECS.get(spec.name)
     if known is not None and known != spec:
         raise ValueError(

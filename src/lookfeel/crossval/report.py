@@ -75,9 +75,11 @@ def _pair_table(
 ) -> list[str]:
     """A table of every pair scored with ``columns[1]``'s key: one cell per (header, key)
     column (``-`` where a pair lacks it; a column no such pair has is left out; top-3 ``n/a``
-    where it says nothing, `_na_top3`), then chance; nothing when no pair has it. Where some
-    runs lacked that key's method (``missing_in``), a line says which, and that the table
-    (``name``) leaves such pairs out."""
+    where it says nothing, `_na_top3`), then chance; nothing when no pair has it. Under it,
+    which pairs' intervals rest on too few held-out items to say much (`_few_line`, pointing
+    at the first table, which says why). Where some runs lacked that key's method
+    (``missing_in``), a line says which, and that the table (``name``) leaves such pairs
+    out."""
     key = columns[1][1]
     rows = [(p, e) for p, e in summary["pairs"].items() if key in e]
     method = key.rsplit("_top", 1)[0]
@@ -101,6 +103,8 @@ def _pair_table(
             if chance:
                 cells.append(f"{e['chance_top1']:.3f}")
             lines.append(f"| {pair} | {' | '.join(cells)} |")
+        nouns = _plural(summary.get("noun", "fabric"))
+        lines += _few_line(_pick_counts(summary, [p for p, _ in rows]), nouns, first=False)
     if lacking and name:
         why = _MISSING_WHY.get(method, "").format(noun=summary.get("noun", "fabric"))
         said = "; ".join(f"{p.replace('_', ' ')}: {', '.join(runs)}" for p, runs in lacking)
@@ -305,7 +309,9 @@ def _coverage_text(summary: dict[str, Any]) -> str:
 
 
 def format_cv_summary(summary: dict[str, Any]) -> str:
-    """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties."""
+    """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties.
+    Under each table with intervals, which of them rest on fewer held-out items than
+    `FEW_FABRICS` (`_few_line`)."""
     noun = summary.get("noun", "fabric")
     nouns = _plural(noun)
     fewer = any(e.get("chance_top1", 0.0) > 0.1 + 1e-9 for e in summary["pairs"].values())
@@ -351,6 +357,7 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {pair} | {_fmt(e['model_top1'])} | {top3['model_top3']} | {raw[0]} | {raw[1]} "
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
+    lines += _few_line(_pick_counts(summary, list(summary["pairs"])), nouns)
     if na3:
         lines += [
             "",
@@ -538,16 +545,37 @@ def _items_cell(pooled: dict[str, Any]) -> str:
 
 def _few_items_line(rows: dict[str, dict[str, Any]], nouns: str) -> list[str]:
     """The line under the property tables that says which labels' intervals rest on fewer
-    than `FEW_FABRICS` held-out items (`lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS`: the
-    rule and the words ``reproduce`` gives its own intervals): all of them (``The intervals
-    rest on 4 fabrics``) or some (``The intervals of density (6 fabrics)``); nothing where none
-    does.
-    A label with no R² has no interval and is not counted."""
+    than `FEW_FABRICS` held-out items (`_few_line`). A label with no R² has no interval and
+    is not counted."""
     counts = {
         label: min(pooled.get("per_seed_held_out") or [pooled["held_out"]])
         for label, row in rows.items()
         if (pooled := row.get("pooled")) is not None and not _nan(pooled["r2"])
     }
+    return _few_line(counts, nouns)
+
+
+def _pick_counts(summary: dict[str, Any], pairs: Sequence[str]) -> dict[str, int]:
+    """The held-out items each pair's pick intervals resample: those a scored query came from
+    in any run (``per_item``, which lists every one; a fabric held out by several seeds is one
+    item, as the bootstrap draws it). A pair of a summary without ``per_item`` is not
+    counted."""
+    entries = summary["pairs"]
+    return {
+        p.replace("_", " "): len(entries[p]["per_item"])
+        for p in pairs
+        if "not_scored" not in entries[p] and "per_item" in entries[p]
+    }
+
+
+def _few_line(counts: dict[str, int], nouns: str, first: bool = True) -> list[str]:
+    """The line under a table that says which rows' intervals rest on fewer than
+    `FEW_FABRICS` held-out items (``counts``: row -> items;
+    `lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS`: the rule and the words ``reproduce``
+    gives its own intervals): all of them (``The intervals rest on 4 fabrics``) or some (``The
+    intervals of density (6 fabrics)``); nothing where none does. ``first``: whether to say
+    why and what to do, or only point at the first table that said it (the pick tables
+    after the first, over the same queries)."""
     few = {label: n for label, n in counts.items() if n < FEW_FABRICS}
     if not few:
         return []
@@ -557,12 +585,14 @@ def _few_items_line(rows: dict[str, dict[str, Any]], nouns: str) -> list[str]:
         where = "rest on " + (_count(low, noun) if low == high else f"{low} to {high} {nouns}")
     else:
         where = "of " + ", ".join(f"{label} ({_count(n, noun)})" for label, n in few.items())
+    said = f"**The intervals {where}: under {FEW_FABRICS}, they say little**"
+    if not first:
+        return ["", f"{said}, as under the first table."]
     return [
         "",
-        f"**The intervals {where}: under {FEW_FABRICS}, they say little**, as the bootstrap can "
-        f"only resample the few {nouns} there are: an interval may be far narrower than the "
-        f"uncertainty, or far wider. Hold out more {nouns} (every fold rather than "
-        "`--only-folds`, more or larger folds) for intervals that say more.",
+        f"{said}, as the bootstrap can only resample the few {nouns} there are: an interval may "
+        f"be far narrower than the uncertainty, or far wider. Hold out more {nouns} (every fold "
+        "rather than `--only-folds`, more or larger folds) for intervals that say more.",
     ]
 
 

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lookfeel.config import DataConfig
+from lookfeel.config.model import EMBED_BATCH
 from lookfeel.data import ImageLoader
 from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.touch_control import UntouchedControl
@@ -144,7 +145,7 @@ def background_control(
     data_config: DataConfig,
     embedded: Mapping[Modality, EmbeddedItems],
     result: EvalResult,
-    batch_size: int = 64,
+    batch_size: int = EMBED_BATCH,
     device: str = "cpu",
     spaces: Mapping[Modality, LabelSpace] | None = None,
 ) -> tuple[dict[str, float], list[str]]:
@@ -191,7 +192,7 @@ def untouched_control(
     embedded: Mapping[Modality, EmbeddedItems],
     result: EvalResult,
     pool_exact: bool,
-    batch_size: int = 64,
+    batch_size: int = EMBED_BATCH,
     device: str = "cpu",
     spaces: Mapping[Modality, LabelSpace] | None = None,
 ) -> tuple[dict[str, float], list[str]]:

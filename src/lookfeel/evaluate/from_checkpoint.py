@@ -44,6 +44,7 @@ from torch import nn
 
 from lookfeel.checkpoint import CheckpointError, LoadedModel, load_model
 from lookfeel.config import DataConfig, EvalConfig, from_dict, to_dict
+from lookfeel.config.model import EMBED_BATCH
 from lookfeel.data import Catalog, DatasetError, ImageLoader, kmeans_clusters, paper_split
 from lookfeel.data import scan as scan_dataset
 from lookfeel.data.recordings import drop_unpressed
@@ -374,7 +375,7 @@ def embed_checkpoint(
     split: str = "all",
     *,
     reference: bool = True,
-    batch_size: int = 64,
+    batch_size: int = EMBED_BATCH,
     device: str = "cpu",
 ) -> EmbeddingSet:
     """Embed a dataset's items with a trained model (``lookfeel embed``).
@@ -475,7 +476,7 @@ def evaluate_checkpoint(
     split: str = "val",
     config: EvalConfig | None = None,
     *,
-    batch_size: int = 64,
+    batch_size: int = EMBED_BATCH,
     device: str = "cpu",
 ) -> EvalResult:
     """Embed a split of a dataset with a trained model and score it (``lookfeel evaluate``).

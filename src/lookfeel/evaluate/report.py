@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from lookfeel.atomic import atomic_write_text
 from lookfeel.config import DataConfig
 from lookfeel.data import ImageError, ImageLoader
+from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS
 from lookfeel.metrics.properties import MIN_SPEARMAN
 from lookfeel.modality import Modality, Pair
 from lookfeel.plots import (
@@ -38,12 +39,13 @@ __all__ = ["ReportFiles", "selection_note", "summary_lines", "write_metrics", "w
 
 _ARROW = "→"
 
-FEW_FABRICS = 5
-"""An interval over fewer test fabrics (or objects) than this says little, and the report says
-so: the bootstrap resamples only those few, so it cannot reach past their own scores (two
-fabrics that score alike give an interval of width 0) and tells nothing of how another fabric
-would fare. Such intervals are marked `FEW_MARK`."""
 FEW_MARK = "†"
+"""Marks an interval over fewer test fabrics (or objects) than
+`lookfeel.metrics.bootstrap.MIN_INTERVAL_FABRICS`, the rule ``reproduce`` and ``cv`` give their
+own intervals: the bootstrap resamples only those few, so the interval may be far narrower than
+the uncertainty (test fabrics that all score alike give one of width 0), or far wider, and
+tells little of how another fabric would fare. The report says so under each table with such a
+mark (`_few_lines`), the printed summary beside the pair (`summary_lines`)."""
 FEW_FIT_FABRICS = 10
 """A c fitted on fewer reference (training) fabrics than this is flagged in the calibration
 table: they are the fabrics the model was trained on, and so few it tells apart far better than
@@ -91,9 +93,9 @@ def _n_fabrics(result: EvalResult, pair: Pair) -> int | None:
 
 
 def _few(result: EvalResult, pair: Pair) -> bool:
-    """Whether ``pair``'s intervals rest on fewer than `FEW_FABRICS` test fabrics."""
+    """Whether ``pair``'s intervals rest on fewer than `MIN_INTERVAL_FABRICS` test fabrics."""
     n = _n_fabrics(result, pair)
-    return n is not None and n < FEW_FABRICS
+    return n is not None and n < MIN_INTERVAL_FABRICS
 
 
 def _pci(result: EvalResult, pair: Pair, key: str, digits: int = 3) -> str:
@@ -112,18 +114,20 @@ def _with_ci(result: EvalResult, pair: Pair, key: str) -> str:
 
 
 def _few_lines(result: EvalResult, pairs: Sequence[Pair]) -> list[str]:
-    """The rule of `FEW_FABRICS`, stated under a table whose intervals it marks."""
+    """The rule of `MIN_INTERVAL_FABRICS`, stated under a table whose intervals it marks."""
     counts = sorted({n for p in pairs if (n := _n_fabrics(result, p)) is not None})
-    few = [n for n in counts if n < FEW_FABRICS]
+    few = [n for n in counts if n < MIN_INTERVAL_FABRICS]
     if not few:
         return []
     unit = result.unit
     over = " or ".join(str(n) for n in few)
     return [
-        f"{FEW_MARK} Over {over} test {unit}s only: an interval resamples the test {unit}s, "
-        f"so over fewer than {FEW_FABRICS} it cannot reach past their own scores (two that "
-        f"score alike give an interval of width 0) and says little of another {unit}; hold "
-        f"out {FEW_FABRICS} or more (or cross-validate, `lookfeel cv`) for one that does.",
+        f"{FEW_MARK} Over {over} test {unit}s only: under {MIN_INTERVAL_FABRICS}, an interval "
+        f"says little, as the bootstrap can only resample the few test {unit}s there are: it "
+        f"may be far narrower than the uncertainty (test {unit}s that all score alike give an "
+        f"interval of width 0), or far wider, and tells little of another {unit}. Hold out "
+        f"{MIN_INTERVAL_FABRICS} or more (or cross-validate, `lookfeel cv`) for one that says "
+        "more.",
         "",
     ]
 
@@ -367,7 +371,7 @@ def _control_line(m: dict[str, float], whose: str, key: str, with_main: bool) ->
 
 def summary_lines(result: EvalResult) -> list[str]:
     """What `lookfeel evaluate` prints: each pair's first top-k with its interval, the queries
-    and test fabrics it rests on (an interval over fewer than `FEW_FABRICS` said to say
+    and test fabrics it rests on (an interval over fewer than `MIN_INTERVAL_FABRICS` said to say
     little) and chance; under it, one line per scorer, each number named as whose it is and
     with its interval: the model under the background and untouched controls, the
     cross-modal map (and it under the controls) and raw pixels (and they under the controls),
