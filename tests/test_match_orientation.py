@@ -205,7 +205,9 @@ def test_a_turned_press_video_is_warned_of_in_one_line(
     assert turned == [
         f"lookfeel: warning: {video}: a portrait touch video (48x64), but the library's touch "
         "presses are landscape (32x24): each is resized to the network's one square input, so "
-        "this one is stretched unlike them and most likely turned; turn it to landscape"
+        "this one is stretched unlike them and most likely turned; turn it to landscape (or "
+        "train with --set data.video_rotate=90 or 270, which turns every press video clockwise "
+        "as it is decoded)"
     ]
 
 

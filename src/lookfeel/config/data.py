@@ -186,6 +186,15 @@ class DataConfig:
     video_gain: float = 8.0
     """Gain of that difference (grey levels out per grey level of change): 8 saturates about 2%
     of a GelSight Mini press's pixels (`lookfeel.data.video.DEFAULT_GAIN`)."""
+    video_rotate: Literal[0, 90, 180, 270] = 0
+    """Turn every frame of every press video this many degrees clockwise as it is decoded
+    (0, 90, 180 or 270), before anything else sees it: the press's detection, its reference
+    and differences, the crops and the resize (`lookfeel.data.video.rotate_frame`). For videos
+    recorded turned against what a model reads: a sensor mounted on its side, or a GelSight's
+    landscape presses for a model of portrait DIGIT frames. Every video of a run is turned
+    alike, and frame images of a press not at all: videos of two orientations stay two. A
+    checkpoint keeps it, so ``predict``, ``match``, ``serve`` and the index turn their videos
+    as training did."""
     video_views: int = 1
     """Training views of a press video: N > 1 lets each training draw of a press take one of
     its deepest frame and the frames of N spread across its contact span that are pressed at
@@ -232,6 +241,11 @@ class DataConfig:
     The decoded images are the same either way (`lookfeel.data.decode_pool`)."""
 
     def __post_init__(self) -> None:
+        if type(self.video_rotate) is not int or self.video_rotate not in (0, 90, 180, 270):
+            raise ConfigError(
+                f"data.video_rotate: {self.video_rotate!r} is not a turn of a press video; "
+                "give 0, 90, 180 or 270 (degrees clockwise)"
+            )
         check_choices(self, "data")
         if self.image_size < 8:
             raise ConfigError(f"data.image_size: must be >= 8, got {self.image_size}")

@@ -10,7 +10,8 @@
   video (`lookfeel.data.files.VIDEO_SUFFIXES`: .mov, .mp4, .mkv ...): its press is found and
   one frame taken (the deepest contact or ``video_frame``) or the mean of ``video_frames``
   across the contact span, by default as its difference from the no-contact frames
-  (`lookfeel.data.video.read_press`), then cropped and resized like a touch image.
+  (`lookfeel.data.video.read_press`; every frame turned first by ``video_rotate``), then
+  cropped and resized like a touch image.
 
 Every file goes through one policy (`read_image_file`, `open_image`): it must be a regular file
 (a FIFO, device or folder named like an image is refused at once, never waited on), and its
@@ -20,7 +21,9 @@ undecodable file raises `ImageError` naming the file. (Symbolic links leaving a 
 are refused by `lookfeel.data.layout.scan`, which knows the folder.)
 
 `ImageLoader` keeps every preprocessed image in memory (as uint8 for RGB, float32 for depth)
-and, with ``cache_dir``, on disk keyed by the file's content and the preprocessing settings.
+and, with ``cache_dir``, on disk keyed by the file's content and the preprocessing settings
+(`PreprocessSettings`: among them a press video's turn and the press detector's version,
+`lookfeel.data.video.PRESS_DETECTOR_VERSION`).
 """
 
 from __future__ import annotations
@@ -49,7 +52,14 @@ from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
 from lookfeel.data.holes import UNSEEN_REGION, fill_holes
 from lookfeel.data.layout import IMAGE_SUFFIXES, press_frame_files
-from lookfeel.data.video import VideoError, deep_frames, is_video, read_press, view_frames
+from lookfeel.data.video import (
+    PRESS_DETECTOR_VERSION,
+    VideoError,
+    deep_frames,
+    is_video,
+    read_press,
+    view_frames,
+)
 from lookfeel.modality import Modality, reprint_path
 from lookfeel.processes import can_fork
 
@@ -402,6 +412,13 @@ class PreprocessSettings:
     before)."""
     color_size: int | None = None
     """``data.color_size`` when set (``None``: colour at ``image_size``, keys as before)."""
+    video_rotate: int | None = None
+    """``data.video_rotate`` when a press video is turned (``None``: 0, unturned, keys as
+    before): a press decoded with another turn is never reused."""
+    press_detector: int = PRESS_DETECTOR_VERSION
+    """`lookfeel.data.video.PRESS_DETECTOR_VERSION`: which frames of a press video the images
+    were made from (always in the key: keys made before it was kept are not reused, as they
+    may hold presses an earlier detector chose)."""
 
     @classmethod
     def of(cls, config: DataConfig) -> PreprocessSettings:
@@ -436,6 +453,8 @@ class PreprocessSettings:
             config.touch_zoom if config.touch_zoom < 1.0 else None,
             config.touch_frames if config.stacks_touch_frames else None,
             config.color_size,
+            config.video_rotate or None,
+            PRESS_DETECTOR_VERSION,
         )
 
     def digest(self) -> str:
@@ -642,6 +661,7 @@ class ImageLoader:
             position=c.video_frame,
             subtract_reference=c.video_reference == "subtract",
             gain=c.video_gain,
+            rotate=c.video_rotate,
         )
         if len(press.images) == 1:
             return press.images[0]
@@ -804,6 +824,7 @@ class ImageLoader:
                     ),
                     subtract_reference=c.video_reference == "subtract",
                     gain=c.video_gain,
+                    rotate=c.video_rotate,
                 )
                 ims = np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
                 built["embed"] = built["train"] = ims

@@ -455,6 +455,7 @@ def _press_arrays(
         position=config.video_frame,
         subtract_reference=False,
         gain=config.video_gain,
+        rotate=config.video_rotate,
     )
     diff = [difference_image(f, press.reference, config.video_gain) for f in press.images]
     return (

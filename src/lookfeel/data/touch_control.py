@@ -36,7 +36,7 @@ def untouched_image(path: Path, config: DataConfig) -> np.ndarray:
     Raises:
         VideoError: the video cannot be decoded or holds no press (naming it).
     """
-    frames = read_video(path)
+    frames = read_video(path, rotate=config.video_rotate)
     span = detect_press(frames, path)
     a, b = span.reference
     if config.video_reference == "none":

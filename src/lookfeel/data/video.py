@@ -20,7 +20,16 @@ it, and returns the frames the model needs:
   the sensor's own light pattern and its drift.
 - `read_press`: all of it at once (`Press`, which also says whether the video has no colour:
   `Press.grey`); `lookfeel.data.images.ImageLoader` calls it for a touch item whose file is a
-  video, and caches the result like an image.
+  video, and caches the result like an image (keyed, among the settings, by
+  `PRESS_DETECTOR_VERSION`).
+
+`read_video`, `small_greyscale` and `read_press` can turn every frame as it is decoded
+(``rotate``: 90, 180 or 270 degrees clockwise, `rotate_frame`; ``data.video_rotate``), for a
+video recorded turned against the others (a sensor mounted on its side). The turn comes before
+anything else sees a frame: the press is found on the turned frames, and the reference and the
+differences are of turned frames. A turn does not change which frames a video yields: the
+contact signal is of the small frames' pixels, not their order (every fourth of PhysiCLeAR's
+401 videos reads the same frames turned 90 degrees, its images turned).
 
 Decoding is fast because full RGB is made only for the frames kept: the press is found on the
 luma plane of the decoded YUV frames (block-averaged to about 40x30), and only the chosen
@@ -60,6 +69,8 @@ __all__ = [
     "DEFAULT_GAIN",
     "MAX_VIDEO_FRAMES",
     "MIN_VIDEO_FRAMES",
+    "PRESS_DETECTOR_VERSION",
+    "ROTATIONS",
     "VIDEO_SUFFIXES",
     "NoPressError",
     "Press",
@@ -78,10 +89,19 @@ __all__ = [
     "read_press",
     "read_video",
     "reference_frame",
+    "rotate_frame",
     "small_greyscale",
     "view_frames",
 ]
 
+PRESS_DETECTOR_VERSION = 1
+"""The version of how a press is found and its frames chosen (`detect_press`, `_scan`'s small
+frames, `read_press`, `contact_frames`, `deep_frames`, `view_frames`). It is part of every
+cache key of decoded images (`lookfeel.data.images.PreprocessSettings`) and so of a library's
+shard keys: a press decoded by another version is decoded again, never reused. Raise it with
+any change that changes which frames a video yields or their pixels."""
+ROTATIONS = (0, 90, 180, 270)
+"""The turns `rotate_frame` gives a frame, in degrees clockwise (``data.video_rotate``)."""
 MAX_VIDEO_FRAMES = 10_000
 """Most frames decoded from one video (400 s at 25 frames/s); a longer one is refused."""
 MIN_VIDEO_FRAMES = 5
@@ -193,6 +213,30 @@ def _import_av(path: Path) -> Any:
 
 # ---------------------------------------------------------------------------------------------
 # Decoding.
+
+
+def rotate_frame(frame: np.ndarray, degrees: int) -> np.ndarray:
+    """An (H, W) or (H, W, C) ``frame`` turned ``degrees`` clockwise (`ROTATIONS`): 90 makes a
+    320x240 (landscape) frame 240x320 (portrait), its top row becoming its right column. 0
+    returns ``frame`` itself; the others a view of it (``np.rot90``).
+
+    Raises:
+        ValueError: ``degrees`` is not one of `ROTATIONS`.
+    """
+    _check_turn(degrees)
+    return np.rot90(frame, k=-(degrees // 90), axes=(0, 1)) if degrees else frame
+
+
+def _check_turn(degrees: int) -> None:
+    """Raise ValueError unless ``degrees`` is one of `ROTATIONS` (an int, not a bool)."""
+    if type(degrees) is not int or degrees not in ROTATIONS:
+        raise ValueError(f"rotate must be 0, 90, 180 or 270 (degrees clockwise); got {degrees!r}")
+
+
+def _rgb(frame: av.video.frame.VideoFrame, rotate: int) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of a decoded frame, turned ``rotate`` degrees clockwise: where every
+    frame kept in colour becomes an array."""
+    return rotate_frame(frame.to_ndarray(format="rgb24"), rotate)
 
 
 def _declared_seconds(container: Any, stream: Any) -> float | None:
@@ -336,6 +380,7 @@ def read_video(
     data: bytes | None = None,
     max_frames: int | None = None,
     max_pixels: int | None = None,
+    rotate: int = 0,
 ) -> np.ndarray:
     """Decode every frame of a video.
 
@@ -344,18 +389,21 @@ def read_video(
         data: the file's bytes, read from ``path`` when ``None``.
         max_frames: most frames decoded (default `MAX_VIDEO_FRAMES`); a longer video raises.
         max_pixels: largest width x height of a frame (default `DEFAULT_MAX_PIXELS`).
+        rotate: turn every frame this many degrees clockwise (`rotate_frame`).
 
     Returns:
-        (T, H, W, 3) uint8 RGB.
+        (T, H, W, 3) uint8 RGB ((T, W, H, 3) turned 90 or 270 degrees).
 
     Raises:
         VideoError: as `read_press`, or the frames would take more than 2 GiB.
+        ValueError: ``rotate`` is not one of `ROTATIONS`.
     """
     p = Path(path)
+    _check_turn(rotate)  # before anything is read
     out: list[np.ndarray] = []
     size = 0
     for frame in _decode(p, data, max_pixels, max_frames):
-        rgb = frame.to_ndarray(format="rgb24")
+        rgb = _rgb(frame, rotate)
         if out and rgb.shape != out[0].shape:
             raise VideoError(p, f"frame {len(out)} changes size to {rgb.shape[1]}x{rgb.shape[0]}")
         size += rgb.nbytes
@@ -420,29 +468,43 @@ def small_greyscale(
     data: bytes | None = None,
     max_frames: int | None = None,
     max_pixels: int | None = None,
+    rotate: int = 0,
 ) -> np.ndarray:
     """Decode a video into small greyscale frames: what `detect_press` needs, and fast.
 
     Each frame's luma plane is block-averaged to about 40x30 pixels (no RGB conversion) and
-    put on the full-range 0..255 grey scale.
+    put on the full-range 0..255 grey scale, then turned ``rotate`` degrees clockwise
+    (`rotate_frame`).
 
     Returns:
         (T, h, w) float32.
 
     Raises:
         VideoError: as `read_video`.
+        ValueError: ``rotate`` is not one of `ROTATIONS`.
     """
     p = Path(path)
+    _check_turn(rotate)  # before anything is read
     blob = _read_bytes(p) if data is None else data
-    return _scan(p, blob, max_frames, max_pixels, keep_bytes=0)[0]
+    return _scan(p, blob, max_frames, max_pixels, keep_bytes=0, rotate=rotate)[0]
 
 
 def _scan(
-    p: Path, blob: bytes, max_frames: int | None, max_pixels: int | None, keep_bytes: int
+    p: Path,
+    blob: bytes,
+    max_frames: int | None,
+    max_pixels: int | None,
+    keep_bytes: int,
+    rotate: int = 0,
 ) -> tuple[np.ndarray, list[av.video.frame.VideoFrame] | None, str]:
     """Small greyscale frames, the decoded frames themselves while they fit ``keep_bytes``
     (``None`` beyond: the caller decodes again rather than hold a long video in memory), and
-    the first frame's pixel format."""
+    the first frame's pixel format.
+
+    The small frames are turned ``rotate`` degrees clockwise once block-averaged, so that they
+    are exactly the unturned ones turned (averaging first crops a remainder of rows and columns
+    at the bottom and right, which would be other pixels once turned): the press is found on
+    the same pixels, in another order, which the contact signal does not depend on."""
     small: list[np.ndarray] = []
     kept: list[av.video.frame.VideoFrame] | None = [] if keep_bytes > 0 else None
     held = 0
@@ -457,6 +519,7 @@ def _scan(
         if limited:
             g -= np.float32(16.0)
             g *= _LIMITED_SCALE
+        g = rotate_frame(g, rotate)
         if small and g.shape != small[0].shape:
             raise VideoError(p, f"frame {len(small)} changes size to {frame.width}x{frame.height}")
         small.append(g)
@@ -946,6 +1009,7 @@ def read_press(
     max_pixels: int | None = None,
     detect: Callable[..., PressSpan] = detect_press,
     choose: Callable[[PressSpan], Sequence[int]] | None = None,
+    rotate: int = 0,
 ) -> Press:
     """Decode a press video, find its press and return the frames the model needs.
 
@@ -964,6 +1028,10 @@ def read_press(
         detect: the press detector (`detect_press`), called with small greyscale frames.
         choose: picks the frames from the span instead of ``frames`` and ``position`` (for
             example ``lambda span: deep_frames(span, 12)``).
+        rotate: turn every frame this many degrees clockwise as it is decoded (`rotate_frame`,
+            ``data.video_rotate``): ``detect`` sees turned small frames, and the reference and
+            the images are of turned frames. The turn does not change which frames are
+            chosen.
 
     Returns:
         `Press`.
@@ -971,11 +1039,13 @@ def read_press(
     Raises:
         VideoError: the file is not a regular file, cannot be decoded, is truncated, too large
             (frames or pixels), too short, or shows no contact; the message names the file.
+        ValueError: ``rotate`` is not one of `ROTATIONS`.
     """
     p = Path(path)
+    _check_turn(rotate)  # before anything is read
     blob = _read_bytes(p) if data is None else data
     small, decoded, pixel_format = _scan(
-        p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES
+        p, blob, max_frames, max_pixels, keep_bytes=_KEEP_DECODED_BYTES, rotate=rotate
     )
     span = detect(small, p)
     if choose is not None:
@@ -988,12 +1058,12 @@ def read_press(
     wanted = set(indices) | set(range(a, b))
     rgb: dict[int, np.ndarray] = {}
     if decoded is not None:
-        rgb = {i: decoded[i].to_ndarray(format="rgb24") for i in sorted(wanted)}
+        rgb = {i: _rgb(decoded[i], rotate) for i in sorted(wanted)}
     else:  # a long video: decode again, converting only the frames wanted
         last = max(wanted)
         for i, frame in enumerate(_decode(p, blob, max_pixels, max_frames)):
             if i in wanted:
-                rgb[i] = frame.to_ndarray(format="rgb24")
+                rgb[i] = _rgb(frame, rotate)
             if i >= last:
                 break
     reference = np.mean([rgb[i].astype(np.float32) for i in range(a, b)], axis=0).astype(np.float32)

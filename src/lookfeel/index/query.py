@@ -24,7 +24,9 @@ resized to the network's one square input, so such a query is stretched unlike t
 most likely turned (a DIGIT's 240x320 press given as 320x240). Only a record of those images'
 shape says what they were: a library records its items' (`shape_record`, in its manifest) and
 a checkpoint since session 51 its training items' (``shapes``, `LoadedModel.shapes`, which
-``lookfeel predict`` checks); an older one is not checked.
+``lookfeel predict`` checks); an older one is not checked. Shapes are as the model reads the
+files: a press video's turned by ``data.video_rotate`` (`seen_size`), which the warning about
+a turned video names.
 """
 
 from __future__ import annotations
@@ -85,6 +87,7 @@ __all__ = [
     "orientation_of",
     "query_batch",
     "query_paths",
+    "seen_size",
     "shape_record",
     "sniff_type",
     "warn_orientation",
@@ -513,15 +516,37 @@ def orientation_of(size: tuple[int, int], modality: Modality | str, config: Data
     return "portrait" if h > w else "landscape"
 
 
+def seen_size(
+    name: str | os.PathLike[str],
+    size: tuple[int, int],
+    modality: Modality | str,
+    config: DataConfig,
+) -> tuple[int, int]:
+    """The (width, height) of file ``name`` of ``modality`` as the model reads it: a touch press
+    video's ``size`` turned by ``data.video_rotate`` (90 or 270 degrees swap width and height;
+    a video by its suffix, `VIDEO_SUFFIXES`), any other file's as it is.
+
+    Raises:
+        ModalityError: ``modality`` names no modality.
+    """
+    turned = (
+        Modality.of(modality) is Modality.TOUCH
+        and config.video_rotate in (90, 270)
+        and Path(name).suffix.lower() in VIDEO_SUFFIXES
+    )
+    return (size[1], size[0]) if turned else size
+
+
 def shape_record(
     paths: Sequence[str | os.PathLike[str]], modality: Modality | str, config: DataConfig
 ) -> dict[str, Any] | None:
     """What shape the files of one modality are, for a query to be checked against
     (`warn_orientation`): ``{"orientation": ..., "size": [w, h]}``, the orientation all of them
-    share (`orientation_of`) and their most common size; None when they come in more than one
+    share (`orientation_of`) and their most common size, as the model reads them (`seen_size`:
+    a press video turned by ``data.video_rotate``); None when they come in more than one
     orientation (``lookfeel data check`` warns of that) or none says its size (`frame_size`).
     """
-    sizes = [s for p in paths if (s := frame_size(p)) is not None]
+    sizes = [seen_size(p, s, modality, config) for p in paths if (s := frame_size(p)) is not None]
     kinds = {orientation_of(s, modality, config) for s in sizes}
     if len(kinds) != 1:
         return None
@@ -579,10 +604,13 @@ def orientation_note(
 ) -> str | None:
     """The one line `warn_orientation` warns (None where nothing is turned) for files given as
     (name, (width, height) or None): where some are portrait and the images they are compared
-    with landscape, or the other way round (`orientation_of`). The first such file is named,
-    the others counted; a square query or a square record, a file whose size is not known and
-    a missing record (a library built before it was kept) are not checked. ``lookfeel serve``
-    answers it for uploads, whose sizes come from their bytes (`bytes_frame_size`).
+    with landscape, or the other way round (`orientation_of` of each file's `seen_size`: a
+    press video as ``data.video_rotate`` turns it). The first such file is named, the others
+    counted; a square query or a square record, a file whose size is not known and a missing
+    record (a library built before it was kept) are not checked. ``lookfeel serve`` answers it
+    for uploads, whose sizes come from their bytes (`bytes_frame_size`). For a press video, the
+    line also names ``data.video_rotate``: the turns that would read it in the other
+    orientation.
 
     Raises:
         ModalityError: ``modality`` names no modality.
@@ -596,12 +624,13 @@ def orientation_note(
     for name, size in files:
         if size is None:
             continue
-        got = orientation_of(size, modality, config)
+        got = orientation_of(seen_size(name, size, modality, config), modality, config)
         if got not in (want, "square"):
             odd.append((Path(name), got, size))
     if not odd:
         return None
     first, got, (w, h) = odd[0]
+    seen = seen_size(first, (w, h), modality, config)
     n = len(odd) - 1
     also = f" (and {n} other such file{'s' if n > 1 else ''})" if n else ""
     if modality is Modality.TOUCH:
@@ -612,9 +641,19 @@ def orientation_note(
     else:
         what, theirs = "map", "maps"
     their = f" ({want_size})" if want_size else ""
-    return (
-        f"{first}{also}: a {got} {modality.value} {what} ({w}x{h}), but {holder}'s "
+    shown = f"{w}x{h}"
+    if seen != (w, h):
+        shown += f", {seen[0]}x{seen[1]} as data.video_rotate={config.video_rotate} turns it"
+    line = (
+        f"{first}{also}: a {got} {modality.value} {what} ({shown}), but {holder}'s "
         f"{modality.value} {theirs} are {want}{their}: each is resized to the network's one "
         f"square input, so this one is stretched unlike them and most likely turned; turn it "
         f"to {want}"
     )
+    if what == "video":  # a press video can be turned as it is decoded
+        a, b = sorted({(config.video_rotate + 90) % 360, (config.video_rotate + 270) % 360})
+        line += (
+            f" (or train with --set data.video_rotate={a} or {b}, which turns every press "
+            "video clockwise as it is decoded)"
+        )
+    return line

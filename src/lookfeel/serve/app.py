@@ -6,7 +6,8 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
 - ``GET /api/library``: what the library holds and how it is calibrated.
 - ``GET /api/fabrics``: every fabric with its labels and a few item ids per modality.
 - ``GET /api/items/{item_id}``: one item's metadata; ``/api/items/{item_id}/image`` its image
-  as a PNG thumbnail (a press video: its frame of deepest contact, as recorded). Items are
+  as a PNG thumbnail (a press video: its frame of deepest contact, as recorded but turned by
+  the model's ``data.video_rotate``). Items are
   named by id (``depth:12``); the file is looked up in the library, so no request ever names a
   path on disk.
 - ``POST /api/match``: multipart upload, ``modality`` and one or more ``files`` (several touch
@@ -437,8 +438,9 @@ def _item_info(item: LibraryItem) -> ItemInfo:
 
 def _thumbnail(item: LibraryItem, library: Library, size: int) -> bytes:
     """The item's image as a PNG no larger than ``size``; depth mapped to grey as training; a
-    press video shown by its frame of deepest contact, as recorded (not the difference from
-    the untouched sensor a model may read).
+    press video shown by its frame of deepest contact, as recorded but turned as the model
+    reads it (``data.video_rotate``), not the difference from the untouched sensor a model
+    may read.
 
     Raises:
         ImageError: the file cannot be read (a video: `lookfeel.data.video.VideoError`).
@@ -449,7 +451,9 @@ def _thumbnail(item: LibraryItem, library: Library, size: int) -> bytes:
         unit = depth_to_unit(decode_depth(path), cfg.depth_min_mm, cfg.depth_range_mm)
         im = Image.fromarray((unit * 255.0 + 0.5).astype(np.uint8))
     elif is_video(path):
-        im = Image.fromarray(read_press(path, frames=1, subtract_reference=False).images[0])
+        turn = library.config.data.video_rotate  # as the library's model reads it
+        press = read_press(path, frames=1, subtract_reference=False, rotate=turn)
+        im = Image.fromarray(press.images[0])
     else:
         im = Image.fromarray(decode_rgb(path))
     im.thumbnail((size, size))
@@ -687,7 +691,7 @@ def create_app(
     )
     async def item_image(item_id: str) -> Response:
         """The item's image as a PNG thumbnail (depth shown as grey, near = dark; a press
-        video as its frame of deepest contact, as recorded)."""
+        video as its frame of deepest contact, as recorded, turned as the model reads it)."""
         now = served.current()
         item = lookup(now.library, item_id)
         key = (now.generation, item.id)
