@@ -156,3 +156,19 @@ def test_the_top_level_holds_what_a_python_user_starts_with():
     )
     with pytest.raises(AttributeError, match="module 'lookfeel' has no attribute 'nothing'"):
         lookfeel.nothing  # noqa: B018
+
+
+def test_the_match_path_imports_no_probe_or_fitting_library():
+    """Session 56: `lookfeel match` imported scikit-learn, scipy.stats and scipy.optimize (0.9 s
+    of a 2.9 s start) through `lookfeel.metrics` and `lookfeel.index.calibrate`, for probes and
+    fits that matching never runs. They are imported where those fit, so the modules ``match``
+    runs (its command, the library, the matcher, `guess_modality`) import none of them."""
+    code = (
+        "import sys\n"
+        "import lookfeel.cli.match, lookfeel.errors, lookfeel.index, lookfeel.predict\n"
+        "from lookfeel.index import Library, Matcher, format_match\n"
+        "heavy = ('sklearn', 'scipy.stats', 'scipy.optimize')\n"
+        "print(sorted(m for m in heavy if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"

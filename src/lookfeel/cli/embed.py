@@ -46,6 +46,11 @@ def add_parser(subparsers: Subparsers) -> None:
         "--no-reference", action="store_true", help="do not embed the reference (training) items"
     )
     add_forward(emb)
+    emb.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress bars (on stderr: each modality's images decoded, its items embedded)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         reference=not args.no_reference,
         batch_size=args.batch_size,
         device=args.device,
+        progress=not args.quiet,
     )
     path = save_embeddings(args.out, emb)
     counts = ", ".join(f"{m.value} {len(e.embeddings)}" for m, e in emb.embedded.items())

@@ -26,6 +26,7 @@ import json
 from pathlib import Path
 
 from lookfeel.cli._args import Subparsers, add_command, add_json, add_library, number
+from lookfeel.config.model import EMBED_BATCH
 from lookfeel.modality import Modality
 
 
@@ -60,6 +61,12 @@ def add_parser(subparsers: Subparsers) -> None:
         help="modality to match against (default: the best in calibration)",
     )
     add_json(mt, "print the results as JSON")
+    mt.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress bar (on stderr, while more depth or colour images than one batch "
+        f"of {EMBED_BATCH} are embedded)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -87,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         top=args.top,
         gallery=args.gallery,
         k_properties=args.property_fabrics,
+        progress=not args.quiet,
     )
     if args.json:
         print(json.dumps([dataclasses.asdict(r) for r in results], indent=2))

@@ -25,8 +25,10 @@ Precision = Literal["auto", "fp32"]
 
 EMBED_BATCH = 64
 """Images per forward pass when a trained model embeds images: the default of ``--batch-size``
-(``lookfeel embed``, ``evaluate``, ``index build``) and of the functions it feeds. Declared
-here, without torch, so that the command line reads it without importing the model."""
+(``lookfeel embed``, ``evaluate``, ``index build``) and of the functions it feeds, and the
+batch in which ``lookfeel match`` decodes and embeds its queries (so that its memory grows with
+this, not with the number of files matched at once). Declared here, without torch, so that
+the command line reads it without importing the model."""
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections import Counter, defaultdict
@@ -138,6 +139,7 @@ def check_dataset(
     require: Iterable[Modality] | None = None,
     *,
     workers: int = 2,
+    progress: bool = False,
 ) -> Catalog:
     """Scan ``root`` and decode every file the scan accepted (all frames of every press).
 
@@ -153,6 +155,8 @@ def check_dataset(
         root: the dataset folder.
         require: modalities every fabric must have; ``None``: each modality any fabric has.
         workers: decoding threads.
+        progress: show a progress bar (tqdm) on stderr of the files decoded (``lookfeel data
+            check``: a world of 300 fabrics takes most of a minute).
 
     Returns:
         The catalog, whose ``problems`` hold every error and warning (``errors`` for the exit
@@ -166,11 +170,17 @@ def check_dataset(
         for it in its
         for p in it.frames
     ]
+    from tqdm import tqdm
+
+    # A bar over the files decoded, closed (its line cleared) however decoding ends.
+    bar = functools.partial(
+        tqdm, total=len(jobs), desc="check", unit="file", leave=False, disable=not progress
+    )
     if workers > 1 and len(jobs) > 16:
         with ThreadPoolExecutor(workers) as pool:
-            decoded = list(pool.map(lambda j: decode_problem(*j), jobs))
+            decoded = list(bar(pool.map(lambda j: decode_problem(*j), jobs)))
     else:
-        decoded = [decode_problem(*j) for j in jobs]
+        decoded = list(bar(decode_problem(*j) for j in jobs))
     new = [d.problem for d in decoded if d.problem is not None]
     bad = {p.path for p in new if p.severity == "error"}
     sizes = {j[0]: d.size for j, d in zip(jobs, decoded, strict=True) if d.size is not None}

@@ -319,6 +319,7 @@ def _embed(
     reference: bool,
     batch_size: int,
     device: str,
+    progress: bool = False,
 ) -> tuple[EmbeddingSet, ImageLoader]:
     # Everything that can refuse the split is asked of the checkpoint and the catalog first:
     # the videos are decoded only once the items to embed are known (minutes on hundreds).
@@ -345,7 +346,13 @@ def _embed(
 
     def run(cat: Catalog) -> dict[Modality, EmbeddedItems]:
         return embed_catalog(
-            loaded.model, cat, loader, modalities=mods, batch_size=batch_size, device=device
+            loaded.model,
+            cat,
+            loader,
+            modalities=mods,
+            batch_size=batch_size,
+            device=device,
+            progress=progress,
         )
 
     embedded = run(test)
@@ -377,6 +384,7 @@ def embed_checkpoint(
     reference: bool = True,
     batch_size: int = EMBED_BATCH,
     device: str = "cpu",
+    progress: bool = False,
 ) -> EmbeddingSet:
     """Embed a dataset's items with a trained model (``lookfeel embed``).
 
@@ -387,6 +395,9 @@ def embed_checkpoint(
         reference: also embed the split's reference (training) items, when it has any.
         batch_size: images per forward pass.
         device: where the model runs.
+        progress: show progress bars on stderr, per modality, of the images decoded and the
+            items embedded (`lookfeel.embedding.embed_catalog`'s; ``lookfeel embed`` shows
+            them unless ``--quiet``).
 
     Returns:
         `EmbeddingSet` (write it with `save_embeddings`).
@@ -406,6 +417,7 @@ def embed_checkpoint(
             reference,
             batch_size,
             device,
+            progress,
         )
     return emb
 

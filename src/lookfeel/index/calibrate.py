@@ -56,12 +56,10 @@ import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import sparse
-from scipy.optimize import minimize_scalar
 
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics import (
@@ -72,6 +70,9 @@ from lookfeel.metrics import (
 )
 from lookfeel.metrics.cross_map import fit_cross_map
 from lookfeel.modality import Modality, Pair
+
+if TYPE_CHECKING:
+    from scipy import sparse
 
 __all__ = [
     "CALIBRATION_VERSION",
@@ -389,6 +390,8 @@ def fit_unknown_logit(lse_known: NDArray[np.float64], lse_absent: NDArray[np.flo
 
     both = np.concatenate([lk, la])
     lo, hi = float(both.min()) - 50.0, float(both.max()) + 50.0
+    from scipy.optimize import minimize_scalar  # here: matching never calibrates
+
     res = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
     return float(res.x)
 
@@ -485,6 +488,8 @@ def calibrate_pair(
             rows = q_fold == k
             left_out = fabrics[fold_of == k] if k >= 0 else fabrics[:0]
             dist[rows] = distances_without(left_out)(qe[rows], gallery_emb)
+    from scipy import sparse
+
     onehot = sparse.csr_matrix((np.ones(len(gf)), (np.arange(len(gf)), gidx)), shape=(len(gf), nf))
     self_mask = np.zeros(dist.shape, dtype=bool)
     if same:

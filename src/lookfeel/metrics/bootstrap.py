@@ -26,7 +26,8 @@ __all__ = [
 
 MIN_INTERVAL_FABRICS = 10
 """Below this many fabrics (or objects) an interval resampling them says little, and the
-reports say so (`reproduce`'s findings, `cv`'s property probes). Pick 1 of 10 offers 10 fabrics
+reports say so (`reproduce`'s findings, `evaluate`'s intervals, `cv`'s pick tables and
+property probes). Pick 1 of 10 offers 10 fabrics
 a draw (the paper's split needs 10 of its test fabrics for it), and a bootstrap over fewer
 fabrics can only resample those few, so an interval can come out far narrower than the
 uncertainty: over 4 fabrics one cell read 0.019 [0.00, 0.04] with chance at 0.250."""

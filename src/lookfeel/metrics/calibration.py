@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import minimize_scalar
 
 from lookfeel.metrics._ranking import prepare
 
@@ -190,6 +189,8 @@ def fit_temperature(
             stacklevel=2,
         )
         return float(np.exp(grid[i]))
+    from scipy.optimize import minimize_scalar  # here: `lookfeel match` never fits c
+
     res = minimize_scalar(
         nll, bounds=(grid[i - 1], grid[i + 1]), method="bounded", options={"xatol": 1e-6}
     )

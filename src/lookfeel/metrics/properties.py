@@ -22,9 +22,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import spearmanr
-from sklearn.linear_model import RidgeCV
-from sklearn.neighbors import KNeighborsRegressor
+
+# scikit-learn and scipy.stats are imported where a probe is fitted or scored, not here:
+# `lookfeel match` imports this module (through `lookfeel.metrics` and the cross-modal map)
+# but fits nothing, and the two took 0.5 s of its start (tests/test_imports.py).
 
 __all__ = [
     "MIN_SPEARMAN",
@@ -86,6 +87,8 @@ def fit_ridge_multi(
     otherwise be blown up and dominate any test row where it moves. The penalty grid grows with
     the dimension, since the Gram matrix of D unit-variance columns does.
     """
+    from sklearn.linear_model import RidgeCV
+
     y = np.asarray(ytr, dtype=np.float64).reshape(len(ytr), -1)
     mu = xtr.mean(axis=0)
     scale = float(np.sqrt(((xtr - mu) ** 2).mean()))
@@ -166,6 +169,8 @@ class ProbeColumn:
                 1.0 - ((pred - truth) ** 2).sum() / ((truth - truth.mean()) ** 2).sum()
             )
             if np.ptp(pred) > 0:
+                from scipy.stats import spearmanr
+
                 out["spearman"] = float(spearmanr(pred, truth).statistic)
         return out
 
@@ -223,6 +228,8 @@ def probe_columns(
         pred = np.zeros(0)
         if n_tr >= 2 and n_te >= 1:
             if method == "knn":
+                from sklearn.neighbors import KNeighborsRegressor
+
                 used = float(knn_neighbours(k, n_tr))
                 knn = KNeighborsRegressor(n_neighbors=int(used))
                 knn.fit(xtr[tr], ytr[tr, j])

@@ -1,0 +1,118 @@
+"""The progress bars of ``match``, ``data check`` and ``embed`` (QA, session 56).
+
+On a large world the three were silent for long: ``match`` of 3,000 photos ~25 s, ``data check``
+of a 300-fabric world 48 s, ``embed`` 27 s. Each now shows a progress bar on stderr (tqdm, as
+``synth`` and training do), which ``--quiet`` turns off, and prints to stdout what it printed
+before: ``match`` a bar of the images embedded when they are more than one batch
+(`lookfeel.index.match.EMBED_BATCH`), ``data check`` one of the files decoded and one of the
+modalities scored for leaks, ``embed`` one of each modality's images decoded and one of its
+items embedded. The library's functions show none unless asked.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from lookfeel.cli import main
+from lookfeel.index import match as match_module
+
+from ._library import tiny_library
+
+
+def _bars(err: str) -> dict[str, int]:
+    """Each bar on stderr by name, with its total (from the line tqdm prints as it starts);
+    stderr must hold nothing else."""
+    said = [part for part in err.split("\r") if part.strip()]
+    assert all(re.match(r"[a-z ]+: +\d+%\|", part) for part in said), said
+    found = re.findall(r"\r([a-z ]+): +0%\|[^|]*\| 0/(\d+) ", err)
+    return {name: int(total) for name, total in found}
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tiny_library(tmp_path_factory, "progress", shard_size=64)
+
+
+def test_match_shows_its_progress_on_stderr_only(
+    run: tuple[Path, Path],
+    library: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+):
+    data, _ = run
+    depth = sorted(str(p) for p in (data / "depth").glob("*.png"))[:5]
+    argv = ["match", "--index", str(library), "--modality", "depth", "--top", "2", *depth]
+    monkeypatch.setattr(match_module, "EMBED_BATCH", 2)  # 5 images: 3 batches
+    assert main([*argv, "--quiet"]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.err == "" and quiet.out.count("Query depth (1 image") == 5
+    assert main(argv) == 0
+    shown = capsys.readouterr()
+    assert shown.out == quiet.out  # the answers, as before
+    assert _bars(shown.err) == {"match": 5}
+    assert main([*argv, "--json"]) == 0
+    shown = capsys.readouterr()
+    assert len(json.loads(shown.out)) == 5 and _bars(shown.err) == {"match": 5}
+    # One batch has no progress to show: as before, nothing on stderr.
+    monkeypatch.setattr(match_module, "EMBED_BATCH", 5)
+    assert main(argv) == 0
+    one = capsys.readouterr()
+    assert one.err == "" and one.out == quiet.out
+
+
+def test_a_matcher_shows_no_bar_unless_asked(
+    run: tuple[Path, Path], library: Path, monkeypatch: pytest.MonkeyPatch, capsys
+):
+    from lookfeel.index import Library, Matcher
+
+    data, _ = run
+    depth = sorted((data / "depth").glob("*.png"))[:3]
+    monkeypatch.setattr(match_module, "EMBED_BATCH", 1)
+    matcher = Matcher(Library.open(library))
+    plain = matcher.match_files(depth, "depth")
+    assert capsys.readouterr().err == ""
+    shown = matcher.match_files(depth, "depth", progress=True)
+    assert _bars(capsys.readouterr().err) == {"match": 3}
+    assert [r.fabrics for r in shown] == [r.fabrics for r in plain]
+
+
+def test_data_check_shows_the_files_decoded_and_the_leak_check(
+    tiny_dataset: Path, capsys: pytest.CaptureFixture[str]
+):
+    assert main(["data", "check", str(tiny_dataset), "--quiet"]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.err == ""
+    files = int(re.findall(r"(\d+) files decoded", quiet.out)[0])
+    assert main(["data", "check", str(tiny_dataset)]) == 0
+    shown = capsys.readouterr()
+    assert shown.out == quiet.out
+    assert _bars(shown.err) == {"check": files, "leakage": 3}  # depth, colour, touch
+    assert main(["data", "check", str(tiny_dataset), "--json", "--no-leakage"]) == 0
+    shown = capsys.readouterr()
+    assert json.loads(shown.out)["ok"] and _bars(shown.err) == {"check": files}
+
+
+def test_embed_shows_each_modality_decoded_and_embedded(
+    run: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    from lookfeel.evaluate import embed_checkpoint
+
+    data, ckpt = run
+    argv = ["embed", "--checkpoint", str(ckpt), "--data", str(data)]
+    assert main([*argv, "--out", str(tmp_path / "quiet.npz"), "--quiet"]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.err == ""
+    assert main([*argv, "--out", str(tmp_path / "e.npz")]) == 0
+    shown = capsys.readouterr()
+    assert shown.out == quiet.out.replace("quiet.npz", "e.npz")
+    counts = dict(re.findall(r"(depth|color|touch) (\d+)", shown.out.splitlines()[0]))
+    assert len(counts) == 3
+    want = {f"{step} {m}": int(n) for m, n in counts.items() for step in ("decode", "embed")}
+    assert _bars(shown.err) == want
+    # The library's function, outside `lookfeel embed`: no bar.
+    embed_checkpoint(ckpt, data)
+    assert capsys.readouterr().err == ""
