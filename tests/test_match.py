@@ -442,3 +442,34 @@ def test_a_grey_press_video_is_matched_with_one_warning_naming_it(matcher: Match
         f"{v['stored']} (and 1 other grey video): {grey}"
     ]
     assert grey_lines([v["colour"], v["dark"]]) == []
+
+
+def test_a_query_video_is_decoded_once_whether_grey_or_not(
+    matcher: Matcher, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Whether a press video is grey is known from the decoding that reads its press: asking
+    again decoded one more frame of a colour or one-channel video, and the whole of a grey one
+    stored as colour."""
+    import warnings
+    from collections import Counter
+
+    pytest.importorskip("av")
+    from lookfeel.data import video
+
+    v = _press_videos(tmp_path)
+    decoded: Counter[str] = Counter()  # frames decoded, by file
+    real = video._decode
+
+    def counting(path, *args, **kwargs):
+        for frame in real(path, *args, **kwargs):
+            decoded[Path(path).name] += 1
+            yield frame
+
+    monkeypatch.setattr(video, "_decode", counting)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        matcher.match_files([v["colour"], v["grey"], v["stored"]], Modality.TOUCH, top=2)
+    assert [str(w.message) for w in said if "no colour" in str(w.message)] == [
+        f"{v['grey']} (and 1 other grey video): {match_module.GREY_VIDEO}"
+    ]
+    assert decoded == {"colour.mov": 14, "grey.mkv": 14, "stored.mov": 14}  # each frame once

@@ -507,3 +507,44 @@ def test_a_grey_press_video_is_answered_with_one_warning_naming_it(
     [answer] = json.loads(out.out)
     assert answer["path"] == str(grey) and answer["error"] is None and answer["properties"]
     assert f"lookfeel: warning: {grey}: {GREY}" in out.err.splitlines()
+
+
+def test_a_query_video_is_decoded_once_whether_grey_or_not(
+    heads: LoadedModel, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Whether a press video is grey is known from the decoding that reads its press: asking
+    again decoded one more frame of a colour or one-channel video, and the whole of a grey one
+    stored as colour."""
+    import warnings
+    from collections import Counter
+
+    import numpy as np
+
+    pytest.importorskip("av")
+    from lookfeel.data import video
+
+    from ._video import PRESS, object_press, write_video
+
+    frames = object_press(1, PRESS, t=14)
+    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
+    colour = write_video(tmp_path / "colour.mov", frames)
+    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")
+    stored = write_video(tmp_path / "stored.mov", equal)
+    decoded: Counter[str] = Counter()  # frames decoded, by file
+    real = video._decode
+
+    def counting(path, *args, **kwargs):
+        for frame in real(path, *args, **kwargs):
+            decoded[Path(path).name] += 1
+            yield frame
+
+    monkeypatch.setattr(video, "_decode", counting)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        answers = predict_files(heads, [colour, grey, stored], "touch")
+    assert all(a.properties for a in answers)
+    assert [str(w.message) for w in said if "no colour" in str(w.message)] == [
+        f"{grey}: {GREY}",
+        f"{stored}: {GREY}",
+    ]
+    assert decoded == {"colour.mov": 14, "grey.mkv": 14, "stored.mov": 14}  # each frame once

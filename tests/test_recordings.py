@@ -971,6 +971,18 @@ def test_a_grey_press_is_answered_by_a_colour_trained_model_with_one_warning(
         assert "no colour" not in capsys.readouterr().err, argv
 
 
+def test_a_checkpoint_records_that_its_presses_had_colour(video_model: tuple[Path, Path]):
+    """Whether the training presses were grey is recorded as the run read them (no video is
+    decoded again: `test_a_training_run_decodes_each_press_video_once`), and kept when the
+    ensemble's members are merged; a grey query is then warned of as above."""
+    from lookfeel.checkpoint import load_model
+
+    ck, _ = video_model
+    loaded = load_model(ck)
+    assert loaded.grey_presses == {"videos": 18, "grey": 0}  # foam_3 (no press) left out
+    assert loaded.trained_on_grey is False
+
+
 def test_a_library_of_named_objects_names_them_and_their_words(
     recordings: Path,
     video_model: tuple[Path, Path],

@@ -489,3 +489,45 @@ def test_the_listening_socket_is_tcp_without_nagles_delay():
             client.close()
     finally:
         sock.close()
+
+
+def test_an_uploaded_press_video_is_decoded_once_whether_grey_or_not(
+    server, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Whether an upload is a grey press video is known from the decoding that reads its
+    press: asking again decoded one more frame of a colour or one-channel video, and the whole
+    of a grey one stored as colour."""
+    pytest.importorskip("av")
+    from collections import Counter
+
+    from lookfeel.data import video
+    from lookfeel.index.match import GREY_VIDEO
+
+    from ._video import PRESS, object_press, write_video
+
+    _, matcher = server
+    frames = object_press(1, PRESS, t=14)
+    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
+    colour = write_video(tmp_path / "colour.mov", frames)
+    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")
+    stored = write_video(tmp_path / "stored.mp4", equal)
+    decoded: Counter[str] = Counter()  # frames decoded, by the suffix of the upload's copy
+    real = video._decode
+
+    def counting(path, *args, **kwargs):
+        for frame in real(path, *args, **kwargs):
+            decoded[Path(path).suffix] += 1
+            yield frame
+
+    monkeypatch.setattr(video, "_decode", counting)
+    with background_server(create_app(matcher.library, ServeConfig(), matcher)) as url:
+        for p in (colour, grey, stored):
+            r = httpx.post(
+                url + "/api/match",
+                data={"modality": "touch", "top": "2"},
+                files=[("files", (p.name, p.read_bytes(), "video/mp4"))],
+            )
+            assert r.status_code == 200, r.text
+            greys = [w for w in r.json()["warnings"] if GREY_VIDEO in w]
+            assert greys == ([] if p == colour else [f"{p.name}: {GREY_VIDEO}"])
+    assert decoded == {".mov": 14, ".mkv": 14, ".mp4": 14}  # each frame once

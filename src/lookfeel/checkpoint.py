@@ -13,7 +13,11 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     its training items, `lookfeel.index.query.shape_record`, for a query turned against them
     to be warned of; none for a modality whose items come in more than one orientation;
     absent before session 51), software (the lookfeel, torch and Python versions that wrote
-    it, `lookfeel.provenance.software_versions`; absent before session 53)
+    it, `lookfeel.provenance.software_versions`; absent before session 53), grey_presses (of
+    the press videos the touch branch was trained on, how many (``videos``) and how many had
+    no colour (``grey``, `lookfeel.data.video.Press.grey`), for a query of the other kind to
+    be warned of; none for a model trained on frame images, or on videos read from a disk
+    cache written before the flag was kept; absent before session 56)
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ __all__ = [
     "TOUCH_VIDEOS",
     "CheckpointError",
     "LoadedModel",
+    "grey_presses_of",
     "init_from_checkpoint",
     "load_model",
     "non_finite_tensors",
@@ -77,6 +82,18 @@ def touch_input_of(paths: Iterable[str | os.PathLike[str]]) -> str | None:
     if kinds == {True}:
         return TOUCH_VIDEOS
     return TOUCH_FRAMES if kinds == {False} else TOUCH_BOTH
+
+
+def grey_presses_of(grey: Iterable[bool | None]) -> dict[str, int] | None:
+    """The ``grey_presses`` record of the press videos a touch branch was trained on, from
+    whether each had no colour as training read it (`lookfeel.data.images.ImageLoader.is_grey`):
+    how many videos and how many grey. None for no video, or where one is not known (its image
+    read from a disk cache entry written before the flag was kept: no video is decoded again
+    to ask)."""
+    flags = list(grey)
+    if not flags or None in flags:
+        return None
+    return {"videos": len(flags), "grey": sum(1 for g in flags if g)}
 
 
 class CheckpointError(LookfeelError):
@@ -170,6 +187,20 @@ class LoadedModel:
     them to be warned of (`lookfeel.index.query.warn_orientation`). Empty in checkpoints from
     before session 51, whose queries are then not checked; a modality whose items came in
     more than one orientation has none."""
+    grey_presses: dict[str, int] | None = None
+    """Of the press videos the touch branch was trained on, how many (``videos``) and how many
+    had no colour (``grey``: `lookfeel.data.video.Press.grey`): `trained_on_grey`. None for a
+    model trained on frame images, without a touch branch, or from before session 56."""
+
+    @property
+    def trained_on_grey(self) -> bool | None:
+        """Whether most of the press videos the model was trained on had no colour (grey):
+        ``predict`` and ``match`` then warn of a colour query video, else of a grey one
+        (`lookfeel.index.match.warn_grey_videos`). None where `grey_presses` is not recorded:
+        every grey query video is warned of, as before the record."""
+        if self.grey_presses is None:
+            return None
+        return 2 * self.grey_presses["grey"] > self.grey_presses["videos"]
 
 
 def non_finite_tensors(tensors: Mapping[str, Any]) -> list[str]:
@@ -320,7 +351,20 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         software={str(k): str(v) for k, v in (state.get("software") or {}).items()},
         chosen_by=str(state["chosen_by"]) if state.get("chosen_by") is not None else None,
         shapes=_shapes(state.get("shapes")),
+        grey_presses=_grey_presses(state.get("grey_presses")),
     )
+
+
+def _grey_presses(value: object) -> dict[str, int] | None:
+    """The checkpoint's ``grey_presses`` record (None when absent). One this version cannot
+    read (a newer lookfeel's, or counts that do not add up) is left out: queries are then
+    warned of as without it."""
+    if not isinstance(value, Mapping):
+        return None
+    videos, grey = value.get("videos"), value.get("grey")
+    if type(videos) is not int or type(grey) is not int or not 0 <= grey <= videos or not videos:
+        return None
+    return {"videos": videos, "grey": grey}
 
 
 def _shapes(value: object) -> dict[Modality, dict[str, Any]]:

@@ -19,7 +19,9 @@ trained on is answered with one warning (`lookfeel.index.query.warn_orientation`
 stretched unlike them and most likely turned. A checkpoint from before the record
 (`lookfeel.checkpoint.LoadedModel.shapes`) is not checked. A press video with no colour (grey)
 is answered with one warning naming it (`lookfeel.index.match.warn_grey_videos`): the model
-reads a press's colours, and one trained on colour presses reads a grey one unlike them.
+reads a press's colours, and one trained on colour presses reads a grey one unlike them. A
+model whose checkpoint says it was trained on grey presses (`lookfeel.checkpoint.LoadedModel.
+trained_on_grey`) is warned of a colour press video instead.
 """
 
 from __future__ import annotations
@@ -222,7 +224,8 @@ def predict_files(
         the pooled query with a warning (as a run leaves it out), and the query is answered
         from the others (its ``paths``); a file that cannot be read is the pooled query's
         ``error``, which names it. A press video with no colour (grey) is answered with a
-        warning naming it (`lookfeel.index.match.warn_grey_videos`).
+        warning naming it (`lookfeel.index.match.warn_grey_videos`); by a model trained on
+        grey presses, a colour one instead.
 
     Raises:
         PredictError: the model has no heads, lacks the modality, the files mix modalities, or
@@ -286,14 +289,15 @@ def predict_files(
     # Not a decorator: a warning above names the caller's line, not torch's wrapper.
     with torch.inference_mode(), eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
+            grey: dict[Path, bool] = {}  # of each press video, as reading it found
             try:
-                images, group = load_query_files(group, m, data)
+                images, group = load_query_files(group, m, data, on_video=grey.__setitem__)
             except ImageError as e:  # this input only: undecodable, unreadable, or no press
                 error = _input_error(e, group)
                 out.append(Prediction(str(group[0]), [str(p) for p in group], m.value, {}, error))
                 continue
             if m is Modality.TOUCH:
-                warn_grey_videos(group)  # answered all the same
+                warn_grey_videos(group, grey, loaded.trained_on_grey)  # answered all the same
             x = query_batch(images, m).to(device)
             outputs = model({m.value: x}, heads=True)
             out.append(

@@ -23,7 +23,9 @@ are refused by `lookfeel.data.layout.scan`, which knows the folder.)
 `ImageLoader` keeps every preprocessed image in memory (as uint8 for RGB, float32 for depth)
 and, with ``cache_dir``, on disk keyed by the file's content and the preprocessing settings
 (`PreprocessSettings`: among them a press video's turn and the press detector's version,
-`lookfeel.data.video.PRESS_DETECTOR_VERSION`).
+`lookfeel.data.video.PRESS_DETECTOR_VERSION`). Of a press video it also keeps whether it had
+no colour (`ImageLoader.is_grey`, `lookfeel.data.video.Press.grey`), in memory and beside its
+disk cache entry (``<entry>.json``), so that nothing decodes the video again to ask.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ import numpy as np
 import torch
 from PIL import Image, ImageFile
 
-from lookfeel.atomic import atomic_write
+from lookfeel.atomic import atomic_write, atomic_write_text
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Item
 from lookfeel.data.files import DEFAULT_MAX_PIXELS, ImageError, file_kind, read_image_file
@@ -523,6 +525,7 @@ class ImageLoader:
         self._views: dict[Path, np.ndarray] = {}
         self._embedded: dict[Path, np.ndarray] = {}
         self._bad_videos: dict[Path, VideoError] = {}
+        self._grey: dict[Path, bool] = {}  # `is_grey`: of each press video read
         self._stacks: dict[Path, tuple[Path, ...]] = {}
         self._said_short = False  # `frame_path` warns once of presses with too few frames
         """Press frames stacked as one input (``data.touch_frames``), by `frame_path`."""
@@ -613,22 +616,59 @@ class ImageLoader:
         key = b"".join(hashlib.sha1(b).digest() for b in blobs)
         return self._cached(key, "touch", build)
 
-    def _cached(self, data: bytes, suffix: str, build: Callable[[], np.ndarray]) -> np.ndarray:
+    def _cached(
+        self,
+        data: bytes,
+        suffix: str,
+        build: Callable[[], np.ndarray],
+        video: Path | None = None,
+    ) -> np.ndarray:
         """``build()``, or its copy in the disk cache under the file's content hash and
-        ``suffix`` (written atomically after a build; a damaged entry is rebuilt)."""
+        ``suffix`` (written atomically after a build; a damaged entry is rebuilt).
+
+        With ``video`` (the press video the entry is made from), whether it had no colour
+        (`is_grey`, which ``build`` notes) is kept beside the entry, ``{"grey": true}`` in
+        ``<entry>.json`` (written first), and read back with it. An entry without one (written
+        before it was kept) leaves `is_grey` unknown."""
         if self.cache_dir is None:
             return build()
-        disk = self.cache_dir / f"{hashlib.sha1(data).hexdigest()}_{suffix}.npy"
+        stem = f"{hashlib.sha1(data).hexdigest()}_{suffix}"
+        disk, facts = self.cache_dir / f"{stem}.npy", self.cache_dir / f"{stem}.json"
         if disk.exists():
             try:
-                return np.load(disk, allow_pickle=False)
+                a = np.load(disk, allow_pickle=False)
             except (OSError, ValueError):
                 pass  # rebuilt below
+            else:
+                if video is not None:
+                    self._read_grey(video, facts)
+                return a
         a = build()
+        grey = None if video is None else self._grey.get(video)
+        if grey is not None:
+            atomic_write_text(facts, json.dumps({"grey": grey}) + "\n")
         buf = io.BytesIO()
         np.save(buf, a, allow_pickle=False)
         atomic_write(disk, lambda f: f.write(buf.getvalue()))
         return a
+
+    def _read_grey(self, video: Path, facts: Path) -> None:
+        """Note `is_grey` of ``video`` from a disk cache entry's ``facts`` file; a missing or
+        unreadable one leaves it unknown."""
+        try:
+            grey = json.loads(facts.read_text()).get("grey")
+        except (OSError, ValueError, AttributeError):
+            return
+        if isinstance(grey, bool):
+            with self._lock:
+                self._grey.setdefault(video, grey)
+
+    def is_grey(self, path: Path) -> bool | None:
+        """Whether the press video ``path`` had no colour (`lookfeel.data.video.Press.grey`) as
+        this loader read it, or read its image from the disk cache: None for a file it has not
+        read, one that is not a press video, or one read from a cache entry written before the
+        flag was kept (`lookfeel.data.video.is_grey_video` decodes it to say)."""
+        return self._grey.get(path)
 
     def _preprocess_file(self, path: Path, modality: Modality) -> np.ndarray:
         if modality is Modality.TOUCH and self.config.stacks_touch_frames:
@@ -641,14 +681,16 @@ class ImageLoader:
             return self._read_wall_gaps(path)[0]
         data = read_image_file(path)
 
+        video = modality is Modality.TOUCH and is_video(path)
+
         def build() -> np.ndarray:
             if modality is Modality.DEPTH:
                 return _preprocess_depth_file(path, decode_depth(path, data), self.config)
-            if modality is Modality.TOUCH and is_video(path):
+            if video:
                 return preprocess_rgb(self._video_image(path, data), modality, self.config)
             return preprocess_rgb(open_rgb(path, data), modality, self.config)
 
-        return self._cached(data, modality.value, build)
+        return self._cached(data, modality.value, build, path if video else None)
 
     def _video_image(self, path: Path, data: bytes) -> np.ndarray:
         """The image of a press video the config asks for, as (H, W, 3) uint8: one frame, or
@@ -663,6 +705,8 @@ class ImageLoader:
             gain=c.video_gain,
             rotate=c.video_rotate,
         )
+        with self._lock:
+            self._grey[path] = press.grey
         if len(press.images) == 1:
             return press.images[0]
         return np.rint(press.images.astype(np.float32).mean(axis=0)).astype(np.uint8)
@@ -826,6 +870,8 @@ class ImageLoader:
                     gain=c.video_gain,
                     rotate=c.video_rotate,
                 )
+                with self._lock:
+                    self._grey[path] = press.grey
                 ims = np.stack([preprocess_rgb(im, Modality.TOUCH, c) for im in press.images])
                 built["embed"] = built["train"] = ims
                 if pools:
@@ -835,10 +881,12 @@ class ImageLoader:
             return built[key]
 
         train = self._cached(
-            data, f"views{c.video_views}_{c.video_views_min:g}", lambda: read("train")
+            data, f"views{c.video_views}_{c.video_views_min:g}", lambda: read("train"), path
         )
         embed = (
-            self._cached(data, f"embed{c.video_views}", lambda: read("embed")) if pools else None
+            self._cached(data, f"embed{c.video_views}", lambda: read("embed"), path)
+            if pools
+            else None
         )
         with self._lock:
             self._views[path] = train
@@ -910,7 +958,8 @@ class ImageLoader:
 
     def take(self, path: Path) -> dict[str, np.ndarray]:
         """Remove and return everything held in memory for ``path``, by store (a decoding
-        worker's result; `adopt` puts it into another loader)."""
+        worker's result; `adopt` puts it into another loader), and, of a press video, its
+        `is_grey` as ``grey`` (a 0-d bool array)."""
         with self._lock:
             out = {}
             for key, kept in (
@@ -921,6 +970,9 @@ class ImageLoader:
                 a = kept.pop(path, None)
                 if a is not None:
                     out[key] = a
+            grey = self._grey.pop(path, None)
+            if grey is not None:
+                out["grey"] = np.array(grey)
             return out
 
     def adopt(self, path: Path, entries: dict[str, np.ndarray]) -> None:
@@ -933,6 +985,8 @@ class ImageLoader:
             ):
                 if key in entries:
                     kept.setdefault(path, entries[key])
+            if "grey" in entries:
+                self._grey.setdefault(path, bool(entries["grey"]))
 
     def _uses_processes(self, files: int, workers: int) -> bool:
         """Whether `preload` decodes ``files`` files in worker processes (``data.decode``)."""

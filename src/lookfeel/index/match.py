@@ -31,7 +31,9 @@ A query turned against the library's items of its modality (a portrait press amo
 ones: `lookfeel.index.query.warn_orientation`) is matched with one warning, naming the file and
 both orientations; the library records its items' shape when built (`Matcher.shape`; a library
 built before that is not checked). A press video with no colour (grey: `warn_grey_videos`) is
-matched with one warning naming it: the model reads a press's colours.
+matched with one warning naming it: the model reads a press's colours. A model whose checkpoint
+records that it was trained on grey presses (`lookfeel.checkpoint.LoadedModel.trained_on_grey`)
+is warned of a colour press video instead, and of no grey one.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -73,6 +75,7 @@ from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "COLOUR_VIDEO",
     "EMBED_BATCH",
     "GREY_VIDEO",
     "FabricMatch",
@@ -85,6 +88,7 @@ __all__ = [
     "class_value",
     "format_match",
     "grey_line",
+    "press_colour_line",
     "press_kind",
     "stacked_frames_refused",
     "warn_grey_videos",
@@ -179,15 +183,57 @@ GREY_VIDEO = (
 """What `warn_grey_videos` says of a grey press video, after its name."""
 
 
-def warn_grey_videos(paths: Sequence[str | Path]) -> None:
-    """Warn once, in one line, where touch query files are press videos with no colour
-    (`is_grey_video`), naming the first and counting the rest (`GREY_VIDEO`): a GelSight's or
-    DIGIT's colours carry the surface's slopes, and a grey video gives the same value in each
-    channel, which a model trained on colour presses never saw. Checkpoints do not record the
-    colour of their training presses, so every grey video is said to be one."""
-    line = grey_line([p for p in paths if _is_video(Path(p)) and is_grey_video(p)])
+COLOUR_VIDEO = (
+    "the video has colour; the model was trained on grey presses (no colour), and reads a "
+    "colour one unlike them"
+)
+"""What `warn_grey_videos` says of a colour press video for a model trained on grey presses,
+after its name."""
+
+
+def warn_grey_videos(
+    paths: Sequence[str | Path],
+    grey: Mapping[Path, bool] | None = None,
+    trained_on_grey: bool | None = None,
+) -> None:
+    """Warn once, in one line, where touch query files are press videos with no colour,
+    naming the first and counting the rest (`GREY_VIDEO`): a GelSight's or DIGIT's colours
+    carry the surface's slopes, and a grey video gives the same value in each channel, which
+    a model trained on colour presses never saw. For a model trained on grey presses
+    (``trained_on_grey``: `lookfeel.checkpoint.LoadedModel.trained_on_grey`) the colour ones
+    are warned of instead (`COLOUR_VIDEO`); where its checkpoint does not say (None), every
+    grey video is, as before the record.
+
+    Args:
+        paths: the query's files (those that are not videos are passed over).
+        grey: whether each video has no colour, as reading it found (`load_query_files`'s
+            ``on_video``); a video it lacks is decoded again to ask (`is_grey_video`).
+        trained_on_grey: what the model was trained on (None: not recorded).
+    """
+    known = grey or {}
+    videos = [Path(p) for p in paths if _is_video(Path(p))]
+    line = press_colour_line(
+        [(p, known[p] if p in known else is_grey_video(p)) for p in videos], trained_on_grey
+    )
     if line is not None:
         warnings.warn(line, stacklevel=caller_stacklevel())
+
+
+def press_colour_line(
+    videos: Sequence[tuple[str | Path, bool]], trained_on_grey: bool | None
+) -> str | None:
+    """The one line said of a query's press videos (each with whether it has no colour) for
+    a model trained on grey presses or not (`warn_grey_videos`, and ``serve``'s note): of a
+    model trained on colour presses, or not recorded, the grey ones (`grey_line`); of one
+    trained on grey presses, the colour ones (`COLOUR_VIDEO`); None when none is."""
+    if not trained_on_grey:
+        return grey_line([p for p, g in videos if g])
+    colour = [p for p, g in videos if not g]
+    if not colour:
+        return None
+    n = len(colour) - 1
+    also = f" (and {n} other colour video{'s' if n > 1 else ''})" if n else ""
+    return f"{colour[0]}{also}: {COLOUR_VIDEO}"
 
 
 def grey_line(grey: Sequence[str | Path]) -> str | None:
@@ -353,6 +399,10 @@ class Matcher:
         self.touch_input = loaded.touch_input
         """What the model's touch branch was trained on (`LoadedModel.touch_input`): a touch
         query must suit it (`lookfeel.index.query.check_touch_query`)."""
+        self.trained_on_grey = loaded.trained_on_grey
+        """Whether the model was trained on grey press videos (`LoadedModel.trained_on_grey`;
+        None: not recorded): which press videos of a query are warned of
+        (`warn_grey_videos`)."""
         self._against: dict[Pair, Callable[[NDArray[np.floating]], NDArray[np.float64]]] = {}
         self._scales: dict[str, float] = {}  # per numeric column, its largest |label|
         for record in library.fabrics.values():
@@ -419,9 +469,12 @@ class Matcher:
         every one, is an error."""
         modality = self.check_modality(modality)
         paths = self._check(paths, modality)
-        images, used = load_query_files(paths, modality, self.data_config)
-        if modality is Modality.TOUCH:
-            warn_grey_videos(used)  # of the presses read: one left out has its own warning
+        grey: dict[Path, bool] = {}
+        images, used = load_query_files(
+            paths, modality, self.data_config, on_video=grey.__setitem__
+        )
+        if modality is Modality.TOUCH:  # of the presses read: one left out has its own warning
+            warn_grey_videos(used, grey, self.trained_on_grey)
         return query_batch(images, modality), used
 
     def _check(self, paths: QueryFiles, modality: Modality) -> list[Path]:

@@ -250,6 +250,8 @@ def load_query_image(
     modality: Modality | str,
     config: DataConfig,
     max_pixels: int = DEFAULT_MAX_PIXELS,
+    *,
+    on_video: Callable[[Path, bool], None] | None = None,
 ) -> torch.Tensor:
     """Decode and preprocess one query image of ``modality`` (a `Modality` or its name,
     ``"color"``) as training does.
@@ -259,6 +261,10 @@ def load_query_image(
     query suits what the model was trained on is the caller's to check first, for every file
     of a query before any is decoded (`check_touch_query`, as `lookfeel.predict.predict_files`
     and `lookfeel.index.Matcher.load` do).
+
+    ``on_video``, where given, is called once a touch press video is read, with its path and
+    whether it has no colour (`lookfeel.data.video.Press.grey`, as the read found it: the video
+    is not decoded again to ask).
 
     Returns:
         Float32 in [0, 1], S the side the model was trained on (``config.size_of(modality)``):
@@ -283,15 +289,33 @@ def load_query_image(
     if modality is Modality.TOUCH and path.suffix.lower() in VIDEO_SUFFIXES:
         # A press recorded as a video: its frame(s) chosen and preprocessed as in training
         # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
-        return to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, modality))
+        return _read_video(path, config, on_video)
     data = read_image_file(path)
     if sniff_type(data[:16]) is None:  # as `lookfeel serve` refuses an upload (415)
         raise ImageError(path, _not_a_query_image(data[:16]))
     return _preprocess(path, data, modality, config, max_pixels)
 
 
+def _read_video(
+    path: Path, config: DataConfig, on_video: Callable[[Path, bool], None] | None
+) -> torch.Tensor:
+    """A press video's `load_query_image`; then ``on_video(path, grey)``, ``grey`` as its one
+    decoding found (`ImageLoader.is_grey`), or, read from a disk cache entry that does not say
+    (``data.cache_dir``, written before it was kept), as `is_grey_video` finds."""
+    loader = ImageLoader(config, cache_dir=None)
+    x = to_tensor(loader.embed_file(path, Modality.TOUCH))
+    if on_video is not None:
+        grey = loader.is_grey(path)
+        on_video(path, is_grey_video(path) if grey is None else grey)
+    return x
+
+
 def load_query_files(
-    paths: QueryFiles, modality: Modality | str, config: DataConfig
+    paths: QueryFiles,
+    modality: Modality | str,
+    config: DataConfig,
+    *,
+    on_video: Callable[[Path, bool], None] | None = None,
 ) -> tuple[list[torch.Tensor], list[Path]]:
     """`load_query_image` of each file of one query (a single path is one file:
     `query_paths`), and the files read: of several, a press video without a press is left out
@@ -309,7 +333,7 @@ def load_query_files(
     failed: list[NoPressError] = []
     for p in query_paths(paths):
         try:
-            images.append(load_query_image(p, modality, config))
+            images.append(load_query_image(p, modality, config, on_video=on_video))
             used.append(Path(p))
         except NoPressError as e:
             failed.append(e)
@@ -329,7 +353,7 @@ def load_query_bytes(
     *,
     trained_on: str | None = None,
     warn: Callable[[str], None] | None = None,
-    on_grey: Callable[[str], None] | None = None,
+    on_video: Callable[[str, bool], None] | None = None,
 ) -> torch.Tensor:
     """`load_query_image` for an upload, decoded from memory: errors name ``name`` (the
     client's file name) and nothing of the server's disk. A touch upload is a video by its
@@ -340,11 +364,11 @@ def load_query_bytes(
         warn: where a warning about the upload goes (`check_touch_query`'s), one line each;
             default `warnings.warn`. ``lookfeel serve`` passes a list's ``append`` to answer
             them to the client.
-        on_grey: called with ``name`` when the upload is a press video with no colour
-            (`lookfeel.data.video.is_grey_video`), once it has been read: a model reads a
-            press's colours. ``lookfeel serve`` says so in one line, as ``lookfeel match``
-            warns (`lookfeel.index.match.GREY_VIDEO`). Checking costs one more decoded frame
-            of a colour video, and a second decoding of a grey one. Default: not checked.
+        on_video: called, once an upload that is a press video has been read, with ``name``
+            and whether it has no colour (`lookfeel.data.video.Press.grey`, as that one
+            decoding found: nothing is decoded again to ask): a model reads a press's colours.
+            ``lookfeel serve`` says so in one line, as ``lookfeel match`` warns
+            (`lookfeel.index.match.press_colour_line`). Default: not asked.
 
     Raises:
         ImageError: as `load_query_image`, naming ``name``.
@@ -361,28 +385,26 @@ def load_query_bytes(
     if modality is Modality.TOUCH:
         check_touch_query(name, sniff_video(data[:16]), trained_on, config, warn)
     if modality is Modality.TOUCH and sniff_video(data[:16]):
-        return _video_bytes(data, name, config, on_grey)
+        return _video_bytes(data, name, config, on_video)
     return _preprocess(Path(name), data, modality, config, max_pixels)
 
 
 def _video_bytes(
-    data: bytes, name: str, config: DataConfig, on_grey: Callable[[str], None] | None = None
+    data: bytes, name: str, config: DataConfig, on_video: Callable[[str, bool], None] | None = None
 ) -> torch.Tensor:
     """An uploaded press video: FFmpeg reads files, so it is written to a private temporary
     folder (removed at once) and read as `load_query_image` reads one; errors name ``name``.
-    Once it is read, ``on_grey(name)`` is called if it has no colour (`is_grey_video`)."""
+    Once it is read, ``on_video(name, grey)`` is called (`load_query_image`'s ``on_video``)."""
     suffix = Path(name).suffix.lower()
     with tempfile.TemporaryDirectory(prefix="lookfeel-query-") as tmp:
         path = Path(tmp) / ("query" + (suffix if suffix in VIDEO_SUFFIXES else ".mov"))
         path.write_bytes(data)
+        # Said after reading: a video that cannot be read, or holds no press, gets its error.
+        named = None if on_video is None else (lambda _, grey: on_video(name, grey))
         try:
-            x = to_tensor(ImageLoader(config, cache_dir=None).embed_file(path, Modality.TOUCH))
+            return _read_video(path, config, named)
         except ImageError as e:
             raise ImageError(Path(name), e.reason) from None
-        # After reading: a video that cannot be read, or holds no press, gets its own error.
-        if on_grey is not None and is_grey_video(path):
-            on_grey(name)
-        return x
 
 
 def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> torch.Tensor:

@@ -13,7 +13,8 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
 - ``POST /api/match``: multipart upload, ``modality`` and one or more ``files`` (several touch
   files are the presses of one query, pooled as the Multi-input Net; of several, a press video
   without a press is left out, as ``lookfeel match`` leaves it out, and ``warnings`` says so;
-  it says too, in one line, which press videos have no colour: `lookfeel.index.match.grey_line`).
+  it says too, in one line, which press videos have no colour, or, for a model trained on grey
+  presses, which have colour: `lookfeel.index.match.press_colour_line`).
 - ``POST /api/match/item``: match a library item as a query (itself left out).
 
 Uploads are limited in size and number and must be PNG or JPEG by content; an image declaring
@@ -72,7 +73,7 @@ from lookfeel.index import (
     query_batch,
     sniff_type,
 )
-from lookfeel.index.match import grey_line, warn_press_kinds
+from lookfeel.index.match import press_colour_line, warn_press_kinds
 from lookfeel.index.query import VIDEOS_ARE_TOUCH, bytes_frame_size, orientation_note
 from lookfeel.modality import Modality
 from lookfeel.serve.reload import Served, ServedLibrary
@@ -397,7 +398,8 @@ class MatchResponse(BaseModel):
         "files, a press video without a press, left out (its result's `query` lists the files "
         "used); a press video given to a model trained on still frames; a press of a kind the "
         "model was not trained on (by its name, F0007_flat_1000.mp4); press videos with no "
-        "colour (grey), in one line naming the first",
+        "colour (grey), or with colour for a model trained on grey presses, in one line "
+        "naming the first",
     )
 
 
@@ -804,7 +806,7 @@ def create_app(
             # `notes`, this request's own list (`warnings.catch_warnings` is process-wide, not
             # safe in the server's threads), and answered in `warnings`.
             notes: list[str] = []
-            greys: list[str] = []  # of the presses read, as `lookfeel match` checks them
+            videos: list[tuple[str, bool]] = []  # of the presses read: as `lookfeel match`
             if modality is Modality.TOUCH and not match.data_config.stacks_touch_frames:
                 warn_press_kinds(
                     [n for n, _ in blobs], match.data_config, "the library's model", notes.append
@@ -830,7 +832,7 @@ def create_app(
                             cfg.max_pixels,
                             trained_on=match.touch_input,
                             warn=notes.append,
-                            on_grey=greys.append,
+                            on_video=lambda name, grey: videos.append((name, grey)),
                         )
                     )
                     names.append(n)
@@ -840,9 +842,9 @@ def create_app(
                     missed.append(e)
             if not images:
                 raise missed[0]
-            grey = grey_line(greys)
-            if grey is not None:
-                notes.append(grey)
+            colour = press_colour_line(videos, match.trained_on_grey)
+            if colour is not None:
+                notes.append(colour)
             x = query_batch(images, modality)
             emb = match.embed(x, modality)
             groups = [names] if modality is Modality.TOUCH else [[n] for n in names]

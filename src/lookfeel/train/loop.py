@@ -43,6 +43,7 @@ from torch import Tensor
 
 from lookfeel.atomic import atomic_write_text, check_writable, remove_stale_temps
 from lookfeel.checkpoint import (
+    grey_presses_of,
     init_from_checkpoint,
     non_finite_tensors,
     read_checkpoint,
@@ -68,6 +69,7 @@ from lookfeel.data import (
 from lookfeel.data.labels import MAX_RANK, is_rank
 from lookfeel.data.problems import Problem
 from lookfeel.data.recordings import drop_unpressed
+from lookfeel.data.video import is_video
 from lookfeel.embedding import EmbeddingError
 from lookfeel.index.query import shape_record
 from lookfeel.locks import exclusive
@@ -1178,6 +1180,7 @@ def _train_members(
             "plugins",
             "rank_columns",
             "shapes",
+            "grey_presses",
         )
         save_checkpoint(
             last,
@@ -1393,6 +1396,14 @@ def _train(
         if (shape := shape_record(paths, m, config.data)) is not None:
             shapes[m.value] = shape
 
+    # Whether the training press videos were grey (no colour), as the loader read them above
+    # (nothing is decoded again): `predict` and `match` warn of a query video of the other kind.
+    grey_presses = None
+    if Modality.TOUCH in modalities:
+        presses = train_cat.items(Modality.TOUCH, config.data.touch_kinds)
+        videos = dict.fromkeys(p for p in map(loader.frame_path, presses) if is_video(p))
+        grey_presses = grey_presses_of(loader.is_grey(p) for p in videos)
+
     # The ranks each column of ranks holds (hardness 0/1/2): `predict` reads the property
     # head's number for one as the nearest rank.
     rank_columns = {
@@ -1420,6 +1431,7 @@ def _train(
             },
             "rank_columns": rank_columns,
             "shapes": shapes,
+            "grey_presses": grey_presses,
             "split": split_info,
             "model": model.state_dict(),
             "optimizer": optimizer.state_dict(),
