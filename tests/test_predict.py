@@ -155,7 +155,6 @@ def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
     query's error (as any input that cannot be read)."""
     from PIL import Image
 
-    from lookfeel.data import ImageError
 
     data, _ = run
     photo = Image.open(data / "color/F0003_2.png")
@@ -164,9 +163,9 @@ def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
         [answer] = predict_files(heads, tmp_path / name, "color")
         assert answer.properties == {} and answer.error is not None
         assert re.match(rf".*{name}: is a {kind} image, not a PNG or JPEG", answer.error)
-    folder = r"touch: is a folder, not a press: give a press's video or its frame files$"
-    with pytest.raises(ImageError, match=folder):
-        predict_files(heads, data / "touch", "touch")
+    folder = r".*touch: is a folder, not a press: give a press's video or its frame files$"
+    [answer] = predict_files(heads, data / "touch", "touch")  # its own query's error, as any
+    assert answer.properties == {} and re.match(folder, answer.error or "")
 
 
 def test_a_still_frame_model_warns_of_a_press_video(run, heads: LoadedModel, tmp_path: Path):
@@ -224,14 +223,12 @@ def test_a_frames_stacking_model_refuses_a_press_video_saying_what_to_give(
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no warning before the error
         warnings.filterwarnings("ignore", ".*probabilities are as trained, not calibrated")
-        for call in (
-            lambda: matcher.match_files(str(video), "touch"),
-            lambda: predict_files(loaded, video, "touch"),
-            lambda: predict_files(loaded, [video]),  # a video is touch, unasked
-        ):
-            with pytest.raises(ImageError) as e:
-                call()
-            assert str(e.value) == said
+        with pytest.raises(ImageError) as e:
+            matcher.match_files(str(video), "touch")
+        assert str(e.value) == said
+        # predict answers each input: this one with its error, the same line
+        for answers in (predict_files(loaded, video, "touch"), predict_files(loaded, [video])):
+            assert [(a.error, a.properties) for a in answers] == [(said, {})]
         frame = data / "touch" / "F0003_fold_02_300.png"  # a press's frame: its others beside
         [r] = matcher.match_files(frame, "touch", top=2)
         assert len(r.fabrics) == 2
@@ -548,3 +545,32 @@ def test_a_query_video_is_decoded_once_whether_grey_or_not(
         f"{stored}: {GREY}",
     ]
     assert decoded == {"colour.mov": 14, "grey.mkv": 14, "stored.mov": 14}  # each frame once
+
+
+def test_a_missing_file_is_its_own_inputs_error_and_the_others_are_answered(
+    run, heads: LoadedModel, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: `predict nope.jpg photo.png` stopped the whole batch at the missing file, though
+    an unreadable one was already its own input's error."""
+    import json
+
+    from lookfeel.cli import main
+
+    data, _ = run
+    photo = data / "color/F0003_2.png"
+    missing = tmp_path / "nope.png"
+    gone, answered = predict_files(heads, [missing, photo], "color")
+    assert gone.error == f"{missing}: file not found" and gone.properties == {}
+    assert gone.modality == "color"  # as asked
+    assert answered.error is None and answered.properties
+    [unasked] = predict_files(heads, [missing])  # nothing to guess a modality from
+    assert unasked.error == f"{missing}: file not found" and unasked.modality is None
+    capsys.readouterr()
+    argv = ["predict", "--checkpoint", str(heads.path), str(missing), str(photo), "--json"]
+    assert main(argv) == 0  # one input answered
+    out = capsys.readouterr()
+    assert out.err.splitlines() == [
+        f"lookfeel: warning: {missing}: file not found; nothing predicted for it"
+    ]
+    assert [a["error"] for a in json.loads(out.out)] == [f"{missing}: file not found", None]
+    assert main(["predict", "--checkpoint", str(heads.path), str(missing)]) == 1  # none answered

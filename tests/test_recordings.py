@@ -691,17 +691,28 @@ def test_a_video_model_refuses_a_still_touch_image_by_name(
     video = str(recordings / "videos" / "cork_0.mov")
     refused = f"lookfeel: {still}: {STILL_TOUCH_REFUSED}"
     capsys.readouterr()
-    for argv in (
-        ["predict", "--checkpoint", str(ck), str(still)],
-        ["predict", "--checkpoint", str(ck), video, str(still), "--together"],
-        ["predict", "--checkpoint", str(ck), video, str(still), "--json"],
-        ["match", "--index", str(lib), "--modality", "touch", video, str(still)],
-    ):
-        assert main(argv) == 1, argv
-        out = capsys.readouterr()
-        assert out.err.strip().splitlines() == [refused] and out.out == "", argv
-    assert main(["predict", "--checkpoint", str(ck), video]) == 0  # a video is still taken
-    capsys.readouterr()
+    # match pools its touch files into one query: refused, nothing matched
+    assert main(["match", "--index", str(lib), "--modality", "touch", video, str(still)]) == 1
+    out = capsys.readouterr()
+    assert out.err.strip().splitlines() == [refused] and out.out == ""
+    # predict answers each input: the still image with its error, the video all the same
+    unanswered = f"lookfeel: warning: {still}: {STILL_TOUCH_REFUSED}; nothing predicted for it"
+    assert main(["predict", "--checkpoint", str(ck), str(still)]) == 1  # nothing answered
+    out = capsys.readouterr()
+    assert out.err.strip().splitlines() == [unanswered]
+    assert out.out.strip() == f"{still}: {STILL_TOUCH_REFUSED} (nothing predicted)"
+    together = f"{still}: {STILL_TOUCH_REFUSED}; it is one of the 2 presses given together"
+    assert main(["predict", "--checkpoint", str(ck), video, str(still), "--together"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"lookfeel: warning: {together}; nothing predicted for it"]
+    assert main(["predict", "--checkpoint", str(ck), video, str(still), "--json"]) == 0
+    out = capsys.readouterr()
+    assert out.err.strip().splitlines() == [unanswered]
+    answers = json.loads(out.out)
+    assert [a["path"] for a in answers] == [video, str(still)]
+    assert answers[0]["error"] is None and answers[0]["properties"]
+    assert answers[1]["error"] == f"{still}: {STILL_TOUCH_REFUSED}"
+    assert answers[1]["properties"] == {} and answers[1]["modality"] == "touch"
 
     # serve: the upload is refused with a 422 naming the client's file, a video is matched
     import httpx

@@ -93,16 +93,17 @@ class Prediction:
     Attributes:
         path: the query's file (the first, when presses are pooled).
         paths: every file of the query.
-        modality: what the files show.
+        modality: what the files show (None when that could not be told: ``error`` says why).
         properties: label column -> its predicted `PropertyValue` (empty with ``error``).
-        error: why nothing is predicted, naming the file: it cannot be read or decoded (an
-            empty file, an image renamed ``.mp4``), or a press video holds no press (too short,
-            no contact). None when the query was answered.
+        error: why nothing is predicted, naming the file: it is missing, a folder or of no
+            kind the model takes (a still touch image for a model of press videos), it cannot
+            be read or decoded (an empty file, an image renamed ``.mp4``), or a press video
+            holds no press (too short, no contact). None when the query was answered.
     """
 
     path: str
     paths: list[str]
-    modality: str
+    modality: str | None
     properties: dict[str, PropertyValue]
     error: str | None = None
 
@@ -215,11 +216,15 @@ def predict_files(
         device: where the network runs.
 
     Returns:
-        One `Prediction` per file, or one for all with ``together``. A query whose file cannot
-        be read (a video FFmpeg cannot decode, an empty file, an image renamed ``.mp4``, a
-        damaged image) or whose video holds no press (too short, no contact) is answered with
-        its ``error``, naming the file, and no properties, the only query as well as one of
-        several (the others are still predicted); ``lookfeel predict`` exits with 1 when
+        One `Prediction` per file, or one for all with ``together``. A query whose file the
+        model cannot take (missing, a folder, by its suffix neither an image nor a video, a
+        still touch image for a model trained on press videos, a press video for a model that
+        stacks frame images: each file is asked before any is decoded,
+        `lookfeel.index.match.check_touch_input`), cannot be read (a video FFmpeg
+        cannot decode, an empty file, an image renamed ``.mp4``, a damaged image) or whose
+        video holds no press (too short, no contact) is answered with its ``error``, naming
+        the file, and no properties, the only query as well as one of several (the others are
+        still predicted); ``lookfeel predict`` exits with 1 when
         every query was answered so. With ``together``, a press without one is left out of
         the pooled query with a warning (as a run leaves it out), and the query is answered
         from the others (its ``paths``); a file that cannot be read is the pooled query's
@@ -228,16 +233,12 @@ def predict_files(
         grey presses, a colour one instead.
 
     Raises:
-        PredictError: the model has no heads, lacks the modality, the files mix modalities, or
-            no file is given.
+        PredictError: the model has no heads, or lacks a file's modality, what a file shows
+            cannot be told, no file is given, or with ``together`` the files mix modalities or
+            are not touch presses.
         ModalityError: ``modality`` names no modality.
         DeviceError: ``device`` is none this machine can use.
         CheckpointError: ``loaded`` is a path that holds no usable checkpoint.
-        ImageError: naming a file that is missing, a folder, or by its suffix neither an
-            image nor a video; a still touch image for a model trained on press videos, or a
-            press video for a model that stacks frame images (checked for every file before
-            any is decoded: `lookfeel.index.match.check_touch_input`). A file that exists but
-            cannot be decoded is its query's ``error`` instead.
     """
     device = resolve_device(device)  # a device this machine lacks: one line
     if not isinstance(loaded, LoadedModel):
@@ -259,36 +260,46 @@ def predict_files(
         files = query_paths(paths)
     except LookfeelError:
         raise PredictError("no input file given") from None
-    if missing := next((p for p in files if not p.exists()), None):
-        raise ImageError(missing, "file not found")  # before asking what a missing file shows
-    mods = [modality or guess_modality(p, have) for p in files]
-    for p, m in zip(files, mods, strict=True):
-        if m not in have:
-            raise PredictError(
-                f"{p}: the model has no {m.value} branch (it has "
-                f"{', '.join(x.value for x in have)})"
-            )
-    if together and len(set(mods)) > 1:
+    # Each file is asked, before any is decoded, whether this model can take it: a missing
+    # file, a folder, a file of no known kind or of a modality the model lacks, a still touch
+    # image for a model of press videos ... is its own query's error; the others are answered.
+    refused: dict[Path, str] = {}
+    mods: list[Modality | None] = []
+    for p in files:
+        m, why = _query_modality(p, modality, have, loaded)
+        mods.append(m)
+        if why is not None:  # this file's own problem (a question of modality stops all)
+            refused[p] = why
+    known = {m for p, m in zip(files, mods, strict=True) if m is not None and p not in refused}
+    if together and len(known) > 1:
         raise PredictError(
             "--together (together) pools presses of one object: give files of one modality"
         )
-    if together and mods[0] is not Modality.TOUCH:
+    if together and known and Modality.TOUCH not in known:
         raise PredictError(
             "--together (together) pools touch presses; depth and colour are one image each"
         )
     data = loaded.config.data
-    touch = [p for p, m in zip(files, mods, strict=True) if m is Modality.TOUCH]
-    check_touch_input(touch, loaded.touch_input, data)  # every file before any is decoded
-    warn_press_kinds(touch, data)
-    for m in dict.fromkeys(mods):  # a query turned against the training items: one warning each
-        of_m = [p for p, pm in zip(files, mods, strict=True) if pm is m]
-        warn_orientation(of_m, m, loaded.shapes.get(m), data, "the model")
+    ok = [(p, m) for p, m in zip(files, mods, strict=True) if m is not None and p not in refused]
+    touch = [p for p, m in ok if m is Modality.TOUCH]
+    if touch:
+        check_touch_input(touch, loaded.touch_input, data)  # its one warning, if any
+        warn_press_kinds(touch, data)
+    for om in dict.fromkeys(m for _, m in ok):  # a query turned against the training items
+        of_m = [p for p, m in ok if m is om]
+        warn_orientation(of_m, om, loaded.shapes.get(om), data, "the model")
     groups = [files] if together else [[p] for p in files]
-    group_mods = [mods[0]] if together else mods
+    group_mods = [next(iter(known), None)] if together else mods
     out = []
     # Not a decorator: a warning above names the caller's line, not torch's wrapper.
     with torch.inference_mode(), eval_mode(model):
         for group, m in zip(groups, group_mods, strict=True):
+            if m is None or any(p in refused for p in group):
+                first = next(p for p in group if p in refused)
+                error = _input_error(ImageError(first, ""), group, refused[first])
+                shown = m.value if m is not None else None
+                out.append(Prediction(str(group[0]), [str(p) for p in group], shown, {}, error))
+                continue
             grey: dict[Path, bool] = {}  # of each press video, as reading it found
             try:
                 images, group = load_query_files(group, m, data, on_video=grey.__setitem__)
@@ -311,16 +322,51 @@ def predict_files(
     return out
 
 
-def _input_error(e: ImageError, group: Sequence[Path]) -> str:
-    """Why one query is not answered, in one line naming the file at fault: ``e`` names it;
-    for presses given together it also says that the pooled query was lost with it (a file
-    that cannot be decoded), or that every press lacks contact (a `NoPressError`: one without
-    is left out, so the error of the first means all of them)."""
+def _input_error(e: ImageError, group: Sequence[Path], said: str | None = None) -> str:
+    """Why one query is not answered, in one line naming the file at fault: ``e`` names it
+    (``said``: the line, where it was said before); for presses given together it also says
+    that the pooled query was lost with it (a file that cannot be decoded or that the model
+    cannot take), or that every press lacks contact (a `NoPressError`: one without is left
+    out, so the error of the first means all of them)."""
+    line = str(e) if said is None else said
     if len(group) < 2:
-        return str(e)
+        return line
     if isinstance(e, NoPressError):
-        return f"{e}; none of the {len(group)} presses given together holds a usable press"
-    return f"{e}; it is one of the {len(group)} presses given together"
+        return f"{line}; none of the {len(group)} presses given together holds a usable press"
+    return f"{line}; it is one of the {len(group)} presses given together"
+
+
+def _query_modality(
+    path: Path, modality: Modality | None, have: Sequence[Modality], loaded: LoadedModel
+) -> tuple[Modality | None, str | None]:
+    """What query file ``path`` shows (``modality``, else `guess_modality`; None when that
+    cannot be asked of a missing file or a folder), and why the model cannot take it, if it
+    cannot: the file is missing, a folder, or a touch file of a kind its model does not read
+    (`lookfeel.index.match.check_touch_input`, its warning left to the caller, who gives it
+    once for all the files). That is the file's own query's error.
+
+    Raises:
+        PredictError: what it shows cannot be told, or the model lacks it (every query's:
+            ``--modality`` answers it).
+    """
+    if not path.exists():  # before asking what a missing file shows
+        return modality, str(ImageError(path, "file not found"))
+    try:
+        m = modality or guess_modality(path, have)
+    except ImageError as e:  # a folder, a file of no known kind
+        return modality, str(e)
+    if m not in have:
+        raise PredictError(
+            f"{path}: the model has no {m.value} branch (it has {', '.join(x.value for x in have)})"
+        )
+    if m is Modality.TOUCH:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # said once for every file, by the caller
+                check_touch_input([path], loaded.touch_input, loaded.config.data)
+        except ImageError as e:
+            return m, str(e)
+    return m, None
 
 
 def _read_heads(

@@ -2,15 +2,17 @@
 
 Read a trained model's property heads on query files: touch videos (.mov, .mp4, .m4v, .avi, .mkv,
 .webm), touch frames, depth maps or photos. Each file is one query; --together pools the files as
-presses of one object (the Multi-input Net's max over presses). An input that cannot be read (an
-empty or damaged file, an image renamed .mp4) or a video that holds no press (too short, no contact)
-is answered with an "error" naming the file and no properties, and a warning; the others are still
-predicted (the exit status is 1 only when nothing could be; one input is answered alike). With
---together, a press without contact is left out; a file that cannot be read is the error. A model
-trained on press videos refuses a still touch image: it read each press as its change from the
-frames before contact, which a still image lacks (a model trained on still frames takes a video with
-a warning). A video with no colour (grey) is answered with a warning: the model reads a press's
-colours, and one trained on colour presses reads a grey one unlike them. A class head
+presses of one object (the Multi-input Net's max over presses). An input that is missing, that the
+model cannot take (a still touch image to a model of press videos) or cannot read (an
+empty or damaged file, an image renamed .mp4), or a video that holds no press (too short, no
+contact), is answered with an "error" naming the file and no properties, and a warning; the others
+are still predicted (the exit status is 1 only when nothing could be; one input is answered alike).
+With --together, a press without contact is left out; a file that cannot be taken is the error. A
+model trained on press videos cannot take a still touch image: it read each press as its change
+from the frames before contact, which a still image lacks (a model trained on still frames takes a
+video with a warning). A video with no colour (grey) is answered with a warning: the model reads a
+press's colours, and one trained on colour presses reads a grey one unlike them (one trained on
+grey presses is warned of a colour one instead). A class head
 (model.class_heads, e.g. hardness 0/1/2 or material) answers with its most likely class in the label
 column's own terms and that class's probability; a property-regression head answers in the column's
 units, and a column of ranks without a class head with the rank nearest its number, the number
