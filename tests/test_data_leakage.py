@@ -552,3 +552,47 @@ def test_a_leak_warning_names_the_pick_its_data_allows(tmp_path: Path):
     position = _position((0.9, 0.8, 1.0), (0.2, 0.1, 0.3), True)
     (problem,) = leakage_problems(LeakageReport(tmp_path, (), position=position))
     assert "identifies the fabric at pick-1-of-10 top-1 0.90 vs chance 0.10" in problem.message
+
+
+@pytest.mark.parametrize("holds", ["nothing", "no image", "labels only"])
+def test_cli_data_leakage_refuses_a_folder_with_no_image_as_data_check_does(
+    tmp_path: Path, capsys, holds: str
+):
+    """QA: ``data leakage EMPTY`` exited 0 with "background: none scored" (and ``--json`` an
+    empty ``modalities``), a report of nothing that reads as no leak, where ``data check``
+    fails in one line. Now the same line, exit 1, nothing on stdout, with or without
+    ``--json``; one fabric still gets its report, each modality saying why it is not
+    scored."""
+    from lookfeel.cli import main
+
+    root = tmp_path / "data"
+    root.mkdir()
+    if holds == "no image":
+        (root / "depth").mkdir()
+        (root / "notes.txt").write_text("to do\n")
+    elif holds == "labels only":
+        (root / "labels.csv").write_text(LABELS_HEADER + "1,0,0.5,0.2,1,1,train\n")
+    assert main(["data", "check", str(root), "--quiet"]) == 1
+    (error,) = [line for line in capsys.readouterr().out.splitlines() if line.startswith("ERROR")]
+    said = error.removeprefix("ERROR").strip()
+    assert said.startswith(f"{root}: no usable image found: ")
+    for json_flag in ([], ["--json"]):
+        assert main(["data", "leakage", str(root), *json_flag]) == 1
+        out, err = capsys.readouterr()
+        assert out == "" and err == f"lookfeel: {said}\n"
+
+
+def test_data_leakage_of_one_fabric_says_why_per_modality(tiny_dataset: Path, tmp_path, capsys):
+    """One fabric with images: nothing can be scored, and each modality says why in one line
+    (exit 0, as before)."""
+    from lookfeel.cli import main
+
+    root = tmp_path / "one"
+    for sub in ("depth", "color", "touch"):
+        (root / sub).mkdir(parents=True)
+        for p in (tiny_dataset / sub).glob("F0001_*"):
+            (root / sub / p.name).write_bytes(p.read_bytes())
+    assert main(["data", "leakage", str(root)]) == 0
+    out = capsys.readouterr().out
+    for m in ("depth", "color", "touch"):
+        assert f"\n{m}: not scored: needs two fabrics, one of them with two or more images" in out

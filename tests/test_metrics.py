@@ -627,3 +627,18 @@ def test_resampled_r2_and_spearman_are_those_of_the_drawn_rows():
     assert np.isnan(resampled_spearman(truth, np.ones(9))).all()  # one prediction
     with pytest.raises(ValueError, match="must be"):
         resampled_r2(truth, pred[:5])
+
+
+def test_bootstrap_with_no_resample_gives_nan_intervals_of_the_metrics_shape():
+    """QA: `cv --n-boot 0` crashed on the 0-d arrays `bootstrap_ci` returned for (Q, M) values
+    with no resample drawn (and numpy warned of an empty slice)."""
+    import warnings
+
+    values = np.array([[0.5, 1.0], [0.25, 0.0], [1.0, 0.5]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        low, high = bootstrap_ci(values, [0, 1, 2], n_boot=0)
+        one = bootstrap_ci(values[:, 0], [0, 1, 2], n_boot=0)
+    assert low.shape == high.shape == (2,)
+    assert np.isnan(low).all() and np.isnan(high).all()
+    assert np.isnan(one[0]) and np.isnan(one[1]) and np.ndim(one[0]) == 0

@@ -98,8 +98,9 @@ def add_parser(subparsers: Subparsers) -> None:
             "session instead of the material. With --position, depth images are also "
             "registered (the room fitted, the drape found) and scored by where the drape lies "
             "in the image: a camera that moved between sessions puts each session's drapes at "
-            "their own place, a cue that masking the room does not remove. Exit 0 either way; "
-            "nothing under ROOT is modified."
+            "their own place, a cue that masking the room does not remove. Exit 0 either way, "
+            "1 for a folder with no usable image (as data check); nothing under ROOT is "
+            "modified."
         ),
     )
     leakage.add_argument("root", type=Path, help=_ROOT_HELP)
@@ -237,7 +238,8 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_leakage(args: argparse.Namespace) -> int:
-    """Print how well each modality's background alone identifies the fabric (or its JSON)."""
+    """Print how well each modality's background alone identifies the fabric (or its JSON);
+    a folder with no usable image is refused in ``data check``'s line (`leakage_report`)."""
     from lookfeel.config import DataConfig
     from lookfeel.data import scan
     from lookfeel.data.leakage import format_leakage, leakage_report, parse_mask_options

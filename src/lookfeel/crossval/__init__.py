@@ -38,11 +38,13 @@ reports, per pair:
   embeddings carried into the other's by linear maps fitted on the run's training fabrics.
 
 Over runs, each number gets its mean, its spread over runs, and a 95% interval from a bootstrap
-that resamples the held-out fabrics (all their queries together). A pair none of whose queries has
-an item of its own fabric to find (touch to touch when every held-out fabric's presses all went
-into its query) gets no numbers but the reason (``not_scored`` in ``cv.json``). Each held-out
-fabric (or object) also gets its own top-1 over every query it made in every run, beside raw pixels
-(``per_item`` in ``cv.json``; the worst few in ``cv.md``): which items the model cannot tell apart.
+that resamples the held-out fabrics (all their queries together); with ``n_boot`` 0
+(``--n-boot 0``) none is drawn: the numbers stand alone, their intervals null in ``cv.json``.
+A pair none of whose queries has an item of its own fabric to find (touch to touch when every
+held-out fabric's presses all went into its query) gets no numbers but the reason
+(``not_scored`` in ``cv.json``). Each held-out fabric (or object) also gets its own top-1 over
+every query it made in every run, beside raw pixels (``per_item`` in ``cv.json``; the worst few
+in ``cv.md``): which items the model cannot tell apart.
 Physical properties are predicted from the fabric-mean embeddings of the held-out fabrics by a
 ridge probe fitted on the training fabrics of the same fold (R^2 and Spearman per label), again
 beside raw pixels and, with depth and the background control on, beside the **room alone**

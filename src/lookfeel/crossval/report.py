@@ -1,6 +1,8 @@
 """The Markdown report of a cross-validation (``cv.md``): `format_cv_summary` and the helpers that
 write each of its tables from the summary (`lookfeel.crossval.summary`). What each table
-measures: the package docstring (`lookfeel.crossval`).
+measures: the package docstring (`lookfeel.crossval`). A summary of ``n_boot`` 0 (``lookfeel
+cv --n-boot 0``) has no interval: its tables give the numbers alone and its sentences say
+`NO_INTERVAL` where they would describe the intervals.
 """
 
 from __future__ import annotations
@@ -14,7 +16,17 @@ from lookfeel.metrics.bootstrap import MIN_INTERVAL_FABRICS as FEW_FABRICS
 from lookfeel.metrics.label_space import MIN_FABRICS
 from lookfeel.modality import Modality
 
-__all__ = ["WORST_ITEMS", "format_cv_summary"]
+__all__ = ["NO_INTERVAL", "WORST_ITEMS", "format_cv_summary"]
+
+NO_INTERVAL = "no interval (--n-boot 0: none was drawn)"
+"""What ``cv.md`` says where a summary of ``n_boot`` 0 has no intervals (`lookfeel reproduce`'s
+words for its own ``--n-boot 0``)."""
+
+
+def _drawn(summary: dict[str, Any]) -> bool:
+    """Whether the summary's intervals were drawn: not where ``n_boot`` is 0 (a summary
+    without ``n_boot``, made elsewhere, is taken to have them)."""
+    return summary.get("n_boot") != 0
 
 
 def _count(n: int, noun: str) -> str:
@@ -24,10 +36,13 @@ def _count(n: int, noun: str) -> str:
 
 def _fmt(x: dict[str, Any]) -> str:
     """``mean [low, high]``, with ``(k of n runs)`` where only k of the n runs scored it
-    (``per_run`` NaN elsewhere); ``n/a`` where none did."""
+    (``per_run`` NaN elsewhere); the mean alone where it has no interval (``n_boot`` 0: NaN,
+    or null read back from ``cv.json``); ``n/a`` where no run scored it."""
     if x["mean"] is None or math.isnan(x["mean"]):
         return "n/a"
-    lo, hi = x["ci95"]
+    lo, hi = x.get("ci95") or (None, None)
+    if lo is None or hi is None or math.isnan(lo) or math.isnan(hi):
+        return f"{x['mean']:.3f}" + _of_runs(x.get("per_run"))
     return f"{x['mean']:.3f} [{lo:.3f}, {hi:.3f}]" + _of_runs(x.get("per_run"))
 
 
@@ -77,9 +92,9 @@ def _pair_table(
     column (``-`` where a pair lacks it; a column no such pair has is left out; top-3 ``n/a``
     where it says nothing, `_na_top3`), then chance; nothing when no pair has it. Under it,
     which pairs' intervals rest on too few held-out items to say much (`_few_line`, pointing
-    at the first table, which says why). Where some runs lacked that key's method
-    (``missing_in``), a line says which, and that the table (``name``) leaves such pairs
-    out."""
+    at the first table, which says why; nothing where no interval was drawn). Where some
+    runs lacked that key's method (``missing_in``), a line says which, and that the table
+    (``name``) leaves such pairs out."""
     key = columns[1][1]
     rows = [(p, e) for p, e in summary["pairs"].items() if key in e]
     method = key.rsplit("_top", 1)[0]
@@ -104,7 +119,8 @@ def _pair_table(
                 cells.append(f"{e['chance_top1']:.3f}")
             lines.append(f"| {pair} | {' | '.join(cells)} |")
         nouns = _plural(summary.get("noun", "fabric"))
-        lines += _few_line(_pick_counts(summary, [p for p, _ in rows]), nouns, first=False)
+        if _drawn(summary):
+            lines += _few_line(_pick_counts(summary, [p for p, _ in rows]), nouns, first=False)
     if lacking and name:
         why = _MISSING_WHY.get(method, "").format(noun=summary.get("noun", "fabric"))
         said = "; ".join(f"{p.replace('_', ' ')}: {', '.join(runs)}" for p, runs in lacking)
@@ -311,7 +327,9 @@ def _coverage_text(summary: dict[str, Any]) -> str:
 def format_cv_summary(summary: dict[str, Any]) -> str:
     """The cross-validation summary as Markdown: pick 1 of 10 per pair, then properties.
     Under each table with intervals, which of them rest on fewer held-out items than
-    `FEW_FABRICS` (`_few_line`)."""
+    `FEW_FABRICS` (`_few_line`). With ``n_boot`` 0 the numbers stand alone and the sentences
+    that describe the intervals say `NO_INTERVAL` instead."""
+    drawn = _drawn(summary)
     noun = summary.get("noun", "fabric")
     nouns = _plural(noun)
     fewer = any(e.get("chance_top1", 0.0) > 0.1 + 1e-9 for e in summary["pairs"].values())
@@ -327,7 +345,11 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
         f"(folds {summary['folds']}, seeds {summary['seeds']}; {_coverage_text(summary)}). "
         f"Pick 1 of 10 among each fold's held-out {nouns}"
         + (" (1 of all of them where a fold holds fewer than 10: see chance)" if fewer else "")
-        + f"; mean over runs [95% interval, resampling held-out {nouns}]."
+        + (
+            f"; mean over runs [95% interval, resampling held-out {nouns}]."
+            if drawn
+            else f"; mean over runs, {NO_INTERVAL}."
+        )
         + (
             f" Touch pools {summary['presses']} presses of one {noun}, as a query and as the "
             f"candidates of another sense's queries (the Multi-input Net's protocol){same_touch}."
@@ -357,7 +379,8 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
             f"| {pair} | {_fmt(e['model_top1'])} | {top3['model_top3']} | {raw[0]} | {raw[1]} "
             f"| {e['chance_top1']:.3f} / {e['chance_top3']:.3f} |"
         )
-    lines += _few_line(_pick_counts(summary, list(summary["pairs"])), nouns)
+    if drawn:
+        lines += _few_line(_pick_counts(summary, list(summary["pairs"])), nouns)
     if na3:
         lines += [
             "",
@@ -376,13 +399,15 @@ def format_cv_summary(summary: dict[str, Any]) -> str:
     for m, per in summary["properties"].items():
         if not per.get("model"):
             continue
-        lines += _probe_lines(m, per, runs, nouns, _pooled_scope(summary))
+        lines += _probe_lines(m, per, runs, nouns, _pooled_scope(summary), drawn)
     for m, per in summary.get("classes", {}).items():
         unit = "press" if m == Modality.TOUCH.value else "image"
+        interval = f" [95% interval, resampling held-out {nouns}]" if drawn else ""
         lines += [
             "",
-            f"Classes from {m}: accuracy [95% interval, resampling held-out {nouns}] / macro-F1, "
-            f"each the mean over runs of the run's accuracy over its held-out {_plural(unit)} "
+            f"Classes from {m}: accuracy{interval} / macro-F1, "
+            + ("" if drawn else f"{NO_INTERVAL}, ")
+            + f"each the mean over runs of the run's accuracy over its held-out {_plural(unit)} "
             f"(n/a where no held-out {noun} is labelled). model: the class head on one {unit}; "
             f"pooled: every {unit} of one {noun} at once; probe: 5-NN on the training embeddings; "
             "raw pixels: 5-NN on training pixels; majority: the training majority class.",
@@ -443,7 +468,12 @@ _PROBE_METHODS = (("model", "model"), ("raw_pixels", "raw pixels"), ("room", "ro
 
 
 def _probe_lines(
-    modality: str, per: dict[str, Any], runs: int, nouns: str, scope: str = ""
+    modality: str,
+    per: dict[str, Any],
+    runs: int,
+    nouns: str,
+    scope: str = "",
+    drawn: bool = True,
 ) -> list[str]:
     """The property probes' tables of one modality (`_summarise_probes`): per label, R² in
     one table and Spearman in the next, each over every held-out item of a seed's folds at
@@ -451,7 +481,9 @@ def _probe_lines(
     chance, and how many items and runs each row is over; ``n/a: why`` where a label could
     not be scored. Under them: why chance is the mark to beat, and which rows rest on too few
     items for their intervals to say much (`_few_items_line`). ``scope``: `_pooled_scope`'s
-    sentence. A summary made before the pooled scores (session 55) gets its table as it was
+    sentence. ``drawn``: whether the intervals were (not with ``n_boot`` 0: the sentence says
+    `NO_INTERVAL`, and no row is said to rest on too few items for its interval). A summary
+    made before the pooled scores (session 55) gets its table as it was
     (`_per_run_probe_lines`)."""
     rows = per["model"]
     if not any("pooled" in row for row in rows.values()):
@@ -463,8 +495,8 @@ def _probe_lines(
         "",
         f"Physical properties from {modality}: a ridge probe on {noun}-mean embeddings, "
         f"fitted on each fold's training {nouns}, predicts that fold's held-out {nouns}. R² "
-        f"and Spearman are over a seed's held-out {nouns} of every fold at once [95% "
-        f"interval, resampling those {nouns}]"
+        f"and Spearman are over a seed's held-out {nouns} of every fold at once"
+        + (f" [95% interval, resampling those {nouns}]" if drawn else f", {NO_INTERVAL}")
         + (f", the mean over {seeds} seeds" if seeds > 1 else "")
         + ". Chance: each fold's training mean as the prediction, what a probe that knows "
         f"nothing scores.{scope} {nouns.capitalize()} (runs): how many held-out {nouns} each "
@@ -498,7 +530,8 @@ def _probe_lines(
         f"that fold's held-out {nouns}), so read the model's numbers against the chance "
         "column, not against 0.",
     ]
-    lines += _few_items_line(rows, nouns)
+    if drawn:
+        lines += _few_items_line(rows, nouns)
     if any(
         row.get("pooled")
         and _nan(row["pooled"].get("chance_spearman"))

@@ -26,7 +26,7 @@ from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError, to_dict
 from lookfeel.crossval.report import _count, format_cv_summary
 from lookfeel.crossval.score import RoomProbe, _evaluate_run, _modalities, _pairs, _with_room
-from lookfeel.crossval.summary import CONTROL_SEED, _scored_mean, _summarise
+from lookfeel.crossval.summary import CONTROL_SEED, _check_n_boot, _scored_mean, _summarise
 from lookfeel.data import (
     Catalog,
     ImageLoader,
@@ -312,7 +312,8 @@ def cross_validate(
         seeds: training seeds.
         folds: which folds to run (default: all ``train.folds``).
         tta: embed each image and its left-right mirror and average the two (test-time pooling).
-        n_boot: bootstrap resamples for the intervals.
+        n_boot: bootstrap resamples for the intervals; 0 draws none: the numbers without
+            intervals (null in ``cv.json``; ``cv.md`` says no interval was drawn).
         background_control: for a config with depth pairs, also score every run with the
             depth images' backgrounds swapped (package doc); about 0.2 s per held-out depth
             image once per fold (registration), shared by the seeds.
@@ -326,7 +327,8 @@ def cross_validate(
     Raises:
         SplitError: folds that hold out fewer than 2 fabrics (objects), or more than there are
             (`_fold_plan`), before anything is written or trained.
-        ConfigError: a fold out of range, no seed, or more presses than a fabric has.
+        ConfigError: a fold out of range, no seed, more presses than a fabric has, or a
+            negative ``n_boot``.
     """
     out = Path(out)
     t = config.train
@@ -336,6 +338,7 @@ def cross_validate(
             raise ConfigError(f"fold {f}: the config has train.folds={t.folds} (0..{t.folds - 1})")
     if not seeds:
         raise ConfigError("seeds: at least one training seed is needed")
+    _check_n_boot(n_boot)
     presses = config.data.presses if presses is None else presses
     if presses < 1:
         raise ConfigError(f"presses: a touch query pools at least 1 press, got {presses}")

@@ -18,7 +18,7 @@ import numpy as np
 from lookfeel.checkpoint import LoadedModel, load_model
 from lookfeel.config import RunConfig
 from lookfeel.config._core import ConfigError
-from lookfeel.crossval.summary import CONTROL_SEED, _summarise
+from lookfeel.crossval.summary import CONTROL_SEED, _check_n_boot, _summarise
 from lookfeel.data import Catalog, ImageLoader, Item, scan
 from lookfeel.data.background_swap import BackgroundControl
 from lookfeel.data.images import stack_views
@@ -447,7 +447,7 @@ def score_checkpoint(
         data: the dataset to score on (every fabric is a test fabric).
         pairs: pairs to score; default: the run's validation pairs, else every pair.
         tta: test-time pooling over each image and its mirror.
-        n_boot: bootstrap resamples for the intervals.
+        n_boot: bootstrap resamples for the intervals (0: none, every ``ci95`` NaN).
         background_control: for depth pairs, also score with backgrounds swapped.
         presses: presses pooled into a touch query; default the run's ``data.presses``.
 
@@ -456,6 +456,7 @@ def score_checkpoint(
         "model_swapped_top1": ..., "chance_top1": ...}}, "checkpoint", "data", "step",
         "background_control"}``.
     """
+    _check_n_boot(n_boot)
     lm = load_model(checkpoint)
     wanted = [Pair.parse(p) for p in pairs] or _pairs(lm.config)
     loader = ImageLoader(lm.config.data)

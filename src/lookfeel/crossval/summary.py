@@ -3,6 +3,10 @@ runs, bootstrap intervals over held-out items, each item's own top-1, the proper
 classes and the class heads' calibration), and the constants the other modules share. What
 the numbers mean: the package docstring (`lookfeel.crossval`).
 
+With ``n_boot`` 0 (``lookfeel cv --n-boot 0``) no resample is drawn: every number keeps
+its value and every interval is NaN, ``[null, null]`` in ``cv.json`` (`_interval`), and
+``cv.md`` says no interval was drawn.
+
 The property probes (``properties`` in ``cv.json``, `_summarise_probes`): ``cv.md`` shows each
 label's ``pooled`` scores (``pooled.r2.mean`` [``pooled.r2.ci95``], the same for
 ``spearman``, ``chance_r2`` and ``chance_spearman``): over every held-out item of a seed's
@@ -18,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from lookfeel.config._core import ConfigError
 from lookfeel.evaluate.core import no_query_scored
 from lookfeel.metrics import bootstrap_ci, mean_and_spread
 from lookfeel.metrics.bootstrap import fabric_weights, percentile_interval
@@ -138,7 +143,7 @@ def _summarise(
                 continue
             per_run = [np.asarray(r["pairs"][pair][method], dtype=np.float64) for r in results]
             pooled = np.concatenate(per_run)
-            low, high = bootstrap_ci(pooled, groups, n_boot=n_boot, seed=0)
+            low, high = _interval(pooled, groups, n_boot)
             for j, k in enumerate(_KS):
                 runs = [_scored_mean(v[:, j]) for v in per_run]
                 spread = mean_and_spread(runs)
@@ -261,7 +266,8 @@ def _pooled_probe(
     constant within a fold: its Spearman ranks those ties as one value (mid-ranks, as
     ``scipy.stats.spearmanr``), and training means equal but for rounding are tied too
     (`_tied`). Each 95% interval resamples the items (`fabric_weights`, seed 0: one draw
-    shared by every seed, label and method). Across seeds, as in the class tables
+    shared by every seed, label and method; ``n_boot`` 0 draws none, and every interval is
+    NaN). Across seeds, as in the class tables
     (`_summarise_classes`), the number is the mean over seeds and its interval that of the
     mean: each resample's scores are averaged over the seeds before the percentiles are
     taken.
@@ -507,7 +513,7 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                     ]
                 )
                 groups = np.concatenate([np.asarray(r[g_key]) for r in runs])
-                low, high = bootstrap_ci(hits, groups, n_boot=n_boot, seed=0)
+                low, high = _interval(hits, groups, n_boot)
                 per_run = [accuracy(t, p) for t, p in zip(truth, pred, strict=True)]
                 acc = mean_and_spread(per_run)
                 f1 = mean_and_spread(
@@ -531,6 +537,25 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                 entry["calibration"] = _calibration(runs, folds)
             out[m][col] = entry
     return out
+
+
+def _check_n_boot(n_boot: int) -> None:
+    """Refuse a negative ``n_boot`` (`ConfigError`), before any run is trained or scored; 0 is
+    allowed: no resample, no interval."""
+    if n_boot < 0:
+        raise ConfigError(
+            f"n_boot: bootstrap resamples must be >= 0 (0: no intervals), got {n_boot}"
+        )
+
+
+def _interval(values: np.ndarray, groups: np.ndarray, n_boot: int) -> tuple[np.ndarray, np.ndarray]:
+    """The 95% interval of ``values`` (Q,) or (Q, M) resampling ``groups`` (`bootstrap_ci`,
+    seed 0), as ``(low, high)``, each (M,) or 0-d; NaN bounds where ``n_boot`` is 0 (no
+    resample drawn: ``lookfeel cv --n-boot 0``), which ``cv.json`` writes as null."""
+    if n_boot > 0:
+        return bootstrap_ci(values, groups, n_boot=n_boot, seed=0)
+    none = np.full(np.asarray(values).shape[1:], np.nan)
+    return none, none.copy()
 
 
 def _scored_mean(values: np.ndarray) -> float:

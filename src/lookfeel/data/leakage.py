@@ -57,8 +57,9 @@ from PIL import Image
 
 from lookfeel.config import DataConfig
 from lookfeel.data.catalog import Catalog, Item
+from lookfeel.data.check import size_problems
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
-from lookfeel.data.problems import Problem
+from lookfeel.data.problems import DatasetError, Problem
 from lookfeel.data.video import NoPressError, difference_image, is_video, read_press
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics.bootstrap import bootstrap_ci
@@ -723,12 +724,19 @@ def leakage_report(
             (`position_leakage`, with ``position_config``'s registration settings).
 
     Returns:
-        A `LeakageReport`; modalities that cannot be scored are in ``skipped`` with why.
+        A `LeakageReport`; modalities that cannot be scored are in ``skipped`` with why (one
+        fabric, no image of a modality asked for, ...).
 
     Raises:
+        DatasetError: a catalog with no usable image at all (an empty folder, or one holding
+            no image in the layout), in the one line ``data check`` and ``data info`` give
+            (`size_problems`): a report of nothing would read as no leak found.
         MaskError: a mask file that cannot be used.
         LookfeelError: bad settings (fractions outside (0, 1], negative tolerance).
     """
+    usable = tuple(f for f in catalog.fabrics if any(f.items.values()))
+    if not usable:
+        raise DatasetError(size_problems(catalog.root, usable))
     if not 0.0 < static_fraction <= 1.0:
         raise LookfeelError(f"static_fraction must be in (0, 1]; got {static_fraction}")
     tol = {**DEFAULT_TOLERANCE, **(tolerance or {})}

@@ -69,7 +69,8 @@ def bootstrap_ci(
             to share one draw between calls; overrides n_boot and seed.
 
     Returns:
-        (low, high), each (M,) (or 0-d for 1-D values).
+        (low, high), each (M,) (or 0-d for 1-D values); NaN where no resample was drawn
+        (``n_boot`` 0) or the metric is undefined in every one.
     """
     v = np.asarray(values, dtype=np.float64)
     one = v.ndim == 1
@@ -100,7 +101,10 @@ def bootstrap_ci(
         else:
             raise ValueError(f"statistic must be 'mean' or 'median'; got {statistic!r}")
     q = 100.0 * np.array([alpha / 2.0, 1.0 - alpha / 2.0])
-    low, high = np.nanpercentile(reps, q, axis=0) if n_m else (np.zeros(0), np.zeros(0))
+    if not len(w):  # no resample drawn (n_boot 0): no interval, NaN, as for an undefined one
+        low, high = np.full(n_m, np.nan), np.full(n_m, np.nan)
+    else:
+        low, high = np.nanpercentile(reps, q, axis=0) if n_m else (np.zeros(0), np.zeros(0))
     low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
     return (low[0], high[0]) if one else (low, high)
 
