@@ -64,3 +64,27 @@ def write_video(
         for packet in s.encode():
             c.mux(packet)
     return path
+
+
+TWO_PRESSES = {**PRESS, 15: 0.5, 16: 0.8, 17: 0.9, 18: 0.6}
+"""Two presses: frames 5-9 (deepest at 7), then, the gel released, 15-18 (use ``t`` >= 22)."""
+
+PRESSED_START = {**{i: 0.8 for i in range(14)}, 7: 1.0, 8: 1.0, 9: 1.0}
+"""A recording begun mid-press: the gel held pressed (0.8 deep) from its first frame, pressed
+deeper at frames 7-9 (use ``t=14``). Its first frames move no more than an untouched gel's."""
+
+
+def another_session(frames: np.ndarray) -> np.ndarray:
+    """(T, H, W, 3) uint8 ``frames`` as another recording session's sensor shows them: its light
+    falls off towards the corners (no gain and offset of `sensor`'s), the presses unchanged."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+    fall = 40.0 * ((x - W / 2) ** 2 + (y - H / 2) ** 2) / ((W / 2) ** 2 + (H / 2) ** 2)
+    return np.clip(frames.astype(np.float32) - fall[..., None], 0, 255).astype(np.uint8)
+
+
+def cut_in_half(path: Path) -> Path:
+    """Drop the second half of the file's bytes (a copy interrupted): a Matroska file still
+    declares the whole duration (`lookfeel.data.video.TruncatedVideoWarning`)."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    return path

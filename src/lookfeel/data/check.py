@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import re
+import threading
+import warnings
 from collections import Counter, defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -24,12 +28,24 @@ from lookfeel.data.layout import (
     scan,
 )
 from lookfeel.data.problems import Problem
-from lookfeel.data.video import NoPressError, is_video, read_press
+from lookfeel.data.video import (
+    NoPressError,
+    Press,
+    TruncatedVideoWarning,
+    TwoPressesWarning,
+    _block_factor,
+    _light_change,
+    _shrink,
+    is_video,
+    read_press,
+)
 from lookfeel.modality import Modality
+from lookfeel.progress import bar as progress_bar
 
 __all__ = [
     "MIN_IN_RANGE",
     "PLAUSIBLE_DEPTH_MM",
+    "PRESSED_START_LEVELS",
     "SAME_SHAPE_LOG_RATIO",
     "UNREAD_IMAGE_SUFFIXES",
     "check_dataset",
@@ -75,12 +91,16 @@ _CONVERT = {
 class _Decoded:
     """What decoding one file found: a problem, its frame size (w, h), for depth the counts
     of its valid pixels (inside the mapped range, in all) and a sample of them, and for a press
-    video whether it has no colour (`lookfeel.data.video.Press.grey`; None for anything else)."""
+    video whether it has no colour (`lookfeel.data.video.Press.grey`; None for anything else),
+    its no-contact reference, small and grey (`_small_reference`), and the warnings decoding it
+    gave (a truncated video, more than one press: `_recording_video_warnings`)."""
 
     problem: Problem | None = None
     size: tuple[int, int] | None = None
     depth: tuple[int, int, np.ndarray] | None = None
     grey: bool | None = None
+    reference: np.ndarray | None = None
+    warned: tuple[Problem, ...] = ()
 
 
 def _depth_unit_problem(path: Path, depth: np.ndarray) -> Problem | None:
@@ -109,13 +129,92 @@ def _depth_sample(depth: np.ndarray, low: float, high: float) -> tuple[int, int,
     return inside, int(valid.size), valid[::step]
 
 
+_VIDEO_WARNINGS: tuple[type[Warning], ...] = (TruncatedVideoWarning, TwoPressesWarning)
+"""What `read_press` warns about a video it reads all the same: ``data check`` reports each as a
+warning of the file (`_recording_video_warnings`)."""
+
+_recording = threading.local()
+"""``into``: the list the warnings of the file this thread decodes go to (`decode_problem`)."""
+
+
+@contextlib.contextmanager
+def _recording_video_warnings() -> Iterator[None]:
+    """While this is entered, what `read_press` warns (`_VIDEO_WARNINGS`) in a thread that is
+    decoding a file (`decode_problem`) goes to that file's own record instead of being shown:
+    ``data check`` reports it as a warning of the file, as ``train`` and ``predict`` warn it.
+
+    `warnings.catch_warnings` swaps the process's warning filters and display, so it is not
+    safe in decoding threads (two threads' filters can outlive both): the calling thread enters
+    this once, around all the decoding, and the decoding threads only append to a list of their
+    own (`_recording`). Every such warning is kept ("always"), however the caller filters them;
+    other warnings, and these outside a decoding, are shown as before."""
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(
+            message: Warning | str,
+            category: type[Warning],
+            filename: str,
+            lineno: int,
+            file: TextIO | None = None,
+            line: str | None = None,
+        ) -> None:
+            into = getattr(_recording, "into", None)
+            if into is not None and issubclass(category, _VIDEO_WARNINGS):
+                into.append((category, str(message)))
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        for category in _VIDEO_WARNINGS:
+            warnings.simplefilter("always", category)
+        yield
+
+
+def _warned_problem(path: Path, category: type[Warning], message: str) -> Problem:
+    """A warning of ``path`` from what `read_press` warned of it, without the path it begins
+    with, saying what to do about a truncated file."""
+    text = message.removeprefix(f"{path}: ")
+    if issubclass(category, TruncatedVideoWarning):
+        text = text.removesuffix("; reading those")
+        text += "; runs read those: copy the whole file again, or record it again"
+    return Problem(path, text, "warning")
+
+
+_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+"""BT.601 luma weights: how the press detector's small frames are grey."""
+
+
+def _small_reference(press: Press) -> np.ndarray:
+    """(h, w) float32: the no-contact reference of a press video, grey and block-averaged to
+    about 40x30 like the frames the press detector sees (5 KB: `_pressed_start_problems`
+    compares the references of a whole dataset)."""
+    grey = press.reference @ _LUMA
+    return _shrink(grey, _block_factor(*grey.shape))
+
+
 def decode_problem(path: Path, modality: Modality) -> _Decoded:
+    """Decode one file as ``data check`` does (every frame of a press video), and say what is
+    wrong with it, if anything. Inside `_recording_video_warnings` (as `check_dataset` decodes),
+    what `read_press` warns of a video is in `_Decoded.warned` rather than warned."""
+    into: list[tuple[type[Warning], str]] = []
+    _recording.into = into
+    try:
+        decoded = _decode(path, modality)
+    finally:
+        _recording.into = None
+    if not into:
+        return decoded
+    return replace(decoded, warned=tuple(_warned_problem(path, c, m) for c, m in into))
+
+
+def _decode(path: Path, modality: Modality) -> _Decoded:
     config = DataConfig()
     try:
         if modality is Modality.TOUCH and is_video(path):
             press = read_press(path)  # decodes every frame and finds the press
             h, w = press.images.shape[1:3]
-            return _Decoded(size=(w, h), grey=press.grey)
+            return _Decoded(size=(w, h), grey=press.grey, reference=_small_reference(press))
         if modality is Modality.DEPTH:
             d = decode_depth(path)
             size = (d.shape[1], d.shape[0])
@@ -146,10 +245,12 @@ def check_dataset(
     Files are only read. Problems found while decoding (truncated or undecodable files, depth
     that is not 16-bit) are added to the scan's; those items are dropped from the catalog. A
     touch video is decoded and its press found; one without a press is a warning (runs leave
-    it out: `lookfeel.data.drop_unpressed`), as are press videos of more than one aspect ratio
-    and grey videos (no colour) among colour ones (`_colour_problems`). A
-    dataset with no usable fabric or only one is an error (no command can hold fabrics out of
-    it), as is an unfinished `lookfeel synth` world.
+    it out: `lookfeel.data.drop_unpressed`), as is what reading it warns in runs (a truncated
+    file, more than one press: `_recording_video_warnings`), press videos of more than one
+    aspect ratio, grey videos (no colour) among colour ones (`_colour_problems`), and a video
+    whose first frames look pressed compared with its object's others
+    (`_pressed_start_problems`). A dataset with no usable fabric or only one is an error (no
+    command can hold fabrics out of it), as is an unfinished `lookfeel synth` world.
 
     Args:
         root: the dataset folder.
@@ -170,21 +271,22 @@ def check_dataset(
         for it in its
         for p in it.frames
     ]
-    from tqdm import tqdm
-
     # A bar over the files decoded, closed (its line cleared) however decoding ends.
-    bar = functools.partial(
-        tqdm, total=len(jobs), desc="check", unit="file", leave=False, disable=not progress
-    )
-    if workers > 1 and len(jobs) > 16:
-        with ThreadPoolExecutor(workers) as pool:
-            decoded = list(bar(pool.map(lambda j: decode_problem(*j), jobs)))
-    else:
-        decoded = list(bar(decode_problem(*j) for j in jobs))
+    bar = functools.partial(progress_bar, total=len(jobs), desc="check", unit="file", show=progress)
+    with _recording_video_warnings():
+        if workers > 1 and len(jobs) > 16:
+            with ThreadPoolExecutor(workers) as pool:
+                decoded = list(bar(pool.map(lambda j: decode_problem(*j), jobs)))
+        else:
+            decoded = list(bar(decode_problem(*j) for j in jobs))
     new = [d.problem for d in decoded if d.problem is not None]
+    new.extend(w for d in decoded for w in d.warned)
     bad = {p.path for p in new if p.severity == "error"}
     sizes = {j[0]: d.size for j, d in zip(jobs, decoded, strict=True) if d.size is not None}
     greys = {j[0]: d.grey for j, d in zip(jobs, decoded, strict=True) if d.grey is not None}
+    refs = {
+        j[0]: d.reference for j, d in zip(jobs, decoded, strict=True) if d.reference is not None
+    }
     fabrics = []
     for f in catalog.fabrics:
         items = {
@@ -197,6 +299,7 @@ def check_dataset(
     new.extend(range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
     new.extend(_shape_problems(usable, sizes))
     new.extend(_colour_problems(catalog.root, usable, greys))
+    new.extend(_pressed_start_problems(usable, refs))
     new.extend(_class_problems(catalog, usable))
     unread, skipped = unread_problems(catalog)
     new.extend(unread)
@@ -427,6 +530,100 @@ def _colour_problems(
         )
         fix = "record them in colour, or leave them out"
     return [Problem(grey[0], f"{what} ({_GREY_READ}); {fix}", "warning")]
+
+
+PRESSED_START_LEVELS = 4.0
+"""How far, in grey levels, a press video's no-contact reference may differ locally from the
+references of the other videos of its object (`_pressed_start_problems`), once a change of the
+whole frame's light is removed, before ``data check`` says its first frames look pressed.
+
+The change is measured as the press detector measures contact (`lookfeel.data.video`'s
+``_light_change``: the mean of the 5% most changed pixels of the small grey frame, after the
+best gain and offset of the whole frame), from the per-pixel median of the object's references.
+On the 398 PhysiCLeAR presses it is 1.0 (median), 1.5 (95th percentile), 6.8 (99th) and at most
+18.5; above 4 are 4 videos recorded in another session than their object's other videos
+(``wood_ruler_5``, ``toothbrush_handle_5`` ...: 15-18.5) and ``tissue_0`` and ``tissue_1``
+(5.4, 6.5), each within 2.6 of the reference of another object's video (the next check), so
+none is warned. Of 84 clips cut from 21 of those videos to begin inside the contact span (5
+frames into it, at its deepest frame, 30 frames from 10 before it, wholly inside it), the press
+detector refuses 40 (most for a moving start); the other 44 differ by about as much as the
+press is deep at their first frame, 1.7-16.3 (QA's two egg clips, held pressed: about 8). Above
+4 are 33: every clip of a press deeper than 3.5 grey levels (a press: median 7.3; 15% are
+shallower) but one cut wholly inside a 5.3-level press (3.4); the other 10, of presses of 1-3
+levels, differ hardly more than untouched gels do from each other (2.6, above)."""
+
+
+def _pressed_start_problems(
+    fabrics: Sequence[Fabric], refs: dict[Path, np.ndarray]
+) -> list[Problem]:
+    """A warning per press video whose first frames look pressed, compared with the other
+    videos of its object.
+
+    `read_press` takes a video's first frames as the untouched gel. A video that begins
+    mid-press but held still passes for one (`lookfeel.data.video.detect_press` refuses a
+    moving start only), and every run reads its press against a pressed gel. One video alone
+    cannot tell; but the videos of one object are mostly recorded in one session (one sensor,
+    one light), so their references (``refs``, small and grey: `_small_reference`) are alike.
+    A reference that differs from the per-pixel median of its object's references (the other
+    one's, for an object of two videos) locally, once a change of the whole frame's light is
+    removed (`lookfeel.data.video._light_change`), by more than `PRESSED_START_LEVELS`, and from
+    every reference that is like its own object's, began pressed; one like some other object's
+    reference was recorded untouched in another session (PhysiCLeAR has four). Objects with one
+    video, and references of another size than the object's others, are not compared."""
+    groups: list[tuple[Fabric, list[Path]]] = []
+    for f in fabrics:
+        by_size: dict[tuple[int, ...], list[Path]] = defaultdict(list)
+        for it in f.items.get(Modality.TOUCH, ()):
+            if it.frames[0] in refs:
+                by_size[refs[it.frames[0]].shape].append(it.frames[0])
+        groups.extend((f, paths) for paths in by_size.values() if len(paths) >= 2)
+    unlike: list[tuple[Fabric, Path, float]] = []
+    alike: dict[tuple[int, ...], list[np.ndarray]] = defaultdict(list)
+    for f, paths in groups:
+        stack = np.stack([refs[p] for p in paths])
+        centre = np.median(stack, axis=0) if len(paths) > 2 else None
+        for i, path in enumerate(paths):
+            change = _light_change(stack[1 - i] if centre is None else centre, stack[i])[0]
+            if change > PRESSED_START_LEVELS:
+                unlike.append((f, path, change))
+            else:
+                alike[stack[i].shape].append(stack[i])
+    out = []
+    for f, path, change in unlike:
+        if _like_one_of(refs[path], alike[refs[path].shape]):
+            continue
+        out.append(
+            Problem(
+                path,
+                f"its first frames look pressed compared with the other videos of "
+                f"{f.display_name}: once a change of the whole frame's light is removed, they "
+                f"differ from theirs by {change:.1f} grey levels where they differ most (an "
+                f"untouched gel: less than {PRESSED_START_LEVELS:g}; a press: about 7), and "
+                "from every other object's too, so the recording most likely began mid-press "
+                "and runs read its press against a pressed gel: record from before the press, "
+                "or leave this video out",
+                "warning",
+            )
+        )
+    return out
+
+
+_NEAREST = 32
+"""References `_like_one_of` compares, the closest by mean difference first."""
+
+
+def _like_one_of(reference: np.ndarray, others: Sequence[np.ndarray]) -> bool:
+    """Whether ``reference`` differs from one of ``others`` (of its size) by at most
+    `PRESSED_START_LEVELS` once a change of the whole frame's light is removed: of the
+    `_NEAREST` closest to it in mean absolute difference (their means removed), nearest first."""
+    if not others:
+        return False
+    stack = np.stack(others)
+    flat = stack.reshape(len(stack), -1)
+    flat = flat - flat.mean(axis=1, keepdims=True)
+    mine = reference.reshape(-1) - reference.mean()
+    order = np.argsort(np.abs(flat - mine).mean(axis=1))[:_NEAREST]
+    return any(_light_change(stack[j], reference)[0] <= PRESSED_START_LEVELS for j in order)
 
 
 def _modality_folder(path: Path, root: Path) -> Modality | None:
