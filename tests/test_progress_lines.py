@@ -7,6 +7,10 @@ before: ``match`` a bar of the images embedded when they are more than one batch
 (`lookfeel.index.match.EMBED_BATCH`), ``data check`` one of the files decoded and one of the
 modalities scored for leaks, ``embed`` one of each modality's images decoded and one of its
 items embedded. The library's functions show none unless asked.
+
+Bars are drawn only where stderr is a terminal, or with ``LOOKFEEL_PROGRESS=always``
+(`lookfeel.progress`): pytest's captured stderr is not one, so the tests of what a bar shows set
+it, and the last tests check the rule itself.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import pytest
 
 from lookfeel.cli import main
 from lookfeel.index import match as match_module
+from lookfeel.progress import ENV, bar, shown
 
 from ._library import tiny_library
 
@@ -30,6 +35,12 @@ def _bars(err: str) -> dict[str, int]:
     assert all(re.match(r"[a-z ]+: +\d+%\|", part) for part in said), said
     found = re.findall(r"\r([a-z ]+): +0%\|[^|]*\| 0/(\d+) ", err)
     return {name: int(total) for name, total in found}
+
+
+@pytest.fixture(autouse=True)
+def _bars_drawn(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As on a terminal: the tests below read what the bars show."""
+    monkeypatch.setenv(ENV, "always")
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +127,76 @@ def test_embed_shows_each_modality_decoded_and_embedded(
     # The library's function, outside `lookfeel embed`: no bar.
     embed_checkpoint(ckpt, data)
     assert capsys.readouterr().err == ""
+
+
+class _Terminal:
+    """A stderr that says it is a terminal (or not) and keeps what is written to it."""
+
+    def __init__(self, tty: bool) -> None:
+        self.tty, self.text = tty, ""
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, s: str) -> int:
+        self.text += s
+        return len(s)
+
+    def flush(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize(
+    ("tty", "env", "drawn"),
+    [
+        (True, None, True),  # a person watching
+        (False, None, False),  # a log file or a pipe: no frame of a bar in it
+        (False, "auto", False),
+        (False, "always", True),
+        (True, "never", False),
+        (True, "0", False),
+    ],
+)
+def test_bars_are_drawn_on_a_terminal_unless_the_environment_says_otherwise(
+    monkeypatch: pytest.MonkeyPatch, tty: bool, env: str | None, drawn: bool
+):
+    """QA: a 60-step training run wrote 5.7 KB of bar frames into a redirected stderr (a long
+    run, megabytes of a batch job's log)."""
+    stderr = _Terminal(tty)
+    monkeypatch.setattr("sys.stderr", stderr)
+    if env is None:
+        monkeypatch.delenv(ENV, raising=False)
+    else:
+        monkeypatch.setenv(ENV, env)
+    assert shown() is drawn and shown(False) is False  # a command's --quiet: never
+    with bar(total=3, desc="work", file=stderr) as b:
+        for _ in range(3):
+            b.update(1)
+    assert ("work:" in stderr.text) is drawn
+
+
+def test_an_unknown_setting_is_warned_of_and_read_as_auto(monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setattr("sys.stderr", _Terminal(False))
+    monkeypatch.setenv(ENV, "sometimes")
+    with pytest.warns(UserWarning, match=r"^LOOKFEEL_PROGRESS='sometimes': expected always"):
+        assert shown() is False
+
+
+def test_a_redirected_training_run_writes_no_bar(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+):
+    """Training's own bar, from the command line, into a stderr that is not a terminal (as
+    pytest's, a log file's): no frame of it; with ``LOOKFEEL_PROGRESS=always``, its frames."""
+    from ._library import TINY, tiny_run
+
+    data, _ = tiny_run()
+    sets = ["--set", "train.steps=2", "--set", "train.val_every=0"]
+    sets += ["--set", "train.checkpoint_every=0", "--set", "train.threads=1"]
+    sets += ["--set", "train.progress=true"]  # the tiny recipe turns it off
+    monkeypatch.delenv(ENV, raising=False)
+    argv = ["train", "--config", str(TINY), "--data", str(data), *sets]
+    assert main([*argv, "--out", str(tmp_path / "quiet")]) == 0
+    assert "train:" not in capsys.readouterr().err
+    monkeypatch.setenv(ENV, "always")
+    assert main([*argv, "--out", str(tmp_path / "drawn")]) == 0
+    assert "train: 100%" in capsys.readouterr().err

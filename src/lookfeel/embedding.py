@@ -21,6 +21,8 @@ from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, PressKind
 from lookfeel.models import Embedder, add_press_axis, autocast, eval_mode, to_channels_last
+from lookfeel.progress import bar as progress_bar
+from lookfeel.progress import shown as progress_shown
 
 __all__ = [
     "EmbeddedItems",
@@ -133,15 +135,7 @@ def embed_items(
     stream = iter(ready) if ready is not None else None
     have = 0 if stream is not None else len(items)
     out = []
-    from tqdm import tqdm
-
-    bar = tqdm(
-        total=len(items),
-        desc=f"embed {modality.value}",
-        unit="item",
-        leave=False,
-        disable=not progress,
-    )
+    bar = progress_bar(total=len(items), desc=f"embed {modality.value}", unit="item", show=progress)
     with bar, eval_mode(model), autocast(dev, precision=model.precision):
         for start in range(0, len(items), batch_size):
             while stream is not None and have < min(start + batch_size, len(items)):
@@ -302,10 +296,8 @@ def embed_catalog(
         ready = None
         if resolve_device(device).type == "cuda":  # the GPU embeds while the cores decode
             ready = loader.preload_stream(items)
-        elif progress:  # as below, counting the items as their images are decoded
-            from tqdm import tqdm
-
-            with tqdm(total=len(items), desc=f"decode {m.value}", unit="item", leave=False) as bar:
+        elif progress_shown(progress):  # as below, counting the items as they are decoded
+            with progress_bar(total=len(items), desc=f"decode {m.value}", unit="item") as bar:
                 for held in loader.preload_stream(items):
                     bar.update(held - bar.n)
         else:  # the same cores would do both: decoding first is 5% faster on 2 cores

@@ -189,20 +189,24 @@ def run_check(args: argparse.Namespace) -> int:
 
     catalog = check_dataset(args.root, args.require, workers=args.workers, progress=not args.quiet)
     if not args.no_leakage and not catalog.errors and len(catalog.fabrics) >= 2:
+        import warnings as python_warnings  # `warnings` below: the check's own
         from dataclasses import replace
 
-        from tqdm import tqdm
-
         from lookfeel.data.leakage import leakage_problems, leakage_report
+        from lookfeel.data.video import TruncatedVideoWarning, TwoPressesWarning
+        from lookfeel.progress import bar
 
         # One modality at a time, for the bar: each is scored on its own anyway (with the
         # same seed), and its leaks come in the order one call for all gives them.
         leaks = []
         mods = catalog.modalities
-        bar = tqdm(mods, desc="leakage", unit="modality", leave=False, disable=args.quiet)
-        for m in bar:
-            bar.set_postfix_str(m.value)
-            report = leakage_report(catalog, modalities=[m], n_boot=200, workers=args.workers)
+        scoring = bar(mods, desc="leakage", unit="modality", show=not args.quiet)
+        for m in scoring:
+            scoring.set_postfix_str(m.value)
+            with python_warnings.catch_warnings():  # the check above said them, as problems
+                python_warnings.simplefilter("ignore", TruncatedVideoWarning)
+                python_warnings.simplefilter("ignore", TwoPressesWarning)
+                report = leakage_report(catalog, modalities=[m], n_boot=200, workers=args.workers)
             leaks += leakage_problems(report)
         catalog = replace(catalog, problems=(*catalog.problems, *leaks))
     errors, warnings = catalog.errors, catalog.warnings

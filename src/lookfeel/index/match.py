@@ -73,6 +73,7 @@ from lookfeel.index.search import ExactSearch
 from lookfeel.metrics import match_probabilities
 from lookfeel.metrics.cross_map import CrossMap
 from lookfeel.modality import Modality, Pair
+from lookfeel.progress import bar as progress_bar
 
 __all__ = [
     "COLOUR_VIDEO",
@@ -529,10 +530,8 @@ class Matcher:
         else:  # separate queries: decoded and embedded EMBED_BATCH at a time (memory)
             files = self._check(paths, modality)
             parts: list[NDArray[np.float32]] = []
-            from tqdm import tqdm
-
             show = progress and len(files) > EMBED_BATCH
-            bar = tqdm(total=len(files), desc="match", unit="image", leave=False, disable=not show)
+            bar = progress_bar(total=len(files), desc="match", unit="image", show=show)
             with bar:  # closed (its line cleared) before an error is printed
                 for start in range(0, len(files), EMBED_BATCH):
                     t0 = time.perf_counter()

@@ -40,6 +40,7 @@ from lookfeel.atomic import atomic_write_text
 from lookfeel.locks import exclusive
 from lookfeel.modality import REPRINTS, Modality, PressKind
 from lookfeel.processes import available_cores, die_with_parent
+from lookfeel.progress import bar, shown
 from lookfeel.synth.color import render_colors
 from lookfeel.synth.config import SynthConfig, SynthSummary
 from lookfeel.synth.depth import render_depth
@@ -437,9 +438,6 @@ class _NoBar:
 
 
 def _progress(total: int, show: bool) -> _NoBar:
-    if not show:
+    if not shown(show):
         return _NoBar()
-    from tqdm import tqdm
-
-    bar: _NoBar = tqdm(total=total, desc="synth", unit="fabric", leave=False)
-    return bar
+    return bar(total=total, desc="synth", unit="fabric")

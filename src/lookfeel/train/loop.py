@@ -83,6 +83,7 @@ from lookfeel.models import (
     create_model,
     to_channels_last,
 )
+from lookfeel.progress import bar, shown
 from lookfeel.provenance import plugin_modules_of, software_versions
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.divergence import TrainingDiverged, diverged
@@ -1446,11 +1447,14 @@ def _train(
     # A plugin's loss (not lookfeel's) is named first when a run diverges in its terms.
     own_loss = None if loss_fn.pair_loss.__module__.startswith("lookfeel.") else config.loss.kind
     progress = None
-    if t.progress and dist.is_main:
-        from tqdm import tqdm
-
-        progress = tqdm(
-            total=t.steps, initial=start_step, desc="train", unit="step", dynamic_ncols=True
+    if dist.is_main and shown(t.progress):  # on a terminal (`lookfeel.progress`)
+        progress = bar(
+            total=t.steps,
+            initial=start_step,
+            desc="train",
+            unit="step",
+            dynamic_ncols=True,
+            leave=True,
         )
     last_val: dict[str, Any] = {}
     said_unscored = False
