@@ -322,3 +322,131 @@ def test_a_labels_file_without_a_key_column_is_one_error_and_no_cascade(
     (root / "labels.csv").write_bytes(content)
     (error,) = scan(root).errors
     assert error.path == root / "labels.csv" and why in error.message
+
+
+# ---- numbers as a spreadsheet writes them, and words read as unknown --------------------------
+
+
+def test_a_column_of_decimal_commas_is_numeric_and_one_error_saying_what_to_write(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """QA: quoted ``"0,7"`` cells (a European spreadsheet's decimal comma) made thickness_mm a
+    text column: `data info` listed it under text labels, `data check` said nothing, and
+    training said only "no class head for thickness_mm". One ``0,5`` among numbers was an
+    error, though. Now the column is numeric either way, with one error naming the file, the
+    column, a cell and what to write; the cells are unknown until then."""
+    root = write_tiny_dataset(
+        tmp_path / "t", fabrics=4, drapes=1, fold_presses=1, flat_presses=0, frames=1,
+        labels=False,
+    )  # fmt: skip
+    (root / "labels.csv").write_text(
+        'fabric_id,thickness_mm,material\n1,"0,7",cotton\n2,"0,5",wool\n3,"1,2",cotton\n'
+        "4,0.9,wool\n"
+    )
+    catalog = scan(root)
+    assert catalog.label_columns == ("thickness_mm",)
+    assert catalog.text_columns == ("material",)
+    error = (
+        f"{root / 'labels.csv'}:2: column 'thickness_mm': '0,7' is not a number (a comma as "
+        "the decimal mark); 2 more of its cells are written so (line 3, 4): write 0.7, a full "
+        "stop as the decimal mark; until then they are read as unknown"
+    )
+    assert [str(p) for p in catalog.errors] == [error]
+    assert catalog.fabric(1).labels == {} and catalog.fabric(4).labels == {"thickness_mm": 0.9}
+    assert main(["data", "info", str(root)]) == 0
+    info = capsys.readouterr().out
+    assert "text labels  material\n" in info and "labels       thickness_mm;" in info
+    assert main(["data", "check", str(root), "--no-leakage"]) == 1
+    assert f"ERROR    {error}\n" in capsys.readouterr().out
+
+    # A single one among numbers: the same words.
+    _, problems = _read(tmp_path, 'fabric_id,density\n1,0.2\n2,"0,5"\n3,0.4\n')
+    assert [(p.line, p.message) for p in problems] == [
+        (
+            3,
+            "column 'density': '0,5' is not a number (a comma as the decimal mark): write 0.5, "
+            "a full stop as the decimal mark; until then it is read as unknown",
+        )
+    ]
+
+
+def test_numbers_with_a_unit_or_grouped_digits_are_one_error_per_column_and_way(tmp_path: Path):
+    """``0.7 mm`` (a unit) made a column of classes too; ``1_000`` was read as 1000 (Python's
+    float takes underscores; no spreadsheet writes them) and ``1 000`` was a word. Words stay
+    words: a column of names, or of pencil grades (``2B``), is text, with no error."""
+    table, problems = _read(
+        tmp_path,
+        "fabric_id,thickness_mm,weight,stretch,count\n"
+        "1,0.7 mm,120gsm,5 %,1_000\n"
+        "2,0.5mm,90 gsm,7%,2 000\n"
+        '3,"0,9 mm",100,3,"1,500"\n'
+        "4,1.1,80,4,12\n",
+    )
+    assert table.columns == ("thickness_mm", "weight", "stretch", "count")
+    assert table.text_columns == ()
+    assert [(p.line, p.message) for p in problems] == [
+        (
+            2,
+            "column 'thickness_mm': '0.7 mm' is not a number (a unit, mm); 2 more of its cells "
+            "are written so (line 3, 4): write 0.7 (the column's name gives the unit); until "
+            "then they are read as unknown",
+        ),
+        (
+            2,
+            "column 'weight': '120gsm' is not a number (a unit, gsm); 1 more of its cells is "
+            "written so (line 3): write 120 and give the unit in the column's name "
+            "(weight_gsm); until then they are read as unknown",
+        ),
+        (
+            2,
+            "column 'stretch': '5 %' is not a number (a unit, %); 1 more of its cells is written "
+            "so (line 3): write 5 and give the unit in the column's name; until then they are "
+            "read as unknown",
+        ),
+        (
+            2,
+            "column 'count': '1_000' is not a number (its digits grouped by '_'); 1 more of its "
+            "cells is written so (line 3): write 1000, its digits together; until then they are "
+            "read as unknown",
+        ),
+        (
+            4,
+            "column 'count': '1,500' is not a number (a comma as the decimal mark or thousands "
+            "separator): write 1.500 or 1500, a full stop as the decimal mark; until then it is "
+            "read as unknown",
+        ),
+    ]
+    assert table.rows[1].values == {}
+    assert table.rows[4].values == {"thickness_mm": 1.1, "weight": 80, "stretch": 4, "count": 12}
+    assert table.rows[1].text["count"] == "1_000"  # kept as written
+
+    table, problems = _read(
+        tmp_path,
+        "fabric_id,material,grade,note\n1,cotton,2B,2 mm thick\n2,wool,HB,soft\n"
+        "3,silk,4H,3 layers\n",
+    )
+    assert problems == []
+    assert table.text_columns == ("material", "grade", "note") and table.columns == ()
+
+
+def test_none_in_a_text_column_is_unknown_with_a_warning_naming_the_column(tmp_path: Path):
+    """``none``, ``NA``, ``null`` ... are unknown, as pandas reads them, so a class named
+    "none" (a coating of none) vanished without a word. It is still unknown (labels.csv files
+    write ``none`` for unknown too), and the reader says so per text column; ``NA`` and the
+    other spellings that mean nothing else say nothing, nor does ``none`` in a numeric column."""
+    table, problems = _read(
+        tmp_path,
+        "object,coating,finish,hardness\negg,None,NA,1\nfelt,wax,matt,none\nball,none,n/a,2\n"
+        "cup,wax,gloss,\n",
+    )
+    assert table.text_columns == ("coating", "finish")
+    assert "coating" not in table.named["egg"].text and "finish" not in table.named["ball"].text
+    assert [(p.line, p.severity, p.message) for p in problems] == [
+        (
+            2,
+            "warning",
+            "column 'coating': 'None' (2 rows) is read as unknown, as an empty cell, NA and N/A "
+            "are; if it is a class, write it as another word (such as 'no_coating'), else leave "
+            "its cells empty",
+        )
+    ]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.labels import PHYSICAL_LABELS, class_of
-from lookfeel.data.problems import DatasetError, Problem, lacking_lines
+from lookfeel.data.problems import DatasetError, Problem, lacking_lines, leave_out
 from lookfeel.modality import Modality, PressKind
 
 __all__ = ["PHYSICAL_LABELS", "Catalog", "Fabric", "Item"]
@@ -282,10 +282,18 @@ class Catalog:
         if m is Modality.TOUCH and kinds is not None:
             what += " (" + "/".join(k.value for k in kinds) + " presses)"
 
+        noun = "object" if any(f.name is not None for f in self.fabrics) else "fabric"
+
         def fix(fabrics: list[Fabric], whose: str) -> str:
-            """What presses ``fabrics`` have instead, and the --set that trains on them."""
+            """What presses ``fabrics`` have instead, and the --set that trains on them; for
+            another sense some fabrics have, the --set that leaves it out (`leave_out`)."""
             if m is not Modality.TOUCH or kinds is None:
-                return ""
+                if len(lacking) == len(self.fabrics):
+                    return ""
+                everyone = [
+                    s.value for s in self.modalities if all(f.items.get(s) for f in self.fabrics)
+                ]
+                return leave_out(m.value, everyone, noun, len(fabrics) == 1)
             theirs = _press_kinds(it for f in fabrics for it in f.items.get(m, ()))
             if not theirs:
                 return ""
@@ -297,7 +305,6 @@ class Catalog:
                 f"'data.touch_kinds=[{','.join(every)}]' trains on {on}"
             )
 
-        noun = "object" if any(f.name is not None for f in self.fabrics) else "fabric"
         heads, grouped = lacking_lines([_who(f) for f in lacking], len(self.fabrics), noun, what)
         if grouped:
             return [Problem(folder, heads[0] + fix(lacking, "their"))]

@@ -10,9 +10,20 @@ A numeric column whose every value is a whole number from 0 to `MAX_RANK` is a c
 (``hardness``: 0, 1, 2): numbers and classes both (`is_rank_column`, the one rule that ``lookfeel
 data info``, ``data check``, training's class heads and so ``predict`` follow). One odd value
 (``1.5`` among 0, 1, 2) makes the column numbers only, and the reader warns naming its cell.
-Every known cell is also kept as text (a rank's class is its text, ``"2"``). Empty cells mean
-unknown. Names and cells are read in Unicode's composed form (NFC), as object names are taken
-from file names: an accented letter typed on macOS (``crème``) is one name however it was saved.
+Every known cell is also kept as text (a rank's class is its text, ``"2"``).
+
+A number is a cell a spreadsheet writes as one (``0.7``, ``-3``, ``1e-3``): ``1_000``, which
+Python reads, is not. A cell that is a number but for how it is written (``0,7`` with a
+decimal comma, ``0.7 mm`` with a unit, ``1 000`` with grouped digits) counts as a number when
+telling numeric columns from text ones, so a column of them is numeric, not classes, and is
+reported: one error per column naming a cell and what to write (`_miswritten`).
+
+Empty cells mean unknown, and so do ``NA``, ``N/A``, ``nan``, ``null`` and ``none`` (any case),
+as pandas reads them. In a text column ``none`` may be a class (a coating of "none"): it is
+still unknown, and the reader warns naming the column and how many rows, so that it is written
+as another word or left empty (`_missing_words`). Names and cells are read in Unicode's
+composed form (NFC), as object names are taken from file names: an accented letter typed on
+macOS (``crème``) is one name however it was saved.
 """
 
 from __future__ import annotations
@@ -48,6 +59,9 @@ KEY_COLUMNS = ("fabric_id", "object")
 
 PAPER_SPLITS = ("train", "test", "excluded")
 _MISSING = {"", "na", "n/a", "nan", "none", "null"}
+_WORD_MISSING = {"none"}
+"""Spellings of unknown (`_MISSING`) that are also a plain word a class may be named: in a text
+column each is still unknown, with a warning (`_missing_words`)."""
 _ID = re.compile(r"^[Ff]?0*(\d+)$")
 
 MAX_RANK = 10
@@ -191,6 +205,9 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     text_cols = _text_columns(header, value_cols, [cells for _, cells in records])
     rows: dict[int, LabelRow] = {}
     named: dict[str, LabelRow] = {}
+    # (column, way) -> (index in problems of its one error, (line, cell, how) of each cell): the
+    # cells of a column that are numbers but for how they are written (`_miswritten`)
+    miswritten: dict[tuple[str, str], tuple[int, list[tuple[int, str, _Miswritten]]]] = {}
     for lineno, cells in records:
         if not cells or all(not c.strip() for c in cells):
             continue
@@ -243,9 +260,15 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             cells_text[col] = raw
             if col in text_cols:
                 continue
-            try:
-                v = float(raw)
-            except ValueError:
+            v = _number(raw)
+            if v is None and (mis := _miswritten(raw)) is not None:
+                how = (col, mis.way)
+                if how not in miswritten:  # one error per column and way, here (see below)
+                    miswritten[how] = (len(problems), [])
+                    problems.append(Problem(path, "", line=lineno))
+                miswritten[how][1].append((lineno, raw, mis))
+                continue
+            if v is None:
                 problems.append(
                     Problem(path, f"column {col!r}: {raw!r} is not a number", line=lineno)
                 )
@@ -261,11 +284,11 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             raw = record[cluster_column]
             if raw.lower() not in _MISSING:
                 try:
-                    c = float(raw)
-                    if not c.is_integer() or c < 0:
+                    c = _number(raw)
+                    if c is None or not c.is_integer() or c < 0:
                         raise ValueError
                     cluster = int(c)
-                except ValueError:
+                except (ValueError, OverflowError):
                     problems.append(
                         Problem(
                             path,
@@ -293,6 +316,8 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
             named[name] = row
         else:
             rows[row.fabric_id] = row
+    for (col, _), (at, written) in miswritten.items():
+        problems[at] = _miswritten_problem(path, col, written)
     numeric = tuple(c for c in value_cols if c not in text_cols)
     every = [*rows.values(), *named.values()]
     ranks = tuple(c for c in numeric if is_rank_column(r.values[c] for r in every if c in r.values))
@@ -301,6 +326,7 @@ def read_labels(path: Path) -> tuple[LabelTable, list[Problem]]:
     maybe = [c for c in numeric if c not in ranks and c not in PHYSICAL_LABELS]
     problems.extend(_broken_ranks(path, maybe, every))
     problems.extend(_case_variants(path, text_cols, every))
+    problems.extend(_missing_words(path, header, text_cols, records))
     table = LabelTable(path, numeric, cluster_column, rows, text_cols, key, named, ranks)
     return table, problems
 
@@ -506,25 +532,151 @@ def _broken_ranks(path: Path, columns: Iterable[str], rows: list[LabelRow]) -> l
     return out
 
 
-def _is_number(text: str) -> bool:
+def _number(text: str) -> float | None:
+    """The number a cell holds as a spreadsheet writes one (``0.7``, ``-3``, ``1e-3``, ``inf``),
+    else None. Python's float also reads ``1_000`` (digits grouped by underscores), which no
+    spreadsheet writes: such a cell is not a number here (`_miswritten` says what to write)."""
+    if "_" in text:
+        return None
     try:
-        float(text)
+        return float(text)
     except ValueError:
-        return False
-    return True
+        return None
+
+
+_UNITS = (
+    "mm|cm|dm|m|km|µm|μm|um|nm|in|inch|inches|ft|g|kg|mg|lb|lbs|oz|gsm|g/m2|g/m²|g/cm3|g/cm³"
+    "|kg/m2|kg/m²|kg/m3|kg/m³|n|kn|mn|n/m|n/mm|n/cm|pa|kpa|mpa|gpa|psi|%|°|deg|s|ms|hz|khz"
+)
+"""Units a measurement may be written with (matched in any case): ``0.7 mm``, ``120gsm``."""
+_WITH_UNIT = re.compile(rf"^(?P<number>[+-]?[\d.,]*\d)\s*(?P<unit>{_UNITS})\.?$", re.IGNORECASE)
+_COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+$")
+_THOUSANDS = re.compile(r"^[+-]?[1-9]\d{0,2},\d{3}$")
+_GROUP_MARKS = "_ \u00a0\u202f'’"
+_GROUPED = re.compile(rf"^[+-]?\d{{1,3}}(?:[{_GROUP_MARKS}]\d{{3}})+(?:\.\d+)?$")
+
+
+@dataclass(frozen=True)
+class _Miswritten:
+    """A cell that is a number but for how it is written (`_miswritten`)."""
+
+    number: str
+    """What to write instead (``0.7``; ``1.500 or 1500`` where a comma may be either mark)."""
+    why: str
+    """What is wrong, in words (``a comma as the decimal mark``)."""
+    way: str
+    """``comma``, ``grouped`` or ``unit``: the cells of a column written one way are one error."""
+    unit: str = ""
+
+
+def _miswritten(cell: str) -> _Miswritten | None:
+    """How a cell that is a number but for how it is written should be written, else None:
+    ``0,7`` (a comma as the decimal mark) -> ``0.7``; ``1_000`` or ``1 000`` (grouped digits)
+    -> ``1000``; ``0.7 mm`` or ``0,7mm`` (a unit, `_UNITS`) -> ``0.7``. A comma before three
+    digits (``1,500``) is a decimal mark or a thousands separator: both readings are given."""
+    if _number(cell) is not None:
+        return None
+    if _COMMA_DECIMAL.match(cell):
+        number = cell.replace(",", ".")
+        if _THOUSANDS.match(cell):
+            number += " or " + cell.replace(",", "")
+            return _Miswritten(
+                number, "a comma as the decimal mark or thousands separator", "comma"
+            )
+        return _Miswritten(number, "a comma as the decimal mark", "comma")
+    if _GROUPED.match(cell):
+        mark = next(c for c in cell if c in _GROUP_MARKS)
+        by = "spaces" if mark.isspace() else repr(mark)
+        digits = "".join(c for c in cell if c not in _GROUP_MARKS)
+        return _Miswritten(digits, f"its digits grouped by {by}", "grouped")
+    m = _WITH_UNIT.match(cell)
+    if m is None:
+        return None
+    number = m["number"]
+    if _number(number) is None:
+        if not _COMMA_DECIMAL.match(number):
+            return None
+        number = number.replace(",", ".")
+    return _Miswritten(number, f"a unit, {m['unit']}", "unit", m["unit"])
+
+
+def _miswritten_problem(path: Path, col: str, cells: list[tuple[int, str, _Miswritten]]) -> Problem:
+    """The one error of the cells of a column that are numbers written one way (`_miswritten`):
+    the first cell, what to write instead, and the lines of the rest. The cells are read as
+    unknown."""
+    line, raw, first = cells[0]
+    fix = f"write {first.number}"
+    if first.way == "unit":
+        if col.casefold().endswith(first.unit.casefold()):
+            fix += " (the column's name gives the unit)"
+        elif first.unit.isalnum():
+            fix += f" and give the unit in the column's name ({col}_{first.unit})"
+        else:
+            fix += " and give the unit in the column's name"
+    elif first.way == "comma":
+        fix += ", a full stop as the decimal mark"
+    else:
+        fix += ", its digits together"
+    rest = ""
+    if len(cells) > 1:
+        lines = ", ".join(str(c[0]) for c in cells[1:4])
+        more = f" and {len(cells) - 4} more" if len(cells) > 4 else ""
+        n = len(cells) - 1
+        rest = f"; {n} more of its cells {'are' if n > 1 else 'is'} written so (line {lines}{more})"
+    them = "they are" if len(cells) > 1 else "it is"
+    return Problem(
+        path,
+        f"column {col!r}: {raw!r} is not a number ({first.why}){rest}: {fix}; until then {them} "
+        "read as unknown",
+        line=line,
+    )
+
+
+def _missing_words(
+    path: Path, header: list[str], columns: Iterable[str], records: list[tuple[int, list[str]]]
+) -> list[Problem]:
+    """A warning per text column and spelling of `_WORD_MISSING` (``none``) it holds: read as
+    unknown, as every spelling of `_MISSING` is, although it may name a class."""
+    out = []
+    for col in columns:
+        i = header.index(col)
+        found: dict[str, list[int]] = {}
+        spelt: dict[str, str] = {}
+        for n, cells in records:
+            cell = cells[i].strip() if len(cells) == len(header) else ""
+            if cell.lower() in _WORD_MISSING:
+                found.setdefault(cell.lower(), []).append(n)
+                spelt.setdefault(cell.lower(), cell)
+        for low, lines in found.items():
+            word = spelt[low]
+            rows = f"{len(lines)} row{'s' if len(lines) > 1 else ''}"
+            out.append(
+                Problem(
+                    path,
+                    f"column {col!r}: {word!r} ({rows}) is read as unknown, as an empty cell, NA "
+                    f"and N/A are; if it is a class, write it as another word (such as "
+                    f"'no_{col}'), else leave its cells empty",
+                    "warning",
+                    lines[0],
+                )
+            )
+    return out
 
 
 def _text_columns(
     header: list[str], value_cols: tuple[str, ...], rows: list[list[str]]
 ) -> tuple[str, ...]:
-    """Columns most of whose known cells are not numbers (so one typo in a numeric column is
-    reported as a bad number, not taken for a word)."""
+    """Columns most of whose known cells are not numbers, not even numbers miswritten (so one
+    typo in a numeric column is reported as a bad number, not taken for a word, and a column
+    of ``0,7`` is reported as numbers written with a comma, not taken for classes)."""
     out = []
     for col in value_cols:
         i = header.index(col)
         cells = [r[i].strip() for r in rows if len(r) == len(header)]
         known = [c for c in cells if c.lower() not in _MISSING]
-        words = sum(not _is_number(c) for c in known)
+        # A number written with a decimal comma or a unit counts as a number, so a column of
+        # them is numeric (and its cells reported), not a column of classes.
+        words = sum(_number(c) is None and _miswritten(c) is None for c in known)
         if known and words * 2 > len(known):
             out.append(col)
     return tuple(out)

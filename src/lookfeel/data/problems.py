@@ -8,7 +8,7 @@ from pathlib import Path
 
 from lookfeel.errors import LookfeelError
 
-__all__ = ["FEW_LACKING", "DatasetError", "Problem", "lacking_lines"]
+__all__ = ["FEW_LACKING", "DatasetError", "Problem", "lacking_lines", "leave_out"]
 
 
 @dataclass(frozen=True)
@@ -89,3 +89,19 @@ def lacking_lines(who: Sequence[str], total: int, noun: str, what: str) -> tuple
     if len(who) == total:
         return [f"none of the {total} {noun}s ({shown}) has a {what} item"], True
     return [f"{len(who)} of the {total} {noun}s ({shown}) have no {what} item"], True
+
+
+def leave_out(what: str, held: Sequence[str], noun: str, one: bool) -> str:
+    """What follows a line of `lacking_lines` for a sense ``what`` (``"color"``) that some
+    fabrics (``one``: a single one) lack: the ``--set`` of ``train.views`` that trains on the
+    senses every fabric has (``held``: ``depth`` and ``touch``; one sense twice, as a Siamese
+    run pairs two of its items), or that the missing items be added; ``noun`` is ``fabric`` or
+    ``object``."""
+    theirs = "its" if one else "their"
+    if not held:
+        return f"; add {theirs} {what} items (no sense is held by every {noun})"
+    views = list(held) if len(held) > 1 else [held[0], held[0]]
+    return (
+        f"; every {noun} has {' and '.join(held)}: --set 'train.views=[{','.join(views)}]' "
+        f"trains without {what}, or add {theirs} {what} items"
+    )
