@@ -66,7 +66,8 @@ def write_tiny_dataset(
             for p in range(n):
                 for fr in range(frames):
                     name = f"F{f:04d}_{kind}_{fr + 1:02d}_{100 * f + p}.png"
-                    write_rgb(root / "touch" / name, f, 10 * p + fr, size=(32, 24))
+                    k = 10 * p + fr + (500 if kind == "flat" else 0)  # not a fold press's copy
+                    write_rgb(root / "touch" / name, f, k, size=(32, 24))
     if labels:
         lines = [LABELS_HEADER]
         for f in range(1, fabrics + 1):

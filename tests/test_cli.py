@@ -71,6 +71,10 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     assert "At a glance:" in out
     report = (tmp_path / "demo" / "reproduce" / "report.md").read_text()
     assert "## Table 4" in report
+    # One training seed, 0, as before `reproduce` took a list of seeds (session 56).
+    assert "budget: **tiny**; seeds: 1; " in report
+    runs = tmp_path / "demo" / "reproduce" / "runs"
+    assert {p.name for p in runs.glob("*/seed*")} == {"seed0"}
     assert main([*args, "--set", "train.steps=2", "--set", "data.image_size=24"]) == 0
     assert "Reusing the synthetic world" in capsys.readouterr().out
 
@@ -200,13 +204,18 @@ def test_an_out_folder_this_user_cannot_write_in_is_refused_before_the_work(
     ro.mkdir()
     real_access = os.access
     monkeypatch.setattr(os, "access", lambda p, mode: Path(p) != ro and real_access(p, mode))
+    # One line, exit 1, as README says of an --out a command cannot write in (argparse's
+    # usage error, exit 2, until session 56).
     for out in (ro / "run", ro / "deeper" / "run"):
-        with pytest.raises(SystemExit):
-            main(["train", "--data", str(tmp_path), "--out", str(out)])
-        assert f"cannot write in {ro}: it is read-only for this user" in capsys.readouterr().err
-    with pytest.raises(SystemExit):  # a file to write over: its folder must be writable
-        main(["embed", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out", str(ro / "e.npz")])
-    assert f"cannot write in {ro}" in capsys.readouterr().err
+        assert main(["train", "--data", str(tmp_path), "--out", str(out)]) == 1
+        assert capsys.readouterr().err == (
+            f"lookfeel: --out {out}: cannot write in {ro}: it is read-only for this user\n"
+        )
+    e_npz = ro / "e.npz"  # a file to write over: its folder must be writable
+    assert (
+        main(["embed", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out", str(e_npz)]) == 1
+    )
+    assert capsys.readouterr().err.startswith(f"lookfeel: --out {e_npz}: cannot write in {ro}")
     # What the permissions allow but the file system does not (as root, /proc looks writable).
     monkeypatch.setattr(os, "access", real_access)
     refused = tmp_path / "refused"
@@ -219,9 +228,8 @@ def test_an_out_folder_this_user_cannot_write_in_is_refused_before_the_work(
         return real_file(*args, **kwargs)
 
     monkeypatch.setattr(tempfile, "TemporaryFile", no_files_in_refused)
-    with pytest.raises(SystemExit):
-        main(["evaluate", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out",
-              str(refused / "eval")])  # fmt: skip
+    assert main(["evaluate", "--checkpoint", "c.pt", "--data", str(tmp_path), "--out",
+                 str(refused / "eval")]) == 1  # fmt: skip
     assert f"cannot write in {refused}: Read-only file system" in capsys.readouterr().err
     assert list(refused.iterdir()) == []
 

@@ -219,3 +219,34 @@ def test_a_folder_holding_something_else_is_refused_and_its_own_kept(
     own.unlink() if own.is_file() else own.rmdir()
     with pytest.raises(_Worked):  # a folder holding only a temp file of an atomic write
         main([str(a) for a in argv])
+
+
+FOLDER_COMMANDS = [c for c in _commands(Path("d"), Path("o")) if c != "embed"]
+"""The commands whose --out is a folder (every one but embed's, a file)."""
+
+
+@pytest.mark.parametrize("command", [*FOLDER_COMMANDS, "demo"])
+def test_an_out_a_folder_command_cannot_write_is_exit_1_in_one_line(
+    command: str, tiny_dataset: Path, tmp_path: Path, no_work: None, capsys
+):
+    """QA: ``train --out notes.txt`` (an existing file) and an --out below a file exited 2
+    with argparse's usage, where README says an --out a command cannot write in is one line,
+    exit 1, as every other path problem is."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine\n")
+    for out, said in (
+        (notes, f"--out {notes} exists and is not a folder; this command writes a folder"),
+        (notes / "run", f"--out {notes / 'run'}: {notes} is a file, not a folder to write in"),
+    ):
+        argv = (
+            ["demo", "--out", out] if command == "demo" else _commands(tiny_dataset, out)[command]
+        )
+        _refused(capsys, argv, said)
+    assert notes.read_text() == "mine\n"
+
+
+def test_an_embed_out_that_is_a_folder_is_exit_1_in_one_line(
+    tiny_dataset: Path, tmp_path: Path, no_work: None, capsys
+):
+    argv = _commands(tiny_dataset, tmp_path)["embed"]
+    _refused(capsys, argv, f"--out {tmp_path} is a folder; name the file to write (e.g. ")

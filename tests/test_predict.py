@@ -155,7 +155,6 @@ def test_a_gif_or_webp_is_refused_as_serve_refuses_it_and_a_folder_is_named_one(
     query's error (as any input that cannot be read)."""
     from PIL import Image
 
-
     data, _ = run
     photo = Image.open(data / "color/F0003_2.png")
     for name, kind in (("p.gif", "GIF"), ("p.webp", "WebP"), ("gif.png", "GIF")):

@@ -6,6 +6,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+import yaml
 
 from lookfeel.cli import main
 from lookfeel.config import ConfigError
@@ -260,11 +261,69 @@ def test_bad_requests(data: Path, tmp_path: Path, capsys):
         main(["reproduce", "--data", str(data), "--out", str(tmp_path), "--budget", "paper"]) == 1
     )
     assert "--pretrained" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="workers must be >= 0"):
+        reproduce(data, tmp_path / "w", workers=-1)
+    with pytest.raises(ConfigError, match="seeds: 1 given more than once"):
+        reproduce(data, tmp_path / "w", seeds=[1, 0, 1])
+    with pytest.raises(ConfigError, match="seeds: at least one training seed is needed"):
+        reproduce(data, tmp_path / "w", seeds=[])
+    # The command refuses it first, by the flag's name (argparse's usage error).
     args = ["reproduce", "--data", str(data), "--out", str(tmp_path / "w"), "--workers", "-1"]
-    assert main(args) == 1
+    with pytest.raises(SystemExit) as e:
+        main(args)
+    assert e.value.code == 2
     err = capsys.readouterr().err
-    assert "workers must be >= 0" in err and "Traceback" not in err
+    assert err.splitlines()[-1].endswith("argument --workers: must be >= 0, got -1")
+    assert "Traceback" not in err
     assert not (tmp_path / "w").exists()  # refused before anything is written
+
+
+def test_seeds_are_trained_in_the_order_given_and_found_again_by_their_folders(
+    data: Path, tmp_path: Path
+):
+    """QA: ``reproduce --seeds N`` trained seeds 0 to N-1 where ``cv --seeds N`` trains seed
+    N. The seeds are a list now, trained in the order given, each in ``runs/NAME/seed{S}`` as
+    before: a folder of the older seeds 0 to N-1 resumes, and the older form (an int ``n``:
+    seeds 0 to n-1) still reads it."""
+    out = tmp_path / "out"
+    args = dict(budget="tiny", only=["flat"], n_boot=20, overrides=FAST, workers=1)
+    lines: list[str] = []
+    result = reproduce(data, out, seeds=[1, 0], log=lines.append, **args)
+    started = [ln for ln in lines if ln.startswith("run ")]
+    assert [ln.split("(")[0].strip() for ln in started] == ["run  flat seed 1", "run  flat seed 0"]
+    for seed in (0, 1):
+        saved = yaml.safe_load((out / "runs" / "flat" / f"seed{seed}" / "config.yaml").read_text())
+        assert saved["train"]["seed"] == seed
+    meta = json.loads((out / "results.json").read_text())["meta"]
+    assert meta["seeds"] == 2 and meta["seed_list"] == [1, 0]
+    assert result.results["flat"]["seeds"] == 2
+    assert "seeds: 2" in result.report.read_text()
+    for older in (1, [0]):  # seed 0 alone: found finished, read back, nothing trained
+        lines.clear()
+        again = reproduce(data, out, seeds=older, log=lines.append, **args)
+        assert not any(ln.startswith("run ") for ln in lines), lines
+        assert any(ln.startswith("read flat seed 0") for ln in lines), lines
+        assert again.results["flat"]["seeds"] == 1
+
+
+def test_the_demo_reproduces_seed_0_alone_as_before(tmp_path: Path, monkeypatch):
+    """`make demo`'s reproduction trains seed 0 alone, as its ``seeds=1`` did before
+    ``reproduce`` took a list of seeds."""
+    import lookfeel.demo as demo
+    from lookfeel.reproduce.run import _seed_list
+
+    seen: dict[str, object] = {}
+
+    def fake_reproduce(world: Path, out: Path, **kwargs: object) -> None:
+        seen.update(kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(demo, "generate", lambda c, w, progress: write_tiny_dataset(w, fabrics=3))
+    monkeypatch.setattr(demo, "reproduce", fake_reproduce)
+    with pytest.raises(KeyboardInterrupt):
+        demo.run_demo(tmp_path / "demo", fabrics=9, log=lambda line: None)
+    assert _seed_list(seen["seeds"]) == _seed_list(1) == [0]  # type: ignore[arg-type]
+    assert _seed_list(3) == [0, 1, 2]
 
 
 def test_runs_side_by_side_in_workers_give_the_numbers_of_one_process(
@@ -1520,3 +1579,12 @@ def test_a_table_4_side_without_a_scored_query_has_no_chance_and_no_pick(tmp_pat
         "over the draw) of pick 1 of 4 (the "
         "paper's pick 1 of 10, but the test fabrics offer only 4 candidates a draw), its 95% "
     ) in report
+
+
+def test_the_report_names_seeds_other_than_the_first_ones():
+    """`reproduce --seeds 3,5` trains seeds 3 and 5: the report said "seeds: 2" as of 0 and 1."""
+    from lookfeel.reproduce.report import _seeds
+
+    assert _seeds({"seeds": 2, "seed_list": [3, 5]}) == "2 (3, 5)"
+    assert _seeds({"seeds": 2, "seed_list": [0, 1]}) == "2"
+    assert _seeds({"seeds": 3}) == "3"  # a results.json from before the list was kept

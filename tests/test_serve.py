@@ -265,6 +265,28 @@ def test_cli_serve_on_a_busy_port_says_so_in_one_line_and_never_that_it_serves(s
     )
 
 
+def test_serve_on_port_0_says_the_free_port_it_took(monkeypatch: pytest.MonkeyPatch):
+    """QA: `serve --port 0` (a script's way to ask for any free port) was refused; it now
+    binds one and says which, as the URL it serves at."""
+    import uvicorn
+    from fastapi import FastAPI
+
+    from lookfeel.serve import serve
+
+    app = FastAPI()
+    said: list[str] = []
+    ran: list[int] = []
+
+    def run(self: uvicorn.Server, sockets: list[socket.socket]) -> None:  # do not block
+        ran.append(sockets[0].getsockname()[1])
+        self.started = True
+
+    monkeypatch.setattr(uvicorn.Server, "run", run)
+    serve(app, port=0, on_bound=said.append)
+    assert ran and ran[0] > 0
+    assert said == [f"http://127.0.0.1:{ran[0]}/"]
+
+
 def test_a_model_reading_several_frames_of_a_press_takes_no_touch_upload(run, tmp_path: Path):
     """With ``data.touch_frames`` one uploaded image is not a press: the library says touch is
     not uploadable (the page then offers library presses only), and an upload is a 422."""

@@ -349,7 +349,7 @@ def run_demo(
         world,
         out / "reproduce",
         budget=budget,
-        seeds=1,
+        seeds=(0,),
         n_boot=500,
         overrides=_run_overrides(out, overrides),
         log=log,

@@ -25,7 +25,10 @@ is the command's purpose, then its ``--help`` description. ``_args`` holds what 
 share, and `Choices` reads an option's values (splits, budgets, ...) from the module that defines
 them. A handler imports the library when it runs, so that ``lookfeel --help`` and each command
 load only what they use. An error a user can cause is a `LookfeelError`: handlers let it through,
-and `main` prints ``lookfeel: <message>`` and returns 1. Before a command runs, `main` imports
+and `main` prints ``lookfeel: <message>`` and returns 1, as it does for an ``--out`` this user
+cannot write (`_args.OutPathError`, raised as the command line is read); a mistake in the
+command line itself is argparse's usage error (usage, then ``lookfeel ...: error: ...``, on
+stderr; exit 2), a bare ``lookfeel`` included. Before a command runs, `main` imports
 the user's plugin modules (``--plugin MODULE``, ``LOOKFEEL_PLUGINS``, entry points:
 `lookfeel.plugins`), which register backbones and losses of their own. The console script
 (`run`) shows each warning as one line too, ``lookfeel: warning: <message>``, once.
@@ -56,6 +59,7 @@ from lookfeel.cli import (
     synth,
     train,
 )
+from lookfeel.cli._args import OutPathError
 from lookfeel.errors import LookfeelError
 
 __all__ = ["build_parser", "main", "run"]
@@ -118,9 +122,19 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
+    try:
+        args = parser.parse_args(argv)
+    except OutPathError as e:  # an --out this user cannot write: as any path, not usage
+        print(f"lookfeel: {e}", file=sys.stderr)
+        return 1
+    if args.command is None:  # as argparse says of a group without its action (`lookfeel data`)
+        parser.print_usage(sys.stderr)
+        commands = _command_list()
+        if commands:  # none under ``python -OO``
+            print(f"\n{commands}\n", file=sys.stderr)
+        print(
+            f"{parser.prog}: error: the following arguments are required: COMMAND", file=sys.stderr
+        )
         return 2
     try:
         _load_plugins(args.plugin)

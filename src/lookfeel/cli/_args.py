@@ -96,6 +96,94 @@ def number(
     return parse
 
 
+def number_list(what: str) -> Callable[[str], list[int]]:
+    """An argparse ``type`` for a comma-separated list of integers >= 0, each given once, in
+    the order given: ``number_list("seed")("0,1")`` is ``[0, 1]``. A negative, a repeat or
+    anything but integers is argparse's one-line usage error naming the flag and ``what``
+    (``--seeds`` of ``cv`` and ``reproduce``: numpy's generators take no negative seed, as
+    ``train.seed`` refuses one; a repeat would train the same run twice)."""
+
+    def parse(text: str) -> list[int]:
+        try:
+            values = [int(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not a comma-separated list of integers"
+            ) from None
+        if not values:
+            raise argparse.ArgumentTypeError("an empty list")
+        negative = [v for v in values if v < 0]
+        if negative:
+            raise argparse.ArgumentTypeError(
+                f"a {what} must be an integer >= 0, got {', '.join(map(str, negative))}"
+            )
+        repeated = sorted({v for v in values if values.count(v) > 1})
+        if repeated:
+            raise argparse.ArgumentTypeError(
+                f"{what} {', '.join(map(str, repeated))} given more than once"
+            )
+        return values
+
+    return parse
+
+
+class NameList(Choices):
+    """The allowed names of an option that takes several (`add_name_list`), read as `Choices`
+    reads them. argparse checks each value against ``choices`` after its ``type`` made it a
+    list of names, each already checked: a list is in it when every name is."""
+
+    def __contains__(self, value: object) -> bool:
+        if isinstance(value, list):
+            return all(name in self.values() for name in value)
+        return value in self.values()
+
+
+class _Flatten(argparse.Action):
+    """Store the names of every value given (each a list, `add_name_list`) as one list, each
+    name once, in the order given."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[object] | None,
+        option_string: str | None = None,
+    ) -> None:
+        names = [n for value in values or () for n in (value if isinstance(value, list) else [])]
+        setattr(namespace, self.dest, list(dict.fromkeys(names)))
+
+
+def add_name_list(parser: argparse.ArgumentParser, flag: str, choices: NameList, help: str) -> None:
+    """An option naming one or more of ``choices``, comma-separated, space-separated or both
+    (``--only flat,auxiliary``, ``--only flat auxiliary``): a list of names each once, or None
+    when the option is not given. Given with no name it is argparse's usage error, as is a name
+    not in ``choices`` (named with the allowed ones). Name the values in ``help`` with
+    ``%(choices)s``."""
+
+    def names(text: str) -> list[str]:
+        found = [n.strip() for n in text.split(",") if n.strip()]
+        if not found:
+            raise argparse.ArgumentTypeError(f"no name in {text!r}")
+        for name in found:
+            if name not in choices.values():
+                allowed = ", ".join(map(repr, choices))
+                raise argparse.ArgumentTypeError(
+                    f"invalid choice: {name!r} (choose from {allowed})"
+                )
+        return found
+
+    parser.add_argument(
+        flag,
+        nargs="+",
+        type=names,
+        action=_Flatten,
+        default=None,
+        choices=choices,
+        metavar="NAME",
+        help=help,
+    )
+
+
 def add_modalities(parser: argparse.ArgumentParser, flag: str, what: str, default: str) -> None:
     """An option naming modalities, e.g. ``--require depth,touch``: a tuple of `Modality`, or None
     when it is not given (``default`` says what that means)."""
@@ -113,47 +201,64 @@ def add_json(parser: argparse.ArgumentParser, help: str = "print as JSON") -> No
     parser.add_argument("--json", action="store_true", help=help)
 
 
+class OutPathError(Exception):
+    """An ``--out`` this user cannot write (a file where a folder goes, a folder where a file
+    goes, a folder above that is a file or read-only), found as the command line is read by
+    `out_folder` and `out_file`. Not a ``ValueError``, which argparse would turn into a usage
+    error (exit 2): `lookfeel.cli.main` prints it as it prints a `LookfeelError`, ``lookfeel:
+    <message>``, and exits 1, as for every other path the command cannot use."""
+
+
 def _under_a_folder(path: Path) -> None:
     """Refuse ``path`` when what already exists of it, or of the folders above it, is a file
     or a folder this user cannot write in (read-only, or another's; a temporary file is
     created and removed there to be sure): said before the command starts its work, not as a
-    traceback when it first writes."""
+    traceback when it first writes.
+
+    Raises:
+        OutPathError: ``--out PATH: ...`` naming what is in the way.
+    """
     for above in (path, *path.parents):
         if not above.exists():
             continue
         if not above.is_dir():
             if above == path:
                 continue  # a file `out_file` writes over (`out_folder` refused it): its folder
-            raise argparse.ArgumentTypeError(f"{above} is a file, not a folder to write in")
+            raise OutPathError(f"--out {path}: {above} is a file, not a folder to write in")
         if not os.access(above, os.W_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(
-                f"cannot write in {above}: it is read-only for this user"
+            raise OutPathError(
+                f"--out {path}: cannot write in {above}: it is read-only for this user"
             )
         try:  # what permissions do not show: a read-only mount, /proc, root on a foreign share
             with tempfile.TemporaryFile(dir=above):
                 pass
         except OSError as e:
-            raise argparse.ArgumentTypeError(
-                f"cannot write in {above}: {e.strerror or e}"
+            raise OutPathError(
+                f"--out {path}: cannot write in {above}: {e.strerror or e}"
             ) from None
         return
 
 
 def out_folder(text: str) -> Path:
-    """``--out`` of a command that writes a folder (a run, a report, a library)."""
+    """``--out`` of a command that writes a folder (a run, a report, a library): an argparse
+    ``type`` that raises `OutPathError` (exit 1) for a path this user cannot write there."""
     path = Path(text)
     if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{path} exists and is not a folder")
+        raise OutPathError(
+            f"--out {path} exists and is not a folder; this command writes a folder: choose "
+            "another --out"
+        )
     _under_a_folder(path)
     return path
 
 
 def out_file(text: str) -> Path:
-    """``--out`` of a command that writes one file."""
+    """``--out`` of a command that writes one file: an argparse ``type`` that raises
+    `OutPathError` (exit 1) for a path this user cannot write there."""
     path = Path(text)
     if path.is_dir():
-        raise argparse.ArgumentTypeError(
-            f"{path} is a folder; name the file to write (e.g. {path / 'embeddings.npz'})"
+        raise OutPathError(
+            f"--out {path} is a folder; name the file to write (e.g. {path / 'embeddings.npz'})"
         )
     _under_a_folder(path)
     return path
@@ -344,7 +449,7 @@ def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:
     """``--batch-size`` (and ``--device``) of the forward passes that embed images."""
     parser.add_argument(
         "--batch-size",
-        type=int,
+        type=number(int, 1),
         default=EMBED_BATCH,
         help=f"images per forward pass (default {EMBED_BATCH})",
     )
@@ -370,8 +475,19 @@ def add_command(
     """
     description = (doc or "").partition("\n\n")[2].strip() or None  # doc is None under -OO
     parser = subparsers.add_parser(name, description=description)
-    parser.set_defaults(func=run)
+    parser.set_defaults(func=run, command_parser=parser)
     return parser
+
+
+def usage_error(args: argparse.Namespace, message: str) -> int:
+    """argparse's usage error of the command that read ``args`` (`add_command`), for a mistake
+    only its handler sees (an option that needs another): the command's usage line, then
+    ``lookfeel COMMAND: error: <message>``, on stderr. Returns 2, argparse's exit status, for
+    the handler to return."""
+    parser: argparse.ArgumentParser = args.command_parser
+    parser.print_usage(sys.stderr)
+    print(f"{parser.prog}: error: {message}", file=sys.stderr)
+    return 2
 
 
 def add_choice(

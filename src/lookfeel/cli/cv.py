@@ -28,6 +28,8 @@ from lookfeel.cli._args import (
     add_run_config,
     check_out_folder,
     clear_stale_temps,
+    number,
+    number_list,
     run_config_source,
 )
 
@@ -41,27 +43,30 @@ def add_parser(subparsers: Subparsers) -> None:
     cv = add_command(subparsers, "cv", __doc__, run)
     add_run_config(cv, "cross-validation folder to write")
     cv.add_argument(
-        "--folds", type=int, default=None, help="number of folds (default: the config's)"
+        "--folds",
+        type=int,
+        default=None,
+        help="number of folds, at least 2 (default: the config's)",
     )
     cv.add_argument(
         "--fold-size",
-        type=int,
+        type=number(int, 1),
         default=None,
         help="fabrics per fold (default: the config's; 18 holds out test sets like the paper's)",
     )
     cv.add_argument(
         "--only-folds",
-        type=_int_list,
+        type=number_list("fold"),
         default=None,
         metavar="F,F",
         help="run only these folds, e.g. 0,1,2 (default: all)",
     )
     cv.add_argument(
         "--seeds",
-        type=_seed_list,
+        type=number_list("seed"),
         default=[0],
         metavar="S,S",
-        help="training seeds, integers >= 0 (default 0)",
+        help="training seeds, integers >= 0, e.g. 0,1 (default 0); as reproduce --seeds",
     )
     cv.add_argument(
         "--tta",
@@ -70,12 +75,14 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     cv.add_argument(
         "--presses",
-        type=int,
+        type=number(int, 1),
         default=None,
         help="presses of one fabric pooled into each touch query, as the Multi-input Net "
         "(default: the config's data.presses)",
     )
-    cv.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples (default 1000)")
+    cv.add_argument(
+        "--n-boot", type=number(int, 0), default=1000, help="bootstrap resamples (default 1000)"
+    )
     cv.add_argument(
         "--no-background-control",
         dest="background_control",
@@ -87,33 +94,14 @@ def add_parser(subparsers: Subparsers) -> None:
     )
 
 
-def _int_list(text: str) -> list[int]:
-    """``"0,1,2"`` -> ``[0, 1, 2]`` (an argparse type)."""
-    try:
-        values = [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} is not a comma-separated list of integers"
-        ) from None
-    if not values:
-        raise argparse.ArgumentTypeError("an empty list")
-    return values
-
-
-def _seed_list(text: str) -> list[int]:
-    """``"0,1"`` -> ``[0, 1]``, refusing a negative seed (numpy's generators take none), as
-    ``train.seed`` does (an argparse type)."""
-    values = _int_list(text)
-    negative = [v for v in values if v < 0]
-    if negative:
-        raise argparse.ArgumentTypeError(
-            f"a seed must be an integer >= 0, got {', '.join(map(str, negative))}"
-        )
-    return values
-
-
 def run(args: argparse.Namespace) -> int:
     """Cross-validate, then print the summary and where it was written."""
+    if args.folds is not None and args.folds < 2:  # before the config: 0 reads as no fold
+        from lookfeel.data.splits import SplitError
+
+        raise SplitError(
+            f"--folds {args.folds} (train.folds): cross-validation needs at least 2 folds"
+        )
     check_out_folder(args.out, args.data, CV_FILES, "a cross-validation folder")
     clear_stale_temps(args.out)
     from lookfeel.cli.train import check_senses

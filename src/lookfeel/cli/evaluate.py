@@ -20,7 +20,6 @@ cross-modal map fitted on them (keys *_mapped; --set cross_map=false turns it of
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from lookfeel.cli._args import (
@@ -33,6 +32,7 @@ from lookfeel.cli._args import (
     check_out_folder,
     clear_stale_temps,
     out_folder,
+    usage_error,
 )
 
 REPORT_FILES = ("metrics.json", "figures/.lookfeel-figures.json")
@@ -81,6 +81,15 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate and write the report; print each pair's top-k with its interval and chance."""
+    # Options that go together, argparse's usage errors (exit 2), before any work.
+    if args.checkpoint is not None and args.data is None:
+        return usage_error(args, "--checkpoint needs --data (the dataset it scores)")
+    if args.embeddings is not None and args.split is not None:
+        return usage_error(
+            args,
+            "--split applies to --checkpoint; an embeddings file holds the split it was "
+            "embedded with",
+        )
     from lookfeel.config import EvalConfig, load_config
     from lookfeel.evaluate import (
         evaluate_checkpoint,
@@ -98,9 +107,6 @@ def run(args: argparse.Namespace) -> int:
         overrides.append("background_control=false")
     config = load_config(EvalConfig, args.config, overrides)
     if args.checkpoint is not None:
-        if args.data is None:
-            print("lookfeel evaluate: --checkpoint needs --data", file=sys.stderr)
-            return 2
         result = evaluate_checkpoint(
             args.checkpoint,
             args.data,
@@ -110,13 +116,6 @@ def run(args: argparse.Namespace) -> int:
             device=args.device,
         )
     else:
-        if args.split is not None:
-            print(
-                "lookfeel evaluate: --split applies to --checkpoint; an embeddings file holds "
-                "the split it was embedded with",
-                file=sys.stderr,
-            )
-            return 2
         result = evaluate_embedding_file(args.embeddings, config, args.data)
     files = write_report(result, args.out)
     print("\n".join(summary_lines(result)))

@@ -17,6 +17,7 @@ from lookfeel.cli._args import (
     add_forward,
     add_json,
     check_out_beside_data,
+    number,
 )
 from lookfeel.modality import PressKind
 
@@ -58,7 +59,9 @@ def add_parser(subparsers: Subparsers) -> None:
         "search: exact numpy, faiss HNSW, or auto by size (default; faiss from 100,000 "
         "items in a modality): %(choices)s",
     )
-    ib.add_argument("--shard-size", type=int, default=2048, help="items per shard (2048)")
+    ib.add_argument(
+        "--shard-size", type=number(int, 1), default=2048, help="items per shard (default 2048)"
+    )
     add_forward(ib, device=False)
     ib.add_argument(
         "--kinds",
@@ -70,15 +73,17 @@ def add_parser(subparsers: Subparsers) -> None:
         "--false-accept",
         type=float,
         default=0.05,
-        help="target rate of unknown materials accepted as a known fabric (0.05)",
+        help="target rate of unknown materials accepted as a known fabric (default 0.05)",
     )
-    ib.add_argument("--folds", type=int, default=5, help="leave-fabrics-out folds (5)")
-    ib.add_argument("--seed", type=int, default=0, help="calibration seed (0)")
+    ib.add_argument(
+        "--folds", type=int, default=5, help="leave-fabrics-out folds, at least 2 (default 5)"
+    )
+    ib.add_argument("--seed", type=number(int, 0), default=0, help="calibration seed (default 0)")
     ib.add_argument(
         "--calibration-queries",
         type=int,
         default=1000,
-        help="held-out queries per modality pair (1000)",
+        help="held-out queries per modality pair (default 1000)",
     )
     ib.add_argument(
         "--no-cross-map",
@@ -97,7 +102,18 @@ def add_parser(subparsers: Subparsers) -> None:
     ib.add_argument("--quiet", action="store_true", help="no line per shard")
     ib.set_defaults(func=run_build)
 
-    ii = actions.add_parser("info", help="what a library holds and how it is calibrated")
+    ii = actions.add_parser(
+        "info",
+        help="what a library holds and how it is calibrated",
+        description=(
+            "Say what the library folder LIBRARY holds: its checkpoint and model, the dataset "
+            "it was built from, its items of each modality and fabrics, and each modality "
+            "pair's calibration (top-1 beside chance, c of P ∝ exp(-c D²), the 'unknown' "
+            "threshold with its false and true accept), measured in-sample on the library's "
+            "own items; and whether a rebuild is running or was stopped. --json: all of it "
+            "as JSON."
+        ),
+    )
     ii.add_argument("library", type=Path, help="library folder")
     add_json(ii)
     ii.set_defaults(func=run_info)
@@ -120,8 +136,15 @@ def _kinds(text: str) -> list[PressKind]:
 
 def run_build(args: argparse.Namespace) -> int:
     """Build (or finish) the library; print its items and each pair's calibration."""
+    from lookfeel.index import LibraryError, build_library
+
+    if args.folds < 2:  # as `cv --folds`; the library function takes 0 or 1: no threshold
+        raise LibraryError(
+            f"--folds {args.folds}: calibration needs at least 2 folds (the 'unknown' "
+            "threshold is fitted on each fold's fabrics left out; fewer would leave the "
+            "library without one)"
+        )
     check_out_beside_data(args.out, args.data)  # before any work: never into the dataset
-    from lookfeel.index import build_library
 
     result = build_library(
         args.checkpoint,

@@ -44,14 +44,14 @@ def add_parser(subparsers: Subparsers) -> None:
         "else this is needed). A modality so guessed that the library lacks is refused: give "
         "this to read the file as another. Images are PNG or JPEG",
     )
-    mt.add_argument("--top", type=number(int, 1), default=5, help="fabrics to list (5)")
+    mt.add_argument("--top", type=number(int, 1), default=5, help="fabrics to list (default 5)")
     mt.add_argument(
         "--property-fabrics",
         type=number(int, 1),
         default=5,
         metavar="K",
         help="predict the properties from the K likeliest fabrics, each weighted by its "
-        "probability, whatever --top lists (5)",
+        "probability, whatever --top lists (default 5)",
     )
     mt.add_argument(
         "--gallery",

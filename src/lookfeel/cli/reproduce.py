@@ -19,13 +19,17 @@ from pathlib import Path
 
 from lookfeel.cli._args import (
     Choices,
+    NameList,
     Subparsers,
     add_choice,
     add_command,
     add_data_out,
+    add_name_list,
     add_set,
     check_out_folder,
     clear_stale_temps,
+    number,
+    number_list,
 )
 
 REPRODUCE_FILES = ("results.json", "runs")
@@ -46,11 +50,12 @@ def add_parser(subparsers: Subparsers) -> None:
     )
     rep.add_argument(
         "--seeds",
-        type=int,
-        default=1,
-        metavar="N",
-        help="how many training seeds per experiment: seeds 0 to N-1, the numbers their means "
-        "(default 1: seed 0)",
+        type=number_list("seed"),
+        default=[0],
+        metavar="S,S",
+        help="training seeds of every experiment, integers >= 0, trained in this order, e.g. "
+        "0,1 (default 0), as cv --seeds; the numbers are their means. Runs are "
+        "DIR/runs/NAME/seed{S}, so a rerun resumes the seeds it names",
     )
     rep.add_argument(
         "--pretrained",
@@ -58,24 +63,28 @@ def add_parser(subparsers: Subparsers) -> None:
         default=None,
         help="ImageNet AlexNet weights (the runs' config.yaml names the file's absolute path)",
     )
-    rep.add_argument(
+    add_name_list(
+        rep,
         "--only",
-        nargs="*",
-        default=None,
-        choices=Choices("lookfeel.reproduce.run", "EXPERIMENT_NAMES"),
-        metavar="NAME",
-        help="experiments to run, of %(choices)s (default all); the report also covers the "
-        "finished runs of the others already in --out with the same settings",
+        NameList("lookfeel.reproduce.run", "EXPERIMENT_NAMES"),
+        "experiments to run, of %(choices)s (default all), comma- or space-separated; the "
+        "report also covers the finished runs of the others already in --out with the same "
+        "settings",
     )
-    rep.add_argument("--n-boot", type=int, default=1000, help="bootstrap resamples")
+    rep.add_argument(
+        "--n-boot",
+        type=number(int, 0),
+        default=1000,
+        help="bootstrap resamples (default 1000)",
+    )
     rep.add_argument(
         "--workers",
-        type=int,
+        type=number(int, 0),
         default=0,
         help="runs trained at once, each in its own process with a share of the cores "
-        "(default 0: one per core on a CPU, 1 on CUDA; 1: one after the other here)",
+        "(default 0: one per core on a CPU, 1 on CUDA; 1: one after the other in this process)",
     )
-    add_set(rep, "override every run's config")
+    add_set(rep, "override every run's config, e.g. --set train.steps=100 (repeatable)")
 
 
 def run(args: argparse.Namespace) -> int:

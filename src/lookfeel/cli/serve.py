@@ -16,18 +16,26 @@ def add_parser(subparsers: Subparsers) -> None:
     """Register ``serve``."""
     sv = add_command(subparsers, "serve", __doc__, run)
     add_library(sv)
-    sv.add_argument("--host", default="127.0.0.1", help="address (127.0.0.1: this machine only)")
-    sv.add_argument("--port", type=int, default=8000, help="port (8000)")
-    sv.add_argument("--max-upload-mb", type=float, default=8.0, help="largest upload (8 MB)")
     sv.add_argument(
-        "--max-concurrency", type=int, default=2, help="queries the model runs at once (2)"
+        "--host", default="127.0.0.1", help="address (default 127.0.0.1: this machine only)"
     )
-    sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (1)")
+    sv.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+    sv.add_argument(
+        "--max-upload-mb", type=float, default=8.0, help="largest upload in MB (default 8)"
+    )
+    sv.add_argument(
+        "--max-concurrency",
+        type=int,
+        default=2,
+        help="queries the model runs at once (default 2)",
+    )
+    sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (default 1)")
     sv.add_argument(
         "--max-megapixels",
         type=float,
         default=25.0,
-        help="largest upload, width x height from its header, checked before decoding (25)",
+        help="largest upload in megapixels, width x height from its header, checked before "
+        "decoding (default 25)",
     )
 
 

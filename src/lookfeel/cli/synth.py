@@ -13,7 +13,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from lookfeel.cli._args import Choices, Subparsers, add_choice, add_command, add_modalities
+from lookfeel.cli._args import (
+    Choices,
+    Subparsers,
+    add_choice,
+    add_command,
+    add_modalities,
+    number,
+)
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -22,22 +29,32 @@ def add_parser(subparsers: Subparsers) -> None:
     syn.add_argument(
         "out", type=Path, help="output folder (new, empty, or an earlier synth output)"
     )
-    syn.add_argument("--fabrics", type=int, default=118, help="fabrics to sample (default 118)")
+    syn.add_argument(
+        "--fabrics", type=number(int, 1), default=118, help="fabrics to sample (default 118)"
+    )
     syn.add_argument(
         "--test-fabrics",
-        type=int,
+        type=number(int, 0),
         default=None,
         metavar="N",
         help="fabrics held out as paper_split test in labels.csv (default: the paper's share, "
         "18 of every 118)",
     )
-    syn.add_argument("--drapes", type=int, default=10, help="drapes per fabric (default 10)")
-    syn.add_argument("--presses-flat", type=int, default=10, help="flat presses (default 10)")
-    syn.add_argument("--presses-fold", type=int, default=15, help="fold presses (default 15)")
-    syn.add_argument("--frames", type=int, default=3, help="frames per press (default 3)")
+    syn.add_argument(
+        "--drapes", type=number(int, 0), default=10, help="drapes per fabric (default 10)"
+    )
+    syn.add_argument(
+        "--presses-flat", type=number(int, 0), default=10, help="flat presses (default 10)"
+    )
+    syn.add_argument(
+        "--presses-fold", type=number(int, 0), default=15, help="fold presses (default 15)"
+    )
+    syn.add_argument(
+        "--frames", type=number(int, 1), default=3, help="frames per press (default 3)"
+    )
     syn.add_argument(
         "--reprints",
-        type=int,
+        type=number(int, 0),
         default=4,
         help="re-printed renders of each colour photo, in reprints/ (default 4; 0: none): the "
         "same drape under another print and colours, which training reads in place of the "
@@ -48,11 +65,22 @@ def add_parser(subparsers: Subparsers) -> None:
         "--size",
         Choices("lookfeel.synth.config", "SIZE_PRESETS"),
         "net",
-        "image sizes: net (depth 224, colour 256, touch 320x240), tiny, or full "
-        "(touch 960x720 like the authors' sensor)",
+        "image sizes (default net): net (depth 224, colour 256, touch 320x240), tiny, or "
+        "full (touch 960x720 like the authors' sensor)",
     )
-    syn.add_argument("--seed", type=int, default=0)
-    syn.add_argument("--workers", type=int, default=0, help="processes (0: all cores)")
+    syn.add_argument(
+        "--seed",
+        type=number(int, 0),
+        default=0,
+        help="world seed, an integer >= 0: the same seed gives byte-identical files (default 0)",
+    )
+    syn.add_argument(
+        "--workers",
+        type=number(int, 0),
+        default=0,
+        help="processes rendering at once (default 0: one per core; 1: one after the other "
+        "in this process)",
+    )
     syn.add_argument(
         "--labels", type=Path, default=None, help="label-conditioned mode: a labels.csv"
     )

@@ -25,6 +25,7 @@ from lookfeel.data.layout import (
     IMAGE_SUFFIXES,
     NOT_A_VIDEO_CONTAINER,
     VIDEO_SUFFIXES,
+    duplicate_files,
     scan,
 )
 from lookfeel.data.problems import Problem
@@ -301,6 +302,7 @@ def check_dataset(
     new.extend(_colour_problems(catalog.root, usable, greys))
     new.extend(_pressed_start_problems(usable, refs))
     new.extend(_class_problems(catalog, usable))
+    new.extend(duplicate_files(usable))  # a query would find its own copy
     unread, skipped = unread_problems(catalog)
     new.extend(unread)
     scanned = [_what_it_is(p) for p in catalog.problems]

@@ -735,6 +735,16 @@ def _pick(results: Mapping[str, Any]) -> str:
     )
 
 
+def _seeds(meta: Mapping[str, Any]) -> str:
+    """The seeds a reproduction trained: their count, and which where they are not 0..N-1
+    (``seed_list``, kept since ``reproduce --seeds`` took a list; an older results.json has
+    the count only)."""
+    count, given = meta.get("seeds", 1), meta.get("seed_list")
+    if not isinstance(given, list) or given == list(range(len(given))):
+        return str(count)
+    return f"{count} ({', '.join(str(s) for s in given)})"
+
+
 def _what_a_cell_is(results: Mapping[str, Any], seeds: int, n_boot: int = 1) -> str:
     """The sentence on what a cell of the tables shows: with several seeds, each number and
     each interval bound is the mean over the seeds (`lookfeel.reproduce.run`'s aggregate);
@@ -793,7 +803,7 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
     lines = [
         "# Reproducing *Connecting Look and Feel* (CVPR 2017)",
         "",
-        f"Data: `{meta['data']}`; budget: **{meta['budget']}**; seeds: {meta['seeds']}; "
+        f"Data: `{meta['data']}`; budget: **{meta['budget']}**; seeds: {_seeds(meta)}; "
         + (f"--only: {', '.join(only)}{_earlier(meta)}; " if only else "")
         + _time_behind(meta),
         "",

@@ -916,7 +916,7 @@ def reproduce(
     data: str | Path,
     out: str | Path,
     budget: str = "small",
-    seeds: int = 1,
+    seeds: Sequence[int] | int = (0,),
     pretrained: str | Path | None = None,
     only: Sequence[str] = (),
     n_boot: int = 1000,
@@ -930,7 +930,10 @@ def reproduce(
         data: a dataset folder in the lookfeel layout.
         out: where runs, results and the report go (resumes what is there).
         budget: ``tiny``, ``small`` or ``paper`` (see the module docstring).
-        seeds: training seeds per experiment (numbers are means, with their spread).
+        seeds: the training seeds of every experiment, trained in this order, as
+            ``lookfeel reproduce --seeds 0,1`` and `lookfeel.crossval.cross_validate` take
+            them; numbers are means, with their spread. Seed ``s`` runs in
+            ``out/runs/<name>/seed<s>``. An int ``n`` (the older form) is seeds 0 to n-1.
         pretrained: ImageNet AlexNet weights for the ``paper`` budget.
         only: experiment names to run (default: all).
         n_boot: bootstrap resamples of the test fabrics for the intervals.
@@ -941,7 +944,8 @@ def reproduce(
             on CUDA 1. 1: one after the other in this process.
 
     Raises:
-        ConfigError: an unknown budget or experiment, or ``paper`` without weights; before
+        ConfigError: an unknown budget or experiment, ``paper`` without weights, no seed, a
+            negative or repeated one; before
             any training, runs in ``out`` trained on another dataset (`_trained_on_other_data`),
             a finished run asked for trained with other settings (`_differs`), or one scored
             with another ``n_boot`` whose checkpoint is gone.
@@ -956,7 +960,7 @@ def _reproduce(
     data: str | Path,
     out: str | Path,
     budget: str,
-    seeds: int,
+    seeds: Sequence[int] | int,
     pretrained: str | Path | None,
     only: Sequence[str],
     n_boot: int,
@@ -973,8 +977,7 @@ def _reproduce(
             "weights: pass --pretrained PATH (pretrained=PATH; torchvision's "
             "alexnet-owt-7be5be79.pth); without them use --budget small (budget='small')"
         )
-    if seeds < 1:
-        raise ConfigError(f"seeds must be >= 1, got {seeds}")
+    seed_list = _seed_list(seeds)
     if workers < 0:
         raise ConfigError(f"workers must be >= 0 (0: one per core on a CPU), got {workers}")
     unknown = [n for n in only if n not in EXPERIMENT_NAMES]
@@ -1021,7 +1024,7 @@ def _reproduce(
             result.skipped[exp.name] = reason
             log(f"skip {exp.name}: {reason}")
             continue
-        for seed in range(seeds):
+        for seed in seed_list:
             config = load_config(
                 RunConfig, config_dir() / f"{exp.name}.yaml", [*run_overrides, f"train.seed={seed}"]
             )
@@ -1113,7 +1116,9 @@ def _reproduce(
     meta = {
         "data": str(data),
         "budget": budget,
-        "seeds": seeds,
+        # How many seeds each experiment trained (the report's "seeds: N"), and which, in order.
+        "seeds": len(seed_list),
+        "seed_list": seed_list,
         "overrides": list(overrides),
         # The bootstrap resamples of every interval (runs scored with another are scored again).
         "n_boot": n_boot,
@@ -1150,6 +1155,29 @@ def _reproduce(
     atomic_write_json(out / "results.json", everything, indent=1)
     write_reproduction_report(result, meta)
     return result
+
+
+def _seed_list(seeds: Sequence[int] | int) -> list[int]:
+    """`reproduce`'s ``seeds`` as the list it trains: a sequence as given, an int ``n`` seeds 0
+    to n-1 (the older form; the folders ``seed0`` to ``seed{n-1}`` either way).
+
+    Raises:
+        ConfigError: no seed, one that is not an integer >= 0, or one given twice.
+    """
+    if isinstance(seeds, int):
+        if seeds < 1:
+            raise ConfigError(f"seeds must be >= 1, got {seeds}")
+        return list(range(seeds))
+    listed = list(seeds)
+    if not listed:
+        raise ConfigError("seeds: at least one training seed is needed")
+    bad = [s for s in listed if not isinstance(s, int) or isinstance(s, bool) or s < 0]
+    if bad:
+        raise ConfigError(f"seeds: each must be an integer >= 0, got {', '.join(map(repr, bad))}")
+    repeated = sorted({s for s in listed if listed.count(s) > 1})
+    if repeated:
+        raise ConfigError(f"seeds: {', '.join(map(str, repeated))} given more than once")
+    return listed
 
 
 _FREE = (

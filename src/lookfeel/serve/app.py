@@ -268,7 +268,7 @@ class ServeOptions:
 
     Attributes:
         host: address to listen on (default loopback only).
-        port: TCP port, 1-65535 (0 is refused: a server a user must reach needs a known port).
+        port: TCP port, 1-65535, or 0 for any free one (the server then says which it took).
         threads: PyTorch threads per query, at least 1.
         max_upload_mb: largest upload in MB, more than 0.
         max_concurrency: queries the model runs at once, at least 1 (0 would hang every query).
@@ -303,7 +303,10 @@ class ServeOptions:
             "an address such as 127.0.0.1",
         )
         _need(
-            whole(self.port) and 1 <= self.port <= 65535, "--port", self.port, "between 1 and 65535"
+            whole(self.port) and 0 <= self.port <= 65535,
+            "--port",
+            self.port,
+            "between 1 and 65535, or 0 for any free port",
         )
         _need(
             whole(self.threads) and 1 <= self.threads <= 1024,

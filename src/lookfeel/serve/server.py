@@ -83,6 +83,7 @@ def serve(
     ServeOptions(host=host, port=port)  # validates
     sock = _bind(host, port)
     try:
+        port = sock.getsockname()[1]  # the one taken, where 0 asked for any free port
         if on_bound is not None:
             url_host = f"[{host}]" if ":" in host else host
             on_bound(f"http://{url_host}:{port}/")
