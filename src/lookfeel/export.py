@@ -19,6 +19,13 @@ against PyTorch under onnxruntime on random inputs of two batch sizes (and two p
 counts) before it is written; the largest difference is recorded, and one above ``atol``
 (1e-4) is an error.
 
+Everything runs on the CPU, the checkpoint loaded there whatever the machine has (there is no
+``device``, and no ``lookfeel export --device``): an ONNX file names no device (onnxruntime
+runs it on whichever it is given), exporting a small branch takes seconds, and the check
+compares onnxruntime's ``CPUExecutionProvider`` with PyTorch on the same inputs, where PyTorch
+on a GPU would add the GPU's own rounding to the difference (convolutions run in TF32 there
+by default, with about 3 significant digits) and could fail an export that is exact.
+
 The export uses PyTorch's TorchScript-based exporter (``dynamo=False``): the newer exporter
 needs the ``onnxscript`` package, which lookfeel does not depend on. It writes ONNX opsets
 `MIN_OPSET` (13) up to the highest that exporter supports in the installed torch
@@ -209,7 +216,7 @@ def export_onnx(
     out_dir = Path(out)
     if out_dir.exists() and not out_dir.is_dir():
         raise ExportError(f"{out_dir}: exists and is not a folder (the export's output folder)")
-    loaded = load_model(checkpoint)
+    loaded = load_model(checkpoint, "cpu")  # the module docstring says why
     model = loaded.model.eval()
     wanted = asked or list(model.modalities)
     for m in wanted:

@@ -445,6 +445,12 @@ def run_config_source(args: argparse.Namespace) -> tuple[Path, list[str]]:
     return recipe.path, [*recipe.overrides, *args.set]
 
 
+def add_device(parser: argparse.ArgumentParser) -> None:
+    """``--device``: where a trained model runs, on every command that runs one (checked by
+    `lookfeel.devices.resolve_device`: a device this machine lacks is one line)."""
+    parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
+
+
 def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:
     """``--batch-size`` (and ``--device``) of the forward passes that embed images."""
     parser.add_argument(
@@ -454,7 +460,7 @@ def add_forward(parser: argparse.ArgumentParser, device: bool = True) -> None:
         help=f"images per forward pass (default {EMBED_BATCH})",
     )
     if device:
-        parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
+        add_device(parser)
 
 
 def add_library(parser: argparse.ArgumentParser) -> None:

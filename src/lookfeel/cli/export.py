@@ -3,7 +3,9 @@
 
 Write DIR/<modality>.onnx per branch (dynamic batch; touch with dynamic presses, and dynamic
 views for a run that embeds a press video from its views) and DIR/export.json, each checked
-against PyTorch under onnxruntime.
+against PyTorch under onnxruntime. It runs on the CPU, with no --device: an ONNX file names
+no device (onnxruntime runs it on any), and the check compares onnxruntime's CPU outputs with
+PyTorch's, which on a GPU would differ by the GPU's own rounding.
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ def add_parser(subparsers: Subparsers) -> None:
     ib.add_argument(
         "--shard-size", type=number(int, 1), default=2048, help="items per shard (default 2048)"
     )
-    add_forward(ib, device=False)
+    add_forward(ib)
     ib.add_argument(
         "--kinds",
         type=_kinds,
@@ -160,6 +160,7 @@ def run_build(args: argparse.Namespace) -> int:
         calibration_queries=args.calibration_queries,
         cross_map=args.cross_map,
         replace=args.replace,
+        device=args.device,
         progress=not args.quiet,
     )
     items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())

@@ -25,7 +25,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_command, add_json, add_library, number
+from lookfeel.cli._args import Subparsers, add_command, add_device, add_json, add_library, number
 from lookfeel.config.model import EMBED_BATCH
 from lookfeel.modality import Modality
 
@@ -60,6 +60,7 @@ def add_parser(subparsers: Subparsers) -> None:
         metavar="MODALITY",
         help="modality to match against (default: the best in calibration)",
     )
+    add_device(mt)
     add_json(mt, "print the results as JSON")
     mt.add_argument(
         "--quiet",
@@ -71,11 +72,13 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Match the images and print each result (or all of them as JSON)."""
+    from lookfeel.devices import resolve_device
     from lookfeel.errors import LookfeelError
     from lookfeel.index import Library, Matcher, format_match
     from lookfeel.predict import guess_modality
 
-    matcher = Matcher(Library.open(args.index, checkpoint=args.checkpoint))
+    device = resolve_device(args.device)  # a device this machine lacks: one line, first
+    matcher = Matcher(Library.open(args.index, checkpoint=args.checkpoint), device=device)
     if args.modality is not None:
         modality = Modality(args.modality)
     else:  # as `predict` guesses it, among the senses the library holds

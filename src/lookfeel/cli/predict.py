@@ -27,7 +27,7 @@ import json
 import sys
 from pathlib import Path
 
-from lookfeel.cli._args import Subparsers, add_command, add_json
+from lookfeel.cli._args import Subparsers, add_command, add_device, add_json
 from lookfeel.modality import Modality
 
 
@@ -48,7 +48,7 @@ def add_parser(subparsers: Subparsers) -> None:
     pr.add_argument(
         "--together", action="store_true", help="the files are presses of one object: pool them"
     )
-    pr.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    add_device(pr)
     add_json(pr, "print a JSON list: per query its path(s) and properties, or its error")
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from lookfeel.cli._args import Subparsers, add_command, add_library
+from lookfeel.cli._args import Subparsers, add_command, add_device, add_library
 
 
 def add_parser(subparsers: Subparsers) -> None:
@@ -30,6 +30,7 @@ def add_parser(subparsers: Subparsers) -> None:
         help="queries the model runs at once (default 2)",
     )
     sv.add_argument("--threads", type=int, default=1, help="PyTorch threads per query (default 1)")
+    add_device(sv)
     sv.add_argument(
         "--max-megapixels",
         type=float,
@@ -43,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     """Open the library and serve it until interrupted."""
     import torch
 
+    from lookfeel.devices import resolve_device
     from lookfeel.index import Library
     from lookfeel.serve import ServeOptions, create_app, serve
 
@@ -55,10 +57,12 @@ def run(args: argparse.Namespace) -> int:
         max_concurrency=args.max_concurrency,
         max_megapixels=args.max_megapixels,
     )
+    device = resolve_device(args.device)  # a device this machine lacks: one line
     # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
     # beats several queries sharing two-thread teams that spin waiting for each other.
     torch.set_num_threads(options.threads)
-    app = create_app(Library.open(args.index, checkpoint=args.checkpoint), options.config())
+    library = Library.open(args.index, checkpoint=args.checkpoint)
+    app = create_app(library, options.config(), device=device)
 
     def serving(url: str) -> None:  # said once the address is bound, never of one in use
         print(f"Serving {args.index} at {url} (Ctrl-C stops)", flush=True)

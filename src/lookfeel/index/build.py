@@ -51,6 +51,7 @@ from lookfeel.config import to_dict
 from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
 from lookfeel.data.recordings import drop_unpressed
+from lookfeel.devices import resolve_device
 from lookfeel.embedding import embed_items
 from lookfeel.index.calibrate import (
     CALIBRATION_VERSION,
@@ -428,7 +429,8 @@ def build_library(
             its map when calibration finds that better (module doc).
         replace: replace a finished library at ``out`` built from another checkpoint (by
             content) or dataset folder; without it such a build is refused before any work.
-        device: where to embed.
+        device: where to embed: ``cpu``, ``cuda``, ``cuda:1``, a ``torch.device``, or
+            ``auto`` (`lookfeel.devices.resolve_device`), checked before anything is written.
         on_shard: called as ``on_shard(file, rows)`` after each shard is written.
         progress: print a line per shard, and one before calibration (or saying it is
             reused).
@@ -437,6 +439,8 @@ def build_library(
         LibraryError: ``out`` is another kind of folder, holds a library of another checkpoint
             or dataset (without ``replace``), another build is writing it, or the dataset has
             nothing to embed.
+        DeviceError: ``device`` is unknown to torch or not usable here (before any folder or
+            lock file is made).
         DatasetError: the dataset has errors (`lookfeel data check` lists them).
         CheckpointError: the checkpoint cannot be read.
         ImageError: touch presses the model cannot take, as ``lookfeel match`` would refuse
@@ -465,6 +469,7 @@ def build_library(
         choose_backend(backend, 0)  # validate before any work
     except ValueError as e:
         raise LibraryError(str(e)) from None
+    device = resolve_device(device)  # one line, before the lock file and its folder are made
     if out.is_symlink():  # swap the folder it names, keeping the link
         out = out.resolve()
     _check_not_here(out)

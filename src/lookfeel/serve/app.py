@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
+import torch
 from fastapi import FastAPI, File, Form, HTTPException, Request, UploadFile
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, Response
@@ -60,6 +61,7 @@ from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.images import declared_size
 from lookfeel.data.layout import sniff_video
 from lookfeel.data.video import NoPressError, is_video, read_press
+from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError
 from lookfeel.index import (
     FabricMatch,
@@ -537,6 +539,8 @@ def create_app(
     config: ServeConfig | None = None,
     matcher: Matcher | None = None,
     log: Callable[[str], None] | None = None,
+    *,
+    device: torch.device | str = "cpu",
 ) -> FastAPI:
     """Build the web app over a library.
 
@@ -549,13 +553,25 @@ def create_app(
         matcher: a ready `Matcher` for ``library`` (tests inject one); default: built from the
             library. A rebuilt library gets a `Matcher` of its own.
         log: where a swap is noted in one line (default: standard error).
+        device: where the model runs: ``cpu``, ``cuda``, ``cuda:1``, a ``torch.device``, or
+            ``auto`` (`lookfeel.devices.resolve_device`), checked before the library is
+            opened; a rebuilt library's model runs there too. An injected ``matcher`` keeps
+            its own.
 
     Raises:
+        DeviceError: ``device`` is unknown to torch or not usable here.
         LibraryError: the library or its checkpoint cannot be used.
     """
     cfg = config or ServeConfig()
+    where = resolve_device(device)  # a device this machine lacks: one line, before any work
+
+    def make_matcher(lib: Library) -> Matcher:
+        return Matcher(lib, device=where)
+
     opened = library if isinstance(library, Library) else Library.open(library)
-    served = ServedLibrary(opened, matcher, cfg.reload_every, log or _to_stderr)
+    served = ServedLibrary(
+        opened, matcher, cfg.reload_every, log or _to_stderr, make_matcher=make_matcher
+    )
     static = {
         name: (resources.files("lookfeel.serve").joinpath("static", name).read_bytes(), mime)
         for name, mime in _STATIC.items()
