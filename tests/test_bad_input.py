@@ -936,3 +936,20 @@ def test_strict_json_writes_null_for_every_number_that_could_not_be_measured(tmp
         "b": [1.5, None, {"c": None}],
         "d": [2, "x"],
     }
+
+
+@pytest.mark.parametrize("name", ["q.jpg", "q.png"])
+def test_an_empty_query_image_is_said_to_be_empty(library: Path, tmp_path: Path, capsys, name: str):
+    """QA: ``lookfeel match`` on a 0-byte .jpg said it "does not begin as" a PNG or JPEG,
+    where ``data check`` says "file is empty": the query path now says it as the check does."""
+    from lookfeel.config import DataConfig
+    from lookfeel.index.query import load_query_image
+
+    empty = tmp_path / name
+    empty.write_bytes(b"")
+    said = _fails(capsys, ["match", "--index", library, "--modality", "color", empty], name)
+    assert said == f"lookfeel: {empty}: file is empty"
+    for modality in ("color", "depth"):  # the Python API, as predict reads a query
+        with pytest.raises(ImageError) as e:
+            load_query_image(empty, modality, DataConfig(image_size=16))
+        assert str(e.value) == f"{empty}: file is empty"

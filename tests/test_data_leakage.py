@@ -596,3 +596,49 @@ def test_data_leakage_of_one_fabric_says_why_per_modality(tiny_dataset: Path, tm
     out = capsys.readouterr().out
     for m in ("depth", "color", "touch"):
         assert f"\n{m}: not scored: needs two fabrics, one of them with two or more images" in out
+
+
+def test_two_fabrics_are_too_few_to_decide_not_no_leak(tmp_path: Path, capsys):
+    """QA: on 2 fabrics ``data leakage`` said "no leak found", though its bar (2x chance 0.50
+    = 1.00) can never be passed: it now says the check cannot decide, in the text and the
+    JSON (a verdict of its own); 3 fabrics (2x chance 0.67) are decided."""
+    from lookfeel.cli import main
+    from lookfeel.data.leakage import NO_LEAK, TOO_FEW, decidable
+
+    two = _write_rig(tmp_path / "two", leak=True, fabrics=2)
+    report = leakage_report(scan(two), n_boot=50)
+    (depth,) = report.modalities
+    assert depth.chance == 0.5 and depth.background_top1 == 1.0 and not depth.leak
+    assert not decidable(depth.chance, 2.0) and depth.verdict() == TOO_FEW
+    text = format_leakage(report)
+    assert "no leak found" not in text
+    assert (
+        "\n  too few fabrics to decide (2): no top-1 can lie above 2x chance 1.00, so no leak "
+        "could be found; 3 or more fabrics can tell"
+    ) in text
+    assert main(["data", "leakage", str(two)]) == 0
+    assert "too few fabrics to decide (2)" in capsys.readouterr().out
+    assert main(["data", "leakage", str(two), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["verdict"] == "too few fabrics" and d["leak"] is False
+    assert d["modalities"]["depth"]["verdict"] == "too few fabrics"
+    # data check warns of leaks only: nothing is said of one it cannot decide
+    assert leakage_problems(report) == []
+    # three fabrics can be decided: a leak is found; a clean background is "no leak"
+    three = leakage_report(scan(_write_rig(tmp_path / "three", leak=True, fabrics=3)), n_boot=50)
+    assert three.modalities[0].leak and three.verdict() == "leak"
+    clean = leakage_report(scan(_write_rig(tmp_path / "clean3", leak=False)), n_boot=50)
+    assert clean.verdict() == NO_LEAK == clean.to_dict()["modalities"]["depth"]["verdict"]
+
+
+def test_a_position_of_two_fabrics_is_too_few_to_decide(tmp_path: Path):
+    from lookfeel.data.leakage import LeakageReport
+
+    whole = _position((1.0, 1.0, 1.0), (1.0, 1.0, 1.0), False)
+    two = dataclasses.replace(whole, chance=0.5, n_fabrics=2)
+    report = LeakageReport(tmp_path, (), position=two)
+    text = format_leakage(report)
+    assert "no leak found" not in text
+    assert "  too few fabrics to decide (2): no top-1 can lie above 2x chance 1.00" in text
+    d = report.to_dict()
+    assert d["verdict"] == d["position"]["verdict"] == "too few fabrics"

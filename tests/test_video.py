@@ -671,3 +671,40 @@ def test_real_presses_keep_the_spans_the_published_numbers_used(physiclear, name
     assert (span.reference, span.start, span.peak, span.end) == expected
     two = [w for w in caught if issubclass(w.category, video_module.TwoPressesWarning)]
     assert len(two) == (name == "basket_3")
+
+
+@pytest.mark.parametrize("suffix", [".mov", ".mp4", ".m4v"])
+@pytest.mark.parametrize("keep", [0.5, 0.9])
+def test_a_quicktime_file_cut_short_is_said_to_be(tmp_path: Path, suffix: str, keep: float):
+    """QA: a .mov cut in half (a copy interrupted) was "not a video file FFmpeg can read", with
+    no word that it may be cut short: its header is there, its media data and frame index are
+    not, and it is said so."""
+    good = write_video(tmp_path / f"whole{suffix}", press_frames())
+    whole = good.read_bytes()
+    path = tmp_path / f"cut{suffix}"
+    path.write_bytes(whole[: int(len(whole) * keep)])
+    for read in (read_press, read_video):
+        with pytest.raises(VideoError) as e:
+            read(path)
+        assert str(e.value) == (
+            f"{path}: cannot decode video: the file looks cut short (copy it again)"
+        )
+    # cut where a box ends, so that only the frame index (moov, written last) is missing
+    mdat = whole.index(b"mdat") - 4
+    path.write_bytes(whole[: mdat + int.from_bytes(whole[mdat : mdat + 4], "big")])
+    with pytest.raises(VideoError, match="looks cut short"):
+        read_video(path)
+
+
+def test_a_file_ffmpeg_cannot_open_that_is_not_cut_short_keeps_its_words(tmp_path: Path):
+    """Random bytes, and a QuickTime header whose box sizes say nothing (0 < size < 8), are not
+    called cut short."""
+    for name, data in (
+        ("random.mov", np.random.default_rng(1).bytes(4000)),
+        ("boxes.mov", b"\x00\x00\x00\x04ftyp" + bytes(64)),
+    ):
+        path = tmp_path / name
+        path.write_bytes(data)
+        with pytest.raises(VideoError) as e:
+            read_video(path)
+        assert str(e.value) == f"{path}: cannot decode video: not a video file FFmpeg can read"

@@ -18,6 +18,11 @@ A checkpoint is a plain dict saved with `torch.save` and read with ``weights_onl
     no colour (``grey``, `lookfeel.data.video.Press.grey`), for a query of the other kind to
     be warned of; none for a model trained on frame images, or on videos read from a disk
     cache written before the flag was kept; absent before session 56)
+
+Wherever a checkpoint is read (`read_checkpoint`, `load_model`, `init_from_checkpoint`, and so
+every command's ``--checkpoint``), a training run's folder may stand for its
+``checkpoints/last.pt`` (`checkpoint_file`): the last checkpoint, the one every run writes (an
+ensemble, ``model.members``, writes its merged model there too, and no ``best.pt``).
 """
 
 from __future__ import annotations
@@ -42,11 +47,13 @@ from lookfeel.models import Embedder, create_model
 
 __all__ = [
     "CHECKPOINT_VERSION",
+    "RUN_CHECKPOINT",
     "TOUCH_BOTH",
     "TOUCH_FRAMES",
     "TOUCH_VIDEOS",
     "CheckpointError",
     "LoadedModel",
+    "checkpoint_file",
     "grey_presses_of",
     "init_from_checkpoint",
     "load_model",
@@ -57,6 +64,10 @@ __all__ = [
 ]
 
 CHECKPOINT_VERSION = 1
+
+RUN_CHECKPOINT = Path("checkpoints") / "last.pt"
+"""Where in a training run's folder its last checkpoint lies: what a run folder given as a
+checkpoint stands for (`checkpoint_file`)."""
 
 TOUCH_VIDEOS = "videos"
 """A touch branch trained on press videos only (``videos/<object>_<n>.mov``): each press read as
@@ -105,13 +116,38 @@ def save_checkpoint(path: str | os.PathLike[str], state: dict[str, Any]) -> Path
     return atomic_write(path, lambda f: torch.save({"version": CHECKPOINT_VERSION, **state}, f))
 
 
+def checkpoint_file(path: str | os.PathLike[str]) -> Path:
+    """The checkpoint file ``path`` names: ``path`` itself, or, for a folder, the training
+    run's last checkpoint in it (`RUN_CHECKPOINT`: ``RUN/checkpoints/last.pt``). Nothing is
+    read; a path that is no file is left for `read_checkpoint` to refuse.
+
+    Raises:
+        CheckpointError: a folder with no ``checkpoints/last.pt``.
+    """
+    p = Path(path)
+    if not p.is_dir():
+        return p
+    last = p / RUN_CHECKPOINT
+    if not last.is_file():
+        raise CheckpointError(
+            f"{p}: a folder with no {RUN_CHECKPOINT.as_posix()}: give a checkpoint file (a "
+            "run's checkpoints/last.pt or best.pt)"
+        )
+    return last
+
+
 def read_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a checkpoint safely (``weights_only``: no code in the file is run).
 
+    Args:
+        path: a checkpoint file, or a training run's folder for its ``checkpoints/last.pt``
+            (`checkpoint_file`).
+
     Raises:
-        CheckpointError: missing, unreadable, or not a lookfeel checkpoint.
+        CheckpointError: missing, unreadable, or not a lookfeel checkpoint; a folder with no
+            ``checkpoints/last.pt``.
     """
-    p = Path(path)
+    p = checkpoint_file(path)
     if not p.is_file():
         raise CheckpointError(f"{p}: checkpoint not found")
     try:
@@ -247,10 +283,14 @@ def init_from_checkpoint(model: Embedder, path: str | os.PathLike[str]) -> list[
     Returns:
         The names of the tensors that were not copied.
 
+    ``path`` may be the other run's folder, for its ``checkpoints/last.pt``
+    (`checkpoint_file`).
+
     Raises:
         CheckpointError: the file is not a checkpoint, its weights hold NaN or infinity, no
             tensor of it fits this model, or fewer than half of a shared branch's do.
     """
+    path = checkpoint_file(path)
     source = read_checkpoint(path)["model"]
     _refuse_non_finite(path, source)
     own = model.state_dict()
@@ -284,14 +324,16 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
     another size; `lookfeel.index.query.load_query_image` reads a file at that size.
 
     Args:
-        path: a checkpoint a run wrote (``RUN/checkpoints/best.pt`` or ``last.pt``).
+        path: a checkpoint a run wrote (``RUN/checkpoints/best.pt`` or ``last.pt``), or the
+            run's folder ``RUN`` for its ``last.pt`` (`checkpoint_file`; the model's `path` is
+            then that file).
         device: where the model runs: ``cpu``, ``cuda``, ``cuda:1``, a ``torch.device``, or
             ``auto`` (`lookfeel.devices.resolve_device`).
 
     Raises:
         DeviceError: the device is unknown to torch or not usable here (checked first).
         CheckpointError: naming the file, when it cannot be read, does not fit its config, or
-            its weights hold NaN or infinity.
+            its weights hold NaN or infinity; a folder with no ``checkpoints/last.pt``.
 
     Example:
         >>> from lookfeel.checkpoint import load_model
@@ -302,6 +344,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         ...     emb = loaded.model({"color": query_batch([x], "color")})["color"]  # (1, D)
     """
     device = resolve_device(device)
+    path = checkpoint_file(path)
     state = read_checkpoint(path)
     try:
         # The loss plays no part here: a run trained with a loss this process has not
@@ -333,7 +376,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
     _refuse_non_finite(path, state["model"])
     model.to(device).eval()
     return LoadedModel(
-        path=Path(path),
+        path=path,
         config=config,
         model=model,
         step=int(state.get("step", 0)),

@@ -311,7 +311,7 @@ def export_onnx(
     meta: dict[str, Any] = {
         "format": "onnx",
         "opset": opset,
-        "checkpoint": str(Path(checkpoint).resolve()),
+        "checkpoint": str(loaded.path.resolve()),
         "step": loaded.step,
         "embed_dim": model.embed_dim,
         "branches": {

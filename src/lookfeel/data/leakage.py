@@ -19,7 +19,10 @@ instead of the material. `leakage_report` measures this, per image modality, for
    resamples fabrics (`bootstrap_ci`). The same is computed for the whole image, beside chance.
 3. **Verdict.** A background *leaks* when its interval's lower bound is above ``factor`` (2)
    times chance: the room alone then tells fabrics apart far better than guessing.
-   `leakage_problems` turns each leak into a warning for ``lookfeel data check``.
+   `leakage_problems` turns each leak into a warning for ``lookfeel data check``. Where
+   ``factor`` x chance is 1 or more (fewer than 3 fabrics in a pick, at 2x) no score can lie
+   above it: the verdict is then `TOO_FEW`, not "no leak found", which the rule could never
+   have contradicted.
 4. **Position** (depth, opt-in: ``position=True``, ``lookfeel data leakage --position``).
    Masking the room is not enough when the camera moved between sessions: the cloth then lies
    at a session's own place in the image. `position_leakage` registers every depth image
@@ -69,11 +72,16 @@ from lookfeel.modality import Modality
 
 __all__ = [
     "DEFAULT_TOLERANCE",
+    "LEAK",
+    "NOTHING_TO_CHECK",
+    "NO_LEAK",
+    "TOO_FEW",
     "LeakageReport",
     "MaskError",
     "ModalityLeakage",
     "PositionLeakage",
     "PositionScore",
+    "decidable",
     "format_leakage",
     "leakage_problems",
     "leakage_report",
@@ -94,6 +102,23 @@ DEFAULT_TOLERANCE: Mapping[Modality, float] = {
 
 _MAX_SIDE = 64
 _N = 10
+
+LEAK = "leak"
+"""The verdict (``verdict`` in the JSON) of a score whose interval's lower end lies above
+``factor`` x chance."""
+NO_LEAK = "no leak"
+"""The verdict of a score whose interval's lower end does not."""
+TOO_FEW = "too few fabrics"
+"""The verdict where ``factor`` x chance is 1 or more (2 fabrics, at 2x: chance 0.50): no
+top-1 can lie above it, so the rule cannot find a leak and says nothing of one (`decidable`)."""
+NOTHING_TO_CHECK = "nothing to check"
+"""The verdict of a modality with no background pixel to score."""
+
+
+def decidable(chance: float, factor: float) -> bool:
+    """Whether the leak rule can be met at all: ``factor`` x ``chance`` below 1 (a top-1 is at
+    most 1). With 2 fabrics in a pick, chance 0.50 and 2x chance 1.00: never; with 3, 0.67."""
+    return factor * chance < 1.0
 
 
 class MaskError(LookfeelError):
@@ -146,9 +171,19 @@ class ModalityLeakage:
     left_out: int = 0
     folder: str | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    def verdict(self, factor: float = 2.0) -> str:
+        """`NOTHING_TO_CHECK` (no background pixel), `LEAK`, `TOO_FEW` (the rule at ``factor``
+        x chance cannot be met: `decidable`) or `NO_LEAK`."""
+        if self.background_fraction == 0.0 or math.isnan(self.background_top1):
+            return NOTHING_TO_CHECK
+        if self.leak:
+            return LEAK
+        return NO_LEAK if decidable(self.chance, factor) else TOO_FEW
+
+    def to_dict(self, factor: float = 2.0) -> dict[str, Any]:
         d = asdict(self)
         d["modality"] = self.modality.value
+        d["verdict"] = self.verdict(factor)
         return {k: _json_num(v) for k, v in d.items()}
 
 
@@ -194,8 +229,16 @@ class PositionLeakage:
     leak: bool
     no_floor: tuple[str, ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
+    def verdict(self, factor: float = 2.0) -> str:
+        """`LEAK`, `TOO_FEW` (the rule at ``factor`` x chance cannot be met: `decidable`) or
+        `NO_LEAK`."""
+        if self.leak:
+            return LEAK
+        return NO_LEAK if decidable(self.chance, factor) else TOO_FEW
+
+    def to_dict(self, factor: float = 2.0) -> dict[str, Any]:
         out: dict[str, Any] = _json_num(asdict(self))
+        out["verdict"] = self.verdict(factor)
         return out
 
 
@@ -229,12 +272,22 @@ class LeakageReport:
         """The modalities whose background identifies fabrics far above chance."""
         return tuple(m for m in self.modalities if m.leak)
 
+    def verdict(self) -> str:
+        """The whole check's: `LEAK` where any part leaks; else `TOO_FEW` where any part could
+        not be decided (`decidable`); else `NO_LEAK` where any part was scored; else
+        `NOTHING_TO_CHECK`."""
+        parts = [m.verdict(self.factor) for m in self.modalities]
+        if self.position is not None:
+            parts.append(self.position.verdict(self.factor))
+        return next((v for v in (LEAK, TOO_FEW, NO_LEAK) if v in parts), NOTHING_TO_CHECK)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "root": str(self.root),
             "leak": bool(self.leaks) or bool(self.position and self.position.leak),
-            "modalities": {m.modality.value: m.to_dict() for m in self.modalities},
-            "position": None if self.position is None else self.position.to_dict(),
+            "verdict": self.verdict(),
+            "modalities": {m.modality.value: m.to_dict(self.factor) for m in self.modalities},
+            "position": None if self.position is None else self.position.to_dict(self.factor),
             "skipped": dict(self.skipped),
             "tolerance": dict(self.tolerance),
             "static_fraction": self.static_fraction,
@@ -889,6 +942,17 @@ def _no_background(m: ModalityLeakage) -> str:
     return f"mask {m.mask_source} marks no pixel once pooled {m.pool}x{m.pool}"
 
 
+def _too_few_to_decide(n: int, chance: float, factor: float, noun: str) -> str:
+    """The verdict where the leak rule cannot be met (`TOO_FEW`): said in place of "no leak
+    found", which the rule could never have contradicted."""
+    said = (
+        f"too few {noun}s to decide ({n}): no top-1 can lie above {factor:g}x chance "
+        f"{factor * chance:.2f}, so no leak could be found"
+    )
+    need = math.floor(factor) + 1  # the fewest whose chance, 1 over them, the rule can beat
+    return said + (f"; {need} or more {noun}s can tell" if need <= _N else "")
+
+
 def _verdict(m: ModalityLeakage, factor: float, noun: str = "fabric") -> str:
     if m.background_fraction == 0.0 or math.isnan(m.background_top1):
         return "nothing to check: with no background pixel, there is no background to score"
@@ -908,6 +972,8 @@ def _verdict(m: ModalityLeakage, factor: float, noun: str = "fabric") -> str:
             f"{m.background_top1 / m.chance:.1f}x chance ({rule}); a model can learn the "
             "capture session instead of the material"
         )
+    if not decidable(m.chance, factor):
+        return _too_few_to_decide(m.n_fabrics, m.chance, factor, noun)
     what = "no-contact frame" if m.press_videos else "background"
     said = f"no leak found: {_rule([(what, m.background_ci95[0])], m.chance, factor)}"
     if m.background_ci95[0] > m.chance:  # under the flag, yet surely above chance
@@ -1008,6 +1074,8 @@ def _position_lines(p: PositionLeakage, factor: float, noun: str = "fabric") -> 
             "): the camera or post moved between sessions; a model of registered depth can read "
             "the session from it (data.depth_post_at moves every drape to one place)"
         )
+    elif not decidable(p.chance, factor):
+        lines.append(f"  {_too_few_to_decide(p.n_fabrics, p.chance, factor, noun)}")
     else:
         ends = [(name, s.ci95[0]) for name, s in cues]
         lines.append(f"  no leak found: {_rule(ends, p.chance, factor)}")

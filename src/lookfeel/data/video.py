@@ -40,9 +40,10 @@ Every file goes through the image policy (`lookfeel.data.files.read_image_file`:
 file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`), a video of
 more than `MAX_VIDEO_FRAMES` frames or more than 4 gigapixels in all is refused, from the
 stream's header before decoding where it declares them. A file that cannot be decoded (not a
-video, an image renamed, damaged, or fewer frames than it declares), a video with no contact
-(a change of light alone included), one that begins mid-press, or one too short raises
-`VideoError` naming the file. A file that declares its duration but not its frames (Matroska)
+video, an image renamed, damaged, or fewer frames than it declares; a QuickTime/MP4 file whose
+boxes end before they say, a copy interrupted, is said to look cut short: `CUT_SHORT`), a video
+with no contact (a change of light alone included), one that begins mid-press, or one too short
+raises `VideoError` naming the file. A file that declares its duration but not its frames (Matroska)
 and whose frames end clearly before it is read as far as it goes, with a
 `TruncatedVideoWarning` naming it.
 """
@@ -66,6 +67,7 @@ if TYPE_CHECKING:
     import av.video.frame
 
 __all__ = [
+    "CUT_SHORT",
     "DEFAULT_GAIN",
     "MAX_VIDEO_FRAMES",
     "MIN_VIDEO_FRAMES",
@@ -281,6 +283,43 @@ def _warn_if_cut(
     )
 
 
+CUT_SHORT = "cannot decode video: the file looks cut short (copy it again)"
+"""Why a QuickTime/MP4 file FFmpeg cannot open is refused when its boxes end before they say
+they do (`_cut_short`): a copy or download interrupted, not a file of another kind."""
+
+_QUICKTIME_BOXES = (b"ftyp", b"moov", b"mdat", b"wide", b"free", b"skip", b"pnot")
+"""The boxes a QuickTime/MP4 file (.mov, .mp4, .m4v) begins with (as
+`lookfeel.data.layout.sniff_video` knows them)."""
+
+
+def _cut_short(blob: bytes) -> bool:
+    """Whether ``blob`` is a QuickTime/MP4 file whose box structure is incomplete: a box that
+    declares more bytes than the file holds (its media data ``mdat`` half there), one whose
+    header is cut, or no ``moov`` box (the index of the frames, which a camera or FFmpeg writes
+    last) after complete boxes. False for a file that begins as no such box, and for one whose
+    boxes are whole (damaged otherwise)."""
+    if blob[4:8] not in _QUICKTIME_BOXES:
+        return False
+    at, index = 0, False
+    while at < len(blob):
+        if at + 8 > len(blob):
+            return True  # a box header cut
+        size, kind, head = int.from_bytes(blob[at : at + 4], "big"), blob[at + 4 : at + 8], 8
+        if size == 1:  # a 64-bit size follows the type
+            if at + 16 > len(blob):
+                return True
+            size, head = int.from_bytes(blob[at + 8 : at + 16], "big"), 16
+        elif size == 0:  # the box runs to the end of the file
+            size = len(blob) - at
+        if size < head:
+            return False  # no box structure: damaged, not cut
+        index = index or kind == b"moov"
+        if at + size > len(blob):
+            return True
+        at += size
+    return not index
+
+
 def _decode(
     path: Path,
     data: bytes | None,
@@ -303,6 +342,8 @@ def _decode(
     try:
         container = av.open(io.BytesIO(blob), mode="r")
     except errors:
+        if _cut_short(blob):
+            raise VideoError(path, CUT_SHORT) from None
         raise VideoError(path, "cannot decode video: not a video file FFmpeg can read") from None
     with container:
         fmt = container.format.name

@@ -46,7 +46,7 @@ import numpy as np
 import torch
 
 from lookfeel.atomic import atomic_write_bytes, atomic_write_text
-from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.checkpoint import LoadedModel, checkpoint_file, load_model
 from lookfeel.config import to_dict
 from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
@@ -477,7 +477,7 @@ def build_library(
         _finish_swap(out)
         _check_out(out)
         work = work_folder(out)
-        ck = Path(checkpoint).resolve()
+        ck = checkpoint_file(checkpoint).resolve()  # a run's folder: its checkpoints/last.pt
         loaded = load_model(ck, device)
         checkpoint_sha = file_sha256(ck)
         _check_replace(out, ck, checkpoint_sha, Path(data).resolve(), replace)

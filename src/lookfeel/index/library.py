@@ -51,7 +51,7 @@ import torch
 from numpy.typing import NDArray
 
 from lookfeel.atomic import atomic_write
-from lookfeel.checkpoint import LoadedModel, load_model
+from lookfeel.checkpoint import LoadedModel, checkpoint_file, load_model
 from lookfeel.config import ConfigError, RunConfig, from_dict
 from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.catalog import Catalog, Fabric
@@ -616,7 +616,11 @@ class Library:
                     raise LibraryError(f"{index_file}: cannot read the faiss index: {e}") from None
             else:
                 searches[m] = ExactSearch(tables[m].embeddings)
-        ck = Path(checkpoint) if checkpoint is not None else Path(manifest["checkpoint"]["path"])
+        ck = (
+            checkpoint_file(checkpoint)
+            if checkpoint is not None
+            else Path(manifest["checkpoint"]["path"])
+        )
         maps = {}
         if manifest.get("cross_maps"):
             entry = manifest["cross_maps"]

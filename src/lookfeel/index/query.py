@@ -274,7 +274,7 @@ def load_query_image(
         for a press video with ``data.video_embed: views``, its (V, C, S, S) views.
 
     Raises:
-        ImageError: naming the file when it is missing, not a regular file, not a PNG or
+        ImageError: naming the file when it is missing, not a regular file, empty, not a PNG or
             JPEG image by its content (`QUERY_IMAGES`: a GIF or WebP is refused, as ``lookfeel
             serve`` refuses it), too large, or the wrong kind (e.g. an 8-bit PNG given as
             depth).
@@ -291,6 +291,8 @@ def load_query_image(
         # (with ``data.video_embed: views``, all its views: (V, 3, S, S)).
         return _read_video(path, config, on_video)
     data = read_image_file(path)
+    if not data:  # said as `lookfeel data check` says it, not as a file of another kind
+        raise ImageError(path, "file is empty")
     if sniff_type(data[:16]) is None:  # as `lookfeel serve` refuses an upload (415)
         raise ImageError(path, _not_a_query_image(data[:16]))
     return _preprocess(path, data, modality, config, max_pixels)
