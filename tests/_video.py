@@ -3,7 +3,10 @@ texture pressed in and out over a known span."""
 
 from __future__ import annotations
 
+from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -88,3 +91,40 @@ def cut_in_half(path: Path) -> Path:
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
     return path
+
+
+def grey_and_colour_presses(
+    folder: Path, stored_suffix: str = ".mov", dark: bool = False
+) -> dict[str, Path]:
+    """One press as colour (``colour``), as a single grey channel (``grey``, FFV1 ``gray``)
+    and as grey stored in colour, red, green and blue equal (``stored``, its suffix
+    ``stored_suffix``); with ``dark``, also as colour after a black first frame (``dark``: a
+    camera starting up)."""
+    frames = object_press(1, PRESS, t=14)
+    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
+    videos = {
+        "colour": write_video(folder / "colour.mov", frames),
+        "grey": write_video(folder / "grey.mkv", frames, "ffv1", "gray"),
+        "stored": write_video(folder / f"stored{stored_suffix}", equal),
+    }
+    if dark:
+        frames[0] = 0
+        videos["dark"] = write_video(folder / "dark.mov", frames)
+    return videos
+
+
+def count_decoded_frames(monkeypatch: Any, by: str = "name") -> Counter[str]:
+    """Count every frame `lookfeel.data.video` decodes from now on (monkeypatched for the test),
+    by the file's ``name`` or ``suffix``: what a check that decodes a video again would add."""
+    from lookfeel.data import video
+
+    decoded: Counter[str] = Counter()
+    real = video._decode
+
+    def counting(path: Path, *args: Any, **kwargs: Any) -> Iterator[Any]:
+        for frame in real(path, *args, **kwargs):
+            decoded[getattr(Path(path), by)] += 1
+            yield frame
+
+    monkeypatch.setattr(video, "_decode", counting)
+    return decoded

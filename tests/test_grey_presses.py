@@ -10,7 +10,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import httpx
-import numpy as np
 import pytest
 
 from lookfeel.checkpoint import load_model, read_checkpoint, save_checkpoint
@@ -24,7 +23,7 @@ from lookfeel.predict import predict_files
 from lookfeel.serve import ServeConfig, background_server, create_app
 from lookfeel.train import train
 
-from ._video import PRESS, object_press, write_video
+from ._video import PRESS, grey_and_colour_presses, object_press, write_video
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*probabilities are as trained, not calibrated")
 
@@ -40,14 +39,7 @@ def presses(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """One press as a colour video, a grey one (one channel) and one stored as colour with
     red, green and blue equal."""
     pytest.importorskip("av")
-    root = tmp_path_factory.mktemp("presses")
-    frames = object_press(1, PRESS, t=14)
-    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
-    return {
-        "colour": write_video(root / "colour.mov", frames),
-        "grey": write_video(root / "grey.mkv", frames, "ffv1", "gray"),
-        "stored": write_video(root / "stored.mov", equal),
-    }
+    return grey_and_colour_presses(tmp_path_factory.mktemp("presses"))
 
 
 def _count_read_press(monkeypatch: pytest.MonkeyPatch) -> list[str]:

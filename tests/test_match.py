@@ -387,18 +387,9 @@ def test_a_device_this_machine_lacks_is_one_line(matcher: Matcher):
 def _press_videos(folder: Path) -> dict[str, Path]:
     """One press as colour, as a single grey channel, as grey stored in colour (red, green and
     blue equal), and as colour after a black first frame (a camera starting up)."""
-    from ._video import PRESS, object_press, write_video
+    from ._video import grey_and_colour_presses
 
-    frames = object_press(1, PRESS, t=14)
-    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
-    videos = {
-        "colour": write_video(folder / "colour.mov", frames),
-        "grey": write_video(folder / "grey.mkv", frames, "ffv1", "gray"),
-        "stored": write_video(folder / "stored.mov", equal),
-    }
-    frames[0] = 0
-    videos["dark"] = write_video(folder / "dark.mov", frames)
-    return videos
+    return grey_and_colour_presses(folder, dark=True)
 
 
 def test_a_video_is_grey_by_its_pixel_format_or_equal_channels_in_every_frame(tmp_path: Path):
@@ -451,21 +442,12 @@ def test_a_query_video_is_decoded_once_whether_grey_or_not(
     again decoded one more frame of a colour or one-channel video, and the whole of a grey one
     stored as colour."""
     import warnings
-    from collections import Counter
 
     pytest.importorskip("av")
-    from lookfeel.data import video
+    from ._video import count_decoded_frames
 
     v = _press_videos(tmp_path)
-    decoded: Counter[str] = Counter()  # frames decoded, by file
-    real = video._decode
-
-    def counting(path, *args, **kwargs):
-        for frame in real(path, *args, **kwargs):
-            decoded[Path(path).name] += 1
-            yield frame
-
-    monkeypatch.setattr(video, "_decode", counting)
+    decoded = count_decoded_frames(monkeypatch)  # frames decoded, by file
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         matcher.match_files([v["colour"], v["grey"], v["stored"]], Modality.TOUCH, top=2)

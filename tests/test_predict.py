@@ -512,29 +512,12 @@ def test_a_query_video_is_decoded_once_whether_grey_or_not(
     again decoded one more frame of a colour or one-channel video, and the whole of a grey one
     stored as colour."""
     import warnings
-    from collections import Counter
-
-    import numpy as np
 
     pytest.importorskip("av")
-    from lookfeel.data import video
+    from ._video import count_decoded_frames, grey_and_colour_presses
 
-    from ._video import PRESS, object_press, write_video
-
-    frames = object_press(1, PRESS, t=14)
-    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
-    colour = write_video(tmp_path / "colour.mov", frames)
-    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")
-    stored = write_video(tmp_path / "stored.mov", equal)
-    decoded: Counter[str] = Counter()  # frames decoded, by file
-    real = video._decode
-
-    def counting(path, *args, **kwargs):
-        for frame in real(path, *args, **kwargs):
-            decoded[Path(path).name] += 1
-            yield frame
-
-    monkeypatch.setattr(video, "_decode", counting)
+    colour, grey, stored = grey_and_colour_presses(tmp_path).values()
+    decoded = count_decoded_frames(monkeypatch)  # frames decoded, by file
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         answers = predict_files(heads, [colour, grey, stored], "touch")

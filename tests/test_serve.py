@@ -520,28 +520,14 @@ def test_an_uploaded_press_video_is_decoded_once_whether_grey_or_not(
     press: asking again decoded one more frame of a colour or one-channel video, and the whole
     of a grey one stored as colour."""
     pytest.importorskip("av")
-    from collections import Counter
-
-    from lookfeel.data import video
     from lookfeel.index.match import GREY_VIDEO
 
-    from ._video import PRESS, object_press, write_video
+    from ._video import count_decoded_frames, grey_and_colour_presses
 
     _, matcher = server
-    frames = object_press(1, PRESS, t=14)
-    equal = np.repeat(frames.mean(axis=-1, keepdims=True).astype(np.uint8), 3, axis=-1)
-    colour = write_video(tmp_path / "colour.mov", frames)
-    grey = write_video(tmp_path / "grey.mkv", frames, "ffv1", "gray")
-    stored = write_video(tmp_path / "stored.mp4", equal)
-    decoded: Counter[str] = Counter()  # frames decoded, by the suffix of the upload's copy
-    real = video._decode
-
-    def counting(path, *args, **kwargs):
-        for frame in real(path, *args, **kwargs):
-            decoded[Path(path).suffix] += 1
-            yield frame
-
-    monkeypatch.setattr(video, "_decode", counting)
+    colour, grey, stored = grey_and_colour_presses(tmp_path, stored_suffix=".mp4").values()
+    # frames decoded, by the suffix of the upload's copy
+    decoded = count_decoded_frames(monkeypatch, by="suffix")
     with background_server(create_app(matcher.library, ServeConfig(), matcher)) as url:
         for p in (colour, grey, stored):
             r = httpx.post(
