@@ -151,3 +151,32 @@ def test_a_library_and_an_export_record_the_file_a_run_folder_stands_for(
     assert main(["export", "--checkpoint", str(folder), "--out", str(tmp_path / "onnx")]) == 0
     recorded = json.loads((tmp_path / "onnx" / "export.json").read_text())["checkpoint"]
     assert recorded == str(last.resolve())
+
+
+def test_a_library_built_from_a_runs_best_checkpoint_opens_with_the_run_folder(
+    run, tmp_path: Path, capsys
+):
+    """QA (upgrading): a library built from ``RUN/checkpoints/best.pt``, opened with
+    ``--checkpoint RUN``, was refused as built from another checkpoint (the folder stood for
+    ``last.pt``), and the message sent the user to rebuild it."""
+    import shutil
+
+    data, last = run
+    folder = tmp_path / "run"
+    shutil.copytree(last.parent.parent, folder)
+    # best.pt and last.pt: two checkpoints of the run (last.pt re-saved, so other bytes)
+    shutil.copy(last, folder / "checkpoints" / "best.pt")
+    torch.save(
+        {**torch.load(last, weights_only=False), "step": 1}, folder / "checkpoints" / "last.pt"
+    )
+    best = folder / "checkpoints" / "best.pt"
+    lib = tmp_path / "lib"
+    argv = ["index", "build", "--checkpoint", str(best), "--data", str(data), "--out", str(lib)]
+    assert main(argv) == 0, capsys.readouterr().err
+    query = sorted((data / "color").glob("*.png"))[0]
+    argv = ["match", "--index", str(lib), "--checkpoint", str(folder), "--modality", "color"]
+    assert main([*argv, str(query)]) == 0, capsys.readouterr().err
+    # the last checkpoint, named, is another model: refused as before
+    argv[argv.index(str(folder))] = str(folder / "checkpoints" / "last.pt")
+    assert main([*argv, str(query)]) == 1
+    assert "differs from the one the library was built with" in capsys.readouterr().err

@@ -222,6 +222,15 @@ def test_disk_cache_is_keyed_by_settings(tiny_dataset: Path, tmp_path: Path):
     assert torch.equal(a, b) and c.shape == (1, 20, 20)
     assert len(list(cache.rglob("*.npy"))) == 2
     assert not list(cache.rglob("*.tmp"))
+    # QA (upgrading): each settings' folder says what it holds, so an unused one can be told
+    # and deleted (its name is only a digest)
+    import json
+
+    from lookfeel.data.images import CACHE_SETTINGS
+
+    said = {f.parent.name: json.loads(f.read_text()) for f in cache.glob(f"*/{CACHE_SETTINGS}")}
+    assert {d["settings"]["image_size"] for d in said.values()} == {16, 20}
+    assert all("can be deleted" in d["what"] for d in said.values())
 
 
 @pytest.mark.parametrize(

@@ -304,6 +304,11 @@ def test_seeds_are_trained_in_the_order_given_and_found_again_by_their_folders(
         assert not any(ln.startswith("run ") for ln in lines), lines
         assert any(ln.startswith("read flat seed 0") for ln in lines), lines
         assert again.results["flat"]["seeds"] == 1
+        # QA (upgrading): the report leaves seed 1 out, and a line says so and how to have it
+        assert f"{out} also holds finished runs of seed 1, which --seeds leaves out of the " in (
+            "\n".join(lines)
+        )
+        assert any("(--seeds 0,1 reports them with these;" in ln for ln in lines), lines
 
 
 def test_the_demo_reproduces_seed_0_alone_as_before(tmp_path: Path, monkeypatch):

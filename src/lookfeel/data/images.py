@@ -66,6 +66,7 @@ from lookfeel.modality import Modality, reprint_path
 from lookfeel.processes import can_fork
 
 __all__ = [
+    "CACHE_SETTINGS",
     "DEFAULT_MAX_PIXELS",
     "ImageError",
     "ImageLoader",
@@ -465,6 +466,11 @@ class PreprocessSettings:
         return hashlib.sha1(blob).hexdigest()[:12]
 
 
+CACHE_SETTINGS = "settings.json"
+"""The file in each folder of a disk cache (``data.cache_dir/<digest>/``) that says, readably,
+the `PreprocessSettings` its entries were made with (`ImageLoader`)."""
+
+
 def to_tensor(a: np.ndarray) -> torch.Tensor:
     """A preprocessed array as the network's input: (S, S, 3) or (V, S, S, 3) uint8 ->
     (3, S, S) or (V, 3, S, S) in [0, 1]; (S, S) depth -> (1, S, S)."""
@@ -530,6 +536,7 @@ class ImageLoader:
         self._said_short = False  # `frame_path` warns once of presses with too few frames
         """Press frames stacked as one input (``data.touch_frames``), by `frame_path`."""
         self._lock = threading.Lock()
+        self._described = False  # `_describe_cache`: its settings.json checked or written
 
     def __len__(self) -> int:
         return len(self._memory)
@@ -644,6 +651,7 @@ class ImageLoader:
                     self._read_grey(video, facts)
                 return a
         a = build()
+        self._describe_cache()
         grey = None if video is None else self._grey.get(video)
         if grey is not None:
             atomic_write_text(facts, json.dumps({"grey": grey}) + "\n")
@@ -651,6 +659,26 @@ class ImageLoader:
         np.save(buf, a, allow_pickle=False)
         atomic_write(disk, lambda f: f.write(buf.getvalue()))
         return a
+
+    def _describe_cache(self) -> None:
+        """Write `CACHE_SETTINGS` beside this loader's cache entries once: the settings they were
+        made with, in words a person can read (the folder's name is only their digest), so that
+        the folder of settings no longer used can be told and deleted."""
+        if self.cache_dir is None or self._described:
+            return
+        path = self.cache_dir / CACHE_SETTINGS
+        if not path.exists():
+            from lookfeel import __version__
+
+            about = {
+                "what": "lookfeel's decoded images, made with these settings: a folder of "
+                "other settings is never read by this one, and any such folder can be deleted "
+                "(it is made again when needed)",
+                "lookfeel": __version__,
+                "settings": {k: v for k, v in self.settings.__dict__.items() if v is not None},
+            }
+            atomic_write_text(path, json.dumps(about, indent=2) + "\n")
+        self._described = True
 
     def _read_grey(self, video: Path, facts: Path) -> None:
         """Note `is_grey` of ``video`` from a disk cache entry's ``facts`` file; a missing or

@@ -51,7 +51,7 @@ import torch
 from numpy.typing import NDArray
 
 from lookfeel.atomic import atomic_write
-from lookfeel.checkpoint import LoadedModel, checkpoint_file, load_model
+from lookfeel.checkpoint import RUN_CHECKPOINT, LoadedModel, checkpoint_file, load_model
 from lookfeel.config import ConfigError, RunConfig, from_dict
 from lookfeel.config.loss import unregistered_loss_kinds_allowed
 from lookfeel.data.catalog import Catalog, Fabric
@@ -616,16 +616,27 @@ class Library:
                     raise LibraryError(f"{index_file}: cannot read the faiss index: {e}") from None
             else:
                 searches[m] = ExactSearch(tables[m].embeddings)
-        ck = (
-            checkpoint_file(checkpoint)
-            if checkpoint is not None
-            else Path(manifest["checkpoint"]["path"])
-        )
+        built = Path(manifest["checkpoint"]["path"])
+        ck = built if checkpoint is None else _checkpoint_for(Path(checkpoint), built)
         maps = {}
         if manifest.get("cross_maps"):
             entry = manifest["cross_maps"]
             maps = read_cross_maps(root / entry["file"], entry["pairs"], width)
         return cls(root, manifest, tables, searches, ck, maps)
+
+
+def _checkpoint_for(given: Path, built: Path) -> Path:
+    """The checkpoint file a ``--checkpoint`` given to a library stands for: a file as it is;
+    a training run's folder, the file of that run the library was built with where it is
+    there (``best.pt``: the library's manifest names it), else its ``checkpoints/last.pt``
+    (`lookfeel.checkpoint.checkpoint_file`), as everywhere else. A library built from a run's
+    ``best.pt`` and moved with its run is so opened with the run's folder, not refused as
+    built from another checkpoint."""
+    if given.is_dir():
+        same = given / RUN_CHECKPOINT.parent / built.name
+        if built.parent.name == RUN_CHECKPOINT.parent.name and same.is_file():
+            return same
+    return checkpoint_file(given)
 
 
 def _check_shard(path: Path, arrays: dict[str, NDArray[Any]], width: int) -> None:

@@ -1040,6 +1040,9 @@ def _reproduce(
                         "or delete the run to train it anew"
                     )
             jobs.append(job)
+    others = _other_seeds(out, [job.exp.name for job in jobs], seed_list)
+    if others:
+        log(others)
     # Finished runs scored with another --n-boot, and Table 4's scored without raw pixels and
     # the background control or without the top-3 interval, are scored again from their
     # checkpoints (`_run_one`). One of the first whose checkpoint is gone is refused, before
@@ -1214,6 +1217,32 @@ def _differs(run_dir: Path, config: RunConfig) -> str | None:
 
 
 _SEED_DIR = re.compile(r"seed(\d+)")
+
+
+def _other_seeds(out: Path, names: Sequence[str], seeds: Sequence[int]) -> str | None:
+    """The line saying that ``out`` holds finished runs of the experiments asked for
+    (``names``) under seeds not asked for, which the report leaves out; None when it holds
+    none. (Before ``--seeds`` took a list, ``--seeds 2`` asked for seeds 0 and 1: a folder of
+    those, reproduced with ``--seeds 2``, trains seed 2 alone.)"""
+    found: set[int] = set()
+    for name in dict.fromkeys(names):
+        folder = out / "runs" / name
+        if not folder.is_dir():
+            continue
+        for path in folder.iterdir():
+            match = _SEED_DIR.fullmatch(path.name)
+            if match and (path / "eval.json").exists() and int(match.group(1)) not in seeds:
+                found.add(int(match.group(1)))
+    if not found:
+        return None
+    every = ",".join(str(s) for s in sorted({*seeds, *found}))
+    held = ", ".join(str(s) for s in sorted(found))
+    return (
+        f"{out} also holds finished runs of seed{'s' if len(found) > 1 else ''} {held}, which "
+        f"--seeds leaves out of the report (--seeds {every} reports them with these; --seeds "
+        "lists the seeds themselves, as in cv: before session 56, --seeds N meant seeds 0 to "
+        "N-1)"
+    )
 
 
 def _finished_runs(
