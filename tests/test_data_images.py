@@ -337,3 +337,28 @@ def test_declared_size_reads_png_and_jpeg_headers_alone():
     buf = io.BytesIO()
     Image.fromarray(a).save(buf, "BMP")
     assert declared_size(buf.getvalue()) is None  # another format: Pillow says
+
+
+def test_a_blank_depth_image_s_note_goes_with_its_entries_to_another_loader(tmp_path: Path):
+    """A decoding worker's loader notes a depth image with no valid pixel and does not warn of
+    it (`ImageLoader.decode_one`: the caller's loader warns once of all, `BlankDepthWarning`);
+    `take` hands the note over with the image, and `adopt` keeps it. A depth image with a
+    valid pixel carries no note."""
+    from lookfeel.data.catalog import Item
+    from lookfeel.data.images import BlankDepthWarning
+
+    blank, valid = tmp_path / "F0001_Depth_New_000000.png", tmp_path / "F0001_Depth_New_000001.png"
+    Image.fromarray(np.zeros((24, 24), np.uint16)).save(blank)
+    Image.fromarray(np.full((24, 24), 1000, np.uint16)).save(valid)
+    worker = ImageLoader(DataConfig(image_size=16), cache_dir=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BlankDepthWarning)
+        worker.decode_one(Item(Modality.DEPTH, 1, (blank,)))
+        worker.decode_one(Item(Modality.DEPTH, 1, (valid,)))
+    entries = worker.take(blank)
+    assert set(entries) == {"image", "blank"} and bool(entries["blank"])
+    assert not entries["image"].any()  # read as a blank input
+    assert set(worker.take(valid)) == {"image"}
+    parent = ImageLoader(DataConfig(image_size=16), cache_dir=None)
+    parent.adopt(blank, entries)
+    assert set(parent.take(blank)) == {"image", "blank"}

@@ -45,6 +45,7 @@ from lookfeel.progress import bar as progress_bar
 
 __all__ = [
     "MIN_IN_RANGE",
+    "MIN_SIDE",
     "PLAUSIBLE_DEPTH_MM",
     "PRESSED_START_LEVELS",
     "SAME_SHAPE_LOG_RATIO",
@@ -88,13 +89,23 @@ _CONVERT = {
 }
 
 
+MIN_SIDE = 16
+"""Shorter side, in pixels, below which ``data check`` warns of an image or press video
+(`_small_problems`). The networks read inputs of 64 to 320 px a side (``data.image_size``,
+``data.color_size``), so every image is enlarged to that size, and one of fewer than 16 px a
+side can hold no texture (a weave's repeat, a press's ridges span several pixels of a
+full-size image): it was most likely saved as a thumbnail or an icon."""
+
+
 @dataclass(frozen=True)
 class _Decoded:
     """What decoding one file found: a problem, its frame size (w, h), for depth the counts
     of its valid pixels (inside the mapped range, in all) and a sample of them, and for a press
     video whether it has no colour (`lookfeel.data.video.Press.grey`; None for anything else),
     its no-contact reference, small and grey (`_small_reference`), and the warnings decoding it
-    gave (a truncated video, more than one press: `_recording_video_warnings`)."""
+    gave (a truncated video, more than one press: `_recording_video_warnings`); for a still
+    colour or touch image, whether it has no colour (``grey_image``: `_is_grey`; None for
+    anything else)."""
 
     problem: Problem | None = None
     size: tuple[int, int] | None = None
@@ -102,6 +113,7 @@ class _Decoded:
     grey: bool | None = None
     reference: np.ndarray | None = None
     warned: tuple[Problem, ...] = ()
+    grey_image: bool | None = None
 
 
 def _depth_unit_problem(path: Path, depth: np.ndarray) -> Problem | None:
@@ -220,18 +232,31 @@ def _decode(path: Path, modality: Modality) -> _Decoded:
             d = decode_depth(path)
             size = (d.shape[1], d.shape[0])
             if not d.any():
-                return _Decoded(Problem(path, "depth image has no valid pixel (all 0)", "warning"))
+                blank = Problem(path, "depth image has no valid pixel (all 0)", "warning")
+                return _Decoded(blank, size)
             unit = _depth_unit_problem(path, d)
             if unit is not None:
                 return _Decoded(unit, size)
             low = config.depth_min_mm
             return _Decoded(None, size, _depth_sample(d, low, low + config.depth_range_mm))
         rgb = decode_rgb(path)
-        return _Decoded(size=(rgb.shape[1], rgb.shape[0]))
+        return _Decoded(size=(rgb.shape[1], rgb.shape[0]), grey_image=_is_grey(rgb))
     except NoPressError as e:
         return _Decoded(Problem(path, f"{e.reason}; runs leave this recording out", "warning"))
     except ImageError as e:
         return _Decoded(Problem(path, e.reason))
+
+
+def _is_grey(rgb: np.ndarray) -> bool:
+    """Whether the (H, W, 3) image ``rgb`` has the same value in its red, green and blue
+    everywhere: a greyscale file (mode L or LA, converted to RGB as it is read) or grey stored
+    as colour. Every 8th pixel of every 8th row first, which almost any colour image fails,
+    so that only a grey one is compared whole."""
+
+    def equal(a: np.ndarray) -> bool:
+        return bool((a[..., 0] == a[..., 1]).all() and (a[..., 1] == a[..., 2]).all())
+
+    return equal(rgb[::8, ::8]) and equal(rgb)
 
 
 def check_dataset(
@@ -248,10 +273,12 @@ def check_dataset(
     touch video is decoded and its press found; one without a press is a warning (runs leave
     it out: `lookfeel.data.drop_unpressed`), as is what reading it warns in runs (a truncated
     file, more than one press: `_recording_video_warnings`), press videos of more than one
-    aspect ratio, grey videos (no colour) among colour ones (`_colour_problems`), and a video
-    whose first frames look pressed compared with its object's others
-    (`_pressed_start_problems`). A dataset with no usable fabric or only one is an error (no
-    command can hold fabrics out of it), as is an unfinished `lookfeel synth` world.
+    aspect ratio, grey videos (no colour) among colour ones (`_colour_problems`), grey colour
+    or touch images among colour ones (`_grey_image_problems`), images and videos smaller than
+    `MIN_SIDE` (`_small_problems`), and a video whose first frames look pressed compared with
+    its object's others (`_pressed_start_problems`). A dataset with no usable fabric or only
+    one is an error (no command can hold fabrics out of it), as is an unfinished `lookfeel
+    synth` world.
 
     Args:
         root: the dataset folder.
@@ -288,6 +315,9 @@ def check_dataset(
     refs = {
         j[0]: d.reference for j, d in zip(jobs, decoded, strict=True) if d.reference is not None
     }
+    grey_images = {
+        j[0]: d.grey_image for j, d in zip(jobs, decoded, strict=True) if d.grey_image is not None
+    }
     fabrics = []
     for f in catalog.fabrics:
         items = {
@@ -300,6 +330,8 @@ def check_dataset(
     new.extend(range_problems(catalog.root, [d.depth for d in decoded if d.depth is not None]))
     new.extend(_shape_problems(usable, sizes))
     new.extend(_colour_problems(catalog.root, usable, greys))
+    new.extend(_grey_image_problems(usable, grey_images))
+    new.extend(_small_problems(usable, sizes))
     new.extend(_pressed_start_problems(usable, refs))
     new.extend(_class_problems(catalog, usable))
     new.extend(duplicate_files(usable))  # a query would find its own copy
@@ -532,6 +564,96 @@ def _colour_problems(
         )
         fix = "record them in colour, or leave them out"
     return [Problem(grey[0], f"{what} ({_GREY_READ}); {fix}", "warning")]
+
+
+_GREY_IMAGE_READ = {
+    Modality.COLOR: "a photo's colours are part of what the colour network reads, and a grey "
+    "image gives the same value in each channel",
+    Modality.TOUCH: "GelSight's and DIGIT's colours carry the surface's slopes, and a grey "
+    "frame gives the same value in each channel",
+}
+_IMAGE_NOUN = {Modality.DEPTH: "depth image", Modality.COLOR: "colour image"}
+
+
+def _grey_image_problems(fabrics: Sequence[Fabric], greys: dict[Path, bool]) -> list[Problem]:
+    """One warning per modality (colour, touch) whose still images mix grey ones (the same
+    value in each channel everywhere: `_is_grey`, as ``greys`` says of each decoded file) and
+    colour ones, as `_colour_problems` warns of press videos: a grey image is read as colour
+    with red, green and blue equal, unlike anything a network trained on the colour ones saw.
+    The warning names the first grey image, counts them and names a few. Press videos
+    (`_colour_problems`) and depth (always one channel) are not counted; a modality whose
+    images are all grey is not warned of (a network trained on it reads it alike)."""
+    out = []
+    for m in (Modality.COLOR, Modality.TOUCH):
+        files = [p for f in fabrics for it in f.items.get(m, ()) for p in it.frames if p in greys]
+        grey = [p for p in files if greys[p]]
+        if not grey or len(grey) == len(files):
+            continue
+        noun = "touch frame" if m is Modality.TOUCH else _IMAGE_NOUN[m]
+        colour = len(files) - len(grey)
+        others = "the other one" if colour == 1 else f"the other {colour}"
+        if len(grey) == 1:
+            what = (
+                f"this {noun} has no colour (grey), unlike {others}: a model reads it unlike them"
+            )
+            fix = "use a colour original, or leave it out"
+        else:
+            named = ", ".join(p.name for p in grey[:_FEW_GREY])
+            more = f" and {len(grey) - _FEW_GREY} more" if len(grey) > _FEW_GREY else ""
+            what = (
+                f"{len(grey)} of the {len(files)} {noun}s have no colour (grey), unlike "
+                f"{others}: {named}{more}; a model reads them unlike the others"
+            )
+            fix = "use colour originals, or leave them out"
+        out.append(Problem(grey[0], f"{what} ({_GREY_IMAGE_READ[m]}); {fix}", "warning"))
+    return out
+
+
+def _small_problems(fabrics: Sequence[Fabric], sizes: dict[Path, tuple[int, int]]) -> list[Problem]:
+    """One warning per modality with images (or press videos) whose shorter side is below
+    `MIN_SIDE`: each is enlarged to the network's input and holds no texture. It names the
+    first such file and its size, counts the others and names a few."""
+    out = []
+    for m in Modality:
+        small = [
+            p
+            for f in fabrics
+            for it in f.items.get(m, ())
+            for p in it.frames
+            if p in sizes and min(sizes[p]) < MIN_SIDE
+        ]
+        if not small:
+            continue
+        if m is not Modality.TOUCH:
+            noun = _IMAGE_NOUN[m]
+        elif all(is_video(p) for p in small):
+            noun = "touch press video"
+        else:
+            noun = "touch frame" if not any(is_video(p) for p in small) else "touch file"
+        w, h = sizes[small[0]]
+        if len(small) == 1:
+            what = f"this {noun} is {w}x{h} px: smaller than {MIN_SIDE} px on its shorter side"
+            rest = "it holds no texture, and is"
+            fix = "use the full-size file, or leave it out"
+        else:
+            named = ", ".join(p.name for p in small[1 : 1 + _FEW_GREY])
+            left = len(small) - 1 - _FEW_GREY
+            more = f" and {left} more" if left > 0 else ""
+            what = (
+                f"this {noun} is {w}x{h} px, and {len(small) - 1} more are smaller than "
+                f"{MIN_SIDE} px on their shorter side too: {named}{more}"
+            )
+            rest = "they hold no texture, and each is"
+            fix = "use the full-size files, or leave them out"
+        out.append(
+            Problem(
+                small[0],
+                f"{what}; {rest} enlarged to the network's input (data.image_size, mostly 64 to "
+                f"320 px); {fix}",
+                "warning",
+            )
+        )
+    return out
 
 
 PRESSED_START_LEVELS = 4.0

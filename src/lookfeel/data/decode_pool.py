@@ -17,7 +17,11 @@ this module does not import `lookfeel.data.images`, which imports it.)
   which raises the very error (naming the file) that a thread would have.
 - Warnings as in one process: what a worker warns while decoding a file (a truncated video,
   `lookfeel.data.video.TruncatedVideoWarning`) is warned again by the caller, in order, as
-  its chunk comes back, where the caller's warning filters and display see it.
+  its chunk comes back, where the caller's warning filters and display see it. What the
+  loader says once of all the files (a depth image with no valid pixel,
+  `lookfeel.data.images.BlankDepthWarning`) is not warned by a worker: it comes back as a
+  note with the file's entries (`ImageLoader.take`, as a press video's ``grey``), and the
+  caller's loader says it once, as threads would have.
 - Workers are forked on Linux (they start in milliseconds), spawned elsewhere (seconds: each
   imports torch); each dies with the process that started it (`die_with_parent`).
 """

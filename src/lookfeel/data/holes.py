@@ -20,7 +20,9 @@ def fill_holes(depth: np.ndarray) -> np.ndarray:
         depth: (H, W) array; 0 marks a hole.
 
     Returns:
-        A filled copy (same dtype); an image with no valid pixel is returned unchanged.
+        A filled copy (same dtype); an image with no valid pixel is returned unchanged (all
+        0: `lookfeel.data.images.ImageLoader` warns that it reads such an image as blank,
+        `lookfeel.data.images.BlankDepthWarning`).
     """
     holes = depth == 0
     if not holes.any() or holes.all():

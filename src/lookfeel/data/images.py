@@ -25,7 +25,9 @@ and, with ``cache_dir``, on disk keyed by the file's content and the preprocessi
 (`PreprocessSettings`: among them a press video's turn and the press detector's version,
 `lookfeel.data.video.PRESS_DETECTOR_VERSION`). Of a press video it also keeps whether it had
 no colour (`ImageLoader.is_grey`, `lookfeel.data.video.Press.grey`), in memory and beside its
-disk cache entry (``<entry>.json``), so that nothing decodes the video again to ask.
+disk cache entry (``<entry>.json``), so that nothing decodes the video again to ask. A depth
+image with no valid pixel (all 0) is read as a blank input; the loader warns of such images
+once (`BlankDepthWarning`), naming the first and counting those a preload read.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ from lookfeel.processes import can_fork
 __all__ = [
     "CACHE_SETTINGS",
     "DEFAULT_MAX_PIXELS",
+    "BlankDepthWarning",
     "ImageError",
     "ImageLoader",
     "PreprocessSettings",
@@ -505,6 +508,26 @@ def _missing_frames(n: int, indices: Sequence[int]) -> int:
     return sum(not 0 <= (i if i >= 0 else n + i) < n for i in indices)
 
 
+class BlankDepthWarning(UserWarning):
+    """A depth image with no valid pixel (every pixel 0: no reading) was read. Nothing fills
+    its holes, so it becomes a blank input (every pixel 0 after the mapping) that a run trains
+    on, embeds and scores as if it were a drape. ``lookfeel data check`` warns of each such
+    file and ``lookfeel match`` refuses one as a query; `ImageLoader` warns once."""
+
+
+def _blank_depth_message(first: Path, more: int) -> str:
+    """`BlankDepthWarning`'s text: ``first`` such file and how many ``more`` were read with it."""
+    also = (
+        f", as have {more} more depth image{'s' if more > 1 else ''} read with it" if more else ""
+    )
+    each, them = ("each", "them") if more else ("it", "it")
+    return (
+        f"{first}: depth image has no valid pixel (every pixel 0, no reading){also}: {each} is "
+        "read as a blank input, which a run trains on and embeds as if it were a drape; leave "
+        f"{them} out or record {them} again (`lookfeel data check` names every such file)"
+    )
+
+
 class ImageLoader:
     """Loads items as network-ready tensors, decoding and preprocessing each file once.
 
@@ -535,6 +558,9 @@ class ImageLoader:
         self._stacks: dict[Path, tuple[Path, ...]] = {}
         self._said_short = False  # `frame_path` warns once of presses with too few frames
         """Press frames stacked as one input (``data.touch_frames``), by `frame_path`."""
+        self._blank: set[Path] = set()  # depth files with no valid pixel read (`_note_blank`)
+        self._said_blank = False  # `BlankDepthWarning` said (once for the loader)
+        self._in_decode_one = threading.local()  # ``on``: `array` leaves the saying to `_decode`
         self._lock = threading.Lock()
         self._described = False  # `_describe_cache`: its settings.json checked or written
 
@@ -718,7 +744,31 @@ class ImageLoader:
                 return preprocess_rgb(self._video_image(path, data), modality, self.config)
             return preprocess_rgb(open_rgb(path, data), modality, self.config)
 
-        return self._cached(data, modality.value, build, path if video else None)
+        a = self._cached(data, modality.value, build, path if video else None)
+        if modality is Modality.DEPTH:
+            self._note_blank(path, data, a)
+        return a
+
+    def _note_blank(self, path: Path, data: bytes, a: np.ndarray) -> None:
+        """Note ``path`` (its bytes ``data``) as a depth image with no valid pixel when its
+        preprocessed input ``a`` (built or from the disk cache) is constant and its pixels are
+        all 0. A file is decoded again to ask only when its input is constant, which is rare
+        with a valid pixel (holes take the nearest one's value: every reading would have to be
+        alike, or beyond the mapped range); the check costs microseconds a file."""
+        if a.min() != a.max() or decode_depth(path, data).any():
+            return
+        with self._lock:
+            self._blank.add(path)
+
+    def _say_blank(self, paths: Iterable[Path]) -> None:
+        """Warn (`BlankDepthWarning`), once for the loader, of the first of ``paths`` noted as
+        having no valid pixel, counting the others."""
+        with self._lock:
+            blank = [p for p in paths if p in self._blank]
+            if not blank or self._said_blank:
+                return
+            self._said_blank = True
+        warnings.warn(_blank_depth_message(blank[0], len(blank) - 1), BlankDepthWarning, 3)
 
     def _video_image(self, path: Path, data: bytes) -> np.ndarray:
         """The image of a press video the config asks for, as (H, W, 3) uint8: one frame, or
@@ -748,6 +798,8 @@ class ImageLoader:
             a = self._preprocess_file(path, modality)
             with self._lock:
                 self._memory[path] = a
+            if not getattr(self._in_decode_one, "on", False):  # else `_decode` says it
+                self._say_blank([path])
         return a
 
     def load(self, item: Item) -> torch.Tensor:
@@ -974,20 +1026,29 @@ class ImageLoader:
         its `embed_array` views where it `pools_views`, or with ``views`` its training
         `views`.
 
+        A depth image with no valid pixel is noted, not warned of: `preload` warns once of
+        all it decoded (`BlankDepthWarning`), and a worker process's loader returns the note
+        with the file (`take`).
+
         Raises:
             ImageError: the file cannot be used (and the like: one line naming the file).
         """
-        if views and self.has_views(item):
-            self.views(item)
-        elif self.pools_views(item):
-            self.embed_array(item)
-        else:
-            self.array(self.frame_path(item), item.modality)
+        self._in_decode_one.on = True
+        try:
+            if views and self.has_views(item):
+                self.views(item)
+            elif self.pools_views(item):
+                self.embed_array(item)
+            else:
+                self.array(self.frame_path(item), item.modality)
+        finally:
+            self._in_decode_one.on = False
 
     def take(self, path: Path) -> dict[str, np.ndarray]:
         """Remove and return everything held in memory for ``path``, by store (a decoding
         worker's result; `adopt` puts it into another loader), and, of a press video, its
-        `is_grey` as ``grey`` (a 0-d bool array)."""
+        `is_grey` as ``grey`` (a 0-d bool array), of a depth image with no valid pixel
+        ``blank`` (a 0-d True: `BlankDepthWarning`)."""
         with self._lock:
             out = {}
             for key, kept in (
@@ -1001,6 +1062,9 @@ class ImageLoader:
             grey = self._grey.pop(path, None)
             if grey is not None:
                 out["grey"] = np.array(grey)
+            if path in self._blank:
+                self._blank.discard(path)
+                out["blank"] = np.array(True)
             return out
 
     def adopt(self, path: Path, entries: dict[str, np.ndarray]) -> None:
@@ -1015,6 +1079,8 @@ class ImageLoader:
                     kept.setdefault(path, entries[key])
             if "grey" in entries:
                 self._grey.setdefault(path, bool(entries["grey"]))
+            if "blank" in entries and bool(entries["blank"]):
+                self._blank.add(path)
 
     def _uses_processes(self, files: int, workers: int) -> bool:
         """Whether `preload` decodes ``files`` files in worker processes (``data.decode``)."""
@@ -1038,6 +1104,10 @@ class ImageLoader:
 
         Returns:
             The number of files decoded now (those already held are skipped).
+
+        Warns:
+            BlankDepthWarning: once for the loader, naming the first depth image decoded that
+                has no valid pixel and counting the others.
 
         Raises:
             ImageError: for the first file that cannot be used, naming it.
@@ -1095,6 +1165,7 @@ class ImageLoader:
                 for i, _ in enumerate(pool.map(one, todo.values())):
                     if i % 64 == 63:
                         yield ready.advance()
+        self._say_blank(todo)  # in the order given, whichever thread or process read each
         yield ready.advance()
 
 
