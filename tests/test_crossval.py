@@ -168,7 +168,10 @@ def test_rescoring_keeps_the_runs_and_refuses_another_config(data: Path, tmp_pat
     again = cross_validate(
         config, data, tmp_path / "cv", folds=[0], tta=True, n_boot=20, log=logs.append
     )
-    assert logs[0] == "seed 0 fold 0: trained before, scoring again"
+    assert logs[0] == (
+        "seed 0 fold 0: trained before, scoring again (scored with other settings: tta true, "
+        "was false)"
+    )
     assert again["train_seconds"]["mean"] == first["train_seconds"]["mean"]
     assert again["tta"] is True
     other = load_config(RunConfig, TINY, [*OVERRIDES, "train.lr=0.01"])
@@ -293,7 +296,10 @@ def test_an_auto_property_head_is_the_same_run_when_scored_again(data: Path, tmp
     cross_validate(auto, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
     logs: list[str] = []
     cross_validate(auto, data, tmp_path / "cv", folds=[0], tta=True, n_boot=20, log=logs.append)
-    assert logs[0] == "seed 0 fold 0: trained before, scoring again"
+    assert logs[0] == (
+        "seed 0 fold 0: trained before, scoring again (scored with other settings: tta true, "
+        "was false)"
+    )
     saved = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text())
     assert saved["key"]["config"]["model"]["num_properties"] == "auto"
     assert set(saved["properties"]["depth"]["model"]) == {

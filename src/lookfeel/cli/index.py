@@ -164,8 +164,9 @@ def run_build(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     items = ", ".join(f"{n} {m.value}" for m, n in result.items.items())
+    why = f" {result.redo_reason}" if result.redo_reason else ""  # an old library's shards
     print(
-        f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded, "
+        f"Library {result.root}: {items}; {result.shards_embedded} shard(s) embedded{why}, "
         f"{result.shards_reused} reused; search {result.backend}; {result.seconds:.1f} s"
     )
     for line in _LEGEND:

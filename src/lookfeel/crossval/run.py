@@ -220,6 +220,66 @@ def _result_key(
     return key
 
 
+SHOWN_DIFFERENCES = 3
+"""Differences of a kept result's key that the "scoring again" line names (then "and N more")."""
+
+
+_ABSENT = object()
+"""A key that a kept result's key, or the key of now, does not have (`_key_differences`)."""
+
+
+def _key_differences(saved: Any, now: Any, name: str = "") -> list[str]:
+    """Where a kept result's ``key`` (``saved``) differs from ``now``'s, each as ``NAME NOW,
+    was OLD`` (JSON values; ``not recorded`` for a key the result does not have, as when a
+    newer lookfeel adds a config field; ``none now`` for one no longer in the key). A config
+    key is named as the config names it (``data.video_rotate``, not ``config.data...``)."""
+    if isinstance(saved, dict) and isinstance(now, dict):
+        found = []
+        for k in [*now, *(k for k in saved if k not in now)]:
+            inner = f"{name}.{k}" if name else str(k)
+            found += _key_differences(saved.get(k, _ABSENT), now.get(k, _ABSENT), inner)
+        return found
+    if saved == now:
+        return []
+    label = name.removeprefix("config.")
+    return [f"{label} {_short(now, 'none now')}, was {_short(saved, 'not recorded')}"]
+
+
+def _short(value: Any, absent: str) -> str:
+    """``value`` as JSON, cut at 40 characters; ``absent`` for `_ABSENT`."""
+    if value is _ABSENT:
+        return absent
+    text = json.dumps(value, default=str)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _rescore_reason(saved: dict[str, Any] | None, key: dict[str, Any]) -> str:
+    """Why a finished run is scored again (its kept ``result.json`` is ``saved``, the key of
+    now ``key``), as a clause in parentheses for its "scoring again" line: the keys that
+    differ (`_key_differences`, the first `SHOWN_DIFFERENCES`), and whether the result was
+    scored by another lookfeel where it records which."""
+    if saved is None:
+        return "(no result.json kept)"
+    old = saved.get("key")
+    if not isinstance(old, dict):
+        return "(scored by an earlier lookfeel, whose result.json records no key)"
+    software = saved.get("software")
+    version = software.get("lookfeel") if isinstance(software, dict) else None
+    now = software_versions()["lookfeel"]
+    if version is None:
+        who = "scored by an earlier lookfeel or with other settings"
+    elif version != now:
+        who = f"scored by lookfeel {version} or with other settings"
+    else:
+        who = "scored with other settings"
+    found = _key_differences(old, key)
+    if not found:  # equal as plain data: a value JSON does not keep as it was
+        return f"({who})"
+    shown = "; ".join(found[:SHOWN_DIFFERENCES])
+    more = f"; and {len(found) - SHOWN_DIFFERENCES} more" if len(found) > SHOWN_DIFFERENCES else ""
+    return f"({who}: {shown}{more})"
+
+
 _RUN_DIR = re.compile(r"seed(\d+)-fold(\d+)")
 
 
@@ -395,7 +455,8 @@ def cross_validate(
                         f"{run_dir} holds a finished run of another config; use another --out"
                     )
                 # Trained before, scored differently (e.g. --tta): score again, keep the time.
-                log(f"seed {seed} fold {fold}: trained before, scoring again")
+                reason = _rescore_reason(saved, key)
+                log(f"seed {seed} fold {fold}: trained before, scoring again {reason}")
                 kept = saved.get("train_seconds") if saved else None
                 seconds = math.nan if kept is None else float(kept)
             else:
@@ -408,6 +469,7 @@ def cross_validate(
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched, presses)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
             res["data"] = data_id
+            res["software"] = software_versions()  # which lookfeel scored it (`_rescore_reason`)
             res = _with_room(res, run_dir, room)
             _write_json(result_path, res)
             first = res["pairs"][pairs[0]]

@@ -16,7 +16,10 @@ files, byte for byte. A finished library built from another checkpoint (by conte
 dataset folder is replaced only with ``replace=True`` (``--replace``). Calibration, the slow
 step after the shards, is reused from the finished library when every shard was reused and its
 manifest's ``calibration_key`` says it was made from the same shards with the same settings and
-the same calibration code (`_calibration_key`). While it runs a build
+the same calibration code (`_calibration_key`). The manifest also records what the shard keys
+were made from (``shard_key``: the checkpoint, the preprocessing digest, the touch frame; and
+each shard's ``files``), so that a rebuild which embeds a finished library's shards again says
+why (`_why_embedded`). While it runs a build
 holds ``OUT.lock`` (``fcntl.flock``, released by the system when the process ends, however it
 ends), so a second build to the same ``OUT`` is refused, naming the first one's PID.
 
@@ -99,6 +102,9 @@ class BuildResult:
         backend: the search backend chosen (``numpy`` or ``faiss``).
         calibration: the library's calibration.
         seconds: wall time.
+        redo_reason: why shards of the finished library at ``out`` were embedded again, as
+            a clause in parentheses (``(another checkpoint)``, ``(the files changed)``);
+            None when there was no library there or none of its shards was embedded again.
     """
 
     root: Path
@@ -108,6 +114,7 @@ class BuildResult:
     backend: str
     calibration: Calibration
     seconds: float
+    redo_reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -116,6 +123,9 @@ class _Shard:
     index: int
     items: tuple[Item, ...]
     key: str
+    files: str
+    """A digest of the shard's items and their files (name, size, modification time): the
+    part of ``key`` that is not `_key_parts`."""
 
     @property
     def file(self) -> str:
@@ -127,31 +137,34 @@ def _file_stamp(path: Path) -> list[Any]:
     return [str(path.resolve()), st.st_size, st.st_mtime_ns]
 
 
-def _plan(
-    items: dict[Modality, list[Item]],
-    loader: ImageLoader,
-    shard_size: int,
-    checkpoint_sha: str,
-) -> list[_Shard]:
-    base = {
+def _key_parts(loader: ImageLoader, checkpoint_sha: str) -> dict[str, Any]:
+    """What every shard's key is made from besides its items (the manifest's ``shard_key``):
+    the checkpoint's SHA-256, the preprocessing digest and the touch frame."""
+    return {
         "checkpoint": checkpoint_sha,
         "preprocess": PreprocessSettings.of(loader.config).digest(),
         "touch_frame": loader.config.touch_frame,
     }
+
+
+def _plan(
+    items: dict[Modality, list[Item]],
+    loader: ImageLoader,
+    shard_size: int,
+    base: dict[str, Any],
+) -> list[_Shard]:
     shards = []
     for m, its in items.items():
         for i, start in enumerate(range(0, len(its), shard_size)):
             chunk = tuple(its[start : start + shard_size])
-            blob = {
-                **base,
-                "modality": m.value,
-                "items": [
-                    [it.fabric_id, *(v for f in loader.source_files(it) for v in _file_stamp(f))]
-                    for it in chunk
-                ],
-            }
+            stamps = [
+                [it.fabric_id, *(v for f in loader.source_files(it) for v in _file_stamp(f))]
+                for it in chunk
+            ]
+            blob = {**base, "modality": m.value, "items": stamps}
             key = hashlib.sha1(json.dumps(blob, sort_keys=True).encode()).hexdigest()
-            shards.append(_Shard(m, i, chunk, key))
+            files = hashlib.sha1(json.dumps(stamps).encode()).hexdigest()
+            shards.append(_Shard(m, i, chunk, key, files))
     return shards
 
 
@@ -325,19 +338,71 @@ def _check_replace(
     )
 
 
-def _known_shards(*folders: Path) -> dict[str, Path]:
-    """Shard key -> its file, for every shard the manifests in ``folders`` list (the work
-    folder first: a later folder never overrides a key)."""
-    found: dict[str, Path] = {}
+def _known_shards(*folders: Path) -> dict[str, list[Path]]:
+    """Shard key -> its files, for every shard the manifests in ``folders`` list, in the order
+    of ``folders`` (the work folder first). A killed build's work folder lists shards it never
+    wrote: the finished library's file of the same key is still found."""
+    found: dict[str, list[Path]] = {}
     for folder in folders:
         try:
             manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
             for entry in manifest["modalities"].values():
                 for shard in entry["shards"]:
-                    found.setdefault(str(shard["key"]), folder / str(shard["file"]))
+                    found.setdefault(str(shard["key"]), []).append(folder / str(shard["file"]))
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             continue  # no manifest, or not one listing shards: nothing to reuse there
     return found
+
+
+PREPROCESS_CHANGED = "the preprocessing changed: a newer lookfeel or other data.* settings"
+EARLIER_MANIFEST = (
+    "made by an earlier lookfeel, whose manifest records less of what its shards were made from"
+)
+
+
+def _why_embedded(
+    old: dict[str, Any],
+    shard: _Shard,
+    key_parts: dict[str, Any],
+    shard_size: int,
+    kinds: list[str],
+    data_root: str,
+) -> str:
+    """Why ``shard`` was embedded again although the finished library whose manifest is
+    ``old`` was there: which part of its key differs from the key the library's shard at the
+    same place was made with (each part that can be told from ``old``; ``; `` between two),
+    or that the library's file of the same key was missing or damaged."""
+    try:
+        entries = old["modalities"][shard.modality.value]["shards"]
+        before = next((e for e in entries if e.get("file") == shard.file), None)
+        if any(e.get("key") == shard.key for e in entries):
+            return "the library's shard file was missing or damaged"
+    except (KeyError, TypeError, AttributeError):
+        before = None
+    recorded = old.get("shard_key")
+    recorded = recorded if isinstance(recorded, dict) else {}
+    causes = []
+    if _origin(old)[1] != key_parts["checkpoint"]:
+        causes.append("another checkpoint")
+    if "preprocess" in recorded and recorded["preprocess"] != key_parts["preprocess"]:
+        causes.append(PREPROCESS_CHANGED)
+    if "touch_frame" in recorded and recorded["touch_frame"] != key_parts["touch_frame"]:
+        causes.append(
+            f"another data.touch_frame: {key_parts['touch_frame']}, was {recorded['touch_frame']}"
+        )
+    if (before or {}).get("files") != shard.files:  # other items (or none recorded)
+        if old.get("shard_size") != shard_size:
+            causes.append(f"another --shard-size: {shard_size}, was {old.get('shard_size')}")
+        elif shard.modality is Modality.TOUCH and old.get("touch_kinds", kinds) != kinds:
+            was = ",".join(map(str, old["touch_kinds"]))
+            causes.append(f"other --kinds: {','.join(kinds)}, was {was}")
+        elif old.get("data_root") != data_root:  # the items' paths are in the key
+            causes.append("another data folder")
+        elif recorded:  # the library recorded its shards' files: they are not these
+            causes.append("the files changed")
+    if causes:
+        return "; ".join(causes)
+    return EARLIER_MANIFEST
 
 
 def _link(src: Path, dst: Path) -> None:
@@ -555,7 +620,8 @@ def _build(
     fingerprint = catalog.fingerprint()  # as `train` and `evaluate` take it: before the drop
     catalog = drop_unpressed(catalog, loader)
     items = {m: catalog.items(m, kinds) for m in items}
-    shards = _plan(items, loader, shard_size, checkpoint_sha)
+    key_parts = _key_parts(loader, checkpoint_sha)
+    shards = _plan(items, loader, shard_size, key_parts)
 
     manifest: dict[str, Any] = {
         "format": LIBRARY_FORMAT,
@@ -569,12 +635,17 @@ def _build(
         "touch_kinds": [k.value for k in kinds],
         "embed_dim": loaded.model.embed_dim,
         "shard_size": shard_size,
+        "shard_key": key_parts,
         "backend": None,
         "backend_requested": backend,
         "modalities": {
             m.value: {
                 "rows": len(its),
-                "shards": [{"file": s.file, "key": s.key} for s in shards if s.modality is m],
+                "shards": [
+                    {"file": s.file, "key": s.key, "files": s.files}
+                    for s in shards
+                    if s.modality is m
+                ],
             }
             for m, its in items.items()
         },
@@ -584,18 +655,32 @@ def _build(
         if shape is not None:
             manifest["modalities"][m.value]["shape"] = shape
     known = _known_shards(work, out)  # before this build's manifest replaces the work folder's
+    old = _finished(out)
     work.mkdir(parents=True, exist_ok=True)
     _remove_temps(work)
     _write_manifest(work, manifest)
 
     embedded = reused = 0
+    redone: dict[str, None] = {}  # why the old library's shards were embedded again, in order
     parts: dict[Modality, list[dict[str, Any]]] = {m: [] for m in items}
     for n, shard in enumerate(shards):
         path = work / shard.file
-        arrays = _reuse(shard, path, known.get(shard.key))
+        arrays = _reuse(shard, path, known.get(shard.key, []))
+        again = ""
         if arrays is not None:
             reused += 1
         else:
+            if old is not None:
+                why = _why_embedded(
+                    old,
+                    shard,
+                    key_parts,
+                    shard_size,
+                    manifest["touch_kinds"],
+                    manifest["data_root"],
+                )
+                again = " embedded again" + ("" if why in redone else f" ({why})")
+                redone[why] = None
             loader.preload(shard.items)  # videos were decoded by drop_unpressed already
             emb = embed_items(loaded.model, shard.items, loader, batch_size, device)
             write_shard(
@@ -618,7 +703,7 @@ def _build(
             {"embeddings": arrays["embeddings"], "fabric_ids": arrays["fabric_ids"]}
         )
         if progress:
-            print(f"  shard {n + 1}/{len(shards)} {shard.file} ({len(shard.items)} items)")
+            print(f"  shard {n + 1}/{len(shards)} {shard.file} ({len(shard.items)} items){again}")
 
     keep = {s.file for s in shards}
     for stale in (work / "shards").glob("*.npz"):
@@ -641,7 +726,7 @@ def _build(
         manifest.pop("cross_maps", None)
     calibration_key = _calibration_key(shards, cross_map, calibration_settings)
     manifest["calibration_key"] = calibration_key
-    calibration = _reused_calibration(_finished(out), calibration_key) if not embedded else None
+    calibration = _reused_calibration(old, calibration_key) if not embedded else None
     if calibration is not None:
         if progress:
             print(
@@ -694,6 +779,7 @@ def _build(
         backend=resolved,
         calibration=calibration,
         seconds=time.perf_counter() - started,
+        redo_reason=f"({'; '.join(redone)})" if redone else None,
     )
 
 
@@ -742,16 +828,18 @@ def _calibration_work(
     )
 
 
-def _reuse(shard: _Shard, path: Path, known: Path | None) -> dict[str, Any] | None:
-    """The arrays of ``shard`` when the work folder holds it at ``path``, or it is ``known``
-    elsewhere (a finished library's shard, linked to ``path``); None: embed it."""
+def _reuse(shard: _Shard, path: Path, known: Sequence[Path]) -> dict[str, Any] | None:
+    """The arrays of ``shard`` when the work folder holds it at ``path``, or one of the
+    ``known`` files of its key elsewhere does (a finished library's shard, linked to
+    ``path``); None: embed it."""
     arrays = read_shard(path, shard.key)
     if arrays is not None and len(arrays["embeddings"]) == len(shard.items):
         return arrays
-    if known is None or known == path:
-        return None
-    arrays = read_shard(known, shard.key)
-    if arrays is None or len(arrays["embeddings"]) != len(shard.items):
-        return None
-    _link(known, path)
-    return arrays
+    for file in known:
+        if file == path:
+            continue
+        arrays = read_shard(file, shard.key)
+        if arrays is not None and len(arrays["embeddings"]) == len(shard.items):
+            _link(file, path)
+            return arrays
+    return None
