@@ -49,7 +49,10 @@ def add_parser(subparsers: Subparsers) -> None:
             "files lookfeel does not read (.tif, .npy ...) and press frames in subfolders, "
             "depth maps whose values do not read as "
             "millimetres or lie mostly outside data.depth_min_mm..+data.depth_range_mm (by "
-            "their defaults), frames of more than one shape, and background leaks (warnings). "
+            "their defaults), frames of more than one shape, and, as warnings: truncated or "
+            "two-press videos, a press video whose first frames look pressed beside its "
+            "object's others, grey videos or images among colour ones, images under 16 px, "
+            "names differing only in case, files with the same bytes, and background leaks. "
             "Exit 1 on errors, 0 when clean. Nothing under ROOT is modified."
         ),
     )
