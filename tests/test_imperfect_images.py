@@ -185,14 +185,19 @@ def _six_drapes(tmp_path: Path) -> Path:
 
 
 def _message(first: Path, more: int) -> str:
-    also = (
-        f", as have {more} more depth image{'s' if more > 1 else ''} read with it" if more else ""
-    )
-    each, them = ("each", "them") if more else ("it", "it")
+    """The warning's known text, as a user reads it (written out, not rebuilt by the code)."""
+    if not more:
+        return (
+            f"{first}: depth image has no valid pixel (every pixel 0, no reading): it is read as "
+            "a blank input, which a run trains on and embeds as if it were a drape; leave it out "
+            "or record it again (`lookfeel data check` names every such file)"
+        )
+    assert more == 2
     return (
-        f"{first}: depth image has no valid pixel (every pixel 0, no reading){also}: {each} is "
-        "read as a blank input, which a run trains on and embeds as if it were a drape; leave "
-        f"{them} out or record {them} again (`lookfeel data check` names every such file)"
+        f"{first}: depth image has no valid pixel (every pixel 0, no reading), as have 2 more "
+        "depth images read with it: each is read as a blank input, which a run trains on and "
+        "embeds as if it were a drape; leave them out or record them again (`lookfeel data "
+        "check` names every such file)"
     )
 
 

@@ -547,23 +547,28 @@ def _colour_problems(
                 "warning",
             )
         ]
-    colour = len(videos) - len(grey)
+    return [_grey_among_colour(grey, len(videos), "touch press video", _GREY_READ, "record")]
+
+
+def _grey_among_colour(grey: Sequence[Path], of: int, noun: str, why: str, fix: str) -> Problem:
+    """The warning on ``grey[0]`` that ``grey`` files of ``of`` (``noun``s, all of one modality)
+    have no colour, unlike the others: one named alone, several counted with a few named;
+    ``why`` it matters, and what to do (``fix``: ``record`` them in colour or ``use`` colour
+    originals, or leave them out)."""
+    colour = of - len(grey)
     others = "the other one" if colour == 1 else f"the other {colour}"
     if len(grey) == 1:
-        what = (
-            f"this touch press video has no colour (grey), unlike {others}: a model reads it "
-            "unlike them"
-        )
-        fix = "record it in colour, or leave it out"
-    else:
-        named = ", ".join(p.name for p in grey[:_FEW_GREY])
-        more = f" and {len(grey) - _FEW_GREY} more" if len(grey) > _FEW_GREY else ""
-        what = (
-            f"{len(grey)} of the {len(videos)} touch press videos have no colour (grey), "
-            f"unlike {others}: {named}{more}; a model reads them unlike the others"
-        )
-        fix = "record them in colour, or leave them out"
-    return [Problem(grey[0], f"{what} ({_GREY_READ}); {fix}", "warning")]
+        what = f"this {noun} has no colour (grey), unlike {others}: a model reads it unlike them"
+        todo = "record it in colour" if fix == "record" else "use a colour original"
+        return Problem(grey[0], f"{what} ({why}); {todo}, or leave it out", "warning")
+    named = ", ".join(p.name for p in grey[:_FEW_GREY])
+    more = f" and {len(grey) - _FEW_GREY} more" if len(grey) > _FEW_GREY else ""
+    what = (
+        f"{len(grey)} of the {of} {noun}s have no colour (grey), unlike {others}: "
+        f"{named}{more}; a model reads them unlike the others"
+    )
+    todo = "record them in colour" if fix == "record" else "use colour originals"
+    return Problem(grey[0], f"{what} ({why}); {todo}, or leave them out", "warning")
 
 
 _GREY_IMAGE_READ = {
@@ -590,22 +595,7 @@ def _grey_image_problems(fabrics: Sequence[Fabric], greys: dict[Path, bool]) -> 
         if not grey or len(grey) == len(files):
             continue
         noun = "touch frame" if m is Modality.TOUCH else _IMAGE_NOUN[m]
-        colour = len(files) - len(grey)
-        others = "the other one" if colour == 1 else f"the other {colour}"
-        if len(grey) == 1:
-            what = (
-                f"this {noun} has no colour (grey), unlike {others}: a model reads it unlike them"
-            )
-            fix = "use a colour original, or leave it out"
-        else:
-            named = ", ".join(p.name for p in grey[:_FEW_GREY])
-            more = f" and {len(grey) - _FEW_GREY} more" if len(grey) > _FEW_GREY else ""
-            what = (
-                f"{len(grey)} of the {len(files)} {noun}s have no colour (grey), unlike "
-                f"{others}: {named}{more}; a model reads them unlike the others"
-            )
-            fix = "use colour originals, or leave them out"
-        out.append(Problem(grey[0], f"{what} ({_GREY_IMAGE_READ[m]}); {fix}", "warning"))
+        out.append(_grey_among_colour(grey, len(files), noun, _GREY_IMAGE_READ[m], "use"))
     return out
 
 
