@@ -200,3 +200,16 @@ def test_a_redirected_training_run_writes_no_bar(
     monkeypatch.setenv(ENV, "always")
     assert main([*argv, "--out", str(tmp_path / "drawn")]) == 0
     assert "train: 100%" in capsys.readouterr().err
+
+
+def test_train_and_cv_take_quiet_as_the_other_commands_do(tmp_path: Path):
+    """QA: `synth`, `index build`, `data check`, `embed` and `match` turn their bars off with
+    --quiet, `train` and `cv` only with `--set train.progress=false`: --quiet is that too."""
+    from lookfeel.cli import build_parser
+
+    parser = build_parser()
+    for command in ("train", "cv"):
+        base = [command, "--data", str(tmp_path), "--out", str(tmp_path / command)]
+        args = parser.parse_args([*base, "--set", "train.steps=3", "--quiet"])
+        assert args.set == ["train.steps=3", "train.progress=false"]
+        assert parser.parse_args(base).set == []  # the default list is not changed by a parse

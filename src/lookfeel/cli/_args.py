@@ -390,6 +390,14 @@ def add_run_config(parser: argparse.ArgumentParser, out_help: str) -> None:
     )
     add_data_out(parser, out_help)
     add_set(parser, "override a config key, e.g. --set train.steps=100 (repeatable)")
+    parser.add_argument(
+        "--quiet",
+        action="append_const",
+        dest="set",
+        const="train.progress=false",
+        help="no progress bar (the same as --set train.progress=false; bars are drawn only "
+        "where stderr is a terminal anyway)",
+    )
 
 
 def path_flag(key: str, flag: str, path: Path) -> Override:
