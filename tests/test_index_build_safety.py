@@ -148,13 +148,23 @@ def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
     printed = capsys.readouterr().out
     assert printed.endswith(
         "  shard 9/9 shards/touch-00002.npz (2 items)\n  calibrating 9 pairs (depth 18 items, "
-        "color 18 items, touch 18 items; up to 1000 queries each, 5 folds)\n"
+        "color 18 items, touch 18 items; up to 1000 queries each, 5 folds) (again: seed 1, "
+        "was 0)\n"
     )
     assert json.loads((out / "manifest.json").read_text())["calibration"]["seed"] == 1
     # Another way of calibrating (lookfeel's own version is the same between sessions).
     monkeypatch.setattr(build_module, "CALIBRATION_VERSION", build_module.CALIBRATION_VERSION + 1)
-    build_library(ckpt, data, out, shard_size=8, seed=1)
+    build_library(ckpt, data, out, shard_size=8, seed=1, progress=True)
     assert seeds == [1, 1]
+    assert capsys.readouterr().out.endswith(" (again: the calibration code changed)\n")
+    # A library from before the manifest said what it was calibrated with (QA, upgrading).
+    manifest = json.loads((out / "manifest.json").read_text())
+    del manifest["calibration_made"]
+    manifest["calibration_key"] = "0" * 40
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    build_library(ckpt, data, out, shard_size=8, seed=1, progress=True)
+    printed = capsys.readouterr().out
+    assert printed.endswith(" (again: the library was calibrated by an earlier lookfeel)\n")
 
 
 def test_a_build_killed_between_the_renames_is_finished_by_the_next(

@@ -726,6 +726,8 @@ def _build(
         manifest.pop("cross_maps", None)
     calibration_key = _calibration_key(shards, cross_map, calibration_settings)
     manifest["calibration_key"] = calibration_key
+    made = _calibration_made(cross_map, calibration_settings)
+    manifest["calibration_made"] = made
     calibration = _reused_calibration(old, calibration_key) if not embedded else None
     if calibration is not None:
         if progress:
@@ -735,7 +737,9 @@ def _build(
             )
     else:
         if progress:
-            print(f"  calibrating {_calibration_work(tables, maps, calibration_settings)}")
+            # Every shard reused, yet calibrated again: say what changed since.
+            again = _calibration_changed(old, made) if old is not None and not embedded else ""
+            print(f"  calibrating {_calibration_work(tables, maps, calibration_settings)}{again}")
         calibration = calibrate(
             tables, map_pairs=list(maps), map_items=tables, **calibration_settings
         )
@@ -797,6 +801,41 @@ def _calibration_key(shards: Sequence[_Shard], cross_map: bool, settings: dict[s
         "calibration": CALIBRATION_VERSION,
     }
     return hashlib.sha1(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+
+def _calibration_made(cross_map: bool, settings: dict[str, Any]) -> dict[str, Any]:
+    """What a calibration is made with besides the shards (part of `_calibration_key`), kept in
+    the manifest as ``calibration_made`` so that a later build can say what changed."""
+    return {
+        "settings": settings,
+        "cross_map": cross_map,
+        "lookfeel": software_versions()["lookfeel"],
+        "calibration": CALIBRATION_VERSION,
+    }
+
+
+def _calibration_changed(old: dict[str, Any], made: dict[str, Any]) -> str:
+    """`` (again: ...)``: why a library whose shards were all reused is calibrated again, from
+    its manifest ``old`` and what this build calibrates with (`_calibration_made`): the
+    settings that differ (``seed 1, was 0``), the cross-modal maps, lookfeel's version or its
+    calibration code; a manifest that does not record them was written by an earlier
+    lookfeel."""
+    was = old.get("calibration_made")
+    if not isinstance(was, dict):
+        return " (again: the library was calibrated by an earlier lookfeel)"
+    said = []
+    recorded = was.get("settings")
+    before: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
+    for key, value in made["settings"].items():
+        if before.get(key) != value:
+            said.append(f"{key} {value}, was {before.get(key)}")
+    if was.get("cross_map") != made["cross_map"]:
+        said.append("cross-modal maps " + ("fitted" if made["cross_map"] else "not fitted"))
+    if was.get("lookfeel") != made["lookfeel"]:
+        said.append(f"lookfeel {made['lookfeel']}, was {was.get('lookfeel')}")
+    if was.get("calibration") != made["calibration"]:
+        said.append("the calibration code changed")
+    return f" (again: {'; '.join(said)})" if said else ""
 
 
 def _reused_calibration(old: dict[str, Any] | None, key: str) -> Calibration | None:
