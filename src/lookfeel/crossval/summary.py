@@ -4,8 +4,8 @@ classes and the class heads' calibration), and the constants the other modules s
 the numbers mean: the package docstring (`lookfeel.crossval`).
 
 With ``n_boot`` 0 (``lookfeel cv --n-boot 0``) no resample is drawn: every number keeps
-its value and every interval is NaN, ``[null, null]`` in ``cv.json`` (`_interval`), and
-``cv.md`` says no interval was drawn.
+its value and every interval is NaN (`lookfeel.metrics.bootstrap_ci`'s), ``[null, null]`` in
+``cv.json``, and ``cv.md`` says no interval was drawn.
 
 The property probes (``properties`` in ``cv.json``, `_summarise_probes`): ``cv.md`` shows each
 label's ``pooled`` scores (``pooled.r2.mean`` [``pooled.r2.ci95``], the same for
@@ -143,7 +143,7 @@ def _summarise(
                 continue
             per_run = [np.asarray(r["pairs"][pair][method], dtype=np.float64) for r in results]
             pooled = np.concatenate(per_run)
-            low, high = _interval(pooled, groups, n_boot)
+            low, high = bootstrap_ci(pooled, groups, n_boot=n_boot, seed=0)  # NaN: n_boot 0
             for j, k in enumerate(_KS):
                 runs = [_scored_mean(v[:, j]) for v in per_run]
                 spread = mean_and_spread(runs)
@@ -513,7 +513,7 @@ def _summarise_classes(results: list[dict], n_boot: int) -> dict[str, Any]:
                     ]
                 )
                 groups = np.concatenate([np.asarray(r[g_key]) for r in runs])
-                low, high = _interval(hits, groups, n_boot)
+                low, high = bootstrap_ci(hits, groups, n_boot=n_boot, seed=0)
                 per_run = [accuracy(t, p) for t, p in zip(truth, pred, strict=True)]
                 acc = mean_and_spread(per_run)
                 f1 = mean_and_spread(
@@ -546,16 +546,6 @@ def _check_n_boot(n_boot: int) -> None:
         raise ConfigError(
             f"n_boot: bootstrap resamples must be >= 0 (0: no intervals), got {n_boot}"
         )
-
-
-def _interval(values: np.ndarray, groups: np.ndarray, n_boot: int) -> tuple[np.ndarray, np.ndarray]:
-    """The 95% interval of ``values`` (Q,) or (Q, M) resampling ``groups`` (`bootstrap_ci`,
-    seed 0), as ``(low, high)``, each (M,) or 0-d; NaN bounds where ``n_boot`` is 0 (no
-    resample drawn: ``lookfeel cv --n-boot 0``), which ``cv.json`` writes as null."""
-    if n_boot > 0:
-        return bootstrap_ci(values, groups, n_boot=n_boot, seed=0)
-    none = np.full(np.asarray(values).shape[1:], np.nan)
-    return none, none.copy()
 
 
 def _scored_mean(values: np.ndarray) -> float:
