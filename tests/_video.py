@@ -128,3 +128,24 @@ def count_decoded_frames(monkeypatch: Any, by: str = "name") -> Counter[str]:
 
     monkeypatch.setattr(video, "_decode", counting)
     return decoded
+
+
+def write_objects(
+    root: Path, objects: dict[str, tuple[str, str]], presses: int, grey: bool = False
+) -> Path:
+    """A recordings folder (``videos/<object>_<n>`` + ``labels.csv`` keyed by ``object``) of
+    ``objects`` (name -> (hardness, material)), ``presses`` press videos each, object ``k``'s
+    press ``n`` seeded ``10 * k + n``: colour ``.mov``, or with ``grey`` one-channel FFV1
+    ``.mkv`` (a camera set to greyscale)."""
+    (root / "videos").mkdir(parents=True, exist_ok=True)
+    rows = ["object,hardness,material"]
+    for k, (name, (hardness, material)) in enumerate(objects.items()):
+        rows.append(f"{name},{hardness},{material}")
+        for n in range(presses):
+            frames = object_press(k, PRESS, t=14, seed=10 * k + n)
+            if grey:
+                write_video(root / "videos" / f"{name}_{n}.mkv", frames, "ffv1", "gray")
+            else:
+                write_video(root / "videos" / f"{name}_{n}.mov", frames)
+    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    return root

@@ -23,7 +23,7 @@ from lookfeel.predict import predict_files
 from lookfeel.serve import ServeConfig, background_server, create_app
 from lookfeel.train import train
 
-from ._video import PRESS, grey_and_colour_presses, object_press, write_video
+from ._video import PRESS, grey_and_colour_presses, object_press, write_objects, write_video
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*probabilities are as trained, not calibrated")
 
@@ -101,16 +101,7 @@ def test_press_videos_decoded_in_worker_processes_keep_their_flag(grey_data: Pat
 def grey_data(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Recordings of 3 objects, 2 grey press videos each (a camera set to greyscale)."""
     pytest.importorskip("av")
-    root = tmp_path_factory.mktemp("grey_recordings")
-    (root / "videos").mkdir()
-    rows = ["object,hardness,material"]
-    for k, (name, (hardness, material)) in enumerate(OBJECTS.items()):
-        rows.append(f"{name},{hardness},{material}")
-        for n in range(2):
-            frames = object_press(k, PRESS, t=14, seed=10 * k + n)
-            write_video(root / "videos" / f"{name}_{n}.mkv", frames, "ffv1", "gray")
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
-    return root
+    return write_objects(tmp_path_factory.mktemp("grey_recordings"), OBJECTS, 2, grey=True)
 
 
 @pytest.fixture(scope="module")

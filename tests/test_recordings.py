@@ -302,18 +302,10 @@ OBJECTS = {  # name: (hardness, material)
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
     pytest.importorskip("av")
-    from ._video import PRESS, object_press, write_video
+    from ._video import object_press, write_objects, write_video
 
-    root = tmp_path_factory.mktemp("recordings")
-    (root / "videos").mkdir()
-    rows = ["object,hardness,material"]
-    for k, (name, (hardness, material)) in enumerate(OBJECTS.items()):
-        rows.append(f"{name},{hardness},{material}")
-        for n in range(3):
-            frames = object_press(k, PRESS, t=14, seed=10 * k + n)
-            write_video(root / "videos" / f"{name}_{n}.mov", frames)
+    root = write_objects(tmp_path_factory.mktemp("recordings"), OBJECTS, 3)
     write_video(root / "videos" / "foam_3.mov", object_press(0, {}, t=14))  # never pressed
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
     return root
 
 
