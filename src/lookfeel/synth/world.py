@@ -40,7 +40,7 @@ from lookfeel.atomic import atomic_write_text
 from lookfeel.locks import exclusive
 from lookfeel.modality import REPRINTS, Modality, PressKind
 from lookfeel.processes import available_cores, die_with_parent
-from lookfeel.progress import bar, shown
+from lookfeel.progress import bar as progress_bar
 from lookfeel.synth.color import render_colors
 from lookfeel.synth.config import SynthConfig, SynthSummary
 from lookfeel.synth.depth import render_depth
@@ -380,7 +380,7 @@ def _generate(
 
     tasks = [_Task(f, config, mods, out) for f in fabrics]
     totals = {"depth": 0, "color": 0, "reprints": 0, "presses": 0, "frames": 0}
-    bar = _progress(len(tasks), progress)
+    bar = progress_bar(total=len(tasks), desc="synth", unit="fabric", show=progress)
     n_workers = _workers(config, len(tasks))
     try:
         if n_workers == 1:
@@ -427,17 +427,3 @@ def _generate(
 def _add(totals: dict[str, int], r: dict[str, int]) -> None:
     for k, v in r.items():
         totals[k] += v
-
-
-class _NoBar:
-    def update(self, n: int) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _progress(total: int, show: bool) -> _NoBar:
-    if not shown(show):
-        return _NoBar()
-    return bar(total=total, desc="synth", unit="fabric")
