@@ -336,6 +336,10 @@ def _input_error(e: ImageError, group: Sequence[Path], said: str | None = None) 
     return f"{line}; it is one of the {len(group)} presses given together"
 
 
+def _unsaid(line: str) -> None:
+    """A warning not said here (`_query_modality`: the caller says it once for every file)."""
+
+
 def _query_modality(
     path: Path, modality: Modality | None, have: Sequence[Modality], loaded: LoadedModel
 ) -> tuple[Modality | None, str | None]:
@@ -360,10 +364,8 @@ def _query_modality(
             f"{path}: the model has no {m.value} branch (it has {', '.join(x.value for x in have)})"
         )
     if m is Modality.TOUCH:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # said once for every file, by the caller
-                check_touch_input([path], loaded.touch_input, loaded.config.data)
+        try:  # its warning is said once for every file, by the caller
+            check_touch_input([path], loaded.touch_input, loaded.config.data, warn=_unsaid)
         except ImageError as e:
             return m, str(e)
     return m, None

@@ -122,14 +122,17 @@ def _is_video(path: Path) -> bool:
 
 
 def check_touch_input(
-    paths: Sequence[str | Path], trained_on: str | None, config: DataConfig
+    paths: Sequence[str | Path],
+    trained_on: str | None,
+    config: DataConfig,
+    warn: Callable[[str], None] | None = None,
 ) -> None:
     """Refuse, before any is decoded, the files of a touch query that the model cannot take:
     for a model that stacks a press's frame images (``data.touch_frames``), a press video or a
     folder (`stacked_frames_refused`: one error, without the warning a still-frame model gives
     a video it can read); else as `lookfeel.index.query.check_touch_files` (a still image
     for a model trained on press videos, a folder; a warning for a video given to a model
-    trained on still frames).
+    trained on still frames, to ``warn`` where given, else `warnings.warn`).
 
     Raises:
         ImageError: naming the first file refused.
@@ -145,7 +148,7 @@ def check_touch_input(
                 )
             if _is_video(p):
                 raise ImageError(p, stacked_frames_refused(config))
-    check_touch_files(files, trained_on, config)
+    check_touch_files(files, trained_on, config, warn)
 
 
 def warn_press_kinds(

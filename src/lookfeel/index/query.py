@@ -209,9 +209,15 @@ def check_touch_query(
             warnings.warn(message, stacklevel=caller_stacklevel())
 
 
-def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataConfig) -> None:
+def check_touch_files(
+    paths: QueryFiles,
+    trained_on: str | None,
+    config: DataConfig,
+    warn: Callable[[str], None] | None = None,
+) -> None:
     """`check_touch_query` of every file of a touch query (a video by its suffix), before any
-    of them is decoded; a folder is refused as one (a press is a video or frame files).
+    of them is decoded, its warnings to ``warn`` as there; a folder is refused as one (a press
+    is a video or frame files).
 
     Raises:
         ImageError: naming a folder, or a still image the model does not take.
@@ -221,7 +227,7 @@ def check_touch_files(paths: QueryFiles, trained_on: str | None, config: DataCon
             videos_only = trained_on == TOUCH_VIDEOS and config.video_reference == "subtract"
             give = "the press's video" if videos_only else "a press's video or its frame files"
             raise ImageError(Path(p), f"is a folder, not a press: give {give}")
-        check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config)
+        check_touch_query(p, Path(p).suffix.lower() in VIDEO_SUFFIXES, trained_on, config, warn)
 
 
 NO_VALID_DEPTH = "the depth map has no valid pixel (every pixel is 0, no reading)"
