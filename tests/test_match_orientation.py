@@ -224,3 +224,44 @@ def test_a_library_from_before_the_record_is_not_checked(library: Path, tmp_path
         matcher = Matcher(Library.open(old))
         [r] = matcher.match_files([tmp_path / "turned.png"], Modality.TOUCH, top=1)
     assert len(r.fabrics) == 1
+
+
+def test_serve_takes_an_upload_for_a_video_by_its_content_as_it_reads_it(
+    library: Path, tmp_path: Path
+):
+    """QA: the orientation note decided "video" by an upload's name while the server reads it
+    by its content: the same press video named ``press.bin`` was called a frame, and a PNG
+    named ``frame.mp4`` a video (with the advice to turn videos by data.video_rotate). Now
+    it is what the server reads it as, whatever its name."""
+    import httpx
+
+    from lookfeel.index.query import orientation_note
+    from lookfeel.serve import ServeConfig, background_server, create_app
+
+    video = _portrait_video(tmp_path / "press.mp4").read_bytes()
+    write_rgb(tmp_path / "frame.png", 3, 0, size=(24, 32))
+    frame = (tmp_path / "frame.png").read_bytes()
+    matcher = Matcher(Library.open(library))
+    answers = {}
+    with background_server(create_app(Library.open(library), ServeConfig(), matcher)) as url:
+        for name, body in (("press.mov", video), ("press.bin", video), ("frame.mp4", frame)):
+            r = httpx.post(
+                url + "/api/match",
+                data={"modality": "touch", "top": "1"},
+                files=[("files", (name, body, "application/octet-stream"))],
+            )
+            assert r.status_code == 200, (name, r.text)
+            [answers[name]] = [w for w in r.json()["warnings"] if TURNED in w]
+    assert answers["press.mov"].startswith("press.mov: a portrait touch video (48x64), but ")
+    assert "data.video_rotate=90 or 270" in answers["press.mov"]
+    assert answers["press.bin"] == answers["press.mov"].replace("press.mov", "press.bin", 1)
+    assert answers["frame.mp4"].startswith("frame.mp4: a portrait touch frame (24x32), but ")
+    assert "video_rotate" not in answers["frame.mp4"]
+    # the same decision passed to the note directly; files on disk by suffix, as read
+    record = {"orientation": "landscape", "size": [64, 48]}
+    turned = DataConfig(video_rotate=90)
+    assert orientation_note([("a.bin", (64, 48))], "touch", record, turned, "it") is None
+    note = orientation_note([("a.bin", (64, 48))], "touch", record, turned, "it", videos=[True])
+    assert note is not None and "a.bin: a portrait touch video (64x48, 48x64 as " in note
+    note = orientation_note([("a.mp4", (64, 48))], "touch", record, turned, "it", videos=[False])
+    assert note is None

@@ -203,3 +203,19 @@ def test_a_grey_press_video_upload_is_answered_with_one_note_naming_it(run, tmp_
         assert said == [f"stored.mov (and 1 other grey video): {GREY_VIDEO}"] == match_says(several)
         page = httpx.get(url + "/static/app.js").text  # the page shows each line as a note
         assert "(data.warnings || []).map((w) => ` Note: ${w}.`)" in page
+
+
+def test_a_touch_upload_that_is_no_video_is_not_told_videos_are_touch(server_url):
+    """QA: a text file named ``notes.mp4`` sent as touch was told "(videos are read as touch
+    only)", which it was sent as; that hint is for depth and colour."""
+    from lookfeel.data.files import VIDEO_SUFFIXES
+
+    for modality, hint in (("touch", ""), ("depth", " (videos are read as touch only)")):
+        r = httpx.post(
+            server_url + "/api/match",
+            data={"modality": modality},
+            files=[("files", ("notes.mp4", b"just some text, not a video", "video/mp4"))],
+        )
+        assert r.status_code == 415
+        videos = f" or a video ({', '.join(VIDEO_SUFFIXES)})" if modality == "touch" else ""
+        assert r.json()["detail"] == f"notes.mp4: not a PNG or JPEG image{videos}{hint}"

@@ -130,3 +130,31 @@ def test_reload_every_0_serves_the_library_opened_at_start(
 def test_reload_every_must_be_seconds(value: object) -> None:
     with pytest.raises(ServeOptionError, match="reload_every must be a number of seconds"):
         ServeConfig(reload_every=value)  # type: ignore[arg-type]
+
+
+def test_an_item_image_is_revalidated_so_a_rebuild_never_shows_a_stale_one(
+    libraries: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """QA: item images were cached an hour by the browser under row-number ids, so a library
+    rebuilt under the server could show another fabric's image at the same id. They are now
+    sent with ``no-cache`` and an ETag of the library and the item: 304 while unchanged, a new
+    image once the library is another."""
+    six, four = libraries
+    lib = tmp_path / "lib"
+    shutil.copytree(six, lib)
+    app = create_app(lib, ServeConfig(reload_every=0.05), log=lambda _: None)
+    with background_server(app) as url, httpx.Client(base_url=url, timeout=30) as client:
+        first = client.get("/api/items/depth:0/image")
+        assert first.status_code == 200 and first.headers["cache-control"] == "no-cache"
+        etag = first.headers["etag"]
+        assert etag.startswith('"') and etag.endswith('-256-depth:0"')
+        assert client.get("/api/items/depth:1/image").headers["etag"] != etag
+        for sent in (etag, f"W/{etag}", f'"other", {etag}', "*"):
+            again = client.get("/api/items/depth:0/image", headers={"If-None-Match": sent})
+            assert again.status_code == 304 and again.content == b"", sent
+            assert again.headers["etag"] == etag
+        _swap_in(four, lib)
+        assert _until(lambda: client.get("/api/library").json()["fabrics"] == 4)
+        fresh = client.get("/api/items/depth:0/image", headers={"If-None-Match": etag})
+        assert fresh.status_code == 200 and fresh.content.startswith(b"\x89PNG")
+        assert fresh.headers["etag"] != etag

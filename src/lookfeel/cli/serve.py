@@ -3,11 +3,14 @@
 Serve a page and a JSON API (OpenAPI at /openapi.json) over a library. A library rebuilt
 while it runs (`lookfeel index build` into the same folder) is served once it is loaded; until
 then, and when a rebuild cannot be served (said in one line), the one opened before answers.
+The server has no login: on an address other than loopback (--host 0.0.0.0) anyone who can
+reach this machine can use it, which is warned of in one line.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from lookfeel.cli._args import Subparsers, add_command, add_device, add_library
 
@@ -47,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from lookfeel.devices import resolve_device
     from lookfeel.index import Library
     from lookfeel.serve import ServeOptions, create_app, serve
+    from lookfeel.serve.server import is_loopback, is_unspecified
 
     # Every option is checked in one place, before anything is loaded.
     options = ServeOptions(
@@ -58,6 +62,15 @@ def run(args: argparse.Namespace) -> int:
         max_megapixels=args.max_megapixels,
     )
     device = resolve_device(args.device)  # a device this machine lacks: one line
+    if not is_loopback(options.host):
+        print(
+            f"lookfeel: warning: --host {options.host}: the demo is reachable from other "
+            "machines and has no authentication: anyone who can reach this one can upload "
+            "images and read the library; leave --host out (127.0.0.1) to keep it to this "
+            "machine",
+            file=sys.stderr,
+            flush=True,
+        )
     # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
     # beats several queries sharing two-thread teams that spin waiting for each other.
     torch.set_num_threads(options.threads)
@@ -65,7 +78,12 @@ def run(args: argparse.Namespace) -> int:
     app = create_app(library, options.config(), device=device)
 
     def serving(url: str) -> None:  # said once the address is bound, never of one in use
-        print(f"Serving {args.index} at {url} (Ctrl-C stops)", flush=True)
+        elsewhere = (
+            " from this machine; other machines use this machine's address"
+            if is_unspecified(options.host)
+            else ""
+        )
+        print(f"Serving {args.index} at {url}{elsewhere} (Ctrl-C stops)", flush=True)
 
     serve(app, host=options.host, port=options.port, on_bound=serving)
     return 0

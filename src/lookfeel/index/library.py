@@ -447,17 +447,24 @@ class Library:
         return self._searches[modality]
 
     def item(self, item_id: str) -> LibraryItem:
-        """An item by id (``"touch:12"``).
+        """An item by id (``"touch:12"``): the row in ASCII digits, with no sign, space or
+        leading zero (``touch:012``, ``touch:+12`` and ``touch: 12`` name no item), so that
+        each item has one id.
 
         Raises:
             KeyError: naming the id when it does not exist.
         """
         mod, _, row = item_id.partition(":")
-        try:
-            modality = Modality(mod)
-            index = int(row)
-        except ValueError:
-            raise KeyError(f"item id {item_id!r} is not <modality>:<row>") from None
+        modality = next((m for m in Modality if m.value == mod), None)
+        digits = (
+            row.isascii()
+            and row.isdigit()
+            and (row == "0" or not row.startswith("0"))
+            and len(row) <= 18  # a longer row is no row; int() refuses over 4300 digits
+        )
+        if modality is None or not digits:
+            raise KeyError(f"item id {item_id!r} is not <modality>:<row>")
+        index = int(row)
         if modality not in self.tables:
             raise KeyError(f"item {item_id!r}: the library has no {modality.value} items")
         return self.tables[modality].item(index)

@@ -26,7 +26,9 @@ shape says what they were: a library records its items' (`shape_record`, in its 
 a checkpoint since session 51 its training items' (``shapes``, `LoadedModel.shapes`, which
 ``lookfeel predict`` checks); an older one is not checked. Shapes are as the model reads the
 files: a press video's turned by ``data.video_rotate`` (`seen_size`), which the warning about
-a turned video names.
+a turned video names. A file is taken for a video as it is read: a file on disk by its suffix
+(as `lookfeel.data.video.is_video` reads it), an upload by its content (`sniff_video`, as
+`load_query_bytes` reads it).
 """
 
 from __future__ import annotations
@@ -551,19 +553,24 @@ def seen_size(
     size: tuple[int, int],
     modality: Modality | str,
     config: DataConfig,
+    *,
+    video: bool | None = None,
 ) -> tuple[int, int]:
     """The (width, height) of file ``name`` of ``modality`` as the model reads it: a touch press
-    video's ``size`` turned by ``data.video_rotate`` (90 or 270 degrees swap width and height;
-    a video by its suffix, `VIDEO_SUFFIXES`), any other file's as it is.
+    video's ``size`` turned by ``data.video_rotate`` (90 or 270 degrees swap width and height),
+    any other file's as it is.
+
+    Args:
+        video: whether the file is read as a video; None decides by its name's suffix
+            (`VIDEO_SUFFIXES`), as a file on disk is read. ``lookfeel serve`` reads an upload
+            as a video by its content (`sniff_video`), whatever its name, and passes that.
 
     Raises:
         ModalityError: ``modality`` names no modality.
     """
-    turned = (
-        Modality.of(modality) is Modality.TOUCH
-        and config.video_rotate in (90, 270)
-        and Path(name).suffix.lower() in VIDEO_SUFFIXES
-    )
+    if video is None:
+        video = Path(name).suffix.lower() in VIDEO_SUFFIXES
+    turned = Modality.of(modality) is Modality.TOUCH and config.video_rotate in (90, 270) and video
     return (size[1], size[0]) if turned else size
 
 
@@ -631,6 +638,8 @@ def orientation_note(
     record: Mapping[str, Any] | None,
     config: DataConfig,
     holder: str,
+    *,
+    videos: Sequence[bool] | None = None,
 ) -> str | None:
     """The one line `warn_orientation` warns (None where nothing is turned) for files given as
     (name, (width, height) or None): where some are portrait and the images they are compared
@@ -642,6 +651,12 @@ def orientation_note(
     line also names ``data.video_rotate``: the turns that would read it in the other
     orientation.
 
+    Args:
+        videos: for each file, in order, whether it is read as a video; None decides by each
+            name's suffix, as a file on disk is read (`seen_size`). ``lookfeel serve`` passes
+            what it found of each upload's content (`sniff_video`), so that a video named
+            ``press.bin`` is a video and a PNG named ``frame.mp4`` a frame, as it reads them.
+
     Raises:
         ModalityError: ``modality`` names no modality.
     """
@@ -650,21 +665,24 @@ def orientation_note(
     if known is None or known[0] == "square":
         return None
     want, want_size = known
+    flags: list[bool | None] = [None] * len(files) if videos is None else list(videos)
     odd = []
-    for name, size in files:
+    for (name, size), video in zip(files, flags, strict=True):
         if size is None:
             continue
-        got = orientation_of(seen_size(name, size, modality, config), modality, config)
+        if video is None:
+            video = Path(name).suffix.lower() in VIDEO_SUFFIXES
+        seen = seen_size(name, size, modality, config, video=video)
+        got = orientation_of(seen, modality, config)
         if got not in (want, "square"):
-            odd.append((Path(name), got, size))
+            odd.append((Path(name), got, size, seen, video))
     if not odd:
         return None
-    first, got, (w, h) = odd[0]
-    seen = seen_size(first, (w, h), modality, config)
+    first, got, (w, h), seen, video = odd[0]
     n = len(odd) - 1
     also = f" (and {n} other such file{'s' if n > 1 else ''})" if n else ""
     if modality is Modality.TOUCH:
-        what = "video" if first.suffix.lower() in VIDEO_SUFFIXES else "frame"
+        what = "video" if video else "frame"
         theirs = "presses"
     elif modality is Modality.COLOR:
         what, theirs = "image", "images"

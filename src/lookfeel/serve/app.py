@@ -3,13 +3,20 @@
 Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
 
 - ``GET /``: the page (plain HTML, CSS and a little JS from this package; nothing external).
+  ``HEAD`` of it, of ``/static/*`` and of an item's image is answered as ``GET`` without the
+  body.
 - ``GET /api/library``: what the library holds and how it is calibrated.
 - ``GET /api/fabrics``: every fabric with its labels and a few item ids per modality.
 - ``GET /api/items/{item_id}``: one item's metadata; ``/api/items/{item_id}/image`` its image
   as a PNG thumbnail (a press video: its frame of deepest contact, as recorded but turned by
   the model's ``data.video_rotate``). Items are
-  named by id (``depth:12``); the file is looked up in the library, so no request ever names a
-  path on disk.
+  named by id (``depth:12``: the row in ASCII digits, no sign, space or leading zero, so that
+  each item has one URL); the file is looked up in the library, so no request ever names a
+  path on disk. An item image is sent with ``Cache-Control: no-cache`` and an ``ETag`` of the
+  library (a digest of its manifest), the thumbnail size and the item's id, and answered 304
+  to a matching ``If-None-Match``: ids are row numbers, and a library rebuilt under the server
+  may put another image at the same row, which a browser must not show from its cache. The
+  server keeps at most 2048 thumbnails and ``thumbnail_cache_bytes`` of them in memory.
 - ``POST /api/match``: multipart upload, ``modality`` and one or more ``files`` (several touch
   files are the presses of one query, pooled as the Multi-input Net; of several, a press video
   without a press is left out, as ``lookfeel match`` leaves it out, and ``warnings`` says so;
@@ -24,7 +31,11 @@ and no path of the server's disk. Every error is a JSON object whose ``detail`` 
 text (a bad field's name and what is wrong with it included), with any value it echoes cut to
 `MAX_ECHO` characters. Every response carries ``X-Content-Type-Options: nosniff``, a
 ``Content-Security-Policy`` allowing only this server's own scripts and styles, and
-``X-Frame-Options: DENY``. The model runs in a thread pool, at most
+``X-Frame-Options: DENY``; an unexpected error too: it is answered 500 with such a JSON
+object (``internal error (RuntimeError); the server's log says more``, nothing of the
+exception's text) and its traceback is logged on the server (logger ``lookfeel.serve``). Which
+Host and Origin a request may carry is checked where the app is served
+(`lookfeel.serve.server`). The model runs in a thread pool, at most
 ``max_concurrency`` queries at a time (a semaphore); beyond ``max_waiting`` waiting queries
 the server answers 503 instead of queueing without bound. A library rebuilt under the server is
 loaded beside the one it serves and answers once loaded (`lookfeel.serve.reload`).
@@ -33,7 +44,10 @@ loaded beside the one it serves and answers once loaded (`lookfeel.serve.reload`
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import io
+import json
+import logging
 import os
 import re
 import sys
@@ -81,6 +95,9 @@ from lookfeel.modality import Modality
 from lookfeel.serve.reload import Served, ServedLibrary
 
 __all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
+
+_LOG = logging.getLogger("lookfeel.serve")
+"""Where an unexpected error's traceback goes (`_InternalErrors`)."""
 
 _VIDEOS = ", ".join(VIDEO_SUFFIXES)
 """The press videos an upload may be: ``.mov, .mp4, ...``."""
@@ -183,6 +200,10 @@ def _no_press(e: ImageError) -> bool:
     return isinstance(e, NoPressError) or isinstance(e.__context__, NoPressError)
 
 
+MAX_THUMBNAILS = 2048
+"""The most item thumbnails the server keeps in memory (also at most
+`ServeConfig.thumbnail_cache_bytes` of them)."""
+
 MAX_PER_MODALITY = 50
 """The most item ids per modality ``GET /api/fabrics?per_modality=N`` lists for each fabric."""
 
@@ -220,6 +241,8 @@ class ServeConfig:
         thumbnail_size: longest side of the item images served, in pixels.
         max_pixels: largest width x height of an upload, checked from its header before
             decoding (413 above).
+        thumbnail_cache_bytes: most bytes of item thumbnails (PNG) kept in memory; the least
+            recently used go first (and `MAX_THUMBNAILS` at most, whatever their size).
         reload_every: seconds between looks, when requests come, at whether the library was
             rebuilt (then it is loaded beside the old one and served; `ServedLibrary`); 0
             serves the library opened at start until the server stops.
@@ -235,6 +258,7 @@ class ServeConfig:
     max_top: int = 20
     thumbnail_size: int = 256
     max_pixels: int = 25_000_000
+    thumbnail_cache_bytes: int = 64 * 1024 * 1024
     reload_every: float = 2.0
 
     def __post_init__(self) -> None:
@@ -254,6 +278,7 @@ class ServeConfig:
             "max_top",
             "thumbnail_size",
             "max_pixels",
+            "thumbnail_cache_bytes",
         ):
             v = getattr(self, name)
             _need(
@@ -534,6 +559,56 @@ class _SecurityHeaders:
         await self.app(scope, receive, with_headers)
 
 
+class _InternalErrors:
+    """Answer an unexpected error (an exception no handler made an answer of) as every other
+    error is answered: a JSON 500, ``{"detail": "internal error (RuntimeError); the server's log
+    says more"}``, and log its traceback on the server (logger ``lookfeel.serve``). The
+    exception's own text is not sent: it may name the server's files. Installed inside
+    `_SecurityHeaders`, so that the answer carries `SECURITY_HEADERS`; Starlette's own handler,
+    outside every middleware, answers plain text without them. An error after the answer has
+    begun cannot be answered: it is raised on, for the ASGI server to log."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def watched(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, watched)
+        except Exception as exc:
+            if started:
+                raise
+            method, path = scope.get("method", "?"), scope.get("path", "?")
+            _LOG.error("serve: %s %s failed, answered 500", method, path, exc_info=exc)
+            detail = f"internal error ({type(exc).__name__}); the server's log says more"
+            await JSONResponse({"detail": detail}, status_code=500)(scope, receive, send)
+
+
+def _library_tag(library: Library) -> str:
+    """A short digest of a library's manifest (its items' shards, model and settings): which
+    library an item id's image comes from, for its ``ETag``."""
+    text = json.dumps(library.manifest, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _etag_matches(if_none_match: str | None, etag: str) -> bool:
+    """Whether an ``If-None-Match`` header (``"a", W/"b"`` or ``*``) names ``etag``."""
+    if not if_none_match:
+        return False
+    tags = [t.strip() for t in if_none_match.split(",")]
+    return "*" in tags or any(t.removeprefix("W/") == etag for t in tags)
+
+
 def create_app(
     library: Library | str | os.PathLike[str],
     config: ServeConfig | None = None,
@@ -583,8 +658,9 @@ def create_app(
         docs_url=None,  # Swagger UI and ReDoc load scripts from a CDN; the page must not
         redoc_url=None,
     )
-    state: dict[str, Any] = {"waiting": 0, "semaphore": None}
+    state: dict[str, Any] = {"waiting": 0, "semaphore": None, "thumbnail_bytes": 0}
     thumbnails: OrderedDict[tuple[int, str], bytes] = OrderedDict()
+    tags: dict[int, str] = {}  # generation -> `_library_tag`
 
     def semaphore() -> asyncio.Semaphore:
         if state["semaphore"] is None:  # created in the server's event loop
@@ -604,6 +680,7 @@ def create_app(
 
     max_body = cfg.max_files * cfg.max_upload_bytes + 64 * 1024
     app.add_middleware(_BodyLimit, limit=max_body)
+    app.add_middleware(_InternalErrors)  # inside _SecurityHeaders: a 500 carries them too
     app.add_middleware(_SecurityHeaders)
 
     @app.exception_handler(StarletteHTTPException)
@@ -619,12 +696,14 @@ def create_app(
         own checks answer, not pydantic's list of objects."""
         return JSONResponse({"detail": _validation_message(exc.errors())}, status_code=422)
 
-    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
+    @app.api_route(
+        "/", methods=["GET", "HEAD"], response_class=HTMLResponse, include_in_schema=False
+    )
     def page() -> Response:
         body, mime = static["index.html"]
         return Response(body, media_type=mime)
 
-    @app.get("/static/{name}", include_in_schema=False)
+    @app.api_route("/static/{name}", methods=["GET", "HEAD"], include_in_schema=False)
     def static_file(name: str) -> Response:
         if name not in static:
             raise HTTPException(404, f"no static file {_clip(name)!r}")
@@ -710,14 +789,24 @@ def create_app(
             410: {"description": "the item's file can no longer be read"},
         },
     )
-    async def item_image(item_id: str) -> Response:
+    async def item_image(item_id: str, request: Request) -> Response:
         """The item's image as a PNG thumbnail (depth shown as grey, near = dark; a press
-        video as its frame of deepest contact, as recorded, turned as the model reads it)."""
+        video as its frame of deepest contact, as recorded, turned as the model reads it).
+        Sent with an ``ETag`` and ``Cache-Control: no-cache``; 304 to a matching
+        ``If-None-Match``."""
         now = served.current()
         item = lookup(now.library, item_id)
+        if now.generation not in tags:
+            tags[now.generation] = _library_tag(now.library)
+        etag = f'"{tags[now.generation]}-{cfg.thumbnail_size}-{item.id}"'
+        headers = {"Cache-Control": "no-cache", "ETag": etag}
+        if _etag_matches(request.headers.get("if-none-match"), etag):
+            return Response(status_code=304, headers=headers)
         key = (now.generation, item.id)
         png = thumbnails.get(key)
-        if png is None:
+        if png is not None:
+            thumbnails.move_to_end(key)
+        else:
             try:
                 png = await run_in_threadpool(_thumbnail, item, now.library, cfg.thumbnail_size)
             except ImageError as e:
@@ -725,12 +814,19 @@ def create_app(
                     410,
                     public_message(f"item {item.id}: its file can no longer be read ({e.reason})"),
                 ) from None
-            thumbnails[key] = png
-            while len(thumbnails) > 2048:
-                thumbnails.popitem(last=False)
-        return Response(
-            png, media_type="image/png", headers={"Cache-Control": "public, max-age=3600"}
-        )
+            if key not in thumbnails:  # another request may have made it meanwhile
+                thumbnails[key] = png
+                state["thumbnail_bytes"] += len(png)
+            while thumbnails and (
+                len(thumbnails) > MAX_THUMBNAILS
+                or state["thumbnail_bytes"] > cfg.thumbnail_cache_bytes
+            ):
+                state["thumbnail_bytes"] -= len(thumbnails.popitem(last=False)[1])
+        return Response(png, media_type="image/png", headers=headers)
+
+    app.add_api_route(  # HEAD as GET without the body (uvicorn sends none), out of the schema
+        "/api/items/{item_id}/image", item_image, methods=["HEAD"], include_in_schema=False
+    )
 
     def check_top(top: int) -> None:
         if not 1 <= top <= cfg.max_top:
@@ -801,7 +897,11 @@ def create_app(
                     f"{name}: not a PNG or JPEG image"
                     + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else "")
                     + (f" (a {other} image: save it as PNG or JPEG)" if other else "")
-                    + (f" ({VIDEOS_ARE_TOUCH})" if _a_video(name, data) else ""),
+                    + (
+                        f" ({VIDEOS_ARE_TOUCH})"
+                        if modality is not Modality.TOUCH and _a_video(name, data)
+                        else ""
+                    ),
                 )
             size = declared_size(data)  # its header, read without Pillow (no warning filters)
             if size is None:
@@ -836,6 +936,7 @@ def create_app(
                 match.shape(modality),
                 match.data_config,
                 "the library",
+                videos=[sniff_video(d[:16]) for _, d in blobs],  # as they are read: by content
             )
             if turned is not None:
                 notes.append(turned)
