@@ -6,6 +6,9 @@
 const $ = (sel) => document.querySelector(sel);
 const NAMES = { depth: "looks (depth)", color: "looks (colour)", touch: "feels (touch)" };
 let info = null;
+// Seconds to wait for an answer before giving up: generous, as the first query may load the
+// model. A `let`, so that a test can shorten it.
+let answerTimeoutS = 120;
 
 function el(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
@@ -17,10 +20,90 @@ function el(tag, attrs = {}, ...children) {
   return e;
 }
 
+// Say how things stand. An error goes to #error (role="alert", read out at once), anything
+// else to #status (role="status", read out politely); the other one is emptied.
 function status(text, kind) {
-  const s = $("#status");
-  s.textContent = text;
-  s.className = kind || "";
+  const s = $("#status"), e = $("#error");
+  if (kind === "error") {
+    s.textContent = ""; s.className = "";
+    e.textContent = text;
+  } else {
+    e.textContent = "";
+    s.textContent = text; s.className = kind || "";
+  }
+}
+
+// Mark the file input wrong (an error about the chosen files) or right again: aria-invalid,
+// and the error added to what describes it.
+function filesInvalid(invalid) {
+  const f = $("#files");
+  if (invalid) {
+    f.setAttribute("aria-invalid", "true");
+    f.setAttribute("aria-describedby", "error files-hint");
+  } else {
+    f.removeAttribute("aria-invalid");
+    f.setAttribute("aria-describedby", "files-hint");
+  }
+}
+
+// A failed request, with the line the page shows for it and the HTTP status (0 for none).
+class Failure extends Error {
+  constructor(text, code = 0) { super(text); this.code = code; }
+}
+
+// GET or POST `url` and return its JSON answer, or throw a Failure saying what went wrong in
+// words: the server's own message (its JSON `detail`), a server or proxy that failed without
+// JSON, no server to reach, or no answer in `answerTimeoutS` seconds.
+async function fetchJSON(url, options = {}) {
+  const abort = new AbortController();
+  const timer = setTimeout(() => abort.abort(), 1000 * answerTimeoutS);
+  let r, data = null;
+  try {
+    r = await fetch(url, { ...options, signal: abort.signal });
+    const text = await r.text();  // the wait for the body counts in the timeout too
+    if (/\bjson\b/i.test(r.headers.get("content-type") || "")) {
+      try { data = JSON.parse(text); } catch { data = null; }
+    }
+  } catch (e) {
+    if (abort.signal.aborted) {
+      throw new Failure(`Error: no answer from the server in ${answerTimeoutS} s; ` +
+                        "is lookfeel serve still running? Try again.");
+    }
+    throw new Failure("Error: cannot reach the server (is lookfeel serve still running?)");
+  } finally {
+    clearTimeout(timer);
+  }
+  const said = data && data.detail;
+  if (!r.ok && said !== undefined && said !== null) {
+    throw new Failure(`Error ${r.status}: ${typeof said === "string" ? said : JSON.stringify(said)}`, r.status);
+  }
+  const answer = `HTTP ${r.status}${r.statusText ? " " + r.statusText : ""}`;
+  if (!r.ok) throw new Failure(`Error: the server failed (${answer})`, r.status);
+  if (data === null) throw new Failure(`Error: the server's answer is not JSON (${answer})`, r.status);
+  return data;
+}
+
+// Sizes as people read them: 8 MB, 0.5 MB.
+function mb(bytes) {
+  return `${g(bytes / (1024 * 1024))} MB`;
+}
+
+// Why the chosen files cannot be sent (the server's limits, from /api/library), or "".
+function tooBig(files) {
+  const limits = info && info.limits;
+  if (!limits) return "";
+  if (files.length > limits.max_files) {
+    return `${files.length} files chosen; at most ${limits.max_files} per query`;
+  }
+  for (const f of files) {
+    if (f.size > limits.max_upload_bytes) {
+      const [size, most] = mb(f.size) === mb(limits.max_upload_bytes)
+        ? [`${f.size} bytes`, `${limits.max_upload_bytes} bytes`]
+        : [mb(f.size), mb(limits.max_upload_bytes)];
+      return `${f.name}: ${size}; at most ${most} per file`;
+    }
+  }
+  return "";
 }
 
 function fmt(x, digits = 3) {
@@ -60,8 +143,7 @@ function isVideo(file) {
 }
 
 async function loadLibrary() {
-  const r = await fetch("/api/library");
-  info = await r.json();
+  info = await fetchJSON("/api/library");
   const items = Object.entries(info.items).map(([m, n]) => `${n} ${m}`).join(", ");
   $("#library").textContent =
     `${info.fabrics} fabrics (${items}); model ${info.backbone} at ${info.image_size} px` +
@@ -75,7 +157,11 @@ async function loadLibrary() {
   }
   const first = [...$("#modality").options].find((o) => !o.disabled);
   if (first && $("#modality").selectedOptions[0]?.disabled) $("#modality").value = first.value;
-  const fabrics = await (await fetch("/api/fabrics?per_modality=1")).json();
+  if (info.limits) {
+    const { max_files: most, max_upload_bytes: each } = info.limits;
+    $("#limits").textContent = ` Up to ${most} file${most === 1 ? "" : "s"} a query, at most ${mb(each)} each.`;
+  }
+  const fabrics = await fetchJSON("/api/fabrics?per_modality=1");
   const pick = $("#pick");
   for (const f of fabrics) {
     for (const [m, ids] of Object.entries(f.items)) {
@@ -89,6 +175,7 @@ function showPreview() {
   // press video, so depth and videos show their names only.
   const p = $("#preview");
   p.replaceChildren();
+  filesInvalid(false);
   for (const f of $("#files").files) {
     if ($("#modality").value === "depth" || isVideo(f)) p.append(el("span", { class: "file" }, f.name));
     else p.append(el("img", { src: URL.createObjectURL(f), alt: f.name }));
@@ -97,16 +184,22 @@ function showPreview() {
 
 // A probability bar: its width set through the CSSOM, which the CSP allows (a `style`
 // attribute it would block, leaving every bar full width).
+// Hidden from screen readers: the P printed beside it says the same.
 function bar(probability) {
   const fill = el("div");
   fill.style.width = `${(100 * probability).toFixed(1)}%`;
-  return el("div", { class: "bar" }, fill);
+  return el("div", { class: "bar", "aria-hidden": "true" }, fill);
 }
 
 // What the properties are, as `lookfeel match` labels them: the likeliest fabrics' labels
 // weighted by P (not the model's property heads, which `lookfeel predict` answers).
+// "object" for a library of named objects (sponge), else "fabric", as `lookfeel match` says.
+function nounOf(res) {
+  return res.fabrics.some((f) => f.name !== null && f.name !== undefined) ? "object" : "fabric";
+}
+
 function propertiesLabel(res) {
-  const noun = res.fabrics.some((f) => f.name !== null && f.name !== undefined) ? "object" : "fabric";
+  const noun = nounOf(res);
   const k = res.property_fabrics;
   const likeliest = k === 1 ? `the likeliest ${noun}` : `the ${k} likeliest ${noun}s`;
   const guess = res.known ? "" : `; no known ${noun}: the nearest ones', a guess`;
@@ -129,14 +222,27 @@ function renderResult(res) {
     const views = el("div", { class: "views" });
     for (const [m, refs] of Object.entries(f.nearest)) {
       for (const ref of refs.slice(0, 1)) {
+        // The caption says what the image is (the file's name shown, not only on hover), so
+        // the image's own alt would say it twice: it is left empty.
+        const file = ref.path.split(/[\\/]/).pop();
         views.append(el("figure", {},
-          el("img", { src: `/api/items/${ref.id}/image`, alt: `${m} of ${title(f)}`, title: ref.path }),
-          el("figcaption", {}, NAMES[m] || m)));
+          el("img", { src: `/api/items/${ref.id}/image`, alt: "", title: ref.path }),
+          el("figcaption", {}, NAMES[m] || m, el("br"), el("span", { class: "path" }, file))));
       }
     }
     box.append(el("div", { class: "fabric" }, left, views));
   }
   return box;
+}
+
+// One result's verdict in a few words, for a status line that covers several results:
+// "a.png: fabric 3 (P = 0.912)" or "b.png: no known fabric (best fabric 5, P = 0.301)".
+function verdict(res) {
+  const best = res.fabrics[0];
+  const name = best ? title(best) : "none";
+  const said = res.known ? `${name} (P = ${fmt(res.best_probability)})`
+    : `no known ${nounOf(res)} (best ${name}, P = ${fmt(res.best_probability)})`;
+  return `${res.query.join(", ")}: ${said}`;
 }
 
 function show(data) {
@@ -146,25 +252,35 @@ function show(data) {
   // What `lookfeel match` warns of the files: one left out of a pooled query (a press video
   // without a press), a press of another kind, a turned query, a press video with no colour.
   const notes = (data.warnings || []).map((w) => ` Note: ${w}.`).join("");
-  if (data.results.every((r) => r.known)) status(first.message + notes, "known");
-  else status(first.message.charAt(0).toUpperCase() + first.message.slice(1) + notes, "unknown");
+  const known = data.results.filter((r) => r.known).length;
+  const kind = known === data.results.length ? "known" : known === 0 ? "unknown" : "";
+  if (data.results.length > 1) {
+    // Every result, briefly (each card's heading names its files; the cards say the rest).
+    status(`${data.results.length} results: ${data.results.map(verdict).join("; ")}.` + notes, kind);
+  } else if (first.known) {
+    status(first.message + notes, kind);
+  } else {
+    status(first.message.charAt(0).toUpperCase() + first.message.slice(1) + notes, kind);
+  }
 }
 
-async function submit(url, options) {
+// Send a query and show its answer. The previous results go first, so that an error (or a
+// wait) never leaves them on screen as if they answered this query. `upload`: an error about
+// the request (413, 415, 422) is about the chosen files, and marks the file input so.
+async function submit(url, options, upload = false) {
+  const results = $("#results");
+  results.replaceChildren();
+  results.setAttribute("aria-busy", "true");
   $("#match").disabled = $("#match-item").disabled = true;
   status("Matching…");
   try {
-    const r = await fetch(url, options);
-    const data = await r.json();
-    if (!r.ok) {
-      $("#results").replaceChildren();
-      status(`Error ${r.status}: ${typeof data.detail === "string" ? data.detail : JSON.stringify(data.detail)}`, "error");
-      return;
-    }
-    show(data);
+    show(await fetchJSON(url, options));
   } catch (e) {
-    status(`Error: ${e}`, "error");
+    results.replaceChildren();
+    status(e instanceof Failure ? e.message : `Error: ${e}`, "error");
+    if (upload && [413, 415, 422].includes(e.code)) filesInvalid(true);
   } finally {
+    results.setAttribute("aria-busy", "false");
     $("#match").disabled = $("#match-item").disabled = false;
   }
 }
@@ -174,12 +290,19 @@ $("#modality").addEventListener("change", showPreview);
 $("#upload-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
   const files = $("#files").files;
-  if (!files.length) { status("Choose one or more images first.", "error"); return; }
+  const wrong = files.length ? tooBig(files) : "Choose one or more images first.";
+  if (wrong) {
+    $("#results").replaceChildren();
+    status(files.length ? `Error: ${wrong}` : wrong, "error");
+    filesInvalid(true);
+    return;
+  }
+  filesInvalid(false);
   const body = new FormData();
   body.append("modality", $("#modality").value);
   body.append("top", $("#top").value);
   for (const f of files) body.append("files", f);
-  submit("/api/match", { method: "POST", body });
+  submit("/api/match", { method: "POST", body }, true);
 });
 $("#pick-form").addEventListener("submit", (ev) => {
   ev.preventDefault();
@@ -191,4 +314,4 @@ $("#pick-form").addEventListener("submit", (ev) => {
     body: JSON.stringify({ item, top: Number($("#top").value) }),
   });
 });
-loadLibrary().catch((e) => status(`Cannot read the library: ${e}`, "error"));
+loadLibrary().catch((e) => status(`Cannot read the library: ${e instanceof Failure ? e.message : e}`, "error"));
