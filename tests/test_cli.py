@@ -26,6 +26,7 @@ def test_data_info_text_and_json(tiny_dataset: Path, capsys):
     )
     assert main(["data", "info", str(tiny_dataset), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
+    assert info["data_root"] == str(tiny_dataset) and "root" not in info  # as index info says
     assert info["fabrics"] == 6
     assert info["items"] == {"depth": 18, "color": 18, "touch": 30}
     assert info["fabrics_with_physical_labels"] == 6

@@ -64,7 +64,8 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     assert summary["runs"] == 4
     # what made the numbers: the resamples, the dataset and the software
     assert summary["n_boot"] == 50
-    assert summary["data"] == {"root": str(data), "fingerprint": scan(data).fingerprint()}
+    assert summary["data_root"] == str(data) and "data" not in summary
+    assert summary["data_fingerprint"] == scan(data).fingerprint()
     assert set(summary["software"]) == {"lookfeel", "torch", "python"}
     pair = summary["pairs"]["depth_to_depth"]
     for key in ("model_top1", "model_top3", "raw_pixels_top1", "raw_pixels_top3"):
@@ -152,6 +153,7 @@ def test_score_checkpoint_on_another_dataset(data: Path, tmp_path: Path):
     config = load_config(RunConfig, TINY, [*OVERRIDES, "train.split=none"])
     run = train(config, data, tmp_path / "run")
     scored = score_checkpoint(run.last_checkpoint, other, n_boot=30)
+    assert scored["data_root"] == str(other)  # the folder is data_root, as in every output
     pair = scored["pairs"]["depth_to_depth"]
     assert pair["chance_top1"] == pytest.approx(1 / 5)  # pick 1 of 10 offers the 5 fabrics
     for key in ("model_top1", "raw_pixels_top1"):
@@ -212,7 +214,7 @@ def test_a_cv_names_the_finished_runs_of_its_folder_that_its_summary_leaves_out(
 
     planted("seed1-fold1", 1)
     planted("seed2-fold1", 2, key={**result["key"], "tta": True})
-    planted("seed3-fold1", 3, data={"root": "elsewhere", "fingerprint": "0123456789abcdef"})
+    planted("seed3-fold1", 3, data_root="elsewhere", data_fingerprint="0123456789abcdef")
     planted("seed01-fold1", 1)
     (out / "seed4-fold1" / "checkpoints").mkdir(parents=True)
     logs.clear()
@@ -263,6 +265,54 @@ def test_a_cv_folder_keeps_its_runs_for_the_same_data_moved_and_refuses_other_da
     image.write_bytes(image.read_bytes() + b"\0")
     with pytest.raises(ConfigError, match="before its files or labels changed"):
         cross_validate(config, again, tmp_path / "cv", folds=[0], n_boot=20)
+
+
+def test_a_cv_folder_of_an_earlier_lookfeel_resumes_and_is_summarised_as_before(
+    data: Path, tmp_path: Path
+):
+    """cv.json and each result.json name the dataset ``data_root`` and ``data_fingerprint``,
+    as index info and embed do, where they held ``data: {root, fingerprint}``. A folder of the
+    earlier form is read alike: its runs are kept (nothing trained or scored again) and
+    summarised as before, another dataset's refused by its folder, and a finished run of it
+    outside the summary is named."""
+    config = load_config(RunConfig, TINY, OVERRIDES)
+    out = tmp_path / "cv"
+    summary = cross_validate(config, data, out, folds=[0], n_boot=20, log=lambda _: None)
+    fingerprint = scan(data).fingerprint()
+    path = out / "seed0-fold0" / "result.json"
+    res = json.loads(path.read_text())
+    for written in (summary, json.loads((out / "cv.json").read_text()), res):
+        assert (written["data_root"], written["data_fingerprint"]) == (str(data), fingerprint)
+        assert "data" not in written
+
+    def earlier(result: dict, root: str, fingerprint: str) -> dict:
+        """``result`` as lookfeel wrote it before the rename."""
+        old = {k: v for k, v in result.items() if k not in ("data_root", "data_fingerprint")}
+        return old | {"data": {"root": root, "fingerprint": fingerprint}}
+
+    kept = json.dumps(earlier(res, str(data), fingerprint))
+    path.write_text(kept)
+    trained = {p: p.stat().st_mtime_ns for p in out.rglob("last.pt")}
+    logs: list[str] = []
+    again = cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
+    assert logs == [f"seed 0 fold 0: done before, kept ({path})"]
+    assert path.read_text() == kept  # kept as it was, not written again
+    assert {p: p.stat().st_mtime_ns for p in trained} == trained
+    assert json.dumps(again, sort_keys=True) == json.dumps(summary, sort_keys=True)
+    # A finished run of the earlier form outside the summary counts as one; on other data not.
+    for seed, at in ((1, str(data)), (2, "elsewhere")):
+        other = earlier(res, at, fingerprint if seed == 1 else "0123456789abcdef")
+        other["seed"] = seed
+        other["key"]["config"]["train"]["seed"] = seed
+        (out / f"seed{seed}-fold0").mkdir()
+        (out / f"seed{seed}-fold0" / "result.json").write_text(json.dumps(other))
+    logs.clear()
+    cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
+    assert logs[-1].startswith(f"{out} also holds finished runs of seed 1 fold 0, scored with")
+    # The earlier form on other data is refused, naming the folder it recorded.
+    path.write_text(json.dumps(earlier(res, "elsewhere", "0123456789abcdef")))
+    with pytest.raises(ConfigError, match=re.escape("holds a run on another dataset (elsewhere)")):
+        cross_validate(config, data, out, folds=[0], n_boot=20, log=lambda _: None)
 
 
 def test_a_fingerprint_recorded_before_file_sizes_counted_still_matches(data: Path):

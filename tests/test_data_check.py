@@ -49,6 +49,9 @@ def test_check_json_and_clean_exit(tiny_dataset: Path, capsys):
     assert main(["data", "check", str(tiny_dataset), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["ok"] is True and report["errors"] == []
+    # The dataset folder is data_root, here and in its summary (data info's), as index info says.
+    assert report["data_root"] == report["summary"]["data_root"] == str(tiny_dataset)
+    assert "root" not in report and "root" not in report["summary"]
     assert report["summary"]["items"] == {"depth": 18, "color": 18, "touch": 30}
     _break(tiny_dataset)
     assert main(["data", "check", str(tiny_dataset), "--json", "--require", "depth"]) == 1

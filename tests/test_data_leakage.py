@@ -151,9 +151,22 @@ def test_parse_mask_options():
 def test_report_json_and_every_modality(tiny_dataset: Path):
     report = leakage_report(scan(tiny_dataset), n_boot=100)
     d = json.loads(json.dumps(report.to_dict()))
+    assert d["data_root"] == str(tiny_dataset) and "root" not in d  # as `data info` names it
     assert set(d["modalities"]) == {"depth", "color", "touch"}
     for entry in d["modalities"].values():
-        assert {"whole_top1", "background_top1", "chance", "leak", "whole_ci95"} <= set(entry)
+        assert {"whole_top1", "background_top1", "chance", "leak"} <= set(entry)
+        # Every interval as two numbers named after its top-1, as evaluate's metrics.json.
+        for top1 in ("whole_top1", "background_top1", "input_top1"):
+            assert {f"{top1}_ci_low", f"{top1}_ci_high"} <= set(entry), top1
+        assert not [k for k in entry if "ci95" in k]
+    depth = report.modalities[0]
+    got = d["modalities"][depth.modality.value]
+    low, high = depth.whole_ci95
+    assert (got["whole_top1_ci_low"], got["whole_top1_ci_high"]) == (round(low, 4), round(high, 4))
+    assert got["whole_top1_ci_low"] <= got["whole_top1"] <= got["whole_top1_ci_high"]
+    keys = list(got)  # each pair just after its top-1, as the fields stand
+    at = keys.index("whole_top1")
+    assert keys[at : at + 3] == ["whole_top1", "whole_top1_ci_low", "whole_top1_ci_high"]
 
 
 def test_too_few_fabrics_is_skipped_with_reason(leaky: Path):
@@ -478,7 +491,8 @@ def test_no_background_pixel_reads_n_a_with_why_never_nan_and_json_null(tmp_path
     )
     d = json.loads(json.dumps(report.to_dict(), allow_nan=False))  # strict JSON: no NaN
     entry = d["modalities"]["color"]
-    assert entry["background_top1"] is None and entry["background_ci95"] == [None, None]
+    assert entry["background_top1"] is None
+    assert entry["background_top1_ci_low"] is None and entry["background_top1_ci_high"] is None
     assert entry["leak"] is False
     # A position with no score (no image with cloth) reads n/a too, and is null in the JSON.
     nothing = _position((float("nan"),) * 3, (float("nan"),) * 3, False)
@@ -494,6 +508,7 @@ def test_no_background_pixel_reads_n_a_with_why_never_nan_and_json_null(tmp_path
         json.dumps(dataclasses.replace(report, position=nothing).to_dict(), allow_nan=False)
     )
     assert d["position"]["post_uv"]["top1"] is None
+    assert d["position"]["post_uv"]["top1_ci_low"] is None
 
 
 def test_a_background_above_chance_but_under_the_flag_is_said_to_be(clean: Path):
@@ -642,3 +657,13 @@ def test_a_position_of_two_fabrics_is_too_few_to_decide(tmp_path: Path):
     assert "  too few fabrics to decide (2): no top-1 can lie above 2x chance 1.00" in text
     d = report.to_dict()
     assert d["verdict"] == d["position"]["verdict"] == "too few fabrics"
+    # Each position's interval as two numbers beside its top-1, no ``ci95`` pair.
+    for cue in ("post_uv", "drape_centroid"):
+        assert list(d["position"][cue]) == [
+            "top1",
+            "top1_ci_low",
+            "top1_ci_high",
+            "within_fabric_px",
+            "overall_px",
+        ]
+    assert (d["position"]["post_uv"]["top1_ci_low"], d["data_root"]) == (1.0, str(tmp_path))

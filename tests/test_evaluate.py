@@ -444,6 +444,8 @@ def test_report_files(tmp_path: Path):
     files = write_report(r, tmp_path / "eval")
     data = json.loads(files.metrics.read_text(), parse_constant=lambda c: pytest.fail(c))
     assert data["touch_to_depth_top1"] == pytest.approx(r.metrics["touch_to_depth_top1"])
+    assert data.pop("info") == {}  # bare embeddings: nothing known of what made them
+    assert data.keys() == r.metrics.keys()  # the rest: every metric, and only them
     text = files.report.read_text()
     for needle in ("touch → depth", "chance", "95% interval", "Calibration", "presses"):
         assert needle in text
@@ -601,7 +603,20 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
     )
     ma = json.loads((a / "metrics.json").read_text())
     mb = json.loads((b / "metrics.json").read_text())
+    # What was scored, in "info": the checkpoint, split, dataset and software (provenance.py),
+    # from the checkpoint, and from the embeddings file's record of it.
+    info_a, info_b = ma.pop("info"), mb.pop("info")
+    made = {
+        "checkpoint": str(ckpt),
+        "step": load_model(ckpt).step,
+        "split": "val",
+        "data_root": str(data),
+        "data_fingerprint": meta["data_fingerprint"],
+        "software": software_versions(),
+    }
+    assert info_a == made and info_b == made | {"embeddings_file": str(npz)}
     assert ma == mb  # the same float32 embeddings give the same numbers, NaN (null) included
+    assert all(v is None or isinstance(v, float | int) for v in ma.values())  # numbers only
     assert ma["touch_to_depth_c_fitted"] == 1.0  # c fitted on the run's training fabrics
     assert "property_depth_thickness_mm_ridge_r2" in ma
     assert ma["touch_to_depth_n_queries"] == 2 * len(val)  # the run's 2 presses per query

@@ -33,8 +33,9 @@ QUICK += ["--set", "max_presses=1"]
 
 def _evaluated(
     ckpt: Path, data: Path, out: Path, capsys: pytest.CaptureFixture[str], *split: str
-) -> tuple[str, str, dict[str, float]]:
-    """(printed, report.md, metrics.json) of ``lookfeel evaluate`` on ``ckpt``."""
+) -> tuple[str, str, dict[str, object]]:
+    """(printed, report.md, metrics.json) of ``lookfeel evaluate`` on ``ckpt``: its numbers, and
+    in ``info`` what was scored."""
     assert evaluate_cli(ckpt, data, out, *split, *QUICK) == 0
     printed = capsys.readouterr().out
     return printed, (out / "report.md").read_text(), json.loads((out / "metrics.json").read_text())

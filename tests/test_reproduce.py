@@ -410,9 +410,14 @@ def test_the_report_says_what_it_measured(tmp_path: Path):
                       "test_fabrics": 6},
     }  # fmt: skip
     result = ReproduceResult(tmp_path, tmp_path / "report.md", results, {}, findings(results))
-    meta = {"data": "w", "budget": "tiny", "seeds": 1, "split": "paper", "minutes": 1.0}
+    meta = {"data_root": "w", "budget": "tiny", "seeds": 1, "split": "paper", "minutes": 1.0}
     write_reproduction_report(result, meta)
     report = result.report.read_text()
+    assert report.splitlines()[2].startswith("Data: `w`; budget: **tiny**; ")
+    # results.json's meta as written before the dataset folder was ``data_root``: read alike.
+    old = {k: v for k, v in meta.items() if k != "data_root"} | {"data": "w"}
+    write_reproduction_report(result, old)
+    assert result.report.read_text() == report
     order = result.findings["model_order"]["detail"]
     assert order == (
         "in the paper's order: multi_input 0.300, auxiliary 0.200, cross_modal 0.100, flat 0.120"
@@ -433,7 +438,7 @@ def _report(tmp_path: Path, results: dict, meta: dict, skipped: dict | None = No
         tmp_path, tmp_path / "report.md", results, skipped or {}, findings(results)
     )
     write_reproduction_report(
-        result, {"data": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0} | meta
+        result, {"data_root": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0} | meta
     )
     return result.report.read_text()
 
@@ -804,7 +809,7 @@ def test_only_says_which_runs_it_left_out(tmp_path: Path):
     assert findings(results | earlier, only=only)["model_order"]["verdict"] == "within noise"
 
     result = ReproduceResult(tmp_path, tmp_path / "report.md", results, skipped, f)
-    meta = {"data": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0, "only": only}
+    meta = {"data_root": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0, "only": only}
     write_reproduction_report(result, meta)
     report = result.report.read_text()
     assert "Data: `w`; budget: **tiny**; seeds: 1; --only: auxiliary; 1.0 min." in report
@@ -1204,7 +1209,10 @@ def test_results_json_records_what_it_takes_to_reproduce_it(tmp_path: Path):
     assert meta["data_fingerprint"] == scan(two, require=[], strict=True).fingerprint()
     assert meta["software"] == software_versions()
     assert set(meta["software"]) == {"lookfeel", "torch", "python"}
-    assert meta["data"] == str(two) and meta["budget"] == "tiny"  # the keys it had
+    assert meta["budget"] == "tiny"  # the keys it had
+    # The dataset folder, named as index info, embed and cv name it (``data`` before).
+    assert meta["data_root"] == str(two) and "data" not in meta
+    assert f"Data: `{two}`; budget: **tiny**" in (out / "report.md").read_text()
     assert "budget: **tiny**" in (out / "report.md").read_text()
 
 

@@ -222,7 +222,7 @@ def run_check(args: argparse.Namespace) -> int:
             json.dumps(
                 {
                     "ok": not failed,
-                    "root": str(catalog.root),
+                    "data_root": str(catalog.root),
                     "errors": [p.to_dict() for p in errors],
                     "warnings": [p.to_dict() for p in warnings],
                     "skipped": [p.to_dict() for p in catalog.skipped],

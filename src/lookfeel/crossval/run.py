@@ -280,6 +280,22 @@ def _rescore_reason(saved: dict[str, Any] | None, key: dict[str, Any]) -> str:
     return f"({who}: {shown}{more})"
 
 
+def _recorded_data(saved: dict[str, Any]) -> tuple[str | None, str | None]:
+    """The dataset folder and fingerprint (`Catalog.fingerprint`) a kept ``result.json``
+    records: ``data_root`` and ``data_fingerprint``, or an earlier lookfeel's ``data: {root,
+    fingerprint}``, read alike so that its folder resumes as before. (None, None) where it
+    records none (written before lookfeel recorded it): taken as this data's."""
+    if "data_fingerprint" in saved:
+        root, fingerprint = saved.get("data_root"), saved["data_fingerprint"]
+    else:
+        old = saved.get("data")
+        root, fingerprint = (old.get("root"), old.get("fingerprint")) if old else (None, None)
+    return (
+        None if root is None else str(root),
+        None if fingerprint is None else str(fingerprint),
+    )
+
+
 _RUN_DIR = re.compile(r"seed(\d+)-fold(\d+)")
 
 
@@ -305,8 +321,8 @@ def _other_finished_runs(
             continue
         try:
             saved = json.loads((run_dir / RESULT).read_text())
-            data = saved.get("data")  # none before it was recorded: kept as this data's
-            same_data = data is None or catalog.matches_fingerprint(data["fingerprint"])
+            _, recorded = _recorded_data(saved)  # none: kept as this data's
+            same_data = recorded is None or catalog.matches_fingerprint(recorded)
             key = saved.get("key")
         except (OSError, ValueError, TypeError, KeyError, AttributeError):
             continue  # no result (a run not finished), or not one cv wrote
@@ -426,8 +442,9 @@ def cross_validate(
     untouched = UntouchedControl(config.data)  # shared by the seeds of a fold
     room = RoomProbe(catalog, config.data.workers) if control is not None else None
     labelled = bool(catalog.label_columns)
-    fingerprint = catalog.fingerprint()
-    data_id = {"root": str(catalog.root), "fingerprint": fingerprint}
+    # The dataset's folder and fingerprint (`Catalog.fingerprint`), in cv.json and each
+    # result.json, named as index info and embed name them.
+    data_id = {"data_root": str(catalog.root), "data_fingerprint": catalog.fingerprint()}
     results = []
     for seed in seeds:
         for fold in fold_list:
@@ -436,11 +453,10 @@ def cross_validate(
             result_path = run_dir / RESULT
             key = _result_key(cfg, tta, pairs, presses, control, labelled)
             saved = json.loads(result_path.read_text()) if result_path.exists() else None
-            if saved is not None and not catalog.matches_fingerprint(
-                saved.get("data", data_id)["fingerprint"]
-            ):
+            was_at, recorded = _recorded_data(saved) if saved is not None else (None, None)
+            if recorded is not None and not catalog.matches_fingerprint(recorded):
                 raise ConfigError(
-                    f"{run_dir} holds a run on another dataset ({saved['data']['root']}), or on "
+                    f"{run_dir} holds a run on another dataset ({was_at}), or on "
                     f"{catalog.root} before its files or labels changed; use another --out"
                 )
             if saved is not None and saved.get("key") == key:
@@ -468,7 +484,7 @@ def cross_validate(
                 seconds = time.perf_counter() - started
             res = _evaluate_run(run_dir, catalog, pairs, tta, loader, control, untouched, presses)
             res |= {"key": key, "seed": seed, "fold": fold, "train_seconds": seconds}
-            res["data"] = data_id
+            res |= data_id
             res["software"] = software_versions()  # which lookfeel scored it (`_rescore_reason`)
             res = _with_room(res, run_dir, room)
             _write_json(result_path, res)
@@ -513,7 +529,7 @@ def cross_validate(
         "config": to_dict(config),
         "coverage": coverage,
         "n_boot": n_boot,
-        "data": data_id,  # the dataset's folder and fingerprint (`Catalog.fingerprint`)
+        **data_id,
         "software": software_versions(),
     }
     _write_json(out / SUMMARY, summary, indent=1)

@@ -453,7 +453,7 @@ def score_checkpoint(
 
     Returns:
         ``{"pairs": {pair: {"model_top1": {"mean", "ci95", ...}, "raw_pixels_top1": ...,
-        "model_swapped_top1": ..., "chance_top1": ...}}, "checkpoint", "data", "step",
+        "model_swapped_top1": ..., "chance_top1": ...}}, "checkpoint", "data_root", "step",
         "background_control"}``.
     """
     _check_n_boot(n_boot)
@@ -473,7 +473,7 @@ def score_checkpoint(
     summary = _summarise([res], wanted, n_boot, control is not None, names, why)
     return {
         "checkpoint": str(checkpoint),
-        "data": str(data),
+        "data_root": str(data),
         "step": lm.step,
         "tta": tta,
         "presses": presses,

@@ -355,7 +355,8 @@ class Catalog:
         return hashlib.sha256(json.dumps(rows).encode()).hexdigest()[:16]
 
     def summary(self) -> dict[str, object]:
-        """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels.
+        """Counts for `lookfeel data info`: fabrics, items per modality and press kind, labels;
+        ``data_root`` names the dataset folder (as ``index info`` and ``embed`` do).
 
         When the data names objects (``videos/<name>_<n>.mov``), two more keys give the names
         behind the ids: ``object_names`` (id as text -> name, of every named object, labelled
@@ -385,7 +386,7 @@ class Catalog:
             m.value: sorted(len(f.items.get(m, ())) for f in self.fabrics) for m in self.modalities
         }
         out: dict[str, object] = {
-            "root": str(self.root),
+            "data_root": str(self.root),
             "fabrics": len(self.fabrics),
             "fabric_ids": self.ids,
             "items": items,

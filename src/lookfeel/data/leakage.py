@@ -181,10 +181,13 @@ class ModalityLeakage:
         return NO_LEAK if decidable(self.chance, factor) else TOO_FEW
 
     def to_dict(self, factor: float = 2.0) -> dict[str, Any]:
+        """The JSON of ``data leakage --json``: the fields, each interval as two numbers
+        beside its top-1 (`_intervals`: ``whole_top1_ci_low``, ``whole_top1_ci_high`` ...),
+        and the ``verdict``."""
         d = asdict(self)
         d["modality"] = self.modality.value
         d["verdict"] = self.verdict(factor)
-        return {k: _json_num(v) for k, v in d.items()}
+        return {k: _json_num(v) for k, v in _intervals(d).items()}
 
 
 @dataclass(frozen=True)
@@ -237,7 +240,12 @@ class PositionLeakage:
         return NO_LEAK if decidable(self.chance, factor) else TOO_FEW
 
     def to_dict(self, factor: float = 2.0) -> dict[str, Any]:
-        out: dict[str, Any] = _json_num(asdict(self))
+        """The JSON of ``data leakage --position --json``: the fields, each position's
+        interval as ``top1_ci_low``, ``top1_ci_high`` (`_intervals`), and the ``verdict``."""
+        d = asdict(self)
+        for name in ("post_uv", "drape_centroid"):
+            d[name] = _intervals(d[name])
+        out: dict[str, Any] = _json_num(d)
         out["verdict"] = self.verdict(factor)
         return out
 
@@ -282,8 +290,10 @@ class LeakageReport:
         return next((v for v in (LEAK, TOO_FEW, NO_LEAK) if v in parts), NOTHING_TO_CHECK)
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``data leakage --json``; the dataset folder is ``data_root``, as in
+        ``data info`` and ``index info``."""
         return {
-            "root": str(self.root),
+            "data_root": str(self.root),
             "leak": bool(self.leaks) or bool(self.position and self.position.leak),
             "verdict": self.verdict(),
             "modalities": {m.modality.value: m.to_dict(self.factor) for m in self.modalities},
@@ -295,6 +305,21 @@ class LeakageReport:
             "seconds": round(self.seconds, 3),
             "noun": self.noun,
         }
+
+
+def _intervals(d: Mapping[str, Any]) -> dict[str, Any]:
+    """``d`` with each ``<x>ci95`` pair of a top-1 (the dataclasses' ``whole_ci95``, a
+    position's ``ci95``) given as the two numbers ``<x>top1_ci_low`` and ``<x>top1_ci_high``,
+    where it stood, as evaluate's ``metrics.json`` names an interval
+    (``depth_to_depth_top1_ci_low``)."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if k.endswith("ci95"):
+            metric = k[: -len("ci95")] + "top1"
+            out[f"{metric}_ci_low"], out[f"{metric}_ci_high"] = v
+        else:
+            out[k] = v
+    return out
 
 
 def _json_num(v: Any) -> Any:

@@ -1,4 +1,5 @@
-"""Write an evaluation to a folder: ``metrics.json``, ``report.md`` and ``figures/*.png``."""
+"""Write an evaluation to a folder: ``metrics.json`` (its provenance in ``info``, then every
+metric; `write_metrics`), ``report.md`` and ``figures/*.png``."""
 
 from __future__ import annotations
 
@@ -65,9 +66,29 @@ def _json_value(v: float) -> float | None:
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
+METRICS_INFO = (
+    "checkpoint",
+    "step",
+    "embeddings_file",
+    "split",
+    "data_root",
+    "data_fingerprint",
+    "software",
+)
+"""What ``metrics.json``'s ``info`` records of an evaluation's provenance (`EvalResult.info`),
+each where it is known: the checkpoint and its step (or the embeddings file scored), the
+split, the dataset folder and fingerprint (`lookfeel.data.Catalog.fingerprint`) and the
+software versions that embedded it (`lookfeel.provenance.software_versions`)."""
+
+
 def write_metrics(result: EvalResult, path: str | os.PathLike[str]) -> Path:
-    """Write the flat metrics as JSON (NaN and infinity as null), atomically."""
-    data = {k: _json_value(float(v)) for k, v in result.metrics.items()}
+    """Write ``metrics.json`` atomically: ``info``, an object naming what was scored (the
+    `METRICS_INFO` keys ``result.info`` holds; none for an evaluation of bare embeddings),
+    then every metric, flat, each a number or null (NaN and infinity). No metric is named
+    ``info``: a reader of the numbers leaves that one key out."""
+    info = {k: result.info[k] for k in METRICS_INFO if k in result.info}
+    data: dict[str, Any] = {"info": info}
+    data |= {k: _json_value(float(v)) for k, v in result.metrics.items()}
     return atomic_write_text(path, json.dumps(data, indent=1) + "\n")
 
 

@@ -790,6 +790,12 @@ def _time_behind(meta: Mapping[str, Any]) -> str:
     )
 
 
+def _data_root(meta: Mapping[str, Any]) -> str:
+    """The dataset folder ``meta`` names: ``data_root``, or ``data`` as results.json named it
+    before lookfeel named it as index info and cv do."""
+    return str(meta["data_root"] if "data_root" in meta else meta["data"])
+
+
 def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) -> None:
     """Write ``report.md``: which fabrics each table scores on, tables with ours and (the
     paper's) numbers and notes on the cells without one, findings, skipped runs.
@@ -803,7 +809,7 @@ def write_reproduction_report(result: ReproduceResult, meta: Mapping[str, Any]) 
     lines = [
         "# Reproducing *Connecting Look and Feel* (CVPR 2017)",
         "",
-        f"Data: `{meta['data']}`; budget: **{meta['budget']}**; seeds: {_seeds(meta)}; "
+        f"Data: `{_data_root(meta)}`; budget: **{meta['budget']}**; seeds: {_seeds(meta)}; "
         + (f"--only: {', '.join(only)}{_earlier(meta)}; " if only else "")
         + _time_behind(meta),
         "",

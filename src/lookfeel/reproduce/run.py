@@ -1117,7 +1117,8 @@ def _reproduce(
             result.results[exp.name] = _aggregate(mine)
     result.findings = findings(result.results, only=list(only) or None)
     meta = {
-        "data": str(data),
+        # The dataset folder, named as index info, embed and cv name it (``data`` before).
+        "data_root": str(data),
         "budget": budget,
         # How many seeds each experiment trained (the report's "seeds: N"), and which, in order.
         "seeds": len(seed_list),
