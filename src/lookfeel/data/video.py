@@ -34,7 +34,10 @@ contact signal is of the small frames' pixels, not their order (every fourth of 
 Decoding is fast because full RGB is made only for the frames kept: the press is found on the
 luma plane of the decoded YUV frames (block-averaged to about 40x30), and only the chosen
 frames and the reference frames are converted to RGB (from the decoded frames held in memory,
-or, for a long video, by decoding again).
+or, for a long or large video, by decoding again). Its memory does not grow with the video:
+`read_press` holds at most 64 MB of decoded frames (`_KEEP_DECODED_BYTES`), one float32 frame
+(the reference, summed as its frames come), the images it returns, and one frame at a time in
+RGB; a 4K press of one image costs about 0.3 GB beyond the interpreter, not 1.5 GB.
 
 Every file goes through the image policy (`lookfeel.data.files.read_image_file`: a regular
 file, at most 512 MB). A frame larger than ``max_pixels`` (`DEFAULT_MAX_PIXELS`), a video of
@@ -120,9 +123,11 @@ _MAX_DECODED_PIXELS = 4_000_000_000
 billion): a small file declaring many large frames would otherwise cost hours of decoding."""
 _MAX_RGB_BYTES = 2 * 1024**3
 """`read_video` refuses to hold more than this many bytes of RGB frames."""
-_KEEP_DECODED_BYTES = 256 * 1024**2
+_KEEP_DECODED_BYTES = 64 * 1024**2
 """`read_press` holds decoded (YUV) frames up to this size to convert the chosen ones to RGB
-without decoding again."""
+without decoding again: every frame of a 320x240 video of up to 580 frames (23 s at 25
+frames/s; PhysiCLeAR's are 126), 20 of 1080p. A larger video is decoded again rather than held
+(its frames are not held beyond this while it is scanned)."""
 
 _SIGNAL_SIDE = 30
 """The small greyscale version of a frame has about this many pixels on its short side."""
@@ -989,11 +994,41 @@ def difference_image(
 
     Subtracting the no-contact frame leaves what the contact changed (the sensor's own light
     pattern and slow drift cancel); the gain spreads the small changes over the 8-bit range.
+    A large frame is worked out a band of rows at a time (`_BAND_VALUES`), so that its float
+    copies stay small: a 4K frame's whole would be 100 MB each.
     """
+    if frame.ndim < 1 or np.broadcast_shapes(frame.shape, np.shape(reference)) != frame.shape:
+        return _difference(frame, reference, gain)  # the reference broadcasts the frame up
+    out = np.empty(frame.shape, np.uint8)
+    _difference_into(out, frame, reference, gain)
+    return out
+
+
+_BAND_VALUES = 1 << 18
+"""`difference_image` and `_colourless` work on bands of rows of about this many values (1 MB
+of float32): a GelSight Mini's 320x240 frame is one band, a 4K frame about 100."""
+
+
+def _difference(frame: np.ndarray, reference: np.ndarray, gain: float) -> np.ndarray:
+    """`difference_image` of a whole frame at once."""
     d = frame.astype(np.float32) - reference
     d *= np.float32(gain)
     d += np.float32(128.0)
-    return np.clip(np.rint(d), 0, 255).astype(np.uint8)
+    np.rint(d, out=d)
+    np.clip(d, 0, 255, out=d)
+    return d.astype(np.uint8)
+
+
+def _difference_into(
+    out: np.ndarray, frame: np.ndarray, reference: np.ndarray, gain: float
+) -> None:
+    """Write `difference_image` of ``frame`` (its shape ``out``'s) into ``out``, a band of rows
+    at a time: each pixel is computed as `_difference` computes it, so the bytes are the same."""
+    rows = max(1, _BAND_VALUES // max(1, frame[:1].size))
+    whole = np.ndim(reference) == frame.ndim and np.shape(reference)[0] == len(frame)
+    for top in range(0, len(frame), rows):
+        band = slice(top, top + rows)
+        out[band] = _difference(frame[band], reference[band] if whole else reference, gain)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1008,10 +1043,21 @@ def is_single_channel(pixel_format: str) -> bool:
 
 
 def _colourless(rgb: np.ndarray) -> bool:
-    """Whether an (H, W, 3) uint8 RGB frame has red, green and blue within 2 levels everywhere."""
-    g = rgb[..., 1].astype(np.int16)
-    return bool(
-        np.abs(rgb[..., 0] - g).max(initial=0) <= 2 and np.abs(rgb[..., 2] - g).max(initial=0) <= 2
+    """Whether an (H, W, 3) uint8 RGB frame has red, green and blue within 2 levels everywhere.
+
+    Every 8th pixel of every 8th row first, which almost any colour frame fails; a frame that
+    passes is then checked whole, a band of rows at a time (`_BAND_VALUES`), so that a large
+    frame's 16-bit copies stay small."""
+
+    def within(a: np.ndarray) -> bool:
+        g = a[..., 1].astype(np.int16)
+        return bool(
+            np.abs(a[..., 0] - g).max(initial=0) <= 2 and np.abs(a[..., 2] - g).max(initial=0) <= 2
+        )
+
+    rows = max(1, _BAND_VALUES // max(1, rgb[:1].size))
+    return within(rgb[::8, ::8]) and all(
+        within(rgb[top : top + rows]) for top in range(0, len(rgb), rows)
     )
 
 
@@ -1095,25 +1141,119 @@ def read_press(
         indices = [frame_at(span, position)]
     else:
         indices = contact_frames(span, frames)
-    a, b = span.reference
-    wanted = set(indices) | set(range(a, b))
-    rgb: dict[int, np.ndarray] = {}
+    made = _PressImages(
+        indices, span.reference, subtract_reference, gain, is_single_channel(pixel_format)
+    )
+    for i, frame in _frames_at(p, blob, decoded, made.wanted, max_pixels, max_frames):
+        made.add(i, _rgb(frame, rotate))
+    del decoded  # the frames held from the scan, before the images are put together
+    images, reference = made.result()
+    return Press(
+        p, span, tuple(indices), images, reference, subtract_reference, pixel_format, made.grey
+    )
+
+
+def _frames_at(
+    p: Path,
+    blob: bytes,
+    decoded: list[av.video.frame.VideoFrame] | None,
+    wanted: Sequence[int],
+    max_pixels: int | None,
+    max_frames: int | None,
+) -> Iterator[tuple[int, av.video.frame.VideoFrame]]:
+    """``(i, frame)`` for each of the sorted frame indices ``wanted``: from ``decoded`` (the
+    frames `_scan` held), or, for a long or large video it did not hold, by decoding again, up to
+    the last one wanted."""
     if decoded is not None:
-        rgb = {i: _rgb(decoded[i], rotate) for i in sorted(wanted)}
-    else:  # a long video: decode again, converting only the frames wanted
-        last = max(wanted)
-        for i, frame in enumerate(_decode(p, blob, max_pixels, max_frames)):
-            if i in wanted:
-                rgb[i] = _rgb(frame, rotate)
-            if i >= last:
-                break
-    reference = np.mean([rgb[i].astype(np.float32) for i in range(a, b)], axis=0).astype(np.float32)
-    if subtract_reference:
-        images = np.stack([difference_image(rgb[i], reference, gain) for i in indices])
-    else:
-        images = np.stack([rgb[i] for i in indices])
-    grey = is_single_channel(pixel_format) or all(_colourless(rgb[i]) for i in wanted)
-    return Press(p, span, tuple(indices), images, reference, subtract_reference, pixel_format, grey)
+        for i in wanted:
+            yield i, decoded[i]
+        return
+    want = set(wanted)
+    last = max(wanted)
+    for i, frame in enumerate(_decode(p, blob, max_pixels, max_frames)):
+        if i in want:
+            yield i, frame
+        if i >= last:
+            break
+
+
+class _PressImages:
+    """`read_press`'s images and reference, made as the frames come (in order) rather than
+    from all of them held at once: the reference frames are summed into the reference, and
+    each chosen frame becomes its image (its difference from the reference once that is
+    complete) as it is converted. At most one frame is held as RGB beside the result (more
+    only for a frame chosen among the reference frames, kept until the reference is done), so
+    that a 4K video costs its images and one float32 reference, not every frame wanted in
+    float32. The bytes are those of the mean of the reference frames in float32 and of
+    `difference_image` of each chosen frame: the sum of up to 65,793 8-bit frames is exact in
+    float32, then divided as `numpy.mean` divides."""
+
+    def __init__(
+        self,
+        indices: Sequence[int],
+        reference: tuple[int, int],
+        subtract: bool,
+        gain: float,
+        single: bool,
+    ) -> None:
+        self.a, self.b = reference
+        self.n = len(indices)
+        self.wanted = sorted(set(indices) | set(range(self.a, self.b)))
+        """The frames to `add`, in this order."""
+        self.subtract, self.gain = subtract, gain
+        self.slots: dict[int, list[int]] = {}
+        for k, i in enumerate(indices):
+            self.slots.setdefault(i, []).append(k)
+        self.sum: np.ndarray | None = None
+        self.reference: np.ndarray | None = None
+        self.held: dict[int, np.ndarray] = {}
+        self.images: np.ndarray | None = None
+        self.added = 0
+        self.grey = single
+        """Whether the video has no colour: a single-channel pixel format (``single``), or
+        every frame added colourless (`_colourless`; final once `result` returns)."""
+        self.colourless = True
+
+    def add(self, i: int, rgb: np.ndarray) -> None:
+        """Take frame ``i`` (the next of ``wanted``) as (H, W, 3) uint8 RGB."""
+        self.added += 1
+        if self.colourless and not self.grey:
+            self.colourless = _colourless(rgb)
+        if self.a <= i < self.b:
+            if self.sum is None:
+                self.sum = np.zeros(rgb.shape, np.float32)
+            np.add(self.sum, rgb, out=self.sum)
+            if i == self.b - 1:
+                self.reference = self.sum
+                np.true_divide(self.sum, np.intp(self.b - self.a), out=self.sum)
+                for j in sorted(self.held):
+                    self._image(j, self.held.pop(j))
+        if i in self.slots:
+            if self.subtract and self.reference is None:
+                self.held[i] = rgb  # chosen among the reference frames: wait for all of them
+            else:
+                self._image(i, rgb)
+
+    def _image(self, i: int, rgb: np.ndarray) -> None:
+        if self.images is None:
+            self.images = np.empty((self.n, *rgb.shape), np.uint8)
+        first, *others = self.slots[i]
+        if self.subtract:
+            assert self.reference is not None
+            _difference_into(self.images[first], rgb, self.reference, self.gain)
+        else:
+            self.images[first] = rgb
+        for k in others:
+            self.images[k] = self.images[first]
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """(N, H, W, 3) uint8 images, (H, W, 3) float32 reference."""
+        if self.added < len(self.wanted):
+            raise IndexError(f"frame {self.wanted[self.added]} chosen is past the video's end")
+        if self.images is None or self.reference is None:
+            raise ValueError("a press needs at least one reference frame and one frame chosen")
+        self.grey = self.grey or self.colourless
+        return self.images, self.reference
 
 
 def is_grey_video(path: str | os.PathLike[str]) -> bool:
