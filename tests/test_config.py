@@ -1,9 +1,11 @@
 import dataclasses
 import typing
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+import lookfeel.config.loss as config_loss
 from lookfeel.config import (
     AugmentConfig,
     ConfigError,
@@ -254,3 +256,43 @@ def test_the_colour_size_is_checked_where_colour_has_its_own_and_is_trained():
         RunConfig, None, [*base, "data.color_size=32", "train.views=[depth,touch]"]
     )
     no_colour.check_input_sizes(least)
+
+
+def test_loss_options_are_settings_of_one_s_own_loss_recorded_with_the_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """QA (session 57, F5): a loss of one's own could have no setting of its own (``--set
+    loss.alpha=...`` is an unknown key). ``loss.options`` holds them, free-form, checked only
+    as names and plain values that config.yaml (and so the checkpoint) records."""
+    monkeypatch.setitem(config_loss._LOSS_KINDS, "lfopts", None)  # as register_loss does
+    assert LossConfig().options == {}
+    sets = ["loss.kind=lfopts", "loss.options.alpha=0.5", "loss.options.mode=soft"]
+    cfg = load_config(RunConfig, overrides=[*sets, "loss.options.ks=[1, {a: null}]"])
+    assert cfg.loss.options == {"alpha": 0.5, "mode": "soft", "ks": [1, {"a": None}]}
+    save_config(cfg, tmp_path / "config.yaml")
+    assert load_config(RunConfig, tmp_path / "config.yaml") == cfg
+    assert to_dict(cfg)["loss"]["options"] == cfg.loss.options
+    for given, message in [
+        ("loss.options=[1, 2]", "--set loss.options=[1, 2]: loss.options: expected a mapping"),
+        ("loss.options={1: a}", "--set loss.options={1: a}: loss.options.1: expected a string"),
+    ]:
+        with pytest.raises(ConfigError) as e:
+            load_config(RunConfig, overrides=["loss.kind=lfopts", given])
+        assert str(e.value).startswith(message)
+    bad: list[tuple[Any, str]] = [
+        ({"f": object()}, "loss.options.f: a value of type object cannot be written in config"),
+        ({"n": {"ok": [1, {2: 3}]}}, r"loss.options.n.ok\[1\]: a name must be text, got 2"),
+        ({3: 1}, "loss.options: a name must be text, got 3"),
+        ([("a", 1)], "loss.options: expected a mapping of names to values, got a list"),
+    ]
+    for options, message in bad:
+        with pytest.raises(ConfigError, match=f"^{message}"):
+            LossConfig(kind="lfopts", options=options)
+    # The built-in objectives take none: their settings are keys of their own.
+    with pytest.raises(ConfigError) as e:
+        load_config(RunConfig, overrides=["loss.options.alpha=1"])
+    assert str(e.value) == (
+        "--set loss.options.alpha=1: loss.options.alpha: the built-in loss 'contrastive' takes "
+        "no options (its settings are loss's own keys, e.g. loss.margin); options are for a loss "
+        "registered with lookfeel.losses.register_loss"
+    )

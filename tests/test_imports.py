@@ -172,3 +172,21 @@ def test_the_match_path_imports_no_probe_or_fitting_library():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
+
+
+def test_the_top_level_holds_the_names_a_researcher_meets_first():
+    """QA (session 57, F10): `Pair`, the type of every metric key, and `ModalityError`, which
+    `lookfeel.Modality.of` raises, were missing from the top level; losses had no counterpart
+    of `list_backbones`. The top level names where to register one's own."""
+    from lookfeel.losses import list_losses
+    from lookfeel.modality import ModalityError, Pair
+    from lookfeel.models import list_backbones
+
+    assert {"Pair", "ModalityError"} <= set(lookfeel.__all__)
+    assert lookfeel.Pair is Pair and lookfeel.ModalityError is ModalityError
+    with pytest.raises(lookfeel.ModalityError):
+        lookfeel.Modality.of("smell")
+    assert "contrastive" in list_losses() and "compact" in list_backbones()
+    doc = lookfeel.__doc__ or ""
+    for name in ("register_backbone", "register_loss", "list_losses", "list_backbones"):
+        assert name in doc

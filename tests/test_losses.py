@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from typing import get_args
 
 import pytest
@@ -20,6 +21,7 @@ from lookfeel.losses import (
     contrastive_d3,
     create_loss,
     euclidean_distance,
+    list_losses,
     masked_cross_entropy,
     masked_mse,
     mean_squared_distance,
@@ -29,7 +31,7 @@ from lookfeel.losses import (
     register_loss,
     tuple_label,
 )
-from lookfeel.losses.combined import _DISTANCES, PAIR_LOSSES
+from lookfeel.losses.combined import _DISTANCES, HEAD_TERMS, PAIR_LOSSES, TARGETS
 from lookfeel.models import head_key
 
 from ._registry import MeanTripletLoss, restored_registries
@@ -526,8 +528,182 @@ def test_a_loss_that_gives_nothing_to_train_with_is_one_line_naming_it() -> None
     out = {k: v.requires_grad_() for k, v in _outputs().items() if "/" not in k}
     with pytest.raises(
         LossError,
-        match=r"^the loss _Detached: its terms depth_touch_loss do not depend on the embeddings",
+        match=r"^the loss _Detached: term 'depth_touch_loss' does not depend on the embeddings",
     ):
         CombinedLoss(_Detached())(out)
     with torch.no_grad():  # scoring: nothing to train, nothing refused
         assert CombinedLoss(_Detached())(out)["loss"].dim() == 0
+
+
+# ------------------------------------------------------------------------------------------
+# A loss of one's own: what it is given, what it may return (session 57's read-through)
+
+
+def _pair(out: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    return {k: v for k, v in out.items() if "/" not in k}
+
+
+class _Terms(torch.nn.Module):
+    """A loss of one's own returning the terms it was built with: name -> "live" (from the
+    embeddings) or "detached" (cut from them)."""
+
+    def __init__(self, terms: dict[str, str]) -> None:
+        super().__init__()
+        self.terms = terms
+
+    def forward(self, embeddings, y=None, fabric=None):
+        a, b = list(embeddings.values())[:2]
+        live = (a - b).pow(2).mean()
+        return {n: live if how == "live" else live.detach() for n, how in self.terms.items()}
+
+
+def test_a_term_detached_from_the_embeddings_is_refused_naming_the_kind_and_the_term() -> None:
+    """QA (session 57, F3): docs/ARCHITECTURE.md says a term that does not depend on the
+    embeddings is refused, but only the total was checked: a detached term beside a live one,
+    or a wholly detached pair loss beside a live cluster term, trained on without a word."""
+    out = {k: v.requires_grad_() for k, v in _outputs().items()}
+    fabric = {"depth": torch.tensor([0, 1, 2, 0]), "touch": torch.tensor([0, 1, 3, 0])}
+    cluster = {s: torch.tensor([1, 2, -1, 1]) for s in fabric}
+    with restored_registries():
+        register_loss(
+            "halfdetached", lambda c: _Terms({"live_loss": "live", "dead_loss": "detached"})
+        )
+        loss_fn = create_loss(LossConfig(kind="halfdetached"))
+        with pytest.raises(LossError) as e:
+            loss_fn(_pair(out), fabric=fabric)
+        assert str(e.value).startswith(
+            "the loss 'halfdetached' (_Terms): term 'dead_loss' does not depend on the embeddings"
+        )
+        assert "\n" not in str(e.value)
+        register_loss("alldetached", lambda c: _Terms({"depth_touch_loss": "detached"}))
+        with pytest.raises(LossError, match=r"^the loss 'alldetached' \(_Terms\): term 'depth_t"):
+            create_loss(LossConfig(kind="alldetached"))(out, fabric=fabric, cluster=cluster)
+        with torch.no_grad():  # scoring: nothing to train, nothing refused
+            assert set(loss_fn(_pair(out), fabric=fabric)) == {"live_loss", "dead_loss", "loss"}
+    # Embeddings that train nothing themselves (a frozen model): nothing to check either.
+    frozen = {k: v.detach() for k, v in _pair(out).items()}
+    assert CombinedLoss(_Terms({"a_loss": "detached"}))(frozen)["loss"].dim() == 0
+
+
+@pytest.mark.parametrize("name", ["loss", *HEAD_TERMS])
+def test_a_term_named_as_one_of_lookfeel_s_own_is_refused(name: str) -> None:
+    """QA (session 57, F4): a term named ``loss`` was merged into the total and vanished from
+    the log; one named ``cluster_loss`` was overwritten by the cluster head's term."""
+    with restored_registries():
+        register_loss("mine", lambda config: _Terms({name: "live"}))
+        with pytest.raises(LossError) as e:
+            create_loss(LossConfig(kind="mine"))(_pair(_outputs()))
+    assert str(e.value).startswith(
+        f"the loss 'mine' (_Terms): term {name!r} is named as one of lookfeel's own terms (loss, "
+        "cluster_loss, property_loss, class_loss)"
+    )
+
+
+@pytest.mark.parametrize("name", ["mine", "step", "lr", "val/depth_loss", "_loss", "1_loss"])
+def test_a_term_not_named_as_a_loss_term_is_refused(name: str) -> None:
+    """A term's name goes into each log line beside ``step``, ``lr`` and ``val/...``: it is a
+    word ending in ``_loss``, as lookfeel's own terms are."""
+    with pytest.raises(LossError, match=rf"^the loss _Terms: term '{name}' is not named as a l"):
+        CombinedLoss(_Terms({name: "live"}))(_pair(_outputs()))
+    assert "mine_loss" in CombinedLoss(_Terms({"mine_loss": "live"}))(_pair(_outputs()))
+
+
+def test_a_pair_weight_that_names_no_term_of_the_loss_is_warned_of_once() -> None:
+    """QA (session 57, F4): ``loss.pair_weights`` weighs only terms named ``<a>_<b>_loss``; with
+    a loss whose terms are named otherwise (or the contrastive loss's one term on D3), a weight
+    changed nothing, without a word."""
+    out = {s: torch.randn(4, 3, requires_grad=True) for s in ("depth", "color", "touch")}
+    fabric = {s: torch.tensor([0, 1, 2, 0]) for s in out}
+    with restored_registries():
+        register_loss("odd", lambda config: _Terms({"mine_loss": "live"}))
+        odd = create_loss(LossConfig(kind="odd", pair_weights={"depth_touch": 0}))
+    with pytest.warns(UserWarning) as said:
+        first = odd(out, fabric=fabric)
+        odd(out, fabric=fabric)  # once
+    assert [str(w.message) for w in said] == [
+        "loss.pair_weights (depth_touch): the loss 'odd' (_Terms) gives no term named "
+        "depth_touch_loss (its terms: mine_loss), so the weight changes nothing; a pair weight "
+        "applies to a term named <a>_<b>_loss, as lookfeel.losses.FabricPairLoss names them"
+    ]
+    assert list(first) == ["mine_loss", "loss"]
+    d3 = load_config(LossConfig, overrides=["pair_weights={color_touch: 0}"])
+    with pytest.warns(UserWarning, match=r"\(its terms: depth_color_touch_loss\), so the"):
+        create_loss(d3)(out, fabric=fabric)
+    # Weights that apply, or that name a pair of slots the run does not train: no warning.
+    two = {s: out[s] for s in ("depth", "touch")}
+    per_pair = load_config(LossConfig, overrides=["kind=infonce", "pair_weights={color_touch: 0}"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        create_loss(per_pair)(out, fabric=fabric)
+        create_loss(per_pair)(two, fabric=fabric)
+        create_loss(d3)(two, fabric=fabric)
+
+
+class _Sees(torch.nn.Module):
+    """A loss of one's own that takes the cluster and property targets, and an option: it
+    keeps what it was given."""
+
+    def __init__(self, alpha: float) -> None:
+        super().__init__()
+        self.alpha = alpha
+        self.given: list[dict[str, object]] = []
+
+    def forward(self, embeddings, y=None, fabric=None, cluster=None, properties=None):
+        self.given.append({"fabric": fabric, "cluster": cluster, "properties": properties})
+        a, b = embeddings.values()
+        return {"depth_touch_loss": self.alpha * (a - b).pow(2).mean()}
+
+
+class _Everything(torch.nn.Module):
+    """A loss of one's own whose ``forward`` takes any keyword."""
+
+    def forward(self, embeddings, **given):
+        self.given = given
+        a, b = embeddings.values()
+        return {"depth_touch_loss": (a - b).pow(2).mean()}
+
+
+def test_a_loss_of_one_s_own_gets_its_options_and_the_targets_its_forward_names() -> None:
+    """QA (session 57, F5): a loss of one's own saw only the embeddings and fabric ids, and
+    could have no setting of its own. Its settings are ``loss.options``, and its ``forward``
+    is given the batch's cluster, property and class targets that it names; one written as
+    before (``embeddings, y, fabric``) works as before."""
+    out = _pair(_outputs())
+    fabric = {"depth": torch.tensor([0, 1, 2, 0]), "touch": torch.tensor([0, 1, 3, 0])}
+    cluster = {s: torch.tensor([1, 2, -1, 1]) for s in fabric}
+    props = {s: torch.zeros(4, 2) for s in fabric}
+    classes = {s: torch.zeros(4, 0, dtype=torch.long) for s in fabric}
+    assert TARGETS == ("cluster", "properties", "classes")
+    with restored_registries():
+        register_loss("sees", lambda config: _Sees(config.options.get("alpha", 1.0)))
+        cfg = load_config(LossConfig, overrides=["kind=sees", "options.alpha=0.25"])
+        assert cfg.options == {"alpha": 0.25}
+        loss_fn = create_loss(cfg)
+        seen = loss_fn.pair_loss
+        assert isinstance(seen, _Sees) and seen.alpha == 0.25
+        assert loss_fn.pair_targets == ("cluster", "properties")
+        # As the trainer calls it for a model without heads: every target in `targets`.
+        targets = {"cluster": cluster, "properties": props, "classes": classes}
+        terms = loss_fn(out, fabric=fabric, targets=targets)
+        assert list(terms) == ["depth_touch_loss", "loss"]  # no head: no head term
+        assert seen.given[-1] == {"fabric": fabric, "cluster": cluster, "properties": props}
+        # Called as before, it gets the head targets it is given, None for the others.
+        loss_fn(out, fabric=fabric)
+        assert seen.given[-1] == {"fabric": fabric, "cluster": None, "properties": None}
+    everything = CombinedLoss(_Everything())
+    everything(out, fabric=fabric, targets=targets)
+    assert everything.pair_loss.given == {"y": None, "fabric": fabric, **targets}
+    # The built-in objectives and a loss of one's own written as before take none.
+    assert create_loss(LossConfig(kind="infonce")).pair_targets == ()
+    before = CombinedLoss(MeanTripletLoss(0.2))
+    assert before.pair_targets == ()
+    assert before(out, fabric=fabric, targets=targets)["loss"].dim() == 0
+
+
+def test_list_losses_names_the_built_in_and_registered_kinds() -> None:
+    """QA (session 57, F10): `list_backbones` had no counterpart for losses."""
+    assert list_losses() == ["contrastive", "infonce", "triplet"]
+    with restored_registries():
+        register_loss("meantriplet", lambda c: MeanTripletLoss(c.triplet_margin))
+        assert list_losses() == ["contrastive", "infonce", "meantriplet", "triplet"]
+        assert list(loss_kinds()) == list_losses()

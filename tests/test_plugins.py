@@ -281,6 +281,27 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
         "its folder on PYTHONPATH)"
     )
     assert "model.backbone: 'lfplug_cli' is not one of" in str(e.value)
+    # So does resuming it (QA, session 57, F17: --resume named the unknown name, not the module).
+    hint = (
+        f" (the run was trained with the plugin module {name}: lookfeel --plugin {name}, with "
+        "its folder on PYTHONPATH)"
+    )
+    capsys.readouterr()
+    resume = ["train", "--resume", "--data", str(tiny_dataset), "--out", str(out)]
+    assert main([*resume, "--set", "train.steps=2"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"lookfeel: {out / 'config.yaml'}: model.backbone: 'lfplug_cli' is not")
+    assert err.endswith(f"{hint}\n") and err.count("\n") == 1
+    from lookfeel.train import train
+
+    given = load_config(RunConfig, TINY_CONFIG, ["train.steps=2", "train.views=[depth,touch]"])
+    with pytest.raises(ConfigError) as e:
+        train(given, tiny_dataset, out, resume=True)
+    assert str(e.value).startswith(
+        f"--resume (resume=True): {out / 'checkpoints' / 'last.pt'}: the run's config does not "
+        "load: model.backbone: 'lfplug_cli' is not one of"
+    )
+    assert str(e.value).endswith(hint)
     # Installed as an entry point that now fails to import: the error names it and why.
     (tmp_path / "plugins" / f"{name}.py").write_text("import lfplug_missing_dependency\n")
     plugins._reset()
@@ -295,6 +316,57 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
         "'lfplug_missing_dependency')) (the run was trained with the plugin module lfplug_cli: "
         "lookfeel --plugin lfplug_cli, with its folder on PYTHONPATH)"
     ) in str(e.value)
+
+
+_CLUSTER_AWARE = '''\
+"""A user's module: a loss with a setting of its own that reads the cluster targets."""
+from torch import nn
+
+from lookfeel.losses import register_loss
+
+SEEN = []
+
+
+class ClusterAware(nn.Module):
+    def __init__(self, alpha):
+        super().__init__()
+        self.alpha = alpha
+
+    def forward(self, embeddings, y=None, fabric=None, cluster=None):
+        SEEN.append({s: (fabric[s].tolist(), c.tolist()) for s, c in cluster.items()})
+        a, b = embeddings.values()
+        return {"pull_loss": self.alpha * (a - b).pow(2).sum(1).mean()}
+
+
+register_loss("clusteraware", lambda config: ClusterAware(config.options["alpha"]))
+'''
+
+
+def test_a_loss_of_one_s_own_trains_with_its_options_and_the_batch_s_targets(
+    plugin, tiny_dataset: Path, tmp_path: Path
+):
+    """QA (session 57, F5): a loss of one's own saw only embeddings and fabric ids, and could
+    have no setting of its own. Trained through the command line, it is built from
+    ``loss.options`` (recorded in the run's config) and given the batch's cluster targets,
+    though the model has no cluster head (tiny.yaml has none)."""
+    name = plugin("lfplug_cluster")
+    (tmp_path / "plugins" / f"{name}.py").write_text(_CLUSTER_AWARE)
+    out = tmp_path / "run"
+    sets = ["loss.kind=clusteraware", "loss.options.alpha=0.5", "train.steps=2"]
+    sets += ["train.val_every=0", "train.checkpoint_every=0", "train.views=[depth,touch]"]
+    args = ["train", "--config", str(TINY_CONFIG), "--data", str(tiny_dataset), "--out", str(out)]
+    assert main(["--plugin", name, *args, *(x for s in sets for x in ("--set", s))]) == 0
+    seen = sys.modules[name].SEEN
+    assert len(seen) == 2 and all(set(step) == {"depth", "touch"} for step in seen)
+    # Each fabric's cluster is its labels.csv cluster8 (tests/_tiny.py: fabric f's is (f-1) % 3).
+    for step in seen:
+        for ids, clusters in step.values():
+            assert len(ids) == 8 and clusters == [(f - 1) % 3 for f in ids]
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["loss"]["options"] == {"alpha": 0.5}
+    lines = [yaml.safe_load(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    logged = [line for line in lines if "loss" in line][-1]
+    assert set(logged) >= {"pull_loss", "loss"} and "cluster_loss" not in logged
 
 
 def test_a_bad_plugin_option_prints_one_line_and_exits_1(

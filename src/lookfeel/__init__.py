@@ -13,8 +13,12 @@ Start here (README.md's "Training" and "Using a trained model" say more):
 
 Training is `lookfeel.train.train`: the name ``lookfeel.train`` is its package. Matching
 images against a library of fabrics is `lookfeel.index`, scoring a checkpoint
-`lookfeel.evaluate`. ``import lookfeel`` stays light (no torch): `load_model` and the other
-names here that need torch are imported the first time they are used.
+`lookfeel.evaluate`. A backbone or loss of one's own is registered with
+`lookfeel.models.register_backbone` or `lookfeel.losses.register_loss` (`list_backbones`,
+`list_losses` name what is registered; docs/ARCHITECTURE.md, "Where to add things").
+Metrics are keyed by a `Pair` of modalities (``touch_to_depth``). ``import lookfeel`` stays
+light (no torch): `load_model` and the other names here that need torch are imported the first
+time they are used.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from lookfeel.config import (
     load_config,
 )
 from lookfeel.errors import LookfeelError
-from lookfeel.modality import Modality, PressKind
+from lookfeel.modality import Modality, ModalityError, Pair, PressKind
 
 if TYPE_CHECKING:
     from lookfeel.checkpoint import LoadedModel, load_model
@@ -60,7 +64,9 @@ __all__ = [
     "LookfeelError",
     "LossConfig",
     "Modality",
+    "ModalityError",
     "ModelConfig",
+    "Pair",
     "PressKind",
     "RunConfig",
     "TrainConfig",

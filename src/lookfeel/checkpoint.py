@@ -44,6 +44,7 @@ from lookfeel.devices import resolve_device
 from lookfeel.errors import LookfeelError, load_problem
 from lookfeel.modality import Modality
 from lookfeel.models import Embedder, create_model
+from lookfeel.plugins import trained_with_hint
 
 __all__ = [
     "CHECKPOINT_VERSION",
@@ -352,13 +353,7 @@ def load_model(path: str | os.PathLike[str], device: torch.device | str = "cpu")
         with unregistered_loss_kinds_allowed():
             config = from_dict(RunConfig, state["config"])
     except ConfigError as e:
-        plugins = [str(p) for p in state.get("plugins") or ()]
-        hint = (
-            f" (the run was trained with the plugin module {', '.join(plugins)}: "
-            f"lookfeel --plugin {plugins[0]}, with its folder on PYTHONPATH)"
-            if plugins
-            else ""
-        )
+        hint = trained_with_hint(state.get("plugins") or ())
         raise CheckpointError(f"{path}: its config does not load: {e}{hint}") from None
     modalities = [Modality(m) for m in state.get("modalities", config.train.modalities)]
     model = create_model(

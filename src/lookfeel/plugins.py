@@ -38,6 +38,7 @@ import importlib
 import importlib.metadata
 import os
 import re
+import sys
 import types
 import warnings
 from collections.abc import Iterable
@@ -55,6 +56,7 @@ __all__ = [
     "check_registry_name",
     "load_plugins",
     "plugin_modules",
+    "trained_with_hint",
     "unknown_name_hint",
 ]
 
@@ -203,6 +205,23 @@ def unknown_name_hint() -> str:
     else:
         hint += ", which lookfeel.plugins.load_plugins() imports"
     return "; ".join([hint, *_entry_point_failures])
+
+
+def trained_with_hint(modules: Iterable[object]) -> str:
+    """What to add to an error about a trained run's config that does not load: the plugin
+    modules the run was trained with (its checkpoint's ``plugins``) that this process has not
+    imported, and how to load them; ``""`` when it has imported them all.
+
+    Example: ``" (the run was trained with the plugin module my_ext: lookfeel --plugin my_ext,
+    with its folder on PYTHONPATH)"``.
+    """
+    missing = [str(m) for m in modules if str(m) not in sys.modules]
+    if not missing:
+        return ""
+    return (
+        f" (the run was trained with the plugin module {', '.join(missing)}: "
+        f"lookfeel --plugin {missing[0]}, with its folder on PYTHONPATH)"
+    )
 
 
 def add_plugin_modules(names: Iterable[str], option: str = "--plugin") -> None:

@@ -59,7 +59,7 @@ user's own ``config.yaml`` (their --config, with its comments) is not a run to w
 def run(args: argparse.Namespace) -> int:
     """Train, then print where the run is and its validation numbers."""
     check_out_folder(args.out, args.data, RUN_FILES, "a lookfeel run")  # before any work
-    from lookfeel.config import RunConfig, load_config
+    from lookfeel.config import ConfigError, RunConfig, load_config
     from lookfeel.models import BACKBONES
     from lookfeel.train import train
 
@@ -73,7 +73,14 @@ def run(args: argparse.Namespace) -> int:
     given: list[str | Override] = [*overrides]
     if args.pretrained is not None:
         given.append(path_flag("model.pretrained", "--pretrained", args.pretrained))
-    config = load_config(RunConfig, path, given)
+    try:
+        config = load_config(RunConfig, path, given)
+    except ConfigError as e:
+        # A run trained with a plugin this process lacks: name it, as evaluate does.
+        hint = _trained_with(args.out) if args.resume else ""
+        if not hint:
+            raise
+        raise ConfigError(f"{e}{hint}") from None
     # As `train` does first: images smaller than the backbone takes, before any data is read.
     config.check_input_sizes(BACKBONES[config.model.backbone].min_size)
     check_senses(config, args.data, chosen=chosen)
@@ -103,6 +110,24 @@ def run(args: argparse.Namespace) -> int:
         shown = f"  ({'; '.join(notes)})" if notes else ""
         print(f"  val {key:<24} {v:.3f}{shown}")
     return 0
+
+
+def _trained_with(out: Path) -> str:
+    """`lookfeel.plugins.trained_with_hint` of the run in ``out``: the plugin modules its
+    checkpoint records (an ensemble's: its first started member's) that this process has not
+    loaded; ``""`` where there are none, or no checkpoint to read them from."""
+    from lookfeel.checkpoint import CheckpointError, read_checkpoint
+    from lookfeel.plugins import trained_with_hint
+    from lookfeel.train.loop import MEMBERS, resume_checkpoint
+
+    for folder in [out, *sorted((out / MEMBERS).glob("*"))]:
+        source = resume_checkpoint(folder)
+        if source is not None:
+            try:
+                return trained_with_hint(read_checkpoint(source).get("plugins") or ())
+            except CheckpointError:
+                return ""
+    return ""
 
 
 def _held_out_fabrics(val: Mapping[str, object], run_dir: Path) -> int | None:

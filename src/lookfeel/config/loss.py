@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 from lookfeel.config._core import ConfigError, check_choices
 from lookfeel.modality import Modality
@@ -22,7 +22,10 @@ __all__ = [
     "unregistered_loss_kinds_allowed",
 ]
 
-_LOSS_KINDS: dict[str, None] = dict.fromkeys(("contrastive", "infonce", "triplet"))
+_BUILT_IN = ("contrastive", "infonce", "triplet")
+"""lookfeel's own objectives: each reads its settings from its own keys, none from ``options``."""
+
+_LOSS_KINDS: dict[str, None] = dict.fromkeys(_BUILT_IN)
 """The values ``loss.kind`` accepts: the built-in objectives, then those
 `lookfeel.losses.register_loss` adds (`lookfeel.losses.PAIR_LOSSES` holds their builders; a
 test keeps the two in step). Declared here, without torch, so that a config loads before
@@ -108,7 +111,9 @@ class LossConfig:
     the two modalities (``color_touch``, either order; a second slot of one modality is
     ``depth1``); 0 leaves the term out. Pairs not named weigh 1, and a pair whose slots a run
     does not train is ignored. For objectives with a term per slot pair (``infonce``,
-    ``triplet``, or ``contrastive`` with ``contrastive_pairs``)."""
+    ``triplet``, ``contrastive`` with ``contrastive_pairs``, or one's own whose terms are named
+    ``<a>_<b>_loss``): a weight of a pair the run trains whose term the objective does not
+    give changes nothing, and is warned of once."""
     cluster_weight: float = 1.0
     """Weight of the cluster cross-entropy summed over slots (paper's Auxiliary Net: 1, the three
     cross-entropies are added to the contrastive loss). Needs the model's cluster head."""
@@ -119,6 +124,14 @@ class LossConfig:
     """Weight of the masked property regression (mean squared error over known labels, summed
     over slots). Needs the model's property head. The targets are standardised over the training
     fabrics, so every label weighs alike."""
+    options: dict[str, Any] = field(default_factory=dict)
+    """Settings of a loss of one's own (one registered with `lookfeel.losses.register_loss`),
+    by name: ``--set loss.options.alpha=0.5``, or ``options: {alpha: 0.5}`` under ``loss:`` in
+    a YAML file. lookfeel checks only that the names are text and the values plain YAML data
+    (numbers, text, true/false, null, lists and mappings of them), and records them in the
+    run's config.yaml and checkpoint; the loss's build function reads them
+    (``config.options.get("alpha", 0.5)``) and checks them itself. The built-in kinds take
+    none (their settings are the keys above)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.kind, str):
@@ -163,6 +176,7 @@ class LossConfig:
         ):
             if not (math.isfinite(weight) and weight >= 0):
                 raise ConfigError(f"loss.{key}: must be a finite number >= 0, got {weight}")
+        _check_options(self.options, self.kind)
         senses = {m.value for m in Modality}
         for key in self.pair_weights:
             sides = key.split("_")
@@ -171,3 +185,43 @@ class LossConfig:
                     f"loss.pair_weights.{key}: name a pair of modalities as <a>_<b>, each one "
                     f"of {', '.join(sorted(senses))}, e.g. color_touch"
                 )
+
+
+def _check_options(options: object, kind: str) -> None:
+    """Refuse ``loss.options`` that are not a mapping of names to plain YAML data (which
+    config.yaml could not record), or any for a built-in ``kind``, in one line naming the key."""
+    if not isinstance(options, dict):
+        raise ConfigError(
+            f"loss.options: expected a mapping of names to values, got a {type(options).__name__}"
+        )
+    if options and kind in _BUILT_IN:
+        raise ConfigError(
+            f"loss.options.{next(iter(options))}: the built-in loss {kind!r} takes no options "
+            "(its settings are loss's own keys, e.g. loss.margin); options are for a loss "
+            "registered with lookfeel.losses.register_loss"
+        )
+    for name, value in options.items():
+        if not isinstance(name, str):
+            raise ConfigError(f"loss.options: a name must be text, got {name!r}")
+        _check_plain(value, f"loss.options.{name}")
+
+
+def _check_plain(value: object, key: str) -> None:
+    """Refuse a value config.yaml cannot hold: anything but numbers, text, true/false, null and
+    lists and text-keyed mappings of them."""
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _check_plain(v, f"{key}[{i}]")
+        return
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise ConfigError(f"{key}: a name must be text, got {k!r}")
+            _check_plain(v, f"{key}.{k}")
+        return
+    raise ConfigError(
+        f"{key}: a value of type {type(value).__name__} cannot be written in config.yaml; give "
+        "numbers, text, true/false, null, or lists and mappings of them"
+    )

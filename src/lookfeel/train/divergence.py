@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from lookfeel.errors import LookfeelError
+from lookfeel.losses import HEAD_TERMS
 
 __all__ = ["TrainingDiverged", "diverged"]
 
@@ -67,13 +68,9 @@ def diverged(
     if terms:
         where = f", in its term{'s' if len(terms) > 1 else ''} {', '.join(terms)}"
     hint = f"train.lr={lr:g} too high?"
-    if what == "loss" and own_loss is not None and not set(terms) <= _HEAD_TERMS:
+    if what == "loss" and own_loss is not None and not set(terms) <= set(HEAD_TERMS):
         hint = (
             f"does the loss {own_loss!r} divide by zero, say a mean over pairs a batch may "
             f"lack? or train.lr={lr:g} too high?"
         )
     return TrainingDiverged(f"train: the {what} became {became} {when}{where} ({hint}); {tail}")
-
-
-_HEAD_TERMS = {"cluster_loss", "property_loss", "class_loss"}
-"""The loss terms of lookfeel's own heads, whatever the pairwise loss (`CombinedLoss`)."""

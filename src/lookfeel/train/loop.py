@@ -83,6 +83,7 @@ from lookfeel.models import (
     create_model,
     to_channels_last,
 )
+from lookfeel.plugins import trained_with_hint
 from lookfeel.progress import bar, shown
 from lookfeel.provenance import plugin_modules_of, software_versions
 from lookfeel.train.distributed import Distributed
@@ -577,6 +578,13 @@ def _update(run: TrainRun, batch: Mapping[str, Any], cache: bool = True) -> dict
         cluster=batch["clusters"] if run.cluster else None,
         properties=batch["properties"] if run.properties else None,
         classes=batch["classes"] if run.classes else None,
+        # What the objective between slots is given (lookfeel.losses.TARGETS): every target,
+        # whether or not the model has the heads above (an objective of one's own may use them).
+        targets={
+            "cluster": batch["clusters"],
+            "properties": batch["properties"],
+            "classes": batch["classes"],
+        },
     )
     terms["loss"].backward()
     run.dist.reduce_extra_grads(run.loss_fn)
@@ -686,15 +694,22 @@ def config_changes(
     return [(k, a.get(k), b.get(k)) for k in keys]
 
 
-def _check_resume_config(saved: dict[str, Any], given: RunConfig, path: Path) -> RunConfig:
+def _check_resume_config(
+    saved: dict[str, Any], given: RunConfig, path: Path, plugins: Iterable[object] = ()
+) -> RunConfig:
     """The saved config, with a longer ``train.steps`` allowed, and where images are cached or
     how they are decoded (``data.cache_dir``, ``data.decode``, ``data.workers``: the same
     numbers), ``train.progress`` and ``train.threads`` taken from ``given``; any other change
     is an error (a thread count other than the run's is warned of when the run resumes).
     What the run resolved from its labels counts as given where the config leaves it to the
     labels (`as_trained`). ``model.pretrained`` may differ (the same file named from another
-    folder, or no longer there): a resumed run takes every weight from its checkpoint."""
-    old = from_dict(RunConfig, saved)
+    folder, or no longer there): a resumed run takes every weight from its checkpoint. A saved
+    config that does not load names the ``plugins`` it was trained with that are not loaded."""
+    try:
+        old = from_dict(RunConfig, saved)
+    except ConfigError as e:  # a backbone or loss of a plugin this process lacks, say
+        hint = trained_with_hint(plugins)
+        raise ConfigError(f"{_RESUME}: {path}: the run's config does not load: {e}{hint}") from None
     # What cannot change a number: where images are cached, how they are decoded and by how
     # many workers (bit for bit the same, checked), and the progress bar.
     free = (
@@ -946,7 +961,9 @@ def train(
                     "its first one): start it again without --resume"
                 )
             state = read_checkpoint(source)
-            config = _check_resume_config(state["config"], config, source)
+            config = _check_resume_config(
+                state["config"], config, source, state.get("plugins") or ()
+            )
             for path in (last, run_dir / "config.yaml"):  # before the work, not at its end
                 check_writable(path)
         elif (held := resume_checkpoint(run_dir)) is not None:
