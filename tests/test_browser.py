@@ -281,6 +281,9 @@ def test_upload_shows_ranked_fabrics_and_their_images(
         )
         assert browser.wait_for("document.querySelector('#pick').options.length") == 18
         assert "6 fabrics" in browser.eval("document.querySelector('#library').textContent")
+        # Each library item to pick, its fabric by `fabric_id` (as /api/fabrics names it).
+        pick = browser.eval("document.querySelector('#pick').options[0].text")
+        assert re.fullmatch(r"fabric 1: depth \(depth:\d+\)", pick), pick
 
         # A depth map of fabric 3: results appear, fabric 3 first, images in every modality.
         browser.eval("document.querySelector('#modality').value = 'depth'")
@@ -298,6 +301,14 @@ def test_upload_shows_ranked_fabrics_and_their_images(
         props = browser.eval("document.querySelector('.props').textContent")
         # As `lookfeel match` labels them: the likeliest fabrics' labels, not the heads'.
         assert props.startswith("Properties (the 5 likeliest fabrics weighted by P): thickness_mm ")
+        # Read from `properties` by label as `lookfeel predict` gives them: a number's value
+        # with its spread, a rank (a class) with its share, as `lookfeel match` prints them.
+        number, rank = r"[\d.]+ ± [\d.]+", r"\d \(\d+%\)"
+        assert re.fullmatch(
+            rf".*: thickness_mm {number} · density {number} · stiffness {rank} · "
+            rf"stretchiness {rank}",
+            props,
+        ), props
         # Each probability bar is as wide as its P (an inline style the CSP blocks: all full).
         shown = browser.eval(
             "[...document.querySelectorAll('.fabric')].map(f => [f.querySelector('.p')"

@@ -14,7 +14,15 @@ from PIL import Image
 
 from lookfeel.cli import main
 from lookfeel.data import ImageError, ImageLoader, scan
-from lookfeel.index import Library, LibraryError, Matcher, build_library, load_query_image
+from lookfeel.index import (
+    Library,
+    LibraryError,
+    Matcher,
+    MatchFailure,
+    MatchResult,
+    build_library,
+    load_query_image,
+)
 from lookfeel.index import match as match_module
 from lookfeel.modality import Modality
 
@@ -43,7 +51,8 @@ def test_a_new_depth_image_of_a_known_fabric_ranks_it_first(matcher: Matcher, tm
     write_depth(query, fabric=3, k=99)  # a drape of fabric 3 the library has not seen
     [r] = matcher.match_files([query], Modality.DEPTH, top=6)
     assert r.query_modality is Modality.DEPTH and r.gallery_modality is Modality.DEPTH
-    assert r.query == [str(query)] and r.presses == 1 and r.backend == "numpy"
+    assert r.path == str(query) and r.paths == [str(query)] == r.query  # `query`: as before
+    assert r.presses == 1 and r.backend == "numpy"
     assert r.fabrics[0].fabric_id == 3 and r.known and r.message.startswith("fabric 3 (P = ")
     probs = [f.probability for f in r.fabrics]
     assert [f.rank for f in r.fabrics] == [1, 2, 3, 4, 5, 6]
@@ -63,8 +72,10 @@ def test_a_new_depth_image_of_a_known_fabric_ranks_it_first(matcher: Matcher, tm
                 assert item.fabric_id == f.fabric_id and ref.path == item.image
         assert f.distance == pytest.approx(f.nearest["depth"][0].distance, abs=1e-5)
         assert f.labels == lib.fabrics[f.fabric_id].labels
-    # Properties: the top 5 fabrics weighted by probability, among those with the label.
-    by_name = {p.name: p for p in r.properties}
+    # Properties: the top 5 fabrics weighted by probability, among those with the label, by
+    # label column as `predict` gives them; a number's mean is its value, a rank's (stiffness,
+    # stretchiness: classes) the number behind the likeliest rank.
+    by_name = r.properties
     assert list(by_name) == ["thickness_mm", "density", "stiffness", "stretchiness"]
     top5 = r.fabrics[:5]
     for name, est in by_name.items():
@@ -72,8 +83,12 @@ def test_a_new_depth_image_of_a_known_fabric_ranks_it_first(matcher: Matcher, tm
         v = np.array([x for x, _ in known])
         w = np.array([p for _, p in known]) / sum(p for _, p in known)
         assert est.fabrics == len(known)
+        ranks = name in ("stiffness", "stretchiness")
+        mean = est.number if ranks else est.value
+        assert (est.probability is not None) == ranks and (est.number is not None) == ranks
+        assert isinstance(mean, float)
         # rounded to 4 significant digits of the column's largest label (at most 4.0 here)
-        assert est.mean == pytest.approx(float((w * v).sum()), abs=5e-4)
+        assert mean == pytest.approx(float((w * v).sum()), abs=5e-4)
         spread = math.sqrt(float((w * (v - (w * v).sum()) ** 2).sum()))
         assert est.std == pytest.approx(spread, abs=5e-4)
     assert by_name["density"].fabrics == (4 if 2 in [f.fabric_id for f in top5] else 5)
@@ -83,7 +98,7 @@ def test_touch_presses_are_pooled_into_one_query(run, matcher: Matcher):
     data, _ = run
     presses = [data / "touch/F0004_fold_02_400.png", data / "touch/F0004_fold_02_401.png"]
     [r] = matcher.match_files(presses, Modality.TOUCH, top=3)
-    assert r.presses == 2 and r.query == [str(p) for p in presses]
+    assert r.presses == 2 and r.paths == [str(p) for p in presses] and r.path == str(presses[0])
     x = matcher.load(presses, Modality.TOUCH)
     assert x.shape == (1, 2, 3, 32, 32)
     with torch.inference_mode():
@@ -95,7 +110,7 @@ def test_touch_presses_are_pooled_into_one_query(run, matcher: Matcher):
     assert not np.allclose(single, want.numpy())
     drapes = sorted((data / "color").glob("F0002_*.png"))
     results = matcher.match_files(drapes, Modality.COLOR, top=2)
-    assert [res.query for res in results] == [[str(p)] for p in drapes]  # one result each
+    assert [res.paths for res in results] == [[str(p)] for p in drapes]  # one result each
     assert all(res.presses == 1 and len(res.fabrics) == 2 for res in results)
 
 
@@ -130,7 +145,7 @@ def test_many_files_are_embedded_in_batches_with_the_same_answers(
     assert batches == [1]  # a pooled query's 5 presses still go through the model together
     one_pass = np.concatenate([matcher.embed(x[i : i + 1], Modality.COLOR) for i in range(7)])
     np.testing.assert_allclose(every, one_pass, atol=1e-6)
-    assert [r.query for r in split] == [r.query for r in whole] == [[str(p)] for p in drapes]
+    assert [r.paths for r in split] == [r.paths for r in whole] == [[str(p)] for p in drapes]
     for a, b in zip(split, whole, strict=True):
         assert a.message == b.message and a.known == b.known
         assert [f.fabric_id for f in a.fabrics] == [f.fabric_id for f in b.fabrics]
@@ -249,8 +264,22 @@ def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
     assert len(r["fabrics"]) == 3 and r["property_fabrics"] == 1
     best = r["fabrics"][0]["fabric_id"]  # one fabric: its own labels, no spread
     labels = {f["id"]: f["labels"] for f in matcher.library.manifest["fabrics"]}[best]
-    thickness = {p["name"]: p for p in r["properties"]}["thickness_mm"]
-    assert (thickness["mean"], thickness["std"]) == (pytest.approx(labels["thickness_mm"]), 0.0)
+    # As `predict --json`: label -> its value, probability ..., the spread and count beside.
+    assert list(r["properties"]) == ["thickness_mm", "density", "stiffness", "stretchiness"]
+    thickness = r["properties"]["thickness_mm"]
+    assert thickness == {
+        "value": pytest.approx(labels["thickness_mm"]),
+        "probability": None,
+        "probabilities": {},
+        "number": None,
+        "std": 0.0,
+        "fabrics": 1,
+    }
+    stiffness = r["properties"]["stiffness"]  # a rank: the class, the mean rank behind it
+    assert stiffness["value"] == int(labels["stiffness"]) and stiffness["probability"] == 1.0
+    assert stiffness["number"] == pytest.approx(labels["stiffness"])
+    assert r["path"] == depth and r["paths"] == [depth] and r["error"] is None
+    assert "query" not in r
     assert main([*args, "--property-fabrics", "1"]) == 0
     assert "properties (the likeliest fabric weighted by P)" in capsys.readouterr().out
     with pytest.raises(SystemExit):
@@ -265,6 +294,72 @@ def test_cli_match(run, matcher: Matcher, tmp_path: Path, capsys):
     assert "x.png: file not found" in capsys.readouterr().err
     assert main(["match", "--index", str(tmp_path), "--modality", "depth", depth]) == 1
     assert "not a lookfeel library" in capsys.readouterr().err
+
+
+def test_each_query_is_matched_or_answered_with_its_error(
+    run, matcher: Matcher, tmp_path: Path, capsys
+):
+    """QA: `match --json good.png missing.png other.png` exited 1 with no JSON at all, where
+    `predict` answers each query: a file that cannot be used is now its own query's `error`
+    and the others are matched; the exit status is 1 only when nothing was."""
+    data, _ = run
+    lib = str(matcher.library.root)
+    good = [str(data / f"depth/F000{f}_Depth_New_000001.png") for f in (4, 3)]
+    missing = str(tmp_path / "missing.png")
+    notes = tmp_path / "notes.png"
+    notes.write_text("not an image")
+    answers = matcher.match_each([good[0], missing, notes, good[1]], "depth", top=2)
+    gone = MatchFailure(missing, [missing], Modality.DEPTH, f"{missing}: file not found")
+    assert answers[1] == gone
+    bad = answers[2]
+    assert isinstance(bad, MatchFailure) and bad.paths == [str(notes)]
+    assert bad.error.startswith(f"{notes}: not a PNG or JPEG image")
+    alone = matcher.match_files(good, "depth", top=2)
+    for a, r in zip(alone, (answers[0], answers[3]), strict=True):  # the others: as alone
+        assert isinstance(r, MatchResult) and (r.paths, r.fabrics) == (a.paths, a.fabrics)
+        assert r.properties == a.properties
+    with pytest.raises(ImageError, match="missing.png: file not found"):
+        matcher.match_files([good[0], missing], "depth")  # the Python API's one call: raised
+
+    for modality in (["--modality", "depth"], []):  # guessed: the others' modality
+        argv = ["match", "--index", lib, *modality, good[0], missing, good[1], "--top", "2"]
+        assert main([*argv, "--json"]) == 0
+        out = capsys.readouterr()
+        entries = json.loads(out.out)
+        assert [e["error"] for e in entries] == [None, f"{missing}: file not found", None]
+        assert out.err.splitlines() == [
+            f"lookfeel: warning: {missing}: file not found; nothing matched for it"
+        ]
+        entry = entries[1]
+        assert list(entry) == list(entries[0])  # every key, as each of predict's entries
+        assert (entry["path"], entry["paths"], entry["query_modality"]) == (
+            missing,
+            [missing],
+            "depth",
+        )
+        assert (entry["fabrics"], entry["properties"], entry["known"]) == ([], {}, None)
+        assert [e["fabrics"][0]["fabric_id"] for e in (entries[0], entries[2])] == [4, 3]
+    # Without --json: each result printed, the failed one in its place, as predict prints it.
+    assert main(["match", "--index", lib, "--modality", "depth", good[0], missing]) == 0
+    blocks = capsys.readouterr().out.strip().split("\n\n")
+    assert blocks[0].startswith("Query depth (1 image: F0004_Depth_New_000001.png) against")
+    assert blocks[1] == f"{missing}: file not found (nothing matched)"
+    # Nothing matched: exit 1, each query's error said; --json still answers each.
+    argv = ["match", "--index", lib, "--modality", "depth", missing, str(notes), "--json"]
+    assert main(argv) == 1
+    out = capsys.readouterr()
+    assert [(e["path"], e["error"] is not None) for e in json.loads(out.out)] == [
+        (missing, True),
+        (str(notes), True),
+    ]
+    assert out.err.splitlines()[0] == f"lookfeel: {missing}: file not found"
+    # Touch presses are one query, which a missing press fails (as `predict --together`).
+    for modality in (["--modality", "touch"], []):
+        presses = [str(data / "touch/F0005_fold_02_500.png"), missing]
+        assert main(["match", "--index", lib, *modality, *presses, "--json"]) == 1
+        [entry] = json.loads(capsys.readouterr().out)
+        assert (entry["path"], entry["paths"]) == (presses[0], presses)
+        assert (entry["query_modality"], entry["error"]) == ("touch", f"{missing}: file not found")
 
 
 def test_property_estimates_drop_the_weights_rounding_noise_and_name_classes(
@@ -285,32 +380,32 @@ def test_property_estimates_drop_the_weights_rounding_noise_and_name_classes(
     assert m.library.classes == {"stiffness": ("0", "1", "2", "3", "4"), "stretchiness": ("0", "1")}
 
     # Fabric 2 all but certain, fabric 1 at 1e-20: its labels must not show as 5e-21.
-    by_name = {p.name: p for p in m._properties([(2, 1.0), (1, 1e-20)])}
+    by_name = m._properties([(2, 1.0), (1, 1e-20)])
     thickness = by_name["thickness_mm"]
-    assert (thickness.mean, thickness.std, thickness.value) == (0.0, 0.0, None)
-    assert str(thickness.mean) == "0.0"  # not -0.0
+    assert (thickness.value, thickness.std, thickness.probability) == (0.0, 0.0, None)
+    assert str(thickness.value) == "0.0"  # not -0.0
     stretch = by_name["stretchiness"]
     assert (stretch.value, stretch.probability) == (0, 1.0)
     assert stretch.probabilities == {"0": 1.0, "1": 0.0}
     assert by_name["density"].fabrics == 1  # fabric 2's density is unknown: fabric 1's, 0.2
 
     # The most likely class is the one whose fabrics carry the most weight, as a share.
-    split = {p.name: p for p in m._properties([(1, 0.6), (2, 0.3), (3, 0.1)])}
+    split = m._properties([(1, 0.6), (2, 0.3), (3, 0.1)])
     assert (split["stretchiness"].value, split["stretchiness"].probability) == (1, 0.7)
     assert split["stiffness"].probabilities == {"0": 0.0, "1": 0.6, "2": 0.3, "3": 0.1, "4": 0.0}
-    assert split["stretchiness"].mean == pytest.approx(0.7)  # the numbers are kept as well
+    assert split["stretchiness"].number == pytest.approx(0.7)  # the numbers are kept as well
 
     query = tmp_path / "q.png"
     write_depth(query, fabric=2, k=50)
     [r] = m.match_files([query], Modality.DEPTH)
-    line = format_match(replace(r, properties=list(by_name.values()))).splitlines()[-1]
+    line = format_match(replace(r, properties=by_name)).splitlines()[-1]
     assert line == (
         "  properties (the 5 likeliest fabrics weighted by P): thickness_mm 0 ± 0, "
         "density 0.2 ± 0, stiffness 2 (100%), stretchiness 0 (100%)"
     )
     # No known fabric: the shares are of the nearest fabrics, not a finding (QA: "100%" beside
     # P = 0.000 read as certainty).
-    unknown = format_match(replace(r, known=False, properties=list(by_name.values())))
+    unknown = format_match(replace(r, known=False, properties=by_name))
     assert unknown.splitlines()[-1].startswith(
         "  properties (the 5 likeliest fabrics weighted by P; no known fabric: the nearest "
         "ones', a guess): thickness_mm 0 ± 0"
@@ -333,7 +428,7 @@ def test_a_model_trained_on_still_frames_takes_frames_and_videos(
     video = write_video(tmp_path / "press.mov", object_press(1, PRESS, t=14))
     with pytest.warns(UserWarning, match=r"press.mov: this model was trained on still GelSight"):
         [r] = matcher.match_files([video], Modality.TOUCH, top=2)  # read as a press video is read
-    assert r.query == [str(video)] and len(r.fabrics) == 2
+    assert r.paths == [str(video)] and len(r.fabrics) == 2
 
 
 def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, matcher: Matcher):
@@ -349,7 +444,7 @@ def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, matcher: M
     [want] = matcher.match_files([photo], Modality.COLOR, gallery=Modality.DEPTH)
     for paths in (str(photo), photo):  # one file, not one per character of its name
         [r] = matcher.match_files(paths, "color", gallery="depth")
-        assert r.query == [str(photo)] and r.query_modality is Modality.COLOR
+        assert r.paths == [str(photo)] and r.query_modality is Modality.COLOR
         assert r.gallery_modality is Modality.DEPTH and r.fabrics == want.fabrics
     assert matcher.match_item("depth:7", gallery="color").gallery_modality is Modality.COLOR
     press = data / "touch/F0004_fold_02_400.png"
@@ -367,7 +462,7 @@ def test_a_modality_by_name_and_a_single_path_are_taken_as_meant(run, matcher: M
 def test_a_query_embedding_must_be_one_finite_vector_of_the_library_s_width(matcher: Matcher):
     e = matcher.library.table(Modality.DEPTH).embeddings[7]
     r = matcher.match_embedding(torch.from_numpy(e), "depth", "q.png")
-    assert r.known and r.query == ["q.png"]
+    assert r.known and r.paths == ["q.png"] and r.path == "q.png"
     for bad in (np.full_like(e, np.nan), np.where(np.arange(len(e)) == 0, np.inf, e)):
         with pytest.raises(LibraryError, match="embedding of q.png holds non-finite values"):
             matcher.match_embedding(bad, Modality.DEPTH, ["q.png"])  # not "library item" itself
@@ -425,7 +520,7 @@ def test_a_grey_press_video_is_matched_with_one_warning_naming_it(matcher: Match
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")
             [r] = matcher.match_files(paths, Modality.TOUCH, top=2)
-        assert r.query == [str(p) for p in paths] and len(r.fabrics) == 2  # still matched
+        assert r.paths == [str(p) for p in paths] and len(r.fabrics) == 2  # still matched
         return [str(w.message) for w in said if "no colour" in str(w.message)]
 
     assert grey_lines([v["grey"]]) == [f"{v['grey']}: {grey}"]

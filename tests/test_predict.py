@@ -556,3 +556,49 @@ def test_a_missing_file_is_its_own_inputs_error_and_the_others_are_answered(
     ]
     assert [a["error"] for a in json.loads(out.out)] == [f"{missing}: file not found", None]
     assert main(["predict", "--checkpoint", str(heads.path), str(missing)]) == 1  # none answered
+
+
+def test_match_gives_each_property_as_predict_gives_it(
+    run, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    """One shape for a property everywhere (issue #13's contract): `match --json`'s
+    ``properties`` (and ``serve``'s) was a list of {name, mean, ...} where `predict --json`'s is
+    label -> {value, probability, probabilities, number}. Now match gives each label
+    predict's fields, in predict's order and of its kinds (a number, a class in the column's own
+    terms), its spread ``std`` and count ``fabrics`` beside; and names its files as predict."""
+    import json
+
+    from lookfeel.cli import main
+    from lookfeel.index import build_library
+
+    data, _ = run
+    sets = ["model.class_heads=[stretchiness]", "model.num_properties=auto", "train.steps=2"]
+    sets += ["train.split=none", "train.val_every=0", "train.checkpoint_every=0"]
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as `tests._library.tiny_run`: faster on a shared CPU
+    try:
+        result = train(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
+    finally:
+        torch.set_num_threads(threads)
+    lib = tmp_path / "lib"
+    build_library(result.last_checkpoint, data, lib, calibration_queries=20)
+    photo = str(data / "color/F0003_2.png")
+    capsys.readouterr()
+    assert main(["predict", "--checkpoint", str(result.last_checkpoint), photo, "--json"]) == 0
+    [predicted] = json.loads(capsys.readouterr().out)
+    assert main(["match", "--index", str(lib), photo, "--json"]) == 0
+    [matched] = json.loads(capsys.readouterr().out)
+    for key in ("path", "paths", "error"):
+        assert matched[key] == predicted[key]
+    # stretchiness: a class head / a class; thickness_mm: a number; stiffness: a rank
+    assert isinstance(matched["properties"], dict)
+    both = set(predicted["properties"]) & set(matched["properties"])
+    assert {"stretchiness", "thickness_mm", "stiffness"} <= both
+    for label, p in predicted["properties"].items():
+        m = matched["properties"][label]
+        assert list(m) == [*p, "std", "fabrics"], label
+        assert type(m["value"]) is type(p["value"]), label  # int rank, float number
+        if p["probabilities"]:  # a class head's classes (a rank regressed has none)
+            assert set(m["probabilities"]) == set(p["probabilities"]), label
+    stretch = matched["properties"]["stretchiness"]
+    assert stretch["probability"] == max(stretch["probabilities"].values())

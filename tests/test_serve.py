@@ -88,9 +88,18 @@ def test_openapi_describes_the_api(server):
     match = schema["paths"]["/api/match"]["post"]
     assert {"413", "415", "422", "503"} <= set(match["responses"])
     assert "multipart/form-data" in match["requestBody"]["content"]
-    assert {"MatchResult", "FabricMatch", "ItemRef", "PropertyEstimate"} <= set(
-        schema["components"]["schemas"]
-    )
+    schemas = schema["components"]["schemas"]
+    assert {"MatchResult", "FabricMatch", "ItemRef", "PropertyEstimate"} <= set(schemas)
+    # A result names its files and gives its properties as `lookfeel predict` does.
+    result = schemas["MatchResult"]["properties"]
+    assert {"path", "paths"} <= set(result) and "query" not in result
+    by_label = result["properties"]
+    assert by_label["type"] == "object"
+    assert by_label["additionalProperties"] == {"$ref": "#/components/schemas/PropertyEstimate"}
+    assert list(schemas["PropertyEstimate"]["properties"]) == [
+        "value", "probability", "probabilities", "number", "std", "fabrics",
+    ]  # fmt: skip
+    assert "fabric_id" in schemas["FabricInfo"]["properties"]
 
 
 def test_library_fabrics_and_item_images(server):
@@ -100,7 +109,8 @@ def test_library_fabrics_and_item_images(server):
     assert info["backbone"] == "compact" and info["limits"]["max_files"] == 3
     assert info["uploads"] == info["modalities"] == ["depth", "color", "touch"]
     fabrics = httpx.get(url + "/api/fabrics", params={"per_modality": 1}).json()
-    assert [f["id"] for f in fabrics] == [1, 2, 3, 4, 5, 6]
+    assert [f["fabric_id"] for f in fabrics] == [1, 2, 3, 4, 5, 6]  # as a match names them
+    assert "id" not in fabrics[0]  # an `id` is an item's (depth:6)
     assert fabrics[2]["items"] == {"depth": ["depth:6"], "color": ["color:6"], "touch": ["touch:6"]}
     item = httpx.get(url + "/api/items/touch:6").json()
     assert item["fabric_id"] == 3 and item["file"] == "F0003_fold_02_300.png"
@@ -128,7 +138,13 @@ def test_upload_matches_and_touch_presses_pool(run, server):
     )
     assert r.status_code == 200, r.text
     [res] = r.json()["results"]
-    assert res["query"] == ["my drape.png"] and res["fabrics"][0]["fabric_id"] == 3
+    assert (res["path"], res["paths"]) == ("my drape.png", ["my drape.png"])
+    assert "query" not in res and res["fabrics"][0]["fabric_id"] == 3
+    thickness = res["properties"]["thickness_mm"]  # as `lookfeel predict` answers, by label
+    assert isinstance(thickness["value"], float) and thickness["probability"] is None
+    assert thickness["fabrics"] == 5 and thickness["std"] >= 0
+    stiffness = res["properties"]["stiffness"]  # a rank (a class of numbers)
+    assert stiffness["value"] in range(5) and stiffness["probability"] > 0
     assert len(res["fabrics"]) == 3 and res["known"] is True
     ref = res["fabrics"][0]["nearest"]["touch"][0]
     assert "/" not in ref["path"] and httpx.get(f"{url}/api/items/{ref['id']}/image").is_success
@@ -480,7 +496,7 @@ def test_a_pooled_upload_leaves_out_a_video_without_a_press_as_match_does(run, t
         assert body["warnings"] == said
         assert warned.replace(str(static), "static.mov") in said
         [res] = body["results"]
-        assert res["query"] == ["spoon_1.mov"] and res["presses"] == 1
+        assert res["paths"] == ["spoon_1.mov"] and res["presses"] == 1
         assert [(f["fabric_id"], f["probability"]) for f in res["fabrics"]] == [
             (f.fabric_id, f.probability) for f in expected.fabrics
         ]

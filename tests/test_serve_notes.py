@@ -192,7 +192,7 @@ def test_a_grey_press_video_upload_is_answered_with_one_note_naming_it(run, tmp_
                 )
             assert r.status_code == 200, r.text
             [result] = r.json()["results"]
-            assert result["query"] == [p.name for p in paths] and len(result["fabrics"]) == 2
+            assert result["paths"] == [p.name for p in paths] and len(result["fabrics"]) == 2
             assert not [w for w in on_server if GREY_VIDEO in str(w.message)]
             return [w for w in r.json()["warnings"] if GREY_VIDEO in w]
 

@@ -82,7 +82,7 @@ def test_a_running_server_serves_the_library_rebuilt_under_it(
         assert _until(lambda: client.get("/api/library").json()["fabrics"] == 4), notes
         assert [n for n in notes if "now serving it (4 fabrics" in n], notes
         fabrics = client.get("/api/fabrics").json()
-        assert sorted(f["id"] for f in fabrics) == [1, 2, 3, 4]
+        assert sorted(f["fabric_id"] for f in fabrics) == [1, 2, 3, 4]
         item = fabrics[0]["items"]["depth"][0]
         image = client.get(f"/api/items/{item}/image")
         assert image.status_code == 200 and image.content.startswith(b"\x89PNG")

@@ -12,10 +12,14 @@ by its probability: the weighted mean and standard deviation of their known labe
 1e-20 does not make a mean of 5e-20); for a column of classes (words such as material, ranks
 such as hardness 0/1/2: `Library.classes`) the most likely class, the one whose fabrics carry
 the most weight, with that share as its probability, as ``lookfeel predict`` answers a class
-head. Fabrics are named by name where the data names its objects (``sponge``), else by id
-(``fabric 7``). When the best probability is below the calibrated threshold the answer is "no
-known fabric", with the chance level 1/F beside it, and a note when the pair's threshold
-accepted no known fabric at all in calibration (its ranking is then still worth reading).
+head. They come as ``lookfeel predict`` gives its own (`lookfeel.predict.PropertyValue`): a
+mapping from label column to its `PropertyEstimate`, whose ``value`` is the answer in the
+column's own terms (the mean, the rank 2, the word ``metal``), ``probability`` beside a class,
+and the spread ``std`` and the count of fabrics ``fabrics`` beside. Fabrics are named by name
+where the data names its objects (``sponge``), else by id (``fabric 7``). When the best
+probability is below the calibrated threshold the answer is "no known fabric", with the chance
+level 1/F beside it, and a note when the pair's threshold accepted no known fabric at all in
+calibration (its ranking is then still worth reading).
 
 A pair that calibration found better matched through its cross-modal map (``mapped``, see
 `lookfeel.index.calibrate`) is matched that way: D is then the map's distance (both routes and
@@ -34,6 +38,10 @@ built before that is not checked). A press video with no colour (grey: `warn_gre
 matched with one warning naming it: the model reads a press's colours. A model whose checkpoint
 records that it was trained on grey presses (`lookfeel.checkpoint.LoadedModel.trained_on_grey`)
 is warned of a colour press video instead, and of no grey one.
+
+`Matcher.match_files` raises on the first file it cannot use; `Matcher.match_each` (``lookfeel
+match``) answers such a file's query with a `MatchFailure` naming it and matches the others, as
+``lookfeel predict`` answers each query (`lookfeel.predict.predict_files`).
 """
 
 from __future__ import annotations
@@ -65,6 +73,7 @@ from lookfeel.index.query import (
     check_touch_files,
     check_touch_query,
     load_query_files,
+    load_query_image,
     query_batch,
     query_paths,
     warn_orientation,
@@ -81,6 +90,7 @@ __all__ = [
     "GREY_VIDEO",
     "FabricMatch",
     "ItemRef",
+    "MatchFailure",
     "MatchResult",
     "Matcher",
     "PropertyEstimate",
@@ -312,23 +322,37 @@ class ItemRef:
 
 @dataclass(frozen=True)
 class PropertyEstimate:
-    """A physical property predicted from the best-matching fabrics."""
+    """A physical property predicted from the best-matching fabrics, in the shape of ``lookfeel
+    predict``'s `lookfeel.predict.PropertyValue` (its fields first, in its order), with the
+    spread and the count of fabrics beside: ``MatchResult.properties`` maps each label column
+    to one.
 
-    name: str
-    mean: float | None
-    """Probability-weighted mean over the top fabrics with the label known; None if none is,
-    or the column is of words. Rounded to `PROPERTY_DIGITS` digits of the column's scale."""
-    std: float | None
-    """Probability-weighted standard deviation (the spread among plausible fabrics)."""
-    fabrics: int
-    """How many fabrics carried the label."""
+    The column's kind says which fields are set: a column of numbers gives ``value`` (the mean)
+    and ``std``; a column of words (material) ``value`` (the class), ``probability`` and
+    ``probabilities``; a column of ranks (hardness 0/1/2, a class of numbers) all of them, the
+    rank as ``value`` and the mean of the ranks as ``number``. A column that none of the
+    likeliest fabrics carries: ``value`` None and ``fabrics`` 0.
+    """
+
     value: int | float | str | None = None
-    """For a column of classes (`Library.classes`): the most likely class, in the column's
-    own terms (the rank ``2``, the word ``"metal"``); None for other columns."""
+    """The answer in the column's own terms: for a column of classes (`Library.classes`) the
+    most likely class (the rank ``2``, the word ``"metal"``); for other numbers the
+    probability-weighted mean over the likeliest fabrics with the label known, rounded to
+    `PROPERTY_DIGITS` digits of the column's scale. None when none of them has the label."""
     probability: float | None = None
-    """The most likely class's probability: the share of the fabrics' weight that carries it."""
+    """The most likely class's probability: the share of the fabrics' weight that carries it;
+    None for a column of numbers that are not classes."""
     probabilities: dict[str, float] = field(default_factory=dict)
     """Every class's share, in the column's class order (classes no top fabric carries: 0)."""
+    number: float | None = None
+    """For a column of ranks (classes of numbers), the probability-weighted mean of the ranks
+    behind ``value`` (``0.7`` for the rank ``1``), as ``predict`` gives the number behind a rank;
+    None otherwise (a column of plain numbers has its mean as ``value``)."""
+    std: float | None = None
+    """Probability-weighted standard deviation of the number (``value``, or ``number`` for a
+    column of ranks): the spread among plausible fabrics. None for a column of words."""
+    fabrics: int = 0
+    """How many fabrics carried the label."""
 
 
 @dataclass(frozen=True)
@@ -359,8 +383,11 @@ class MatchResult:
 
     query_modality: Modality
     gallery_modality: Modality
-    query: list[str]
-    """The query's files (several for a multi-press touch query)."""
+    path: str
+    """The query's file (the first, of a multi-press touch query)."""
+    paths: list[str]
+    """The query's files (several for a multi-press touch query), as ``lookfeel predict``
+    names them."""
     presses: int
     """Images pooled into this query (touch presses; 1 for depth and colour)."""
     known: bool
@@ -372,11 +399,36 @@ class MatchResult:
     c: float
     message: str
     fabrics: list[FabricMatch]
-    properties: list[PropertyEstimate]
+    properties: dict[str, PropertyEstimate]
+    """Label column -> its estimate, as ``lookfeel predict``'s ``properties`` (numeric columns
+    in the dataset's order, then the columns of words that are classes)."""
     property_fabrics: int
     """How many of the likeliest fabrics the properties were drawn from (whatever ``top``)."""
     backend: str
     timing_ms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def query(self) -> list[str]:
+        """The query's files: ``paths``, by its name before it was named as ``predict``'s."""
+        return self.paths
+
+
+@dataclass(frozen=True)
+class MatchFailure:
+    """A query `Matcher.match_each` could not match, and why: as ``lookfeel predict`` answers
+    such a query (`lookfeel.predict.Prediction` with its ``error``)."""
+
+    path: str
+    """The query's file (the first, of a multi-press touch query)."""
+    paths: list[str]
+    """Every file of the query."""
+    query_modality: Modality | None
+    """What the files show; None where that could not be told (``lookfeel match`` without
+    ``--modality``, of a file it could not read)."""
+    error: str
+    """Why it is not matched, in one line naming the file: it is missing, a folder, not an
+    image or video, cannot be decoded, is a still touch image for a model trained on press
+    videos, or holds no press (every press of a touch query: one without is left out)."""
 
 
 class Matcher:
@@ -514,22 +566,82 @@ class Matcher:
                 cores). One batch, or a touch query (one pooled query), shows none.
 
         Raises:
-            ImageError: naming a file that cannot be used.
+            ImageError: naming a file that cannot be used (`match_each` answers its query
+                with a `MatchFailure` instead, and matches the others).
             LibraryError: the modality or gallery is not in the library.
             ModalityError: ``modality`` or ``gallery`` names no modality.
             LookfeelError: no file given.
         """
+        out = []
+        for r in self._match(
+            paths, modality, top, gallery, k_properties, n_items, progress, each=False
+        ):
+            assert isinstance(r, MatchResult)  # without ``each``, a file's error is raised
+            out.append(r)
+        return out
+
+    def match_each(
+        self,
+        paths: QueryFiles,
+        modality: Modality | str,
+        top: int = 5,
+        gallery: Modality | str | None = None,
+        k_properties: int = 5,
+        n_items: int = 2,
+        *,
+        progress: bool = False,
+    ) -> list[MatchResult | MatchFailure]:
+        """`match_files`, but a file that cannot be used (missing, a folder, undecodable, of a
+        kind the model does not take, a press video without a press) is its own query's
+        `MatchFailure`, naming it, and the other queries are matched (``lookfeel match``,
+        as ``lookfeel predict`` answers each query). Depth and colour files are each a query;
+        touch files are one pooled query, which one such file fails (a press video without a
+        press among others is left out with a warning, as `match_files` leaves it out).
+
+        Returns:
+            One entry per depth/colour file, in their order, or one for all touch presses.
+
+        Raises:
+            LibraryError: the modality or gallery is not in the library (every query's).
+            ModalityError: ``modality`` or ``gallery`` names no modality.
+            LookfeelError: no file given.
+        """
+        return self._match(
+            paths, modality, top, gallery, k_properties, n_items, progress, each=True
+        )
+
+    def _match(
+        self,
+        paths: QueryFiles,
+        modality: Modality | str,
+        top: int,
+        gallery: Modality | str | None,
+        k_properties: int,
+        n_items: int,
+        progress: bool,
+        *,
+        each: bool,
+    ) -> list[MatchResult | MatchFailure]:
+        """`match_files` (``each`` False: a file's error is raised) or `match_each`."""
         modality = Modality.of(modality)
         gallery = None if gallery is None else Modality.of(gallery)  # before any file is read
         modality = self.check_modality(modality)
         loading = embedding = 0.0
-        used: list[Path] = []
+        failed: dict[int, MatchFailure] = {}  # position in the answer -> its failure
+        groups: list[list[str]] = []  # of the queries read, their files
         if modality is Modality.TOUCH:  # one query: every press is pooled, read together
             t0 = time.perf_counter()
-            x, used = self._load(paths, modality)
+            try:
+                x, used = self._load(paths, modality)
+            except ImageError as e:
+                if not each:
+                    raise
+                given = [str(p) for p in query_paths(paths)]
+                return [MatchFailure(given[0], given, modality, str(e))]
             t1 = time.perf_counter()
             emb = self.embed(x, modality)
             loading, embedding = t1 - t0, time.perf_counter() - t1
+            groups = [[str(p) for p in used]]
         else:  # separate queries: decoded and embedded EMBED_BATCH at a time (memory)
             files = self._check(paths, modality)
             parts: list[NDArray[np.float32]] = []
@@ -538,22 +650,34 @@ class Matcher:
             with bar:  # closed (its line cleared) before an error is printed
                 for start in range(0, len(files), EMBED_BATCH):
                     t0 = time.perf_counter()
-                    batch = files[start : start + EMBED_BATCH]
-                    images, read = load_query_files(batch, modality, self.data_config)
+                    images = []
+                    for i, p in enumerate(files[start : start + EMBED_BATCH], start):
+                        try:
+                            images.append(load_query_image(p, modality, self.data_config))
+                        except ImageError as e:  # this file's own query
+                            if not each:
+                                raise
+                            failed[i] = MatchFailure(str(p), [str(p)], modality, str(e))
+                            continue
+                        groups.append([str(p)])
                     t1 = time.perf_counter()
-                    parts.append(self.embed(query_batch(images, modality), modality))
-                    used += read
+                    if images:
+                        parts.append(self.embed(query_batch(images, modality), modality))
                     del images  # this batch's decoded images go before the next is read
                     loading += t1 - t0
                     embedding += time.perf_counter() - t1
-                    bar.update(len(batch))
-            emb = np.concatenate(parts)
-        names = [str(p) for p in used]
-        groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
-        results = []
-        for e, group in zip(emb, groups, strict=True):
+                    bar.update(min(EMBED_BATCH, len(files) - start))
+            dim = self.library.embed_dim
+            emb = np.concatenate(parts) if parts else np.zeros((0, dim), np.float32)
+        matched = iter(zip(emb, groups, strict=True))
+        results: list[MatchResult | MatchFailure] = []
+        for i in range(len(failed) + len(groups)):
+            if i in failed:
+                results.append(failed[i])
+                continue
+            vector, group = next(matched)
             r = self.match_embedding(
-                e,
+                vector,
                 modality,
                 group,
                 top=top,
@@ -721,7 +845,8 @@ class Matcher:
         return MatchResult(
             query_modality=modality,
             gallery_modality=g,
-            query=list(files),
+            path=files[0] if files else "",
+            paths=list(files),
             presses=len(files) if modality is Modality.TOUCH else 1,
             known=known,
             best_probability=best,
@@ -843,12 +968,12 @@ class Matcher:
             text_labels=dict(record.text_labels) if record else {},
         )
 
-    def _properties(self, ranked: list[tuple[int, float]]) -> list[PropertyEstimate]:
+    def _properties(self, ranked: list[tuple[int, float]]) -> dict[str, PropertyEstimate]:
         """Per label column (numeric ones in the dataset's order, then the columns of words
         that are classes), the estimate from the ``ranked`` (fabric id, probability) pairs."""
         lib = self.library
         columns = [*lib.label_columns, *(c for c in lib.classes if c not in lib.label_columns)]
-        out = []
+        out: dict[str, PropertyEstimate] = {}
         for name in columns:
             cells: list[tuple[float | None, str | None, float]] = []
             for fid, p in ranked:
@@ -860,7 +985,7 @@ class Matcher:
                 if number is not None or cls is not None:
                     cells.append((number, cls, p))
             if not cells:
-                out.append(PropertyEstimate(name, None, None, 0))
+                out[name] = PropertyEstimate()
                 continue
             w = np.asarray([p for _, _, p in cells], dtype=np.float64)
             w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
@@ -871,23 +996,20 @@ class Matcher:
                 spread = math.sqrt(max(float((w * (v - m) ** 2).sum()), 0.0))
                 mean, std = self._round(name, m), self._round(name, spread)
             if name not in lib.classes:
-                out.append(PropertyEstimate(name, mean, std, len(cells)))
+                out[name] = PropertyEstimate(mean, std=std, fabrics=len(cells))
                 continue
             share = dict.fromkeys(lib.classes[name], 0.0)
             for (_, cls, _), wi in zip(cells, w, strict=True):
                 assert cls is not None
                 share[cls] = share.get(cls, 0.0) + float(wi)
             best = max(share, key=lambda k: share[k])  # ties: the first in class order
-            out.append(
-                PropertyEstimate(
-                    name,
-                    mean,
-                    std,
-                    len(cells),
-                    value=class_value(best),
-                    probability=round(share[best], 4),
-                    probabilities={k: round(q, 4) for k, q in share.items()},
-                )
+            out[name] = PropertyEstimate(
+                class_value(best),
+                probability=round(share[best], 4),
+                probabilities={k: round(q, 4) for k, q in share.items()},
+                number=mean,  # a column of ranks: the mean rank behind the class
+                std=std,
+                fabrics=len(cells),
             )
         return out
 
@@ -903,8 +1025,8 @@ class Matcher:
 
 def format_match(result: MatchResult, width: int = 48) -> str:
     """A match result as a person reads it (``lookfeel match`` without ``--json``)."""
-    files = ", ".join(Path(f).name for f in result.query)
-    video = any(Path(f).suffix.lower() in VIDEO_SUFFIXES for f in result.query)
+    files = ", ".join(Path(f).name for f in result.paths)
+    video = any(Path(f).suffix.lower() in VIDEO_SUFFIXES for f in result.paths)
     what = f"{result.presses} presses" if result.presses > 1 else "1 video" if video else "1 image"
     lines = [
         f"Query {result.query_modality.value} ({what}: {files}) against "
@@ -940,7 +1062,7 @@ def format_match(result: MatchResult, width: int = 48) -> str:
                 + "  ".join(f"{c:<{width}}" for c in cells)
             ).rstrip()
         )
-    props = [_property(p) for p in result.properties if p.mean is not None or p.value is not None]
+    props = [_property(c, p) for c, p in result.properties.items() if p.value is not None]
     if props:
         k = result.property_fabrics
         likeliest = f"the likeliest {noun}" if k == 1 else f"the {k} likeliest {noun}s"
@@ -951,12 +1073,12 @@ def format_match(result: MatchResult, width: int = 48) -> str:
     return "\n".join(lines)
 
 
-def _property(p: PropertyEstimate) -> str:
+def _property(column: str, p: PropertyEstimate) -> str:
     """``hardness 2 (87%)`` for a column of classes, as ``lookfeel predict`` prints a class
     head; ``thickness_mm 1.43 ± 0.3`` for a number."""
-    if p.value is not None:
-        return f"{p.name} {p.value} ({p.probability:.0%})"
-    return f"{p.name} {p.mean:.3g} ± {p.std:.2g}"
+    if p.probability is not None or isinstance(p.value, str):
+        return f"{column} {p.value} ({p.probability or 0:.0%})"
+    return f"{column} {float(p.value or 0):.3g} ± {p.std or 0:.2g}"
 
 
 def _shorten(path: str, width: int) -> str:

@@ -6,7 +6,8 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
   ``HEAD`` of it, of ``/static/*`` and of an item's image is answered as ``GET`` without the
   body.
 - ``GET /api/library``: what the library holds and how it is calibrated.
-- ``GET /api/fabrics``: every fabric with its labels and a few item ids per modality.
+- ``GET /api/fabrics``: every fabric (``fabric_id``) with its labels and a few item ids per
+  modality.
 - ``GET /api/items/{item_id}``: one item's metadata; ``/api/items/{item_id}/image`` its image
   as a PNG thumbnail (a press video: its frame of deepest contact, as recorded but turned by
   the model's ``data.video_rotate``). Items are
@@ -23,6 +24,11 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
   it says too, in one line, which press videos have no colour, or, for a model trained on grey
   presses, which have colour: `lookfeel.index.match.press_colour_line`).
 - ``POST /api/match/item``: match a library item as a query (itself left out).
+
+Each match answers ``results`` as ``lookfeel match --json`` does (`lookfeel.index.MatchResult`:
+the query's files as ``path`` and ``paths``, its ``properties`` as ``lookfeel predict``'s, label
+-> value, probability ...), but with file names only and no ``error`` (a request with a file
+that cannot be used is refused whole).
 
 Uploads are limited in size and number and must be PNG or JPEG by content; an image declaring
 more than ``max_pixels`` pixels is refused (413) from its header, before anything is decoded (a
@@ -405,7 +411,9 @@ class ItemInfo(BaseModel):
 class FabricInfo(BaseModel):
     """One library fabric with a few of its items per modality."""
 
-    id: int
+    fabric_id: int
+    """The fabric's id, as a match's ``fabrics[].fabric_id`` and an item's ``fabric_id`` name
+    it."""
     name: str | None = None
     """The object's name (``sponge``) where the data names its objects; None for a numbered
     fabric and in a library built before names were recorded."""
@@ -425,7 +433,7 @@ class MatchResponse(BaseModel):
     warnings: list[str] = Field(
         default_factory=list,
         description="what `lookfeel match` would warn of, one line each: of several touch "
-        "files, a press video without a press, left out (its result's `query` lists the files "
+        "files, a press video without a press, left out (its result's `paths` lists the files "
         "used); a press video given to a model trained on still frames; a press of a kind the "
         "model was not trained on (by its name, F0007_flat_1000.mp4); press videos with no "
         "colour (grey), or with colour for a model trained on grey presses, in one line "
@@ -452,7 +460,8 @@ def _public(result: MatchResult) -> MatchResult:
 
     return replace(
         result,
-        query=[Path(q).name for q in result.query],
+        path=Path(result.path).name,
+        paths=[Path(q).name for q in result.paths],
         fabrics=[fab(f) for f in result.fabrics],
     )
 
@@ -759,7 +768,7 @@ def create_app(
             }
             out.append(
                 FabricInfo(
-                    id=fid,
+                    fabric_id=fid,
                     name=record.name,
                     cluster=record.cluster,
                     labels=record.labels,

@@ -112,7 +112,7 @@ function fmt(x, digits = 3) {
 
 // A fabric by its name where the data names its objects ("sponge"), else by id ("fabric 7").
 function title(f) {
-  return f.name === null || f.name === undefined ? `fabric ${f.fabric_id ?? f.id}` : f.name;
+  return f.name === null || f.name === undefined ? `fabric ${f.fabric_id}` : f.name;
 }
 
 // A number as Python's "%.<digits>g" writes it, as `lookfeel match` prints: 1.4, 0, 2.
@@ -120,11 +120,12 @@ function g(x, digits = 3) {
   return x === null || x === undefined ? "?" : String(Number(Number(x).toPrecision(digits)));
 }
 
-// A property estimate as `lookfeel match` prints it: "hardness 2 (87%)" for a column of
-// classes, "thickness_mm 1.43 ± 0.3" for a number.
-function property(p) {
-  if (p.value !== null && p.value !== undefined) return `${p.name} ${p.value} (${Math.round(100 * p.probability)}%)`;
-  return `${p.name} ${g(p.mean)} ± ${g(p.std, 2)}`;
+// A property estimate (a label column and its entry of `properties`, shaped as `lookfeel
+// predict`'s) as `lookfeel match` prints it: "hardness 2 (87%)" for a column of classes (it has
+// a probability), "thickness_mm 1.43 ± 0.3" for a number.
+function property([name, p]) {
+  if (p.probability !== null && p.probability !== undefined) return `${name} ${p.value} (${Math.round(100 * p.probability)}%)`;
+  return `${name} ${g(p.value)} ± ${g(p.std, 2)}`;
 }
 
 // A fabric's labels: the numbers (a rank or class as the whole number it is: hardness 2), then
@@ -208,9 +209,9 @@ function propertiesLabel(res) {
 
 function renderResult(res) {
   const box = el("div", { class: "result" });
-  const what = res.presses > 1 ? `${res.presses} presses` : res.query.join(", ");
+  const what = res.presses > 1 ? `${res.presses} presses` : res.paths.join(", ");
   box.append(el("h2", {}, `${res.query_modality} query (${what}) against ${res.gallery_modality}`));
-  const props = res.properties.filter((p) => p.mean !== null || p.value !== null).map(property);
+  const props = Object.entries(res.properties).filter(([, p]) => p.value !== null).map(property);
   if (props.length) box.append(el("p", { class: "props" }, propertiesLabel(res) + ": " + props.join(" · ")));
   for (const f of res.fabrics) {
     const left = el("div", {},
@@ -242,7 +243,7 @@ function verdict(res) {
   const name = best ? title(best) : "none";
   const said = res.known ? `${name} (P = ${fmt(res.best_probability)})`
     : `no known ${nounOf(res)} (best ${name}, P = ${fmt(res.best_probability)})`;
-  return `${res.query.join(", ")}: ${said}`;
+  return `${res.paths.join(", ")}: ${said}`;
 }
 
 function show(data) {
