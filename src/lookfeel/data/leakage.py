@@ -40,7 +40,9 @@ instead of the material. `leakage_report` measures this, per image modality, for
    On PhysiCLeAR the no-contact frame alone scores 0.86 (chance 0.10; docs/results/
    real-touch.md, where ``lookfeel cv``'s untouched control is the run's own check). Videos
    with no press are left out, as runs leave them; each video is decoded once (about 0.07 s
-   for a 5 s GelSight Mini press, two at a time with ``workers=2``).
+   for a 5 s GelSight Mini press, two at a time with ``workers=2``), and its three images are
+   made and pooled a band of rows at a time (`_pool_press`), so that a 4K press costs its
+   frames and one float32 frame, not a float32 copy of each image.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ from lookfeel.data.catalog import Catalog, Item
 from lookfeel.data.check import size_problems
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
 from lookfeel.data.problems import DatasetError, Problem
-from lookfeel.data.video import NoPressError, difference_image, is_video, read_press
+from lookfeel.data.video import NoPressError, Press, difference_image, is_video, read_press
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics.bootstrap import bootstrap_ci
 from lookfeel.metrics.distances import pairwise_distances
@@ -522,13 +524,15 @@ def _too_few(fabric: NDArray[np.int64]) -> str | None:
     return None
 
 
-def _press_arrays(
-    path: Path, config: DataConfig
-) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
-    """(pressed, input, no-contact) (H, W, 3) float32 images of one press video (module doc,
-    point 5), in 8-bit levels: the frame(s) ``config`` picks, raw (their mean for several);
-    their difference from the no-contact frame as the models get it; the no-contact frame."""
-    press = read_press(
+_BAND_VALUES = 1 << 18
+"""`_pool_press` makes a press's images in bands of rows of about this many values (1 MB of
+float32), as `lookfeel.data.video.difference_image` does: a 320x240 press is one band."""
+
+
+def _read_press(path: Path, config: DataConfig) -> Press:
+    """The press of one video as the leak check scores it (module doc, point 5): the frame(s)
+    ``config`` picks, raw, and the no-contact frame."""
+    return read_press(
         path,
         frames=config.video_frames,
         position=config.video_frame,
@@ -536,12 +540,43 @@ def _press_arrays(
         gain=config.video_gain,
         rotate=config.video_rotate,
     )
-    diff = [difference_image(f, press.reference, config.video_gain) for f in press.images]
-    return (
-        press.images.astype(np.float32).mean(axis=0),
-        np.mean(np.stack(diff), axis=0, dtype=np.float32),
-        press.reference.astype(np.float32),
-    )
+
+
+def _pool_press(
+    press: Press, gain: float, shape: tuple[int, int], k: int
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """(pressed, input, no-contact) (h, w, 3) float32 images of one press (`_read_press`), in
+    8-bit levels, each mean-pooled by ``k``: the frame(s) read, raw (their mean for several);
+    their difference from the no-contact frame as the models get it (``gain``); the no-contact
+    frame. A press of another size than ``shape`` (the first one's) is resized to it first.
+
+    Each image is made and pooled a band of rows at a time (whole pooling windows, about
+    `_BAND_VALUES` values), so that a press costs its frames and its float32 no-contact frame,
+    not a full-size float32 copy of each image: a 4K press's were 100 MB each. Each pooled
+    pixel is the mean of the same values as pooling the whole image gives, in the same order,
+    so the numbers are the same.
+    """
+    images, reference = press.images, press.reference
+
+    def pressed(rows: slice) -> NDArray[np.float32]:
+        return images[:, rows].astype(np.float32).mean(axis=0)
+
+    def model_input(rows: slice) -> NDArray[np.float32]:
+        diff = [difference_image(f[rows], reference[rows], gain) for f in images]
+        return np.mean(np.stack(diff), axis=0, dtype=np.float32)
+
+    def untouched(rows: slice) -> NDArray[np.float32]:
+        return reference[rows].astype(np.float32, copy=False)
+
+    made = (pressed, model_input, untouched)
+    if reference.shape[:2] != shape:  # resized whole (bilinear), one image at a time
+        p, i, u = (_pool(_resize(make(slice(None)), shape), k) for make in made)
+        return p, i, u
+    used = shape[0] // k * k  # the rows pooling keeps (it drops the ragged edge)
+    step = k * max(1, _BAND_VALUES // max(1, k * reference[:1].size))
+    bands = [slice(top, min(top + step, used)) for top in range(0, used, step)] or [slice(0, 0)]
+    p, i, u = (np.concatenate([_pool(make(rows), k) for rows in bands]) for make in made)
+    return p, i, u
 
 
 def _score_videos(
@@ -562,10 +597,10 @@ def _score_videos(
 
     def one(it: Item) -> tuple[NDArray[np.float32], ...] | None:
         try:
-            arrays = _press_arrays(it.path, config)
+            press = _read_press(it.path, config)
         except NoPressError:
             return None  # runs leave it out: `lookfeel.data.drop_unpressed`
-        return tuple(_pool(_resize(a, shape), k) for a in arrays)
+        return _pool_press(press, config.video_gain, shape, k)
 
     got: list[tuple[NDArray[np.float32], ...] | None] = []
     rest = list(items)
@@ -573,13 +608,14 @@ def _score_videos(
         while rest and shape == (0, 0):  # the first press found sets the size and pooling
             it = rest.pop(0)
             try:
-                arrays = _press_arrays(it.path, config)
+                press = _read_press(it.path, config)
             except NoPressError:
                 got.append(None)
                 continue
-            shape = (int(arrays[0].shape[0]), int(arrays[0].shape[1]))
+            shape = (int(press.reference.shape[0]), int(press.reference.shape[1]))
             k = auto_pool(shape) if pool is None else int(pool)
-            got.append(tuple(_pool(a, k) for a in arrays))
+            got.append(_pool_press(press, config.video_gain, shape, k))
+            del press
         if workers > 1 and len(rest) > 16:
             with ThreadPoolExecutor(workers) as ex:  # decoding releases the GIL
                 got += list(ex.map(one, rest))
