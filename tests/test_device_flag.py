@@ -169,7 +169,7 @@ def test_index_build_refuses_a_device_torch_does_not_know_before_any_work(
     assert not (tmp_path / "new").exists()
 
 
-@pytest.mark.parametrize("device", ["tpu", "cuda"])
+@pytest.mark.parametrize("device", ["tpu", "cuda", "mps"])
 def test_a_device_this_machine_lacks_is_the_line_predict_gives(
     run: tuple[Path, Path],
     library: Path,
@@ -180,6 +180,8 @@ def test_a_device_this_machine_lacks_is_the_line_predict_gives(
     capsys,
 ):
     data, ckpt = run
+    # An Apple GPU there: lookfeel does not support it (`lookfeel.devices`), and says so.
+    monkeypatch.setattr(torch.backends.mps, "is_available", lambda: True)
     served = _fake_serve(monkeypatch)  # never blocks, should serve start
     query = str(data / DEPTH)
     assert main(["predict", query, "--checkpoint", str(ckpt), "--device", device]) == 1

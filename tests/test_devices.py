@@ -76,6 +76,34 @@ def test_another_accelerator_this_pytorch_lacks(monkeypatch: pytest.MonkeyPatch)
             resolve_device("xpu")
 
 
+def test_apples_gpu_is_refused_even_where_the_machine_has_it(
+    run: tuple[Path, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture,
+):
+    """QA (portability): ``--device mps`` was accepted on a Mac, then training and embedding
+    ended in torch's traceback (float64 sums, which MPS lacks)."""
+    monkeypatch.setattr(torch.backends.mps, "is_available", lambda: True)
+    for name in ("mps", "mps:0", torch.device("mps")):
+        with pytest.raises(DeviceError) as e:
+            resolve_device(name)
+        assert str(e.value) == (
+            f"device {str(name)!r}: Apple's GPU (MPS) is not supported yet (training and "
+            "embedding sum in float64, which MPS lacks); use cpu"
+        )
+    with pytest.raises(DeviceError, match=r"^train\.device 'mps': Apple's GPU \(MPS\) is not"):
+        resolve_device("mps", "train.device")
+    data, checkpoint = run
+    with pytest.raises(DeviceError, match="^device 'mps': Apple's GPU"):
+        load_model(checkpoint, device="mps")
+    args = ["--checkpoint", str(checkpoint), "--data", str(data), "--out", str(tmp_path / "e.npz")]
+    assert main(["embed", *args, "--device", "mps"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("lookfeel: device 'mps': Apple's GPU") and err.count("\n") == 1
+    assert not (tmp_path / "e.npz").exists()
+
+
 def test_loading_and_evaluating_on_a_missing_device_is_one_line(
     run: tuple[Path, Path], tmp_path: Path, cpu_build: None, capsys: pytest.CaptureFixture
 ):

@@ -19,8 +19,10 @@ import math
 import os
 import re
 import stat
+import sys
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import IO, Any
@@ -39,10 +41,16 @@ __all__ = [
 ]
 
 _UMASK_LOCK = threading.Lock()
+_UMASK: int | None = None
+"""The umask read where ``/proc`` cannot tell it (`current_umask`), once per process."""
 
 
 def current_umask() -> int:
-    """The process's umask, read without changing it where the system allows (Linux)."""
+    """The process's umask. On Linux it is read from ``/proc`` each time, without changing it.
+    Elsewhere (macOS) the only way to read it is to set it and set it back, which for that
+    instant holds for every thread of the process (a folder another thread made then would be
+    ``0o700``): it is read so once, on first use, and remembered (a umask this process sets
+    later, after a first atomic write, is not seen there)."""
     try:
         with open("/proc/self/status", encoding="ascii") as f:
             for line in f:
@@ -50,10 +58,12 @@ def current_umask() -> int:
                     return int(line.split()[1], 8)
     except (OSError, ValueError, IndexError):
         pass
-    with _UMASK_LOCK:  # elsewhere: set and restore it at once (briefly process-wide)
-        mask = os.umask(0o077)
-        os.umask(mask)
-    return mask
+    global _UMASK
+    with _UMASK_LOCK:
+        if _UMASK is None:
+            _UMASK = os.umask(0o077)
+            os.umask(_UMASK)
+        return _UMASK
 
 
 def file_mode() -> int:
@@ -171,7 +181,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
             write(f)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, p)
+        _replace(tmp, p)
     except OSError as e:
         Path(tmp).unlink(missing_ok=True)
         raise _naming(e, p) from None
@@ -187,6 +197,27 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
+
+
+_REPLACE_WAITS = (0.05, 0.1, 0.15, 0.2, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25)
+"""Seconds `_replace` waits before each retry on Windows: about 2 s in all."""
+
+
+def _replace(tmp: str, dest: Path) -> None:
+    """``os.replace(tmp, dest)``. On Windows a destination that another process has open (a
+    reader of the checkpoint, an antivirus scan, the search indexer) cannot be replaced for
+    as long as it is open (`PermissionError`): there it is retried for about 2 s before the
+    error is raised. Elsewhere a `PermissionError` is a real one, raised at once."""
+    if sys.platform != "win32":
+        os.replace(tmp, dest)
+        return
+    for wait in _REPLACE_WAITS:
+        try:
+            os.replace(tmp, dest)
+            return
+        except PermissionError:
+            time.sleep(wait)
+    os.replace(tmp, dest)
 
 
 def _naming(e: OSError, path: Path) -> OSError:

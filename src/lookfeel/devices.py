@@ -8,6 +8,10 @@ the first tensor moved there:
 
     >>> resolve_device("cuda")  # on a CPU-only PyTorch
     DeviceError: device 'cuda': this PyTorch has no CUDA (torch 2.13.0+cpu, CPU build)
+
+Apple's GPU (``mps``) is refused even where the machine has it: training and embedding sum in
+float64, which MPS lacks, and the data loader pins memory for any accelerator, which torch 2.5
+and 2.6 refuse on MPS. A Mac runs lookfeel on its CPU (``auto`` picks the CPU there).
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ def resolve_device(value: str | torch.device, name: str = "device") -> torch.dev
     """The ``torch.device`` that ``value`` names, checked to be usable here.
 
     Args:
-        value: ``"cpu"``, ``"cuda"``, ``"cuda:1"``, ``"mps"``, a ``torch.device``, or
+        value: ``"cpu"``, ``"cuda"``, ``"cuda:1"``, a ``torch.device``, or
             ``"auto"`` (CUDA when this machine has it, else the CPU).
         name: what the value is called in the error (``device``, ``train.device``).
 
@@ -37,7 +41,8 @@ def resolve_device(value: str | torch.device, name: str = "device") -> torch.dev
     Raises:
         DeviceError: naming the value: torch knows no such device; or this PyTorch build
             has no CUDA (a CPU build), no CUDA device is visible, the CUDA index is past the
-            devices there are, or another accelerator (``mps``, ``xpu``) cannot be used.
+            devices there are, or another accelerator (``xpu``) cannot be used; or it is
+            ``mps`` (Apple's GPU), which lookfeel does not support yet.
     """
     text = str(value)
     if isinstance(value, str) and value.strip() == "auto":
@@ -58,7 +63,10 @@ def resolve_device(value: str | torch.device, name: str = "device") -> torch.dev
                 f"{name} {text!r}: this PyTorch or machine has no MPS (Apple GPU) device "
                 f"(torch {torch.__version__}); use cpu"
             )
-        return device
+        raise DeviceError(
+            f"{name} {text!r}: Apple's GPU (MPS) is not supported yet (training and embedding "
+            "sum in float64, which MPS lacks); use cpu"
+        )
     try:  # another accelerator (xpu, hpu, ...): does this build reach it?
         torch.empty(0, device=device)
     except Exception as e:  # "not compiled with ... enabled", and such, of many types

@@ -31,7 +31,8 @@ command line itself is argparse's usage error (usage, then ``lookfeel ...: error
 stderr; exit 2), a bare ``lookfeel`` included. Before a command runs, `main` imports
 the user's plugin modules (``--plugin MODULE``, ``LOOKFEEL_PLUGINS``, entry points:
 `lookfeel.plugins`), which register backbones and losses of their own. The console script
-(`run`) shows each warning as one line too, ``lookfeel: warning: <message>``, once.
+(`run`) shows each warning as one line too, ``lookfeel: warning: <message>``, once, and
+prints a character that stdout's encoding lacks (an ASCII or Windows code page) as an escape.
 """
 
 from __future__ import annotations
@@ -176,6 +177,18 @@ def _load_plugins(modules: Sequence[str]) -> None:
     load_plugins()
 
 
+def _print_any_text() -> None:
+    """Make stdout and stderr write a character their encoding lacks as a ``\\u`` escape
+    instead of failing: an ASCII or Windows code page stdout (Windows' redirected output)
+    cannot encode "±", "∝" or a user's label in Chinese, and the command ended in Python's
+    ``UnicodeEncodeError``. Only a text stream that can be reconfigured and would fail
+    (``errors="strict"``) changes; ``surrogateescape`` (file names on a C locale) stays."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if callable(reconfigure) and getattr(stream, "errors", None) == "strict":
+            reconfigure(errors="backslashreplace")
+
+
 def _one_line_warnings() -> None:
     """Show every warning as ``lookfeel: warning: <message>`` on stderr, each message once.
 
@@ -203,7 +216,9 @@ def _one_line_warnings() -> None:
 
 def run(argv: Sequence[str] | None = None) -> int:
     """The ``lookfeel`` console script and ``python -m lookfeel``: `main` with warnings shown
-    as one line each (`main` alone leaves them to Python and to whoever calls it)."""
+    as one line each (`main` alone leaves them to Python and to whoever calls it), on a
+    stdout and stderr that print any text (`_print_any_text`)."""
+    _print_any_text()
     with warnings.catch_warnings():
         _one_line_warnings()
         return main(argv)

@@ -192,7 +192,14 @@ def _bind(host: str, port: int) -> socket.socket:
     # kept-open connection, a browser's, waiting about 40 ms for the client's delayed ACK),
     # and off here too, for the connections that inherit it.
     sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    # A port another program has must be refused. On Windows SO_REUSEADDR would let this
+    # socket share it (which server answers is then undefined): there the port is taken
+    # for this socket alone. Elsewhere SO_REUSEADDR only lets a restarted server take its
+    # port back from the closed connections of the last one.
+    if sys.platform == "win32" and hasattr(socket, "SO_EXCLUSIVEADDRUSE"):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_EXCLUSIVEADDRUSE, 1)
+    else:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     try:
         sock.bind((host, port))
