@@ -35,7 +35,7 @@ HERE = Path(__file__).resolve().parent
 def _cpuinfo() -> str:
     """``/proc/cpuinfo`` (Linux), or "" where there is none."""
     try:
-        return Path("/proc/cpuinfo").read_text()
+        return Path("/proc/cpuinfo").read_text(encoding="utf-8")
     except OSError:
         return ""
 
@@ -172,7 +172,7 @@ def kept_stored(path: Path, result: Mapping[str, object]) -> str | None:
     if reason is None:
         return None
     try:
-        stored = json.loads(path.read_text())
+        stored = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):  # nothing there, or nothing readable: nothing to keep
         return None
     if not isinstance(stored, Mapping) or skip_reason(stored) is not None:

@@ -44,9 +44,11 @@ def measure(cv: Path, data: Path) -> dict[str, object]:
     columns = list(catalog.label_columns)
     per_run: dict[str, dict[str, dict[str, float]]] = {}
     for r in runs:
-        split = json.loads((r / "split.json").read_text())
+        split = json.loads((r / "split.json").read_text(encoding="utf-8"))
         alone = room(split["train"], split["val"]) or {}
-        model = json.loads((r / "result.json").read_text())["properties"]["depth"]["model"]
+        model = json.loads((r / "result.json").read_text(encoding="utf-8"))["properties"]["depth"][
+            "model"
+        ]
         per_run[r.name] = {
             c: {"room": alone[c]["r2"], "model": model[c]["r2"]}
             for c in columns

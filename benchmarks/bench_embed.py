@@ -50,7 +50,7 @@ def _write_touch(root: Path, n: int, seed: int = 0) -> Path:
             root / "touch" / f"F{i % fabrics + 1:04d}_fold_1_{i // fabrics}.png"
         )
     (root / "labels.csv").write_text(
-        "fabric_id\n" + "".join(f"{f}\n" for f in range(1, fabrics + 1))
+        "fabric_id\n" + "".join(f"{f}\n" for f in range(1, fabrics + 1)), encoding="utf-8"
     )
     return root
 

@@ -69,7 +69,7 @@ def write_dataset(
             f"{f},{f % 8},{rng.uniform(0.1, 3):.3f},{rng.uniform(0.05, 0.5):.3f},"
             f"{rng.integers(1, 6)},{rng.integers(0, 2)}"
         )
-    (root / "labels.csv").write_text("\n".join(lines) + "\n")
+    (root / "labels.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return root
 
 

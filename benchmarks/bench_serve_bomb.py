@@ -36,7 +36,7 @@ TARGET_PEAK_MB = 1024.0
 def _status_kb(pid: int, key: str) -> float:
     """A ``/proc/PID/status`` field in kB (VmRSS, VmHWM); NaN where there is no /proc."""
     try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        for line in Path(f"/proc/{pid}/status").read_text(encoding="utf-8").splitlines():
             if line.startswith(key + ":"):
                 return float(line.split()[1])
     except OSError:
@@ -47,7 +47,7 @@ def _status_kb(pid: int, key: str) -> float:
 def _device() -> str:
     """The CPU the numbers were measured on, in words."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
             if line.startswith("model name"):
                 return f"CPU: {line.split(':', 1)[1].strip()}"
     except OSError:

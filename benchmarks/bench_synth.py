@@ -62,7 +62,10 @@ def _timed(cfg: SynthConfig, out: Path) -> tuple[float, float]:
 
 def _physics(root: Path) -> dict[str, object]:
     """Correlations measured from the written pixels against the world's true parameters."""
-    truth = {f["fabric_id"]: f for f in json.loads((root / MANIFEST).read_text())["fabrics"]}
+    truth = {
+        f["fabric_id"]: f
+        for f in json.loads((root / MANIFEST).read_text(encoding="utf-8"))["fabrics"]
+    }
     room = background_depth(depth_camera(224))
     frame = Image.open(next((root / "touch").glob("*")))
     bg = no_contact_frame(sensor(*frame.size))

@@ -122,7 +122,7 @@ def _shape(curve: np.ndarray, at_deepest: float) -> np.ndarray:
 
 def _labels(folder: Path) -> dict[str, dict[str, int]]:
     """Object name -> its ranks, from the labels.csv beside the videos (labelled rows only)."""
-    with (folder.parent / "labels.csv").open(newline="") as f:
+    with (folder.parent / "labels.csv").open(newline="", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     return {
         r["object"]: {k: int(r[k]) for k in LABELS}

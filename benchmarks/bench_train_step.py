@@ -64,7 +64,7 @@ def write_dataset(root: Path, fabrics: int = 24, seed: int = 0) -> Path:
             (root / "touch").mkdir(exist_ok=True)
             Image.fromarray(t).save(root / "touch" / f"F{f:04d}_fold_1_{p}.png")
     lines = ["fabric_id,cluster8"] + [f"{f},{f % 8}" for f in range(1, fabrics + 1)]
-    (root / "labels.csv").write_text("\n".join(lines) + "\n")
+    (root / "labels.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return root
 
 
@@ -75,7 +75,7 @@ def device_name(device: str) -> str:
     if device == "cuda":
         return torch.cuda.get_device_name()
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
             if line.startswith("model name"):
                 return line.split(":", 1)[1].strip()
     except OSError:
@@ -129,7 +129,9 @@ def _child(
     if device == "cuda":
         torch.cuda.synchronize()
     total = time.perf_counter() - started
-    lines = [json.loads(x) for x in (out / "metrics.jsonl").read_text().splitlines()]
+    lines = [
+        json.loads(x) for x in (out / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     windows = [x for x in lines if "steps_per_s" in x]
     rates = [x["steps_per_s"] for x in windows][1:] or [x["steps_per_s"] for x in windows]
     cache: dict[str, object] = next((x for x in lines if "trunk_cache_s" in x), {})

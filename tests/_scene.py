@@ -156,5 +156,5 @@ def write_scene_dataset(
             name = f"F{f:04d}_Depth_New_{k:06d}.png"
             Image.fromarray(scene.render()["depth"]).save(root / "depth" / name)
         lines.append(f"{f},{(f - 1) % 3},{0.5 * f},{0.2 * f:.2f},{f % 5},{f % 2},train\n")
-    (root / "labels.csv").write_text("".join(lines))
+    (root / "labels.csv").write_text("".join(lines), encoding="utf-8")
     return root

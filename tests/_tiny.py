@@ -16,7 +16,7 @@ def write_recordings(root: Path, presses: dict[str, int], labels: str) -> Path:
     """Recordings in the layout: ``videos/<object>_<n>.mov`` (QuickTime headers only, nothing
     to decode) for ``presses`` (object -> how many) and ``labels`` as labels.csv."""
     (root / "videos").mkdir(parents=True)
-    (root / "labels.csv").write_text(labels)
+    (root / "labels.csv").write_text(labels, encoding="utf-8")
     for name, n in presses.items():
         for k in range(n):
             (root / "videos" / f"{name}_{k}.mov").write_bytes(QUICKTIME)
@@ -73,7 +73,7 @@ def write_tiny_dataset(
         for f in range(1, fabrics + 1):
             density = "" if f == 2 else f"{0.2 * f:.2f}"
             lines.append(f"{f},{(f - 1) % 3},{0.5 * f},{density},{f % 5},{f % 2},train\n")
-        (root / "labels.csv").write_text("".join(lines))
+        (root / "labels.csv").write_text("".join(lines), encoding="utf-8")
     return root
 
 

@@ -147,5 +147,5 @@ def write_objects(
                 write_video(root / "videos" / f"{name}_{n}.mkv", frames, "ffv1", "gray")
             else:
                 write_video(root / "videos" / f"{name}_{n}.mov", frames)
-    (root / "labels.csv").write_text("\n".join(rows) + "\n")
+    (root / "labels.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     return root

@@ -244,12 +244,12 @@ def test_data_check_fails_on_one_fabric(tmp_path: Path, capsys):
 
 def test_data_check_fails_on_an_unfinished_synth_world(copy: Path, capsys):
     (copy / "synth.json").write_text(
-        json.dumps({"generator": "lookfeel.synth", "status": "running"})
+        json.dumps({"generator": "lookfeel.synth", "status": "running"}), encoding="utf-8"
     )
     assert main(["data", "check", str(copy)]) == 1
     assert "synthetic world was not finished" in capsys.readouterr().out
     (copy / "synth.json").write_text(
-        json.dumps({"generator": "lookfeel.synth", "status": "complete"})
+        json.dumps({"generator": "lookfeel.synth", "status": "complete"}), encoding="utf-8"
     )
     assert not check_dataset(copy).errors
 
@@ -271,11 +271,11 @@ def test_train_on_one_fabric_is_one_line(tmp_path: Path, capsys):
 def _thirty(root: Path) -> Path:
     """The README's 30-fabric world: fabrics 26-30 are paper_split=test."""
     data = write_tiny_dataset(root, fabrics=30, drapes=2, fold_presses=1, flat_presses=1, frames=2)
-    lines = (data / "labels.csv").read_text().splitlines()
+    lines = (data / "labels.csv").read_text(encoding="utf-8").splitlines()
     out = [lines[0]] + [
         ln if int(ln.split(",")[0]) <= 25 else ln[: -len("train")] + "test" for ln in lines[1:]
     ]
-    (data / "labels.csv").write_text("\n".join(out) + "\n")
+    (data / "labels.csv").write_text("\n".join(out) + "\n", encoding="utf-8")
     return data
 
 
@@ -323,7 +323,7 @@ def _touch_only(root: Path, kind: str = "fold", labels: str | None = None) -> Pa
     shutil.rmtree(data / "depth")
     shutil.rmtree(data / "color")
     if labels is not None:
-        (data / "labels.csv").write_text(labels)
+        (data / "labels.csv").write_text(labels, encoding="utf-8")
     return data
 
 
@@ -347,7 +347,7 @@ def test_a_class_head_the_labels_lack_says_the_heads_they_have(tmp_path: Path, c
     assert fits == ["--set", "model.class_heads=[hardness,material]"]
     quick = [*QUICK, "--set", "model.members=1", "--set", "data.image_size=32"]
     assert main([str(a) for a in [*argv, *fits, *quick]]) == 0, capsys.readouterr().err
-    saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+    saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text(encoding="utf-8"))
     assert saved["model"]["class_heads"] == ["hardness", "material"]
     assert tree_digest(data) == before
 
@@ -369,7 +369,7 @@ def test_presses_of_another_kind_are_one_line_with_the_kinds_to_train_on(
     )
     if command == "train":
         assert main([str(a) for a in [*argv, *_sets(line), *QUICK]]) == 0
-        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text(encoding="utf-8"))
         assert saved["data"]["touch_kinds"] == ["flat"]
 
 
@@ -390,7 +390,7 @@ def test_views_of_senses_the_data_lacks_are_one_line_with_views_that_fit(
     )
     if command == "train":
         assert main([str(a) for a in [*argv, *_sets(line), *QUICK]]) == 0
-        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text())
+        saved = yaml.safe_load((tmp_path / "r" / "config.yaml").read_text(encoding="utf-8"))
         assert saved["train"]["views"] == ["touch", "touch"]
 
 
@@ -418,9 +418,9 @@ def _damaged(library: Path, tmp_path: Path) -> Path:
 
 def test_library_without_calibration_is_one_line(library: Path, tmp_path: Path, capsys):
     lib = _damaged(library, tmp_path)
-    manifest = json.loads((lib / "manifest.json").read_text())
+    manifest = json.loads((lib / "manifest.json").read_text(encoding="utf-8"))
     del manifest["calibration"]
-    (lib / "manifest.json").write_text(json.dumps(manifest))
+    (lib / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     _fails(capsys, ["index", "info", lib], "manifest.json: no 'calibration' entry")
 
 
@@ -526,7 +526,7 @@ def test_a_replaced_file_keeps_its_mode_and_a_read_only_one_is_refused(
     from lookfeel import atomic
 
     mine = tmp_path / "mine.txt"
-    mine.write_text("old")
+    mine.write_text("old", encoding="utf-8")
     mine.chmod(0o640)
     old = os.umask(0o002)
     try:
@@ -542,7 +542,9 @@ def test_a_replaced_file_keeps_its_mode_and_a_read_only_one_is_refused(
     with pytest.raises(PermissionError) as e:
         atomic.atomic_write_text(mine, "newer")
     assert e.value.filename == str(mine) and "read-only" in str(e.value.strerror)
-    assert mine.read_text() == "new" and [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
+    assert mine.read_text(encoding="utf-8") == "new" and [p.name for p in tmp_path.iterdir()] == [
+        "mine.txt"
+    ]
 
 
 def test_a_failed_write_names_the_file_and_leaves_the_old_one(tmp_path: Path):
@@ -571,7 +573,9 @@ def test_a_failed_write_names_the_file_and_leaves_the_old_one(tmp_path: Path):
     with pytest.raises(OSError) as e:
         atomic_write(out, torch_short)
     assert e.value.filename == str(out) and "is the disk full?" in str(e.value.strerror)
-    assert out.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["e.npz"]
+    assert out.read_text(encoding="utf-8") == "old" and [p.name for p in tmp_path.iterdir()] == [
+        "e.npz"
+    ]
     with pytest.raises(RuntimeError, match="a bug"):  # any other error is not the disk's
         atomic_write(out, lambda f: (_ for _ in ()).throw(RuntimeError("a bug")))
 
@@ -582,14 +586,14 @@ def test_a_long_file_name_gets_a_temp_name_that_fits(tmp_path: Path):
     from lookfeel.atomic import _temp_prefix, atomic_write_text, remove_stale_temps
 
     name = "e" * 240 + ".npz"
-    assert atomic_write_text(tmp_path / name, "x").read_text() == "x"
+    assert atomic_write_text(tmp_path / name, "x").read_text(encoding="utf-8") == "x"
     assert [p.name for p in tmp_path.iterdir()] == [name]
     stale = tmp_path / f"{_temp_prefix(name)}abcd1234.tmp"  # a killed write's leftover
-    stale.write_text("half")
+    stale.write_text("half", encoding="utf-8")
     assert len(stale.name.encode()) <= 255
     assert remove_stale_temps(tmp_path / name) == [stale]
     short = tmp_path / "last.pt"
-    (tmp_path / ".last.pt.x1y2z3w4.tmp").write_text("half")
+    (tmp_path / ".last.pt.x1y2z3w4.tmp").write_text("half", encoding="utf-8")
     assert remove_stale_temps(short) == [tmp_path / ".last.pt.x1y2z3w4.tmp"]
 
 
@@ -609,11 +613,11 @@ def test_an_interrupted_command_is_written_again_into_its_folder_leaving_no_temp
     for f in stale:
         f.write_bytes(b"half")
     mine = out / ".my_notes.tmp"  # not a temp name of lookfeel's: kept
-    mine.write_text("mine")
+    mine.write_text("mine", encoding="utf-8")
     capsys.readouterr()
     assert evaluate_cli(ckpt, data, out) == 0, capsys.readouterr().err
     assert (out / "metrics.json").is_file() and not any(f.exists() for f in stale)
-    assert mine.read_text() == "mine"
+    assert mine.read_text(encoding="utf-8") == "mine"
     e = tmp_path / "e.npz"
     (tmp_path / ".e.npz.qwerty12.tmp").write_bytes(b"half")
     assert main(["embed", "--checkpoint", str(ckpt), "--data", str(data), "--out", str(e)]) == 0
@@ -747,8 +751,8 @@ def test_a_new_demo_world_starts_the_runs_made_on_the_old_one_afresh(
     out = tmp_path / "demo"
     for rel in ("cross/checkpoints/last.pt", "reproduce/flat-s0/eval.json", "cache/x.npy"):
         (out / rel).parent.mkdir(parents=True)
-        (out / rel).write_text("from the old world")
-    (out / "notes.txt").write_text("mine")
+        (out / rel).write_text("from the old world", encoding="utf-8")
+    (out / "notes.txt").write_text("mine", encoding="utf-8")
     seen: dict[str, list[str]] = {}
 
     def fake_generate(config, world, progress):
@@ -830,7 +834,7 @@ def test_a_file_that_is_not_a_checkpoint_is_one_line_with_its_reason(
 ):
     _, ckpt = run
     text = tmp_path / "notes.pt"
-    text.write_text("not a checkpoint\n")
+    text.write_text("not a checkpoint\n", encoding="utf-8")
     cut = tmp_path / "cut.pt"
     cut.write_bytes(ckpt.read_bytes()[:100])
     foreign = tmp_path / "foreign.pt"
@@ -874,7 +878,7 @@ def test_a_query_of_stacked_press_frames_that_is_not_an_image_says_so(tmp_path: 
     from lookfeel.modality import Modality
 
     labels = tmp_path / "labels.csv"
-    labels.write_text("fabric_id\n1\n")
+    labels.write_text("fabric_id\n1\n", encoding="utf-8")
     config = DataConfig(image_size=16, touch_frames=(0, -1))
     with pytest.raises(ImageError, match=r"labels\.csv: not an image \(\.png, \.jpg, \.jpeg\)"):
         load_query_image(labels, Modality.TOUCH, config)
@@ -899,7 +903,7 @@ def test_an_out_folder_where_a_file_is_is_refused_before_any_work(
     (they raised FileExistsError or NotADirectoryError when they first wrote, after their
     work; then argparse's usage error, exit 2, until session 56)."""
     notes = tmp_path / "notes.txt"
-    notes.write_text("mine\n")
+    notes.write_text("mine\n", encoding="utf-8")
     cases = (
         (notes, f"--out {notes} exists and is not a folder"),
         (notes / "run", f"--out {notes / 'run'}: {notes} is a file, not a folder to write in"),
@@ -908,7 +912,7 @@ def test_an_out_folder_where_a_file_is_is_refused_before_any_work(
         assert main([*command, "--out", str(out)]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"lookfeel: {said}"), err
-    assert notes.read_text() == "mine\n"
+    assert notes.read_text(encoding="utf-8") == "mine\n"
 
 
 def test_embed_out_must_name_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
@@ -925,7 +929,7 @@ def test_strict_json_writes_null_for_every_number_that_could_not_be_measured(tmp
 
     data = {"a": float("nan"), "b": [1.5, float("inf"), {"c": -float("inf")}], "d": (2, "x")}
     path = atomic_write_json(tmp_path / "r.json", data, indent=1)
-    text = path.read_text()
+    text = path.read_text(encoding="utf-8")
     assert text.endswith("\n") and "NaN" not in text and "Infinity" not in text
 
     def refuse(word: str) -> None:

@@ -33,7 +33,9 @@ def test_every_precision_and_seed_is_trained_and_summarised(tmp_path: Path):
     pairs = runs[0]["pairs"]
     senses = ("depth", "color", "touch")
     assert set(pairs) == {f"{a}_to_{b}" for a in senses for b in senses if a != b}
-    saved = yaml.safe_load((tmp_path / "runs" / "fp32-seed1" / "config.yaml").read_text())
+    saved = yaml.safe_load(
+        (tmp_path / "runs" / "fp32-seed1" / "config.yaml").read_text(encoding="utf-8")
+    )
     assert (saved["train"]["seed"], saved["model"]["precision"]) == (1, "fp32")
     assert saved["train"]["steps"] == 2 and saved["model"]["width"] == 16  # the demo's, shrunk
     # On a CPU both precisions are fp32: the same seed gives the same numbers.
@@ -84,7 +86,7 @@ def test_a_rendered_world_is_the_demo_kind_and_is_recorded(
     assert main([*argv, "--set", "train.lr=0.002", "--set", "model.embed_dim=64"]) == 0
     assert measured == [["train.lr=0.002", "model.embed_dim=64"]]
     assert rendered == [demo_world(70, 3)]
-    saved = yaml.safe_load(out.read_text())  # JSON is YAML
+    saved = yaml.safe_load(out.read_text(encoding="utf-8"))  # JSON is YAML
     world = demo_world(70, 3)
     assert saved["world"] == {
         "fabrics": 70,

@@ -22,10 +22,12 @@ def rooms(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _run(cv: Path, train: list[int], val: list[int], model_r2: float) -> None:
     run = cv / "seed0-fold0"
     run.mkdir(parents=True)
-    (run / "split.json").write_text(json.dumps({"train": train, "val": val}))
+    (run / "split.json").write_text(json.dumps({"train": train, "val": val}), encoding="utf-8")
     labels = ("thickness_mm", "density", "stiffness", "stretchiness")
     model = {c: {"r2": model_r2} for c in labels}
-    (run / "result.json").write_text(json.dumps({"properties": {"depth": {"model": model}}}))
+    (run / "result.json").write_text(
+        json.dumps({"properties": {"depth": {"model": model}}}), encoding="utf-8"
+    )
 
 
 def test_the_room_predicts_a_label_that_follows_the_session_and_not_one_that_does_not(

@@ -79,7 +79,7 @@ def test_a_cv_scored_result_names_its_date_and_cpu(
     monkeypatch.setattr(benchmarks, "_cpuinfo", lambda: X86)
     out = tmp_path / "swap.json"
     write_result({"runs": []}, out, "bench_depth_swap", ["--cv", "x"])
-    stored = json.loads(out.read_text())
+    stored = json.loads(out.read_text(encoding="utf-8"))
     assert re.fullmatch(r"\d{4}-\d\d-\d\dT.*", stored["when"])
     assert stored["machine"]["cpu_model"] == "AMD EPYC 7B13"
     assert stored["command"] == "python -m benchmarks.bench_depth_swap --cv x"
@@ -96,7 +96,7 @@ def _stored(folder: Path) -> Path:
         "median_s": 1.872,
         "met": True,
     }
-    path.write_text(json.dumps(stored, indent=2) + "\n")
+    path.write_text(json.dumps(stored, indent=2) + "\n", encoding="utf-8")
     return path
 
 
@@ -104,7 +104,7 @@ def test_a_missing_data_folder_is_one_error_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     path = _stored(tmp_path / "out")
-    before = path.read_text()
+    before = path.read_text(encoding="utf-8")
     missing = tmp_path / "nonexistent"
     argv = ["--data", str(missing), "--only", "decode_depth", "--out", str(tmp_path / "out")]
     with pytest.raises(SystemExit) as exit_:
@@ -113,9 +113,9 @@ def test_a_missing_data_folder_is_one_error_before_anything_runs(
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert f"--data {missing}: no such folder" in err
     assert "Traceback" not in err
-    assert path.read_text() == before
+    assert path.read_text(encoding="utf-8") == before
     a_file = tmp_path / "file"
-    a_file.write_text("")
+    a_file.write_text("", encoding="utf-8")
     with pytest.raises(SystemExit) as exit_:
         benchmarks.main(["--data", str(a_file), "--only", "decode_depth", "--out", str(tmp_path)])
     assert exit_.value.code == 2
@@ -126,9 +126,9 @@ def test_a_skip_keeps_the_stored_measurement(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     path = _stored(tmp_path)
-    before = path.read_text()
+    before = path.read_text(encoding="utf-8")
     assert benchmarks.main(["--only", "decode_depth", "--out", str(tmp_path)]) == 0
-    assert path.read_text() == before
+    assert path.read_text(encoding="utf-8") == before
     out = capsys.readouterr().out
     assert (
         f"kept the stored result of 2026-12-07 AMD EPYC (avx512) in {path}: skipped here "
@@ -138,7 +138,7 @@ def test_a_skip_keeps_the_stored_measurement(
 
 def test_a_skip_is_written_where_no_measurement_is_stored(tmp_path: Path) -> None:
     assert benchmarks.main(["--only", "decode_depth", "--out", str(tmp_path)]) == 0
-    written = json.loads((tmp_path / "decode_depth.json").read_text())
+    written = json.loads((tmp_path / "decode_depth.json").read_text(encoding="utf-8"))
     assert written["skipped"].startswith("real GelFabric data not found")
     assert written["when"] and "cpu_model" in written["machine"]
     # a later skip replaces an earlier skip: there is no measurement to keep
@@ -149,14 +149,14 @@ def test_a_standalone_skip_keeps_the_stored_measurement(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     path = _stored(tmp_path)
-    before = path.read_text()
+    before = path.read_text(encoding="utf-8")
     skipped = {"skipped": "needs the real GelFabric depth (--data)"}
     assert benchmarks.write_standalone("decode_depth", time.time(), skipped, path) == 0
-    assert path.read_text() == before
+    assert path.read_text(encoding="utf-8") == before
     assert "kept the stored result of 2026-12-07" in capsys.readouterr().out
     measured = {"median_s": 2.0, "met": True}
     assert benchmarks.write_standalone("decode_depth", time.time(), measured, path) == 0
-    assert json.loads(path.read_text())["median_s"] == 2.0
+    assert json.loads(path.read_text(encoding="utf-8"))["median_s"] == 2.0
 
 
 def test_a_result_whose_every_part_skipped_is_a_skip() -> None:

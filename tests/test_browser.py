@@ -340,7 +340,7 @@ def test_upload_shows_ranked_fabrics_and_their_images(
         # A file that is not an image: the page shows the server's message.
         # It is an error about the file: the file input says so to a screen reader.
         bad = tmp_path / "notes.png"
-        bad.write_text("not an image")
+        bad.write_text("not an image", encoding="utf-8")
         assert browser.eval("document.querySelector('#files').ariaInvalid") is None
         browser.set_files("#files", [bad])
         browser.eval("document.querySelector('#match').click()")
@@ -370,7 +370,7 @@ def test_named_objects_show_by_name_with_their_words(browser: Browser, tmp_path:
         rows.append(f"{name},{hardness},{material}")
         for n in range(2):
             write_video(data / "videos" / f"{name}_{n}.mov", object_press(k, PRESS, 14, 10 * k + n))
-    (data / "labels.csv").write_text("\n".join(rows) + "\n")
+    (data / "labels.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     build_library(ckpt, data, tmp_path / "lib", shard_size=64)
     with background_server(create_app(Library.open(tmp_path / "lib"))) as url:
         browser.navigate(url + "/")

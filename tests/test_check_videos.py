@@ -136,5 +136,7 @@ def test_a_video_recorded_in_another_session_is_no_warning(tmp_path: Path):
     assert _warned(root) == {}  # ... like silk's
     for n in range(3):  # no video like it: it looks pressed
         (root / "videos" / f"silk_{n}.mov").unlink()
-    (root / "labels.csv").write_text("object\n" + "\n".join(o for o in OBJECTS if o != "silk"))
+    (root / "labels.csv").write_text(
+        "object\n" + "\n".join(o for o in OBJECTS if o != "silk"), encoding="utf-8"
+    )
     assert list(_warned(root)) == [other]

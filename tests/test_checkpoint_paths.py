@@ -104,7 +104,7 @@ def test_every_command_takes_a_run_folder_and_records_the_file(
         assert json.loads(str(z["meta"]))["checkpoint"] == str(last)
     code = main(["evaluate", "--checkpoint", str(folder), "--data", str(data), "--out", str(out)])
     assert code == 0, capsys.readouterr().err
-    assert f"| checkpoint | `{last}` (step 20) |" in (out / "report.md").read_text()
+    assert f"| checkpoint | `{last}` (step 20) |" in (out / "report.md").read_text(encoding="utf-8")
     query = sorted((data / "color").glob("*.png"))[0]
     capsys.readouterr()
     assert main(["predict", "--checkpoint", str(ensemble), str(query), "--json"]) == 0
@@ -143,13 +143,15 @@ def test_a_library_and_an_export_record_the_file_a_run_folder_stands_for(
     argv = ["index", "build", "--checkpoint", str(folder), "--data", str(data), "--out", str(lib)]
     code = main(argv)
     assert code == 0, capsys.readouterr().err
-    manifest = json.loads((lib / "manifest.json").read_text())
+    manifest = json.loads((lib / "manifest.json").read_text(encoding="utf-8"))
     assert manifest["checkpoint"]["path"] == str(last.resolve())
     query = sorted((data / "color").glob("*.png"))[0]
     argv = ["match", "--index", str(lib), "--checkpoint", str(folder), "--modality", "color"]
     assert main([*argv, str(query)]) == 0, capsys.readouterr().err
     assert main(["export", "--checkpoint", str(folder), "--out", str(tmp_path / "onnx")]) == 0
-    recorded = json.loads((tmp_path / "onnx" / "export.json").read_text())["checkpoint"]
+    recorded = json.loads((tmp_path / "onnx" / "export.json").read_text(encoding="utf-8"))[
+        "checkpoint"
+    ]
     assert recorded == str(last.resolve())
 
 

@@ -60,17 +60,21 @@ def test_demo_runs_end_to_end(tmp_path: Path, capsys):
     assert (tmp_path / "demo" / "cross" / "checkpoints" / "last.pt").is_file()
     # The short run keeps the full recipe's dropout on depth and touch and its three frames a
     # press, at half its width, with the photo at the size of the other senses (CROSS_OVERRIDES).
-    saved = yaml.safe_load((tmp_path / "demo" / "cross" / "config.yaml").read_text())
+    saved = yaml.safe_load(
+        (tmp_path / "demo" / "cross" / "config.yaml").read_text(encoding="utf-8")
+    )
     assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
     assert (saved["model"]["width"], saved["train"]["steps"]) == (16, 2)
     assert (saved["data"]["image_size"], saved["data"]["color_size"]) == (24, None)
     assert (saved["data"]["touch_frames"], saved["data"]["touch_frame"]) == ([0, 1, 2], -1)
     assert saved["model"]["precision"] == "fp32"  # on CUDA too: the numbers a CPU gives
-    metrics = json.loads((tmp_path / "demo" / "evaluate" / "metrics.json").read_text())
+    metrics = json.loads(
+        (tmp_path / "demo" / "evaluate" / "metrics.json").read_text(encoding="utf-8")
+    )
     assert "touch_to_depth_top1_mapped_ci_low" in metrics
     assert (tmp_path / "demo" / "evaluate" / "figures" / "glance.png").is_file()
     assert "At a glance:" in out
-    report = (tmp_path / "demo" / "reproduce" / "report.md").read_text()
+    report = (tmp_path / "demo" / "reproduce" / "report.md").read_text(encoding="utf-8")
     assert "## Table 4" in report
     # One training seed, 0, as before `reproduce` took a list of seeds (session 56).
     assert "budget: **tiny**; seeds: 1; " in report
@@ -305,7 +309,7 @@ def test_pretrained_is_a_path_not_yaml_saved_absolute_and_named_in_its_errors(
     resnet += ["train.steps=1", "train.batch_size=4", "train.val_every=0"]
     sets = [x for s in resnet for x in ("--set", s)]
     assert main([*args, "run", *sets, "--pretrained", "w/a: b.pth"]) == 0
-    saved = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    saved = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text(encoding="utf-8"))
     assert saved["model"]["pretrained"] == str(Path.cwd() / "w" / "a: b.pth")
 
 

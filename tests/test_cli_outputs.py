@@ -150,7 +150,7 @@ def test_embed_keeps_a_file_it_did_not_write(
     elif name == "mine.npz":
         np.savez(mine, x=np.arange(3))
     else:
-        mine.write_text("fabric_id,thickness_mm\n1,0.5\n")
+        mine.write_text("fabric_id,thickness_mm\n1,0.5\n", encoding="utf-8")
     before = mine.read_bytes()
     argv = _commands(tiny_dataset, mine)["embed"]
     other = (
@@ -203,14 +203,14 @@ def test_a_folder_holding_something_else_is_refused_and_its_own_kept(
     folder that is not a library): a run to resume, a report to write again."""
     out = tmp_path / "out"
     out.mkdir()
-    (out / "notes.txt").write_text("mine\n")
-    (out / ".hidden").write_text("")
+    (out / "notes.txt").write_text("mine\n", encoding="utf-8")
+    (out / ".hidden").write_text("", encoding="utf-8")
     argv = _commands(tiny_dataset, out)[command]
     _refused(capsys, argv, f"--out {out}: the folder holds files and is not ", "choose a new")
     assert sorted(p.name for p in out.iterdir()) == [".hidden", "notes.txt"]
     own = out / OWN[command]
     if "." in own.name:
-        own.write_text("{}\n")
+        own.write_text("{}\n", encoding="utf-8")
     else:
         own.mkdir()
     with pytest.raises(_Worked):
@@ -233,7 +233,7 @@ def test_an_out_a_folder_command_cannot_write_is_exit_1_in_one_line(
     with argparse's usage, where README says an --out a command cannot write in is one line,
     exit 1, as every other path problem is."""
     notes = tmp_path / "notes.txt"
-    notes.write_text("mine\n")
+    notes.write_text("mine\n", encoding="utf-8")
     for out, said in (
         (notes, f"--out {notes} exists and is not a folder; this command writes a folder"),
         (notes / "run", f"--out {notes / 'run'}: {notes} is a file, not a folder to write in"),
@@ -242,7 +242,7 @@ def test_an_out_a_folder_command_cannot_write_is_exit_1_in_one_line(
             ["demo", "--out", out] if command == "demo" else _commands(tiny_dataset, out)[command]
         )
         _refused(capsys, argv, said)
-    assert notes.read_text() == "mine\n"
+    assert notes.read_text(encoding="utf-8") == "mine\n"
 
 
 def test_an_embed_out_that_is_a_folder_is_exit_1_in_one_line(

@@ -29,7 +29,8 @@ from lookfeel.modality import Modality, Pair, PressKind
 def test_defaults_then_yaml_then_overrides(tmp_path: Path):
     path = tmp_path / "c.yaml"
     path.write_text(
-        "image_size: 64\naugment:\n  color: {gamma: [0.5, 2.0], permute_channels: true}\n"
+        "image_size: 64\naugment:\n  color: {gamma: [0.5, 2.0], permute_channels: true}\n",
+        encoding="utf-8",
     )
     cfg = load_config(DataConfig, path, ["image_size=32", "touch_kinds=fold,flat", "presses=3"])
     assert cfg.image_size == 32
@@ -41,7 +42,7 @@ def test_defaults_then_yaml_then_overrides(tmp_path: Path):
 
 def test_a_bad_value_is_blamed_on_the_file_or_on_the_set_that_gave_it(tmp_path: Path):
     path = tmp_path / "c.yaml"
-    path.write_text("train:\n  steps: 10\n  lr: fast\n")
+    path.write_text("train:\n  steps: 10\n  lr: fast\n", encoding="utf-8")
     with pytest.raises(ConfigError, match=r"^--set train.steps=abc: train.steps: expected an"):
         load_config(RunConfig, path, ["train.lr=0.1", "train.steps=abc"])
     with pytest.raises(ConfigError, match=rf"^{path}: train.lr: expected a number"):
@@ -90,19 +91,19 @@ def test_touch_frames_null_means_none_as_the_empty_list_does(tmp_path: Path):
         assert cfg.data.touch_frames == () and cfg.data.touch_frame_indices == (-2,)
         assert cfg == load_config(RunConfig) != stacked
     save_config(load_config(RunConfig, None, ["data.touch_frames=null"]), tmp_path / "c.yaml")
-    assert "touch_frames: []" in (tmp_path / "c.yaml").read_text()
+    assert "touch_frames: []" in (tmp_path / "c.yaml").read_text(encoding="utf-8")
 
 
 def test_file_errors_name_the_file(tmp_path: Path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("# notes\n\n```bash\n")
+    bad.write_text("# notes\n\n```bash\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="bad.yaml: not valid YAML: found character") as e:
         load_config(DataConfig, bad)
     assert str(e.value).endswith("at line 3, column 1") and "\n" not in str(e.value)
-    bad.write_text("- 1\n- 2\n")
+    bad.write_text("- 1\n- 2\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="bad.yaml: the top level must be a mapping"):
         load_config(DataConfig, bad)
-    bad.write_text("presses: 0\n")
+    bad.write_text("presses: 0\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="bad.yaml: data.presses: must be >= 1"):
         load_config(DataConfig, bad)
     with pytest.raises(ConfigError, match="missing.yaml: cannot read"):
@@ -189,7 +190,7 @@ def test_pairs_load_as_pairs_and_save_as_their_names(tmp_path: Path):
     assert all(isinstance(p, Pair) for p in cfg.train.val_pairs)
     assert cfg.train.val_pairs[0].gallery is Modality.DEPTH
     save_config(cfg, tmp_path / "config.yaml")
-    assert "- touch_to_depth" in (tmp_path / "config.yaml").read_text()
+    assert "- touch_to_depth" in (tmp_path / "config.yaml").read_text(encoding="utf-8")
     assert load_config(RunConfig, tmp_path / "config.yaml") == cfg
     assert to_dict(cfg)["train"]["val_pairs"] == ["touch_to_depth", "depth_to_depth"]
     assert type(to_dict(cfg)["train"]["val_pairs"][0]) is str
@@ -296,3 +297,36 @@ def test_loss_options_are_settings_of_one_s_own_loss_recorded_with_the_run(
         "no options (its settings are loss's own keys, e.g. loss.margin); options are for a loss "
         "registered with lookfeel.losses.register_loss"
     )
+
+
+def test_load_config_reads_a_shipped_config_by_name_from_any_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """``load_config(RunConfig, "configs/tiny.yaml")``, the package's first example, failed
+    outside a checkout (QA F8); it now means what ``--config`` means (`config_file`): a file
+    that exists as it is, else the shipped config of that name."""
+    from lookfeel.config.recipes import recipe_path
+
+    monkeypatch.chdir(tmp_path)
+    shipped = load_config(RunConfig, recipe_path("tiny.yaml"))
+    for name in ("configs/tiny.yaml", "tiny.yaml", "tiny"):
+        assert load_config(RunConfig, name, ["train.steps=3"]) == dataclasses.replace(
+            shipped, train=dataclasses.replace(shipped.train, steps=3)
+        )
+    (tmp_path / "tiny.yaml").write_text(
+        "train:\n  steps: 7\n", encoding="utf-8"
+    )  # a file that exists wins
+    assert load_config(RunConfig, "tiny.yaml").train.steps == 7
+    with pytest.raises(ConfigError, match=r"^nosuch: cannot read config file .*, nor a shipped"):
+        load_config(RunConfig, "nosuch")
+
+
+def test_a_config_that_is_not_utf8_is_one_line_naming_it(tmp_path: Path):
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes("# Gewebe für Mäntel\ntrain:\n  steps: 3\n".encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin1\.yaml: not UTF-8 text \(byte 10: invalid") as e:
+        load_config(RunConfig, path)
+    assert "\n" not in str(e.value)
+    utf8 = tmp_path / "utf8.yaml"
+    utf8.write_text("# Gewebe für Mäntel, 布料\ntrain:\n  steps: 3\n", encoding="utf-8")
+    assert load_config(RunConfig, utf8).train.steps == 3

@@ -29,7 +29,7 @@ def test_paper_configs_cover_the_tables():
         "cross_modal_depth_touch",
     }
     for path in PAPER.values():
-        header = path.read_text().split("\n\n")[0]
+        header = path.read_text(encoding="utf-8").split("\n\n")[0]
         assert "Table" in header or "Figure" in header, path
 
 

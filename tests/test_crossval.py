@@ -80,15 +80,15 @@ def test_cross_validate_scores_every_run_and_resumes(data: Path, tmp_path: Path)
     for seed in (0, 1):
         for fold in (0, 1):
             run = tmp_path / "cv" / f"seed{seed}-fold{fold}"
-            split = json.loads((run / "split.json").read_text())
-            res = json.loads((run / "result.json").read_text())
+            split = json.loads((run / "split.json").read_text(encoding="utf-8"))
+            res = json.loads((run / "result.json").read_text(encoding="utf-8"))
             assert res["test_fabrics"] == split["val"] and len(split["val"]) == 3
             assert not set(split["val"]) & set(split["train"])
             seen.add(tuple(split["val"]))
     assert len(seen) == 2
     props = summary["properties"]["depth"]
     assert set(props["model"]) == set(scan(data).label_columns)
-    report = (tmp_path / "cv" / "cv.md").read_text()
+    report = (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
     assert report.startswith("Fabric-disjoint cross-validation")
     assert "(1 of all of them where a fold holds fewer than 10: see chance)" in report
     # The labelled fabrics also give matching in label space, fitted on each run's training.
@@ -123,7 +123,7 @@ def test_cross_validate_resumes_an_interrupted_run(data: Path, tmp_path: Path):
     logs: list[str] = []
     cross_validate(config, data, tmp_path / "cv", folds=[1], n_boot=20, log=logs.append)
     assert any("resuming" in line for line in logs)
-    assert json.loads((run / "result.json").read_text())["step"] == 6
+    assert json.loads((run / "result.json").read_text(encoding="utf-8"))["step"] == 6
 
 
 def test_cross_validate_errors_name_the_value(data: Path, tmp_path: Path):
@@ -140,7 +140,7 @@ def test_cli_cv_writes_the_report(data: Path, tmp_path: Path, capsys: pytest.Cap
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "| depth_to_depth |" in out and "raw pixels" in out
-    summary = json.loads((tmp_path / "o" / "cv.json").read_text())
+    summary = json.loads((tmp_path / "o" / "cv.json").read_text(encoding="utf-8"))
     assert summary["tta"] is True and summary["folds"] == [0]
     with pytest.raises(SystemExit):
         main([*args[:7], "--only-folds", "a,b"])
@@ -193,7 +193,7 @@ def test_a_cv_names_the_finished_runs_of_its_folder_that_its_summary_leaves_out(
     logs.clear()
     summary = cross_validate(config, data, out, folds=[1], n_boot=20, log=logs.append)
     assert summary["folds"] == [1] and summary["runs"] == 1
-    assert json.loads((out / "cv.json").read_text())["folds"] == [1]
+    assert json.loads((out / "cv.json").read_text(encoding="utf-8"))["folds"] == [1]
     assert logs[-1] == (
         f"{out} also holds finished runs of seed 0 fold 0, scored with these settings (not in "
         "this summary): `lookfeel cv` with the same options but --seeds 0 --only-folds 0,1 "
@@ -204,13 +204,13 @@ def test_a_cv_names_the_finished_runs_of_its_folder_that_its_summary_leaves_out(
     assert both["runs"] == 2 and all("done before, kept" in line for line in logs)
     # Only finished runs of these settings on this data count: a result of seed 1 counts, one
     # scored otherwise, one of other data, an unfinished run and a folder cv never makes do not.
-    result = json.loads((out / "seed0-fold1" / "result.json").read_text())
+    result = json.loads((out / "seed0-fold1" / "result.json").read_text(encoding="utf-8"))
 
     def planted(name: str, seed: int, **changes: object) -> None:
         res = json.loads(json.dumps(result | changes)) | {"seed": seed}
         res["key"]["config"]["train"]["seed"] = seed
         (out / name).mkdir()
-        (out / name / "result.json").write_text(json.dumps(res))
+        (out / name / "result.json").write_text(json.dumps(res), encoding="utf-8")
 
     planted("seed1-fold1", 1)
     planted("seed2-fold1", 2, key={**result["key"], "tta": True})
@@ -251,11 +251,11 @@ def test_a_cv_folder_keeps_its_runs_for_the_same_data_moved_and_refuses_other_da
     with pytest.raises(ConfigError, match=re.escape(f"holds a run on another dataset ({data})")):
         cross_validate(config, other, tmp_path / "cv", folds=[0], n_boot=20)
     labels = moved / "labels.csv"
-    lines = labels.read_text().splitlines()
+    lines = labels.read_text(encoding="utf-8").splitlines()
     head, row = lines[0].split(","), lines[1].split(",")
     col = head.index("thickness_mm")
     row[col] = str(float(row[col]) + 1.0)
-    labels.write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n")
+    labels.write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="before its files or labels changed"):
         cross_validate(config, moved, tmp_path / "cv", folds=[0], n_boot=20)
     # The same names and labels with other pixels (a world rendered again at another seed):
@@ -280,8 +280,8 @@ def test_a_cv_folder_of_an_earlier_lookfeel_resumes_and_is_summarised_as_before(
     summary = cross_validate(config, data, out, folds=[0], n_boot=20, log=lambda _: None)
     fingerprint = scan(data).fingerprint()
     path = out / "seed0-fold0" / "result.json"
-    res = json.loads(path.read_text())
-    for written in (summary, json.loads((out / "cv.json").read_text()), res):
+    res = json.loads(path.read_text(encoding="utf-8"))
+    for written in (summary, json.loads((out / "cv.json").read_text(encoding="utf-8")), res):
         assert (written["data_root"], written["data_fingerprint"]) == (str(data), fingerprint)
         assert "data" not in written
 
@@ -291,12 +291,12 @@ def test_a_cv_folder_of_an_earlier_lookfeel_resumes_and_is_summarised_as_before(
         return old | {"data": {"root": root, "fingerprint": fingerprint}}
 
     kept = json.dumps(earlier(res, str(data), fingerprint))
-    path.write_text(kept)
+    path.write_text(kept, encoding="utf-8")
     trained = {p: p.stat().st_mtime_ns for p in out.rglob("last.pt")}
     logs: list[str] = []
     again = cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
     assert logs == [f"seed 0 fold 0: done before, kept ({path})"]
-    assert path.read_text() == kept  # kept as it was, not written again
+    assert path.read_text(encoding="utf-8") == kept  # kept as it was, not written again
     assert {p: p.stat().st_mtime_ns for p in trained} == trained
     assert json.dumps(again, sort_keys=True) == json.dumps(summary, sort_keys=True)
     # A finished run of the earlier form outside the summary counts as one; on other data not.
@@ -305,12 +305,12 @@ def test_a_cv_folder_of_an_earlier_lookfeel_resumes_and_is_summarised_as_before(
         other["seed"] = seed
         other["key"]["config"]["train"]["seed"] = seed
         (out / f"seed{seed}-fold0").mkdir()
-        (out / f"seed{seed}-fold0" / "result.json").write_text(json.dumps(other))
+        (out / f"seed{seed}-fold0" / "result.json").write_text(json.dumps(other), encoding="utf-8")
     logs.clear()
     cross_validate(config, data, out, folds=[0], n_boot=20, log=logs.append)
     assert logs[-1].startswith(f"{out} also holds finished runs of seed 1 fold 0, scored with")
     # The earlier form on other data is refused, naming the folder it recorded.
-    path.write_text(json.dumps(earlier(res, "elsewhere", "0123456789abcdef")))
+    path.write_text(json.dumps(earlier(res, "elsewhere", "0123456789abcdef")), encoding="utf-8")
     with pytest.raises(ConfigError, match=re.escape("holds a run on another dataset (elsewhere)")):
         cross_validate(config, data, out, folds=[0], n_boot=20, log=lambda _: None)
 
@@ -350,7 +350,9 @@ def test_an_auto_property_head_is_the_same_run_when_scored_again(data: Path, tmp
         "seed 0 fold 0: trained before, scoring again (scored with other settings: tta true, "
         "was false)"
     )
-    saved = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text())
+    saved = json.loads(
+        (tmp_path / "cv" / "seed0-fold0" / "result.json").read_text(encoding="utf-8")
+    )
     assert saved["key"]["config"]["model"]["num_properties"] == "auto"
     assert set(saved["properties"]["depth"]["model"]) == {
         "thickness_mm",
@@ -376,9 +378,11 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
             low, high = entry["model_mapped_top1"]["ci95"]
             assert 0.0 <= low <= entry["model_mapped_top1"]["mean"] <= high <= 1.0
     assert "model_mapped_swapped_top1" in summary["pairs"]["touch_to_depth"]
-    assert "Matching through a cross-modal map" in (tmp_path / "cv" / "cv.md").read_text()
+    assert "Matching through a cross-modal map" in (tmp_path / "cv" / "cv.md").read_text(
+        encoding="utf-8"
+    )
     run = tmp_path / "cv" / "seed0-fold0"
-    saved = yaml.safe_load((run / "config.yaml").read_text())
+    saved = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     assert saved["model"]["branch_dropout"] == {"depth": 0.3, "touch": 0.3}
     assert saved["model"]["dropout"] == 0.0  # colour's branch
     assert saved["data"]["touch_frames"] == [0, 1, 2]  # a press's three frames, stacked
@@ -389,7 +393,10 @@ def test_synth_cross_config_trains_every_pair_with_its_property_head(data: Path,
         ].shape[1]
         == 9
     )
-    logged = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    logged = [
+        json.loads(line)
+        for line in (run / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     terms = {k for row in logged for k in row if k.endswith("_loss")}
     assert {"depth_color_loss", "depth_touch_loss", "property_loss"} <= terms
     assert "color_touch_loss" not in terms  # colour and touch meet through depth
@@ -414,7 +421,7 @@ def test_background_control_in_cv_and_evaluate(
         assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
     assert summary["background_control"] == {"on": True, "seed": 0, "skipped": None}
     assert pair["raw_pixels_top1"]["mean"] > pair["raw_pixels_swapped_top1"]["mean"] + 0.2
-    md = (tmp_path / "cv" / "cv.md").read_text()
+    md = (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
     assert "Background control" in md and "raw pixels top-1, background swapped" in md
     assert "label space top-1, background swapped" in md
     # The room alone as a property probe, beside the model's (the room here sits 20 mm a
@@ -431,7 +438,7 @@ def test_background_control_in_cv_and_evaluate(
     assert "model_labels_swapped_top1" not in off["pairs"]["depth_to_depth"]
     assert off["background_control"]["on"] is False
     assert "room" not in off["properties"]["depth"]
-    assert "room alone" not in (tmp_path / "cv" / "cv.md").read_text()
+    assert "room alone" not in (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
 
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
     result = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20))
@@ -439,7 +446,7 @@ def test_background_control_in_cv_and_evaluate(
     for key in ("depth_to_depth_top1_swapped", "depth_to_depth_raw_pixels_top1_swapped"):
         assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
     assert m["depth_to_depth_raw_pixels_top1"] > m["depth_to_depth_raw_pixels_top1_swapped"]
-    report = (write_report(result, tmp_path / "eval").report).read_text()
+    report = (write_report(result, tmp_path / "eval").report).read_text(encoding="utf-8")
     assert "## Background control" in report
     plain = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20, background_control=False))
     assert not any(k.endswith("_swapped") for k in plain.metrics)
@@ -462,7 +469,7 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
     for key in ("model_room_top1", "model_labels_room_top1", "raw_pixels_room_top1"):
         low, high = pair[key]["ci95"]
         assert 0.0 <= low <= pair[key]["mean"] <= high <= 1.0, key
-    md = (tmp_path / "cv" / "cv.md").read_text()
+    md = (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
     assert "model top-1, in another fabric's room" in md
     assert "label space top-1, in another fabric's room" in md
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
@@ -470,12 +477,12 @@ def test_room_control_in_cv_and_evaluate_for_registered_depth(leaky_depth: Path,
     m = result.metrics
     for key in ("depth_to_depth_top1_room", "depth_to_depth_raw_pixels_top1_room"):
         assert 0.0 <= m[f"{key}_ci_low"] <= m[key] <= m[f"{key}_ci_high"] <= 1.0, key
-    report = (write_report(result, tmp_path / "eval").report).read_text()
+    report = (write_report(result, tmp_path / "eval").report).read_text(encoding="utf-8")
     assert "model, in another fabric's room" in report
     raw = load_config(RunConfig, TINY, [*OVERRIDES, "train.steps=2", "train.split_seed=1"])
     raw_summary = cross_validate(raw, leaky_depth, tmp_path / "raw", folds=[0], n_boot=20)
     assert "model_room_top1" not in raw_summary["pairs"]["depth_to_depth"]
-    raw_md = (tmp_path / "raw" / "cv.md").read_text()
+    raw_md = (tmp_path / "raw" / "cv.md").read_text(encoding="utf-8")
     assert "another fabric's room" not in raw_md and "background swapped" in raw_md
 
 
@@ -561,7 +568,7 @@ def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_pa
     single = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20)
     pooled = cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, presses=3)
     assert (single["presses"], pooled["presses"]) == (1, 3)
-    run = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text())
+    run = json.loads((tmp_path / "cv" / "seed0-fold0" / "result.json").read_text(encoding="utf-8"))
     assert run["key"]["presses"] == 3
     held = run["test_fabrics"]
     for pair in ("touch_to_depth", "touch_to_touch"):
@@ -572,10 +579,9 @@ def test_cv_pools_presses_into_touch_queries_as_evaluate_does(data: Path, tmp_pa
         assert all(len(entry[k]) == len(held) for k in methods), pair
     assert "raw_pixels" in run["pairs"]["touch_to_touch"]
     assert len(run["pairs"]["depth_to_touch"]["query_fabric"]) == 3 * len(held)  # drapes
-    assert (
-        "pools 3 presses of one fabric, as a query and as the candidates"
-        in (tmp_path / "cv" / "cv.md").read_text()
-    )
+    assert "pools 3 presses of one fabric, as a query and as the candidates" in (
+        tmp_path / "cv" / "cv.md"
+    ).read_text(encoding="utf-8")
 
     ckpt = tmp_path / "cv" / "seed0-fold0" / "checkpoints" / "last.pt"
     m = evaluate_checkpoint(ckpt, data, "val", EvalConfig(n_boot=20, presses=3)).metrics
@@ -761,11 +767,15 @@ def test_cv_with_every_fold_press_in_one_query_marks_touch_to_touch_not_scored(
         "use --presses 2 or fewer"
     )
     assert (
-        json.loads((tmp_path / "cv" / "cv.json").read_text())["pairs"]["touch_to_touch"]
+        json.loads((tmp_path / "cv" / "cv.json").read_text(encoding="utf-8"))["pairs"][
+            "touch_to_touch"
+        ]
         == (summary["pairs"]["touch_to_touch"])
     )
     assert 0.0 <= summary["pairs"]["touch_to_depth"]["model_top1"]["mean"] <= 1.0
-    assert f"Not scored: touch to touch: {why}." in (tmp_path / "cv" / "cv.md").read_text()
+    assert f"Not scored: touch to touch: {why}." in (tmp_path / "cv" / "cv.md").read_text(
+        encoding="utf-8"
+    )
     assert logs[-1].startswith("seed 0 fold 0: touch_to_touch not scored (trained in")
 
 
@@ -811,7 +821,7 @@ def _strict_json(path: Path) -> dict:
     def refuse(constant: str) -> None:
         raise AssertionError(f"{path} holds {constant}, which strict JSON parsers refuse")
 
-    return json.loads(path.read_text(), parse_constant=refuse)
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
 
 
 def test_cv_md_says_which_fabrics_were_held_out_and_json_is_strict(tmp_path: Path):
@@ -821,11 +831,11 @@ def test_cv_md_says_which_fabrics_were_held_out_and_json_is_strict(tmp_path: Pat
     writes, and the first line counts what was held out, not run, only trained on, unused."""
     data = write_tiny_dataset(tmp_path / "data", fabrics=8, drapes=2)
     labels = data / "labels.csv"
-    rows = [line.split(",") for line in labels.read_text().splitlines()]
+    rows = [line.split(",") for line in labels.read_text(encoding="utf-8").splitlines()]
     for row in rows[1:]:
         row[5] = "1"  # stretchiness: every fabric 1
     rows[-1][6] = "test"  # fabric 8: the paper's test, never used by cv
-    labels.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    labels.write_text("\n".join(",".join(r) for r in rows) + "\n", encoding="utf-8")
     config = load_config(RunConfig, TINY, OVERRIDES)
     cross_validate(config, data, tmp_path / "cv", folds=[0], n_boot=20, log=lambda _: None)
     summary = _strict_json(tmp_path / "cv" / "cv.json")
@@ -834,7 +844,7 @@ def test_cv_md_says_which_fabrics_were_held_out_and_json_is_strict(tmp_path: Pat
     assert probe["r2"] is None and probe["not_scored"] == "every value 1"
     assert (probe["runs"], probe["runs_total"]) == (0, 1)
     assert summary["properties"]["depth"]["model"]["thickness_mm"]["runs"] == 1
-    md = (tmp_path / "cv" / "cv.md").read_text()
+    md = (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
     assert "nan" not in md.lower()
     assert "| stretchiness | n/a: every value 1 | n/a | n/a | 3 (1 of 1 runs) |" in md
     assert md.startswith(

@@ -60,7 +60,7 @@ def test_cli_cv_with_n_boot_0_scores_without_intervals_and_rescores_its_folder(
         for row in summary["properties"]["depth"]["model"].values():
             for score in ("r2", "spearman", "chance_r2", "chance_spearman"):
                 assert row["pooled"][score]["ci95"] == [None, None]
-        md = (out / "cv.md").read_text()
+        md = (out / "cv.md").read_text(encoding="utf-8")
         assert md in printed  # what cv prints is cv.md
         assert "; mean over runs, no interval (--n-boot 0: none was drawn)." in md
         assert f"of every fold at once, {NO_INTERVAL}." in md

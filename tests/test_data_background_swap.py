@@ -143,7 +143,7 @@ def _two_sessions(root, size: int = 48):
             )
             name = f"F{fabric:04d}_Depth_New_{k:06d}.png"
             Image.fromarray(scene.render()["depth"]).save(root / "depth" / name)
-    (root / "labels.csv").write_text("fabric_id,thickness_mm\n1,0.5\n2,1.0\n")
+    (root / "labels.csv").write_text("fabric_id,thickness_mm\n1,0.5\n2,1.0\n", encoding="utf-8")
     return root, base.f
 
 

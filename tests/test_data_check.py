@@ -69,7 +69,7 @@ def test_decode_failures_drop_their_items(tiny_dataset: Path):
 
 
 def test_warnings_fail_only_when_strict(tiny_dataset: Path, capsys):
-    with open(tiny_dataset / "labels.csv", "a") as f:
+    with open(tiny_dataset / "labels.csv", "a", encoding="utf-8") as f:
         f.write("50,0,1,1,1,0,test\n")
     assert main(["data", "check", str(tiny_dataset)]) == 0
     out = capsys.readouterr().out
@@ -252,7 +252,8 @@ def test_a_constant_column_and_classes_of_one_fabric_are_a_warning_per_column(
     labels.write_text(
         "fabric_id,material,hardness,density,thickness_mm,note\n"
         "1,cotton,1,0.25,0.5,first\n2,cotton,1,0.25,0.6,second\n3,wool,1,0.25,0.7,third\n"
-        "4,wool,1,0.25,0.8,fourth\n5,silk,1,0.25,0.9,fifth\n6,linen,1,,1.0,sixth\n"
+        "4,wool,1,0.25,0.8,fourth\n5,silk,1,0.25,0.9,fifth\n6,linen,1,,1.0,sixth\n",
+        encoding="utf-8",
     )
     catalog = check_dataset(tiny_dataset)
     assert catalog.errors == ()
@@ -273,7 +274,8 @@ def test_a_constant_column_and_classes_of_one_fabric_are_a_warning_per_column(
     ]
     labels.write_text(
         "fabric_id,material,hardness,note\n1,cotton,1,a\n2,cotton,2,b\n3,wool,1,c\n"
-        "4,wool,2,d\n5,silk,0,e\n6,silk,1,f\n"
+        "4,wool,2,d\n5,silk,0,e\n6,silk,1,f\n",
+        encoding="utf-8",
     )
     assert check_dataset(tiny_dataset).problems == ()
 

@@ -168,3 +168,13 @@ def test_a_drawn_batch_keeps_the_tuple_rules_and_its_targets(tiny_dataset: Path)
     assert targets["properties"]["touch"].shape == (5, 4)
     again = ds.draw_batch(np.random.default_rng(7), 300)
     assert all(np.array_equal(x, y) for x, y in zip(b.items, again.items, strict=True))
+
+
+def test_pool_items_is_the_one_list_of_what_a_modality_draws(tiny_dataset: Path):
+    """One name for the items a slot draws from (QA F19): `pool_items`, fabric by fabric, which
+    the training batches index; the near-duplicate method `pools_items` is gone."""
+    ds = _ds(tiny_dataset, length=4)
+    assert not hasattr(ds, "pools_items")
+    catalog = scan(tiny_dataset)
+    for m in (D, C, T):
+        assert ds.pool_items[m] == [it for f in catalog.fabrics for it in f.items_of(m, ds.kinds)]

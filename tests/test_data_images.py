@@ -228,7 +228,10 @@ def test_disk_cache_is_keyed_by_settings(tiny_dataset: Path, tmp_path: Path):
 
     from lookfeel.data.images import CACHE_SETTINGS
 
-    said = {f.parent.name: json.loads(f.read_text()) for f in cache.glob(f"*/{CACHE_SETTINGS}")}
+    said = {
+        f.parent.name: json.loads(f.read_text(encoding="utf-8"))
+        for f in cache.glob(f"*/{CACHE_SETTINGS}")
+    }
     assert {d["settings"]["image_size"] for d in said.values()} == {16, 20}
     assert all("can be deleted" in d["what"] for d in said.values())
 

@@ -85,7 +85,8 @@ def _ranked(root: Path, hardness_of_3: str) -> Path:
         root, fabrics=4, drapes=1, fold_presses=1, flat_presses=0, frames=1, labels=False
     )
     (root / "labels.csv").write_text(
-        f"fabric_id,hardness,material\n1,0,cloth\n2,2,metal\n3,{hardness_of_3},wood\n4,1,cloth\n"
+        f"fabric_id,hardness,material\n1,0,cloth\n2,2,metal\n3,{hardness_of_3},wood\n4,1,cloth\n",
+        encoding="utf-8",
     )
     return root
 
@@ -290,7 +291,7 @@ def test_data_check_warns_of_an_ignored_empty_column_and_passes(
         tmp_path / "t", fabrics=3, drapes=1, fold_presses=1, flat_presses=0, frames=1,
         labels=False,
     )  # fmt: skip
-    (root / "labels.csv").write_text("fabric_id,stiffness,\n1,2,\n2,3,\n3,1,\n")
+    (root / "labels.csv").write_text("fabric_id,stiffness,\n1,2,\n2,3,\n3,1,\n", encoding="utf-8")
     assert main(["data", "check", str(root), "--no-leakage"]) == 0
     out = capsys.readouterr().out
     assert f"WARNING  {root / 'labels.csv'}:1: column 3 has no name and no value in any row" in out
@@ -341,7 +342,8 @@ def test_a_column_of_decimal_commas_is_numeric_and_one_error_saying_what_to_writ
     )  # fmt: skip
     (root / "labels.csv").write_text(
         'fabric_id,thickness_mm,material\n1,"0,7",cotton\n2,"0,5",wool\n3,"1,2",cotton\n'
-        "4,0.9,wool\n"
+        "4,0.9,wool\n",
+        encoding="utf-8",
     )
     catalog = scan(root)
     assert catalog.label_columns == ("thickness_mm",)

@@ -91,7 +91,7 @@ def test_authors_folder_aliases(tmp_path: Path):
 
 
 def test_other_files_are_reported_skipped_not_read(tiny_dataset: Path):
-    (tiny_dataset / "notes.txt").write_text("hello")
+    (tiny_dataset / "notes.txt").write_text("hello", encoding="utf-8")
     (tiny_dataset / "renders").mkdir()
     (tiny_dataset / "depth" / "Thumbs.db").write_bytes(b"x")
     (tiny_dataset / "depth" / "._F0001_Depth_New_1.png").write_bytes(b"x")  # macOS's copies
@@ -142,7 +142,7 @@ def test_every_problem_is_reported_at_once(tiny_dataset: Path):
     write_rgb(tiny_dataset / "touch" / "F12_fold_x.jpg", 12, 0)
     write_rgb(tiny_dataset / "touch" / "F0001_fold_01_100.jpg", 1, 0)  # frame 1 twice
     write_depth(depth / "F0042_Depth_New_1.png", 42, 0)  # not in labels.csv
-    with open(tiny_dataset / "labels.csv", "a") as f:
+    with open(tiny_dataset / "labels.csv", "a", encoding="utf-8") as f:
         f.write("77,1,1.0,1.0,1.0,0,test\n")  # labelled, no image: a warning
     catalog = scan(tiny_dataset)
     found = {(p.path.name if p.path else None, p.severity): p.message for p in catalog.problems}
@@ -214,7 +214,7 @@ def test_a_sense_most_fabrics_lack_is_one_line_and_a_few_lacking_it_a_line_each(
 def test_missing_root_is_a_clear_error(tmp_path: Path):
     with pytest.raises(DatasetError, match=r"^\S*nope: dataset folder does not exist$"):
         scan(tmp_path / "nope")
-    (tmp_path / "file").write_text("x")
+    (tmp_path / "file").write_text("x", encoding="utf-8")
     with pytest.raises(DatasetError, match=r"^\S*file: is not a folder \(a dataset is a folder"):
         scan(tmp_path / "file")
 
@@ -283,7 +283,9 @@ def test_webm_and_m4v_presses_are_read_and_other_video_formats_say_so(tmp_path: 
         pytest.skip("this FFmpeg build has no VP8/VP9 encoder")
     videos = tmp_path / "rec" / "videos"
     videos.mkdir(parents=True)
-    (tmp_path / "rec" / "labels.csv").write_text("object,hardness\ncork,0\nfelt,1\n")
+    (tmp_path / "rec" / "labels.csv").write_text(
+        "object,hardness\ncork,0\nfelt,1\n", encoding="utf-8"
+    )
     frames = object_press(1, PRESS, 16)
     webm = write_video(videos / "cork_0.webm", frames, vp)
     m4v = write_video(videos / "felt_0.m4v", frames)

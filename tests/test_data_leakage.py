@@ -50,7 +50,7 @@ def _write_rig(root: Path, leak: bool, fabrics: int = 12, drapes: int = 4) -> Pa
             path.parent.mkdir(parents=True, exist_ok=True)
             Image.fromarray(np.rint(d).astype(np.uint16)).save(path)
     lines = [LABELS_HEADER] + [f"{f},{f % 3},1,1,1,0,train\n" for f in range(1, fabrics + 1)]
-    (root / "labels.csv").write_text("".join(lines))
+    (root / "labels.csv").write_text("".join(lines), encoding="utf-8")
     return root
 
 
@@ -252,7 +252,7 @@ def _write_posts(root: Path, moved: bool, fabrics: int = 10, drapes: int = 4) ->
             path.parent.mkdir(parents=True, exist_ok=True)
             Image.fromarray(scene.render()["depth"]).save(path)
     lines = [LABELS_HEADER] + [f"{f},{f % 3},1,1,1,0,train\n" for f in range(1, fabrics + 1)]
-    (root / "labels.csv").write_text("".join(lines))
+    (root / "labels.csv").write_text("".join(lines), encoding="utf-8")
     return root
 
 
@@ -584,9 +584,11 @@ def test_cli_data_leakage_refuses_a_folder_with_no_image_as_data_check_does(
     root.mkdir()
     if holds == "no image":
         (root / "depth").mkdir()
-        (root / "notes.txt").write_text("to do\n")
+        (root / "notes.txt").write_text("to do\n", encoding="utf-8")
     elif holds == "labels only":
-        (root / "labels.csv").write_text(LABELS_HEADER + "1,0,0.5,0.2,1,1,train\n")
+        (root / "labels.csv").write_text(
+            LABELS_HEADER + "1,0,0.5,0.2,1,1,train\n", encoding="utf-8"
+        )
     assert main(["data", "check", str(root), "--quiet"]) == 1
     (error,) = [line for line in capsys.readouterr().out.splitlines() if line.startswith("ERROR")]
     said = error.removeprefix("ERROR").strip()

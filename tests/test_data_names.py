@@ -20,7 +20,7 @@ MP4 = b"\x00\x00\x00\x18ftypmp42"
 def _videos(root: Path, names: list[str], labels: str) -> Path:
     """``videos/<name>`` for each of ``names``, each of its own bytes, and labels.csv."""
     (root / "videos").mkdir(parents=True)
-    (root / "labels.csv").write_text(labels)
+    (root / "labels.csv").write_text(labels, encoding="utf-8")
     for i, name in enumerate(names):
         (root / "videos" / name).write_bytes(MP4 + bytes([i]) * 64)
     return root
@@ -29,7 +29,9 @@ def _videos(root: Path, names: list[str], labels: str) -> Path:
 def test_object_names_differing_only_in_case_are_a_warning_naming_them(tmp_path: Path):
     """QA: ``egg_0.mov``, ``Egg_0.mov`` and ``EGG_1.mov`` silently made three objects, so one
     physical object could sit on both sides of a held-out split. They still are three (names
-    are case-sensitive, as labels.csv's are), with one warning naming them."""
+    are case-sensitive, as labels.csv's are), with one warning naming them; ``egg_0.mov`` and
+    ``Egg_0.mov`` have a warning of their own as files (session 57): macOS and Windows cannot
+    hold both in one folder."""
     root = _videos(
         tmp_path / "rec",
         ["egg_0.mov", "Egg_0.mov", "EGG_1.mov", "ball_0.mov"],
@@ -41,10 +43,17 @@ def test_object_names_differing_only_in_case_are_a_warning_naming_them(tmp_path:
         (
             root / "videos",
             "warning",
+            "'Egg_0.mov' and 'egg_0.mov' differ only in case: they cannot both exist on macOS "
+            "or Windows, where a copy of this folder keeps one; rename one if they are "
+            "different",
+        ),
+        (
+            root / "videos",
+            "warning",
             "objects 'EGG', 'Egg' and 'egg' differ only in case, so they are 3 objects (a "
             "split may train on one and hold out another); rename their files alike if they "
             "are one",
-        )
+        ),
     ]
 
 
@@ -70,7 +79,7 @@ def test_a_row_differing_only_in_case_is_named_where_an_object_has_no_row(tmp_pa
         ),
     ]
     # Without a near spelling, the words are as they were.
-    (root / "labels.csv").write_text("object\nball\n")
+    (root / "labels.csv").write_text("object\nball\n", encoding="utf-8")
     assert [p.message for p in scan(root).problems] == [
         "object 'egg' (2 item(s)) has no row in labels.csv"
     ]

@@ -59,10 +59,14 @@ def _numbered(root: Path, test: tuple[int, ...] | None) -> Path:
     data = write_tiny_dataset(root, fabrics=8, drapes=2, fold_presses=1, flat_presses=0, frames=1)
     if test is None:
         rows = [f"{f},{0.7 * f:.2f},{f % 3}\n" for f in range(1, 9)]
-        (data / "labels.csv").write_text("fabric_id,bend_score,softness_rank\n" + "".join(rows))
+        (data / "labels.csv").write_text(
+            "fabric_id,bend_score,softness_rank\n" + "".join(rows), encoding="utf-8"
+        )
     else:
         rows = [f"{f},{0.7 * f:.2f},{'test' if f in test else 'train'}\n" for f in range(1, 9)]
-        (data / "labels.csv").write_text("fabric_id,bend_score,paper_split\n" + "".join(rows))
+        (data / "labels.csv").write_text(
+            "fabric_id,bend_score,paper_split\n" + "".join(rows), encoding="utf-8"
+        )
     return data
 
 
@@ -176,7 +180,7 @@ def test_kmeans_recovers_separated_groups_and_skips_unlabelled(tmp_path: Path):
         group = (f - 1) % 3
         lines.append(f"{f},{10 * group + 0.1 * f},{-5 * group}\n")
     lines.append("9,,\n")
-    (root / "labels.csv").write_text("".join(lines))
+    (root / "labels.csv").write_text("".join(lines), encoding="utf-8")
     catalog = scan(root)
     clusters = kmeans_clusters(catalog, k=3, columns=["thickness_mm", "density"], seed=0)
     assert clusters[9] is None

@@ -115,7 +115,7 @@ def test_labelled_objects_without_videos_are_named(tmp_path: Path, capsys):
 
 
 def test_numbered_fabrics_get_no_object_names(tiny_dataset: Path):
-    with open(tiny_dataset / "labels.csv", "a") as f:
+    with open(tiny_dataset / "labels.csv", "a", encoding="utf-8") as f:
         f.write("50,0,1,1,1,0,test\n")
     s = scan(tiny_dataset).summary()
     assert s["labelled_without_images"] == [50]
@@ -131,7 +131,7 @@ def test_labels_row_counts_fabrics_with_a_dataset_s_own_numeric_columns(tmp_path
         labels=False,
     )  # fmt: skip
     labels = "fabric_id,bend_score,material\n1,0.8,wool\n2,1.5,silk\n3,,x\n"
-    (root / "labels.csv").write_text(labels)
+    (root / "labels.csv").write_text(labels, encoding="utf-8")
     (labels,) = [line for line in _info(root, capsys).splitlines() if "bend_score" in line]
     assert labels.endswith("bend_score; 2 fabrics with numeric labels")
     paper = write_tiny_dataset(tmp_path / "paper", fabrics=3, drapes=1, fold_presses=0)
@@ -150,7 +150,7 @@ def test_info_counts_the_files_check_fails_as_errors_not_as_skipped(tmp_path: Pa
     depth = root / "depth"
     png = depth / "F0001_Depth_New_000000.png"
     Image.fromarray(np.asarray(Image.open(png))).save(depth / "F0001_extra.tif")
-    (depth / "notes.txt").write_text("taken on Tuesday")
+    (depth / "notes.txt").write_text("taken on Tuesday", encoding="utf-8")
     out = _info(root, capsys)
     why = (
         "lookfeel does not read .tif files: depth must be a 16-bit greyscale PNG in millimetres "
@@ -179,7 +179,9 @@ def test_paper_split_row_is_always_there_and_says_why_none(tmp_path: Path, capsy
     """README: `data info`'s `paper split` line shows which fabrics the paper split holds out.
     Without a paper_split column the line was missing; it now says none, and why."""
     root = write_tiny_dataset(tmp_path / "t", fabrics=3, drapes=1, fold_presses=0, labels=False)
-    (root / "labels.csv").write_text("fabric_id,stiffness,material\n1,2,wool\n2,3,silk\n")
+    (root / "labels.csv").write_text(
+        "fabric_id,stiffness,material\n1,2,wool\n2,3,silk\n", encoding="utf-8"
+    )
     none = (
         "none ({why}): no fabric is held out as a test set; a run validates on the fabrics its "
         "train.split holds out"
@@ -187,7 +189,9 @@ def test_paper_split_row_is_always_there_and_says_why_none(tmp_path: Path, capsy
     assert _split_row(_info(root, capsys)).endswith(
         none.format(why="labels.csv has no paper_split column")
     )
-    (root / "labels.csv").write_text("fabric_id , paper_split\n1,\n2,\n")  # a column, empty
+    (root / "labels.csv").write_text(
+        "fabric_id , paper_split\n1,\n2,\n", encoding="utf-8"
+    )  # a column, empty
     assert _split_row(_info(root, capsys)).endswith(
         none.format(why="labels.csv's paper_split column marks no fabric")
     )
@@ -198,7 +202,9 @@ def test_paper_split_row_is_always_there_and_says_why_none(tmp_path: Path, capsy
     (root / "labels.csv").rmdir()
     (root / "labels.csv").write_bytes("fabric_id,paper_split\n1,test\n".encode("utf-16"))
     assert _split_row(_info(root, capsys)).endswith(none.format(why="labels.csv cannot be read"))
-    (root / "labels.csv").write_text("fabric_id,paper_split\n1,train\n2,train\n3,test\n")
+    (root / "labels.csv").write_text(
+        "fabric_id,paper_split\n1,train\n2,train\n3,test\n", encoding="utf-8"
+    )
     assert _split_row(_info(root, capsys)) == "  paper split  train 2, test 1"
     assert _info_json(root, capsys)["paper_split"] == {"train": 2, "test": 1}
 
@@ -221,12 +227,16 @@ def test_labels_read_despite_a_header_problem_are_not_said_unreadable(tmp_path: 
     out = _info(root, capsys)
     assert re.search(r"^  labels +hardness; 3 objects labelled$", out, re.M)
     assert _split_row(out) == "  paper split  train 2, test 1"
-    (root / "labels.csv").write_text("object,hardness,\nsponge,0,x\ncork,1,\nfelt,2,\n")
+    (root / "labels.csv").write_text(
+        "object,hardness,\nsponge,0,x\ncork,1,\nfelt,2,\n", encoding="utf-8"
+    )
     assert _split_row(_info(root, capsys)).endswith(
         "none (labels.csv has no paper_split column): no object is held out as a test set; a "
         "run validates on the objects its train.split holds out"
     )
-    (root / "labels.csv").write_text("object,hardness,\nsponge,0,\ncork,1,\nfelt,2,\n")
+    (root / "labels.csv").write_text(
+        "object,hardness,\nsponge,0,\ncork,1,\nfelt,2,\n", encoding="utf-8"
+    )
     out = _info(root, capsys)
     assert re.search(r"^  labels +hardness; 3 objects labelled$", out, re.M)
     assert "labels.csv has no paper_split column" in _split_row(out)

@@ -295,7 +295,7 @@ def test_few_training_fabrics_neither_average_them_all_nor_hide_an_overconfident
     assert cal.c_source == "fitted" and cal.fit_fabrics == 5
     assert cal.nll > 5 * cal.nll_chance and cal.overconfident
     assert m[f"{pair}_overconfident"] == 1.0 and m[f"{pair}_c_fit_fabrics"] == 5.0
-    text = write_report(r, tmp_path / "few").report.read_text()
+    text = write_report(r, tmp_path / "few").report.read_text(encoding="utf-8")
     row = next(line for line in text.splitlines() if line.startswith("| touch → depth | 2"))
     assert "| fitted on 5 training fabrics |" in row
     assert f"{cal.nll:.3f} (overconfident: NLL clearly above chance's) | 1.609 |" in row
@@ -332,7 +332,7 @@ def test_few_training_fabrics_neither_average_them_all_nor_hide_an_overconfident
     assert r.calibration[pair].fit_fabrics == 12 and not r.calibration[pair].overconfident
     assert r.metrics[f"{pair}_overconfident"] == 0.0
     assert not any("nearest" in n for n in r.notes)
-    text = write_report(r, tmp_path / "many").report.read_text()
+    text = write_report(r, tmp_path / "many").report.read_text(encoding="utf-8")
     assert "k-NN (mean of the nearest 5) and ridge regression." in text
     assert "(k=" not in text and "Overconfident" not in text and "training fabrics only" not in text
     assert f"| {r.calibration[pair].c:.4g} | fitted | " in text
@@ -399,7 +399,7 @@ def test_a_cross_modal_map_connects_them_without_labels(tmp_path: Path):
     shown = [g for ex in r.glance for g in ex.galleries]
     assert shown and all(g.mapped and g.true_rank == 1 for g in shown)
     assert not any(k.startswith(("depth_to_depth", "touch_to_touch")) and "mapped" in k for k in m)
-    text = write_report(r, tmp_path / "eval").report.read_text()
+    text = write_report(r, tmp_path / "eval").report.read_text(encoding="utf-8")
     assert "Through a cross-modal map" in text
     assert f"{m['touch_to_depth_top1_mapped']:.3f}" in text
     off = evaluate_embeddings(
@@ -442,11 +442,13 @@ def test_report_files(tmp_path: Path):
     embedded, _ = _world(noise=0.6, seed=2)
     r = evaluate_embeddings(embedded, FAST, {i: i % 3 for i in range(1, 13)})
     files = write_report(r, tmp_path / "eval")
-    data = json.loads(files.metrics.read_text(), parse_constant=lambda c: pytest.fail(c))
+    data = json.loads(
+        files.metrics.read_text(encoding="utf-8"), parse_constant=lambda c: pytest.fail(c)
+    )
     assert data["touch_to_depth_top1"] == pytest.approx(r.metrics["touch_to_depth_top1"])
     assert data.pop("info") == {}  # bare embeddings: nothing known of what made them
     assert data.keys() == r.metrics.keys()  # the rest: every metric, and only them
-    text = files.report.read_text()
+    text = files.report.read_text(encoding="utf-8")
     for needle in ("touch → depth", "chance", "95% interval", "Calibration", "presses"):
         assert needle in text
     assert f"{r.metrics['touch_to_depth_top1']:.3f}" in text
@@ -485,10 +487,10 @@ def test_a_report_written_again_removes_only_the_figures_the_last_one_wrote(
     mine = figures / "mine.png"
     mine.write_bytes(b"the user's own")
     (out / "outside.png").write_bytes(b"not a figure")
-    listed = json.loads((figures / FIGURES_MANIFEST).read_text())
+    listed = json.loads((figures / FIGURES_MANIFEST).read_text(encoding="utf-8"))
     assert listed["figures"] == sorted(p.name for p in first.figures)
     listed["figures"] += ["../outside.png", "/etc/passwd"]
-    (figures / FIGURES_MANIFEST).write_text(json.dumps(listed))
+    (figures / FIGURES_MANIFEST).write_text(json.dumps(listed), encoding="utf-8")
 
     looks, _ = _world(per={D: 4, C: 4}, noise=0.6, seed=2)  # no touch: no presses.png
     config = dataclasses.replace(FAST, figure_pairs=(Pair(C, D),))
@@ -498,9 +500,11 @@ def test_a_report_written_again_removes_only_the_figures_the_last_one_wrote(
     assert {p.name for p in figures.iterdir()} == drawn | {"mine.png", FIGURES_MANIFEST}
     assert mine.read_bytes() == b"the user's own"
     assert (out / "outside.png").read_bytes() == b"not a figure"
-    report = (out / "report.md").read_text()
+    report = (out / "report.md").read_text(encoding="utf-8")
     assert all(f"(figures/{name})" in report for name in drawn)
-    assert json.loads((figures / FIGURES_MANIFEST).read_text())["figures"] == sorted(drawn)
+    assert json.loads((figures / FIGURES_MANIFEST).read_text(encoding="utf-8"))[
+        "figures"
+    ] == sorted(drawn)
 
     # Killed while writing its second figure: both names are listed already.
     real, calls = report_module.save_figure, []
@@ -515,7 +519,9 @@ def test_a_report_written_again_removes_only_the_figures_the_last_one_wrote(
     with pytest.raises(KeyboardInterrupt):
         write_report(evaluate_embeddings(touch, FAST, clusters), out)
     monkeypatch.setattr(report_module, "save_figure", real)
-    listed_now = set(json.loads((figures / FIGURES_MANIFEST).read_text())["figures"])
+    listed_now = set(
+        json.loads((figures / FIGURES_MANIFEST).read_text(encoding="utf-8"))["figures"]
+    )
     assert set(calls) <= listed_now
     # QA: the last report's numbers stayed beside the new figures; now none is left.
     assert not (out / "metrics.json").exists() and not (out / "report.md").exists()
@@ -601,8 +607,8 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
         main(["evaluate", "--embeddings", str(npz), "--data", str(data), "--out", str(b), *sets])
         == 0
     )
-    ma = json.loads((a / "metrics.json").read_text())
-    mb = json.loads((b / "metrics.json").read_text())
+    ma = json.loads((a / "metrics.json").read_text(encoding="utf-8"))
+    mb = json.loads((b / "metrics.json").read_text(encoding="utf-8"))
     # What was scored, in "info": the checkpoint, split, dataset and software (provenance.py),
     # from the checkpoint, and from the embeddings file's record of it.
     info_a, info_b = ma.pop("info"), mb.pop("info")
@@ -631,7 +637,7 @@ def test_embed_then_evaluate_equals_evaluate_checkpoint(run: tuple[Path, Path, P
     for name, size in sizes.items():
         with Image.open(a / "figures" / name) as im:
             assert im.size == size, name
-    report = (a / "report.md").read_text()
+    report = (a / "report.md").read_text(encoding="utf-8")
     assert "![pick examples](figures/examples_touch_to_depth.png)" in report
     assert "![at a glance](figures/glance.png)" in report
     assert "the run's held-out fabrics (3)" in report
@@ -688,7 +694,9 @@ def test_split_all_says_what_of_the_dataset_the_model_leaves_out(
     )
     result = evaluate_checkpoint(loaded, other, "all", cfg)
     assert summary_lines(result)[0] == f"Evaluated {said}:"
-    assert f"| split | all: {said} |" in write_report(result, tmp_path / "r").report.read_text()
+    assert f"| split | all: {said} |" in write_report(result, tmp_path / "r").report.read_text(
+        encoding="utf-8"
+    )
     # A modality the model does not embed, and videos that hold no press, are named too.
     catalog = scan(other)
     pressed = catalog.with_items(
@@ -817,14 +825,16 @@ def test_evaluate_checkpoint_in_label_space(run: tuple[Path, Path, Path], tmp_pa
     out = tmp_path / "labels"
     sets = ["--set", "n_boot=20", "--set", "max_presses=2", "--set", "space=labels"]
     assert evaluate_cli(ckpt, data, out, "--split", "val", *sets) == 0
-    metrics = json.loads((out / "metrics.json").read_text())
+    metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
     assert "touch_to_depth_top1" in metrics and "depth_to_depth_top1_swapped" in metrics
-    assert "label space" in (out / "report.md").read_text()
+    assert "label space" in (out / "report.md").read_text(encoding="utf-8")
     assert not any("mapped" in k for k in metrics)  # label space is a map of its own
     # Without labels there is nothing to map onto: one line naming the key.
     bare = tmp_path / "bare"
     write_tiny_dataset(bare, fabrics=8, drapes=3, fold_presses=4, flat_presses=0)
-    (bare / "labels.csv").write_text("fabric_id\n" + "".join(f"{i}\n" for i in range(1, 9)))
+    (bare / "labels.csv").write_text(
+        "fabric_id\n" + "".join(f"{i}\n" for i in range(1, 9)), encoding="utf-8"
+    )
     with pytest.raises(ConfigError, match="eval.space: labels needs"):
         evaluate_checkpoint(ckpt, bare, "val", dataclasses.replace(FAST, space="labels"))
 
@@ -906,7 +916,7 @@ def test_touch_to_touch_with_every_press_in_its_query_is_not_scored_and_says_why
     lines = summary_lines(r)
     assert f"  touch_to_touch   not scored: {why}" in lines
     assert not any("nan" in line for line in lines)
-    report = write_report(r, tmp_path).report.read_text()
+    report = write_report(r, tmp_path).report.read_text(encoding="utf-8")
     assert "| touch → touch | not scored |" in report
     assert f"Not scored: touch → touch: {why}." in report
     # Two presses a query leave one to find: scored, nothing marked.
@@ -961,7 +971,9 @@ def test_the_report_names_the_objects_the_data_names_and_numbers_the_rest(
     for result in (named, numbered):
         want = {i: name_of[i] if result is named else f"F{i}" for i in range(1, 11)}
         drawn.clear()
-        report = write_report(result, tmp_path / str(len(result.names))).report.read_text()
+        report = write_report(result, tmp_path / str(len(result.names))).report.read_text(
+            encoding="utf-8"
+        )
         [[picks]] = drawn["pick_examples_figure"]
         [[glances]] = drawn["glance_figure"]
         con = result.calibration["touch_to_depth"].confusion
@@ -1119,7 +1131,7 @@ def test_the_background_control_pools_touch_as_the_scores_and_raw_pixels_join_ea
     raw = "touch_to_touch_raw_pixels_top1"
     assert f"raw pixels {m[raw]:.3f} [{m[f'{raw}_ci_low']:.3f}, " in printed[-1]
 
-    report = write_report(r, tmp_path / "r").report.read_text()
+    report = write_report(r, tmp_path / "r").report.read_text(encoding="utf-8")
     pick = _row(_section(report, "Pick"), "| color → color |")
     lo, hi = m["color_to_color_raw_pixels_top1_ci_low"], m["color_to_color_raw_pixels_top1_ci_high"]
     assert f"{m['color_to_color_raw_pixels_top1']:.3f} ({lo:.3f} – {hi:.3f}" in pick[3]
@@ -1169,7 +1181,8 @@ def press_videos(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     (data / "videos").mkdir(parents=True)
     names = OBJECTS[:6]
     (data / "labels.csv").write_text(
-        "object,hardness\n" + "".join(f"{n},{k % 3}\n" for k, n in enumerate(names))
+        "object,hardness\n" + "".join(f"{n},{k % 3}\n" for k, n in enumerate(names)),
+        encoding="utf-8",
     )
     for k, name in enumerate(names):
         for i in range(3):
@@ -1210,8 +1223,8 @@ def test_press_videos_get_the_untouched_control_as_cv_scores_it(
     raw = [x for x in printed if x.startswith("raw pixels ")]
     assert raw and f"untouched {m[keys[1]]:.3f} [" in raw[0]  # raw pixels' own, beside theirs
     files = write_report(r, tmp_path / "r")
-    assert keys[0] in json.loads(files.metrics.read_text())
-    section = _section(files.report.read_text(), "Untouched control")
+    assert keys[0] in json.loads(files.metrics.read_text(encoding="utf-8"))
+    section = _section(files.report.read_text(encoding="utf-8"), "Untouched control")
     cells = dict(
         zip(_row(section, "| pair |"), _row(section, "| touch → touch | top-1 |"), strict=True)
     )
@@ -1241,7 +1254,7 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     few = evaluate_embeddings(_world(n_fabrics=3, noise=0.5)[0], FAST)
     t2d = next(x for x in summary_lines(few) if "touch_to_depth" in x)
     assert "(18 queries, 3 fabrics: too few for the interval to say much)" in t2d
-    report = write_report(few, tmp_path / "few").report.read_text()
+    report = write_report(few, tmp_path / "few").report.read_text(encoding="utf-8")
     pick = _section(report, "Pick")
     assert pick.startswith(" 1 of 3 (")
     assert "A query is shown 3 candidates" in pick and "each of the 2 other test fabrics" in pick
@@ -1255,12 +1268,14 @@ def test_the_report_says_what_a_pick_offered_and_how_many_fabrics_an_interval_re
     many = evaluate_embeddings(_world(n_fabrics=12, noise=0.5)[0], FAST)
     t2d = next(x for x in summary_lines(many) if "touch_to_depth" in x)
     assert "(72 queries, 12 fabrics)  chance" in t2d
-    pick = _section(write_report(many, tmp_path / "many").report.read_text(), "Pick")
+    pick = _section(
+        write_report(many, tmp_path / "many").report.read_text(encoding="utf-8"), "Pick"
+    )
     assert pick.startswith(" 1 of 10 (") and "†" not in pick
     assert "one item of its own fabric and one of each of 9 other fabrics drawn at" in pick
 
     named = dataclasses.replace(many, names={i: f"thing{i}" for i in range(1, 13)})
-    report = write_report(named, tmp_path / "named").report.read_text()
+    report = write_report(named, tmp_path / "named").report.read_text(encoding="utf-8")
     pick = _section(report, "Pick").split("\n### ")[0]
     assert "one item of its own object and one of each of 9 other objects drawn" in pick
     assert "| queries / objects |" in pick and "fabric" not in pick
@@ -1279,14 +1294,14 @@ def test_evaluate_marks_intervals_by_the_rule_reproduce_and_cv_use(tmp_path: Pat
     six = evaluate_embeddings(_world(n_fabrics=6, noise=0.5)[0], FAST)
     t2d = next(x for x in summary_lines(six) if "touch_to_depth" in x)
     assert "(36 queries, 6 fabrics: too few for the interval to say much)" in t2d
-    pick = _section(write_report(six, tmp_path / "six").report.read_text(), "Pick")
+    pick = _section(write_report(six, tmp_path / "six").report.read_text(encoding="utf-8"), "Pick")
     assert _row(pick, "| touch → depth |")[2].endswith("†")
     assert "† Over 6 test fabrics only: under 10, an interval says little" in pick
     assert "Hold out 10 or more (or cross-validate, `lookfeel cv`)" in pick
 
     ten = evaluate_embeddings(_world(n_fabrics=MIN_INTERVAL_FABRICS, noise=0.5)[0], FAST)
     assert not any("too few" in x for x in summary_lines(ten))
-    report = write_report(ten, tmp_path / "ten").report.read_text()
+    report = write_report(ten, tmp_path / "ten").report.read_text(encoding="utf-8")
     assert "†" not in report and "says little" not in report
 
 

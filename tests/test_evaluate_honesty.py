@@ -38,7 +38,11 @@ def _evaluated(
     in ``info`` what was scored."""
     assert evaluate_cli(ckpt, data, out, *split, *QUICK) == 0
     printed = capsys.readouterr().out
-    return printed, (out / "report.md").read_text(), json.loads((out / "metrics.json").read_text())
+    return (
+        printed,
+        (out / "report.md").read_text(encoding="utf-8"),
+        json.loads((out / "metrics.json").read_text(encoding="utf-8")),
+    )
 
 
 @pytest.mark.filterwarnings("ignore:pick 10")
@@ -193,7 +197,7 @@ def _probed(n_test: int, tmp_path: Path) -> tuple[str, dict[str, float]]:
         label_names=["x"],
         reference=reference,
     )
-    report = write_report(r, tmp_path / f"r{n_test}").report.read_text()
+    report = write_report(r, tmp_path / f"r{n_test}").report.read_text(encoding="utf-8")
     return report.split("## Physical properties")[1].split("\n## ")[0], r.metrics
 
 
@@ -241,7 +245,7 @@ def test_the_fabric_accuracy_of_the_calibration_has_its_interval(tmp_path: Path)
     assert 0.0 <= low < acc < high <= 1.0
     row = next(
         line
-        for line in write_report(r, tmp_path / "r").report.read_text().splitlines()
+        for line in write_report(r, tmp_path / "r").report.read_text(encoding="utf-8").splitlines()
         if line.startswith("| touch → depth | 1 | fixed |")  # the calibration table's row
     )
     assert f"{acc:.3f} [{low:.3f}, {high:.3f}]" in row

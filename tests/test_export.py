@@ -50,7 +50,7 @@ def test_each_branch_equals_pytorch_for_any_batch_and_presses(exported):
             got = session.run(None, {inp.name: x.numpy()})[0]
             assert got.shape == (shape[0], 16)
             np.testing.assert_allclose(got, want, atol=1e-4, rtol=0)
-    meta = json.loads((out / "export.json").read_text())
+    meta = json.loads((out / "export.json").read_text(encoding="utf-8"))
     assert meta["embed_dim"] == 16 and meta["data"]["image_size"] == 32
     assert meta["branches"]["touch"]["shape"] == ["batch", "presses", 3, 32, 32]
     assert all(b["max_abs_diff_vs_torch"] < 1e-4 for b in meta["branches"].values())
@@ -92,7 +92,7 @@ def test_modalities_may_be_named_and_a_missing_branch_creates_nothing(exported, 
         assert str(e.value) == "the model has no color branch (it has: depth)"
         assert not (tmp_path / "none").exists()
     # A folder that cannot be made (a file where a folder above it should be): one line.
-    (tmp_path / "afile").write_text("mine\n")
+    (tmp_path / "afile").write_text("mine\n", encoding="utf-8")
     under_a_file = tmp_path / "afile" / "sub"
     with pytest.raises(ExportError) as e:
         export_onnx(ckpt, under_a_file, modalities=["depth"], check=False)
@@ -104,11 +104,11 @@ def test_a_bad_modality_or_out_is_one_line_before_the_checkpoint_is_read(tmp_pat
     with pytest.raises(ModalityError, match=r"^unknown modality 'colour'; expected one of"):
         export_onnx(missing, tmp_path / "out", modalities=["colour"])
     a_file = tmp_path / "afile"
-    a_file.write_text("mine\n")
+    a_file.write_text("mine\n", encoding="utf-8")
     with pytest.raises(ExportError) as e:
         export_onnx(missing, a_file)
     assert str(e.value) == f"{a_file}: exists and is not a folder (the export's output folder)"
-    assert a_file.read_text() == "mine\n"
+    assert a_file.read_text(encoding="utf-8") == "mine\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 
 
@@ -149,7 +149,7 @@ def test_views_graph_equals_lookfeel_embedding_of_a_press_video(exported, tmp_pa
         got = session.run(None, {"views": x.numpy()})[0]
         np.testing.assert_allclose(got, want, atol=1e-4, rtol=0)
         assert np.abs(got - first_view).max() > 1e-3  # the views really are averaged
-    meta = json.loads((tmp_path / "onnx" / "export.json").read_text())
+    meta = json.loads((tmp_path / "onnx" / "export.json").read_text(encoding="utf-8"))
     assert meta["branches"]["touch"]["input"] == "views"
     assert meta["data"]["video_embed"] == "views" and meta["data"]["video_views"] == 4
 

@@ -74,7 +74,10 @@ def test_a_loader_keeps_whether_a_press_video_is_grey_in_memory_and_in_its_cache
         again.embed_file(p, Modality.TOUCH)
     assert decoded == [] and {k: again.is_grey(p) for k, p in presses.items()} == grey
     facts = sorted(cache.rglob("*.json"))
-    assert facts and json.loads(facts[0].read_text()) in ({"grey": True}, {"grey": False})
+    assert facts and json.loads(facts[0].read_text(encoding="utf-8")) in (
+        {"grey": True},
+        {"grey": False},
+    )
 
     # A cache entry written before the flag was kept still loads; the flag is then unknown.
     for f in facts:

@@ -37,7 +37,7 @@ def _imported(name: str, path: Path, known: set[str]) -> set[str]:
     """
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
         if isinstance(node, ast.Import):
             out.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -133,7 +133,7 @@ def test_no_import_cycle():
 @pytest.mark.parametrize("name", sorted(_modules()))
 def test_every_module_says_what_it_is_for(name: str):
     path = _modules()[name]
-    doc = ast.get_docstring(ast.parse(path.read_text()))
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")))
     assert doc and len(doc.split()) >= 4, f"{path}: no module docstring saying what it is for"
 
 
@@ -190,3 +190,104 @@ def test_the_top_level_holds_the_names_a_researcher_meets_first():
     doc = lookfeel.__doc__ or ""
     for name in ("register_backbone", "register_loss", "list_losses", "list_backbones"):
         assert name in doc
+
+
+KNOWN_UNDECLARED: dict[str, frozenset[str]] = {
+    "lookfeel.cli.train": frozenset({"check_senses"}),
+    "lookfeel.data.files": frozenset({"VIDEO_SUFFIXES"}),
+    "lookfeel.data.images": frozenset(
+        {"ArrayLoader", "GELSIGHT_SIZE", "WALL_GAP_NONE", "to_tensor"}
+    ),
+    "lookfeel.data.layout": frozenset({"NOT_A_VIDEO_CONTAINER"}),
+    "lookfeel.errors": frozenset(
+        {"LookfeelError", "caller_stacklevel", "error_line", "load_problem"}
+    ),
+    "lookfeel.index.query": frozenset({"QueryFiles"}),
+    "lookfeel.metrics.cross_map": frozenset({"HUB_NEIGHBOURS"}),
+    "lookfeel.metrics.gallery": frozenset({"gallery_result_from"}),
+    "lookfeel.metrics.label_space": frozenset({"MIN_FABRICS"}),
+    "lookfeel.metrics.pick": frozenset({"pick_result_from", "sampled_from", "warn_if_short"}),
+    "lookfeel.metrics.properties": frozenset({"fit_ridge_multi"}),
+    "lookfeel.plots.examples": frozenset({"QUERY_COLOUR", "TRUE_COLOUR"}),
+    "lookfeel.provenance": frozenset({"plugin_modules_of", "software_versions"}),
+    "lookfeel.reproduce.run": frozenset({"config_dir", "headline"}),
+    "lookfeel.serve.app": frozenset({"SECURITY_HEADERS"}),
+    "lookfeel.synth.scene": frozenset({"background_plane_index"}),
+}
+"""Names other modules import that their module's ``__all__`` does not yet declare (found when
+the rule below was written, session 57). Shrink it; never add to it: declare the name instead."""
+
+
+def _declared(path: Path) -> set[str] | None:
+    """The names a module's ``__all__ = [...]`` lists, or None when it has none."""
+    for node in ast.parse(path.read_text(encoding="utf-8"), filename=str(path)).body:
+        if isinstance(node, ast.Assign) and any(
+            isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
+        ):
+            return {ast.literal_eval(e) for e in node.value.elts}  # type: ignore[attr-defined]
+    return None
+
+
+def _undeclared_imports() -> dict[str, dict[str, set[str]]]:
+    """Module -> name -> the modules that import it, for every ``from lookfeel.x.y import
+    name`` (or relative ``from .y import name``) of a public name of a public module that the
+    module's ``__all__`` leaves out. A name starting with ``_``, a submodule, and any name of a
+    private module (``cli/_args.py``, ``metrics/_ranking.py``: internal by their file's name)
+    need no declaration."""
+    modules = _modules()
+    out: dict[str, dict[str, set[str]]] = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            if module not in modules or module.rpartition(".")[2].startswith("_"):
+                continue
+            declared = _declared(modules[module]) or set()
+            for alias in node.names:
+                public = not alias.name.startswith("_") and alias.name != "*"
+                submodule = f"{module}.{alias.name}" in modules
+                if public and not submodule and alias.name not in declared:
+                    out.setdefault(module, {}).setdefault(alias.name, set()).add(name)
+    return out
+
+
+def test_what_one_module_imports_from_another_is_in_its_all():
+    """QA (session 57, F9): ``from lookfeel.train import train_step`` failed though
+    ``train/loop.py``'s ``__all__`` listed it, and `lookfeel.evaluate.core`'s ``__all__`` left
+    out `exact_protocol` and `keep_pick`, which `lookfeel.evaluate.controls` imports. A name
+    one lookfeel module imports from another (a package's ``__init__`` included) is that
+    module's public interface, so its ``__all__`` lists it. Private names (``_x``) and private
+    modules (``_x.py``) are exempt: their leading ``_`` already says "internal, shared inside
+    the package". `KNOWN_UNDECLARED` holds the gaps of modules this rule found and no one has
+    declared yet."""
+    found = _undeclared_imports()
+    new = {
+        f"{module}.{n} (imported by {', '.join(sorted(users))})"
+        for module, names in found.items()
+        for n, users in names.items()
+        if n not in KNOWN_UNDECLARED.get(module, frozenset())
+    }
+    assert not new, "declare in the module's __all__:\n" + "\n".join(sorted(new))
+    import lookfeel.train
+    from lookfeel.train import TrainRun, train_step
+    from lookfeel.train.loop import __all__ as loop_all
+
+    assert {"TrainRun", "train_step"} <= set(lookfeel.train.__all__)
+    assert TrainRun.__module__ == train_step.__module__ == "lookfeel.train.loop"
+    assert set(lookfeel.train.__all__) - {"FeatureTable", "TrainingDiverged"} - {
+        "default_pairs",
+        "validate",
+    } <= set(loop_all)
+
+
+def test_the_all_rule_sees_relative_imports_and_exempts_private_names():
+    found = _undeclared_imports()
+    assert "lookfeel.cli._args" not in found  # a private module
+    assert "fit_ridge_multi" in found["lookfeel.metrics.properties"]  # absolute, a known gap
+    assert all(not n.startswith("_") for names in found.values() for n in names)

@@ -275,7 +275,7 @@ def test_each_folds_queries_are_measured_by_a_distance_without_the_folds_fabrics
 def test_library_holds_every_item_embedded_as_training_does(run, library: Path):
     data, ckpt = run
     lib = Library.open(library)
-    manifest = json.loads((library / "manifest.json").read_text())
+    manifest = json.loads((library / "manifest.json").read_text(encoding="utf-8"))
     assert manifest["status"] == "complete" and manifest["backend"] == "numpy"
     assert sorted(p.name for p in (library / "shards").iterdir()) == [
         "color-00000.npz", "color-00001.npz", "color-00002.npz",
@@ -330,9 +330,9 @@ def test_killed_build_resumes_and_equals_an_unbroken_one(run, library: Path, tmp
         build_library(ckpt, data, out, shard_size=8, on_shard=kill_after_two)
     # A first build writes beside OUT until it is complete.
     work = tmp_path / "lib.building"
-    assert not out.exists() and json.loads((work / "manifest.json").read_text())["status"] == (
-        "building"
-    )
+    assert not out.exists() and json.loads((work / "manifest.json").read_text(encoding="utf-8"))[
+        "status"
+    ] == ("building")
     with pytest.raises(LibraryError, match="did not finish; run `lookfeel index build` again"):
         Library.open(out)
     resumed = build_library(ckpt, data, out, shard_size=8, on_shard=lambda n, r: None)
@@ -358,7 +358,7 @@ def test_a_library_matches_through_maps_fitted_on_its_own_fabrics(
     monkeypatch.setattr(build_module, "MIN_MAP_FABRICS", 3)  # the tiny library has 6 fabrics
     out = tmp_path / "mapped"
     build_library(ckpt, data, out, shard_size=64)
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     assert manifest["version"] == 2 and (out / "cross_maps.npz").is_file()
     cross = {p for p in Pair.every(list(Modality)) if not p.same}
     assert set(manifest["cross_maps"]["pairs"]) == {str(p) for p in cross}
@@ -411,7 +411,7 @@ def test_build_errors_are_clear(run, tmp_path: Path):
     data, ckpt = run
     foreign = tmp_path / "foreign"
     foreign.mkdir()
-    (foreign / "notes.txt").write_text("mine")
+    (foreign / "notes.txt").write_text("mine", encoding="utf-8")
     with pytest.raises(LibraryError, match="not a lookfeel library; choose a new or empty"):
         build_library(ckpt, data, foreign)
     with pytest.raises(LibraryError, match="search backend 'annoy'"):

@@ -94,7 +94,9 @@ def test_a_rebuild_from_another_checkpoint_keeps_the_library_until_it_is_complet
     assert _beside(out) == []
     assert (
         Library.open(out).manifest["checkpoint"]["sha256"]
-        != json.loads((library / "manifest.json").read_text())["checkpoint"]["sha256"]
+        != json.loads((library / "manifest.json").read_text(encoding="utf-8"))["checkpoint"][
+            "sha256"
+        ]
     )
 
 
@@ -126,7 +128,7 @@ def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
 ):
     data, ckpt = run
     out = shutil.copytree(library, tmp_path / "lib")
-    before = json.loads((out / "manifest.json").read_text())
+    before = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     real, seeds = build_module.calibrate, []
 
     def counted(*args: Any, **kwargs: Any) -> Calibration:
@@ -137,7 +139,7 @@ def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
     again = build_library(ckpt, data, out, shard_size=8, progress=True)
     assert (again.shards_embedded, again.shards_reused) == (0, 9)
     assert seeds == []  # not recalibrated
-    after = json.loads((out / "manifest.json").read_text())
+    after = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     assert after["calibration"] == before["calibration"] == again.calibration.to_dict()
     printed = capsys.readouterr().out
     assert f"  calibration of 9 pairs reused from {out / 'manifest.json'} (every shard" in printed
@@ -151,17 +153,19 @@ def test_a_rebuild_with_nothing_changed_reuses_the_calibration_and_says_so(
         "color 18 items, touch 18 items; up to 1000 queries each, 5 folds) (again: seed 1, "
         "was 0)\n"
     )
-    assert json.loads((out / "manifest.json").read_text())["calibration"]["seed"] == 1
+    assert (
+        json.loads((out / "manifest.json").read_text(encoding="utf-8"))["calibration"]["seed"] == 1
+    )
     # Another way of calibrating (lookfeel's own version is the same between sessions).
     monkeypatch.setattr(build_module, "CALIBRATION_VERSION", build_module.CALIBRATION_VERSION + 1)
     build_library(ckpt, data, out, shard_size=8, seed=1, progress=True)
     assert seeds == [1, 1]
     assert capsys.readouterr().out.endswith(" (again: the calibration code changed)\n")
     # A library from before the manifest said what it was calibrated with (QA, upgrading).
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     del manifest["calibration_made"]
     manifest["calibration_key"] = "0" * 40
-    (out / "manifest.json").write_text(json.dumps(manifest))
+    (out / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     build_library(ckpt, data, out, shard_size=8, seed=1, progress=True)
     printed = capsys.readouterr().out
     assert printed.endswith(" (again: the library was calibrated by an earlier lookfeel)\n")
@@ -223,13 +227,15 @@ def test_one_build_at_a_time_per_library(run, tmp_path: Path):
         f"lock {tmp_path / 'lib.lock'}); wait for it to end, or stop it"
     ]
     assert _beside(out) == []  # the lock is gone with its build
-    (tmp_path / "lib.lock").write_text("99999\n")  # left by a killed build: not held
+    (tmp_path / "lib.lock").write_text(
+        "99999\n", encoding="utf-8"
+    )  # left by a killed build: not held
     build_library(ckpt, data, out, shard_size=64)
     # A file of the user's by that name is in the way, never removed (QA).
-    (tmp_path / "lib.lock").write_text("my notes\n")
+    (tmp_path / "lib.lock").write_text("my notes\n", encoding="utf-8")
     with pytest.raises(LibraryError, match=r"lib.lock is in the way of the build's lock"):
         build_library(ckpt, data, out, shard_size=64)
-    assert (tmp_path / "lib.lock").read_text() == "my notes\n"
+    assert (tmp_path / "lib.lock").read_text(encoding="utf-8") == "my notes\n"
 
 
 def test_unknown_press_kinds_are_one_usage_line(run, tmp_path: Path, capsys):
@@ -261,13 +267,13 @@ def test_a_damaged_calibration_is_one_line_naming_the_manifest_and_key(
     library: Path, tmp_path: Path, capsys, key: str, value: object, message: str
 ):
     out = shutil.copytree(library, tmp_path / "lib")
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     *above, last = key.split(".")
     entry = manifest["calibration"]
     for k in above:
         entry = entry[k]
     entry[last] = value
-    (out / "manifest.json").write_text(json.dumps(manifest))
+    (out / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     with pytest.raises(LibraryError) as e:
         Library.open(out)
     assert str(e.value).startswith(f"{out / 'manifest.json'}: ") and message in str(e.value)
@@ -330,7 +336,7 @@ def test_a_rebuild_keeps_a_file_of_the_user_s_in_the_library_by_refusing(
     rebuilt, and says which; a library of its own files alone is."""
     data, ckpt = run
     lib = shutil.copytree(library, tmp_path / "lib")
-    (lib / "NOTES.txt").write_text("which checkpoint this was")
+    (lib / "NOTES.txt").write_text("which checkpoint this was", encoding="utf-8")
     before = _files(lib)
     with pytest.raises(LibraryError) as e:
         build_library(ckpt, data, lib, shard_size=8)
@@ -350,9 +356,9 @@ def test_a_library_of_a_plugin_backbone_opened_without_the_plugin_says_so(
     """QA: it said "malformed manifest ...; rebuild", which would not help: the manifest is
     whole, the plugin that registers its backbone was not loaded."""
     out = shutil.copytree(library, tmp_path / "lib")
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     manifest["config"]["model"]["backbone"] = "lfplug_gone"
-    (out / "manifest.json").write_text(json.dumps(manifest))
+    (out / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     assert main(["index", "info", str(out)]) == 1
     err = capsys.readouterr().err
     assert err.startswith(

@@ -84,10 +84,10 @@ def test_a_library_built_before_the_chance_was_recorded_reads_it_as_one_over_its
     built: tuple[Path, list[str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ):
     old = shutil.copytree(built[0], tmp_path / "old")
-    manifest = json.loads((old / "manifest.json").read_text())
+    manifest = json.loads((old / "manifest.json").read_text(encoding="utf-8"))
     for p in manifest["calibration"]["pairs"].values():
         assert math.isclose(p.pop("chance"), 1 / p["fabrics"])
-    (old / "manifest.json").write_text(json.dumps(manifest))
+    (old / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     cal = Library.open(old).calibration
     assert cal == Library.open(built[0]).calibration
     assert all(p.chance == 1 / p.fabrics for p in cal.pairs.values())

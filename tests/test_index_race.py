@@ -54,7 +54,7 @@ def test_an_open_during_a_running_swap_waits_for_it_and_reads_the_new_library(
     out, work, aside = _mid_swap(library, tmp_path)
     lock = tmp_path / "lib.lock"
     # No build holds the lock (a killed build's file, with its PID): the rebuild was stopped.
-    lock.write_text("99999\n")
+    lock.write_text("99999\n", encoding="utf-8")
     with pytest.raises(LibraryError, match=r"stopped while moving the new library in \(it is "):
         Library.open(out)
     lock.unlink()
@@ -118,7 +118,7 @@ def _swapped_at_first_read(
     def swap(aside: Path) -> None:
         new = shutil.copytree(aside, out.with_name(out.name + ".building"))
         if new_manifest is not None:
-            (new / "manifest.json").write_text(json.dumps(new_manifest))
+            (new / "manifest.json").write_text(json.dumps(new_manifest), encoding="utf-8")
         os.rename(new, out)
         shutil.rmtree(aside)
 
@@ -152,7 +152,7 @@ def test_a_library_replaced_while_it_is_read_is_read_again(
     # The shards are read from the new library: the whole library is read again, not the
     # old manifest kept with the new library's files.
     out = shutil.copytree(library, tmp_path / "other")
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     manifest["fabrics"][0]["name"] = "swapped in"
     with monkeypatch.context() as m:
         reads = _swapped_at_first_read(out, m, manifest)

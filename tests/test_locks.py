@@ -28,20 +28,22 @@ def test_a_lock_refuses_a_second_holder_takes_over_a_dead_ones_and_keeps_a_users
 ):
     out = tmp_path / "runs" / "a"  # its folder need not exist yet
     with exclusive(out, "train", "this run"):
-        assert lock_path(out).read_text() == f"{os.getpid()}\n"
+        assert lock_path(out).read_text(encoding="utf-8") == f"{os.getpid()}\n"
         busy = pytest.raises(BusyError, match=r"another `lookfeel train` is writing this run")
         with busy, exclusive(out, "train", "this run"):
             pass
     assert not lock_path(out).exists()  # gone with its holder
-    lock_path(out).write_text("99999\n")  # left by a killed process: not held, taken over
+    lock_path(out).write_text(
+        "99999\n", encoding="utf-8"
+    )  # left by a killed process: not held, taken over
     with exclusive(out, "train", "this run"):
         pass
     assert not lock_path(out).exists()
-    lock_path(out).write_text("my notes\n")  # the user's own file of that name
+    lock_path(out).write_text("my notes\n", encoding="utf-8")  # the user's own file of that name
     in_the_way = pytest.raises(BusyError, match=r"a.lock is in the way of the train's lock")
     with in_the_way, exclusive(out, "train", "this run"):
         pass
-    assert lock_path(out).read_text() == "my notes\n"
+    assert lock_path(out).read_text(encoding="utf-8") == "my notes\n"
     assert lock_path(tmp_path / ".") == tmp_path.with_name(tmp_path.name + ".lock")
 
 

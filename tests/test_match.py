@@ -202,7 +202,7 @@ def test_wrong_files_are_named(run, matcher: Matcher, tmp_path: Path):
     eight_bit = tmp_path / "eight_bit.png"
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(eight_bit)
     text = tmp_path / "notes.png"
-    text.write_text("not an image")
+    text.write_text("not an image", encoding="utf-8")
     Image.open(data / "color/F0003_2.png").save(tmp_path / "photo.webp")  # PIL reads it; not we
     cases = [
         (tmp_path / "missing.png", Modality.DEPTH, "missing.png: file not found"),
@@ -307,7 +307,7 @@ def test_each_query_is_matched_or_answered_with_its_error(
     good = [str(data / f"depth/F000{f}_Depth_New_000001.png") for f in (4, 3)]
     missing = str(tmp_path / "missing.png")
     notes = tmp_path / "notes.png"
-    notes.write_text("not an image")
+    notes.write_text("not an image", encoding="utf-8")
     answers = matcher.match_each([good[0], missing, notes, good[1]], "depth", top=2)
     gone = MatchFailure(missing, [missing], Modality.DEPTH, f"{missing}: file not found")
     assert answers[1] == gone
@@ -370,11 +370,11 @@ def test_property_estimates_drop_the_weights_rounding_noise_and_name_classes(
     from lookfeel.index import format_match
 
     lib = shutil.copytree(matcher.library.root, tmp_path / "lib")
-    manifest = json.loads((lib / "manifest.json").read_text())
+    manifest = json.loads((lib / "manifest.json").read_text(encoding="utf-8"))
     for f in manifest["fabrics"]:
         if f["id"] == 2:
             f["labels"]["thickness_mm"] = 0.0  # a label of 0 beside 0.5 ... 3.0
-    (lib / "manifest.json").write_text(json.dumps(manifest))
+    (lib / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     m = Matcher(Library.open(lib))
     # stiffness (f % 5) and stretchiness (f % 2) are ranks (whole numbers, repeated): classes
     assert m.library.classes == {"stiffness": ("0", "1", "2", "3", "4"), "stretchiness": ("0", "1")}

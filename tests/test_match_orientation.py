@@ -69,7 +69,7 @@ def test_frame_size_reads_headers_of_images_and_videos(tmp_path: Path):
     assert frame_size(_portrait_video(tmp_path / "press.mp4")) == (48, 64)
     (tmp_path / "junk.mp4").write_bytes(b"\x00\x00\x00\x14ftypqt  " + bytes(64))
     assert frame_size(tmp_path / "junk.mp4") is None  # a video header, nothing behind it
-    (tmp_path / "text.png").write_text("not an image")
+    (tmp_path / "text.png").write_text("not an image", encoding="utf-8")
     assert frame_size(tmp_path / "text.png") is None
     assert frame_size(tmp_path / "missing.png") is None
     assert frame_size(tmp_path) is None
@@ -166,7 +166,7 @@ def test_an_unknown_or_square_record_is_not_checked(tmp_path: Path):
 
 
 def test_a_library_records_the_shape_of_its_items(library: Path):
-    entries = json.loads((library / "manifest.json").read_text())["modalities"]
+    entries = json.loads((library / "manifest.json").read_text(encoding="utf-8"))["modalities"]
     assert entries["touch"]["shape"] == {"orientation": "landscape", "size": [32, 24]}
     assert entries["depth"]["shape"] == {"orientation": "square", "size": [24, 24]}
     assert entries["color"]["shape"] == {"orientation": "square", "size": [24, 24]}
@@ -214,10 +214,10 @@ def test_a_turned_press_video_is_warned_of_in_one_line(
 def test_a_library_from_before_the_record_is_not_checked(library: Path, tmp_path: Path):
     old = tmp_path / "old"
     shutil.copytree(library, old)
-    manifest = json.loads((old / "manifest.json").read_text())
+    manifest = json.loads((old / "manifest.json").read_text(encoding="utf-8"))
     for entry in manifest["modalities"].values():
         del entry["shape"]
-    (old / "manifest.json").write_text(json.dumps(manifest))
+    (old / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     write_rgb(tmp_path / "turned.png", 3, 0, size=(24, 32))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # it opens and matches, warning of nothing

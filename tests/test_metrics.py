@@ -374,6 +374,31 @@ def test_group_queries_max_pools_disjoint_presses_of_one_fabric():
     np.testing.assert_array_equal(again.members, groups.members)
 
 
+def test_group_queries_is_its_groups_then_the_one_max_pool():
+    """Grouping and pooling are apart (QA F18): `group_members` gives `group_queries`' groups,
+    `max_pool_groups` its embeddings, and evaluation's `max_pool_presses` is that same pool."""
+    from lookfeel.embedding import EmbeddedItems
+    from lookfeel.evaluate.core import max_pool_presses, press_queries
+    from lookfeel.metrics import group_members, max_pool_groups
+    from lookfeel.modality import Modality
+
+    rng = np.random.default_rng(3)
+    emb = rng.normal(size=(11, 4)).astype(np.float32)
+    fabric = np.array([2, 5, 2, 5, 5, 2, 8, 2, 5, 8, 2])
+    groups = group_queries(emb, fabric, presses=2, seed=4)
+    members = group_members(fabric, presses=2, seed=4)
+    np.testing.assert_array_equal(members, groups.members)
+    np.testing.assert_array_equal(max_pool_groups(emb, members), groups.emb)
+    touch = EmbeddedItems(Modality.TOUCH, emb, fabric, ())
+    np.testing.assert_array_equal(max_pool_presses(touch, members), groups.emb)
+    q = press_queries(touch, 2, 4)
+    np.testing.assert_array_equal(q.emb, groups.emb)
+    np.testing.assert_array_equal(q.members, groups.members)
+    assert max_pool_groups(emb, members[:0]).shape == (0, 4)
+    with pytest.raises(ValueError, match="presses must be >= 1"):
+        group_members(fabric, presses=0)
+
+
 # ---------------------------------------------------------------- bootstrap and spread
 
 

@@ -471,7 +471,7 @@ def test_load_pretrained_rejects_wrong_files(alexnet: AlexNet, tmp_path: Path) -
     for name, content, message in cases:
         path = tmp_path / name
         if content is None:
-            path.write_text("not weights")
+            path.write_text("not weights", encoding="utf-8")
         else:
             torch.save(content, path)
         with pytest.raises(PretrainedError, match=message):
@@ -852,3 +852,29 @@ def test_precision_is_a_checked_choice_that_only_cuda_reads() -> None:
     assert create_model(cfg, ["touch"]).precision == "fp32"
     branch = create_model(cfg, ["touch"]).branch("touch")
     assert Embedder({Modality.TOUCH: branch}).precision == "auto"  # no config: the default
+
+
+def test_pooled_modality_is_the_one_declaration_of_a_press_axis(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """`Modality.pooled` (QA F2) is what the model's branch, `_check` and the press-axis helpers
+    read: declaring colour pooled gives its branch a press axis too, pooled like touch's."""
+    from lookfeel.models import add_press_axis, drop_press_axis
+
+    assert [m for m in Modality if m.pooled] == [Modality.TOUCH]
+    monkeypatch.setattr(
+        Modality, "pooled", property(lambda m: m in (Modality.TOUCH, Modality.COLOR))
+    )
+    x = _images(2, 3, SMALL_PX)
+    assert add_press_axis(x, Modality.COLOR).shape == (2, 1, 3, SMALL_PX, SMALL_PX)
+    assert torch.equal(drop_press_axis(add_press_axis(x, Modality.COLOR), Modality.COLOR), x)
+    model = create_model(ModelConfig(backbone="compact", width=4), ["color"]).eval()
+    assert model.branch("color").pressed
+    presses = torch.stack([x, x.flip(-1), x.flip(-2)], dim=1)  # (B, P=3, 3, S, S)
+    with torch.no_grad():
+        e = model({"color": presses})["color"]
+        again = model({"color": presses.flip(1)})["color"]
+    assert e.shape == (2, model.embed_dim)
+    assert torch.allclose(e, again, atol=1e-6)  # pooled: the presses' order does not matter
+    with pytest.raises(ModelInputError, match=r"color input must be \(B, P, 3, H, W\)"):
+        model({"color": x})

@@ -80,7 +80,7 @@ def plugin(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable
     written: list[str] = []
 
     def write(name: str) -> str:
-        (folder / f"{name}.py").write_text(PLUGIN.format(name=name))
+        (folder / f"{name}.py").write_text(PLUGIN.format(name=name), encoding="utf-8")
         written.append(name)
         return name
 
@@ -174,13 +174,14 @@ def test_a_plugin_that_meets_an_unknown_name_while_loading_does_not_load_again(
     name = plugin("lfplug_reentrant")
     path = tmp_path / "plugins" / f"{name}.py"
     path.write_text(
-        path.read_text()
+        path.read_text(encoding="utf-8")
         + "\n\ndef check():\n"
         + "    from lookfeel.config import ConfigError, ModelConfig\n"
         + "    try:\n"
         + "        ModelConfig(backbone='lfplug_none')\n"
         + "    except ConfigError:\n"
-        + "        CALLS.append('refused')\n"
+        + "        CALLS.append('refused')\n",
+        encoding="utf-8",
     )
     _install(tmp_path / "plugins", "lab-ext", f"check = {name}:check")
     monkeypatch.setattr(importlib.metadata, "entry_points", _ENTRY_POINTS)
@@ -237,7 +238,9 @@ def test_a_module_that_cannot_be_imported_is_one_line(plugin, monkeypatch, value
 def test_a_plugin_that_fails_is_named_with_its_line(plugin, tmp_path: Path, monkeypatch):
     name = plugin("lfplug_broken")
     path = tmp_path / "plugins" / f"{name}.py"
-    path.write_text("import os\n\nraise RuntimeError('no GPU here. Details follow')\n")
+    path.write_text(
+        "import os\n\nraise RuntimeError('no GPU here. Details follow')\n", encoding="utf-8"
+    )
     monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
     with pytest.raises(PluginError) as e:
         load_plugins()
@@ -256,7 +259,7 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
     args = ["train", "--config", str(TINY_CONFIG), "--data", str(tiny_dataset), "--out", str(out)]
     with restored_registries():
         assert main(["--plugin", name, *args, *(x for s in sets for x in ("--set", s))]) == 0
-    saved = yaml.safe_load((out / "config.yaml").read_text())
+    saved = yaml.safe_load((out / "config.yaml").read_text(encoding="utf-8"))
     assert (saved["model"]["backbone"], saved["loss"]["kind"]) == (name, f"{name}_loss")
     assert os.environ["LOOKFEEL_PLUGINS"] == name  # what worker processes inherit
     # A fresh script with the variable set loads the run's checkpoint: the plugin loads itself.
@@ -303,7 +306,9 @@ def test_the_plugin_option_trains_a_backbone_of_ones_own(
     )
     assert str(e.value).endswith(hint)
     # Installed as an entry point that now fails to import: the error names it and why.
-    (tmp_path / "plugins" / f"{name}.py").write_text("import lfplug_missing_dependency\n")
+    (tmp_path / "plugins" / f"{name}.py").write_text(
+        "import lfplug_missing_dependency\n", encoding="utf-8"
+    )
     plugins._reset()
     monkeypatch.setattr(plugins, "_entry_points", lambda: [_entry_point("cli", name)])
     warned = pytest.warns(PluginWarning, match="entry point 'cli'")
@@ -350,7 +355,7 @@ def test_a_loss_of_one_s_own_trains_with_its_options_and_the_batch_s_targets(
     ``loss.options`` (recorded in the run's config) and given the batch's cluster targets,
     though the model has no cluster head (tiny.yaml has none)."""
     name = plugin("lfplug_cluster")
-    (tmp_path / "plugins" / f"{name}.py").write_text(_CLUSTER_AWARE)
+    (tmp_path / "plugins" / f"{name}.py").write_text(_CLUSTER_AWARE, encoding="utf-8")
     out = tmp_path / "run"
     sets = ["loss.kind=clusteraware", "loss.options.alpha=0.5", "train.steps=2"]
     sets += ["train.val_every=0", "train.checkpoint_every=0", "train.views=[depth,touch]"]
@@ -362,9 +367,12 @@ def test_a_loss_of_one_s_own_trains_with_its_options_and_the_batch_s_targets(
     for step in seen:
         for ids, clusters in step.values():
             assert len(ids) == 8 and clusters == [(f - 1) % 3 for f in ids]
-    saved = yaml.safe_load((out / "config.yaml").read_text())
+    saved = yaml.safe_load((out / "config.yaml").read_text(encoding="utf-8"))
     assert saved["loss"]["options"] == {"alpha": 0.5}
-    lines = [yaml.safe_load(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    lines = [
+        yaml.safe_load(line)
+        for line in (out / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     logged = [line for line in lines if "loss" in line][-1]
     assert set(logged) >= {"pull_loss", "loss"} and "cluster_loss" not in logged
 
@@ -404,8 +412,12 @@ def _install(folder: Path, package: str, entry_points: str) -> None:
     from ``[project.entry-points."lookfeel.plugins"]`` in its pyproject.toml."""
     info = folder / f"{package.replace('-', '_')}-1.0.dist-info"
     info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {package}\nVersion: 1.0\n")
-    (info / "entry_points.txt").write_text(f"[lookfeel.plugins]\n{entry_points}\n")
+    (info / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {package}\nVersion: 1.0\n", encoding="utf-8"
+    )
+    (info / "entry_points.txt").write_text(
+        f"[lookfeel.plugins]\n{entry_points}\n", encoding="utf-8"
+    )
 
 
 def test_entry_points_are_loaded_once_modules_imported_functions_called(
@@ -451,7 +463,7 @@ def test_a_broken_entry_point_is_one_warning_and_every_command_goes_on(
     a module named with --plugin that fails is still an error."""
     good = plugin("lfplug_ep_good")
     broken = tmp_path / "plugins" / "lfplug_ep_broken.py"
-    broken.write_text("import lfplug_missing_dependency\n")
+    broken.write_text("import lfplug_missing_dependency\n", encoding="utf-8")
     eps = [
         _entry_point("broken", "lfplug_ep_broken"),
         _entry_point("calls", f"{good}:nowhere"),
@@ -596,7 +608,7 @@ def test_a_backbone_lookfeel_cannot_run_as_written_is_refused_at_the_plugins_lin
     nothing said so; a refused name was located in lookfeel's registry, not the plugin."""
     name = plugin("lfplug_contract")
     path = tmp_path / "plugins" / f"{name}.py"
-    path.write_text(source)
+    path.write_text(source, encoding="utf-8")
     monkeypatch.setenv("LOOKFEEL_PLUGINS", name)
     with pytest.raises(PluginError) as e:
         load_plugins()
@@ -742,7 +754,7 @@ def test_a_run_whose_plugin_fails_before_its_first_checkpoint_leaves_out_as_foun
     and said there was nothing to resume). The folder is left as the run found it: one it
     made is gone, an empty one it was given stays empty."""
     name = plugin("lfplug_unpooled")
-    (tmp_path / "plugins" / f"{name}.py").write_text(_UNPOOLED)
+    (tmp_path / "plugins" / f"{name}.py").write_text(_UNPOOLED, encoding="utf-8")
     given = tmp_path / "given"
     given.mkdir()
     for out in (tmp_path / "runs" / "first", given):

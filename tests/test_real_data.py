@@ -100,7 +100,7 @@ def test_real_depth_config_trains_embeds_and_evaluates(real_data: Path, tmp_path
     fast += ["--set", f"data.cache_dir={tmp_path / 'cache'}"]
     args = ["--config", str(config), "--data", str(real_data), "--out", str(run), *fast]
     assert main(["train", *args]) == 0
-    split = json.loads((run / "split.json").read_text())
+    split = json.loads((run / "split.json").read_text(encoding="utf-8"))
     assert len(split["train"]) == 100 and split["val"] == []
     ckpt = str(run / "checkpoints" / "last.pt")
     assert (
@@ -138,5 +138,5 @@ def test_real_depth_config_trains_embeds_and_evaluates(real_data: Path, tmp_path
         )
         == 0
     )
-    metrics = json.loads((rep / "metrics.json").read_text())
+    metrics = json.loads((rep / "metrics.json").read_text(encoding="utf-8"))
     assert "depth_to_depth" in json.dumps(metrics)

@@ -53,7 +53,7 @@ def _args(data: Path, config: Path | None = None, sets: tuple[str, ...] = ()) ->
 
 def test_a_named_config_is_used_as_given(tiny_dataset: Path, tmp_path: Path, capsys):
     mine = tmp_path / "my.yaml"
-    mine.write_text("train: {steps: 3}\n")
+    mine.write_text("train: {steps: 3}\n", encoding="utf-8")
     path, overrides = run_config_source(_args(tiny_dataset, mine, ("a.b=1",)))
     assert (path, overrides) == (mine, ["a.b=1"])
     assert capsys.readouterr().err == ""
@@ -77,7 +77,7 @@ def _train_quickly(data: Path, out: Path, *sets: str) -> tuple[list[str], dict]:
     small = ["train.steps=2", "train.val_every=0", "train.split=none", "model.width=8", *sets]
     argv = ["train", "--data", str(data), "--out", str(out)]
     assert main([*argv, *(x for s in small for x in ("--set", s))]) == 0
-    return argv, yaml.safe_load((out / "config.yaml").read_text())
+    return argv, yaml.safe_load((out / "config.yaml").read_text(encoding="utf-8"))
 
 
 def test_train_without_config_trains_the_cross_modal_recipe(tiny_dataset: Path, tmp_path: Path):
@@ -89,7 +89,7 @@ def test_train_without_config_trains_the_cross_modal_recipe(tiny_dataset: Path, 
     assert saved["model"]["num_properties"] == 4  # auto: thickness, density, stiffness, stretch
     # Resuming without --config continues the run with its own saved recipe.
     assert main([*argv, "--resume", "--set", "train.steps=3"]) == 0
-    assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
+    assert yaml.safe_load((out / "config.yaml").read_text(encoding="utf-8"))["train"]["steps"] == 3
 
 
 def test_a_resume_takes_an_auto_property_head_as_the_size_it_became(
@@ -100,7 +100,7 @@ def test_a_resume_takes_an_auto_property_head_as_the_size_it_became(
     # The user's own config still says auto: a resume accepts it as the number it became.
     resume = [*argv, "--resume", "--set", "model.num_properties=auto", "--set", "train.steps=3"]
     assert main(resume) == 0
-    assert yaml.safe_load((out / "config.yaml").read_text())["train"]["steps"] == 3
+    assert yaml.safe_load((out / "config.yaml").read_text(encoding="utf-8"))["train"]["steps"] == 3
     # Another number is another run.
     assert main([*argv, "--resume", "--set", "model.num_properties=3"]) != 0
     assert "model.num_properties (4 -> 3)" in capsys.readouterr().err
@@ -151,7 +151,9 @@ def _rig(root: Path, fabrics: int = 8) -> Path:
             frames = object_press(f, PRESS, 14, seed=p)
             write_video(data / "touch" / f"F{f:04d}_{kind}_{100 * f + p}.mp4", frames)
     rows = [f"{f},{0.7 * f:.2f},{f % 3}\n" for f in range(1, fabrics + 1)]
-    (data / "labels.csv").write_text("fabric_id,bend_score,softness_rank\n" + "".join(rows))
+    (data / "labels.csv").write_text(
+        "fabric_id,bend_score,softness_rank\n" + "".join(rows), encoding="utf-8"
+    )
     return data
 
 
@@ -433,11 +435,11 @@ def test_the_chooser_trains_on_the_press_kinds_the_data_holds(tmp_path: Path, ca
 
 def _with_words(data: Path, **columns: list[str]) -> None:
     """labels.csv of ``data`` with columns of words added, one value a fabric in order."""
-    lines = (data / "labels.csv").read_text().splitlines()
+    lines = (data / "labels.csv").read_text(encoding="utf-8").splitlines()
     names = ",".join(columns)
     rows = [",".join(v[i] for v in columns.values()) for i in range(len(lines) - 1)]
     text = [f"{lines[0]},{names}", *(f"{a},{b}" for a, b in zip(lines[1:], rows, strict=True))]
-    (data / "labels.csv").write_text("\n".join(text) + "\n")
+    (data / "labels.csv").write_text("\n".join(text) + "\n", encoding="utf-8")
 
 
 def test_the_chooser_adds_class_heads_for_columns_of_words(tmp_path: Path, capsys):
@@ -495,7 +497,9 @@ def test_a_shipped_config_is_named_the_same_from_any_folder(
         assert config_file(name) == recipe_path("tiny.yaml")
     assert config_file("configs/paper/flat.yaml") == recipe_path("paper/flat.yaml")
     assert config_file("paper/flat") == recipe_path("paper/flat.yaml")
-    Path("tiny.yaml").write_text("train: {steps: 3}\n")  # the user's own file comes first
+    Path("tiny.yaml").write_text(
+        "train: {steps: 3}\n", encoding="utf-8"
+    )  # the user's own file comes first
     assert config_file("tiny.yaml") == Path("tiny.yaml")
     for wrong in (
         "nosuch",

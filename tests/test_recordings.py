@@ -41,7 +41,7 @@ def _recordings(root: Path, presses: dict[str, int], labels: str = LABELS) -> Pa
 
 def test_object_keyed_labels_have_text_columns_and_keep_every_cell(tmp_path: Path):
     path = tmp_path / "labels.csv"
-    path.write_text(LABELS)
+    path.write_text(LABELS, encoding="utf-8")
     table, problems = read_labels(path)
     assert problems == []
     assert table.key == "object"
@@ -60,7 +60,7 @@ def test_object_keyed_labels_have_text_columns_and_keep_every_cell(tmp_path: Pat
 
 def test_a_typo_in_a_numeric_column_is_reported_not_taken_for_a_word(tmp_path: Path):
     path = tmp_path / "labels.csv"
-    path.write_text("object,hardness\na,0\nb,1\nc,2x\n")
+    path.write_text("object,hardness\na,0\nb,1\nc,2x\n", encoding="utf-8")
     table, problems = read_labels(path)
     assert table.columns == ("hardness",)
     assert [(p.line, p.message) for p in problems] == [
@@ -117,7 +117,7 @@ def test_video_names_and_containers_are_checked(tmp_path: Path):
     root = _recordings(tmp_path / "rec", {"cork": 1})
     (root / "videos" / "nonumber.mov").write_bytes(QUICKTIME)
     (root / "videos" / "cork_1.mov").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(32))
-    (root / "videos" / "notes.txt").write_text("x")
+    (root / "videos" / "notes.txt").write_text("x", encoding="utf-8")
     (root / "touch").mkdir()
     (root / "touch" / "F0009_fold_7.mp4").write_bytes(QUICKTIME)
     (root / "touch" / "F0009_7.mp4").write_bytes(QUICKTIME)
@@ -451,7 +451,7 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
         assert main([*args, *TINY, "--folds", "2", "--seeds", "0,1", "--n-boot", "50"]) == 0
     # each held-out press made untouched once, for both seeds of its fold
     assert sorted(still) == sorted(set(still)) and len(still) == 18
-    summary = json.loads((tmp_path / "cv" / "cv.json").read_text())
+    summary = json.loads((tmp_path / "cv" / "cv.json").read_text(encoding="utf-8"))
     pair = summary["pairs"]["touch_to_touch"]
     for key in (
         "model_top1",
@@ -466,7 +466,7 @@ def test_cv_on_recordings_reports_classes_and_the_untouched_control(
         assert 0.0 <= hardness[method]["accuracy"] <= 1.0
     assert hardness["model"]["queries"] == 36  # every press with a label, held out once per seed
     assert hardness["model_pooled"]["queries"] == 12  # one per object and seed
-    report = (tmp_path / "cv" / "cv.md").read_text()
+    report = (tmp_path / "cv" / "cv.md").read_text(encoding="utf-8")
     assert "Untouched control" in report and "| hardness |" in report
     assert "every object held out once" in report  # objects are objects (QA)
     assert report.startswith("Object-disjoint cross-validation") and "presss" not in report
@@ -1034,11 +1034,11 @@ def test_a_library_of_named_objects_names_them_and_their_words(
 
     # A library built before names were recorded opens and names fabrics by id, as it did.
     old = shutil.copytree(lib, tmp_path / "old")
-    manifest = json.loads((old / "manifest.json").read_text())
+    manifest = json.loads((old / "manifest.json").read_text(encoding="utf-8"))
     manifest.pop("text_columns")
     for f in manifest["fabrics"]:
         del f["name"], f["text_labels"]
-    (old / "manifest.json").write_text(json.dumps(manifest))
+    (old / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     former = Matcher(Library.open(old))
     assert all(
         rec.name is None and rec.text_labels == {} for rec in former.library.fabrics.values()

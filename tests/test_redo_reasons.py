@@ -32,12 +32,12 @@ def _edit_manifest(lib: Path, edit: Any) -> None:
     """Rewrite ``lib``'s manifest as ``edit(manifest)`` leaves it, every shard given a key this
     lookfeel never makes (as the library's maker made its keys otherwise)."""
     path = lib / "manifest.json"
-    manifest = json.loads(path.read_text())
+    manifest = json.loads(path.read_text(encoding="utf-8"))
     for entry in manifest["modalities"].values():
         for shard in entry["shards"]:
             shard["key"] = "old-" + shard["key"]
     edit(manifest)
-    path.write_text(json.dumps(manifest))
+    path.write_text(json.dumps(manifest), encoding="utf-8")
 
 
 def _shard_lines(printed: str) -> list[str]:
@@ -53,7 +53,7 @@ def test_a_rebuild_says_which_part_of_the_shard_key_changed(
     new = build_library(ckpt, data, out, shard_size=8, progress=True)
     assert new.redo_reason is None  # a new library: nothing to say
     assert not any("again" in line for line in _shard_lines(capsys.readouterr().out))
-    manifest = json.loads((out / "manifest.json").read_text())
+    manifest = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     assert set(manifest["shard_key"]) == {"checkpoint", "preprocess", "touch_frame"}
     assert all("files" in s for e in manifest["modalities"].values() for s in e["shards"])
     same = build_library(ckpt, data, out, shard_size=8, progress=True)
@@ -151,9 +151,9 @@ def test_cv_scoring_a_run_again_names_what_its_kept_result_differs_in(data: Path
     result = out / "seed0-fold0" / "result.json"
 
     def again(edit: Any) -> str:
-        saved = json.loads(result.read_text())
+        saved = json.loads(result.read_text(encoding="utf-8"))
         edit(saved)
-        result.write_text(json.dumps(saved))
+        result.write_text(json.dumps(saved), encoding="utf-8")
         logs: list[str] = []
         cross_validate(config, data, out, folds=[0], n_boot=0, log=logs.append)
         assert logs[0].startswith("seed 0 fold 0: trained before, scoring again (")
@@ -193,7 +193,7 @@ def test_cv_scoring_a_run_again_names_what_its_kept_result_differs_in(data: Path
     logs.clear()
     cross_validate(config, data, out, folds=[0], n_boot=0, log=logs.append)
     assert logs[0].startswith("seed 0 fold 0: done before, kept (")
-    assert json.loads(result.read_text())["software"]["lookfeel"] == __version__
+    assert json.loads(result.read_text(encoding="utf-8"))["software"]["lookfeel"] == __version__
 
 
 def test_the_command_line_says_why_in_its_library_line(

@@ -35,7 +35,7 @@ def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
     assert 0.0 <= metrics["touch_to_depth_top1"] <= 1.0
     assert metrics["touch_to_depth_top1_chance"] == pytest.approx(1 / 3)  # 3 held-out fabrics
     assert set(result.results["snn_depth"]) >= {"seen", "novel"}
-    report = result.report.read_text()
+    report = result.report.read_text(encoding="utf-8")
     row = r"\| depth_to_touch \| -\^1 \(0\.306\) \| \d\.\d{3} \[[\d., ]+\] \(0\.429\) \|"
     assert re.search(row, report)  # left out: -^1 and the paper's number; run: ours beside it
     assert "seeds: 1; --only: cross_modal, snn_depth; " in report
@@ -53,7 +53,7 @@ def test_runs_reports_and_resumes(data: Path, tmp_path: Path):
     assert len(held) == 3 and snn["test_fabric_ids"] == held and snn["seen_fabrics"] == 7
     assert f"Tables 1-3 score on 3 fabrics ({', '.join(map(str, held))}) held out" in report
     assert "the data marks no fabric paper_split=test" in report
-    text = (out / "results.json").read_text()
+    text = (out / "results.json").read_text(encoding="utf-8")
     assert "NaN" not in text and "null" in text  # a number not measured is JSON's null
     saved = json.loads(text)
     assert saved["meta"]["budget"] == "tiny" and saved["meta"]["overrides"] == FAST
@@ -77,7 +77,7 @@ def test_runs_the_data_cannot_serve_are_skipped_with_reasons(data: Path, tmp_pat
     )
     assert set(result.results) == {"snn_depth"}
     assert result.skipped["multi_input"] == "needs color, touch; the data has depth"
-    assert "- `cross_modal_depth_touch`: needs touch" in result.report.read_text()
+    assert "- `cross_modal_depth_touch`: needs touch" in result.report.read_text(encoding="utf-8")
 
 
 def test_runs_pooling_more_presses_than_a_fabric_has_are_skipped_with_reasons(tmp_path: Path):
@@ -94,10 +94,13 @@ def test_runs_pooling_more_presses_than_a_fabric_has_are_skipped_with_reasons(tm
     assert result.skipped == {"multi_input": reason, "multi_input_aug": reason}
     assert not result.results and not (tmp_path / "o" / "runs").exists()  # nothing trained
     assert f"skip multi_input: {reason}" in lines
-    report = result.report.read_text()
+    report = result.report.read_text(encoding="utf-8")
     assert f"- `multi_input`: {reason}" in report
     assert "**No run was made**" in report and "held-out fabrics" not in report
-    assert json.loads((tmp_path / "o" / "results.json").read_text())["skipped"] == result.skipped
+    assert (
+        json.loads((tmp_path / "o" / "results.json").read_text(encoding="utf-8"))["skipped"]
+        == result.skipped
+    )
 
 
 def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Path, tmp_path):
@@ -111,10 +114,10 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
         "make a second input for a query to find"
     )
     assert result.results["multi_input"]["not_scored"] == {"touch_to_touch": why}
-    report = result.report.read_text()
+    report = result.report.read_text(encoding="utf-8")
     # Table 2's note 1 is the columns --only left out, "-^1".
     assert "| n/a^2 (0.935) |" in report and f"- ^2 multi_input touch_to_touch: {why}." in report
-    saved = json.loads((out / "results.json").read_text())
+    saved = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert saved["results"]["multi_input"]["not_scored"] == {"touch_to_touch": why}
     # 3 held-out fabrics: no finding gets a verdict, in the JSON as in the report.
     tested = [f for f in saved["findings"].values() if f["verdict"] != "not tested"]
@@ -125,9 +128,9 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
     # An eval.json of an earlier lookfeel recorded no reasons: the resumed report showed a
     # generic one. It is derived from the run's config.yaml, else said to be unrecorded.
     done = out / "runs" / "multi_input" / "seed0" / "eval.json"
-    old = json.loads(done.read_text())
+    old = json.loads(done.read_text(encoding="utf-8"))
     del old["not_scored"]
-    done.write_text(json.dumps(old))
+    done.write_text(json.dumps(old), encoding="utf-8")
     again = reproduce(data, out, only=["multi_input"], **args)
     assert again.results["multi_input"]["not_scored"] == {"touch_to_touch": why}
     (done.parent / "config.yaml").unlink()
@@ -136,7 +139,7 @@ def test_a_pair_the_held_out_fabrics_cannot_score_is_na_with_its_reason(data: Pa
     assert (
         "- ^2 multi_input touch_to_touch: reason not recorded (computed by an earlier "
         "lookfeel): delete the run's eval.json and rerun to record it."
-    ) in again.report.read_text()
+    ) in again.report.read_text(encoding="utf-8")
 
 
 def test_one_item_per_held_out_fabric_is_not_scored_with_its_reason(monkeypatch):
@@ -292,12 +295,14 @@ def test_seeds_are_trained_in_the_order_given_and_found_again_by_their_folders(
     started = [ln for ln in lines if ln.startswith("run ")]
     assert [ln.split("(")[0].strip() for ln in started] == ["run  flat seed 1", "run  flat seed 0"]
     for seed in (0, 1):
-        saved = yaml.safe_load((out / "runs" / "flat" / f"seed{seed}" / "config.yaml").read_text())
+        saved = yaml.safe_load(
+            (out / "runs" / "flat" / f"seed{seed}" / "config.yaml").read_text(encoding="utf-8")
+        )
         assert saved["train"]["seed"] == seed
-    meta = json.loads((out / "results.json").read_text())["meta"]
+    meta = json.loads((out / "results.json").read_text(encoding="utf-8"))["meta"]
     assert meta["seeds"] == 2 and meta["seed_list"] == [1, 0]
     assert result.results["flat"]["seeds"] == 2
-    assert "seeds: 2" in result.report.read_text()
+    assert "seeds: 2" in result.report.read_text(encoding="utf-8")
     for older in (1, [0]):  # seed 0 alone: found finished, read back, nothing trained
         lines.clear()
         again = reproduce(data, out, seeds=older, log=lines.append, **args)
@@ -372,7 +377,9 @@ def test_runs_side_by_side_in_workers_give_the_numbers_of_one_process(
     assert list(side.results) == only  # the experiments' order, whichever finished first
     assert json.dumps(side.results) == json.dumps(alone.results)
     for name in ("cross_modal", "cross_modal_depth_touch"):  # trained in the workers
-        record = json.loads((tmp_path / "side" / "runs" / name / "seed0" / "eval.json").read_text())
+        record = json.loads(
+            (tmp_path / "side" / "runs" / name / "seed0" / "eval.json").read_text(encoding="utf-8")
+        )
         assert record["threads"] == 1
 
 
@@ -412,12 +419,12 @@ def test_the_report_says_what_it_measured(tmp_path: Path):
     result = ReproduceResult(tmp_path, tmp_path / "report.md", results, {}, findings(results))
     meta = {"data_root": "w", "budget": "tiny", "seeds": 1, "split": "paper", "minutes": 1.0}
     write_reproduction_report(result, meta)
-    report = result.report.read_text()
+    report = result.report.read_text(encoding="utf-8")
     assert report.splitlines()[2].startswith("Data: `w`; budget: **tiny**; ")
     # results.json's meta as written before the dataset folder was ``data_root``: read alike.
     old = {k: v for k, v in meta.items() if k != "data_root"} | {"data": "w"}
     write_reproduction_report(result, old)
-    assert result.report.read_text() == report
+    assert result.report.read_text(encoding="utf-8") == report
     order = result.findings["model_order"]["detail"]
     assert order == (
         "in the paper's order: multi_input 0.300, auxiliary 0.200, cross_modal 0.100, flat 0.120"
@@ -440,7 +447,7 @@ def _report(tmp_path: Path, results: dict, meta: dict, skipped: dict | None = No
     write_reproduction_report(
         result, {"data_root": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0} | meta
     )
-    return result.report.read_text()
+    return result.report.read_text(encoding="utf-8")
 
 
 def test_cells_without_a_number_say_why_and_top_k_of_k_is_not_a_score(tmp_path: Path):
@@ -811,7 +818,7 @@ def test_only_says_which_runs_it_left_out(tmp_path: Path):
     result = ReproduceResult(tmp_path, tmp_path / "report.md", results, skipped, f)
     meta = {"data_root": "w", "budget": "tiny", "seeds": 1, "minutes": 1.0, "only": only}
     write_reproduction_report(result, meta)
-    report = result.report.read_text()
+    report = result.report.read_text(encoding="utf-8")
     assert "Data: `w`; budget: **tiny**; seeds: 1; --only: auxiliary; 1.0 min." in report
     assert "| **not tested** | not run (--only auxiliary) |" in report
     assert "**not tested**: a run it needs was not run (--only auxiliary) or was skipped)" in (
@@ -830,7 +837,7 @@ def test_only_says_which_runs_it_left_out(tmp_path: Path):
     write_reproduction_report(result, meta)
     assert (
         "--only: auxiliary (and flat from finished runs of an earlier reproduction here); "
-        in result.report.read_text()
+        in result.report.read_text(encoding="utf-8")
     )
     # Without --only nothing of it; the plain "-" of a run neither left out nor skipped stays.
     report = _report(tmp_path, results, {"split": "paper"})
@@ -892,17 +899,20 @@ def test_only_adds_to_the_finished_runs_in_out(data: Path, tmp_path: Path, capsy
     out = tmp_path / "out"
     args = dict(budget="tiny", n_boot=20, overrides=FAST)
     first = reproduce(data, out, only=["cross_modal"], log=lambda s: None, **args)
-    meta = json.loads((out / "results.json").read_text())["meta"]
+    meta = json.loads((out / "results.json").read_text(encoding="utf-8"))["meta"]
     assert meta["only"] == ["cross_modal"] and meta["earlier"] == [] and meta["runs"] == 1
     lines: list[str] = []
     second = reproduce(data, out, only=["snn_depth"], log=lines.append, **args)
     assert list(second.results) == ["cross_modal", "snn_depth"]
     assert json.dumps(second.results["cross_modal"]) == json.dumps(first.results["cross_modal"])
     assert f"also reported, from finished runs in {out}: cross_modal (seed 0)" in lines
-    saved = json.loads((out / "results.json").read_text())
+    saved = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert list(saved["results"]) == ["cross_modal", "snn_depth"]
     assert saved["meta"]["only"] == ["snn_depth"] and saved["meta"]["earlier"] == ["cross_modal"]
-    seconds = [json.loads(p.read_text())["seconds"] for p in out.glob("runs/*/seed0/eval.json")]
+    seconds = [
+        json.loads(p.read_text(encoding="utf-8"))["seconds"]
+        for p in out.glob("runs/*/seed0/eval.json")
+    ]
     assert saved["meta"]["runs"] == 2
     assert saved["meta"]["run_minutes"] == round(sum(seconds) / 60, 1)
 
@@ -910,18 +920,18 @@ def test_only_adds_to_the_finished_runs_in_out(data: Path, tmp_path: Path, capsy
     run_dir = out / "runs" / "cross_modal" / "seed0"
     (run_dir / "eval.json").unlink()
     slow = {"step": 3, "loss": 1.0, "lr": 0.001, "steps_per_s": 0.001}
-    (run_dir / "metrics.jsonl").write_text(json.dumps(slow) + "\n")
+    (run_dir / "metrics.jsonl").write_text(json.dumps(slow) + "\n", encoding="utf-8")
     argv = ["reproduce", "--data", str(data), "--out", str(out), "--budget", "tiny"]
     argv += ["--only", "cross_modal", "--n-boot", "20", "--set", FAST[0], "--set", FAST[1]]
     assert main(argv) == 0
-    resumed = json.loads((run_dir / "eval.json").read_text())["seconds"]
+    resumed = json.loads((run_dir / "eval.json").read_text(encoding="utf-8"))["seconds"]
     assert 3000 <= resumed < 3300
-    meta = json.loads((out / "results.json").read_text())["meta"]
+    meta = json.loads((out / "results.json").read_text(encoding="utf-8"))["meta"]
     assert meta["only"] == ["cross_modal"] and meta["earlier"] == ["snn_depth"]
     assert meta["run_minutes"] >= 50 and meta["minutes"] < 5
     printed = capsys.readouterr().out
     assert f"2 run(s) behind these numbers, {meta['run_minutes']} min of training" in printed
-    header = (out / "report.md").read_text()
+    header = (out / "report.md").read_text(encoding="utf-8")
     assert f"2 runs behind these numbers, {meta['run_minutes']} min of training and scoring; " in (
         header
     )
@@ -930,7 +940,9 @@ def test_only_adds_to_the_finished_runs_in_out(data: Path, tmp_path: Path, capsy
     # A finished run trained with other settings: left out, saying how, when not asked for;
     # refused, before any training, when asked for.
     config = run_dir / "config.yaml"
-    config.write_text(config.read_text().replace("lr: 0.001", "lr: 0.002"))
+    config.write_text(
+        config.read_text(encoding="utf-8").replace("lr: 0.001", "lr: 0.002"), encoding="utf-8"
+    )
     lines.clear()
     third = reproduce(data, out, only=["snn_depth"], log=lines.append, **args)
     assert list(third.results) == ["snn_depth"] and third.meta["earlier"] == []
@@ -966,7 +978,7 @@ def test_the_training_time_a_run_logged_and_warnings_sent_from_workers():
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "metrics.jsonl"
-        path.write_text("".join(json.dumps(x) + "\n" for x in lines) + "{cut\n")
+        path.write_text("".join(json.dumps(x) + "\n" for x in lines) + "{cut\n", encoding="utf-8")
         assert _logged_seconds(path) == pytest.approx(150.0)
 
     local = type("Local", (UserWarning,), {})  # pickle cannot name it
@@ -1019,7 +1031,7 @@ def test_an_interrupt_ends_the_workers_at_once_and_their_warnings_are_one_line(
     import time
 
     script = tmp_path / "fake_runs.py"
-    script.write_text(_FAKE_RUNS)
+    script.write_text(_FAKE_RUNS, encoding="utf-8")
     out = tmp_path / "out"
     argv = [sys.executable, str(script), "reproduce", "--data", str(data), "--out", str(out)]
     argv += ["--budget", "tiny", "--workers", "2", "--only", "flat", "cross_modal", "auxiliary"]
@@ -1036,7 +1048,7 @@ def test_an_interrupt_ends_the_workers_at_once_and_their_warnings_are_one_line(
     )
     try:
         deadline = time.monotonic() + 120  # two spawned workers import torch: seconds
-        while not all(p.exists() and p.read_text() for p in pids):
+        while not all(p.exists() and p.read_text(encoding="utf-8") for p in pids):
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, "the fake runs never started"
             time.sleep(0.1)
@@ -1052,7 +1064,7 @@ def test_an_interrupt_ends_the_workers_at_once_and_their_warnings_are_one_line(
     assert "UserWarning" not in err and "Traceback" not in err, err
     assert err.endswith("lookfeel: interrupted\n"), err
     for path in pids:  # the workers ended with their runs
-        pid = int(path.read_text())
+        pid = int(path.read_text(encoding="utf-8"))
         for _ in range(50):
             try:
                 os.kill(pid, 0)
@@ -1142,7 +1154,9 @@ def test_runs_trained_on_another_dataset_are_refused_before_any_training(
     # A label changed: another dataset too. A started run (no eval.json): its checkpoint's.
     relabelled = shutil.copytree(data, tmp_path / "relabelled")
     labels = relabelled / "labels.csv"
-    labels.write_text(labels.read_text().replace("\n1,0,0.5,", "\n1,0,0.7,"))
+    labels.write_text(
+        labels.read_text(encoding="utf-8").replace("\n1,0,0.5,", "\n1,0,0.7,"), encoding="utf-8"
+    )
     done.unlink()
     with pytest.raises(ConfigError, match=r"trained on another dataset \(runs/flat/seed0\)"):
         reproduce(relabelled, out, only=["flat"], **args)
@@ -1161,7 +1175,10 @@ def test_a_rerun_with_another_n_boot_scores_the_kept_runs_again(data: Path, tmp_
     first = reproduce(data, out, n_boot=20, **args)
     checkpoints = sorted(out.glob("runs/*/seed0/checkpoints/*.pt"))
     stamps = [p.stat().st_mtime_ns for p in checkpoints]
-    seconds = [json.loads(p.read_text())["seconds"] for p in sorted(out.glob("runs/*/*/eval.json"))]
+    seconds = [
+        json.loads(p.read_text(encoding="utf-8"))["seconds"]
+        for p in sorted(out.glob("runs/*/*/eval.json"))
+    ]
     lines.clear()
     again = reproduce(data, out, n_boot=50, **args)
     said = lines[0]
@@ -1173,11 +1190,13 @@ def test_a_rerun_with_another_n_boot_scores_the_kept_runs_again(data: Path, tmp_
         "scoring again with --n-boot 50, from their checkpoints, the finished runs scored "
         "otherwise: flat seed 0, snn_depth seed 0"
     )
-    saved = json.loads((out / "results.json").read_text())
+    saved = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert saved["meta"]["n_boot"] == 50
     evals = sorted(out.glob("runs/*/*/eval.json"))
-    assert [json.loads(p.read_text())["n_boot"] for p in evals] == [50, 50]
-    assert [json.loads(p.read_text())["seconds"] for p in evals] == seconds  # its training's
+    assert [json.loads(p.read_text(encoding="utf-8"))["n_boot"] for p in evals] == [50, 50]
+    assert [
+        json.loads(p.read_text(encoding="utf-8"))["seconds"] for p in evals
+    ] == seconds  # its training's
 
     # Scored with 50, its checkpoint gone: another --n-boot is refused, before any training.
     (out / "runs" / "flat" / "seed0" / "checkpoints" / "last.pt").unlink()
@@ -1203,7 +1222,7 @@ def test_results_json_records_what_it_takes_to_reproduce_it(tmp_path: Path):
     out = tmp_path / "o"
     args = dict(budget="tiny", n_boot=30, overrides=FAST, log=lambda s: None)
     reproduce(two, out, only=["multi_input"], **args)
-    meta = json.loads((out / "results.json").read_text())["meta"]
+    meta = json.loads((out / "results.json").read_text(encoding="utf-8"))["meta"]
     assert meta["n_boot"] == 30
     assert meta["workers"] == 0 and meta["workers_resolved"] == 1  # 0: the default, resolved
     assert meta["data_fingerprint"] == scan(two, require=[], strict=True).fingerprint()
@@ -1212,8 +1231,8 @@ def test_results_json_records_what_it_takes_to_reproduce_it(tmp_path: Path):
     assert meta["budget"] == "tiny"  # the keys it had
     # The dataset folder, named as index info, embed and cv name it (``data`` before).
     assert meta["data_root"] == str(two) and "data" not in meta
-    assert f"Data: `{two}`; budget: **tiny**" in (out / "report.md").read_text()
-    assert "budget: **tiny**" in (out / "report.md").read_text()
+    assert f"Data: `{two}`; budget: **tiny**" in (out / "report.md").read_text(encoding="utf-8")
+    assert "budget: **tiny**" in (out / "report.md").read_text(encoding="utf-8")
 
 
 # --- Table 4 beside raw pixels and the background control ------------------------------------
@@ -1253,8 +1272,12 @@ def test_table_4_has_raw_pixels_and_the_background_control_beside_the_model(visi
     from lookfeel.reproduce.report import CONTROLS_NOTE
     from lookfeel.reproduce.run import CONTROL_KEYS, headline
 
-    record = json.loads((vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text())
-    saved = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
+    record = json.loads(
+        (vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text(encoding="utf-8")
+    )
+    saved = json.loads((vision / "results.json").read_text(encoding="utf-8"))["results"][
+        "snn_depth"
+    ]
     for novel in (record["novel"], saved["novel"]):
         assert set(CONTROL_KEYS) <= set(novel)
         for key in ("top1", "raw_pixels_top1", "top1_swapped", "raw_pixels_top1_swapped"):
@@ -1265,7 +1288,7 @@ def test_table_4_has_raw_pixels_and_the_background_control_beside_the_model(visi
     assert all(record["seen"][k] != record["seen"][k] for k in CONTROL_KEYS)
     assert all(saved["seen"][k] is None for k in CONTROL_KEYS)
     assert set(record["not_scored"]) == {"seen"}
-    report = (vision / "report.md").read_text()
+    report = (vision / "report.md").read_text(encoding="utf-8")
     table_4 = report[report.index("## Table 4") :]
     n = record["novel"]
     for label, key in (
@@ -1338,14 +1361,14 @@ def test_a_table_4_run_scored_without_the_controls_is_scored_again_from_its_chec
     out = tmp_path / "out"
     shutil.copytree(vision, out)
     done = out / "runs" / "snn_depth" / "seed0" / "eval.json"
-    fresh_text = done.read_text()
+    fresh_text = done.read_text(encoding="utf-8")
     fresh = json.loads(fresh_text)
     old = dict(fresh)
     for side in ("seen", "novel"):
         old[side] = {k: v for k, v in fresh[side].items() if k.removesuffix("_ci_low")
                      .removesuffix("_ci_high") not in CONTROL_KEYS}  # fmt: skip
     old_text = json.dumps(old)
-    done.write_text(old_text)
+    done.write_text(old_text, encoding="utf-8")
     checkpoint = out / "runs" / "snn_depth" / "seed0" / "checkpoints" / "last.pt"
     stamp = checkpoint.stat().st_mtime_ns
     reads: list[str] = []
@@ -1366,12 +1389,19 @@ def test_a_table_4_run_scored_without_the_controls_is_scored_again_from_its_chec
         "beside Table 4's numbers, the finished runs scored without them: snn_depth seed 0"
     )
     assert checkpoint.stat().st_mtime_ns == stamp  # not trained again
-    assert done.read_text() == fresh_text  # as the fresh run wrote it, its time kept
-    first = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
-    assert json.loads((out / "results.json").read_text())["results"]["snn_depth"] == first
+    assert (
+        done.read_text(encoding="utf-8") == fresh_text
+    )  # as the fresh run wrote it, its time kept
+    first = json.loads((vision / "results.json").read_text(encoding="utf-8"))["results"][
+        "snn_depth"
+    ]
+    assert (
+        json.loads((out / "results.json").read_text(encoding="utf-8"))["results"]["snn_depth"]
+        == first
+    )
 
     # Its checkpoint gone: reported, the controls n/a with why.
-    done.write_text(old_text)
+    done.write_text(old_text, encoding="utf-8")
     checkpoint.unlink()
     lines.clear()
     gone = reproduce(data, out, log=lines.append, **args).results["snn_depth"]
@@ -1382,13 +1412,13 @@ def test_a_table_4_run_scored_without_the_controls_is_scored_again_from_its_chec
     assert all(gone["novel"][k] != gone["novel"][k] for k in CONTROL_KEYS)
     assert gone["novel"]["top1"] == fresh["novel"]["top1"]
     assert gone["not_scored"]["novel_swapped"] == NO_CHECKPOINT
-    report = (out / "report.md").read_text()
+    report = (out / "report.md").read_text(encoding="utf-8")
     assert "| raw pixels, snn_depth's queries | n/a^1 | n/a^1 | n/a^3 | n/a^3 |" in report
     assert (
         "- ^3 snn_depth novel background swapped, snn_depth novel raw pixels, snn_depth novel "
         f"raw pixels background swapped: {NO_CHECKPOINT}."
     ) in report
-    assert done.read_text() == old_text  # left as it was
+    assert done.read_text(encoding="utf-8") == old_text  # left as it was
 
 
 def test_table_4_s_controls_in_the_report_and_over_seeds(tmp_path: Path):
@@ -1437,19 +1467,23 @@ def test_table_4_records_the_models_top_3_interval_and_adds_it_to_an_old_run(
     checkpoint (not trained again); its checkpoint gone, the interval is n/a with the reason."""
     import math
 
-    record = json.loads((vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text())
-    saved = json.loads((vision / "results.json").read_text())["results"]["snn_depth"]
+    record = json.loads(
+        (vision / "runs" / "snn_depth" / "seed0" / "eval.json").read_text(encoding="utf-8")
+    )
+    saved = json.loads((vision / "results.json").read_text(encoding="utf-8"))["results"][
+        "snn_depth"
+    ]
     for novel in (record["novel"], saved["novel"]):
         assert "top3_ci_low" in novel and _ordered(novel, "top3")
 
     out = tmp_path / "out"
     shutil.copytree(vision, out)
     done = out / "runs" / "snn_depth" / "seed0" / "eval.json"
-    fresh_text = done.read_text()
+    fresh_text = done.read_text(encoding="utf-8")
     old = json.loads(fresh_text)
     old["novel"] = {k: v for k, v in old["novel"].items() if not k.startswith("top3_ci_")}
     old_text = json.dumps(old)
-    done.write_text(old_text)
+    done.write_text(old_text, encoding="utf-8")
     lines: list[str] = []
     args = dict(budget="tiny", only=["snn_depth"], n_boot=50, overrides=FAST, workers=1)
     reproduce(data, out, log=lines.append, **args)
@@ -1459,9 +1493,9 @@ def test_table_4_records_the_models_top_3_interval_and_adds_it_to_an_old_run(
         "score snn_depth seed 0 (Table 4 (SNN, only depth)): finished, scored again from its "
         "checkpoint, not trained",
     ]
-    assert done.read_text() == fresh_text  # as the fresh run wrote it
+    assert done.read_text(encoding="utf-8") == fresh_text  # as the fresh run wrote it
 
-    done.write_text(old_text)
+    done.write_text(old_text, encoding="utf-8")
     (done.parent / "checkpoints" / "last.pt").unlink()
     lines.clear()
     gone = reproduce(data, out, log=lines.append, **args).results["snn_depth"]
@@ -1474,7 +1508,7 @@ def test_table_4_records_the_models_top_3_interval_and_adds_it_to_an_old_run(
     from lookfeel.reproduce.run import NO_TOP3_INTERVAL
 
     assert gone["not_scored"]["novel_top3_interval"] == NO_TOP3_INTERVAL
-    assert done.read_text() == old_text  # left as it was
+    assert done.read_text(encoding="utf-8") == old_text  # left as it was
 
 
 def test_every_number_of_table_4_shows_its_interval(tmp_path: Path):

@@ -435,7 +435,7 @@ def _video_library(run: tuple[Path, Path], root: Path) -> Path:
         rows.append(f"{name},{k % 3}")
         for n in range(2):
             write_video(data / "videos" / f"{name}_{n}.mov", object_press(k, PRESS, 14, 10 * k + n))
-    (data / "labels.csv").write_text("\n".join(rows) + "\n")
+    (data / "labels.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     build_library(ckpt, data, root / "lib", shard_size=64)
     return root / "lib"
 

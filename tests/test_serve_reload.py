@@ -98,7 +98,7 @@ def test_a_rebuild_that_cannot_be_served_is_named_and_the_old_library_kept(
     lib, served, notes = _served(libraries[0], tmp_path, check_every=0.01)
     damaged = tmp_path / "damaged"
     shutil.copytree(four, damaged)
-    manifest = json.loads((damaged / "manifest.json").read_text())
+    manifest = json.loads((damaged / "manifest.json").read_text(encoding="utf-8"))
     (damaged / manifest["modalities"]["depth"]["shards"][0]["file"]).write_bytes(b"not a shard")
     _swap_in(damaged, lib)
     for _ in range(5):  # several requests: tried once, named once

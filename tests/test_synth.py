@@ -124,9 +124,9 @@ def test_world_follows_the_dataset_layout(tiny_world: Path) -> None:
         assert im.format == "JPEG" and im.mode == "RGB"
     assert Image.open(touch[0]).size == (80, 60)
 
-    header = (tiny_world / "labels.csv").read_text().splitlines()[0]
+    header = (tiny_world / "labels.csv").read_text(encoding="utf-8").splitlines()[0]
     assert header == "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split"
-    manifest = json.loads((tiny_world / MANIFEST).read_text())
+    manifest = json.loads((tiny_world / MANIFEST).read_text(encoding="utf-8"))
     assert manifest["status"] == "complete"
     assert len(manifest["fabrics"]) == 3 and "bending_length_mm" in manifest["fabrics"][0]
     assert (tiny_world / "contact_sheet.png").is_file()
@@ -220,7 +220,8 @@ def test_label_mode_keeps_ids_and_columns_and_renders_only_what_is_asked(tmp_pat
         "fabric_id,cluster8,thickness_mm,density,stiffness,stretchiness,paper_split,roughness\n"
         "3,4,2.1,1.43,1.6,1,test,0.2\n"
         "42,0,2.0,1.5,3.5,0,train,\n"
-        "107,0,,,,,excluded,\n"
+        "107,0,,,,,excluded,\n",
+        encoding="utf-8",
     )
     cfg = dataclasses.replace(TINY, fabrics=50, presses_flat=0, presses_fold=1, frames=1)
     out = generate(cfg, tmp_path / "out", labels=labels, progress=False)
@@ -229,7 +230,9 @@ def test_label_mode_keeps_ids_and_columns_and_renders_only_what_is_asked(tmp_pat
     ids = {int(p.name[1:5]) for p in (tmp_path / "out/color").iterdir()}
     assert ids == {3, 42, 107}
     assert sorted(p.name for p in (tmp_path / "out/touch").iterdir())[0] == "F0003_fold_01_2001.jpg"
-    assert (tmp_path / "out/labels.csv").read_text() == labels.read_text()
+    assert (tmp_path / "out/labels.csv").read_text(encoding="utf-8") == labels.read_text(
+        encoding="utf-8"
+    )
 
     with_depth = generate(
         dataclasses.replace(cfg, modalities=(Modality.DEPTH,)),
@@ -243,7 +246,7 @@ def test_label_mode_keeps_ids_and_columns_and_renders_only_what_is_asked(tmp_pat
 
 def test_label_mode_reports_a_bad_labels_file(tmp_path: Path) -> None:
     bad = tmp_path / "labels.csv"
-    bad.write_text("fabric_id,thickness_mm\n1,thick\n")
+    bad.write_text("fabric_id,thickness_mm\n1,thick\n", encoding="utf-8")
     with pytest.raises(ValueError, match=r"labels\.csv:2: column 'thickness_mm'"):
         generate(TINY, tmp_path / "out", labels=bad, progress=False)
     bad.write_bytes("fabric_id\n1\n".encode("utf-16"))  # a spreadsheet's "Unicode text"
@@ -269,7 +272,7 @@ def test_label_mode_refuses_a_labels_file_the_dataset_reader_refuses(
     (a paper_split of 'bogus', QA) made a world that `lookfeel data check` then refused. It is
     refused up front now, with the reader's own line, and nothing is written."""
     labels = tmp_path / "labels.csv"
-    labels.write_text(_LABELS_HEADER + "1,0,5.3,3.9,2.8,0.5,train\n" + row + "\n")
+    labels.write_text(_LABELS_HEADER + "1,0,5.3,3.9,2.8,0.5,train\n" + row + "\n", encoding="utf-8")
     assert [said in str(p) for p in read_labels(labels)[1]] == [True]  # the reader's words
     with pytest.raises(ValueError, match=re.escape(f"{labels}{said}")):
         generate(TINY, tmp_path / "out", labels=labels, progress=False)
@@ -283,7 +286,8 @@ def test_label_mode_takes_the_clusters_and_unknown_cells_the_dataset_reader_take
     ``cluster8``), and "nan" is an unknown cell: synth takes both, as the reader does."""
     labels = tmp_path / "labels.csv"
     labels.write_text(
-        _LABELS_HEADER + "1,9,5.3,nan,2.8,0.5,train\n2,2,2.7,1.3,3.3,1,test\n2007,2,,,,,\n"
+        _LABELS_HEADER + "1,9,5.3,nan,2.8,0.5,train\n2,2,2.7,1.3,3.3,1,test\n2007,2,,,,,\n",
+        encoding="utf-8",
     )
     assert read_labels(labels)[1] == []
     assert read_label_file(labels).ids == (1, 2, 2007)
@@ -293,12 +297,14 @@ def test_label_mode_takes_the_clusters_and_unknown_cells_the_dataset_reader_take
 def test_label_mode_says_an_infinite_label_is_not_finite(tmp_path: Path, value: str) -> None:
     """'inf' was refused with "must be >= 0" (QA), which is not what is wrong with it."""
     labels = tmp_path / "labels.csv"
-    labels.write_text(_LABELS_HEADER + f"1,0,5.3,{value},2.8,0.5,train\n")
+    labels.write_text(_LABELS_HEADER + f"1,0,5.3,{value},2.8,0.5,train\n", encoding="utf-8")
     with pytest.raises(
         ValueError, match=rf":2: column 'density': '{re.escape(value)}' is not finite$"
     ):
         read_label_file(labels)
-    labels.write_text(_LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n")  # negative: its own words
+    labels.write_text(
+        _LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n", encoding="utf-8"
+    )  # negative: its own words
     with pytest.raises(ValueError, match=r":2: column 'thickness_mm': '-5.3' must be >= 0$"):
         read_label_file(labels)
 
@@ -317,22 +323,24 @@ def test_label_mode_reads_the_file_once_with_the_dataset_reader(tmp_path: Path) 
     Now the reader parses it: the first problem in the reader's words with how many more, and
     "nan" is an unknown cell, filled from the fabric's cluster as an empty one is."""
     labels = tmp_path / "labels.csv"
-    labels.write_text(_LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n2,0,2.7,1.3,3.3,1,bogus\n")
+    labels.write_text(
+        _LABELS_HEADER + "1,0,-5.3,3.9,2.8,0.5,train\n2,0,2.7,1.3,3.3,1,bogus\n", encoding="utf-8"
+    )
     with pytest.raises(ValueError) as raised:
         read_label_file(labels)
     assert str(raised.value) == (
         f"{labels}:2: column 'thickness_mm': '-5.3' must be >= 0 (and 1 more problem(s) in "
         "this file)"
     )
-    labels.write_text("object,hardness\nsponge,0\n")
+    labels.write_text("object,hardness\nsponge,0\n", encoding="utf-8")
     with pytest.raises(ValueError, match=r":1: no 'fabric_id' column in the header: synth "):
         read_label_file(labels)
 
     rows = "1,0,5.3,{},2.8,0.5,train\n2,0,2.7,1.3,3.3,1,test\n3,0,2.9,1.5,3.1,1,test\n"
-    labels.write_text(_LABELS_HEADER + rows.format("nan"))
+    labels.write_text(_LABELS_HEADER + rows.format("nan"), encoding="utf-8")
     with_nan = read_label_file(labels)
     assert with_nan.values[0] == {"thickness_mm": 5.3, "stiffness": 2.8, "stretchiness": 0.5}
-    labels.write_text(_LABELS_HEADER + rows.format(""))
+    labels.write_text(_LABELS_HEADER + rows.format(""), encoding="utf-8")
     assert fabrics_from_labels(with_nan, 0) == fabrics_from_labels(read_label_file(labels), 0)
 
 
@@ -346,7 +354,7 @@ def test_test_fabrics_sets_how_many_are_held_out_and_nothing_else(tmp_path: Path
     generate(dataclasses.replace(base, test_fabrics=4), tmp_path / "four", progress=False)
 
     def rows(name: str) -> list[list[str]]:
-        lines = (tmp_path / name / "labels.csv").read_text().splitlines()[1:]
+        lines = (tmp_path / name / "labels.csv").read_text(encoding="utf-8").splitlines()[1:]
         return [line.split(",") for line in lines]
 
     paper, four = rows("paper"), rows("four")
@@ -356,7 +364,7 @@ def test_test_fabrics_sets_how_many_are_held_out_and_nothing_else(tmp_path: Path
     assert _digest(tmp_path / "four" / "depth") == _digest(tmp_path / "paper" / "depth")
     # Recorded only when set, so a world made before the field existed keeps its config.
     assert "test_fabrics" not in base.to_dict()
-    manifest = json.loads((tmp_path / "four" / MANIFEST).read_text())
+    manifest = json.loads((tmp_path / "four" / MANIFEST).read_text(encoding="utf-8"))
     assert manifest["config"]["test_fabrics"] == 4
 
 
@@ -365,7 +373,7 @@ def test_test_fabrics_refuses_what_cannot_be_held_out(tmp_path: Path) -> None:
         with pytest.raises(ConfigError, match="synth.test_fabrics"):
             dataclasses.replace(TINY, fabrics=6, test_fabrics=bad)
     labels = tmp_path / "labels.csv"
-    labels.write_text("fabric_id\n1\n2\n")
+    labels.write_text("fabric_id\n1\n2\n", encoding="utf-8")
     with pytest.raises(ValueError, match="test_fabrics: not with a labels file"):
         generate(
             dataclasses.replace(TINY, test_fabrics=1),
@@ -380,7 +388,7 @@ def test_test_fabrics_refuses_what_cannot_be_held_out(tmp_path: Path) -> None:
 
 
 def test_refuses_a_folder_that_is_not_synth_output(tmp_path: Path) -> None:
-    (tmp_path / "mine.txt").write_text("keep me")
+    (tmp_path / "mine.txt").write_text("keep me", encoding="utf-8")
     with pytest.raises(FileExistsError, match="not empty"):
         generate(TINY, tmp_path, progress=False)
     assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
@@ -389,10 +397,10 @@ def test_refuses_a_folder_that_is_not_synth_output(tmp_path: Path) -> None:
 def test_rerun_replaces_its_own_files_and_keeps_the_users(tmp_path: Path) -> None:
     one = dataclasses.replace(TINY, fabrics=2, contact_sheet=False)
     generate(one, tmp_path, progress=False)
-    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "notes.txt").write_text("mine", encoding="utf-8")
     (tmp_path / "color" / "mine.png").write_bytes(b"x")
     generate(dataclasses.replace(one, fabrics=1), tmp_path, progress=False)
-    assert (tmp_path / "notes.txt").read_text() == "mine"
+    assert (tmp_path / "notes.txt").read_text(encoding="utf-8") == "mine"
     assert (tmp_path / "color" / "mine.png").exists()
     assert not list(tmp_path.rglob("F0002_*"))
     assert (tmp_path / "color" / "F0001_1.jpg").exists()
@@ -419,10 +427,10 @@ def test_a_killed_run_leaves_no_truncated_image_and_can_be_rerun(
     assert images  # some were written before the kill ...
     for p in images:  # ... and every one under a real name decodes completely
         Image.open(p).load()
-    assert json.loads((tmp_path / MANIFEST).read_text())["status"] == "running"
+    assert json.loads((tmp_path / MANIFEST).read_text(encoding="utf-8"))["status"] == "running"
     generate(cfg, tmp_path, progress=False)
     assert not list(tmp_path.rglob("*.tmp"))
-    assert json.loads((tmp_path / MANIFEST).read_text())["status"] == "complete"
+    assert json.loads((tmp_path / MANIFEST).read_text(encoding="utf-8"))["status"] == "complete"
 
 
 # ---- physics shows in the pixels ---------------------------------------------------------------
@@ -631,11 +639,13 @@ def test_label_mode_renders_touch_and_colour_for_the_real_fabrics(
 ) -> None:
     cfg = dataclasses.replace(TINY, drapes=1, presses_flat=0, presses_fold=1, frames=1)
     summary = generate(cfg, tmp_path, labels=real_data / "labels.csv", progress=False)
-    lines = (real_data / "labels.csv").read_text().splitlines()[1:]
+    lines = (real_data / "labels.csv").read_text(encoding="utf-8").splitlines()[1:]
     real_ids = [int(line.split(",")[0]) for line in lines]
     assert summary.fabrics == len(real_ids) == 119
     assert sorted(int(p.name[1:5]) for p in (tmp_path / "color").iterdir()) == real_ids
-    assert (tmp_path / "labels.csv").read_text() == (real_data / "labels.csv").read_text()
+    assert (tmp_path / "labels.csv").read_text(encoding="utf-8") == (
+        real_data / "labels.csv"
+    ).read_text(encoding="utf-8")
     assert check_dataset(tmp_path, workers=1).errors == ()
 
 
@@ -683,7 +693,7 @@ def test_a_rerun_removes_only_files_of_its_own_folder(tmp_path: Path) -> None:
     victim, theirs = tmp_path / "victim.txt", real / "F0001_Depth_New_000001.png"
     old_touch = out / "touch" / "F0001_fold_01_1000.jpg"
     for f in (victim, theirs, old_touch):
-        f.write_text("keep" if f != old_touch else "old")
+        f.write_text("keep" if f != old_touch else "old", encoding="utf-8")
     listed = [
         str(victim),
         "../victim.txt",
@@ -691,9 +701,12 @@ def test_a_rerun_removes_only_files_of_its_own_folder(tmp_path: Path) -> None:
         str(old_touch.relative_to(out)),
     ]
     manifest = {"generator": world_module._GENERATOR, "files": listed}
-    (out / MANIFEST).write_text(json.dumps(manifest))
+    (out / MANIFEST).write_text(json.dumps(manifest), encoding="utf-8")
     world_module._prepare_out(out, planned=[])
-    assert victim.read_text() == "keep" and theirs.read_text() == "keep"
+    assert (
+        victim.read_text(encoding="utf-8") == "keep"
+        and theirs.read_text(encoding="utf-8") == "keep"
+    )
     assert not old_touch.exists()  # the earlier run's own file, not planned again
 
 

@@ -90,7 +90,7 @@ def write_fake_world(root: Path, n: int = N_FABRICS, status: str = "complete") -
                     root / "touch" / f"F{fid:04d}_{kind}_02_{base + k}.png"
                 )
     manifest = {"generator": "lookfeel.synth", "status": status, "fabrics": fabrics}
-    (root / "synth.json").write_text(json.dumps(manifest))
+    (root / "synth.json").write_text(json.dumps(manifest), encoding="utf-8")
     return root
 
 
@@ -290,7 +290,7 @@ def test_table_on_a_tiny_generated_world_is_complete_json_and_deterministic(
         "touch_flat": 16,
         "touch_fold": 16,
     }
-    truth = json.loads((world / "synth.json").read_text())["fabrics"][0]
+    truth = json.loads((world / "synth.json").read_text(encoding="utf-8"))["fabrics"][0]
     assert a["latents"]["continuous"] == list(info.CONTINUOUS_LATENTS)
     assert ("material" in a["latents"]["classes"]) == ("material" in truth)
     assert "weave" in a["latents"]["classes"]
@@ -311,7 +311,7 @@ def test_cli_bad_world_is_one_line_naming_the_path(
     elif case == "running":
         write_fake_world(world, n=4, status="running")
     elif case == "file":
-        world.write_text("x")
+        world.write_text("x", encoding="utf-8")
     assert info.main([str(world)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(world) in err and "Traceback" not in err

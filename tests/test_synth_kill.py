@@ -27,7 +27,7 @@ def _children(pid: int) -> set[int]:
         if not d.name.isdigit():
             continue
         try:
-            stat = (d / "stat").read_text()
+            stat = (d / "stat").read_text(encoding="utf-8")
         except OSError:
             continue
         fields = stat[stat.rindex(")") + 2 :].split()
@@ -38,7 +38,7 @@ def _children(pid: int) -> set[int]:
 
 def _alive(pid: int) -> bool:
     try:
-        state = Path(f"/proc/{pid}/stat").read_text()
+        state = Path(f"/proc/{pid}/stat").read_text(encoding="utf-8")
     except OSError:
         return False
     return state[state.rindex(")") + 2] != "Z"

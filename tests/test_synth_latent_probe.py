@@ -87,7 +87,9 @@ def world_and_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path
     shutil.copytree(data, world)
     rng = np.random.default_rng(2)
     fabrics = list(_truth(6, rng).values())
-    (world / "synth.json").write_text(json.dumps({"status": "complete", "fabrics": fabrics}))
+    (world / "synth.json").write_text(
+        json.dumps({"status": "complete", "fabrics": fabrics}), encoding="utf-8"
+    )
     return world, ckpt
 
 
@@ -119,7 +121,7 @@ def test_cli_writes_json_and_bad_input_is_one_line(
     world, ckpt = world_and_checkpoint
     out = tmp_path / "latents.json"
     assert lp.main([str(world), str(ckpt), "--json", str(out), "--pixels", "--workers", "1"]) == 0
-    result = json.loads(out.read_text())
+    result = json.loads(out.read_text(encoding="utf-8"))
     assert result["checkpoints"] == [str(ckpt)]
     # the image statistics probed on the same fabrics as the embeddings
     assert result["pixels"]["runs"][0]["fabrics"] == result["runs"][0]["fabrics"]

@@ -86,14 +86,19 @@ def test_run_directory_and_determinism(data: Path, tmp_path: Path):
         "split.json",
     ]
     assert load_config(RunConfig, run / "config.yaml") == _config()
-    split = json.loads((run / "split.json").read_text())
+    split = json.loads((run / "split.json").read_text(encoding="utf-8"))
     assert len(split["val"]) == 2 and not set(split["val"]) & set(split["train"])
-    lines = [json.loads(x) for x in (run / "metrics.jsonl").read_text().splitlines()]
+    lines = [
+        json.loads(x) for x in (run / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     steps = [x["step"] for x in lines if "loss" in x]
     assert steps == [5, 10, 15, 20]
     assert any("val/touch_to_depth_top1" in x for x in lines)
     assert a.best_checkpoint is not None and a.best_checkpoint.exists()
-    other = [json.loads(x) for x in (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    other = [
+        json.loads(x)
+        for x in (tmp_path / "b" / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     assert [x["loss"] for x in lines if "loss" in x] == [x["loss"] for x in other if "loss" in x]
     assert _states_equal(a.last_checkpoint, b.last_checkpoint)
     c = train(_config("train.seed=1"), data, tmp_path / "c")
@@ -184,7 +189,7 @@ def test_kill_and_resume_equals_unbroken_run(data: Path, tmp_path: Path, overrid
     timing = ("steps_per_s", "trunk_cache_s")
 
     def log(run: Path) -> list[dict[str, object]]:
-        lines = (run / "metrics.jsonl").read_text().splitlines()
+        lines = (run / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
         return [{k: v for k, v in json.loads(x).items() if k not in timing} for x in lines]
 
     assert log(tmp_path / "broken") == log(tmp_path / "unbroken")  # the log is continuous
@@ -285,10 +290,11 @@ def test_a_run_saved_in_nchw_layout_resumes_channels_last(data: Path, tmp_path: 
     (tmp_path / "broken/config.yaml").write_text(
         "\n".join(
             line
-            for line in (tmp_path / "broken/config.yaml").read_text().splitlines()
+            for line in (tmp_path / "broken/config.yaml").read_text(encoding="utf-8").splitlines()
             if "channels_last" not in line
         )
-        + "\n"
+        + "\n",
+        encoding="utf-8",
     )
     resumed = train(_config(), data, tmp_path / "broken", resume=True)
     after = torch.load(resumed.last_checkpoint, weights_only=True)
@@ -419,7 +425,8 @@ def test_the_class_heads_a_message_gives_read_back_as_the_columns(tmp_path: Path
 
     root = write_tiny_dataset(tmp_path / "d", fabrics=4, drapes=1)
     (root / "labels.csv").write_text(
-        "fabric_id,yes,1e3,stiffness\n1,0,foam,0.5\n2,1,wood,1.5\n3,0,foam,2\n4,1,wood,1\n"
+        "fabric_id,yes,1e3,stiffness\n1,0,foam,0.5\n2,1,wood,1.5\n3,0,foam,2\n4,1,wood,1\n",
+        encoding="utf-8",
     )
     catalog = scan(root)
     asked = _config("model.class_heads=['yes',roughness,'1e3']")
@@ -434,7 +441,9 @@ def test_the_class_heads_a_message_gives_read_back_as_the_columns(tmp_path: Path
     assert load_config(RunConfig, TINY, given).model.class_heads == ("yes", "1e3")
     assert message.endswith(", or --set 'model.class_heads=[]' for none")
     # No column of classes at all: no head.
-    (root / "labels.csv").write_text("fabric_id,stiffness\n1,0.5\n2,1.5\n3,2\n4,1\n")
+    (root / "labels.csv").write_text(
+        "fabric_id,stiffness\n1,0.5\n2,1.5\n3,2\n4,1\n", encoding="utf-8"
+    )
     with pytest.raises(ConfigError, match=r"two classes or more to learn: --set "
                        r"'model.class_heads=\[\]' for no head$"):  # fmt: skip
         resolve_classes(scan(root), asked)
@@ -446,7 +455,9 @@ def _strict_json_lines(path: Path) -> list[dict]:
     def refuse(name: str) -> None:
         raise ValueError(f"{path}: {name} is not JSON")
 
-    return [json.loads(x, parse_constant=refuse) for x in path.read_text().splitlines()]
+    return [
+        json.loads(x, parse_constant=refuse) for x in path.read_text(encoding="utf-8").splitlines()
+    ]
 
 
 def test_a_diverging_run_stops_with_one_line_and_keeps_its_last_finite_checkpoint(
@@ -855,17 +866,17 @@ def test_a_folder_of_the_user_s_own_config_is_not_a_run_to_write_into(
     split.json beside it; a folder without is refused, unchanged."""
     exp = tmp_path / "exp1"
     exp.mkdir()
-    mine = "# my experiment: keep these notes\n" + TINY.read_text()
-    (exp / "config.yaml").write_text(mine)
+    mine = "# my experiment: keep these notes\n" + TINY.read_text(encoding="utf-8")
+    (exp / "config.yaml").write_text(mine, encoding="utf-8")
     code = main(
         ["train", "--config", str(exp / "config.yaml"), "--data", str(data), "--out", str(exp)]
     )
     assert code == 1
     err = capsys.readouterr().err
     assert f"--out {exp}: the folder holds files and is not a lookfeel run" in err
-    assert (exp / "config.yaml").read_text() == mine and [p.name for p in exp.iterdir()] == [
-        "config.yaml"
-    ]
+    assert (exp / "config.yaml").read_text(encoding="utf-8") == mine and [
+        p.name for p in exp.iterdir()
+    ] == ["config.yaml"]
 
 
 def test_a_resume_into_a_read_only_run_is_refused_before_training(
@@ -923,12 +934,12 @@ def test_a_run_that_fails_before_its_first_checkpoint_leaves_its_folder_as_found
     assert not (tmp_path / "new").exists()
     mine = tmp_path / "mine"
     mine.mkdir()
-    (mine / "notes.txt").write_text("my notes\n")
+    (mine / "notes.txt").write_text("my notes\n", encoding="utf-8")
     (mine / "checkpoints").mkdir()
     with pytest.raises(_Kill):
         train(cfg, data, mine, on_step=kill)
     assert sorted(p.name for p in mine.iterdir()) == ["checkpoints", "notes.txt"]
-    assert (mine / "notes.txt").read_text() == "my notes\n"
+    assert (mine / "notes.txt").read_text(encoding="utf-8") == "my notes\n"
     with pytest.raises(_Kill):
         train(_config(*ENSEMBLE), data, tmp_path / "ensemble", on_step=kill)
     assert not (tmp_path / "ensemble").exists()

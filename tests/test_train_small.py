@@ -52,7 +52,7 @@ def test_a_seen_split_of_one_image_per_fabric_is_not_scored_and_writes_no_best(
     assert result.validation == {"depth_to_depth_not_scored": why}
     assert result.best_checkpoint is None and result.last_checkpoint.is_file()
     assert not (tmp_path / "run" / "checkpoints" / "best.pt").exists()
-    lines = (tmp_path / "run" / "metrics.jsonl").read_text().splitlines()
+    lines = (tmp_path / "run" / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
     assert json.loads(lines[-1]) == {"step": 4, "val/depth_to_depth_not_scored": why}
 
 
@@ -77,7 +77,7 @@ def test_a_same_modality_pair_of_one_item_per_fabric_is_not_scored_not_nan(
         f"a query to find ({SAME}); color_to_color not scored: no held-out fabric has a second "
         f"color item for a query to find ({SAME})"
     )
-    lines = (tmp_path / "r" / "metrics.jsonl").read_text().splitlines()
+    lines = (tmp_path / "r" / "metrics.jsonl").read_text(encoding="utf-8").splitlines()
     val = json.loads(lines[-1])
     assert "val/depth_to_depth_top1" not in val and "val/color_to_color_top3" not in val
     assert val["val/depth_to_depth_not_scored"].endswith(f"({SAME})")

@@ -41,10 +41,10 @@ def test_the_validation_block_says_what_it_was_measured_on(
     assert len(val) == 9 and lines.index(header) == val[0] - 1
     assert "  val touch_to_depth_top1      0.500  (chance 0.500)" in lines  # 1 of 2 fabrics
     # the counts behind it, in metrics.jsonl beside the numbers
-    last = json.loads((out / "metrics.jsonl").read_text().splitlines()[-1])
+    last = json.loads((out / "metrics.jsonl").read_text(encoding="utf-8").splitlines()[-1])
     assert last["val/touch_to_depth_fabrics"] == 2 and last["val/depth_to_depth_fabrics"] == 2
     assert last["val/touch_to_depth_queries"] == 6  # 3 fold presses of each fabric, one a query
-    assert len(json.loads((out / "split.json").read_text())["val"]) == 2
+    assert len(json.loads((out / "split.json").read_text(encoding="utf-8"))["val"]) == 2
 
 
 def test_the_header_for_other_splits_and_presses(tmp_path: Path):
@@ -63,7 +63,9 @@ def test_the_header_for_other_splits_and_presses(tmp_path: Path):
     val = {"a_to_b_top1": 0.5, "a_to_b_fabrics": 4, "b_to_a_top1": 0.2, "b_to_a_fabrics": 3}
     assert _held_out_fabrics(val, tmp_path) == 4
     assert _held_out_fabrics({"a_to_b_top1": 0.5}, tmp_path) is None
-    (tmp_path / "split.json").write_text(json.dumps({"kind": "fold", "val": [3, 5, 8]}))
+    (tmp_path / "split.json").write_text(
+        json.dumps({"kind": "fold", "val": [3, 5, 8]}), encoding="utf-8"
+    )
     assert _held_out_fabrics({"a_to_b_top1": 0.5}, tmp_path) == 3
 
 

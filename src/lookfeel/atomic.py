@@ -38,6 +38,7 @@ __all__ = [
     "finite_or_null",
     "remove_stale_temps",
     "remove_stale_temps_in",
+    "replace_path",
 ]
 
 _UMASK_LOCK = threading.Lock()
@@ -181,7 +182,7 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
             write(f)
             f.flush()
             os.fsync(f.fileno())
-        _replace(tmp, p)
+        replace_path(tmp, p)
     except OSError as e:
         Path(tmp).unlink(missing_ok=True)
         raise _naming(e, p) from None
@@ -200,10 +201,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[IO[bytes]], obje
 
 
 _REPLACE_WAITS = (0.05, 0.1, 0.15, 0.2, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25)
-"""Seconds `_replace` waits before each retry on Windows: about 2 s in all."""
+"""Seconds `replace_path` waits before each retry on Windows: about 2 s in all."""
 
 
-def _replace(tmp: str, dest: Path) -> None:
+def replace_path(tmp: str | Path, dest: Path) -> None:
     """``os.replace(tmp, dest)``. On Windows a destination that another process has open (a
     reader of the checkpoint, an antivirus scan, the search indexer) cannot be replaced for
     as long as it is open (`PermissionError`): there it is retried for about 2 s before the

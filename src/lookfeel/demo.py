@@ -272,7 +272,7 @@ def _complete_world(path: Path, config: SynthConfig) -> bool:
     """Whether ``path`` holds a finished synthetic world made with ``config`` by this version
     of the generator."""
     try:
-        manifest = json.loads((path / MANIFEST).read_text())
+        manifest = json.loads((path / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
     wanted = {k: v for k, v in config.to_dict().items() if k != "workers"}

@@ -170,7 +170,8 @@ def press_pooler(
     flip: bool = False,
 ) -> PressPooler:
     """Multi-press touch queries embedded by the model itself, its own press pooling (the
-    Multi-input Net's): each group's presses go through the touch branch together.
+    Multi-input Net's): each group's presses go through the touch branch together (the
+    branch of the items' modality: any `Modality.pooled` one).
 
     ``loader`` reads the items' images (a control's loader gives the control's images);
     ``flip`` averages each group's embedding with its mirror image's, as `embed_items`."""
@@ -178,6 +179,7 @@ def press_pooler(
     @torch.inference_mode()
     def pool(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
         p = members.shape[1]
+        slot = touch.modality.value  # touch, or any other `Modality.pooled` modality
         step = max(1, batch_size // p)
         out = []
         with eval_mode(model):
@@ -185,9 +187,9 @@ def press_pooler(
                 rows = members[start : start + step]
                 x = stack_views([loader.load_embedded(touch.items[j]) for row in rows for j in row])
                 x = x.unflatten(0, (len(rows), p)).to(device)  # (B, P [, V], 3, S, S)
-                e = model({Modality.TOUCH.value: x})[Modality.TOUCH.value].double()
+                e = model({slot: x})[slot].double()
                 if flip:
-                    e = 0.5 * (e + model({Modality.TOUCH.value: x.flip(-1)})[Modality.TOUCH.value])
+                    e = 0.5 * (e + model({slot: x.flip(-1)})[slot])
                 out.append(e.cpu())
         if not out:
             return np.zeros((0, model.embed_dim))

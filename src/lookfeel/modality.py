@@ -61,6 +61,26 @@ class Modality(str, Enum):
     def __str__(self) -> str:
         return self.value
 
+    @property
+    def pooled(self) -> bool:
+        """This modality's inputs have a press axis: one input is several items of one fabric
+        whose embeddings are pooled into one (the paper's Multi-input Net, section 4.1).
+
+        True for touch only, whose input is ``DataConfig.presses`` presses: (B, P, C, H, W)
+        into its branch (`Branch.pressed`), P items per training slot, queries pooling
+        ``EvalConfig.presses`` presses. The model (`Branch`, `Embedder`'s input check, the
+        press-axis helpers), the training tuples and batches, and `evaluate`'s pooled queries
+        and candidates read it here. Still by touch's name: `evaluate`'s press curve
+        (``touch_to_*_presses{P}`` keys), `lookfeel match`'s query batch
+        (`lookfeel.index.query.query_batch`), the ONNX export and ``lookfeel cv``'s class-head
+        scores of held-out objects.
+
+        Example:
+            >>> Modality.TOUCH.pooled, Modality.DEPTH.pooled
+            (True, False)
+        """
+        return self is Modality.TOUCH
+
     @classmethod
     def of(cls, value: Modality | str) -> Modality:
         """``value`` as a member: a `Modality` as it is, a name (``"color"``) as its member.

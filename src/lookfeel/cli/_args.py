@@ -11,6 +11,7 @@ import fnmatch
 import importlib
 import os
 import shlex
+import subprocess
 import sys
 import tempfile
 import zipfile
@@ -271,15 +272,18 @@ class OutError(LookfeelError):
 
 def check_out_beside_data(out: Path, data: Path | None) -> None:
     """Refuse an ``--out`` that is the ``--data`` dataset folder or lies inside it (symbolic
-    links followed): lookfeel never writes into a dataset.
+    links followed, and by the folders' identity on disk: ``--data ~/Data --out ~/data/run``
+    on a disk that ignores case, as macOS's and Windows' do; `lookfeel.data.paths`): lookfeel
+    never writes into a dataset.
 
     Raises:
         OutError: naming both paths.
     """
     if data is None:
         return
-    real_out, real_data = Path(os.path.realpath(out)), Path(os.path.realpath(data))
-    if real_out == real_data or real_out.is_relative_to(real_data):
+    from lookfeel.data.paths import lies_within
+
+    if lies_within(out, data):
         raise OutError(
             f"--out {out} lies inside the dataset folder {data} (--data); lookfeel writes "
             "nothing into a dataset: choose an --out outside it"
@@ -407,7 +411,31 @@ def path_flag(key: str, flag: str, path: Path) -> Override:
     ``key`` naming the flag as typed (``--pretrained 'w/a: b.pth': model.pretrained: ...``)."""
     from lookfeel.config._core import Override
 
-    return Override(key, os.path.abspath(path), f"{flag} {shlex.quote(str(path))}")
+    return Override(key, os.path.abspath(path), f"{flag} {shell_quote(str(path))}")
+
+
+_WINDOWS = os.name == "nt"
+"""Whether commands are typed into Windows' cmd.exe or PowerShell (`shell_quote`)."""
+
+_CMD_SPECIAL = frozenset("&|<>^()")
+"""Characters cmd.exe acts on outside double quotes."""
+
+
+def shell_quote(text: str) -> str:
+    """``text`` as one argument of a command a message suggests, quoted for the shell the
+    user types it into: POSIX quoting (``'a b'``, ``shlex.quote``) where that shell is sh,
+    bash or zsh; on Windows, where cmd.exe keeps single quotes as part of the argument,
+    double quotes as ``subprocess.list2cmdline`` writes them (``"a b"``), also around an
+    argument holding one of cmd.exe's operators (``&|<>^()``). Nothing is quoted that needs
+    no quotes (``--set train.steps=3``)."""
+    if not _WINDOWS:
+        return shlex.quote(text)
+    quoted = subprocess.list2cmdline([text])
+    if quoted.startswith('"') or not _CMD_SPECIAL.intersection(text):
+        return quoted
+    # in quotes, backslashes before the closing quote are doubled (list2cmdline's rule)
+    body = quoted.rstrip("\\")
+    return '"' + body + "\\" * (2 * (len(quoted) - len(body))) + '"'
 
 
 def _sets_key(sets: list[str], key: str) -> bool:

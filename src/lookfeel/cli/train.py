@@ -138,7 +138,7 @@ def _held_out_fabrics(val: Mapping[str, object], run_dir: Path) -> int | None:
     if counts:
         return max(counts)
     try:
-        held = json.loads((run_dir / "split.json").read_text()).get("val")
+        held = json.loads((run_dir / "split.json").read_text(encoding="utf-8")).get("val")
     except (OSError, ValueError, AttributeError):
         return None
     return len(held) if isinstance(held, list) and held else None

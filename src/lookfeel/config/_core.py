@@ -13,12 +13,14 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import types
 import typing
 from collections.abc import Mapping, Sequence
 from enum import Enum
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union
 
@@ -34,10 +36,13 @@ __all__ = [
     "Override",
     "apply_overrides",
     "check_choices",
+    "config_file",
     "from_dict",
     "load_config",
     "parse_pairs",
+    "recipe_path",
     "save_config",
+    "shipped_configs",
     "to_dict",
 ]
 
@@ -333,6 +338,41 @@ def _yaml_problem(e: yaml.YAMLError) -> str:
     return " ".join(line.strip() for line in str(e).splitlines() if line.strip())
 
 
+def recipe_path(name: str) -> Path:
+    """The shipped config (or folder of them) ``configs/<name>`` in the installed package."""
+    return Path(str(resources.files("lookfeel") / "configs" / name))
+
+
+def shipped_configs() -> list[str]:
+    """The shipped configs' names, as `config_file` takes them (``physiclear``, ``paper/flat``)."""
+    root = recipe_path("")
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml"))
+
+
+def config_file(path: str | os.PathLike[str]) -> Path:
+    """The file ``--config`` names: ``path`` where it exists, else the shipped config it names
+    from any folder: ``physiclear``, ``physiclear.yaml``, ``configs/physiclear.yaml`` or
+    ``configs/paper/flat.yaml`` read ``configs/`` of the installed package (`recipe_path`).
+
+    Raises:
+        ConfigError: no such file, and no shipped config of that name (the message lists them).
+    """
+    p = Path(path)
+    if p.exists():
+        return p
+    parts = p.parts[1:] if p.parts[:1] == ("configs",) else p.parts
+    if parts and not p.is_absolute() and ".." not in parts:
+        rel = Path(*parts)
+        name = rel.name if rel.suffix in (".yaml", ".yml") else rel.name + ".yaml"
+        shipped = recipe_path(rel.with_name(name).as_posix())
+        if shipped.is_file():
+            return shipped
+    raise ConfigError(
+        f"{p}: no such config file, nor a shipped config of that name (shipped: "
+        f"{', '.join(shipped_configs())}; name one as e.g. --config physiclear)"
+    )
+
+
 def load_config(
     cls: type[T],
     path: str | os.PathLike[str] | None = None,
@@ -341,16 +381,36 @@ def load_config(
     """Defaults, then the YAML file at ``path`` (if any), then dotted ``overrides``
     (``key=value`` text parsed as YAML, or an `Override` taken as it is).
 
+    ``path`` means what ``--config`` means on the command line (`config_file`): a file that
+    exists is read as it is; else the shipped config of that name, from any folder
+    (``"configs/tiny.yaml"``, ``"tiny.yaml"``, ``"tiny"``, ``"paper/flat"``).
+
+    Example:
+        >>> from lookfeel.config import RunConfig
+        >>> load_config(RunConfig, "configs/tiny.yaml").train.steps  # also outside a checkout
+        20
+
     Raises:
-        ConfigError: naming the file and key when the YAML is unreadable or wrong.
+        ConfigError: naming the file and key when the YAML is unreadable or wrong, or the
+            path when there is no such file nor a shipped config of that name (listing those).
     """
     data: dict[str, Any] = {}
     if path is not None:
         p = Path(path)
+        if not p.exists():
+            with contextlib.suppress(ConfigError):  # else said below: it cannot be read
+                p = config_file(p)
         try:
-            text = p.read_text()
+            text = p.read_text(encoding="utf-8")
+        except UnicodeDecodeError as e:
+            raise ConfigError(
+                f"{p}: not UTF-8 text (byte {e.start}: {e.reason}); save it as UTF-8"
+            ) from None
         except OSError as e:
-            raise ConfigError(f"{p}: cannot read config file ({e.strerror})") from None
+            shipped = (
+                "" if p.exists() else f", nor a shipped config ({', '.join(shipped_configs())})"
+            )
+            raise ConfigError(f"{p}: cannot read config file ({e.strerror}){shipped}") from None
         try:
             loaded = yaml.safe_load(text)
         except yaml.YAMLError as e:

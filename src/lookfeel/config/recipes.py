@@ -26,13 +26,18 @@ import warnings
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeGuard
 
 import yaml
 
-from lookfeel.config._core import ConfigError, apply_overrides
+from lookfeel.config._core import (
+    ConfigError,
+    apply_overrides,
+    config_file,
+    recipe_path,
+    shipped_configs,
+)
 from lookfeel.modality import REPRINTS, Modality
 
 if TYPE_CHECKING:
@@ -131,41 +136,6 @@ def unread_senses(catalog: Catalog) -> list[UnreadSense]:
     return out
 
 
-def recipe_path(name: str) -> Path:
-    """The shipped config (or folder of them) ``configs/<name>`` in the installed package."""
-    return Path(str(resources.files("lookfeel") / "configs" / name))
-
-
-def shipped_configs() -> list[str]:
-    """The shipped configs' names, as `config_file` takes them (``physiclear``, ``paper/flat``)."""
-    root = recipe_path("")
-    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml"))
-
-
-def config_file(path: str | os.PathLike[str]) -> Path:
-    """The file ``--config`` names: ``path`` where it exists, else the shipped config it names
-    from any folder: ``physiclear``, ``physiclear.yaml``, ``configs/physiclear.yaml`` or
-    ``configs/paper/flat.yaml`` read ``configs/`` of the installed package (`recipe_path`).
-
-    Raises:
-        ConfigError: no such file, and no shipped config of that name (the message lists them).
-    """
-    p = Path(path)
-    if p.exists():
-        return p
-    parts = p.parts[1:] if p.parts[:1] == ("configs",) else p.parts
-    if parts and not p.is_absolute() and ".." not in parts:
-        rel = Path(*parts)
-        name = rel.name if rel.suffix in (".yaml", ".yml") else rel.name + ".yaml"
-        shipped = recipe_path(rel.with_name(name).as_posix())
-        if shipped.is_file():
-            return shipped
-    raise ConfigError(
-        f"{p}: no such config file, nor a shipped config of that name (shipped: "
-        f"{', '.join(shipped_configs())}; name one as e.g. --config physiclear)"
-    )
-
-
 def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) -> Recipe:
     """The shipped recipe for a dataset holding ``modalities`` (see the module's docstring).
 
@@ -210,7 +180,9 @@ def default_recipe(modalities: set[Modality] | frozenset[Modality], root: Path) 
 
 def _resolved(recipe: Recipe) -> dict[str, Any]:
     """The recipe's config file with its overrides applied, as plain data."""
-    return apply_overrides(yaml.safe_load(recipe.path.read_text()) or {}, recipe.overrides)
+    return apply_overrides(
+        yaml.safe_load(recipe.path.read_text(encoding="utf-8")) or {}, recipe.overrides
+    )
 
 
 def _gives(given: Sequence[str], key: str) -> bool:
@@ -555,7 +527,7 @@ def fit_dataset(recipe: Recipe, catalog: Catalog, given: Sequence[str] = ()) -> 
     touch = catalog.items(Modality.TOUCH) if Modality.TOUCH.value in views else []
     if any(it.path.suffix.lower() in VIDEO_SUFFIXES for it in touch):
         settings = ["data.touch_frames=[]"] if d.get("touch_frames") else []
-        reads = yaml.safe_load(recipe_path("physiclear.yaml").read_text())["data"]
+        reads = yaml.safe_load(recipe_path("physiclear.yaml").read_text(encoding="utf-8"))["data"]
         settings += [
             f"data.{k}={v if isinstance(v, str) else json.dumps(v)}"
             for k, v in reads.items()

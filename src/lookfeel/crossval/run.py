@@ -320,7 +320,7 @@ def _other_finished_runs(
         if (seed, fold) in asked:
             continue
         try:
-            saved = json.loads((run_dir / RESULT).read_text())
+            saved = json.loads((run_dir / RESULT).read_text(encoding="utf-8"))
             _, recorded = _recorded_data(saved)  # none: kept as this data's
             same_data = recorded is None or catalog.matches_fingerprint(recorded)
             key = saved.get("key")
@@ -452,7 +452,11 @@ def cross_validate(
             cfg = _run_config(config, fold, seed)
             result_path = run_dir / RESULT
             key = _result_key(cfg, tta, pairs, presses, control, labelled)
-            saved = json.loads(result_path.read_text()) if result_path.exists() else None
+            saved = (
+                json.loads(result_path.read_text(encoding="utf-8"))
+                if result_path.exists()
+                else None
+            )
             was_at, recorded = _recorded_data(saved) if saved is not None else (None, None)
             if recorded is not None and not catalog.matches_fingerprint(recorded):
                 raise ConfigError(

@@ -507,7 +507,7 @@ def _with_room(result: dict, run_dir: Path, room: RoomProbe | None) -> dict:
     depth = result.get("properties", {}).get(Modality.DEPTH.value)
     if room is None or not depth:
         return result
-    split = json.loads((run_dir / "split.json").read_text())
+    split = json.loads((run_dir / "split.json").read_text(encoding="utf-8"))
     probe = room(split["train"], split["val"])
     if probe is not None:
         depth["room"] = probe

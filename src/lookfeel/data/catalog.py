@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from pathlib import Path
+from pathlib import Path, PurePath
 
 from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.labels import PHYSICAL_LABELS, class_of
@@ -314,8 +314,9 @@ class Catalog:
 
     def fingerprint(self) -> str:
         """A digest of what a run learns and is scored on: every fabric's id, name, labels and
-        cluster and its items' files, relative to the dataset folder, with each file's size (a
-        moved or copied folder keeps its digest; a file added, removed, renamed or rewritten
+        cluster and its items' files, relative to the dataset folder and written with ``/``
+        on every system, with each file's size (a moved or copied folder keeps its digest, on
+        Linux, macOS or Windows; a file added, removed, renamed or rewritten
         at another size, as a world rendered again at another seed or image size is, or a
         label changed, does not). Runs record it (checkpoints, ``lookfeel cv``'s folders,
         ``lookfeel reproduce``'s runs), so that results on one dataset are never taken for
@@ -330,12 +331,21 @@ class Catalog:
     def matches_fingerprint(self, recorded: str) -> bool:
         """Whether ``recorded`` (a run's `fingerprint`) is this dataset's: its digest now, or
         the one lookfeel recorded before session 53 (without the files' sizes), which older
-        checkpoints and cv folders hold."""
-        return recorded == self.fingerprint() or recorded == self._digest(sizes=False)
+        checkpoints and cv folders hold; on Windows also those taken before session 57, with
+        its ``\\`` between folders."""
+        if recorded == self.fingerprint() or recorded == self._digest(sizes=False):
+            return True
+        return os.sep != "/" and recorded in (
+            self._digest(sizes=True, native=True),
+            self._digest(sizes=False, native=True),
+        )
 
-    def _digest(self, sizes: bool) -> str:
+    def _digest(self, sizes: bool, native: bool = False) -> str:
         def file(p: Path) -> str | list[object]:
+            # "/" between folders on every system (unless ``native``): the same dataset has
+            # one digest on Linux, macOS and Windows, whose relpath says depth\F0001_1.png
             rel = os.path.relpath(p, self.root)
+            rel = rel if native else PurePath(rel).as_posix()
             return [rel, _size(p)] if sizes else rel
 
         rows = [

@@ -27,9 +27,10 @@ from lookfeel.data.augment import Augmenter
 from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.images import ImageLoader
 from lookfeel.data.problems import DatasetError
+from lookfeel.losses.cluster import UNKNOWN_CLUSTER
 from lookfeel.modality import Modality, PressKind, slot_modality, slot_names
 
-__all__ = ["TupleBatch", "TupleDataset"]
+__all__ = ["TupleBatch", "TupleDataset", "class_matrix"]
 
 
 def class_matrix(fabrics: Sequence[Fabric], classes: Mapping[str, Sequence[str]]) -> np.ndarray:
@@ -92,7 +93,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
     Each item is a dict:
         ``inputs``: slot name -> (1, S, S) depth, (3, S, S) colour, or (P, 3, S, S) touch.
         ``fabric_ids``: slot name -> int64 scalar.
-        ``clusters``: slot name -> int64 scalar (-1 when unknown).
+        ``clusters``: slot name -> int64 scalar (`UNKNOWN_CLUSTER`, -1, when unknown).
         ``properties``: slot name -> (L,) float32 labels in ``catalog.label_columns`` order,
             standardised (zero mean, unit variance over this dataset's fabrics: see
             ``label_mean`` and ``label_std``), NaN where unknown.
@@ -152,6 +153,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
         # Vectorised draws: per modality, every pool item once (`pool_items`) and a padded
         # (fabrics, longest pool) matrix of indices into it (-1 past a pool's end).
         self.pool_items: dict[Modality, list[Item]] = {}
+        """Per modality, every item this dataset may draw, once, fabric by fabric in id order
+        (what `TupleBatch.items` index)."""
         self._pool: dict[Modality, np.ndarray] = {}
         self._pool_len: dict[Modality, np.ndarray] = {}
         for m in modalities:
@@ -167,7 +170,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
             self._pool_len[m] = np.array([len(p) for p in pools], np.int64)
         self._ids = np.array(self.fabric_ids, np.int64)
         self._clusters = np.array(
-            [-1 if f.cluster is None else f.cluster for f in catalog.fabrics], np.int64
+            [UNKNOWN_CLUSTER if f.cluster is None else f.cluster for f in catalog.fabrics],
+            np.int64,
         )
         self._properties = (known - self.label_mean) / self.label_std  # (F, L), NaN unknown
         self._classes = torch.from_numpy(class_matrix(catalog.fabrics, classes or {}))  # (F, H)
@@ -179,13 +183,10 @@ class TupleDataset(Dataset[dict[str, Any]]):
         """Every item this dataset may draw (for `ImageLoader.preload`)."""
         return [it for pool in self.pools.values() for items in pool.values() for it in items]
 
-    def pools_items(self, modality: Modality) -> list[Item]:
-        """Every item of one modality this dataset may draw."""
-        return [it for items in self.pools[modality].values() for it in items]
-
     def targets(self, fabric_ids: dict[str, list[int]]) -> dict[str, dict[str, torch.Tensor]]:
         """Per-slot targets of a batch from its fabric ids: ``fabric_ids`` (B,), ``clusters``
-        (B,) with -1 for unknown, ``properties`` (B, L) with NaN for unknown."""
+        (B,) with `UNKNOWN_CLUSTER` (-1) for unknown, ``properties`` (B, L) with NaN for
+        unknown."""
         out: dict[str, dict[str, torch.Tensor]] = {
             "fabric_ids": {},
             "clusters": {},
@@ -198,7 +199,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
             out["classes"][slot] = self._classes[[position[i] for i in ids]]
             out["fabric_ids"][slot] = torch.tensor(ids, dtype=torch.int64)
             out["clusters"][slot] = torch.tensor(
-                [-1 if f.cluster is None else f.cluster for f in fabrics], dtype=torch.int64
+                [UNKNOWN_CLUSTER if f.cluster is None else f.cluster for f in fabrics],
+                dtype=torch.int64,
             )
             raw = torch.stack(
                 [_labels_vector(dict(f.labels), self.label_columns) for f in fabrics]
@@ -223,7 +225,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
         items: list[np.ndarray] = []
         used: dict[Modality, list[np.ndarray]] = {}
         for j, m in enumerate(self.views):
-            k = self.presses if m is Modality.TOUCH else 1
+            k = self.presses if m.pooled else 1
             pool, count = self._pool[m][fab[:, j]], self._pool_len[m][fab[:, j]]  # (n, L), (n,)
             keys = rng.random(pool.shape)
             for earlier in used.get(m, []):  # taken items go last
@@ -243,8 +245,8 @@ class TupleDataset(Dataset[dict[str, Any]]):
 
     def batch_targets(self, fabrics: np.ndarray) -> dict[str, dict[str, torch.Tensor]]:
         """Per-slot targets from a (B, V) matrix of fabric positions (`TupleBatch.fabrics`):
-        ``fabric_ids`` (B,), ``clusters`` (B,) with -1 for unknown, ``properties`` (B, L)
-        standardised with NaN for unknown."""
+        ``fabric_ids`` (B,), ``clusters`` (B,) with `UNKNOWN_CLUSTER` (-1) for unknown,
+        ``properties`` (B, L) standardised with NaN for unknown."""
         out: dict[str, dict[str, torch.Tensor]] = {
             "fabric_ids": {},
             "clusters": {},
@@ -285,7 +287,7 @@ class TupleDataset(Dataset[dict[str, Any]]):
             x = torch.stack([self.loader.load(it) for it in items])
             if aug is not None and aug.active:
                 x = aug.apply_batch(x, aug.draw_batch(rng, *x.shape))
-            inputs[slot] = x if m is Modality.TOUCH else x[0]
+            inputs[slot] = x if m.pooled else x[0]
         targets = self.targets({s: [f] for s, f in zip(self.slots, fabrics, strict=True)})
         return {
             "inputs": inputs,

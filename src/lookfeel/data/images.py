@@ -710,7 +710,7 @@ class ImageLoader:
         """Note `is_grey` of ``video`` from a disk cache entry's ``facts`` file; a missing or
         unreadable one leaves it unknown."""
         try:
-            grey = json.loads(facts.read_text()).get("grey")
+            grey = json.loads(facts.read_text(encoding="utf-8")).get("grey")
         except (OSError, ValueError, AttributeError):
             return
         if isinstance(grey, bool):

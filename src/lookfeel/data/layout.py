@@ -33,6 +33,7 @@ from pathlib import Path
 from lookfeel.data.catalog import Catalog, Fabric, Item
 from lookfeel.data.files import file_kind
 from lookfeel.data.labels import LabelTable, read_labels
+from lookfeel.data.paths import lies_within
 from lookfeel.data.problems import DatasetError, Problem, lacking_lines, leave_out
 from lookfeel.data.video import VIDEO_SUFFIXES
 from lookfeel.modality import REPRINTS, Modality, PressKind
@@ -267,7 +268,7 @@ def _file_problem(path: Path, real_root: Path) -> str | None:
         return f"is {file_kind(st.st_mode)}, not a regular image file"
     if path.is_symlink():
         target = path.resolve()
-        if not target.is_relative_to(real_root):
+        if not lies_within(target, real_root):  # by identity too: another case of its name
             return (
                 f"symbolic link to {target}, outside the dataset folder {real_root}; copy the "
                 "file in, or link the whole dataset folder instead"
@@ -408,6 +409,36 @@ def _case_problems(owners: dict[str, Path]) -> list[Problem]:
     return out
 
 
+def _clash_problems(folder: Path, names: Iterable[str]) -> list[Problem]:
+    """A warning per group of names in one ``folder`` that differ only in case, or only in how
+    an accented letter is written (composed or not): Linux keeps them as two files
+    (``F0001_1.png`` and ``f0001_1.png``, two items), but macOS and Windows cannot hold both
+    in one folder, so a copy of the dataset there keeps one and silently has other items and
+    another fingerprint."""
+    groups: dict[str, list[str]] = defaultdict(list)
+    for n in sorted(names):
+        groups[unicodedata.normalize("NFC", n).casefold()].append(n)
+    out = []
+    for same in groups.values():
+        if len(same) < 2:
+            continue
+        listed = ", ".join(repr(n) for n in same[:-1]) + f" and {same[-1]!r}"
+        how = (
+            "in case"
+            if len({n.casefold() for n in same}) == 1
+            else "in how an accented letter is written (composed or not)"
+        )
+        out.append(
+            Problem(
+                folder,
+                f"{listed} differ only {how}: they cannot both exist on macOS or Windows, "
+                "where a copy of this folder keeps one; rename one if they are different",
+                "warning",
+            )
+        )
+    return out
+
+
 def scan(
     root: str | Path,
     require: Iterable[Modality] | None = None,
@@ -447,7 +478,9 @@ def scan(
     folders: list[tuple[Path, Modality, PressKind | None]] = []
     used_single: dict[Modality, Path] = {}
     labels_path: Path | None = None
-    for entry in sorted(root.iterdir()):
+    top = sorted(root.iterdir())
+    problems.extend(_clash_problems(root, (p.name for p in top)))
+    for entry in top:
         if entry.name == "labels.csv":
             if msg := _labels_file_problem(entry):
                 problems.append(Problem(entry, msg))  # not skipped: the labels would be lost
@@ -501,6 +534,7 @@ def scan(
         in_videos = folder.name.lower() == "videos"
         entries, subfolders = _walk(folder)
         skipped.extend(_subfolder_skip(sub, folder) for sub in subfolders)
+        problems.extend(_clash_problems(folder, (p.name for p in (*entries, *subfolders))))
         for path in entries:
             suffix = path.suffix.lower()
             is_video = modality is Modality.TOUCH and suffix in VIDEO_SUFFIXES

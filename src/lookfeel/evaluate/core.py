@@ -31,7 +31,8 @@ from lookfeel.metrics import (
     confusion_matrix,
     fabric_probabilities,
     fit_temperature,
-    group_queries,
+    group_members,
+    max_pool_groups,
     n_effective,
     order_by_cluster,
     pair_distances,
@@ -50,6 +51,8 @@ from .result import CalibrationResult, EvalResult, GlanceExample, GlanceGallery,
 __all__ = [
     "PressPooler",
     "evaluate_embeddings",
+    "exact_protocol",
+    "keep_pick",
     "max_pool_presses",
     "no_query_scored",
     "press_queries",
@@ -62,7 +65,8 @@ UNCLUSTERED = -1
 
 
 def max_pool_presses(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Element-wise max of the presses' embeddings (the Multi-input Net, paper section 4.1).
+    """Element-wise max of the presses' embeddings (the Multi-input Net, paper section 4.1):
+    `lookfeel.metrics.max_pool_groups` as a `PressPooler`, the default of `press_queries`.
 
     Equals the model's own multi-press embedding when it pools its final embedding (the
     paper's nets: max over fc7, no projection or normalisation after it).
@@ -74,10 +78,7 @@ def max_pool_presses(touch: EmbeddedItems, members: NDArray[np.int64]) -> NDArra
     Returns:
         (M, D): ``e[members].max(axis=1)  # (M, P, D) -> (M, D)``.
     """
-    e = np.asarray(touch.embeddings, dtype=np.float64)
-    if len(members) == 0:
-        return np.zeros((0, e.shape[1]))
-    return np.asarray(e[members].max(axis=1), dtype=np.float64)
+    return max_pool_groups(touch.embeddings, members)
 
 
 def scoring_protocol(config: EvalConfig) -> ScoringProtocol:
@@ -100,14 +101,13 @@ def press_queries(
     e: EmbeddedItems, presses: int, seed: int, pool: PressPooler = max_pool_presses
 ) -> QuerySet:
     """One modality's queries: every item alone (``presses`` 1), or each fabric's presses in
-    seeded disjoint groups of ``presses`` (`group_queries`), each group embedded by ``pool``."""
+    seeded disjoint groups of ``presses`` (`group_members`), each group embedded by ``pool``."""
     emb = np.asarray(e.embeddings, dtype=np.float64)
     fab = np.asarray(e.fabric_ids, dtype=np.int64)
     if presses == 1:
         return QuerySet.single(emb, fab)
-    g = group_queries(emb, fab, presses=presses, seed=seed)
-    members = g.members.astype(np.int64)
-    pooled = g.emb if pool is max_pool_presses else pool(e, members)
+    members = group_members(fab, presses=presses, seed=seed).astype(np.int64)
+    pooled = pool(e, members)
     return QuerySet(np.asarray(pooled, dtype=np.float64), fab[members[:, 0]], members)
 
 
@@ -751,8 +751,7 @@ def evaluate_embeddings(
         notes.add("no clusters known: confusion matrices in fabric-id order, no cluster matrix")
 
     queries = {
-        m: press_queries(embedded[m], presses if m is Modality.TOUCH else 1, config.seed, pool)
-        for m in mods
+        m: press_queries(embedded[m], presses if m.pooled else 1, config.seed, pool) for m in mods
     }
     if Modality.TOUCH in mods and len(queries[Modality.TOUCH].fabric) == 0:
         notes.add(
@@ -785,7 +784,7 @@ def evaluate_embeddings(
         """The reference fabrics' queries of modality ``m``, pooled as the test queries are."""
         assert reference is not None
         if m not in ref_queries:
-            p = presses if m is Modality.TOUCH else 1
+            p = presses if m.pooled else 1
             ref_queries[m] = press_queries(reference[m], p, config.seed, pool)
         return ref_queries[m]
 

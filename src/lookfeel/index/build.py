@@ -48,11 +48,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from lookfeel.atomic import atomic_write_bytes, atomic_write_text
+from lookfeel.atomic import atomic_write_bytes, atomic_write_text, replace_path
 from lookfeel.checkpoint import LoadedModel, checkpoint_file, load_model
 from lookfeel.config import to_dict
 from lookfeel.data import DatasetError, ImageLoader, Item, scan
 from lookfeel.data.images import PreprocessSettings
+from lookfeel.data.paths import lies_within
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.devices import resolve_device
 from lookfeel.embedding import embed_items
@@ -209,13 +210,15 @@ def _not_the_library_s(folder: Path) -> list[str]:
 
 def _check_not_here(out: Path) -> None:
     """Refuse an ``out`` that is the current folder or holds it: the swap would leave the
-    shell in the old library's removed folder."""
+    shell in the old library's removed folder. Asked of the disk as well as of the spelling
+    (`lies_within`): ``cd ~/Lib`` then ``--out ~/lib`` is that folder on a disk that ignores
+    case."""
     try:
         here = Path.cwd().resolve()
     except OSError:  # the current folder is gone: it is not ``out``
         return
     folder = out.resolve()
-    if folder == here or folder in here.parents:
+    if lies_within(here, folder):
         raise LibraryError(
             f"{out}: is the current folder or holds it, which a build swaps for the new library "
             f"when complete; run it from another folder (cd {folder.parent}; --out {folder.name})"
@@ -234,7 +237,7 @@ def _ours(folder: Path) -> bool:
 
 def _move(src: Path, dst: Path) -> None:
     """Rename ``src`` to ``dst`` (one step of the swap) and make the rename durable."""
-    os.rename(src, dst)
+    replace_path(src, dst)
     with contextlib.suppress(OSError):  # a folder cannot be opened to fsync everywhere
         fd = os.open(dst.parent, os.O_RDONLY)
         try:

@@ -4,7 +4,8 @@
 - `pick_k_of_n_exact`, `pick_k_of_n_sampled`: the paper's pick-1-of-10 (section 5.1).
 - `gallery_metrics`: mAP, recall@k, median rank over the whole gallery, with chance levels.
 - `bootstrap_ci`, `mean_and_spread`: intervals over test fabrics, spread over seeds.
-- `group_queries`: max-pooled multi-press touch queries (the Multi-input Net).
+- `group_queries`: max-pooled multi-press touch queries (the Multi-input Net): its groups
+  (`group_members`) and their pooling (`max_pool_groups`) are also there on their own.
 - `match_probabilities`, `fit_temperature`, `confusion_matrix`, `cluster_confusion_matrix`,
   `reliability_curve`: ``P ∝ exp(-c D^2)``, its confusion matrices and calibration (5.2).
 - `property_probe`: predict physical labels from embeddings.
@@ -38,7 +39,12 @@ from lookfeel.metrics.gallery import (
     chance_recall,
     gallery_metrics,
 )
-from lookfeel.metrics.grouping import PressGroups, group_queries
+from lookfeel.metrics.grouping import (
+    PressGroups,
+    group_members,
+    group_queries,
+    max_pool_groups,
+)
 from lookfeel.metrics.pick import (
     PickResult,
     SampledPickResult,
@@ -87,8 +93,10 @@ __all__ = [
     "fit_temperature",
     "flat_metrics",
     "gallery_metrics",
+    "group_members",
     "group_queries",
     "match_probabilities",
+    "max_pool_groups",
     "mean_and_spread",
     "n_effective",
     "order_by_cluster",

@@ -46,7 +46,8 @@ class Branch(nn.Module):
         """Build a branch.
 
         Args:
-            modality: what it embeds; ``Modality.TOUCH`` inputs have a press axis.
+            modality: what it embeds; a pooled one's inputs (`Modality.pooled`: touch) have
+                a press axis.
             backbone: a `Backbone` with ``in_channels`` fitting the modality.
             embed_dim: size of a linear projection of the backbone's embedding; ``None``: none.
             normalize: L2-normalise the embedding.
@@ -60,7 +61,8 @@ class Branch(nn.Module):
         if press_pool not in ("max", "mean"):
             raise ValueError(f"press_pool must be 'max' or 'mean', got {press_pool!r}")
         self.modality = Modality(modality)
-        self.pressed = self.modality is Modality.TOUCH
+        self.pressed = self.modality.pooled
+        """Inputs have a press axis, pooled by ``press_pool`` (`Modality.pooled`: touch)."""
         self.backbone = backbone
         self.in_channels = backbone.in_channels
         """Channels of one input image (or press)."""

@@ -145,7 +145,7 @@ class Embedder(nn.Module):
         b = self.branch(name)
         m, c = b.modality, b.in_channels
         got = tuple(x.shape)
-        if m is Modality.TOUCH:
+        if m.pooled:
             if x.dim() not in ((5, 6) if views else (5,)) or x.shape[-3] != c:
                 hint = ""
                 if x.dim() in (3, 4) and x.shape[-3] == c:
@@ -158,7 +158,7 @@ class Embedder(nn.Module):
                         "data.touch_frames: load_query_image reads a frame with the others)"
                     )
                 raise ModelInputError(
-                    f"slot {name!r}: touch input must be (B, P, {c}, H, W) with a press axis "
+                    f"slot {name!r}: {m.value} input must be (B, P, {c}, H, W) with a press axis "
                     f"(P = 1 for one press), or (B, P, V, {c}, H, W) with V views of each "
                     f"press, got {got}{hint}"
                 )

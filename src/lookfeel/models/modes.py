@@ -28,14 +28,15 @@ def eval_mode(model: nn.Module) -> Iterator[nn.Module]:
 
 
 def add_press_axis(x: Tensor, modality: Modality) -> Tensor:
-    """(B, 3, S, S) touch images -> (B, P=1, 3, S, S), one press each; other modalities as
-    they are. The same for trunk features: (B, *F) -> (B, 1, *F)."""
-    return x.unsqueeze(1) if modality is Modality.TOUCH else x
+    """(B, 3, S, S) touch images -> (B, P=1, 3, S, S), one press each (any `Modality.pooled`
+    modality alike); other modalities as they are. The same for trunk features: (B, *F) ->
+    (B, 1, *F)."""
+    return x.unsqueeze(1) if modality.pooled else x
 
 
 def drop_press_axis(x: Tensor, modality: Modality) -> Tensor:
     """The inverse of `add_press_axis`: (B, 1, ...) touch -> (B, ...)."""
-    return x.squeeze(1) if modality is Modality.TOUCH else x
+    return x.squeeze(1) if modality.pooled else x
 
 
 def autocast(

@@ -363,7 +363,7 @@ def _run_one(
     (`_without_controls`, `_without_top3_interval`)."""
     done = run_dir / "eval.json"
     if saved is None and done.exists():
-        saved = json.loads(done.read_text())
+        saved = json.loads(done.read_text(encoding="utf-8"))
     if saved is not None:
         kept: dict[str, Any] = dict(saved)  # the caller's stays as read
         last = run_dir / "checkpoints" / "last.pt"
@@ -541,7 +541,7 @@ def _logged_seconds(path: Path) -> float:
     0 without the file; a line that cannot be read counts nothing."""
     total, last = 0.0, 0
     try:
-        lines = path.read_text().splitlines()
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
     except OSError:
         return 0.0
     for line in lines:
@@ -1057,7 +1057,7 @@ def _reproduce(
             continue
         record = job.saved
         if record is None:  # it could not be read: say why
-            record = json.loads((job.run_dir / "eval.json").read_text())
+            record = json.loads((job.run_dir / "eval.json").read_text(encoding="utf-8"))
         otherwise, lacking = _scored_otherwise(record, n_boot), _missing_controls(record)
         no_interval = _missing_top3_interval(record)
         name = f"{job.exp.name} seed {job.config.train.seed}"
@@ -1293,7 +1293,7 @@ def _saved_records(out: Path) -> dict[Path, dict[str, Any]]:
     records: dict[Path, dict[str, Any]] = {}
     for run_dir in _run_dirs(out):
         try:
-            saved = json.loads((run_dir / "eval.json").read_text())
+            saved = json.loads((run_dir / "eval.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             continue
         if isinstance(saved, dict):

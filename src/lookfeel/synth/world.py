@@ -243,6 +243,9 @@ def _prepare_out(out: Path, planned: Iterable[str]) -> None:
                 f"output folder {out} is not empty and holds no {MANIFEST} from an earlier "
                 "`lookfeel synth` run; choose an empty or new folder (nothing was changed)"
             )
+        # here, not at the top: `lookfeel.data` imports torch, which render workers need not
+        from lookfeel.data.paths import lies_within
+
         keep = set(planned)
         old_files = old.get("files", [])
         inside = out.resolve()
@@ -254,7 +257,7 @@ def _prepare_out(out: Path, planned: Iterable[str]) -> None:
             # through a symlinked folder (a real depth/ linked in beside the synthetic senses).
             if Path(rel).is_absolute() or ".." in Path(rel).parts:
                 continue
-            if not target.parent.resolve().is_relative_to(inside):
+            if not lies_within(target.parent, inside):  # by identity too (`lies_within`)
                 continue
             target.unlink(missing_ok=True)
         for sub in ("depth", "color", REPRINTS, "touch"):

@@ -27,7 +27,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shlex
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -50,6 +49,7 @@ from lookfeel.checkpoint import (
     save_checkpoint,
     touch_input_of,
 )
+from lookfeel.cli._args import shell_quote
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
 from lookfeel.config.model import Precision
 from lookfeel.data import (
@@ -73,7 +73,7 @@ from lookfeel.data.video import is_video
 from lookfeel.embedding import EmbeddingError
 from lookfeel.index.query import shape_record
 from lookfeel.locks import exclusive
-from lookfeel.losses import create_loss
+from lookfeel.losses import CombinedLoss, create_loss
 from lookfeel.modality import REPRINTS, Modality, slot_modality
 from lookfeel.models import (
     BACKBONES,
@@ -91,7 +91,21 @@ from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
 from lookfeel.train.validate import validate
 
-__all__ = ["TrainResult", "TrainRun", "config_changes", "train", "train_step"]
+__all__ = [
+    "MEMBERS",
+    "TrainResult",
+    "TrainRun",
+    "as_trained",
+    "config_changes",
+    "member_config",
+    "resolve_classes",
+    "resume_checkpoint",
+    "run_started",
+    "select_split",
+    "train",
+    "train_step",
+    "views_problem",
+]
 
 StepCallback = Callable[[int, Mapping[str, float]], None]
 
@@ -255,7 +269,7 @@ def _heads_fix(catalog: Catalog, asked: Sequence[str]) -> str:
     none = "--set 'model.class_heads=[]'"
     if not heads:
         return f"no column of labels.csv has two classes or more to learn: {none} for no head"
-    setting = shlex.quote(f"model.class_heads={_flow_list(heads)}")
+    setting = shell_quote(f"model.class_heads={_flow_list(heads)}")
     return f"give the heads your labels have: --set {setting}, or {none} for none"
 
 
@@ -360,7 +374,7 @@ def as_trained(asked: RunConfig, trained: RunConfig) -> RunConfig:
     return replace(asked, model=model)
 
 
-def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
+def _with_clusters(catalog: Catalog, config: RunConfig, stacklevel: int = 3) -> Catalog:
     """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3).
 
     Raises:
@@ -386,7 +400,7 @@ def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
         return catalog  # partly known: unknown ones are masked out of the cluster loss
     warnings.warn(
         f"no cluster column in labels.csv: clustering fabrics into {k} by k-means on their labels",
-        stacklevel=3,
+        stacklevel=stacklevel,
     )
     return catalog.with_clusters(kmeans_clusters(catalog, k=k, seed=0))
 
@@ -401,7 +415,7 @@ def _say_reprints(
         warnings.warn(
             f"data.depth_wall_drop={drop:g} is not used with a frozen trunk (train.cache_trunk): "
             "training reads each drape whole",
-            stacklevel=3,
+            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
         )
     n = config.data.color_reprints
     photos = catalog.items(Modality.COLOR) if Modality.COLOR in config.train.modalities else []
@@ -411,14 +425,14 @@ def _say_reprints(
         warnings.warn(
             f"data.color_reprints={n} is not used with a frozen trunk (train.cache_trunk): "
             "training reads the photos themselves",
-            stacklevel=3,
+            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
         )
     elif not loader.uses_reprints(photos[0].path):
         warnings.warn(
             f"data.color_reprints={n}: {data} has no {REPRINTS}/ folder of re-printed photos "
             "(a synthetic world's: `lookfeel synth --reprints`); training on the photos "
             "themselves",
-            stacklevel=3,
+            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
         )
 
 
@@ -499,7 +513,7 @@ class _Batches:
         inputs: dict[str, Tensor] = {}
         for j, slot in enumerate(self.ds.slots):
             m = slot_modality(slot)
-            picked = b.items[j]  # (B, k) pool indices; k = presses for touch, else 1
+            picked = b.items[j]  # (B, k) pool indices; k = presses if m.pooled (touch), else 1
             k = picked.shape[1]
             if m in self.cached:
                 assert self.table is not None
@@ -509,10 +523,10 @@ class _Batches:
                     drawn = copy_rng.integers(self.table.copies, size=picked.size)
                     copies = torch.from_numpy(drawn[lo * k : hi * k])
                 f = self.table.gather_rows(m, rows, copies).unflatten(0, (hi - lo, k))
-                inputs[slot] = f if m is Modality.TOUCH else f[:, 0]
+                inputs[slot] = f if m.pooled else f[:, 0]
                 continue
             x = self._pixels(m, picked, aug_rng, view_rng, wall_rng)
-            x = x.unflatten(0, (hi - lo, k)) if m is Modality.TOUCH else x
+            x = x.unflatten(0, (hi - lo, k)) if m.pooled else x
             if self.table is not None:  # cached run, live augmentation: trunk without grad
                 with torch.no_grad(), autocast(self.device, precision=self.model.precision):
                     x = self.model.trunk({m.value: x})[m.value].float()
@@ -763,12 +777,14 @@ def _trim_log(path: Path, step: int) -> None:
     if not path.exists():
         return
     keep = [
-        line for line in path.read_text().splitlines() if line and json.loads(line)["step"] <= step
+        line
+        for line in path.read_text(encoding="utf-8").splitlines()
+        if line and json.loads(line)["step"] <= step
     ]
     atomic_write_text(path, "".join(line + "\n" for line in keep))
 
 
-def _say_unscored(val: Mapping[str, Any], key: str) -> bool:
+def _say_unscored(val: Mapping[str, Any], key: str, stacklevel: int = 4) -> bool:
     """Warn, in one line, of the pairs a validation could not score and why (fewer than two
     held-out items per fabric), and when the pair that picks ``best.pt`` (``key``: its top-1)
     is one of them, that ``best.pt`` is not written: the run's checkpoint is ``last.pt``, as
@@ -782,7 +798,7 @@ def _say_unscored(val: Mapping[str, Any], key: str) -> bool:
     primary = key.removesuffix("_top1")
     if primary in unscored:
         text += f"; best.pt is not written ({primary} picks it): use last.pt"
-    warnings.warn(f"validation: {text}", stacklevel=4)
+    warnings.warn(f"validation: {text}", stacklevel=stacklevel)
     return True
 
 
@@ -810,7 +826,7 @@ class _Log:
             k: None if isinstance(v, float) and not math.isfinite(v) else v
             for k, v in record.items()
         }
-        with self.path.open("a") as f:
+        with self.path.open("a", encoding="utf-8") as f:
             f.write(json.dumps(record, allow_nan=False) + "\n")
         if self.tb is not None:
             for k, v in record.items():
@@ -1214,33 +1230,37 @@ def _train_members(
     )
 
 
-def _train(
+@dataclass
+class _RunData:
+    """What `_prepare_data` read: the run's config (its class and property heads fitted to
+    the data), the dataset and its split, the training tuples and the validation items."""
+
+    config: RunConfig
+    catalog: Catalog
+    """Every fabric the run reads (k-means clusters where labels.csv has none)."""
+    train_cat: Catalog
+    val_cat: Catalog | None
+    split_info: dict[str, Any]
+    """What ``split.json`` records."""
+    ds: TupleDataset
+    val_items: dict[Modality, list[Item]]
+    data_fingerprint: str
+    """The files as `evaluate` scans them (checked on resume, kept in the checkpoint)."""
+
+
+def _prepare_data(
     config: RunConfig,
     data: Path,
-    run_dir: Path,
     state: dict[str, Any] | None,
-    dist: Distributed,
-    on_step: StepCallback | None,
-    loader: ImageLoader | None = None,
-) -> TrainResult:
+    loader: ImageLoader,
+    cached: bool,
+    resumed_from: Path,
+) -> _RunData:
+    """Scan ``data``, check a resumed run's fingerprint, leave out the videos that hold no
+    press, fit the heads to the labels, split off the validation fabrics, and build the
+    training tuples; the images they read are decoded here (``loader.preload``)."""
     t = config.train
-    last = run_dir / "checkpoints" / "last.pt"
-    resumed_from = resume_checkpoint(run_dir) or last  # a resume's: where ``state`` was read
-    if dist.is_main:  # what a kill mid-write left (one process writes a run's checkpoints)
-        for name in ("last.pt", "best.pt"):
-            remove_stale_temps(last.parent / name)
-    if t.batch_size % dist.world:
-        raise ConfigError(
-            f"train.batch_size={t.batch_size} must divide evenly over {dist.world} processes"
-        )
-    if t.threads:
-        torch.set_num_threads(t.threads)
-    _keep_freed_memory()
-    device = dist.device
     modalities = t.modalities
-
-    loader = loader if loader is not None else ImageLoader(config.data)
-    cached = t.cache_trunk and config.model.resolved_freeze != "none"
     # A live run trains on the press videos' views: decode them once, while finding the presses.
     scanned = _scan_for(data, config)
     # The files as `evaluate` scans them: before k-means clusters, and before the videos that
@@ -1267,7 +1287,7 @@ def _train(
     ):
         raise other_data
     _say_reprints(catalog, loader, config, cached, data)
-    catalog = _with_clusters(catalog, config)
+    catalog = _with_clusters(catalog, config, stacklevel=4)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
     ds = TupleDataset(
@@ -1287,7 +1307,18 @@ def _train(
     # validation embeds images.
     loader.preload(ds.items(), views=not cached)
     loader.preload([it for v in val_items.values() for it in v])
+    return _RunData(
+        config, catalog, train_cat, val_cat, split_info, ds, val_items, data_fingerprint
+    )
 
+
+def _build_optimisation(
+    config: RunConfig, state: dict[str, Any] | None, device: torch.device
+) -> tuple[Embedder, CombinedLoss, torch.optim.Optimizer, torch.optim.lr_scheduler.LambdaLR]:
+    """Seed the run's generators, then build its model (on ``device``), loss, optimiser and
+    learning-rate schedule; a resumed run's weights come from ``state`` later
+    (`_resume_from`), so no pretrained file is read for it."""
+    t = config.train
     # The generators the run draws from, and no other (`torch.manual_seed` would also seed
     # every CUDA device, or queue that for when CUDA starts, on a CPU run): the CPU's (initial
     # weights; dropout on the CPU) and the training device's (dropout on a GPU).
@@ -1298,7 +1329,7 @@ def _train(
     # A resumed run's weights all come from its checkpoint: its pretrained file is not read.
     model = create_model(
         config.model,
-        modalities,
+        t.modalities,
         load_weights=state is None,
         touch_channels=config.data.touch_channels,
     )
@@ -1309,7 +1340,7 @@ def _train(
                 f"model.init_from: copied {len(model.state_dict()) - len(fresh)} of "
                 f"{len(model.state_dict())} tensors from {config.model.init_from}; "
                 f"{len(fresh)} start fresh (e.g. {', '.join(fresh[:3])})",
-                stacklevel=3,
+                stacklevel=4,
             )
     model = model.to(device)
     if device.type == "cuda":
@@ -1320,10 +1351,23 @@ def _train(
     params = [*model.trainable_parameters(), *(p for p in loss_fn.parameters() if p.requires_grad)]
     optimizer = _adam(params, t.lr, t.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, _lr_lambda(config))
+    return model, loss_fn, optimizer, scheduler
 
-    started = time.perf_counter()
+
+def _build_inputs(
+    config: RunConfig,
+    rd: _RunData,
+    loader: ImageLoader,
+    model: Embedder,
+    dist: Distributed,
+    cached: bool,
+) -> tuple[FeatureTable | None, _Batches]:
+    """The images on the device (`ImageStore`), with a frozen trunk its features of them
+    (`FeatureTable`, ``cached``), and the batches drawn from them (`_Batches`)."""
+    t = config.train
+    ds, device = rd.ds, dist.device
     table_items = {
-        m: [*dict.fromkeys([*ds.pools_items(m), *val_items.get(m, [])])] for m in modalities
+        m: [*dict.fromkeys([*ds.pool_items[m], *rd.val_items.get(m, [])])] for m in t.modalities
     }
     store = ImageStore(
         loader,
@@ -1346,23 +1390,129 @@ def _train(
             world=dist.world,
         )
     batches = _Batches(ds, store, table, model, config, device, dist.rank, dist.world)
+    return table, batches
+
+
+def _resume_from(
+    state: dict[str, Any] | None,
+    model: Embedder,
+    loss_fn: CombinedLoss,
+    optimizer: torch.optim.Optimizer,
+    scheduler: torch.optim.lr_scheduler.LambdaLR,
+) -> tuple[int, float]:
+    """Load a resumed run's weights and optimiser state from ``state``: (the step to start
+    from, the best validation score so far); a new run's (0, -inf)."""
+    if state is None:
+        return 0, -math.inf
+    model.load_state_dict(state["model"])
+    optimizer.load_state_dict(state["optimizer"])
+    _state_like_params(optimizer)
+    scheduler.load_state_dict(state["scheduler"])
+    loss_fn.load_state_dict(state["loss"])
+    return int(state["step"]), float(state.get("best", -math.inf))
+
+
+def _checkpoint_metadata(rd: _RunData, loader: ImageLoader) -> dict[str, Any]:
+    """What every checkpoint of the run records beside its weights, for the commands that
+    read it (`predict`, `match`, `evaluate`, ``--resume``): read once, before the first step."""
+    config = rd.config
+    modalities = config.train.modalities
+    train_cat, catalog, kinds = rd.train_cat, rd.catalog, config.data.touch_kinds
+    # What a touch query must be to be read as training read its presses (predict, match and
+    # serve refuse a still frame for a model trained on press videos).
+    touch_input = (
+        touch_input_of(it.path for it in train_cat.items(Modality.TOUCH, kinds))
+        if Modality.TOUCH in modalities
+        else None
+    )
+
+    # The shape of each modality's training items (their one orientation and most common
+    # size, read from file headers once, here): `predict` warns of a query turned against them.
+    shapes: dict[str, dict[str, Any]] = {}
+    for m in modalities:
+        paths = [it.path for it in train_cat.items(m, kinds)]
+        if (shape := shape_record(paths, m, config.data)) is not None:
+            shapes[m.value] = shape
+
+    # Whether the training press videos were grey (no colour), as the loader read them above
+    # (nothing is decoded again): `predict` and `match` warn of a query video of the other kind.
+    grey_presses = None
+    if Modality.TOUCH in modalities:
+        presses = train_cat.items(Modality.TOUCH, kinds)
+        videos = dict.fromkeys(p for p in map(loader.frame_path, presses) if is_video(p))
+        grey_presses = grey_presses_of(loader.is_grey(p) for p in videos)
+
+    # The ranks each column of ranks holds (hardness 0/1/2): `predict` reads the property
+    # head's number for one as the nearest rank.
+    rank_columns = {
+        c: sorted({int(f.labels[c]) for f in catalog.fabrics if c in f.labels})
+        for c in catalog.rank_columns
+        if c in catalog.label_columns
+    }
+    software = software_versions()
+    plugins = plugin_modules_of(config.model.backbone, config.loss.kind)
+    return {
+        "touch_input": touch_input,
+        "data_fingerprint": rd.data_fingerprint,
+        "software": software,
+        "plugins": plugins,
+        "config": to_dict(config),
+        "modalities": [m.value for m in modalities],
+        "label_columns": list(catalog.label_columns),
+        "label_stats": {
+            c: [float(rd.ds.label_mean[i]), float(rd.ds.label_std[i])]
+            for i, c in enumerate(catalog.label_columns)
+        },
+        "rank_columns": rank_columns,
+        "shapes": shapes,
+        "grey_presses": grey_presses,
+        "split": rd.split_info,
+    }
+
+
+def _train(
+    config: RunConfig,
+    data: Path,
+    run_dir: Path,
+    state: dict[str, Any] | None,
+    dist: Distributed,
+    on_step: StepCallback | None,
+    loader: ImageLoader | None = None,
+) -> TrainResult:
+    """One run (`train`'s steps 1-6, docs/ARCHITECTURE.md): the data (`_prepare_data`), the
+    model and its optimiser (`_build_optimisation`), the batches (`_build_inputs`), a resumed
+    run's state (`_resume_from`), then the steps, logging, validating and checkpointing."""
+    t = config.train
+    last = run_dir / "checkpoints" / "last.pt"
+    resumed_from = resume_checkpoint(run_dir) or last  # a resume's: where ``state`` was read
+    if dist.is_main:  # what a kill mid-write left (one process writes a run's checkpoints)
+        for name in ("last.pt", "best.pt"):
+            remove_stale_temps(last.parent / name)
+    if t.batch_size % dist.world:
+        raise ConfigError(
+            f"train.batch_size={t.batch_size} must divide evenly over {dist.world} processes"
+        )
+    if t.threads:
+        torch.set_num_threads(t.threads)
+    _keep_freed_memory()
+    device = dist.device
+
+    loader = loader if loader is not None else ImageLoader(config.data)
+    cached = t.cache_trunk and config.model.resolved_freeze != "none"
+    rd = _prepare_data(config, data, state, loader, cached, resumed_from)
+    config, val_cat, val_items = rd.config, rd.val_cat, rd.val_items
+    model, loss_fn, optimizer, scheduler = _build_optimisation(config, state, device)
+
+    started = time.perf_counter()
+    table, batches = _build_inputs(config, rd, loader, model, dist, cached)
     cache_s = time.perf_counter() - started
-    start_step = 0
-    best = -math.inf
-    if state is not None:
-        model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
-        _state_like_params(optimizer)
-        scheduler.load_state_dict(state["scheduler"])
-        loss_fn.load_state_dict(state["loss"])
-        start_step = int(state["step"])
-        best = float(state.get("best", -math.inf))
+    start_step, best = _resume_from(state, model, loss_fn, optimizer, scheduler)
 
     log = _Log(run_dir, dist.is_main)
     if dist.is_main:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(config, run_dir / "config.yaml")
-        atomic_write_text(run_dir / "split.json", json.dumps(split_info, indent=1) + "\n")
+        atomic_write_text(run_dir / "split.json", json.dumps(rd.split_info, indent=1) + "\n")
         if state is None:
             log.path.unlink(missing_ok=True)
             if cached and table is not None:
@@ -1397,144 +1547,196 @@ def _train(
         classes=bool(config.model.class_heads),
         precision=config.model.precision,
     )
-
-    # What a touch query must be to be read as training read its presses (predict, match and
-    # serve refuse a still frame for a model trained on press videos).
-    touch_input = (
-        touch_input_of(it.path for it in train_cat.items(Modality.TOUCH, config.data.touch_kinds))
-        if Modality.TOUCH in modalities
-        else None
+    metadata = _checkpoint_metadata(rd, loader)
+    # A plugin's loss (not lookfeel's) is named first when a run diverges in its terms.
+    own_loss = None if loss_fn.pair_loss.__module__.startswith("lookfeel.") else config.loss.kind
+    loop = _Loop(
+        config=config,
+        run_dir=run_dir,
+        run=run,
+        model=model,
+        batches=batches,
+        log=log,
+        loader=loader,
+        table=table,
+        val_cat=val_cat,
+        val_items=val_items,
+        metadata=metadata,
+        own_loss=own_loss,
+        on_step=on_step,
+        start_step=start_step,
+        best=best,
+        resumed_from=resumed_from if state is not None else None,
     )
+    model.train()
+    step_fn = _step_function(run, config)
+    return loop.run(step_fn)
 
-    # The shape of each modality's training items (their one orientation and most common
-    # size, read from file headers once, here): `predict` warns of a query turned against them.
-    shapes: dict[str, dict[str, Any]] = {}
-    for m in modalities:
-        paths = [it.path for it in train_cat.items(m, config.data.touch_kinds)]
-        if (shape := shape_record(paths, m, config.data)) is not None:
-            shapes[m.value] = shape
 
-    # Whether the training press videos were grey (no colour), as the loader read them above
-    # (nothing is decoded again): `predict` and `match` warn of a query video of the other kind.
-    grey_presses = None
-    if Modality.TOUCH in modalities:
-        presses = train_cat.items(Modality.TOUCH, config.data.touch_kinds)
-        videos = dict.fromkeys(p for p in map(loader.frame_path, presses) if is_video(p))
-        grey_presses = grey_presses_of(loader.is_grey(p) for p in videos)
+class _Loop:
+    """The steps of one run (the end of `_train`) and what they carry from one to the next:
+    the loss terms summed over the log window (``sums``), the checkpoints on disk with finite
+    weights (``kept``: what a diverged run keeps and names), the last step whose loss was read
+    and found finite (``checked``), and the best validation score (``best``, ``best.pt``'s).
 
-    # The ranks each column of ranks holds (hardness 0/1/2): `predict` reads the property
-    # head's number for one as the nearest rank.
-    rank_columns = {
-        c: sorted({int(f.labels[c]) for f in catalog.fabrics if c in f.labels})
-        for c in catalog.rank_columns
-        if c in catalog.label_columns
-    }
+    `step` is one step: draw its batch, update, and on the steps the config says, log the
+    window's mean loss terms, check they are finite, validate and write checkpoints (`save`);
+    `stop` is the `TrainingDiverged` that ends a run whose loss or weights are not finite.
+    """
 
-    software = software_versions()
-    plugins = plugin_modules_of(config.model.backbone, config.loss.kind)
+    def __init__(
+        self,
+        *,
+        config: RunConfig,
+        run_dir: Path,
+        run: TrainRun,
+        model: Embedder,
+        batches: _Batches,
+        log: _Log,
+        loader: ImageLoader,
+        table: FeatureTable | None,
+        val_cat: Catalog | None,
+        val_items: dict[Modality, list[Item]],
+        metadata: dict[str, Any],
+        own_loss: str | None,
+        on_step: StepCallback | None,
+        start_step: int,
+        best: float,
+        resumed_from: Path | None,
+    ) -> None:
+        self.config, self.t, self.run_dir = config, config.train, run_dir
+        self.train_run, self.model, self.batches, self.log = run, model, batches, log
+        self.dist, self.device = run.dist, run.device
+        self.loader, self.table = loader, table
+        self.val_cat, self.val_items = val_cat, val_items
+        self.metadata, self.own_loss, self.on_step = metadata, own_loss, on_step
+        self.start_step, self.best = start_step, best
+        self.last = run_dir / "checkpoints" / "last.pt"
+        t = self.t
+        self.progress = None
+        if self.dist.is_main and shown(t.progress):  # on a terminal (`lookfeel.progress`)
+            self.progress = bar(
+                total=t.steps,
+                initial=start_step,
+                desc="train",
+                unit="step",
+                dynamic_ncols=True,
+                leave=True,
+            )
+        self.last_val: dict[str, Any] = {}
+        self.said_unscored = False
+        self.sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
+        self.window_start, self.window_steps = time.perf_counter(), 0
+        # Checkpoints on disk with finite weights (what a diverged run keeps), and the last step
+        # whose loss was read and found finite.
+        self.kept: dict[Path, int] = {}
+        if resumed_from is not None:
+            self.kept[resumed_from] = start_step
+        self.checked = start_step
 
-    def checkpoint_state(step: int) -> dict[str, Any]:
+    def checkpoint_state(self, step: int) -> dict[str, Any]:
+        """What a checkpoint of step ``step`` holds: the run's metadata, its weights and every
+        state a resume needs to continue as an unbroken run would."""
+        run, device = self.train_run, self.device
         return {
             "step": step,
-            "touch_input": touch_input,
-            "data_fingerprint": data_fingerprint,
-            "software": software,
-            "plugins": plugins,
-            "config": to_dict(config),
-            "modalities": [m.value for m in modalities],
-            "label_columns": list(catalog.label_columns),
-            "label_stats": {
-                c: [float(ds.label_mean[i]), float(ds.label_std[i])]
-                for i, c in enumerate(catalog.label_columns)
-            },
-            "rank_columns": rank_columns,
-            "shapes": shapes,
-            "grey_presses": grey_presses,
-            "split": split_info,
-            "model": model.state_dict(),
-            "optimizer": optimizer.state_dict(),
-            "scheduler": scheduler.state_dict(),
-            "loss": loss_fn.state_dict(),
+            **self.metadata,
+            "model": self.model.state_dict(),
+            "optimizer": run.optimizer.state_dict(),
+            "scheduler": run.scheduler.state_dict(),
+            "loss": run.loss_fn.state_dict(),
             "rng": torch.get_rng_state(),
             "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
             "threads": torch.get_num_threads(),  # a CPU run's sums round by its thread count
-            "best": best,
+            "best": self.best,
         }
 
-    # A plugin's loss (not lookfeel's) is named first when a run diverges in its terms.
-    own_loss = None if loss_fn.pair_loss.__module__.startswith("lookfeel.") else config.loss.kind
-    progress = None
-    if dist.is_main and shown(t.progress):  # on a terminal (`lookfeel.progress`)
-        progress = bar(
-            total=t.steps,
-            initial=start_step,
-            desc="train",
-            unit="step",
-            dynamic_ncols=True,
-            leave=True,
-        )
-    last_val: dict[str, Any] = {}
-    said_unscored = False
-    sums: dict[str, Tensor] = {}  # loss terms summed over the log window, on the device
-    window_start, window_steps = time.perf_counter(), 0
-    # Checkpoints on disk with finite weights (what a diverged run keeps), and the last step
-    # whose loss was read and found finite.
-    kept: dict[Path, int] = {}
-    if state is not None:
-        kept[resumed_from] = start_step
-    checked = start_step
-
-    def stop(what: str, value: float, done: int, terms: Sequence[str] = ()) -> TrainingDiverged:
-        if progress is not None:
-            progress.close()
-        log.close()
+    def stop(
+        self, what: str, value: float, done: int, terms: Sequence[str] = ()
+    ) -> TrainingDiverged:
+        """The error that ends a diverged run (``what`` became ``value`` by step ``done``),
+        naming the checkpoints kept; the progress bar and the log are closed first."""
+        if self.progress is not None:
+            self.progress.close()
+        self.log.close()
+        t = self.t
         return diverged(
-            what, value, checked + 1, done, t.lr, kept, t.checkpoint_every, terms, own_loss
+            what,
+            value,
+            self.checked + 1,
+            done,
+            t.lr,
+            self.kept,
+            t.checkpoint_every,
+            terms,
+            self.own_loss,
         )
 
-    def save(path: Path, done: int, chosen_by: str | None = None) -> None:
+    def save(self, path: Path, done: int, chosen_by: str | None = None) -> None:
         """Write a checkpoint of step ``done``, never one of non-finite weights (at ``last.pt``
         every process checks: their weights are equal, so all stop together); ``chosen_by``:
         the validation score ``best.pt`` was chosen by, recorded in it (`LoadedModel.chosen_by`:
         `lookfeel evaluate` then says when it scores the fabrics it was chosen on)."""
-        if non_finite_tensors(model.state_dict()):
-            raise stop("weights", math.nan, done)
-        if dist.is_main:
-            state = checkpoint_state(done)
+        if non_finite_tensors(self.model.state_dict()):
+            raise self.stop("weights", math.nan, done)
+        if self.dist.is_main:
+            state = self.checkpoint_state(done)
             if chosen_by is not None:
                 state["chosen_by"] = chosen_by
             save_checkpoint(path, state)
-            kept[path] = done
+            self.kept[path] = done
 
-    model.train()
-    step_fn = _step_function(run, config)
-    for step in range(start_step, t.steps):
-        terms = step_fn(batches(step))
+    def run(self, step_fn: Callable[[Mapping[str, Any]], dict[str, Tensor]]) -> TrainResult:
+        """Every step from ``start_step`` to ``train.steps`` (`step`), then the run's result."""
+        t = self.t
+        for step in range(self.start_step, t.steps):
+            self.step(step, step_fn)
+        if self.progress is not None:
+            self.progress.close()
+        self.log.close()
+        best_path = self.run_dir / "checkpoints" / "best.pt"
+        return TrainResult(
+            run_dir=self.run_dir,
+            steps=t.steps,
+            last_checkpoint=self.last,
+            best_checkpoint=best_path if best_path.exists() else None,
+            validation={k: v for k, v in self.last_val.items() if k != "primary_pair"},
+        )
+
+    def step(self, step: int, step_fn: Callable[[Mapping[str, Any]], dict[str, Tensor]]) -> None:
+        """Step ``step`` (0-based): update, then log, check, validate and save as due."""
+        t, dist, sums = self.t, self.dist, self.sums
+        terms = step_fn(self.batches(step))
         for k, v in terms.items():
             sums[k] = sums[k] + v.double() if k in sums else v.double()
-        window_steps += 1
+        self.window_steps += 1
         done = step + 1
-        if on_step is not None:  # per-step values: one device sync a step
-            on_step(done, dist.mean_values({k: float(v) for k, v in terms.items()}))
-        if progress is not None:
-            progress.update(1)
+        if self.on_step is not None:  # per-step values: one device sync a step
+            self.on_step(done, dist.mean_values({k: float(v) for k, v in terms.items()}))
+        if self.progress is not None:
+            self.progress.update(1)
             if done % 10 == 0 or done == t.steps:
-                progress.set_postfix(loss=f"{float(terms['loss']):.4f}")
+                self.progress.set_postfix(loss=f"{float(terms['loss']):.4f}")
         is_log = done % max(t.log_every, 1) == 0 or done == t.steps
-        is_val = val_cat is not None and bool(
+        is_val = self.val_cat is not None and bool(
             (t.val_every and done % t.val_every == 0) or done == t.steps
         )
         is_save = bool(t.checkpoint_every and done % t.checkpoint_every == 0) or done == t.steps
         loss: float | None = None
         read: Mapping[str, Tensor | float] = {}  # the terms read with the loss
         if is_log:
-            means = dist.mean_values({k: float(v) / window_steps for k, v in sums.items()})
-            elapsed = time.perf_counter() - window_start
+            means = dist.mean_values({k: float(v) / self.window_steps for k, v in sums.items()})
+            elapsed = time.perf_counter() - self.window_start
             record: dict[str, Any] = {"step": done, **means}
-            record["lr"] = scheduler.get_last_lr()[0]
-            record["steps_per_s"] = window_steps / elapsed if elapsed > 0 else None
-            log.write(record)
-            read, sums, window_start, window_steps = means, {}, time.perf_counter(), 0
+            record["lr"] = self.train_run.scheduler.get_last_lr()[0]
+            record["steps_per_s"] = self.window_steps / elapsed if elapsed > 0 else None
+            self.log.write(record)
+            read, self.sums, self.window_start, self.window_steps = (
+                means,
+                {},
+                time.perf_counter(),
+                0,
+            )
             loss = means["loss"]
         elif is_val or is_save:  # the device syncs here anyway
             loss = dist.mean_values({"loss": float(sums["loss"])})["loss"]
@@ -1542,41 +1744,44 @@ def _train(
         if loss is not None:
             if not math.isfinite(loss):  # name the terms (read now: the run stops anyway)
                 bad = [k for k, v in read.items() if k != "loss" and not math.isfinite(float(v))]
-                raise stop("loss", loss, done, bad)
-            checked = done
+                raise self.stop("loss", loss, done, bad)
+            self.checked = done
         if is_val:
             if dist.is_main:
-                with autocast(device, precision=model.precision):
-                    try:
-                        last_val = validate(
-                            model, val_items, loader, table, t.feature_batch, device, t.val_pairs
-                        )
-                    except EmbeddingError:  # a finite loss, but held-out items overflow
-                        raise stop("validation embeddings", math.nan, done) from None
-                key = f"{last_val.get('primary_pair')}_top1"
-                log.write(
-                    {
-                        "step": done,
-                        **{f"val/{k}": v for k, v in last_val.items() if k != "primary_pair"},
-                    }
-                )
-                if not said_unscored:  # the same pairs at every validation: say it once
-                    said_unscored = _say_unscored(last_val, key)
-                if key in last_val and last_val[key] > best:
-                    best = last_val[key]
-                    save(run_dir / "checkpoints" / "best.pt", done, chosen_by=f"val/{key}")
+                self.validate(done)
             dist.barrier()
         if is_save:
-            save(last, done)
+            self.save(self.last, done)
             dist.barrier()
-    if progress is not None:
-        progress.close()
-    log.close()
-    best_path = run_dir / "checkpoints" / "best.pt"
-    return TrainResult(
-        run_dir=run_dir,
-        steps=t.steps,
-        last_checkpoint=last,
-        best_checkpoint=best_path if best_path.exists() else None,
-        validation={k: v for k, v in last_val.items() if k != "primary_pair"},
-    )
+
+    def validate(self, done: int) -> None:
+        """Validate after step ``done`` (the main process), log it, and write ``best.pt`` when
+        the primary pair's top-1 beats the best so far."""
+        t, device, model = self.t, self.device, self.model
+        with autocast(device, precision=model.precision):
+            try:
+                self.last_val = validate(
+                    model,
+                    self.val_items,
+                    self.loader,
+                    self.table,
+                    t.feature_batch,
+                    device,
+                    t.val_pairs,
+                )
+            except EmbeddingError:  # a finite loss, but held-out items overflow
+                raise self.stop("validation embeddings", math.nan, done) from None
+        last_val = self.last_val
+        key = f"{last_val.get('primary_pair')}_top1"
+        self.log.write(
+            {
+                "step": done,
+                **{f"val/{k}": v for k, v in last_val.items() if k != "primary_pair"},
+            }
+        )
+        if not self.said_unscored:  # the same pairs at every validation: say it once
+            # stacklevel: past validate, step, run, _train and train, to train()'s caller
+            self.said_unscored = _say_unscored(last_val, key, stacklevel=7)
+        if key in last_val and last_val[key] > self.best:
+            self.best = last_val[key]
+            self.save(self.run_dir / "checkpoints" / "best.pt", done, chosen_by=f"val/{key}")
