@@ -330,3 +330,13 @@ def test_a_config_that_is_not_utf8_is_one_line_naming_it(tmp_path: Path):
     utf8 = tmp_path / "utf8.yaml"
     utf8.write_text("# Gewebe für Mäntel, 布料\ntrain:\n  steps: 3\n", encoding="utf-8")
     assert load_config(RunConfig, utf8).train.steps == 3
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), [1.0, float("-inf")]])
+def test_a_loss_option_that_is_no_finite_number_is_refused(
+    value: Any, monkeypatch: pytest.MonkeyPatch
+):
+    # NaN equals nothing: a run with it could never be resumed or compared with its config.
+    monkeypatch.setitem(config_loss._LOSS_KINDS, "mine", None)  # as register_loss does
+    with pytest.raises(ConfigError, match=r"^loss\.options\.eps.*is not a finite number"):
+        LossConfig(kind="mine", options={"eps": value})

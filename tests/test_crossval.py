@@ -284,6 +284,9 @@ def test_a_cv_folder_of_an_earlier_lookfeel_resumes_and_is_summarised_as_before(
     for written in (summary, json.loads((out / "cv.json").read_text(encoding="utf-8")), res):
         assert (written["data_root"], written["data_fingerprint"]) == (str(data), fingerprint)
         assert "data" not in written
+    # No loss.options given: the key is as before options existed, so an earlier folder's
+    # results (whose keys have none) are its own, not "trained before, scoring again".
+    assert "options" not in res["key"]["config"]["loss"]
 
     def earlier(result: dict, root: str, fingerprint: str) -> dict:
         """``result`` as lookfeel wrote it before the rename."""

@@ -1348,3 +1348,23 @@ def test_the_nll_s_standard_error_is_over_fabrics_not_queries():
         np.std([3.0, 1.0, 5.0], ddof=1) / math.sqrt(3)
     )
     assert math.isnan(_se_over_fabrics(values[:3], fabric[:3]))
+
+
+def test_metrics_json_writes_a_path_in_info_as_text(tmp_path: Path):
+    # A Python caller's info may hold a Path (evaluate_embeddings(info=...)): it is written as
+    # its text, not a TypeError out of write_report.
+    from types import SimpleNamespace
+
+    from lookfeel.evaluate.report import write_metrics
+
+    result = SimpleNamespace(
+        metrics={"depth_to_depth_top1": 0.5, "depth_to_depth_map": float("nan")},
+        info={"checkpoint": tmp_path / "last.pt", "step": 3, "unrelated": "left out"},
+    )
+    path = write_metrics(result, tmp_path / "metrics.json")  # type: ignore[arg-type]
+    written = json.loads(path.read_text(encoding="utf-8"))
+    assert written == {
+        "info": {"checkpoint": str(tmp_path / "last.pt"), "step": 3},
+        "depth_to_depth_top1": 0.5,
+        "depth_to_depth_map": None,
+    }

@@ -550,3 +550,12 @@ def test_a_query_video_is_decoded_once_whether_grey_or_not(
         f"{v['grey']} (and 1 other grey video): {match_module.GREY_VIDEO}"
     ]
     assert decoded == {"colour.mov": 14, "grey.mkv": 14, "stored.mov": 14}  # each frame once
+
+
+def test_a_property_estimate_is_given_by_name():
+    # Its fields were (name, mean, ...) before session 57: a call by position would misread.
+    from lookfeel.index import PropertyEstimate
+
+    with pytest.raises(TypeError):
+        PropertyEstimate("stiffness", 0.5)  # type: ignore[misc]
+    assert PropertyEstimate(value=0.5, std=0.1, fabrics=3).number is None

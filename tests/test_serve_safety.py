@@ -158,6 +158,18 @@ def test_listening_beyond_this_machine_is_warned_of_with_a_url_that_opens(
     assert main(["serve", "--index", lib, "--port", "0"]) == 0
     out, err = capsys.readouterr()
     assert err == "" and f"at http://127.0.0.1:{ran[1]}/ (Ctrl-C stops)" in out
+    # An address this machine does not have is one error line, and no warning of a demo
+    # reachable from elsewhere: it never listened (the warning comes once it is bound).
+    assert main(["serve", "--index", lib, "--host", "192.0.2.1", "--port", "0"]) == 1
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "reachable from other machines" not in err, err
+
+
+def test_an_ipv4_mapped_loopback_address_is_loopback():
+    from lookfeel.serve.server import is_loopback
+
+    assert is_loopback("::ffff:127.0.0.1") and is_loopback("[::ffff:127.0.0.2]")
+    assert not is_loopback("::ffff:10.0.0.1") and not is_loopback("0.0.0.0")
 
 
 def test_head_is_answered_as_get_without_a_body(url: str):

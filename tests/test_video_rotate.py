@@ -260,13 +260,17 @@ def test_orientation_is_checked_as_the_model_reads_a_video_and_names_the_option(
 def test_the_untouched_control_and_the_leak_report_read_a_press_turned(video: Path):
     # cv's untouched control and `data leakage`'s press images read the video as training
     # does: turned by data.video_rotate.
-    from lookfeel.data.leakage import _press_arrays
+    from lookfeel.data.leakage import _pool_press, _read_press
     from lookfeel.data.touch_control import untouched_image
+
+    def arrays(config: DataConfig) -> tuple[np.ndarray, ...]:
+        press = _read_press(video, config)  # pooled by 1: the press's own pixels
+        return _pool_press(press, config.video_gain, press.images.shape[1:3], 1)
 
     plain, turned = DataConfig(image_size=32), DataConfig(image_size=32, video_rotate=90)
     assert untouched_image(video, turned).shape == (32, 32, 3)
     # The control is made from the no-contact frames turned: not the unturned image's pixels.
     assert not np.array_equal(untouched_image(video, turned), untouched_image(video, plain))
-    for a, b in zip(_press_arrays(video, plain), _press_arrays(video, turned), strict=True):
+    for a, b in zip(arrays(plain), arrays(turned), strict=True):
         assert b.shape == (W, H, 3)
         assert np.array_equal(b, _turned(a, 90))

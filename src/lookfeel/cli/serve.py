@@ -62,15 +62,6 @@ def run(args: argparse.Namespace) -> int:
         max_megapixels=args.max_megapixels,
     )
     device = resolve_device(args.device)  # a device this machine lacks: one line
-    if not is_loopback(options.host):
-        print(
-            f"lookfeel: warning: --host {options.host}: the demo is reachable from other "
-            "machines and has no authentication: anyone who can reach this one can upload "
-            "images and read the library; leave --host out (127.0.0.1) to keep it to this "
-            "machine",
-            file=sys.stderr,
-            flush=True,
-        )
     # Queries run side by side, each on few threads: on a busy CPU one OpenMP team per query
     # beats several queries sharing two-thread teams that spin waiting for each other.
     torch.set_num_threads(options.threads)
@@ -78,6 +69,15 @@ def run(args: argparse.Namespace) -> int:
     app = create_app(library, options.config(), device=device)
 
     def serving(url: str) -> None:  # said once the address is bound, never of one in use
+        if not is_loopback(options.host):
+            print(
+                f"lookfeel: warning: --host {options.host}: the demo is reachable from other "
+                "machines and has no authentication: anyone who can reach this one can upload "
+                "images and read the library; leave --host out (127.0.0.1) to keep it to this "
+                "machine",
+                file=sys.stderr,
+                flush=True,
+            )
         elsewhere = (
             " from this machine; other machines use this machine's address"
             if is_unspecified(options.host)

@@ -209,6 +209,11 @@ def _check_options(options: object, kind: str) -> None:
 def _check_plain(value: object, key: str) -> None:
     """Refuse a value config.yaml cannot hold: anything but numbers, text, true/false, null and
     lists and text-keyed mappings of them."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(
+            f"{key}: {value} is not a finite number (a run with it could never be resumed or "
+            "compared: NaN equals nothing); give a number"
+        )
     if value is None or isinstance(value, (str, int, float, bool)):
         return
     if isinstance(value, (list, tuple)):

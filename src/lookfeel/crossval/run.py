@@ -181,6 +181,8 @@ def _result_config(config: RunConfig) -> dict[str, Any]:
     d = to_dict(config)
     d["train"] = {k: v for k, v in d["train"].items() if k not in _NO_EFFECT}
     d["model"] = {k: v for k, v in d["model"].items() if k not in _NO_EFFECT_MODEL}
+    if not d["loss"].get("options"):  # none given: as a result kept from before options were
+        d["loss"].pop("options", None)
     return d
 
 

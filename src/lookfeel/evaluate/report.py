@@ -89,7 +89,7 @@ def write_metrics(result: EvalResult, path: str | os.PathLike[str]) -> Path:
     info = {k: result.info[k] for k in METRICS_INFO if k in result.info}
     data: dict[str, Any] = {"info": info}
     data |= {k: _json_value(float(v)) for k, v in result.metrics.items()}
-    return atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+    return atomic_write_text(path, json.dumps(data, indent=1, default=str) + "\n")
 
 
 def _f(v: float | None, digits: int = 3) -> str:

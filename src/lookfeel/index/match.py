@@ -320,7 +320,7 @@ class ItemRef:
     matches that pair through one)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PropertyEstimate:
     """A physical property predicted from the best-matching fabrics, in the shape of ``lookfeel
     predict``'s `lookfeel.predict.PropertyValue` (its fields first, in its order), with the
@@ -331,7 +331,9 @@ class PropertyEstimate:
     and ``std``; a column of words (material) ``value`` (the class), ``probability`` and
     ``probabilities``; a column of ranks (hardness 0/1/2, a class of numbers) all of them, the
     rank as ``value`` and the mean of the ranks as ``number``. A column that none of the
-    likeliest fabrics carries: ``value`` None and ``fabrics`` 0.
+    likeliest fabrics carries: ``value`` None and ``fabrics`` 0. Its fields are given by name
+    (they were ``name, mean, ...`` before session 57: a call by position is refused, not
+    misread).
     """
 
     value: int | float | str | None = None
@@ -996,7 +998,7 @@ class Matcher:
                 spread = math.sqrt(max(float((w * (v - m) ** 2).sum()), 0.0))
                 mean, std = self._round(name, m), self._round(name, spread)
             if name not in lib.classes:
-                out[name] = PropertyEstimate(mean, std=std, fabrics=len(cells))
+                out[name] = PropertyEstimate(value=mean, std=std, fabrics=len(cells))
                 continue
             share = dict.fromkeys(lib.classes[name], 0.0)
             for (_, cls, _), wi in zip(cells, w, strict=True):
@@ -1004,7 +1006,7 @@ class Matcher:
                 share[cls] = share.get(cls, 0.0) + float(wi)
             best = max(share, key=lambda k: share[k])  # ties: the first in class order
             out[name] = PropertyEstimate(
-                class_value(best),
+                value=class_value(best),
                 probability=round(share[best], 4),
                 probabilities={k: round(q, 4) for k, q in share.items()},
                 number=mean,  # a column of ranks: the mean rank behind the class

@@ -71,6 +71,7 @@ from lookfeel.data.problems import Problem
 from lookfeel.data.recordings import drop_unpressed
 from lookfeel.data.video import is_video
 from lookfeel.embedding import EmbeddingError
+from lookfeel.errors import caller_stacklevel
 from lookfeel.index.query import shape_record
 from lookfeel.locks import exclusive
 from lookfeel.losses import CombinedLoss, create_loss
@@ -374,7 +375,7 @@ def as_trained(asked: RunConfig, trained: RunConfig) -> RunConfig:
     return replace(asked, model=model)
 
 
-def _with_clusters(catalog: Catalog, config: RunConfig, stacklevel: int = 3) -> Catalog:
+def _with_clusters(catalog: Catalog, config: RunConfig) -> Catalog:
     """Clusters for the auxiliary head: labels.csv's, else k-means on the labels (paper 3).
 
     Raises:
@@ -400,7 +401,7 @@ def _with_clusters(catalog: Catalog, config: RunConfig, stacklevel: int = 3) -> 
         return catalog  # partly known: unknown ones are masked out of the cluster loss
     warnings.warn(
         f"no cluster column in labels.csv: clustering fabrics into {k} by k-means on their labels",
-        stacklevel=stacklevel,
+        stacklevel=caller_stacklevel(),
     )
     return catalog.with_clusters(kmeans_clusters(catalog, k=k, seed=0))
 
@@ -415,7 +416,7 @@ def _say_reprints(
         warnings.warn(
             f"data.depth_wall_drop={drop:g} is not used with a frozen trunk (train.cache_trunk): "
             "training reads each drape whole",
-            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
+            stacklevel=caller_stacklevel(),  # the user's call of train()
         )
     n = config.data.color_reprints
     photos = catalog.items(Modality.COLOR) if Modality.COLOR in config.train.modalities else []
@@ -425,14 +426,14 @@ def _say_reprints(
         warnings.warn(
             f"data.color_reprints={n} is not used with a frozen trunk (train.cache_trunk): "
             "training reads the photos themselves",
-            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
+            stacklevel=caller_stacklevel(),  # the user's call of train()
         )
     elif not loader.uses_reprints(photos[0].path):
         warnings.warn(
             f"data.color_reprints={n}: {data} has no {REPRINTS}/ folder of re-printed photos "
             "(a synthetic world's: `lookfeel synth --reprints`); training on the photos "
             "themselves",
-            stacklevel=4,  # to train()'s caller, as each warning of `_prepare_data`
+            stacklevel=caller_stacklevel(),  # the user's call of train()
         )
 
 
@@ -1287,7 +1288,7 @@ def _prepare_data(
     ):
         raise other_data
     _say_reprints(catalog, loader, config, cached, data)
-    catalog = _with_clusters(catalog, config, stacklevel=4)
+    catalog = _with_clusters(catalog, config)
     config = resolve_properties(catalog, resolve_classes(catalog, config))
     train_cat, val_cat, split_info = select_split(catalog, config)
     ds = TupleDataset(
