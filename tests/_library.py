@@ -14,7 +14,7 @@ import torch
 from lookfeel.cli import main
 from lookfeel.config import RunConfig, load_config
 from lookfeel.index import build_library
-from lookfeel.train import train
+from lookfeel.train import TrainResult, train
 
 from ._tiny import write_tiny_dataset
 
@@ -31,15 +31,19 @@ def tiny_run() -> tuple[Path, Path]:
     atexit.register(shutil.rmtree, root, ignore_errors=True)
     data = write_tiny_dataset(root / "data", fabrics=6, drapes=3, fold_presses=3, flat_presses=1)
     config = load_config(RunConfig, TINY, ["train.val_every=0", "train.checkpoint_every=0"])
+    return data, train_one_thread(config, data, root / "run").last_checkpoint
+
+
+def train_one_thread(config: RunConfig, data: Path, out: Path) -> TrainResult:
+    """`train` on one thread. One thread trains a tiny model as fast as two, and on a CPU
+    shared with other jobs far faster (two OpenMP threads spin waiting for each other: 2 s
+    becomes 30 s or more)."""
     threads = torch.get_num_threads()
-    # One thread trains this tiny model as fast as two, and on a CPU shared with other jobs
-    # far faster (two OpenMP threads spin waiting for each other: 2 s becomes 30 s or more).
     torch.set_num_threads(1)
     try:
-        result = train(config, data, root / "run")
+        return train(config, data, out)
     finally:
         torch.set_num_threads(threads)
-    return data, result.last_checkpoint
 
 
 def tiny_library(tmp_path_factory: pytest.TempPathFactory, name: str, shard_size: int) -> Path:

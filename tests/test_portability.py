@@ -22,6 +22,7 @@ import lookfeel
 from lookfeel import atomic
 from lookfeel.atomic import atomic_write_text, file_mode
 from lookfeel.processes import die_with_parent
+from tests._processes import alive
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,15 +32,6 @@ def _env() -> dict[str, str]:
     paths = [str(Path(lookfeel.__file__).resolve().parents[1]), str(ROOT)]
     old = os.environ.get("PYTHONPATH")
     return dict(os.environ, PYTHONPATH=os.pathsep.join([*paths, *([old] if old else [])]))
-
-
-def _alive(pid: int) -> bool:
-    """Whether ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text(encoding="utf-8")
-    except OSError:
-        return False
-    return state[state.rindex(")") + 2] != "Z"
 
 
 def _worker_as_on_windows(parent: int) -> None:
@@ -83,18 +75,18 @@ def test_a_worker_ends_with_its_killed_parent_where_getppid_cannot_tell():
     try:
         assert parent.stdout is not None
         worker = int(parent.stdout.readline())
-        assert _alive(worker)
+        assert alive(worker)
         parent.send_signal(signal.SIGKILL)
         parent.wait(timeout=10)
         deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and _alive(worker):
+        while time.monotonic() < deadline and alive(worker):
             time.sleep(0.05)
-        assert not _alive(worker), "the worker outlived its killed parent"
+        assert not alive(worker), "the worker outlived its killed parent"
     finally:
         if parent.poll() is None:
             parent.kill()
             parent.wait()
-        if worker and _alive(worker):
+        if worker and alive(worker):
             os.kill(worker, signal.SIGKILL)
 
 

@@ -16,7 +16,7 @@ from lookfeel.modality import Modality, ModalityError, PressKind
 from lookfeel.predict import PredictError, predict_files
 from lookfeel.train import train
 
-from ._library import TINY
+from ._library import TINY, train_one_thread
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*probabilities are as trained, not calibrated")
 
@@ -199,12 +199,7 @@ def test_a_frames_stacking_model_refuses_a_press_video_saying_what_to_give(
     data, _ = run
     sets = ["data.touch_frames=[0,1,2]", "model.class_heads=[stretchiness]", "train.steps=2"]
     sets += ["train.split=none", "train.val_every=0", "train.checkpoint_every=0"]
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as `tests._library.tiny_run`: faster on a shared CPU
-    try:
-        result = train(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
-    finally:
-        torch.set_num_threads(threads)
+    result = train_one_thread(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
     loaded = load_model(result.last_checkpoint)
     assert loaded.config.data.stacks_touch_frames
     lib = tmp_path / "lib"
@@ -574,12 +569,7 @@ def test_match_gives_each_property_as_predict_gives_it(
     data, _ = run
     sets = ["model.class_heads=[stretchiness]", "model.num_properties=auto", "train.steps=2"]
     sets += ["train.split=none", "train.val_every=0", "train.checkpoint_every=0"]
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as `tests._library.tiny_run`: faster on a shared CPU
-    try:
-        result = train(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
-    finally:
-        torch.set_num_threads(threads)
+    result = train_one_thread(load_config(RunConfig, TINY, sets), data, tmp_path / "run")
     lib = tmp_path / "lib"
     build_library(result.last_checkpoint, data, lib, calibration_queries=20)
     photo = str(data / "color/F0003_2.png")

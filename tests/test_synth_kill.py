@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from lookfeel.data import check_dataset
+from tests._processes import alive
 
 pytestmark = pytest.mark.skipif(
     not Path("/proc/self/stat").exists(), reason="reads process parents from /proc (Linux)"
@@ -36,14 +37,6 @@ def _children(pid: int) -> set[int]:
     return out
 
 
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text(encoding="utf-8")
-    except OSError:
-        return False
-    return state[state.rindex(")") + 2] != "Z"
-
-
 def _kill_and_wait_for(proc: subprocess.Popen[bytes], workers: set[int], what: str) -> None:
     """SIGKILL ``proc``; fail unless every one of ``workers`` ends within 10 s."""
     assert proc.poll() is None, f"{what} finished before it could be killed"
@@ -51,9 +44,9 @@ def _kill_and_wait_for(proc: subprocess.Popen[bytes], workers: set[int], what: s
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=10)
     deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+    while time.monotonic() < deadline and any(alive(w) for w in workers):
         time.sleep(0.05)
-    assert not any(_alive(w) for w in workers), f"workers outlived the killed {what}"
+    assert not any(alive(w) for w in workers), f"workers outlived the killed {what}"
 
 
 def _images(root: Path) -> int:
@@ -74,7 +67,7 @@ def _kill_lookfeel_once_busy(args: list[str], busy: Callable[[], bool], what: st
         deadline = time.monotonic() + 120
         workers: set[int] = set()
         while time.monotonic() < deadline and proc.poll() is None:
-            workers = {w for w in _children(proc.pid) if _alive(w)}
+            workers = {w for w in _children(proc.pid) if alive(w)}
             if len(workers) >= 2 and busy():
                 break
             time.sleep(0.05)
@@ -126,7 +119,7 @@ def test_sigkill_of_a_decoding_process_kills_its_decode_workers(tmp_path: Path):
         deadline = time.monotonic() + 60
         workers: set[int] = set()
         while time.monotonic() < deadline and proc.poll() is None and len(workers) < 2:
-            workers = {w for w in _children(proc.pid) if _alive(w)}
+            workers = {w for w in _children(proc.pid) if alive(w)}
             time.sleep(0.05)
         _kill_and_wait_for(proc, workers, "decoding process")
     finally:
