@@ -4,8 +4,8 @@ figures.
 Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, recall@k and
 median rank, with chance levels and bootstrap intervals over test fabrics; multi-press touch
 queries; calibration of P ~ exp(-c D^2) with confusion matrices; physical-property probes.
-Writes OUT/metrics.json (every metric, and in "info" the checkpoint, split, dataset folder and
-fingerprint and software versions), OUT/report.md and OUT/figures/*.png. --split: val (default)
+Writes OUT/metrics.json (every metric, and in "info" the checkpoint and its step, split, dataset
+folder and fingerprint and software versions), OUT/report.md and OUT/figures/*.png. --split: val (default)
 the run's held-out items, c and probes fitted on its training items (a run's best.pt was chosen
 on them: its scores there are said to be optimistic; last.pt's are not); train; novel (a seen
 run's held-out fabrics); paper (the paper's 18 test fabrics); all. For a checkpoint with a depth

@@ -1,5 +1,6 @@
 """The fabric library: embed a dataset once, then match photos, depth maps or GelSight presses.
 
+    >>> from lookfeel import Modality
     >>> from lookfeel.index import Library, Matcher, build_library
     >>> build_library("run/checkpoints/best.pt", "my_fabrics/", "lib/")
     >>> matcher = Matcher(Library.open("lib/"))

@@ -348,7 +348,8 @@ class PropertyEstimate:
     """Every class's share, in the column's class order (classes no top fabric carries: 0)."""
     number: float | None = None
     """For a column of ranks (classes of numbers), the probability-weighted mean of the ranks
-    behind ``value`` (``0.7`` for the rank ``1``), as ``predict`` gives the number behind a rank;
+    behind ``value`` (``0.7`` for the rank ``1``), as ``predict`` gives the number behind a rank
+    it reads from a property head (``predict`` leaves it None for a column with a class head);
     None otherwise (a column of plain numbers has its mean as ``value``)."""
     std: float | None = None
     """Probability-weighted standard deviation of the number (``value``, or ``number`` for a
