@@ -5,16 +5,16 @@ Score every modality pair by the paper's pick 1 of 10 (exact and sampled), mAP, 
 median rank, with chance levels and bootstrap intervals over test fabrics; multi-press touch
 queries; calibration of P ~ exp(-c D^2) with confusion matrices; physical-property probes.
 Writes OUT/metrics.json (every metric, and in "info" the checkpoint and its step, split, dataset
-folder and fingerprint and software versions), OUT/report.md and OUT/figures/*.png. --split: val (default)
-the run's held-out items, c and probes fitted on its training items (a run's best.pt was chosen
-on them: its scores there are said to be optimistic; last.pt's are not); train; novel (a seen
-run's held-out fabrics); paper (the paper's 18 test fabrics); all. For a checkpoint with a depth
-branch the background control is on by default: every pair with depth is scored again with each
-test depth image's background replaced by another fabric's (cloth kept), beside raw pixels, and
-both numbers are printed and reported side by side; registered depth is also scored with each
-image registered in that other fabric's fitted room (--no-background-control turns both off).
-With training (reference) fabrics, every pair of two modalities is also matched through a
-cross-modal map fitted on them (keys *_mapped; --set cross_map=false turns it off).
+folder and fingerprint and software versions), OUT/report.md and OUT/figures/*.png. --split: val
+(default) the run's held-out items, c and probes fitted on its training items (a run's best.pt
+was chosen on them: its scores there are said to be optimistic; last.pt's are not); train; novel
+(a seen run's held-out fabrics); paper (the paper's 18 test fabrics); all. For a checkpoint with
+a depth branch the background control is on by default: every pair with depth is scored again
+with each test depth image's background replaced by another fabric's (cloth kept), beside raw
+pixels, and both numbers are printed and reported side by side; registered depth is also scored
+with each image registered in that other fabric's fitted room (--no-background-control turns
+both off). With training (reference) fabrics, every pair of two modalities is also matched
+through a cross-modal map fitted on them (keys *_mapped; --set cross_map=false turns it off).
 """
 
 from __future__ import annotations
