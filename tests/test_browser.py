@@ -557,6 +557,41 @@ def test_several_files_are_each_announced(browser: Browser, library: Path):
         ), said
 
 
+def test_a_file_that_cannot_be_used_is_shown_beside_the_matched_ones(
+    browser: Browser, library: Path, tmp_path: Path
+):
+    """Of several depth files, one the server cannot use (pixels cut short) is answered with
+    its error beside the others' matches: its card names it and shows the error, as errors are
+    shown; the status line counts it and says why; the matched file's card is whole."""
+    data, _ = tiny_run()
+    good = data / "depth/F0003_Depth_New_000001.png"
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(good.read_bytes()[:300])
+    with background_server(create_app(Library.open(library))) as url:
+        browser.navigate(url + "/")
+        browser.wait_for("document.querySelector('#pick').options.length")
+        upload(browser, "depth", [good, cut])
+        browser.wait_for("document.querySelectorAll('.result').length === 2")
+        said = browser.eval("document.querySelector('#status').textContent")
+        verdict = r"(fabric \d \(P = [\d.]+\)|no known fabric \(best fabric \d, P = [\d.]+\))"
+        assert re.fullmatch(
+            rf"2 results: {good.name}: {verdict}; cut\.png: file is truncated\.", said
+        ), said
+        assert browser.eval("document.querySelector('#error').textContent") == ""
+        assert browser.eval("document.querySelector('#files').ariaInvalid") is None
+        shown = browser.eval(
+            "[...document.querySelectorAll('.result')].map(r => [r.className,"
+            " r.querySelector('h2').textContent, r.querySelectorAll('.fabric').length])"
+        )
+        assert shown[0][0] == "result" and shown[0][2] == 5
+        assert shown[1] == ["result failed", "depth query (cut.png): not matched", 0]
+        why = "document.querySelector('.result.failed .why')"
+        assert browser.eval(f"{why}.textContent") == "cut.png: file is truncated"
+        assert browser.eval(f"getComputedStyle({why}).color") == browser.eval(
+            "getComputedStyle(document.querySelector('#error')).color"
+        )  # as an error is shown
+
+
 def test_too_big_or_too_many_files_are_refused_before_uploading(
     browser: Browser, library: Path, tmp_path: Path
 ):

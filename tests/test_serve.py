@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import json
 import re
 import socket
 import threading
@@ -18,7 +20,7 @@ import torch
 from PIL import Image
 
 from lookfeel.cli import main
-from lookfeel.index import Library, Matcher, build_library
+from lookfeel.index import Library, Matcher, MatchFailure, MatchResult, build_library
 from lookfeel.modality import Modality
 from lookfeel.serve import ServeConfig, background_server, create_app
 
@@ -89,10 +91,15 @@ def test_openapi_describes_the_api(server):
     assert {"413", "415", "422", "503"} <= set(match["responses"])
     assert "multipart/form-data" in match["requestBody"]["content"]
     schemas = schema["components"]["schemas"]
-    assert {"MatchResult", "FabricMatch", "ItemRef", "PropertyEstimate"} <= set(schemas)
-    # A result names its files and gives its properties as `lookfeel predict` does.
-    result = schemas["MatchResult"]["properties"]
+    assert {"MatchEntry", "FabricMatch", "ItemRef", "PropertyEstimate"} <= set(schemas)
+    # A result names its files and gives its properties as `lookfeel predict` does; it is a
+    # `MatchResult`'s fields and the `error` of a file that could not be used (null if matched).
+    result = schemas["MatchEntry"]["properties"]
+    assert list(result) == [f.name for f in dataclasses.fields(MatchResult)] + ["error"]
     assert {"path", "paths"} <= set(result) and "query" not in result
+    assert result["error"]["anyOf"] == [{"type": "string"}, {"type": "null"}]
+    assert result["known"]["anyOf"] == [{"type": "boolean"}, {"type": "null"}]
+    assert result["path"] == {"type": "string", "title": "Path"}
     by_label = result["properties"]
     assert by_label["type"] == "object"
     assert by_label["additionalProperties"] == {"$ref": "#/components/schemas/PropertyEstimate"}
@@ -216,6 +223,68 @@ def test_bad_uploads_get_clear_4xx(run, server):
     )
     assert streamed.status_code == 413, streamed.text
     assert "request is larger than 125536 bytes" in streamed.json()["detail"]
+
+
+def test_of_several_files_one_that_cannot_be_used_is_answered_as_match_answers_it(run, server):
+    """As ``lookfeel match`` answers each query: of several depth files, one that cannot be
+    used (not a PNG, empty, a header that cannot be read, pixels cut short, the wrong kind) is
+    its own entry, the keys of a result null or empty and its ``error`` the line an upload of
+    it alone is refused with, as ``lookfeel match --json`` gives a failure; the others are
+    matched (200). Where no file can be used, the first one's error refuses the request, as
+    does one bad press of a touch query (one pooled query)."""
+    from lookfeel.cli.match import _entry
+
+    url, _ = server
+    data, _ = run
+    good = data / "depth/F0003_Depth_New_000001.png"
+    blob = good.read_bytes()
+    bad = {
+        "cut.png": blob[: len(blob) // 2],  # its header whole, its pixels cut short
+        "colour.png": (data / "color/F0001_1.png").read_bytes(),  # 8-bit RGB, not depth
+        "header.png": b"\x89PNG\r\n\x1a\nxx",
+        "a.txt": b"hello",
+        "empty.png": b"",
+    }
+
+    def post(names: list[str], modality: str = "depth") -> httpx.Response:
+        files = [("files", (n, bad.get(n, blob), "image/png")) for n in names]
+        return httpx.post(url + "/api/match", data={"modality": modality}, files=files)
+
+    alone = {n: post([n]) for n in bad}  # each refused whole, as before
+    assert {n: r.status_code for n, r in alone.items()} == {
+        "cut.png": 422, "colour.png": 422, "header.png": 422, "a.txt": 415, "empty.png": 422,
+    }  # fmt: skip
+    said = {n: r.json()["detail"] for n, r in alone.items()}
+    assert said["cut.png"] == "cut.png: file is truncated"
+    [matched] = post(["good.png"]).json()["results"]
+    assert matched["error"] is None and matched["path"] == "good.png"
+    for names in (["good.png", "cut.png", "colour.png"], ["header.png", "a.txt", "good.png"]):
+        r = post(names)
+        assert r.status_code == 200, r.text
+        results = r.json()["results"]
+        assert [e["path"] for e in results] == names
+        for name, entry in zip(names, results, strict=True):
+            assert list(entry) == list(matched)  # the same keys, in the same order
+            if name == "good.png":  # matched as alone (embedded in another batch)
+                ranked = [(f["fabric_id"], pytest.approx(f["probability"], abs=1e-4))
+                          for f in matched["fabrics"]]  # fmt: skip
+                assert [(f["fabric_id"], f["probability"]) for f in entry["fabrics"]] == ranked
+                continue
+            assert entry["error"] == said[name] and entry["error"].startswith(f"{name}: ")
+            failure = MatchFailure(name, [name], Modality.DEPTH, said[name])
+            assert entry == json.loads(json.dumps(_entry(failure)))  # `lookfeel match --json`
+    r = post(["empty.png", "good.png", "good.png"])
+    assert [e["error"] for e in r.json()["results"]] == [said["empty.png"], None, None]
+    # No file can be used: the first one's error, whichever step found it.
+    for names, status in ((["cut.png", "a.txt"], 422), (["a.txt", "cut.png", "empty.png"], 415)):
+        r = post(names)
+        assert r.status_code == status and r.json()["detail"] == said[names[0]], r.text
+    # A touch query is one query: a press that cannot be used fails it, and it is refused.
+    press = (data / "touch/F0004_fold_02_400.png").read_bytes()
+    for name, status in (("cut.png", 422), ("a.txt", 415)):
+        files = [("files", ("p.png", press, "image/png")), ("files", (name, bad[name], "x/y"))]
+        r = httpx.post(url + "/api/match", data={"modality": "touch"}, files=files)
+        assert r.status_code == status and r.json()["detail"].startswith(f"{name}: "), r.text
 
 
 def test_concurrent_requests_share_the_model_one_at_a_time(run, server):

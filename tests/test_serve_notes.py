@@ -64,7 +64,7 @@ def test_an_upload_gets_the_warnings_match_gives(run, tmp_path: Path):
 def test_a_depth_map_of_holes_only_is_refused(run, server_url, tmp_path: Path):
     holes = tmp_path / "holes.png"
     holes.write_bytes(_png16(np.zeros((24, 32))))
-    _, config = run, DataConfig()
+    config = DataConfig()
     with pytest.raises(ImageError) as e:
         load_query_image(holes, Modality.DEPTH, config)
     assert str(e.value) == f"{holes}: {NO_VALID_DEPTH}"
@@ -79,6 +79,25 @@ def test_a_depth_map_of_holes_only_is_refused(run, server_url, tmp_path: Path):
     assert r.json()["detail"] == (
         "holes.png: the depth map has no valid pixel (every pixel is 0, no reading)"
     )
+    # Beside a depth map that can be matched, it is its own query's error, as `lookfeel match`
+    # answers it, and the other is matched.
+    data, _ = run
+    good = data / "depth/F0003_Depth_New_000001.png"
+    r = httpx.post(
+        server_url + "/api/match",
+        data={"modality": "depth"},
+        files=[
+            ("files", ("holes.png", holes.read_bytes(), "image/png")),
+            ("files", (good.name, good.read_bytes(), "image/png")),
+        ],
+    )
+    assert r.status_code == 200, r.text
+    failed, matched = r.json()["results"]
+    assert failed["paths"] == ["holes.png"] and failed["fabrics"] == []
+    assert failed["error"] == (
+        "holes.png: the depth map has no valid pixel (every pixel is 0, no reading)"
+    )
+    assert matched["error"] is None and matched["fabrics"][0]["fabric_id"] == 3
     one = np.zeros((24, 32))
     one[3, 4] = 700  # one reading is a map
     assert load_query_bytes(_png16(one), "one.png", Modality.DEPTH, config).shape[0] == 1

@@ -25,10 +25,18 @@ Routes (the OpenAPI schema at ``/openapi.json`` describes the API):
   presses, which have colour: `lookfeel.index.match.press_colour_line`).
 - ``POST /api/match/item``: match a library item as a query (itself left out).
 
-Each match answers ``results`` as ``lookfeel match --json`` does (`lookfeel.index.MatchResult`:
-the query's files as ``path`` and ``paths``, its ``properties`` as ``lookfeel predict``'s, label
--> value, probability ...), but with file names only and no ``error`` (a request with a file
-that cannot be used is refused whole).
+Each match answers ``results`` as ``lookfeel match --json`` does (`MatchEntry`: a matched
+query's `lookfeel.index.MatchResult`, its files as ``path`` and ``paths``, its ``properties`` as
+``lookfeel predict``'s, label -> value, probability ..., and ``error`` null), but with file names
+only. As ``lookfeel match`` answers each query on its own (`Matcher.match_each`), of several
+depth or colour files one that cannot be used (empty, not a PNG or JPEG, undecodable, of the
+wrong kind, a depth map without a valid pixel) is its own query's entry: its ``path``,
+``paths`` and ``error`` (one line naming it; the other keys null or empty), and the others are
+matched (200). A request is refused whole (4xx) only where no file can be used (the first
+file's error, as its status says) or for the request itself: too many files, a file or the
+request too large or declaring too many pixels (413), a bad field. Touch files are one query
+(their presses pooled), which one such press fails: refused as a whole, as when no file can be
+used (but a press video without a press among others is left out, as above).
 
 Uploads are limited in size and number and must be PNG or JPEG by content; an image declaring
 more than ``max_pixels`` pixels is refused (413) from its header, before anything is decoded (a
@@ -59,7 +67,7 @@ import re
 import sys
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from importlib import resources
 from math import inf
 from pathlib import Path
@@ -91,6 +99,7 @@ from lookfeel.index import (
     LibraryItem,
     Matcher,
     MatchResult,
+    PropertyEstimate,
     load_query_bytes,
     query_batch,
     sniff_type,
@@ -204,6 +213,33 @@ def _no_press(e: ImageError) -> bool:
     """Whether an upload's error is that its video holds no press (`NoPressError`), also when
     `load_query_bytes` re-raised it as a plain `ImageError` naming the client's file."""
     return isinstance(e, NoPressError) or isinstance(e.__context__, NoPressError)
+
+
+def _unusable(name: str, data: bytes, modality: Modality) -> tuple[int, str] | None:
+    """Why an upload cannot be a query of ``modality``, found from its first bytes before
+    anything is decoded, as (HTTP status, one line naming it): empty (422), not a PNG or JPEG
+    image, nor for touch a video (415; of another image format, which), or an image header
+    that cannot be read (422). None where it is to be decoded (a touch video: its frames are
+    checked then)."""
+    if not data:
+        return 422, f"{name}: the file is empty"
+    if modality is Modality.TOUCH and sniff_video(data[:16]):
+        return None
+    if sniff_type(data[:16]) is None:
+        other = _image_kind(data[:16])
+        return 415, (
+            f"{name}: not a PNG or JPEG image"
+            + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else "")
+            + (f" (a {other} image: save it as PNG or JPEG)" if other else "")
+            + (
+                f" ({VIDEOS_ARE_TOUCH})"
+                if modality is not Modality.TOUCH and _a_video(name, data)
+                else ""
+            )
+        )
+    if declared_size(data) is None:
+        return 422, f"{name}: cannot decode the image header (not a whole PNG or JPEG)"
+    return None
 
 
 MAX_THUMBNAILS = 2048
@@ -426,10 +462,68 @@ class FabricInfo(BaseModel):
     items: dict[str, list[str]]
 
 
+class MatchEntry(BaseModel):
+    """One query's entry of ``results``, as ``lookfeel match --json`` gives it: a matched
+    query's `MatchResult` (its fields, in its order) with ``error`` null, or, for a depth or
+    colour file that cannot be used among others that can, that file's ``path``, ``paths``,
+    ``query_modality`` and ``error``, the other keys null (``fabrics``, ``properties`` and
+    ``timing_ms`` empty)."""
+
+    query_modality: Modality
+    gallery_modality: Modality | None
+    path: str
+    paths: list[str]
+    presses: int | None
+    known: bool | None
+    best_probability: float | None
+    unknown_probability: float | None
+    threshold: float | None
+    c: float | None
+    message: str | None
+    fabrics: list[FabricMatch]
+    properties: dict[str, PropertyEstimate]
+    property_fabrics: int | None
+    backend: str | None
+    timing_ms: dict[str, float]
+    error: str | None = Field(
+        None,
+        description="why the file was not matched, in one line naming it (empty, not a PNG or "
+        "JPEG, undecodable, of the wrong kind, a depth map without a valid pixel); null for a "
+        "matched query",
+    )
+
+    @classmethod
+    def matched(cls, result: MatchResult) -> MatchEntry:
+        """A matched query's entry, with file names only: the server's folders are not the
+        client's business."""
+
+        def ref(r: ItemRef) -> ItemRef:
+            return replace(r, path=Path(r.path).name)
+
+        def fab(f: FabricMatch) -> FabricMatch:
+            return replace(f, nearest={m: [ref(r) for r in rs] for m, rs in f.nearest.items()})
+
+        public = replace(
+            result,
+            path=Path(result.path).name,
+            paths=[Path(q).name for q in result.paths],
+            fabrics=[fab(f) for f in result.fabrics],
+        )
+        return cls(**{f.name: getattr(public, f.name) for f in fields(public)}, error=None)
+
+    @classmethod
+    def failed(cls, name: str, modality: Modality, error: str) -> MatchEntry:
+        """The entry of an uploaded file ``name`` that could not be matched, and why."""
+        entry: dict[str, Any] = dict.fromkeys(f.name for f in fields(MatchResult))
+        entry.update(fabrics=[], properties={}, timing_ms={}, path=name, paths=[name])
+        entry.update(query_modality=modality, error=public_message(error))
+        return cls(**entry)
+
+
 class MatchResponse(BaseModel):
     """One result per query: per depth/colour file, or one for all touch presses."""
 
-    results: list[MatchResult]
+    results: list[MatchEntry]
     warnings: list[str] = Field(
         default_factory=list,
         description="what `lookfeel match` would warn of, one line each: of several touch "
@@ -447,23 +541,6 @@ class ItemQuery(BaseModel):
     item: str = Field(description="item id, e.g. 'depth:12'", examples=["depth:0"])
     top: int = Field(5, ge=1, description="fabrics to return")
     gallery: Modality | None = Field(None, description="modality to match against")
-
-
-def _public(result: MatchResult) -> MatchResult:
-    """The result with file names only: the server's folders are not the client's business."""
-
-    def ref(r: ItemRef) -> ItemRef:
-        return replace(r, path=Path(r.path).name)
-
-    def fab(f: FabricMatch) -> FabricMatch:
-        return replace(f, nearest={m: [ref(r) for r in rs] for m, rs in f.nearest.items()})
-
-    return replace(
-        result,
-        path=Path(result.path).name,
-        paths=[Path(q).name for q in result.paths],
-        fabrics=[fab(f) for f in result.fabrics],
-    )
 
 
 def _item_info(item: LibraryItem) -> ItemInfo:
@@ -855,11 +932,15 @@ def create_app(
         response_model=MatchResponse,
         responses={
             413: {"description": "a file or the request is too large"},
-            415: {"description": "a file is not a PNG or JPEG image (or, for touch, a video)"},
+            415: {
+                "description": "no file is a PNG or JPEG image (or, for touch, a video); "
+                "touch: one press is not"
+            },
             422: {
-                "description": "a file cannot be decoded as this modality (touch: no video "
-                "holds a press; one without among others is left out, named in `warnings`), "
-                "or a bad field"
+                "description": "no file can be decoded as this modality (of several depth or "
+                "colour files, one that cannot is answered in `results` with its `error`; "
+                "touch: one press cannot, or no video holds a press; one without among others "
+                "is left out, named in `warnings`), or a bad field"
             },
             503: {"description": "too many queries waiting"},
         },
@@ -877,7 +958,9 @@ def create_app(
         gallery: Annotated[Modality | None, Form(description="modality to match against")] = None,
     ) -> MatchResponse:
         """Rank the library's fabrics for uploaded images, with probabilities, the nearest
-        items of each fabric in every modality and predicted physical properties."""
+        items of each fabric in every modality and predicted physical properties. Of several
+        depth or colour files, one that cannot be used is answered with its ``error`` and the
+        others are matched; where none can be, the first one's error is the answer (4xx)."""
         check_top(top)
         now = served.current()  # the whole request is answered from this library
         match = now.matcher
@@ -886,71 +969,68 @@ def create_app(
             raise HTTPException(422, "no file uploaded")
         if len(files) > cfg.max_files:
             raise HTTPException(413, f"{len(files)} files; at most {cfg.max_files} per query")
-        blobs: list[tuple[str, bytes]] = []
-        for i, f in enumerate(files):
-            name = Path(f.filename or f"file {i + 1}").name
+        given = [Path(f.filename or f"file {i + 1}").name for i, f in enumerate(files)]
+        blobs: list[tuple[int, str, bytes]] = []  # the files to decode: position, name, bytes
+        refused: dict[int, tuple[int, str]] = {}  # position -> why not: HTTP status, one line
+        for i, (f, name) in enumerate(zip(files, given, strict=True)):
             data = await f.read(cfg.max_upload_bytes + 1)
             if len(data) > cfg.max_upload_bytes:
                 raise HTTPException(
                     413, f"{name}: larger than the {cfg.max_upload_bytes} bytes allowed"
                 )
-            if not data:
-                raise HTTPException(422, f"{name}: the file is empty")
-            if modality is Modality.TOUCH and sniff_video(data[:16]):
-                blobs.append((name, data))  # a press video: its frames are checked on decoding
+            unusable = _unusable(name, data, modality)
+            if unusable is not None:
+                if modality is Modality.TOUCH:  # one pooled query, which this press fails
+                    raise HTTPException(*unusable)
+                refused[i] = unusable  # this file's own query; the others are matched
                 continue
-            if sniff_type(data[:16]) is None:
-                other = _image_kind(data[:16])
-                raise HTTPException(
-                    415,
-                    f"{name}: not a PNG or JPEG image"
-                    + (f" or a video ({_VIDEOS})" if modality is Modality.TOUCH else "")
-                    + (f" (a {other} image: save it as PNG or JPEG)" if other else "")
-                    + (
-                        f" ({VIDEOS_ARE_TOUCH})"
-                        if modality is not Modality.TOUCH and _a_video(name, data)
-                        else ""
-                    ),
-                )
-            size = declared_size(data)  # its header, read without Pillow (no warning filters)
-            if size is None:
-                raise HTTPException(
-                    422, f"{name}: cannot decode the image header (not a whole PNG or JPEG)"
-                )
-            if size[0] * size[1] > cfg.max_pixels:
+            # An image's header, read without Pillow (no warning filters); a press video's
+            # frames are checked on decoding.
+            size = None if sniff_video(data[:16]) else declared_size(data)
+            if size is not None and size[0] * size[1] > cfg.max_pixels:
                 raise HTTPException(
                     413,
                     f"{name}: declares {size[0]}x{size[1]} pixels; at most "
                     f"{cfg.max_pixels / 1e6:g} megapixels are decoded",
                 )
-            blobs.append((name, data))
+            blobs.append((i, name, data))
+        if not blobs:  # no file can be used: the first one's error, as before any was matched
+            raise HTTPException(*refused[min(refused)])
 
-        def work() -> tuple[list[MatchResult], list[str]]:
-            # As `lookfeel match` reads files (`load_query_files`): of several touch presses,
-            # a video without a press is left out with a warning; the only one, or every one,
-            # is an error (the first one's). Its warnings (a press video for a model trained on
-            # still frames, a press of a kind the model was not trained on, a query turned
-            # against the library's items, press videos with no colour) are collected in
+        def work() -> tuple[dict[int, MatchResult], dict[int, str], list[str]]:
+            # As `lookfeel match` reads files (`Matcher.match_each`): a depth or colour file
+            # that cannot be decoded is its own query's error, and the others are matched; of
+            # several touch presses (one query), a video without a press is left out with a
+            # warning, and the only one, or every one, is an error (the first one's), as is
+            # any other press that cannot be decoded. Its warnings (a press video for a model
+            # trained on still frames, a press of a kind the model was not trained on, a query
+            # turned against the library's items, press videos with no colour) are collected in
             # `notes`, this request's own list (`warnings.catch_warnings` is process-wide, not
-            # safe in the server's threads), and answered in `warnings`.
+            # safe in the server's threads), and answered in `warnings`. Returns each matched
+            # query's result and each failed file's error, by the position of its (first) file.
             notes: list[str] = []
             videos: list[tuple[str, bool]] = []  # of the presses read: as `lookfeel match`
             if modality is Modality.TOUCH and not match.data_config.stacks_touch_frames:
                 warn_press_kinds(
-                    [n for n, _ in blobs], match.data_config, "the library's model", notes.append
+                    [n for _, n, _ in blobs],
+                    match.data_config,
+                    "the library's model",
+                    notes.append,
                 )
             turned = orientation_note(
-                [(n, bytes_frame_size(d)) for n, d in blobs],
+                [(n, bytes_frame_size(d)) for _, n, d in blobs],
                 modality,
                 match.shape(modality),
                 match.data_config,
                 "the library",
-                videos=[sniff_video(d[:16]) for _, d in blobs],  # as they are read: by content
+                videos=[sniff_video(d[:16]) for _, _, d in blobs],  # as they are read: by content
             )
             if turned is not None:
                 notes.append(turned)
-            images, names, missed = [], [], []
-            for n, d in blobs:
+            images, names, read = [], [], []
+            missed: list[ImageError] = []
+            failed: dict[int, str] = {}
+            for i, n, d in blobs:
                 try:
                     images.append(
                         load_query_bytes(
@@ -965,32 +1045,56 @@ def create_app(
                         )
                     )
                     names.append(n)
+                    read.append(i)
                 except ImageError as e:
-                    if not _no_press(e):
+                    if modality is not Modality.TOUCH:
+                        failed[i] = str(e)  # this file's own query, as `lookfeel match` says
+                    elif _no_press(e):
+                        missed.append(e)
+                    else:
                         raise
-                    missed.append(e)
             if not images:
-                raise missed[0]
+                if missed:
+                    raise missed[0]
+                return {}, failed, notes
             colour = press_colour_line(videos, match.trained_on_grey)
             if colour is not None:
                 notes.append(colour)
             x = query_batch(images, modality)
             emb = match.embed(x, modality)
-            groups = [names] if modality is Modality.TOUCH else [[n] for n in names]
-            results = [
-                match.match_embedding(e, modality, g, top=top, gallery=gallery)
-                for e, g in zip(emb, groups, strict=True)
-            ]
-            return results, [*notes, *(f"{e}: left out of the pooled query" for e in missed)]
+            if modality is Modality.TOUCH:
+                groups, where = [names], read[:1]
+            else:
+                groups, where = [[n] for n in names], read
+            results = {
+                i: match.match_embedding(e, modality, g, top=top, gallery=gallery)
+                for e, g, i in zip(emb, groups, where, strict=True)
+            }
+            return (
+                results,
+                failed,
+                [*notes, *(f"{e}: left out of the pooled query" for e in missed)],
+            )
 
         try:
-            results, warnings = await run_model(work)
+            matched, failed, warnings = await run_model(work)
         except ImageError as e:
             raise HTTPException(422, public_message(str(e))) from None
         except LibraryError as e:
             raise HTTPException(422, public_message(str(e))) from None
+        errors = {**refused, **{i: (422, line) for i, line in failed.items()}}
+        if not matched:  # no file could be decoded: the first one's error
+            code, line = errors[min(errors)]
+            raise HTTPException(code, public_message(line))
+        entries = [
+            MatchEntry.matched(matched[i])
+            if i in matched
+            else MatchEntry.failed(given[i], modality, errors[i][1])
+            for i in range(len(files))
+            if i in matched or i in errors
+        ]
         return MatchResponse(
-            results=[_public(r) for r in results],
+            results=entries,
             warnings=[public_message(w) for w in warnings],
         )
 
@@ -1008,6 +1112,6 @@ def create_app(
             )
         except LibraryError as e:
             raise HTTPException(422, public_message(str(e))) from None
-        return MatchResponse(results=[_public(result)])
+        return MatchResponse(results=[MatchEntry.matched(result)])
 
     return app

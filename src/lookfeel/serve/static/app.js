@@ -207,7 +207,17 @@ function propertiesLabel(res) {
   return `Properties (${likeliest} weighted by P${guess})`;
 }
 
+// A file the server could not use, among others it matched (its `error`, one line naming it:
+// empty, not a PNG or JPEG, undecodable, ...): its name and why, as an error, in a card of its
+// own.
+function renderFailure(res) {
+  return el("div", { class: "result failed" },
+    el("h2", {}, `${res.query_modality} query (${res.paths.join(", ")}): not matched`),
+    el("p", { class: "why" }, res.error));
+}
+
 function renderResult(res) {
+  if (res.error) return renderFailure(res);
   const box = el("div", { class: "result" });
   const what = res.presses > 1 ? `${res.presses} presses` : res.paths.join(", ");
   box.append(el("h2", {}, `${res.query_modality} query (${what}) against ${res.gallery_modality}`));
@@ -237,13 +247,16 @@ function renderResult(res) {
 }
 
 // One result's verdict in a few words, for a status line that covers several results:
-// "a.png: fabric 3 (P = 0.912)" or "b.png: no known fabric (best fabric 5, P = 0.301)".
+// "a.png: fabric 3 (P = 0.912)", "b.png: no known fabric (best fabric 5, P = 0.301)", or a
+// file that could not be used, its error: "c.png: cannot decode the image header (...)".
 function verdict(res) {
+  const files = res.paths.join(", ");
+  if (res.error) return res.error.startsWith(`${files}: `) ? res.error : `${files}: ${res.error}`;
   const best = res.fabrics[0];
   const name = best ? title(best) : "none";
   const said = res.known ? `${name} (P = ${fmt(res.best_probability)})`
     : `no known ${nounOf(res)} (best ${name}, P = ${fmt(res.best_probability)})`;
-  return `${res.paths.join(", ")}: ${said}`;
+  return `${files}: ${said}`;
 }
 
 function show(data) {
@@ -256,8 +269,11 @@ function show(data) {
   const known = data.results.filter((r) => r.known).length;
   const kind = known === data.results.length ? "known" : known === 0 ? "unknown" : "";
   if (data.results.length > 1) {
-    // Every result, briefly (each card's heading names its files; the cards say the rest).
+    // Every result, briefly (each card's heading names its files; the cards say the rest),
+    // a file that could not be used by its error.
     status(`${data.results.length} results: ${data.results.map(verdict).join("; ")}.` + notes, kind);
+  } else if (first.error) {
+    status(verdict(first) + notes, "unknown");
   } else if (first.known) {
     status(first.message + notes, kind);
   } else {
