@@ -241,3 +241,14 @@ def test_a_metrics_line_that_is_not_utf8_counts_nothing(tmp_path: Path):
     ]
     path.write_bytes(lines[0].encode() + b'\n{"note": "\xff"}\n' + lines[1].encode() + b"\n")
     assert _logged_seconds(path) == pytest.approx(10 / 5 + 10 / 10)
+
+
+def test_a_held_out_item_recorded_on_windows_is_found_on_linux():
+    # split.json records each held-out item's path as the training machine wrote it; evaluate
+    # finds it again by its folder and name wherever the dataset now lies.
+    from lookfeel.evaluate.from_checkpoint import _item_key
+
+    key = ("depth", "F0001_1.png")
+    assert _item_key(r"C:\Users\me\gelfabric\depth\F0001_1.png") == key
+    assert _item_key("/home/me/gelfabric/depth/F0001_1.png") == key
+    assert _item_key(Path("gelfabric") / "depth" / "F0001_1.png") == key

@@ -37,7 +37,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import replace
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from torch import nn
@@ -109,7 +109,10 @@ def pools_final_embedding(model: Embedder) -> bool:
 
 
 def _item_key(path: str | Path) -> tuple[str, str]:
-    p = Path(path)
+    """(folder, file name) of an item's path as a run's ``split.json`` records it: how a held-out
+    item is found again wherever the dataset now lies, on whichever system the run was trained
+    (a path written on Windows has backslashes)."""
+    p = PurePosixPath(str(path).replace("\\", "/"))
     return p.parent.name, p.name
 
 
