@@ -306,11 +306,11 @@ def test_split_errors_name_what_was_left_out_and_warn_on_few_training_fabrics():
 
 
 def _sets(line: str) -> list[str]:
-    """The ``--set 'KEY=VALUE'`` flags a message gives, as a shell would pass them."""
+    """The ``--set "KEY=VALUE"`` flags a message gives, as a shell would pass them."""
     import re
     import shlex
 
-    return [a for q in re.findall(r"--set ('[^']*')", line) for a in ("--set", *shlex.split(q))]
+    return [a for q in re.findall(r'--set ("[^"]*")', line) for a in ("--set", *shlex.split(q))]
 
 
 QUICK = ["--set", "train.steps=2", "--set", "train.val_every=0"]
@@ -340,7 +340,7 @@ def test_a_class_head_the_labels_lack_says_the_heads_they_have(tmp_path: Path, c
         argv,
         "model.class_heads: 'roughness' and 'bumpiness' are not columns of labels.csv (have: "
         "hardness, material); give the heads your labels have: "
-        "--set 'model.class_heads=[hardness,material]', or --set 'model.class_heads=[]' for none",
+        '--set "model.class_heads=[hardness,material]", or --set "model.class_heads=[]" for none',
     )
     assert not (tmp_path / "r").exists()  # refused before any work
     fits = _sets(line)[:2]
@@ -365,7 +365,7 @@ def test_presses_of_another_kind_are_one_line_with_the_kinds_to_train_on(
         argv,
         "none of the 6 fabrics (1, 2, 3 and 3 more) has a touch (fold presses) item; their "
         "presses are flat (the run's data.touch_kinds asks fold): "
-        "--set 'data.touch_kinds=[flat]' trains on them",
+        '--set "data.touch_kinds=[flat]" trains on them',
     )
     if command == "train":
         assert main([str(a) for a in [*argv, *_sets(line), *QUICK]]) == 0
@@ -385,7 +385,7 @@ def test_views_of_senses_the_data_lacks_are_one_line_with_views_that_fit(
         capsys,
         argv,
         f"{data}: the run's train.views [depth, color, touch] use depth and color, of which "
-        "the data holds no item (it holds touch alone): --set 'train.views=[touch,touch]' "
+        'the data holds no item (it holds touch alone): --set "train.views=[touch,touch]" '
         "trains on what it holds",
     )
     if command == "train":
@@ -402,8 +402,8 @@ def test_views_and_press_kinds_the_data_lacks_are_said_together(tmp_path: Path, 
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert err.startswith(f"lookfeel: 2 problem(s) in {data}:\n")
-    assert "--set 'train.views=[touch,touch]'" in err
-    assert "--set 'data.touch_kinds=[flat]'" in err
+    assert '--set "train.views=[touch,touch]"' in err
+    assert '--set "data.touch_kinds=[flat]"' in err
     assert main([str(a) for a in [*argv, *_sets(err), *QUICK]]) == 0
 
 

@@ -10,11 +10,16 @@ from __future__ import annotations
 
 import argparse
 import re
+import shlex
+import shutil
 from pathlib import Path
 
 import pytest
 
 from lookfeel.cli import build_parser, main
+from lookfeel.config import RunConfig, load_config
+from lookfeel.config._core import parse_pairs
+from lookfeel.modality import Modality, PressKind
 
 
 def _usage_error(capsys: pytest.CaptureFixture[str], argv: list[str], said: str) -> list[str]:
@@ -319,3 +324,97 @@ def test_a_bad_number_is_refused_by_its_flag(
 def test_only_folds_refuses_a_negative_fold(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
     argv = ["cv", "--data", "d", "--out", str(tmp_path / "o"), "--only-folds=0,-1"]
     _usage_error(capsys, argv, "argument --only-folds: a fold must be an integer >= 0, got -1")
+
+
+# ---- 9. a suggested --set works as printed, in any shell --------------------------------------
+
+
+def _suggested_sets(message: str) -> list[str]:
+    """Every ``--set`` a message suggests, split as a POSIX shell splits what is typed."""
+    return [
+        word
+        for flag in re.findall(r'--set (?:"[^"]*"|\S+)', message)
+        for word in shlex.split(flag.rstrip(","))
+    ]
+
+
+def _messages(tmp_path: Path) -> list[str]:
+    """One message of each kind that suggests a ``--set``: data's leave-out, the catalog's
+    press kinds, train's views and class heads (two label columns YAML reads as a boolean and
+    a number), and the recipe chooser's kinds left out."""
+    from lookfeel.config.recipes import _fit_touch_kinds
+    from lookfeel.data import scan
+    from lookfeel.data.problems import leave_out
+    from lookfeel.modality import Modality, PressKind
+    from lookfeel.train.loop import _heads_fix, views_problem
+
+    from ._tiny import write_tiny_dataset
+
+    both = write_tiny_dataset(tmp_path / "both", 4, drapes=1, fold_presses=2, flat_presses=1)
+    (both / "labels.csv").write_text(
+        "fabric_id,yes,1e3\n1,0,foam\n2,1,wood\n3,0,foam\n4,1,wood\n", encoding="utf-8"
+    )
+    catalog = scan(both)
+    for p in (both / "touch").glob("F0001_flat_*"):
+        p.unlink()
+    flat_less = scan(both)
+    touch = write_tiny_dataset(tmp_path / "touch", 4, drapes=1, fold_presses=2, flat_presses=0)
+    for sense in ("depth", "color"):
+        shutil.rmtree(touch / sense)
+    pairs = "train.val_pairs=[depth_to_touch,touch_to_touch]"
+    views = views_problem(scan(touch), load_config(RunConfig, "tiny", [pairs]))
+    assert views is not None
+    return [
+        leave_out("color", ["depth", "touch"], "fabric", False),
+        leave_out("depth", ["touch"], "fabric", True),
+        *(p.message for p in flat_less.lacking([Modality.TOUCH], (PressKind.FLAT,))),
+        views.message,
+        _heads_fix(catalog, ["yes", "roughness", "1e3"]),
+        *_fit_touch_kinds(catalog, ["fold"])[1],
+    ]
+
+
+def test_every_suggested_set_parses_back_as_printed(tmp_path: Path):
+    """QA (portability): messages suggested ``--set 'train.views=[touch,touch]'``, which
+    Windows' cmd.exe passes with the quotes (the key read is ``'train.views``). Each is now in
+    double quotes, which bash, zsh, cmd.exe and PowerShell all take off; split as a POSIX shell
+    splits it, the CLI's own ``--set`` reads it back to the setting the message means."""
+    messages = _messages(tmp_path)
+    assert not [m for m in messages if "--set '" in m], messages  # cmd.exe keeps single quotes
+    sets = [_suggested_sets(m) for m in messages]
+    assert all(s and len(s) % 2 == 0 and s[::2] == ["--set"] * (len(s) // 2) for s in sets), sets
+    argv = ["train", "--data", str(tmp_path), "--out", str(tmp_path / "r")]
+    parsed = [build_parser().parse_args([*argv, *s]).set for s in sets]
+    assert parsed == [
+        ["train.views=[depth,touch]"],
+        ["train.views=[touch,touch]"],
+        ["data.touch_kinds=[flat,fold]"],  # a fabric has fold presses alone: every kind
+        ["train.views=[touch,touch]", "train.val_pairs=[touch_to_touch]"],
+        ["model.class_heads=['yes','1e3']", "model.class_heads=[]"],
+        ["data.touch_kinds=[flat,fold]"],
+    ]
+    configs = [load_config(RunConfig, "tiny", [o]) for p in parsed for o in p]
+    assert configs[0].train.views == (Modality.DEPTH, Modality.TOUCH)
+    assert configs[4].train.val_pairs == parse_pairs(["touch_to_touch"], "train.val_pairs")
+    assert configs[5].model.class_heads == ("yes", "1e3")  # strings, not True and 1000.0
+    assert configs[6].model.class_heads == ()
+    assert configs[7].data.touch_kinds == (PressKind.FLAT, PressKind.FOLD)
+
+
+def test_a_suggested_set_is_the_same_on_every_system(monkeypatch: pytest.MonkeyPatch):
+    """The words of a suggestion do not depend on the system that prints them: double quotes
+    where a setting needs quotes, none where it needs none; only text that double quotes
+    cannot carry in every shell (``$``, ``"``, a backslash) is quoted for this system's."""
+    from lookfeel import shell
+
+    for windows in (False, True):
+        monkeypatch.setattr(shell, "WINDOWS", windows)
+        assert shell.set_flag("train.steps=3") == "--set train.steps=3"
+        assert shell.set_flag("train.views=[touch,touch]") == '--set "train.views=[touch,touch]"'
+        assert shell.set_flag("loss.pair_weights={}") == '--set "loss.pair_weights={}"'
+        assert shell.set_flag("model.class_heads=['a b']") == "--set \"model.class_heads=['a b']\""
+    monkeypatch.setattr(shell, "WINDOWS", False)
+    assert shell.portable_quote("a=$HOME x") == "'a=$HOME x'"  # bash reads $ in double quotes
+    assert shell.portable_quote(r"C:\My Weights") == r"'C:\My Weights'"
+    monkeypatch.setattr(shell, "WINDOWS", True)
+    assert shell.portable_quote(r"C:\My Weights") == r'"C:\My Weights"'

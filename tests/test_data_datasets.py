@@ -107,7 +107,7 @@ def test_fabrics_lacking_an_item_are_a_line_each_when_few_and_one_line_when_many
     for f in (1, 2):
         for p in (tiny_dataset / "touch").glob(f"F{f:04d}_fold_*"):
             p.unlink()
-    fix = "--set 'data.touch_kinds=[flat,fold]' trains on every kind the data holds"
+    fix = '--set "data.touch_kinds=[flat,fold]" trains on every kind the data holds'
     few = [str(p) for p in scan(tiny_dataset).lacking([T], fold)]
     assert few == [
         f"{tiny_dataset / 'touch'}: fabric {f} has no touch (fold presses) item; its presses "

@@ -194,7 +194,7 @@ def test_a_sense_most_fabrics_lack_is_one_line_and_a_few_lacking_it_a_line_each(
         p.unlink()
     errors = [p.message for p in scan(root, require=[Modality.COLOR, Modality.TOUCH]).errors]
     leave_out = (
-        "; every fabric has depth: --set 'train.views=[depth,depth]' trains without touch, or "
+        '; every fabric has depth: --set "train.views=[depth,depth]" trains without touch, or '
         "add its touch items"
     )  # a run's needs: the line says what trains (test_data_names.py)
     assert errors == [

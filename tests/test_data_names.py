@@ -162,7 +162,7 @@ def test_a_sense_some_fabrics_lack_says_which_train_views_train_without_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ):
     """QA: `train` stopped with "4 of the 8 fabrics (3, 6, 7, 8) have no color item" and no
-    fix, though ``--set 'train.views=[depth,touch]'`` trains. The line now gives it: the
+    fix, though ``--set "train.views=[depth,touch]"`` trains. The line now gives it: the
     senses every fabric has (one sense twice: a Siamese run), or the items to add."""
     data = write_tiny_dataset(tmp_path / "partial", 8, drapes=2, fold_presses=2, flat_presses=0)
     for f in (3, 6, 7, 8):
@@ -170,7 +170,7 @@ def test_a_sense_some_fabrics_lack_says_which_train_views_train_without_it(
             p.unlink()
     line = (
         f"{data / 'color'}: 4 of the 8 fabrics (3, 6, 7, 8) have no color item; every fabric has "
-        "depth and touch: --set 'train.views=[depth,touch]' trains without color, or add their "
+        'depth and touch: --set "train.views=[depth,touch]" trains without color, or add their '
         "color items"
     )
     with pytest.raises(DatasetError) as info:
@@ -197,7 +197,7 @@ def test_a_sense_some_fabrics_lack_says_which_train_views_train_without_it(
         p.unlink()
     (depth,) = [p.message for p in scan(data, require=[Modality.DEPTH]).errors]
     assert depth == (
-        "fabric 2 has no depth item; every fabric has touch: --set 'train.views=[touch,touch]' "
+        'fabric 2 has no depth item; every fabric has touch: --set "train.views=[touch,touch]" '
         "trains without depth, or add its depth items"
     )
     # No sense that every fabric has: the items to add.

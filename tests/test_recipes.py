@@ -406,7 +406,7 @@ def test_the_chooser_trains_on_the_press_kinds_the_data_holds(tmp_path: Path, ca
     err = capsys.readouterr().err
     assert (
         "trains on the 8 fold presses (the recipe's data.touch_kinds); 4 flat presses left out: "
-        "--set 'data.touch_kinds=[flat,fold]' to use them" in err
+        '--set "data.touch_kinds=[flat,fold]" to use them' in err
     )
     assert load_config(RunConfig, path, overrides).data.touch_kinds == (PressKind.FOLD,)
     path, overrides = run_config_source(_args(both, sets=("data.touch_kinds=[flat,fold]",)))

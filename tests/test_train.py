@@ -411,8 +411,8 @@ def test_views_the_data_lacks_are_one_line_beside_its_other_problems(tmp_path: P
     assert lines[0] == f"2 problem(s) in {touch}:"
     assert lines[1] == (
         f"  {touch}: the run's train.views [depth, color, touch] use depth and color, of which "
-        "the data holds no item (it holds touch alone): --set 'train.views=[touch,touch]' "
-        "--set 'train.val_pairs=[touch_to_touch]' trains on what it holds"
+        'the data holds no item (it holds touch alone): --set "train.views=[touch,touch]" '
+        '--set "train.val_pairs=[touch_to_touch]" trains on what it holds'
     )
     assert lines[2].startswith(f"  {bad}: ") and len(lines) == 3
     assert not (tmp_path / "run").exists()
@@ -439,13 +439,13 @@ def test_the_class_heads_a_message_gives_read_back_as_the_columns(tmp_path: Path
     )
     given = shlex.split(message.partition("--set ")[2].partition(", or")[0])
     assert load_config(RunConfig, TINY, given).model.class_heads == ("yes", "1e3")
-    assert message.endswith(", or --set 'model.class_heads=[]' for none")
+    assert message.endswith(', or --set "model.class_heads=[]" for none')
     # No column of classes at all: no head.
     (root / "labels.csv").write_text(
         "fabric_id,stiffness\n1,0.5\n2,1.5\n3,2\n4,1\n", encoding="utf-8"
     )
     with pytest.raises(ConfigError, match=r"two classes or more to learn: --set "
-                       r"'model.class_heads=\[\]' for no head$"):  # fmt: skip
+                       r'"model.class_heads=\[\]" for no head$'):  # fmt: skip
         resolve_classes(scan(root), asked)
 
 

@@ -10,8 +10,6 @@ import argparse
 import fnmatch
 import importlib
 import os
-import shlex
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -22,6 +20,8 @@ from typing import TYPE_CHECKING
 from lookfeel.config.model import EMBED_BATCH
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, parse_modalities
+from lookfeel.shell import WINDOWS
+from lookfeel.shell import shell_quote as _shell_quote
 
 if TYPE_CHECKING:
     from lookfeel.config._core import Override
@@ -414,28 +414,16 @@ def path_flag(key: str, flag: str, path: Path) -> Override:
     return Override(key, os.path.abspath(path), f"{flag} {shell_quote(str(path))}")
 
 
-_WINDOWS = os.name == "nt"
-"""Whether commands are typed into Windows' cmd.exe or PowerShell (`shell_quote`)."""
-
-_CMD_SPECIAL = frozenset("&|<>^()")
-"""Characters cmd.exe acts on outside double quotes."""
+_WINDOWS = WINDOWS
+"""Whether commands are typed into Windows' cmd.exe or PowerShell (`shell_quote`; a test sets
+it to see Windows' quoting)."""
 
 
 def shell_quote(text: str) -> str:
-    """``text`` as one argument of a command a message suggests, quoted for the shell the
-    user types it into: POSIX quoting (``'a b'``, ``shlex.quote``) where that shell is sh,
-    bash or zsh; on Windows, where cmd.exe keeps single quotes as part of the argument,
-    double quotes as ``subprocess.list2cmdline`` writes them (``"a b"``), also around an
-    argument holding one of cmd.exe's operators (``&|<>^()``). Nothing is quoted that needs
-    no quotes (``--set train.steps=3``)."""
-    if not _WINDOWS:
-        return shlex.quote(text)
-    quoted = subprocess.list2cmdline([text])
-    if quoted.startswith('"') or not _CMD_SPECIAL.intersection(text):
-        return quoted
-    # in quotes, backslashes before the closing quote are doubled (list2cmdline's rule)
-    body = quoted.rstrip("\\")
-    return '"' + body + "\\" * (2 * (len(quoted) - len(body))) + '"'
+    """``text`` quoted for the shell of this system (`lookfeel.shell.shell_quote`, moved there
+    so that data, config and the workflows can quote what their messages suggest: this name
+    stays, reading `_WINDOWS`, for the commands' own use)."""
+    return _shell_quote(text, windows=_WINDOWS)
 
 
 def _sets_key(sets: list[str], key: str) -> bool:

@@ -39,6 +39,7 @@ from lookfeel.config._core import (
     shipped_configs,
 )
 from lookfeel.modality import REPRINTS, Modality
+from lookfeel.shell import set_flag
 
 if TYPE_CHECKING:
     import numpy as np
@@ -348,7 +349,7 @@ def _fit_touch_kinds(catalog: Catalog, kinds: Sequence[str]) -> tuple[list[str],
         ]
     return [], [
         f"trains on the {_presses(counts, used)} (the recipe's data.touch_kinds); "
-        f"{_presses(counts, others)} left out: --set '{every}' to use them"
+        f"{_presses(counts, others)} left out: {set_flag(every)} to use them"
     ]
 
 

@@ -19,6 +19,7 @@ from lookfeel.data.files import VIDEO_SUFFIXES
 from lookfeel.data.labels import PHYSICAL_LABELS, class_of
 from lookfeel.data.problems import DatasetError, Problem, lacking_lines, leave_out
 from lookfeel.modality import Modality, PressKind
+from lookfeel.shell import set_flag
 
 __all__ = ["PHYSICAL_LABELS", "Catalog", "Fabric", "Item"]
 
@@ -299,10 +300,10 @@ class Catalog:
                 return ""
             every = _press_kinds(self.items(m))
             on = "them" if every == theirs else "every kind the data holds"
+            use = set_flag(f"data.touch_kinds=[{','.join(every)}]")
             return (
                 f"; {whose} presses are {'/'.join(theirs)} (the run's data.touch_kinds asks "
-                f"{'/'.join(k.value for k in kinds)}): --set "
-                f"'data.touch_kinds=[{','.join(every)}]' trains on {on}"
+                f"{'/'.join(k.value for k in kinds)}): {use} trains on {on}"
             )
 
         heads, grouped = lacking_lines([_who(f) for f in lacking], len(self.fabrics), noun, what)

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lookfeel.errors import LookfeelError
+from lookfeel.shell import set_flag
 
 __all__ = ["FEW_LACKING", "DatasetError", "Problem", "lacking_lines", "leave_out"]
 
@@ -101,7 +102,8 @@ def leave_out(what: str, held: Sequence[str], noun: str, one: bool) -> str:
     if not held:
         return f"; add {theirs} {what} items (no sense is held by every {noun})"
     views = list(held) if len(held) > 1 else [held[0], held[0]]
+    fix = set_flag(f"train.views=[{','.join(views)}]")
     return (
-        f"; every {noun} has {' and '.join(held)}: --set 'train.views=[{','.join(views)}]' "
+        f"; every {noun} has {' and '.join(held)}: {fix} "
         f"trains without {what}, or add {theirs} {what} items"
     )

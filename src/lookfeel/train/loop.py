@@ -49,7 +49,6 @@ from lookfeel.checkpoint import (
     save_checkpoint,
     touch_input_of,
 )
-from lookfeel.cli._args import shell_quote
 from lookfeel.config import ConfigError, RunConfig, from_dict, save_config, to_dict
 from lookfeel.config.model import Precision
 from lookfeel.data import (
@@ -87,6 +86,7 @@ from lookfeel.models import (
 from lookfeel.plugins import trained_with_hint
 from lookfeel.progress import bar, shown
 from lookfeel.provenance import plugin_modules_of, software_versions
+from lookfeel.shell import set_flag
 from lookfeel.train.distributed import Distributed
 from lookfeel.train.divergence import TrainingDiverged, diverged
 from lookfeel.train.features import FeatureTable
@@ -267,24 +267,24 @@ def _heads_fix(catalog: Catalog, asked: Sequence[str]) -> str:
         if len({k for f in catalog.fabrics if (k := f.class_of(c)) is not None}) >= 2
     ]
     heads = [c for c in asked if c in usable] or usable
-    none = "--set 'model.class_heads=[]'"
+    none = set_flag("model.class_heads=[]")
     if not heads:
         return f"no column of labels.csv has two classes or more to learn: {none} for no head"
-    setting = shell_quote(f"model.class_heads={_flow_list(heads)}")
-    return f"give the heads your labels have: --set {setting}, or {none} for none"
+    setting = set_flag(f"model.class_heads={_flow_list(heads)}")
+    return f"give the heads your labels have: {setting}, or {none} for none"
 
 
 def _flow_list(values: Sequence[str]) -> str:
-    """``[hardness,material]``: a YAML list that ``--set`` reads back as these strings (JSON's
-    quoted strings where a bare word would read as something else: ``true``, ``1e3``,
-    ``a: b``)."""
+    """``[hardness,material]``: a YAML list that ``--set`` reads back as these strings (YAML's
+    single-quoted strings where a bare word would read as something else: ``true``, ``1e3``,
+    ``a: b``; not JSON's double quotes, which a suggested ``--set "..."`` cannot hold)."""
     bare = "[" + ",".join(values) + "]"
     try:
         if yaml.safe_load(bare) == list(values):
             return bare
     except yaml.YAMLError:
         pass
-    return json.dumps(list(values), ensure_ascii=False)
+    return "[" + ",".join("'" + v.replace("'", "''") + "'" for v in values) + "]"
 
 
 def views_problem(catalog: Catalog, config: RunConfig) -> Problem | None:
@@ -309,7 +309,7 @@ def views_problem(catalog: Catalog, config: RunConfig) -> Problem | None:
         sets.append(f"train.val_pairs=[{','.join(kept)}]")
     asked = "[" + ", ".join(v.value for v in t.views) + "]"
     holds = " and ".join(m.value for m in have) + (" alone" if len(have) == 1 else "")
-    fix = " ".join(f"--set '{s}'" for s in sets)
+    fix = " ".join(set_flag(s) for s in sets)
     return Problem(
         catalog.root,
         f"the run's train.views {asked} use {' and '.join(m.value for m in absent)}, of which "
