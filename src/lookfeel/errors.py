@@ -14,6 +14,8 @@ import re
 import sys
 import types
 
+__all__ = ["LookfeelError", "caller_stacklevel", "error_line", "load_problem"]
+
 
 class LookfeelError(ValueError):
     """A user's data, file, option or config cannot be used; ``str(e)`` says which and why.

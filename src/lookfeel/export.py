@@ -230,7 +230,7 @@ def export_onnx(
         module = _BranchGraph(model.branch(m.value)).eval()  # eval: the exporter restores modes
         c = module.branch.in_channels
         size = loaded.config.data.size_of(m)
-        if m is Modality.TOUCH and loaded.config.data.video_embed == "views":
+        if m is Modality.TOUCH and loaded.config.data.video_embed == "views":  # press videos
             name, shape = "views", ["batch", "presses", "views", c, size, size]
             example = torch.rand(2, 2, 3, c, size, size, generator=gen)
             axes = {name: {0: "batch", 1: "presses", 2: "views"}, "embedding": {0: "batch"}}
@@ -238,7 +238,7 @@ def export_onnx(
                 torch.rand(1, 1, loaded.config.data.video_views + 1, c, size, size, generator=gen),
                 torch.rand(3, 2, 4, c, size, size, generator=gen),
             ]
-        elif m is Modality.TOUCH:
+        elif m.pooled:  # a press axis (`Modality.pooled`: touch)
             name, shape = "presses", ["batch", "presses", c, size, size]
             example = torch.rand(2, 3, c, size, size, generator=gen)
             axes = {name: {0: "batch", 1: "presses"}, "embedding": {0: "batch"}}

@@ -69,11 +69,13 @@ class Modality(str, Enum):
         True for touch only, whose input is ``DataConfig.presses`` presses: (B, P, C, H, W)
         into its branch (`Branch.pressed`), P items per training slot, queries pooling
         ``EvalConfig.presses`` presses. The model (`Branch`, `Embedder`'s input check, the
-        press-axis helpers), the training tuples and batches, and `evaluate`'s pooled queries
-        and candidates read it here. Still by touch's name: `evaluate`'s press curve
-        (``touch_to_*_presses{P}`` keys), `lookfeel match`'s query batch
-        (`lookfeel.index.query.query_batch`), the ONNX export and ``lookfeel cv``'s class-head
-        scores of held-out objects.
+        press-axis helpers), the training tuples and batches, `evaluate`'s pooled queries and
+        candidates, ``lookfeel cv``'s pooled queries and class-head scores of held-out objects,
+        `lookfeel match`'s query batch (`lookfeel.index.query.query_batch`) and the ONNX
+        export's ``presses`` input read it here. Still by touch's name: `evaluate`'s press
+        curve (``touch_to_*_presses{P}`` keys), and what is touch's own rather than the press
+        axis's (press videos, with the ONNX export's ``views`` input; the GelSight's
+        untouched-sensor control).
 
         Example:
             >>> Modality.TOUCH.pooled, Modality.DEPTH.pooled

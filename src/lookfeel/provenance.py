@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import platform
 
+__all__ = ["plugin_modules_of", "software_versions"]
+
 
 def software_versions() -> dict[str, str]:
     """``{"lookfeel": ..., "torch": ..., "python": ...}``, the versions running now."""

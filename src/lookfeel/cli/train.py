@@ -33,6 +33,8 @@ if TYPE_CHECKING:
     from lookfeel.config._core import Override
     from lookfeel.data.catalog import Catalog
 
+__all__ = ["RUN_FILES", "add_parser", "check_senses", "run", "validation_header"]
+
 
 def add_parser(subparsers: Subparsers) -> None:
     """Register ``train``."""

@@ -241,7 +241,7 @@ def _score(
         emb[m] = embed_items(lm.model, items, loader, flip=tta)
         pix[m] = raw_pixels(items, loader)
         fab[m] = np.array([it.fabric_id for it in items], dtype=np.int64)
-        if m is touch and pool is not None:
+        if m.pooled and pool is not None:
             held_touch = EmbeddedItems(m, emb[m], fab[m], tuple(items))
             queries[m] = press_queries(held_touch, presses, 0, pool)
             if not len(queries[m].fabric):
@@ -255,7 +255,7 @@ def _score(
             train_e = embed_items(lm.model, train_items, loader, flip=tta)
             train_pix = raw_pixels(train_items, loader)
             train[m] = (train_f, train_e, train_pix)  # the class probes fit on them too
-            if m is touch and pool is not None:
+            if m.pooled and pool is not None:
                 seen_touch = EmbeddedItems(m, train_e, train_f, tuple(train_items))
                 train_queries[m] = press_queries(seen_touch, presses, 0, pool)
             props[m.value] = {
@@ -399,9 +399,9 @@ def _classes(
             for fid in objects:
                 items = held.fabric(fid).items_of(m, kinds)
                 x = stack_views([loader.load_embedded(it) for it in items])
-                x = x.unsqueeze(0) if m is Modality.TOUCH else x
+                x = x.unsqueeze(0) if m.pooled else x  # a pooled modality's presses: one input
                 z = lm.model({m.value: x}, heads=True)[f"{m.value}/{CLASSES}"]
-                pooled.append(z.amax(0) if m is not Modality.TOUCH else z[0])
+                pooled.append(z[0] if m.pooled else z.amax(0))
         pooled_logits = torch.stack(pooled).split(cfg.class_sizes, dim=-1)
         fabrics = {f.id: f for f in catalog.fabrics}
         per: dict[str, Any] = {}

@@ -19,7 +19,7 @@ VIDEO_SUFFIXES = (".mov", ".mp4", ".avi", ".mkv", ".webm", ".m4v")
 """File suffixes read as videos (lower-case; the match ignores case): QuickTime and MP4 (``.m4v``
 is MP4), AVI, Matroska and WebM (a Matroska subset; VP8, VP9 or AV1 inside)."""
 
-__all__ = ["DEFAULT_MAX_PIXELS", "ImageError", "file_kind", "read_image_file"]
+__all__ = ["DEFAULT_MAX_PIXELS", "VIDEO_SUFFIXES", "ImageError", "file_kind", "read_image_file"]
 
 
 class ImageError(LookfeelError):

@@ -70,6 +70,9 @@ from lookfeel.processes import can_fork
 __all__ = [
     "CACHE_SETTINGS",
     "DEFAULT_MAX_PIXELS",
+    "GELSIGHT_SIZE",
+    "WALL_GAP_NONE",
+    "ArrayLoader",
     "BlankDepthWarning",
     "ImageError",
     "ImageLoader",
@@ -87,6 +90,7 @@ __all__ = [
     "read_image_file",
     "registered_to_unit",
     "stack_views",
+    "to_tensor",
 ]
 
 ImageFile.LOAD_TRUNCATED_IMAGES = False  # a truncated file must fail, never decode half-grey

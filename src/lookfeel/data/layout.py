@@ -41,6 +41,7 @@ from lookfeel.modality import REPRINTS, Modality, PressKind
 __all__ = [
     "FOLDER_ALIASES",
     "IMAGE_SUFFIXES",
+    "NOT_A_VIDEO_CONTAINER",
     "VIDEO_SUFFIXES",
     "duplicate_files",
     "folder_modality",

@@ -78,6 +78,7 @@ __all__ = [
     "STILL_TOUCH_REFUSED",
     "VIDEOS_ARE_TOUCH",
     "VIDEO_FOR_STILL_MODEL",
+    "QueryFiles",
     "bytes_frame_size",
     "check_touch_files",
     "check_touch_query",
@@ -421,11 +422,11 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> tor
     """Stack preprocessed images (`load_query_image`'s) into the model's input for one
     modality.
 
-    Depth and colour images are separate queries: (N, C, S, S). Touch images are the presses
-    of one query, pooled by the Multi-input Net: (1, P, C, S, S), or (1, P, V, C, S, S) when
-    presses come as V views each (a single image among them counts as every view); C is 3,
-    or 3 per frame with ``data.touch_frames`` (`lookfeel.config.DataConfig.touch_channels`:
-    9 for the default synthetic recipe).
+    Depth and colour images are separate queries: (N, C, S, S). Touch images (a
+    `Modality.pooled` modality's) are the presses of one query, pooled by the Multi-input Net:
+    (1, P, C, S, S), or (1, P, V, C, S, S) when presses come as V views each (a single image
+    among them counts as every view); C is 3, or 3 per frame with ``data.touch_frames``
+    (`lookfeel.config.DataConfig.touch_channels`: 9 for the default synthetic recipe).
 
     Raises:
         ModelInputError: no image given, an image that is not a (C, S, S) or (V, C, S, S)
@@ -459,7 +460,7 @@ def query_batch(images: Sequence[torch.Tensor], modality: Modality | str) -> tor
             "press videos must be read with one data.video_views"
         )
     x = stack_views(images)
-    if modality is Modality.TOUCH:
+    if modality.pooled:
         return x.unsqueeze(0)  # (P, C, S, S) -> (1, P, C, S, S)
     return x.contiguous(memory_format=torch.channels_last)
 

@@ -47,6 +47,7 @@ from lookfeel.metrics.properties import fit_ridge_multi
 from lookfeel.modality import Modality, Pair
 
 __all__ = [
+    "HUB_NEIGHBOURS",
     "MIN_FABRICS",
     "CrossMap",
     "LinearMap",

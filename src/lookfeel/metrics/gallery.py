@@ -28,6 +28,7 @@ __all__ = [
     "chance_median_rank",
     "chance_recall",
     "gallery_metrics",
+    "gallery_result_from",
 ]
 
 

@@ -25,7 +25,7 @@ from scipy.stats import rankdata
 
 from lookfeel.metrics.properties import fit_ridge, per_fabric_means
 
-__all__ = ["LabelSpace", "fit_label_space", "fit_label_spaces", "normal_scores"]
+__all__ = ["MIN_FABRICS", "LabelSpace", "fit_label_space", "fit_label_spaces", "normal_scores"]
 
 MIN_FABRICS = 3
 """A label column is mapped only when at least this many training fabrics have it."""

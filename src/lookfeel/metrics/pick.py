@@ -32,6 +32,9 @@ __all__ = [
     "n_effective",
     "pick_k_of_n_exact",
     "pick_k_of_n_sampled",
+    "pick_result_from",
+    "sampled_from",
+    "warn_if_short",
 ]
 
 

@@ -31,6 +31,7 @@ __all__ = [
     "MIN_SPEARMAN",
     "ProbeColumn",
     "fit_ridge",
+    "fit_ridge_multi",
     "knn_neighbours",
     "per_fabric_means",
     "probe_columns",

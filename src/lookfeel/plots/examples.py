@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from lookfeel.plots._figure import new_figure, style
 
-__all__ = ["PickRow", "pick_examples_figure"]
+__all__ = ["QUERY_COLOUR", "TRUE_COLOUR", "PickRow", "pick_examples_figure"]
 
 ROW_IN, TOP_IN, BOTTOM_IN = 1.6, 0.55, 0.45
 """Inches per row of images, above the first row (title), below the last (its labels)."""

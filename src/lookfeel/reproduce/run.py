@@ -99,7 +99,9 @@ __all__ = [
     "EXPERIMENT_NAMES",
     "Experiment",
     "ReproduceResult",
+    "config_dir",
     "experiment_overrides",
+    "headline",
     "reproduce",
     "split_overrides",
 ]

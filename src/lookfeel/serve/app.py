@@ -109,7 +109,14 @@ from lookfeel.index.query import VIDEOS_ARE_TOUCH, bytes_frame_size, orientation
 from lookfeel.modality import Modality
 from lookfeel.serve.reload import Served, ServedLibrary
 
-__all__ = ["ServeConfig", "ServeOptionError", "ServeOptions", "create_app", "public_message"]
+__all__ = [
+    "SECURITY_HEADERS",
+    "ServeConfig",
+    "ServeOptionError",
+    "ServeOptions",
+    "create_app",
+    "public_message",
+]
 
 _LOG = logging.getLogger("lookfeel.serve")
 """Where an unexpected error's traceback goes (`_InternalErrors`)."""

@@ -28,6 +28,7 @@ __all__ = [
     "POST_RADIUS_MM",
     "Camera",
     "background_depth",
+    "background_plane_index",
     "close_pinholes",
     "color_camera",
     "depth_camera",
