@@ -20,7 +20,7 @@ from pathlib import Path, PureWindowsPath
 
 import pytest
 
-from lookfeel.cli import _args
+from lookfeel import shell
 from lookfeel.cli._args import OutError, check_out_beside_data, path_flag, shell_quote
 from lookfeel.data import scan
 from lookfeel.data.paths import lies_within
@@ -215,7 +215,7 @@ def test_shell_quote_is_posix_quoting_off_windows():
 
 def test_shell_quote_on_windows_uses_double_quotes(monkeypatch):
     """QA: cmd.exe keeps single quotes as part of the argument."""
-    monkeypatch.setattr(_args, "_WINDOWS", True)
+    monkeypatch.setattr(shell, "WINDOWS", True)
     assert shell_quote("train.steps=3") == "train.steps=3"
     assert shell_quote(r"C:\My Weights\a.pth") == r'"C:\My Weights\a.pth"'
     assert shell_quote(r"C:\My Weights" + "\\") == r'"C:\My Weights\\"'

@@ -20,8 +20,7 @@ from typing import TYPE_CHECKING
 from lookfeel.config.model import EMBED_BATCH
 from lookfeel.errors import LookfeelError
 from lookfeel.modality import Modality, parse_modalities
-from lookfeel.shell import WINDOWS
-from lookfeel.shell import shell_quote as _shell_quote
+from lookfeel.shell import shell_quote
 
 if TYPE_CHECKING:
     from lookfeel.config._core import Override
@@ -412,18 +411,6 @@ def path_flag(key: str, flag: str, path: Path) -> Override:
     from lookfeel.config._core import Override
 
     return Override(key, os.path.abspath(path), f"{flag} {shell_quote(str(path))}")
-
-
-_WINDOWS = WINDOWS
-"""Whether commands are typed into Windows' cmd.exe or PowerShell (`shell_quote`; a test sets
-it to see Windows' quoting)."""
-
-
-def shell_quote(text: str) -> str:
-    """``text`` quoted for the shell of this system (`lookfeel.shell.shell_quote`, moved there
-    so that data, config and the workflows can quote what their messages suggest: this name
-    stays, reading `_WINDOWS`, for the commands' own use)."""
-    return _shell_quote(text, windows=_WINDOWS)
 
 
 def _sets_key(sets: list[str], key: str) -> bool:
