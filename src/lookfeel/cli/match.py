@@ -85,9 +85,7 @@ def _entry(result: object) -> dict[str, Any]:
     if isinstance(result, MatchResult):
         return {**dataclasses.asdict(result), "error": None}
     assert isinstance(result, MatchFailure)
-    blank = dict.fromkeys(f.name for f in dataclasses.fields(MatchResult))
-    empty: dict[str, Any] = {"fabrics": [], "properties": {}, "timing_ms": {}}
-    return {**blank, **empty, **dataclasses.asdict(result)}
+    return result.entry()
 
 
 def run(args: argparse.Namespace) -> int:

@@ -50,7 +50,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -432,6 +432,14 @@ class MatchFailure:
     """Why it is not matched, in one line naming the file: it is missing, a folder, not an
     image or video, cannot be decoded, is a still touch image for a model trained on press
     videos, or holds no press (every press of a touch query: one without is left out)."""
+
+    def entry(self) -> dict[str, Any]:
+        """This failure in a `MatchResult`'s shape, as ``lookfeel match --json`` and ``lookfeel
+        serve`` answer it: its files, modality and ``error``; the result's other keys null, or
+        empty where they are lists and mappings (``fabrics``, ``properties``, ``timing_ms``)."""
+        blank: dict[str, Any] = dict.fromkeys(f.name for f in fields(MatchResult))
+        blank.update(fabrics=[], properties={}, timing_ms={})
+        return blank | asdict(self)
 
 
 class Matcher:

@@ -98,6 +98,7 @@ from lookfeel.index import (
     LibraryError,
     LibraryItem,
     Matcher,
+    MatchFailure,
     MatchResult,
     PropertyEstimate,
     load_query_bytes,
@@ -521,10 +522,8 @@ class MatchEntry(BaseModel):
     @classmethod
     def failed(cls, name: str, modality: Modality, error: str) -> MatchEntry:
         """The entry of an uploaded file ``name`` that could not be matched, and why."""
-        entry: dict[str, Any] = dict.fromkeys(f.name for f in fields(MatchResult))
-        entry.update(fabrics=[], properties={}, timing_ms={}, path=name, paths=[name])
-        entry.update(query_modality=modality, error=public_message(error))
-        return cls(**entry)
+        failure = MatchFailure(name, [name], modality, public_message(error))
+        return cls(**failure.entry())
 
 
 class MatchResponse(BaseModel):
