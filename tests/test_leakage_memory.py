@@ -17,6 +17,7 @@ import pytest
 from lookfeel.config import DataConfig
 from lookfeel.data import leakage as leakage_module
 from lookfeel.data import scan
+from lookfeel.data import video as video_module
 from lookfeel.data.leakage import LeakageReport, leakage_report
 from lookfeel.data.video import difference_image, read_press
 
@@ -71,7 +72,7 @@ def test_a_press_pooled_in_bands_of_rows_is_the_whole_images_pooled(tmp_path, mo
     gain = DataConfig().video_gain
     # Bands of 2 pooling windows of 5 rows (the last band of 1, the 3 ragged rows dropped);
     # a press of another size, resized whole; pooling by 1; one band for the whole image.
-    monkeypatch.setattr(leakage_module, "_BAND_VALUES", 10 * 64 * 3)
+    monkeypatch.setattr(video_module, "_BAND_VALUES", 10 * 64 * 3)
     for shape, k in [((48, 64), 5), ((40, 50), 4), ((48, 64), 1), ((48, 64), 16), ((48, 64), 60)]:
         got = leakage_module._pool_press(press, gain, shape, k)
         for a, b in zip(got, _whole(press, gain, shape, k), strict=True):
@@ -86,7 +87,7 @@ def test_the_leak_report_of_presses_is_the_same_in_bands(tmp_path: Path, monkeyp
         return leakage_report(catalog, n_boot=50, pool=3)
 
     whole = report().to_dict()
-    monkeypatch.setattr(leakage_module, "_BAND_VALUES", 1)  # a pooling window of rows a band
+    monkeypatch.setattr(video_module, "_BAND_VALUES", 1)  # a pooling window of rows a band
     banded = report().to_dict()
     assert banded["modalities"]["touch"]["pooled_shape"] == [16, 21]
     assert banded["modalities"] == whole["modalities"]

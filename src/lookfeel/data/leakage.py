@@ -65,7 +65,14 @@ from lookfeel.data.catalog import Catalog, Item
 from lookfeel.data.check import size_problems
 from lookfeel.data.images import ImageError, decode_depth, decode_rgb, fill_holes
 from lookfeel.data.problems import DatasetError, Problem
-from lookfeel.data.video import NoPressError, Press, difference_image, is_video, read_press
+from lookfeel.data.video import (
+    NoPressError,
+    Press,
+    band_rows,
+    difference_image,
+    is_video,
+    read_press,
+)
 from lookfeel.errors import LookfeelError
 from lookfeel.metrics.bootstrap import bootstrap_ci
 from lookfeel.metrics.distances import pairwise_distances
@@ -524,11 +531,6 @@ def _too_few(fabric: NDArray[np.int64]) -> str | None:
     return None
 
 
-_BAND_VALUES = 1 << 18
-"""`_pool_press` makes a press's images in bands of rows of about this many values (1 MB of
-float32), as `lookfeel.data.video.difference_image` does: a 320x240 press is one band."""
-
-
 def _read_press(path: Path, config: DataConfig) -> Press:
     """The press of one video as the leak check scores it (module doc, point 5): the frame(s)
     ``config`` picks, raw, and the no-contact frame."""
@@ -550,11 +552,11 @@ def _pool_press(
     their difference from the no-contact frame as the models get it (``gain``); the no-contact
     frame. A press of another size than ``shape`` (the first one's) is resized to it first.
 
-    Each image is made and pooled a band of rows at a time (whole pooling windows, about
-    `_BAND_VALUES` values), so that a press costs its frames and its float32 no-contact frame,
-    not a full-size float32 copy of each image: a 4K press's were 100 MB each. Each pooled
-    pixel is the mean of the same values as pooling the whole image gives, in the same order,
-    so the numbers are the same.
+    Each image is made and pooled a band of rows at a time (whole pooling windows,
+    `lookfeel.data.video.band_rows`), so that a press costs its frames and its float32
+    no-contact frame, not a full-size float32 copy of each image: a 4K press's were 100 MB
+    each. Each pooled pixel is the mean of the same values as pooling the whole image gives,
+    in the same order, so the numbers are the same.
     """
     images, reference = press.images, press.reference
 
@@ -573,7 +575,7 @@ def _pool_press(
         p, i, u = (_pool(_resize(make(slice(None)), shape), k) for make in made)
         return p, i, u
     used = shape[0] // k * k  # the rows pooling keeps (it drops the ragged edge)
-    step = k * max(1, _BAND_VALUES // max(1, k * reference[:1].size))
+    step = band_rows(reference[:1].size, k)
     bands = [slice(top, min(top + step, used)) for top in range(0, used, step)] or [slice(0, 0)]
     p, i, u = (np.concatenate([_pool(make(rows), k) for rows in bands]) for make in made)
     return p, i, u

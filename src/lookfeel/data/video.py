@@ -83,6 +83,7 @@ __all__ = [
     "TruncatedVideoWarning",
     "TwoPressesWarning",
     "VideoError",
+    "band_rows",
     "contact_frames",
     "deep_frames",
     "detect_press",
@@ -1006,7 +1007,14 @@ def difference_image(
 
 _BAND_VALUES = 1 << 18
 """`difference_image` and `_colourless` work on bands of rows of about this many values (1 MB
-of float32): a GelSight Mini's 320x240 frame is one band, a 4K frame about 100."""
+of float32), and so does the leak check's pooling (`band_rows`): a GelSight Mini's 320x240
+frame is one band, a 4K frame about 100."""
+
+
+def band_rows(row_values: int, multiple: int = 1) -> int:
+    """How many rows of ``row_values`` values each make a band of about `_BAND_VALUES` values:
+    a whole number of ``multiple`` rows (a pooling window's height), at least one of them."""
+    return multiple * max(1, _BAND_VALUES // max(1, multiple * row_values))
 
 
 def _difference(frame: np.ndarray, reference: np.ndarray, gain: float) -> np.ndarray:
@@ -1024,7 +1032,7 @@ def _difference_into(
 ) -> None:
     """Write `difference_image` of ``frame`` (its shape ``out``'s) into ``out``, a band of rows
     at a time: each pixel is computed as `_difference` computes it, so the bytes are the same."""
-    rows = max(1, _BAND_VALUES // max(1, frame[:1].size))
+    rows = band_rows(frame[:1].size)
     whole = np.ndim(reference) == frame.ndim and np.shape(reference)[0] == len(frame)
     for top in range(0, len(frame), rows):
         band = slice(top, top + rows)
@@ -1055,7 +1063,7 @@ def _colourless(rgb: np.ndarray) -> bool:
             np.abs(a[..., 0] - g).max(initial=0) <= 2 and np.abs(a[..., 2] - g).max(initial=0) <= 2
         )
 
-    rows = max(1, _BAND_VALUES // max(1, rgb[:1].size))
+    rows = band_rows(rgb[:1].size)
     return within(rgb[::8, ::8]) and all(
         within(rgb[top : top + rows]) for top in range(0, len(rgb), rows)
     )
